@@ -1,0 +1,1 @@
+//! The complementarity problem of the normal impulse shares (being written).

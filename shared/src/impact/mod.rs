@@ -1,0 +1,35 @@
+//! The impact model: impacts at one or several points at once, with per-contact
+//! restitution and Coulomb friction (the reference paper, `../shared/paper/`).
+//!
+//! Layers, from numerics to mechanics:
+//! - [`problem`]: the impact problem in contact coordinates: the Delassus matrix
+//!   `W = J M^-1 J^T`, pre-impact contact velocities, per-contact laws. A plain
+//!   struct that can be dumped and solved on its own.
+//! - [`solver`]: Darboux-Keller integration in impulse space, piecewise exactly,
+//!   with events where a slip stops, sticks or reverses, and where compression and
+//!   restitution end.
+//! - [`lcp`] and [`linalg`]: the small dense linear algebra and the complementarity
+//!   problem that shares the normal impulse between contacts.
+//! - [`outcome`]: what an impact did at every contact: impulses by phase, the paper's
+//!   seven interaction cases, the slip/stick history, warnings.
+//! - [`body`]: one rigid body in plane motion, free or pinned at a pivot, turned into
+//!   an impact problem and back (the paper's Fig. 5 and Fig. 7 bodies).
+
+pub mod body;
+pub mod lcp;
+pub mod linalg;
+pub mod outcome;
+pub mod problem;
+pub mod solver;
+
+pub use body::{solve_body, BodyContact, BodyImpact, PivotImpulse, PlanarBody};
+pub use outcome::{
+    ContactOutcome, ImpactOutcome, InteractionCase, Phase, Segment, SlipState, Warnings,
+};
+pub use problem::{ContactLaw, ImpactLaw, ImpactProblem};
+pub use solver::{solve, ImpactError};
+
+/// Most contacts one impact problem can hold.
+pub const MAX_CONTACTS: usize = 8;
+/// Most history segments recorded per contact.
+pub const MAX_SEGMENTS: usize = 16;

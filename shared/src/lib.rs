@@ -1,0 +1,15 @@
+//! `shared`: the `no_std`, heap-free core of the vibro driver.
+//!
+//! The same code runs on the STM32F405 firmware (in `f32`) and in the host
+//! simulator (in `f64`):
+//! - [`impact`]: the impact model of the reference paper (simultaneous impacts at
+//!   several points with restitution and Coulomb friction), integrated in impulse
+//!   space piecewise exactly;
+//! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
+#![no_std]
+#![warn(missing_docs)]
+
+pub mod impact;
+pub mod real;
+
+pub use real::Real;
