@@ -106,7 +106,11 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
         let mut j_t = [[T::ZERO; 3]; N];
         let mut normal = [[T::ZERO; 2]; N];
         let inv_mass = match pivot {
-            None => [T::ONE / body.mass, T::ONE / body.mass, T::ONE / body.inertia],
+            None => [
+                T::ONE / body.mass,
+                T::ONE / body.mass,
+                T::ONE / body.inertia,
+            ],
             Some(o) => {
                 let oc = [body.position[0] - o[0], body.position[1] - o[1]];
                 let j_o = body.inertia + body.mass * (oc[0] * oc[0] + oc[1] * oc[1]);
@@ -263,4 +267,102 @@ pub fn solve_body<T: Real, const N: usize>(
         kinetic_energy_after: energy(v1, omega1),
         outcome,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::impact::InteractionCase;
+
+    /// The paper's Fig. 5 body: pinned at O = 0, contact K = (-d, h), n = +x.
+    fn fig5(h: f64, d: f64, f: f64, r: f64) -> (BodyImpact<f64, 8>, f64, f64) {
+        let (m, jc, c, omega0) = (2.0, 0.05, [0.3, 0.1], 5.0);
+        let body = PlanarBody {
+            mass: m,
+            inertia: jc,
+            position: c,
+            velocity: [0.0, 0.0],
+            angular_velocity: omega0,
+        };
+        let contact = BodyContact {
+            point: [-d, h],
+            normal: [1.0, 0.0],
+            law: ContactLaw {
+                restitution: r,
+                friction: f,
+                weight: 1.0,
+            },
+        };
+        let jo = jc + m * (c[0] * c[0] + c[1] * c[1]);
+        let out =
+            solve_body::<f64, 8>(&body, Some([0.0, 0.0]), &[contact], ImpactLaw::Poisson).unwrap();
+        (out, jo, omega0)
+    }
+
+    #[test]
+    fn fig5_springing_back_matches_eq5() {
+        let (h, d, f, r) = (0.25, 0.4, 0.3, 0.6);
+        let (out, jo, w0) = fig5(h, d, f, r);
+        // Eq. (5): omega_2 = R omega_0 (d f - h) / (h + f d), SNI = JO omega_0 / (h + f d).
+        let omega2 = r * w0 * (d * f - h) / (h + f * d);
+        let sni = jo * w0 / (h + f * d);
+        let k = &out.outcome.contacts[0];
+        assert!((out.angular_velocity_after - omega2).abs() < 1e-12 * w0);
+        assert!((k.compression[0] - sni).abs() < 1e-12 * sni);
+        assert!((k.compression[1] - f * sni).abs() < 1e-12 * sni);
+        assert!((k.restitution[1] + f * r * sni).abs() < 1e-12 * sni);
+        assert_eq!(k.case, InteractionCase::ReversalInRestitution);
+        assert!(
+            out.outcome.warnings.is_empty(),
+            "{:?}",
+            out.outcome.warnings
+        );
+    }
+
+    #[test]
+    fn fig5_jammed_sticks_in_restitution() {
+        let (h, d, f, r) = (0.1, 0.4, 0.5, 0.6);
+        let (out, jo, w0) = fig5(h, d, f, r);
+        let sni = jo * w0 / (h + f * d);
+        let k = &out.outcome.contacts[0];
+        assert!(out.angular_velocity_after.abs() < 1e-12 * w0);
+        // Stuck in restitution: moment about O vanishes, P_t = -h/d P_n.
+        assert!((k.restitution[0] - r * sni).abs() < 1e-12 * sni);
+        assert!((k.restitution[1] + h / d * r * sni).abs() < 1e-12 * sni);
+        assert_eq!(k.case, InteractionCase::StickInRestitution);
+        assert!(out
+            .outcome
+            .warnings
+            .contains(crate::impact::Warnings::JAMMING));
+    }
+
+    #[test]
+    fn fig7_shares_by_eq9() {
+        let l = [0.2, 0.5, 0.9];
+        let rs = [0.2, 0.5, 0.8];
+        let body = PlanarBody {
+            mass: 1.5,
+            inertia: 0.04,
+            position: [0.3, 0.05],
+            velocity: [0.0, 0.0],
+            angular_velocity: 3.0,
+        };
+        let contacts: [BodyContact<f64>; 3] = core::array::from_fn(|i| BodyContact {
+            point: [l[i], 0.0],
+            normal: [0.0, -1.0],
+            law: ContactLaw {
+                restitution: rs[i],
+                friction: 0.4,
+                weight: 1.0,
+            },
+        });
+        let out =
+            solve_body::<f64, 8>(&body, Some([0.0, 0.0]), &contacts, ImpactLaw::Poisson).unwrap();
+        let s2: f64 = l.iter().map(|x| x * x).sum();
+        let rl2: f64 = (0..3).map(|i| rs[i] * l[i] * l[i]).sum();
+        assert!((out.angular_velocity_after + 3.0 * rl2 / s2).abs() < 1e-12);
+        let c = &out.outcome.contacts;
+        assert!((c[0].compression[0] / c[2].compression[0] - l[0] / l[2]).abs() < 1e-12);
+        assert_eq!(c[1].case, InteractionCase::NoSlip);
+    }
 }

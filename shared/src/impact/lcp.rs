@@ -1,1 +1,435 @@
-//! The complementarity problem of the normal impulse shares (being written).
+//! The direction of one piece of the impulse path: which contacts take normal
+//! impulse, in what proportion, and the friction state of each.
+//!
+//! Along a piece the impulses grow linearly in a path parameter `lambda`:
+//! `P(lambda) = P0 + lambda (x, y)`, so the contact velocities change by
+//! `lambda W (x, y)` (Darboux-Keller in impulse space; Stronge 2000, ch. 5).
+//! Two rules fix the normal rates `x`:
+//!
+//! - [`NormalRule::Target`]: the proportion that brings every active contact's
+//!   normal velocity to its target `g` at `lambda = 1` (compression: `g = 0`, the
+//!   paper's hypothesis that the impacts end together; Newton's restitution:
+//!   `g = -R u_n0`). Contacts whose share would be negative are released, which
+//!   makes it a linear complementarity problem:
+//!   `x >= 0, v = u_n + (W_eff x) - g >= 0, x . v = 0`,
+//!   solved by enumerating active sets (at most 2^8), largest first.
+//! - [`NormalRule::Fixed`]: `x` given (Poisson's and Stronge's restitution).
+//!
+//! Friction (Coulomb): a slipping contact's tangential rate is `y = -mu s x`; a
+//! sticking one's `y` is whatever holds its tangential velocity, if
+//! `|y| <= mu x`. For a contact at zero slip the states stick, slip+, slip- are
+//! tried in that order; a slip state is consistent when the tangential velocity
+//! then moves in its direction. Where the equations leave the impulses
+//! undetermined (a singular Delassus matrix), the weighted minimum-norm solution
+//! with the contacts' weights is taken ([`super::linalg`]).
+
+use super::linalg::{solve_weighted, Matrix, Solved, Vector, DIM};
+use super::outcome::SlipState;
+use super::problem::ImpactProblem;
+use crate::real::Real;
+
+/// Most candidate (active set, friction states) pairs tried for one direction.
+const CANDIDATE_BUDGET: u32 = 20_000;
+
+/// Tolerances of one impact, scaled to its velocities and impulses.
+#[derive(Clone, Copy, Debug)]
+pub struct Tolerances<T> {
+    /// Velocities, m/s.
+    pub velocity: T,
+    /// Impulses, N s.
+    pub impulse: T,
+}
+
+/// How the normal impulse rates of a piece are chosen.
+#[derive(Clone, Copy, Debug)]
+pub enum NormalRule<'a, T, const N: usize> {
+    /// Complementarity toward these normal velocities at `lambda = 1`.
+    Target(&'a [T; N]),
+    /// These normal rates.
+    Fixed(&'a [T; N]),
+}
+
+/// The rates of one piece.
+#[derive(Clone, Copy, Debug)]
+pub struct Direction<T, const N: usize> {
+    /// Normal impulse rates, N s per unit `lambda` (>= 0).
+    pub x: [T; N],
+    /// Tangential impulse rates.
+    pub y: [T; N],
+    /// Normal velocity rates `W_nn x + W_nt y`.
+    pub du_n: [T; N],
+    /// Tangential velocity rates `W_tn x + W_tt y`.
+    pub du_t: [T; N],
+    /// Friction state of each contact taking normal impulse.
+    pub mode: [SlipState; N],
+    /// The target is reached at `lambda = 1` (false for a fixed rule, and for the
+    /// fallback where no complementary proportion exists).
+    pub ends_at_one: bool,
+    /// A consistent set of states was found.
+    pub consistent: bool,
+}
+
+/// A candidate being assembled: active contacts and friction states.
+struct Candidate<const N: usize> {
+    active: [bool; N],
+    mode: [SlipState; N],
+}
+
+/// Finds the direction of the next piece from the current contact velocities.
+pub fn find_direction<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    rule: NormalRule<'_, T, N>,
+    tol: &Tolerances<T>,
+) -> Direction<T, N> {
+    let mut budget = CANDIDATE_BUDGET;
+    match rule {
+        NormalRule::Fixed(x) => fixed_direction(p, u_n, u_t, x, tol, &mut budget),
+        NormalRule::Target(g) => {
+            if let Some(d) = complementary_direction(p, u_n, u_t, g, tol, &mut budget) {
+                return d;
+            }
+            // No complementary proportion (jamming: a slipping contact whose normal
+            // velocity falls under its own impulse). Push every contact that is
+            // short of its target in proportion to its weight until a friction
+            // event changes the states.
+            let mut x = [T::ZERO; N];
+            for i in 0..p.len {
+                if u_n[i] < g[i] - tol.velocity {
+                    x[i] = p.contacts[i].weight;
+                }
+            }
+            let mut budget = CANDIDATE_BUDGET;
+            let mut d = fixed_direction(p, u_n, u_t, &x, tol, &mut budget);
+            d.ends_at_one = false;
+            d
+        }
+    }
+}
+
+/// The friction state a contact's tangential velocity imposes, or `None` at zero
+/// slip (to be chosen).
+fn kinematic_state<T: Real>(u_t: T, tol: T) -> Option<SlipState> {
+    if u_t > tol {
+        Some(SlipState::SlipPositive)
+    } else if u_t < -tol {
+        Some(SlipState::SlipNegative)
+    } else {
+        None
+    }
+}
+
+/// The complementarity problem of a `Target` rule, by enumeration of active sets
+/// from the largest. Returns `None` when no consistent solution exists.
+fn complementary_direction<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    g: &[T; N],
+    tol: &Tolerances<T>,
+    budget: &mut u32,
+) -> Option<Direction<T, N>> {
+    let n = p.len;
+    for size in (0..=n).rev() {
+        let mut best: Option<(T, Direction<T, N>)> = None;
+        for mask in 0u32..(1u32 << n) {
+            if mask.count_ones() as usize != size {
+                continue;
+            }
+            let mut active = [false; N];
+            for (i, a) in active.iter_mut().enumerate().take(n) {
+                *a = mask & (1 << i) != 0;
+            }
+            let Some((score, d, how)) =
+                first_consistent_states(p, u_n, u_t, &active, Some(g), None, tol, budget)
+            else {
+                if *budget == 0 {
+                    return None;
+                }
+                continue;
+            };
+            // A unique solution of a full-rank system is the answer; where the
+            // system was singular, keep the weighted minimum norm of this size.
+            if how == Solved::Unique && best.is_none() {
+                return Some(d);
+            }
+            if best.as_ref().is_none_or(|(s, _)| score < *s) {
+                best = Some((score, d));
+            }
+        }
+        if let Some((_, d)) = best {
+            return Some(d);
+        }
+    }
+    None
+}
+
+/// The direction of a `Fixed` rule: friction states only.
+fn fixed_direction<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    x: &[T; N],
+    tol: &Tolerances<T>,
+    budget: &mut u32,
+) -> Direction<T, N> {
+    let mut active = [false; N];
+    for i in 0..p.len {
+        active[i] = x[i] > T::ZERO;
+    }
+    if let Some((_, d, _)) =
+        first_consistent_states(p, u_n, u_t, &active, None, Some(x), tol, budget)
+    {
+        return d;
+    }
+    // No consistent friction states: take every undecided contact as sticking,
+    // with its force clipped to the cone (the closest admissible), and say so.
+    let mut cand = Candidate {
+        active,
+        mode: [SlipState::Stick; N],
+    };
+    for i in 0..p.len {
+        if let Some(s) = kinematic_state(u_t[i], tol.velocity) {
+            cand.mode[i] = s;
+        }
+    }
+    let mut d = match evaluate(p, u_n, u_t, &cand, None, Some(x)) {
+        Some((_, d, _)) => d,
+        None => zero_direction(p, x),
+    };
+    for i in 0..p.len {
+        if cand.mode[i] == SlipState::Stick {
+            let limit = p.contacts[i].friction * d.x[i];
+            d.y[i] = d.y[i].max(-limit).min(limit);
+        }
+    }
+    let (du_n, du_t) = p.velocity_change(&d.x, &d.y);
+    d.du_n = du_n;
+    d.du_t = du_t;
+    d.consistent = false;
+    d
+}
+
+/// A direction with normal rates `x` and no friction.
+fn zero_direction<T: Real, const N: usize>(p: &ImpactProblem<T, N>, x: &[T; N]) -> Direction<T, N> {
+    let y = [T::ZERO; N];
+    let (du_n, du_t) = p.velocity_change(x, &y);
+    Direction {
+        x: *x,
+        y,
+        du_n,
+        du_t,
+        mode: [SlipState::Stick; N],
+        ends_at_one: false,
+        consistent: false,
+    }
+}
+
+/// For one active set, tries the friction states of the contacts at zero slip
+/// (stick first) and returns the first consistent solution with its weighted norm.
+#[allow(clippy::too_many_arguments)]
+fn first_consistent_states<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    active: &[bool; N],
+    target: Option<&[T; N]>,
+    fixed: Option<&[T; N]>,
+    tol: &Tolerances<T>,
+    budget: &mut u32,
+) -> Option<(T, Direction<T, N>, Solved)> {
+    let n = p.len;
+    let mut cand = Candidate {
+        active: *active,
+        mode: [SlipState::Stick; N],
+    };
+    let mut undecided = [0usize; N];
+    let mut count = 0;
+    for i in 0..n {
+        match kinematic_state(u_t[i], tol.velocity) {
+            Some(s) => cand.mode[i] = s,
+            None if active[i] => {
+                undecided[count] = i;
+                count += 1;
+            }
+            None => {}
+        }
+    }
+    let combos = 3u32.pow(count as u32);
+    for code in 0..combos {
+        if *budget == 0 {
+            return None;
+        }
+        *budget -= 1;
+        let mut c = code;
+        for &i in undecided.iter().take(count) {
+            cand.mode[i] = match c % 3 {
+                0 => SlipState::Stick,
+                1 => SlipState::SlipPositive,
+                _ => SlipState::SlipNegative,
+            };
+            c /= 3;
+        }
+        let Some((score, d, how)) = evaluate(p, u_n, u_t, &cand, target, fixed) else {
+            continue;
+        };
+        if admissible(p, u_n, u_t, &cand, target, &d, tol) {
+            return Some((score, d, how));
+        }
+    }
+    None
+}
+
+/// Solves the equations of one candidate. Unknowns: the normal rates of the active
+/// contacts (unless fixed), then the tangential rates of the sticking ones.
+fn evaluate<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    cand: &Candidate<N>,
+    target: Option<&[T; N]>,
+    fixed: Option<&[T; N]>,
+) -> Option<(T, Direction<T, N>, Solved)> {
+    let n = p.len;
+    // Index lists: normal unknowns (when not fixed) and stick unknowns.
+    let mut xs = [0usize; N];
+    let mut nx = 0;
+    let mut ks = [0usize; N];
+    let mut nk = 0;
+    for i in 0..n {
+        if !cand.active[i] {
+            continue;
+        }
+        if fixed.is_none() {
+            xs[nx] = i;
+            nx += 1;
+        }
+        if cand.mode[i] == SlipState::Stick {
+            ks[nk] = i;
+            nk += 1;
+        }
+    }
+    // Friction coupling of a slipping contact j: y_j = -mu_j s_j x_j.
+    let slip_coeff = |j: usize| -> T {
+        match cand.mode[j] {
+            SlipState::Stick => T::ZERO,
+            s => -p.contacts[j].friction * s.sign::<T>(),
+        }
+    };
+    let w_tn = |k: usize, j: usize| p.w_nt[j][k];
+
+    let mut a: Matrix<T> = [[T::ZERO; DIM]; DIM];
+    let mut b: Vector<T> = [T::ZERO; DIM];
+    let mut wts: Vector<T> = [T::ONE; DIM];
+    // Known part of the rates from fixed normal impulses.
+    let fixed_x = fixed.copied().unwrap_or([T::ZERO; N]);
+    // Normal rows: (W_nn + W_nt S) x + W_nt,K y_K = g - u_n.
+    for (r, &i) in xs.iter().enumerate().take(nx) {
+        for (c, &j) in xs.iter().enumerate().take(nx) {
+            a[r][c] = p.w_nn[i][j] + p.w_nt[i][j] * slip_coeff(j);
+        }
+        for (q, &k) in ks.iter().enumerate().take(nk) {
+            a[r][nx + q] = p.w_nt[i][k];
+        }
+        let g = target.map_or(T::ZERO, |g| g[i]);
+        b[r] = g - u_n[i];
+        wts[r] = p.contacts[i].weight;
+    }
+    // Stick rows: (W_tn + W_tt S) x + W_tt,KK y_K = -u_t.
+    for (q, &k) in ks.iter().enumerate().take(nk) {
+        let r = nx + q;
+        for (c, &j) in xs.iter().enumerate().take(nx) {
+            a[r][c] = w_tn(k, j) + p.w_tt[k][j] * slip_coeff(j);
+        }
+        for (q2, &k2) in ks.iter().enumerate().take(nk) {
+            a[r][nx + q2] = p.w_tt[k][k2];
+        }
+        let mut rhs = -u_t[k];
+        for j in 0..n {
+            if fixed_x[j] != T::ZERO {
+                rhs -= (w_tn(k, j) + p.w_tt[k][j] * slip_coeff(j)) * fixed_x[j];
+            }
+        }
+        b[r] = rhs;
+        wts[r] = p.contacts[k].weight;
+    }
+    let (sol, how) = solve_weighted(&a, &b, &wts, nx + nk)?;
+
+    // Assemble the full rates.
+    let mut x = fixed_x;
+    for (r, &i) in xs.iter().enumerate().take(nx) {
+        x[i] = sol[r];
+    }
+    let mut y = [T::ZERO; N];
+    for j in 0..n {
+        if cand.active[j] {
+            y[j] = slip_coeff(j) * x[j];
+        }
+    }
+    for (q, &k) in ks.iter().enumerate().take(nk) {
+        y[k] = sol[nx + q];
+    }
+    let mut score = T::ZERO;
+    for i in 0..n {
+        if cand.active[i] {
+            let w = p.contacts[i].weight;
+            score += (x[i] * x[i] + y[i] * y[i]) / w;
+        }
+    }
+    let (du_n, du_t) = p.velocity_change(&x, &y);
+    let _ = u_n;
+    Some((
+        score,
+        Direction {
+            x,
+            y,
+            du_n,
+            du_t,
+            mode: cand.mode,
+            ends_at_one: target.is_some(),
+            consistent: true,
+        },
+        how,
+    ))
+}
+
+/// Checks a candidate's solution: non-negative normal rates, released contacts
+/// reaching their targets, sticking forces inside the cone, slips moving their way.
+fn admissible<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    cand: &Candidate<N>,
+    target: Option<&[T; N]>,
+    d: &Direction<T, N>,
+    tol: &Tolerances<T>,
+) -> bool {
+    for i in 0..p.len {
+        if cand.active[i] {
+            if d.x[i] < -tol.impulse {
+                return false;
+            }
+            match cand.mode[i] {
+                SlipState::Stick => {
+                    if d.y[i].abs() > p.contacts[i].friction * d.x[i].max(T::ZERO) + tol.impulse {
+                        return false;
+                    }
+                }
+                s => {
+                    // A contact at zero slip may slip only the way it then moves.
+                    if kinematic_state(u_t[i], tol.velocity).is_none()
+                        && s.sign::<T>() * d.du_t[i] < -tol.velocity
+                    {
+                        return false;
+                    }
+                }
+            }
+        } else if let Some(g) = target {
+            if u_n[i] + d.du_n[i] < g[i] - tol.velocity {
+                return false;
+            }
+        }
+    }
+    true
+}
