@@ -77,7 +77,7 @@ pub fn solve_weighted<T: Real>(
         for j in 0..n {
             r += a[i][j] * x[j];
         }
-        if !(r.abs() <= tol) {
+        if r.abs() > tol || !r.is_finite() {
             return None;
         }
     }
@@ -123,7 +123,7 @@ fn lu_full_pivot<T: Real>(
                 }
             }
         }
-        if !(best > tol) {
+        if best <= tol || !best.is_finite() {
             return false;
         }
         m.swap(k, pr);
@@ -210,7 +210,7 @@ fn minimum_norm<T: Real>(
                 best = i;
             }
         }
-        if !(best_d > tol) {
+        if best_d <= tol || !best_d.is_finite() {
             break;
         }
         perm.swap(k, best);
