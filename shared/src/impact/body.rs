@@ -140,6 +140,32 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
         }
     }
 
+    /// The impact problem: `W = J M^-1 J^T`, `u = J q'`.
+    fn problem(
+        &self,
+        v0: [T; 2],
+        omega0: T,
+        contacts: &[BodyContact<T>],
+        law: ImpactLaw,
+    ) -> ImpactProblem<T, N> {
+        let q0 = [v0[0], v0[1], omega0];
+        let len = contacts.len().min(N);
+        let mut problem = ImpactProblem::<T, N>::new(law);
+        problem.len = len;
+        for i in 0..len {
+            for j in 0..len {
+                problem.w_nn[i][j] = self.coupling(&self.j_n[i], &self.j_n[j]);
+                problem.w_nt[i][j] = self.coupling(&self.j_n[i], &self.j_t[j]);
+                problem.w_tt[i][j] = self.coupling(&self.j_t[i], &self.j_t[j]);
+            }
+            let dot = |row: &[T; 3]| row[0] * q0[0] + row[1] * q0[1] + row[2] * q0[2];
+            problem.u_n[i] = dot(&self.j_n[i]);
+            problem.u_t[i] = dot(&self.j_t[i]);
+            problem.contacts[i] = contacts[i].law;
+        }
+        problem
+    }
+
     /// `a M^-1 b^T` for two Jacobian rows.
     fn coupling(&self, a: &[T; 3], b: &[T; 3]) -> T {
         a[0] * b[0] * self.inv_mass[0]
@@ -170,6 +196,30 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     }
 }
 
+/// The velocity of C and the angular velocity before the impact (pinned: the
+/// velocity of C is `omega x (C - O)`).
+fn velocities_before<T: Real>(body: &PlanarBody<T>, pivot: Option<[T; 2]>) -> ([T; 2], T) {
+    let omega0 = body.angular_velocity;
+    let v0 = match pivot {
+        None => body.velocity,
+        Some(o) => spin(omega0, [body.position[0] - o[0], body.position[1] - o[1]]),
+    };
+    (v0, omega0)
+}
+
+/// The impact problem of a body (pinned at `pivot` if given) at `contacts`:
+/// `W = J M^-1 J^T` and `u = J q'`. At most `N` contacts are used.
+pub fn body_problem<T: Real, const N: usize>(
+    body: &PlanarBody<T>,
+    pivot: Option<[T; 2]>,
+    contacts: &[BodyContact<T>],
+    law: ImpactLaw,
+) -> ImpactProblem<T, N> {
+    let kin = Kinematics::<T, N>::new(body, pivot, contacts);
+    let (v0, omega0) = velocities_before(body, pivot);
+    kin.problem(v0, omega0, contacts, law)
+}
+
 /// Solves the impact of `body` (pinned at `pivot` if given) at `contacts` under
 /// `law`. At most `N` contacts are used; contact normals need not be unit length.
 pub fn solve_body<T: Real, const N: usize>(
@@ -183,29 +233,8 @@ pub fn solve_body<T: Real, const N: usize>(
     }
     let kin = Kinematics::<T, N>::new(body, pivot, contacts);
     let len = contacts.len();
-
-    // Velocities before: q' = (v_C, omega); pinned, v_C = omega x (C - O).
-    let omega0 = body.angular_velocity;
-    let v0 = match pivot {
-        None => body.velocity,
-        Some(o) => spin(omega0, [body.position[0] - o[0], body.position[1] - o[1]]),
-    };
-    let q0 = [v0[0], v0[1], omega0];
-
-    // The impact problem: W = J M^-1 J^T, u = J q'.
-    let mut problem = ImpactProblem::<T, N>::new(law);
-    problem.len = len;
-    for i in 0..len {
-        for j in 0..len {
-            problem.w_nn[i][j] = kin.coupling(&kin.j_n[i], &kin.j_n[j]);
-            problem.w_nt[i][j] = kin.coupling(&kin.j_n[i], &kin.j_t[j]);
-            problem.w_tt[i][j] = kin.coupling(&kin.j_t[i], &kin.j_t[j]);
-        }
-        let dot = |row: &[T; 3]| row[0] * q0[0] + row[1] * q0[1] + row[2] * q0[2];
-        problem.u_n[i] = dot(&kin.j_n[i]);
-        problem.u_t[i] = dot(&kin.j_t[i]);
-        problem.contacts[i] = contacts[i].law;
-    }
+    let (v0, omega0) = velocities_before(body, pivot);
+    let problem = kin.problem(v0, omega0, contacts, law);
     let outcome = solve(&problem)?;
 
     // Velocities after the whole impact and after compression: q'+ = q'- + M^-1 J^T P.

@@ -28,9 +28,7 @@ pub type Vector<T> = [T; DIM];
 /// (3.7e-11 in `f64`, 2.4e-5 in `f32`), well above the rounding of a Delassus
 /// matrix built from exact geometry and well below any physical coupling.
 pub fn rank_tolerance<T: Real>() -> T {
-    // eps^(2/3) = (eps^(1/3))^2.
-    let eps = T::EPSILON.to_f64();
-    T::from_f64(libm::cbrt(eps) * libm::cbrt(eps))
+    T::RANK_TOLERANCE
 }
 
 /// How a system was solved.
@@ -278,6 +276,12 @@ mod tests {
         let mut out = [0.0; DIM];
         out[..v.len()].copy_from_slice(v);
         out
+    }
+
+    #[test]
+    fn rank_tolerance_is_eps_to_two_thirds() {
+        assert!((f64::RANK_TOLERANCE / f64::EPSILON.powf(2.0 / 3.0) - 1.0).abs() < 1e-12);
+        assert!((f32::RANK_TOLERANCE / f32::EPSILON.powf(2.0 / 3.0) - 1.0).abs() < 1e-6);
     }
 
     #[test]

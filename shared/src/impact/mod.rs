@@ -22,7 +22,7 @@ pub mod outcome;
 pub mod problem;
 pub mod solver;
 
-pub use body::{solve_body, BodyContact, BodyImpact, PivotImpulse, PlanarBody};
+pub use body::{body_problem, solve_body, BodyContact, BodyImpact, PivotImpulse, PlanarBody};
 pub use outcome::{
     ContactOutcome, ImpactOutcome, InteractionCase, Phase, Segment, SlipState, Warnings,
 };

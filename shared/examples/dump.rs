@@ -1,0 +1,46 @@
+use shared::impact::*;
+fn main() {
+    let body = PlanarBody {
+        mass: 2.0,
+        inertia: 7.3e-3,
+        position: [0.0, 0.03],
+        velocity: [0.4, -1.0],
+        angular_velocity: 0.5,
+    };
+    let feet = [
+        (-0.1, 0.3, 0.5),
+        (-0.03, 0.4, 0.4),
+        (0.03, 0.5, 0.3),
+        (0.1, 0.6, 0.5),
+    ];
+    let contacts = feet.map(|(x, r, mu)| BodyContact {
+        point: [x, 0.0],
+        normal: [0.0, 1.0],
+        law: ContactLaw {
+            restitution: r,
+            friction: mu,
+            weight: 1.0,
+        },
+    });
+    let out = solve_body::<f64, 8>(&body, None, &contacts, ImpactLaw::Poisson).unwrap();
+    for c in out.outcome.contacts.iter().take(4) {
+        println!(
+            "{:?} {:?} {:?} {:?}",
+            c.case,
+            c.compression,
+            c.restitution,
+            c.segments
+                .iter()
+                .map(|s| (s.phase, s.state))
+                .collect::<Vec<_>>()
+        );
+    }
+    println!(
+        "{:?} {:?} {:?} E {} -> {}",
+        out.velocity_after,
+        out.angular_velocity_after,
+        out.outcome.warnings,
+        out.kinetic_energy_before,
+        out.kinetic_energy_after
+    );
+}
