@@ -1,0 +1,134 @@
+//! The command line: `host-sim <COMMAND> ...`, parsed with clap, dispatched to the
+//! command's module, and its output written whole.
+//!
+//! Exit status: 0 success; 1 an internal failure (the solver gave up); 2 a user
+//! mistake (bad or missing file, bad option value; clap's own usage errors are 2
+//! too). User mistakes never panic: every problem is one line on stderr.
+//!
+//! More commands (`run`, `tune`, `scenario`, `device`) are added as variants of
+//! [`Command`], each with its own arguments struct and module.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use shared::impact::ImpactLaw;
+
+use crate::impact_command;
+
+/// Exit status of a success.
+pub const EXIT_OK: u8 = 0;
+/// Exit status of an internal failure (not the user's mistake).
+pub const EXIT_FAILURE: u8 = 1;
+/// Exit status of a user mistake: bad input file or option (as clap's usage errors).
+pub const EXIT_USAGE: u8 = 2;
+
+/// The vibro driver's host simulator, impact analysis and tuning tool.
+#[derive(Debug, Parser)]
+#[command(name = "host-sim", version, about, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Solve one impact of a rigid body at one or several contact points.
+    Impact(ImpactArgs),
+}
+
+/// Arguments of `host-sim impact`.
+#[derive(Debug, Args)]
+pub struct ImpactArgs {
+    /// The impact case file (TOML; see docs/cli-impact.md).
+    #[arg(value_name = "CASE.toml")]
+    pub case: PathBuf,
+    /// Impact law, overriding the file's `law` (whose default is poisson).
+    #[arg(long, value_enum, value_name = "LAW")]
+    pub law: Option<LawArg>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Table)]
+    pub format: Format,
+}
+
+/// An impact law named on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LawArg {
+    /// Poisson: restitution impulse = R x compression impulse (the paper's).
+    Poisson,
+    /// Newton: normal velocity after = -R x normal velocity before.
+    Newton,
+    /// Stronge: restitution work = R^2 x compression work.
+    Stronge,
+}
+
+impl From<LawArg> for ImpactLaw {
+    fn from(law: LawArg) -> Self {
+        match law {
+            LawArg::Poisson => ImpactLaw::Poisson,
+            LawArg::Newton => ImpactLaw::Newton,
+            LawArg::Stronge => ImpactLaw::Stronge,
+        }
+    }
+}
+
+/// How a command prints its result.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// Aligned text for people.
+    Table,
+    /// One JSON document for programs.
+    Json,
+}
+
+/// What a command produced: its whole stdout and stderr text and its exit status.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Output {
+    /// Text for stdout.
+    pub stdout: String,
+    /// Text for stderr (problems, one per line).
+    pub stderr: String,
+    /// Exit status ([`EXIT_OK`], [`EXIT_FAILURE`] or [`EXIT_USAGE`]).
+    pub status: u8,
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Output {
+    match cli.command {
+        Command::Impact(args) => impact_command::run(&args),
+    }
+}
+
+/// The program: parses the arguments (clap prints usage errors and exits 2 itself),
+/// runs the command, writes its output once.
+pub fn main() -> ExitCode {
+    let output = run(Cli::parse());
+    // A closed pipe (`host-sim ... | head`) is not an error worth a message.
+    let _ = std::io::stdout().lock().write_all(output.stdout.as_bytes());
+    let _ = std::io::stderr().lock().write_all(output.stderr.as_bytes());
+    ExitCode::from(output.status)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_command_line_is_well_formed() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn impact_options_parse() {
+        let cli = Cli::try_parse_from(["host-sim", "impact", "c.toml", "--law", "newton"]).unwrap();
+        let Command::Impact(a) = cli.command;
+        assert_eq!(a.law, Some(LawArg::Newton));
+        assert_eq!(a.format, Format::Table);
+        let e = Cli::try_parse_from(["host-sim", "impact", "c.toml", "--law", "x"]).unwrap_err();
+        assert_eq!(e.exit_code(), i32::from(EXIT_USAGE));
+    }
+}

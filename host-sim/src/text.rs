@@ -1,0 +1,150 @@
+//! Plain-text output for people: numbers to a fixed number of significant digits and
+//! tables with aligned columns. Shared by every command's `--format table`.
+
+/// `x` to 6 significant digits, trailing zeros dropped: `0.982143`, `-1.88571`,
+/// `1.5e-9`, `0`. Plain notation from 1e-4 to 1e6, scientific outside.
+pub fn sig(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    if x == 0.0 {
+        return "0".to_string();
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    if (-4..6).contains(&magnitude) {
+        let decimals = (5 - magnitude).max(0) as usize;
+        let s = format!("{x:.decimals$}");
+        let s = trim_zeros(&s);
+        // Rounding may leave "-0".
+        if s == "-0" {
+            "0".to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{x:.5e}");
+        match s.split_once('e') {
+            Some((mantissa, exponent)) => format!("{}e{exponent}", trim_zeros(mantissa)),
+            None => s,
+        }
+    }
+}
+
+/// [`sig`] with an explicit sign: `+0.0123`, `-1.5`.
+pub fn signed(x: f64) -> String {
+    let s = sig(x);
+    if x > 0.0 {
+        format!("+{s}")
+    } else {
+        s
+    }
+}
+
+/// A plane vector as `[x, y]` with [`sig`] numbers.
+pub fn vec2(v: [f64; 2]) -> String {
+    format!("[{}, {}]", sig(v[0]), sig(v[1]))
+}
+
+/// Drops trailing zeros after a decimal point, and the point itself if bare.
+fn trim_zeros(s: &str) -> String {
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s.to_string()
+    }
+}
+
+/// How a column is aligned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Align {
+    /// Text: flush left.
+    Left,
+    /// Numbers: flush right.
+    Right,
+}
+
+/// A table of text cells: a header row, then rows, columns padded to their widest
+/// cell and separated by two spaces.
+#[derive(Clone, Debug, Default)]
+pub struct Table {
+    header: Vec<(String, Align)>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Table {
+    /// A table with these column titles and alignments.
+    pub fn new(columns: &[(&str, Align)]) -> Self {
+        Table {
+            header: columns.iter().map(|(t, a)| (t.to_string(), *a)).collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Adds a row (missing cells are blank, extra cells are dropped).
+    pub fn row(&mut self, cells: Vec<String>) {
+        self.rows.push(cells);
+    }
+
+    /// The table as lines, each ending with a newline, without trailing spaces.
+    pub fn render(&self) -> String {
+        let cell = |row: &Vec<String>, i: usize| row.get(i).cloned().unwrap_or_default();
+        let mut widths: Vec<usize> = self.header.iter().map(|(t, _)| t.chars().count()).collect();
+        for row in &self.rows {
+            for (i, w) in widths.iter_mut().enumerate() {
+                *w = (*w).max(cell(row, i).chars().count());
+            }
+        }
+        let titles: Vec<String> = self.header.iter().map(|(t, _)| t.clone()).collect();
+        let mut out = String::new();
+        for row in std::iter::once(&titles).chain(&self.rows) {
+            let mut line = String::new();
+            for (i, ((_, align), width)) in self.header.iter().zip(&widths).enumerate() {
+                let text = cell(row, i);
+                let pad = width - text.chars().count();
+                if i > 0 {
+                    line.push_str("  ");
+                }
+                match align {
+                    Align::Left => {
+                        line.push_str(&text);
+                        line.push_str(&" ".repeat(pad));
+                    }
+                    Align::Right => {
+                        line.push_str(&" ".repeat(pad));
+                        line.push_str(&text);
+                    }
+                }
+            }
+            out.push_str(line.trim_end());
+            out.push('\n');
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn significant_digits() {
+        assert_eq!(sig(0.0), "0");
+        assert_eq!(sig(0.98214285714), "0.982143");
+        assert_eq!(sig(-1.885714285), "-1.88571");
+        assert_eq!(sig(5.0), "5");
+        assert_eq!(sig(123456.7), "123457");
+        assert_eq!(sig(1234567.0), "1.23457e6");
+        assert_eq!(sig(1.5e-9), "1.5e-9");
+        assert_eq!(sig(-1e-20), "-1e-20");
+        assert_eq!(sig(0.0001), "0.0001");
+        assert_eq!(signed(0.0123), "+0.0123");
+    }
+
+    #[test]
+    fn columns_align() {
+        let mut t = Table::new(&[("name", Align::Left), ("value", Align::Right)]);
+        t.row(vec!["a".into(), "1".into()]);
+        t.row(vec!["long".into(), "-22.5".into()]);
+        assert_eq!(t.render(), "name  value\na         1\nlong  -22.5\n");
+    }
+}
