@@ -6,6 +6,9 @@
 //! - [`impact_command`]: `host-sim impact`, from file to printed result;
 //! - [`impact_report`]: the result as the spec's JSON document or as a table;
 //! - [`text`]: numbers and aligned tables for people;
+//! - [`machine`]: the machine file, checked into plain values;
+//! - [`plant`]: the simulated platform, rotors, motors, contacts and sensors;
+//! - [`trace`]: what a run records (trace rows, events, summary);
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
@@ -14,4 +17,7 @@ pub mod impact_case;
 pub mod impact_command;
 pub mod impact_report;
 pub mod input;
+pub mod machine;
+pub mod plant;
 pub mod text;
+pub mod trace;

@@ -1,0 +1,3 @@
+//! The simulated vibro driver: platform, rotors, motors, contacts, sensors.
+pub mod motor;
+pub mod sensors;

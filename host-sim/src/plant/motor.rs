@@ -1,0 +1,1 @@
+//! The brushed DC motor model (being written).

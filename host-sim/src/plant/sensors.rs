@@ -1,0 +1,1 @@
+//! Encoders with index pulses and current measurement (being written).
