@@ -69,6 +69,13 @@ pub struct Direction<T, const N: usize> {
     pub consistent: bool,
 }
 
+/// What the rates of a piece add to, and the slip velocities.
+struct Base<'a, T, const N: usize> {
+    u_n: &'a [T; N],
+    u_t: &'a [T; N],
+    slip: &'a [T; N],
+}
+
 /// A candidate being assembled: active contacts and friction states.
 struct Candidate<const N: usize> {
     active: [bool; N],
@@ -76,18 +83,25 @@ struct Candidate<const N: usize> {
 }
 
 /// Finds the direction of the next piece from the current contact velocities.
+///
+/// `u_n`, `u_t` are the values the rates add to (in an impact, the contact
+/// velocities; in persistent contact, the contact accelerations without contact
+/// forces); `slip` are the tangential velocities that fix each contact's slip
+/// state (in an impact, `u_t` itself).
 pub fn find_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     u_n: &[T; N],
     u_t: &[T; N],
+    slip: &[T; N],
     rule: NormalRule<'_, T, N>,
     tol: &Tolerances<T>,
 ) -> Direction<T, N> {
     let mut budget = CANDIDATE_BUDGET;
+    let base = Base { u_n, u_t, slip };
     match rule {
-        NormalRule::Fixed(x) => fixed_direction(p, u_n, u_t, x, tol, &mut budget),
+        NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget),
         NormalRule::Target(g) => {
-            if let Some(d) = complementary_direction(p, u_n, u_t, g, tol, &mut budget) {
+            if let Some(d) = complementary_direction(p, &base, g, tol, &mut budget) {
                 return d;
             }
             // No complementary proportion (jamming: a slipping contact whose normal
@@ -101,7 +115,7 @@ pub fn find_direction<T: Real, const N: usize>(
                 }
             }
             let mut budget = CANDIDATE_BUDGET;
-            let mut d = fixed_direction(p, u_n, u_t, &x, tol, &mut budget);
+            let mut d = fixed_direction(p, &base, &x, tol, &mut budget);
             d.ends_at_one = false;
             d
         }
@@ -124,8 +138,7 @@ fn kinematic_state<T: Real>(u_t: T, tol: T) -> Option<SlipState> {
 /// from the largest. Returns `None` when no consistent solution exists.
 fn complementary_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
-    u_n: &[T; N],
-    u_t: &[T; N],
+    base: &Base<'_, T, N>,
     g: &[T; N],
     tol: &Tolerances<T>,
     budget: &mut u32,
@@ -142,7 +155,7 @@ fn complementary_direction<T: Real, const N: usize>(
                 *a = mask & (1 << i) != 0;
             }
             let Some((score, d, how)) =
-                first_consistent_states(p, u_n, u_t, &active, Some(g), None, tol, budget)
+                first_consistent_states(p, base, &active, Some(g), None, tol, budget)
             else {
                 if *budget == 0 {
                     return None;
@@ -168,8 +181,7 @@ fn complementary_direction<T: Real, const N: usize>(
 /// The direction of a `Fixed` rule: friction states only.
 fn fixed_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
-    u_n: &[T; N],
-    u_t: &[T; N],
+    base: &Base<'_, T, N>,
     x: &[T; N],
     tol: &Tolerances<T>,
     budget: &mut u32,
@@ -178,9 +190,7 @@ fn fixed_direction<T: Real, const N: usize>(
     for i in 0..p.len {
         active[i] = x[i] > T::ZERO;
     }
-    if let Some((_, d, _)) =
-        first_consistent_states(p, u_n, u_t, &active, None, Some(x), tol, budget)
-    {
+    if let Some((_, d, _)) = first_consistent_states(p, base, &active, None, Some(x), tol, budget) {
         return d;
     }
     // No consistent friction states: take every undecided contact as sticking,
@@ -190,11 +200,19 @@ fn fixed_direction<T: Real, const N: usize>(
         mode: [SlipState::Stick; N],
     };
     for i in 0..p.len {
-        if let Some(s) = kinematic_state(u_t[i], tol.velocity) {
+        if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
             cand.mode[i] = s;
         }
     }
-    let mut d = match evaluate(p, u_n, u_t, &cand, None, Some(x)) {
+    let mut d = match solve_states(
+        p,
+        base.u_n,
+        base.u_t,
+        &cand.active,
+        &cand.mode,
+        None,
+        Some(x),
+    ) {
         Some((_, d, _)) => d,
         None => zero_direction(p, x),
     };
@@ -231,8 +249,7 @@ fn zero_direction<T: Real, const N: usize>(p: &ImpactProblem<T, N>, x: &[T; N]) 
 #[allow(clippy::too_many_arguments)]
 fn first_consistent_states<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
-    u_n: &[T; N],
-    u_t: &[T; N],
+    base: &Base<'_, T, N>,
     active: &[bool; N],
     target: Option<&[T; N]>,
     fixed: Option<&[T; N]>,
@@ -247,7 +264,7 @@ fn first_consistent_states<T: Real, const N: usize>(
     let mut undecided = [0usize; N];
     let mut count = 0;
     for i in 0..n {
-        match kinematic_state(u_t[i], tol.velocity) {
+        match kinematic_state(base.slip[i], tol.velocity) {
             Some(s) => cand.mode[i] = s,
             None if active[i] => {
                 undecided[count] = i;
@@ -271,26 +288,45 @@ fn first_consistent_states<T: Real, const N: usize>(
             };
             c /= 3;
         }
-        let Some((score, d, how)) = evaluate(p, u_n, u_t, &cand, target, fixed) else {
+        let Some((score, d, how)) = solve_states(
+            p,
+            base.u_n,
+            base.u_t,
+            &cand.active,
+            &cand.mode,
+            target,
+            fixed,
+        ) else {
             continue;
         };
-        if admissible(p, u_n, u_t, &cand, target, &d, tol) {
+        if admissible(p, base, &cand, target, &d, tol) {
             return Some((score, d, how));
         }
     }
     None
 }
 
-/// Solves the equations of one candidate. Unknowns: the normal rates of the active
-/// contacts (unless fixed), then the tangential rates of the sticking ones.
-fn evaluate<T: Real, const N: usize>(
+/// Solves the equations of given contact states, without checking inequalities:
+/// the active contacts' normal rows reach `target` (zero if `None`) at
+/// `lambda = 1` unless the normal rates are `fixed`; sticking contacts hold their
+/// tangential rows at zero; slipping ones take `y = -mu s x`. Unknowns: the normal
+/// rates of the active contacts (unless fixed), then the tangential rates of the
+/// sticking ones. Returns the weighted norm of the rates, the direction and how
+/// the system was solved; `None` where it is inconsistent.
+pub fn solve_states<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     u_n: &[T; N],
     u_t: &[T; N],
-    cand: &Candidate<N>,
+    active: &[bool; N],
+    mode: &[SlipState; N],
     target: Option<&[T; N]>,
     fixed: Option<&[T; N]>,
 ) -> Option<(T, Direction<T, N>, Solved)> {
+    let cand = Candidate {
+        active: *active,
+        mode: *mode,
+    };
+    let cand = &cand;
     let n = p.len;
     // Index lists: normal unknowns (when not fixed) and stick unknowns.
     let mut xs = [0usize; N];
@@ -378,7 +414,6 @@ fn evaluate<T: Real, const N: usize>(
         }
     }
     let (du_n, du_t) = p.velocity_change(&x, &y);
-    let _ = u_n;
     Some((
         score,
         Direction {
@@ -398,8 +433,7 @@ fn evaluate<T: Real, const N: usize>(
 /// reaching their targets, sticking forces inside the cone, slips moving their way.
 fn admissible<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
-    u_n: &[T; N],
-    u_t: &[T; N],
+    base: &Base<'_, T, N>,
     cand: &Candidate<N>,
     target: Option<&[T; N]>,
     d: &Direction<T, N>,
@@ -418,15 +452,15 @@ fn admissible<T: Real, const N: usize>(
                 }
                 s => {
                     // A contact at zero slip may slip only the way it then moves.
-                    if kinematic_state(u_t[i], tol.velocity).is_none()
-                        && s.sign::<T>() * d.du_t[i] < -tol.velocity
+                    if kinematic_state(base.slip[i], tol.velocity).is_none()
+                        && s.sign::<T>() * (base.u_t[i] + d.du_t[i]) < -tol.velocity
                     {
                         return false;
                     }
                 }
             }
         } else if let Some(g) = target {
-            if u_n[i] + d.du_n[i] < g[i] - tol.velocity {
+            if base.u_n[i] + d.du_n[i] < g[i] - tol.velocity {
                 return false;
             }
         }

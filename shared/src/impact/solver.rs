@@ -177,6 +177,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
                 self.p,
                 &self.u_n,
                 &self.u_t,
+                &self.u_t,
                 NormalRule::Target(g),
                 &self.tol,
             );
@@ -470,6 +471,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
         let d = find_direction(
             self.p,
             &self.u_n,
+            &self.u_t,
             &self.u_t,
             NormalRule::Fixed(x),
             &self.tol,
