@@ -1,0 +1,214 @@
+#!/usr/bin/env bash
+# Every gate of the vibro driver, in order, stopping at the first that fails.
+#
+#   scripts/test-all.sh              # set up, then run every step
+#   scripts/test-all.sh STEP...      # run only these steps (names: see STEPS below)
+#
+# On a fresh machine it needs only what CI has: the Rust toolchain through rustup,
+# gcc and python3. It installs the firmware target and the rustfmt and clippy
+# components itself. CI runs it through .ci/run (see docs/development.md).
+#
+# To add a gate: write a function `step_NAME` below and add NAME to STEPS.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+# The STM32F405's core: Cortex-M4F with the single-precision FPU.
+FIRMWARE_TARGET="thumbv7em-none-eabihf"
+FIRMWARE_ELF="firmware/target/$FIRMWARE_TARGET/release/firmware"
+
+# The steps, in the order they run.
+STEPS=(
+    setup
+    fmt
+    clippy
+    doc
+    test
+    run_main
+    shared_no_std
+    firmware_fmt
+    firmware_clippy
+    firmware_build
+    firmware_size
+)
+
+# ---------------------------------------------------------------------------
+# Steps
+
+# Toolchain pieces a fresh machine lacks. rustup skips what is already there.
+step_setup() {
+    rustup --version 2>/dev/null | head -n 1 || true
+    cargo --version
+    rustc --version
+    rustup target add "$FIRMWARE_TARGET"
+    local installed
+    installed="$(rustup component list --installed)"
+    local component
+    for component in rustfmt clippy; do
+        if grep -q "^$component" <<<"$installed"; then
+            echo "$component: installed"
+        else
+            rustup component add "$component"
+        fi
+    done
+}
+
+step_fmt() {
+    cargo fmt --all -- --check
+}
+
+step_clippy() {
+    cargo clippy --workspace --all-targets -- -D warnings
+}
+
+step_doc() {
+    RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+}
+
+# The host tests. The output is kept to total the counts at the end of the run.
+step_test() {
+    cargo test --workspace 2>&1 | tee "$TEST_LOG"
+}
+
+# The README's other command, the main job, must keep working.
+step_run_main() {
+    bash scripts/run.sh
+}
+
+# shared must build for the firmware target: no_std, and no heap (no `alloc`).
+step_shared_no_std() {
+    if grep -rn "extern crate alloc" shared/src; then
+        echo "error: shared must stay heap-free: remove \`extern crate alloc\`" >&2
+        return 1
+    fi
+    cargo build -p shared --target "$FIRMWARE_TARGET"
+}
+
+# The firmware is outside the workspace (docs/development.md): its gates run from
+# firmware/ so that firmware/.cargo/config.toml (target, linker scripts) applies.
+step_firmware_fmt() {
+    (cd firmware && cargo fmt --check)
+}
+
+step_firmware_clippy() {
+    (cd firmware && cargo clippy --release --locked -- -D warnings)
+}
+
+step_firmware_build() {
+    (cd firmware && cargo build --release --locked)
+}
+
+# Flash and static RAM use of the release ELF, against the regions of memory.x.
+# Purely informational: without a size tool it says so and passes.
+step_firmware_size() {
+    local size_tool
+    if ! size_tool="$(find_size_tool)"; then
+        echo "warning: no llvm-size or arm-none-eabi-size found; size not reported" >&2
+        return 0
+    fi
+    # The sections that reach the chip (debug info stays in the ELF).
+    "$size_tool" -A -x "$FIRMWARE_ELF" | grep -Ev '^(\.debug|\.comment|\.ARM|Total|$)' || true
+    # Berkeley format: text (vector table, code, constants), data, bss (incl. .uninit).
+    # Flash holds text and the initial values of data; RAM holds data and bss.
+    local text data bss
+    read -r text data bss _ < <("$size_tool" -B "$FIRMWARE_ELF" | awk 'NR == 2')
+    local flash_k ram_k
+    flash_k="$(region_kib FLASH)"
+    ram_k="$(region_kib RAM)"
+    awk -v t="$text" -v d="$data" -v b="$bss" -v fk="$flash_k" -v rk="$ram_k" 'BEGIN {
+        printf "firmware flash: %d bytes (%.2f %% of %d KiB)\n", t + d, 100 * (t + d) / (fk * 1024), fk
+        printf "firmware static RAM: %d bytes (%.2f %% of %d KiB; the stack uses the rest)\n", d + b, 100 * (d + b) / (rk * 1024), rk
+    }'
+}
+
+# ---------------------------------------------------------------------------
+# Helpers
+
+# Prints the path of a size tool for ARM ELF files. The cheapest first: one already
+# installed, else rustup's llvm-tools component (a few seconds to install).
+find_size_tool() {
+    local host rustup_bin
+    host="$(rustc -vV | sed -n 's/^host: //p')"
+    rustup_bin="$(rustc --print sysroot)/lib/rustlib/$host/bin"
+    if [[ -x "$rustup_bin/llvm-size" ]]; then
+        echo "$rustup_bin/llvm-size"
+    elif command -v llvm-size >/dev/null; then
+        command -v llvm-size
+    elif command -v arm-none-eabi-size >/dev/null; then
+        command -v arm-none-eabi-size
+    elif rustup component add llvm-tools >&2 && [[ -x "$rustup_bin/llvm-size" ]]; then
+        echo "$rustup_bin/llvm-size"
+    else
+        return 1
+    fi
+}
+
+# The LENGTH of a memory.x region in KiB (written there as NNNK).
+region_kib() {
+    sed -n "s/^ *$1 *:.*LENGTH *= *\([0-9]*\)K.*/\1/p" memory.x
+}
+
+section() {
+    printf '\n==== %s ====\n' "$*"
+}
+
+# Totals of every "test result:" line of cargo test, as one plain closing line.
+test_totals() {
+    awk '/^test result:/ {
+            for (i = 1; i <= NF; i++) {
+                if ($(i) ~ /^passed;?$/)  p += $(i - 1)
+                if ($(i) ~ /^failed;?$/)  f += $(i - 1)
+                if ($(i) ~ /^ignored;?$/) s += $(i - 1)
+            }
+        }
+        END { printf "%d passed, %d failed, %d skipped\n", p, f, s }' "$TEST_LOG"
+}
+
+# Runs on every exit: the time of each step, where it stopped, the test totals.
+summary() {
+    local status=$?
+    section "summary"
+    local line
+    for line in "${TIMES[@]}"; do
+        echo "$line"
+    done
+    echo "total: $((SECONDS - START)) s"
+    if [[ $status -ne 0 ]]; then
+        echo "FAILED at step: ${CURRENT:-?} (exit status $status)"
+    fi
+    if [[ -s "$TEST_LOG" ]]; then
+        echo "cargo test totals (host workspace):"
+        echo "tests: $(test_totals)"
+    fi
+    rm -f "$TEST_LOG"
+    exit "$status"
+}
+
+# ---------------------------------------------------------------------------
+# Main
+
+if [[ $# -gt 0 ]]; then
+    for name in "$@"; do
+        if ! declare -F "step_$name" >/dev/null; then
+            echo "unknown step: $name (steps: ${STEPS[*]})" >&2
+            exit 2
+        fi
+    done
+    STEPS=("$@")
+fi
+
+START=$SECONDS
+TIMES=()
+CURRENT=""
+TEST_LOG="$(mktemp)"
+trap summary EXIT
+
+for name in "${STEPS[@]}"; do
+    CURRENT="$name"
+    section "$name"
+    step_start=$SECONDS
+    "step_$name"
+    TIMES+=("$(printf '%-16s %4d s' "$name" $((SECONDS - step_start)))")
+done
+CURRENT=""
