@@ -7,8 +7,12 @@
 //! - [`impact_report`]: the result as the spec's JSON document or as a table;
 //! - [`text`]: numbers and aligned tables for people;
 //! - [`machine`]: the machine file, checked into plain values;
+//! - [`machine_set`]: `--set KEY=VALUE` overrides of machine-file keys;
 //! - [`plant`]: the simulated platform, rotors, motors, contacts and sensors;
 //! - [`trace`]: what a run records (trace rows, events, summary);
+//! - [`summary`]: the run's summary statistics computed from its trace and events;
+//! - [`run_output`]: the summary as JSON or a table, trace and events as CSV, whole files;
+//! - [`plot`]: the run as an SVG figure for people;
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
@@ -18,6 +22,10 @@ pub mod impact_command;
 pub mod impact_report;
 pub mod input;
 pub mod machine;
+pub mod machine_set;
 pub mod plant;
+pub mod plot;
+pub mod run_output;
+pub mod summary;
 pub mod text;
 pub mod trace;

@@ -1,10 +1,30 @@
 //! The machine file (`../shared/spec/machine.md`): the vibro driver that host-sim
 //! simulates, checked into plain values. All positions are world coordinates at
-//! `t = 0`, SI units, radians.
+//! `t = 0`, SI units, radians. `docs/machine-file.md` lists every key, default and
+//! message.
+//!
+//! Reading a machine file (see [`Machine::load`]):
+//! 1. read and parse the TOML ([`crate::input`]);
+//! 2. apply the `--set KEY=VALUE` overrides to the parsed table
+//!    ([`crate::machine_set`]), so overridden values meet the same checks;
+//! 3. every key on its own: types, NaN and infinities, ranges, unknown keys with a
+//!    "did you mean"; the optional sections take their defaults;
+//! 4. each rotor's motor: the machine's `[motor]`, with any key the rotor's own
+//!    `[rotors.motor]` gives replaced (partial override);
+//! 5. the contacts and rotors as a whole: 1 to [`MAX_CONTACTS`] contacts, exactly two
+//!    rotors, unique names;
+//! 6. the geometry at `t = 0`: no contact below the fundament,
+//!    `gap = n . (K - P) >= 0`;
+//! 7. every problem at once; a problem in a value a `--set` gave names that `--set`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use shared::impact::ImpactLaw;
+use shared::impact::{ImpactLaw, MAX_CONTACTS};
+use toml::Table;
+
+use crate::impact_case::LAWS;
+use crate::input::{self, number, vector, Limit, Location, Need, Problem, Problems, Section};
+use crate::machine_set;
 
 /// The obstacle line the platform strikes, and gravity.
 #[derive(Clone, Debug, PartialEq)]
@@ -169,4 +189,833 @@ pub struct Machine {
     pub law: ImpactLaw,
     /// The simulation's settings.
     pub simulation: Simulation,
+}
+
+impl Sense {
+    /// `ccw` or `cw`, as written in the file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Sense::Ccw => "ccw",
+            Sense::Cw => "cw",
+        }
+    }
+}
+
+impl Machine {
+    /// Reads and checks the machine file at `path`, with the `--set KEY=VALUE`
+    /// overrides `sets` applied before checking (the stages of the module doc).
+    /// Every problem is returned at once: those of the overrides first, then those of
+    /// the file. A relative `[controller].tuning_table` is resolved against the
+    /// file's directory.
+    pub fn load(path: &Path, sets: &[String]) -> Result<Machine, Vec<Problem>> {
+        let text = input::read_text(path).map_err(|p| vec![p])?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        Machine::from_text(&path.display().to_string(), &text, dir, sets)
+    }
+
+    /// Checks the text of a machine file named `file` (for messages), with
+    /// `tuning_table` resolved against `dir`, as [`Machine::load`] does.
+    pub fn from_text(
+        file: &str,
+        text: &str,
+        dir: &Path,
+        sets: &[String],
+    ) -> Result<Machine, Vec<Problem>> {
+        // Stage 1: TOML. Malformed `--set`s are reported even when the file does not
+        // parse.
+        let mut table = match input::parse(file, text) {
+            Ok(t) => t,
+            Err(p) => {
+                let (_, mut problems) = machine_set::apply(&mut Table::new(), sets);
+                problems.retain(|p| p.message.starts_with("expected KEY=VALUE"));
+                problems.push(p);
+                return Err(problems);
+            }
+        };
+        // Stage 2: the overrides.
+        let (applied, set_problems) = machine_set::apply(&mut table, sets);
+        // Stages 3 to 6.
+        let problems = Problems::new(file);
+        let machine = check(&table, &problems, dir);
+        match problems.into_result(machine) {
+            Ok(m) if set_problems.is_empty() => Ok(m),
+            Ok(_) => Err(set_problems),
+            Err(file_problems) => {
+                // Stage 7: say which value came from the command line.
+                let mut all = set_problems;
+                all.extend(file_problems.into_iter().map(|p| blame_set(p, &applied)));
+                Err(all)
+            }
+        }
+    }
+
+    /// Platform mass plus both eccentric masses, kg: the mass that moves.
+    pub fn total_mass(&self) -> f64 {
+        self.platform.mass + self.rotors.iter().map(|r| r.eccentric_mass).sum::<f64>()
+    }
+}
+
+/// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that
+/// the last `--set` of that key gave.
+fn blame_set(mut problem: Problem, applied: &[machine_set::Applied]) -> Problem {
+    if let Location::Key(key) = &problem.location {
+        let from = applied.iter().rev().find(|a| {
+            key == &a.key_path
+                || key.starts_with(&format!("{}[", a.key_path))
+                || key.starts_with(&format!("{}.", a.key_path))
+        });
+        if let Some(a) = from {
+            problem.message = format!("{} (from --set {})", problem.message, a.arg);
+        }
+    }
+    problem
+}
+
+/// Default `[fundament].point`: the floor passes through the origin.
+pub const DEFAULT_FUNDAMENT_POINT: [f64; 2] = [0.0, 0.0];
+/// Default `[fundament].normal`: a horizontal floor, the line `y = 0` (spec).
+pub const DEFAULT_FUNDAMENT_NORMAL: [f64; 2] = [0.0, 1.0];
+/// Default `[fundament].gravity`, m/s^2: standard gravity, 9.80665 rounded as the
+/// spec writes it, pointing down.
+pub const DEFAULT_GRAVITY: [f64; 2] = [0.0, -9.81];
+/// Default `[sensors].encoder_counts`: a 1024-line encoder decoded x4, a common
+/// choice for small motors.
+pub const DEFAULT_ENCODER_COUNTS: i64 = 4096;
+/// Default `[controller].rate_hz`: 1 kHz, the usual speed-loop rate of small motor
+/// drives, well above the rotors' mechanical bandwidth (tens of Hz).
+pub const DEFAULT_RATE_HZ: f64 = 1000.0;
+/// The highest `[controller].rate_hz`, Hz: 100 kHz leaves the firmware's 168 MHz core
+/// 1680 cycles a tick, and each tick costs the simulator a lockstep.
+pub const MAX_RATE_HZ: f64 = 100_000.0;
+/// Default `[controller].speed_rpm`: the reference machine's working speed.
+pub const DEFAULT_SPEED_RPM: f64 = 3000.0;
+/// Default `[simulation].t_end`, s: long enough for the rotors to reach speed
+/// (time constant about 0.05 s) and the travel to settle.
+pub const DEFAULT_T_END: f64 = 10.0;
+/// Default `[simulation].output_step`, s: 1 ms, one row per control tick at the
+/// default rate, about 20 rows per revolution at 3000 rpm.
+pub const DEFAULT_OUTPUT_STEP: f64 = 1.0e-3;
+/// Default `[simulation].seed`.
+pub const DEFAULT_SEED: i64 = 1;
+/// How far below the fundament a contact point may lie at `t = 0`, m: far above the
+/// rounding of positions a generator computes on a tilted fundament (1e-17 m at
+/// these sizes), far below any real mistake.
+pub const GAP_TOLERANCE: f64 = 1.0e-12;
+/// The senses a rotor may turn, as written in the file.
+pub const SENSES: [&str; 2] = ["ccw", "cw"];
+
+/// A key read on its own: absent, present but refused (reported), or a value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Read<T> {
+    Absent,
+    Refused,
+    Value(T),
+}
+
+/// The motor's keys with their limits and units, in [`MotorParams`] order.
+const MOTOR: [(&str, Limit, &str); 6] = [
+    ("resistance", Limit::Positive, "ohm"),
+    ("inductance", Limit::Positive, "H"),
+    ("torque_constant", Limit::Positive, "N m / A"),
+    ("coulomb_friction", Limit::NonNegative, "N m"),
+    ("viscous_friction", Limit::NonNegative, "N m s"),
+    ("current_limit", Limit::Positive, "A"),
+];
+
+/// A motor table's keys as read (`[motor]` or a rotor's own `[rotors.motor]`).
+type MotorKeys = [Read<f64>; 6];
+
+/// A named element (`[[contacts]]`, `[[rotors]]`) as read.
+struct Named<T> {
+    /// Whether the file gives the name (else the default, or refused).
+    given: bool,
+    /// The name, given or default; `None` when the given one is refused.
+    name: Option<String>,
+    /// The element's values; `None` when some key is missing or refused.
+    value: Option<T>,
+}
+
+/// A rotor's keys as read, its motor not yet merged.
+struct RotorKeys {
+    /// Everything but the motor (whose value is a placeholder here).
+    rotor: Option<Rotor>,
+    /// The rotor's own `[rotors.motor]` keys (all absent without one); `None` when
+    /// `motor` is there but not a table (reported).
+    own_motor: Option<MotorKeys>,
+}
+
+/// Stages 3 to 6; `None` when some problem was recorded.
+fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
+    let root = Section::root(table, problems);
+    // An omitted optional section reads as this empty table: every key takes its
+    // default from the same `Need::Default` a present section uses.
+    let empty = Table::new();
+
+    // Stage 3: every key on its own, in the spec's order.
+    let fundament = optional(&root, "fundament", &empty).and_then(|s| read_fundament(&s));
+    let platform = root
+        .section("platform", Need::Required)
+        .and_then(|s| read_platform(&s));
+    let contacts = root.sections("contacts").map(|list| {
+        list.iter()
+            .enumerate()
+            .map(|(i, s)| match s {
+                Some(s) => read_contact(i, s),
+                None => refused_element(),
+            })
+            .collect::<Vec<_>>()
+    });
+    let rotors = root.sections("rotors").map(|list| {
+        list.iter()
+            .enumerate()
+            .map(|(i, s)| match s {
+                Some(s) => read_rotor(i, s),
+                None => Named {
+                    given: false,
+                    name: None,
+                    value: None,
+                },
+            })
+            .collect::<Vec<_>>()
+    });
+    let has_motor = root.has("motor");
+    let motor = match root.section("motor", Need::Optional) {
+        Some(s) => Some(read_motor(&s)),
+        None if has_motor => None, // not a table, reported
+        None => Some([Read::Absent; 6]),
+    };
+    let drive = root.section("drive", Need::Required).and_then(|s| {
+        let supply_voltage = s.number("supply_voltage", Need::Required, Limit::Positive);
+        s.finish();
+        Some(Drive {
+            supply_voltage: supply_voltage?,
+        })
+    });
+    let sensors = optional(&root, "sensors", &empty).and_then(|s| read_sensors(&s));
+    let controller = optional(&root, "controller", &empty).and_then(|s| read_controller(&s, dir));
+    let law = optional(&root, "impact", &empty).and_then(|s| {
+        let law = s.choice("law", Need::Default("poisson"), &LAWS);
+        s.finish();
+        ImpactLaw::from_name(law?)
+    });
+    let simulation = optional(&root, "simulation", &empty).and_then(|s| read_simulation(&s));
+    root.finish();
+
+    // Stage 4: each rotor's motor, `[motor]` with the rotor's own keys over it.
+    let rotors = rotors.map(|list| merge_motors(&root, list, motor.as_ref(), has_motor));
+
+    // Stage 5: contacts and rotors as a whole.
+    let contacts = contacts.and_then(|list| check_contacts(&root, list));
+    let rotors = rotors.and_then(|list| check_rotors(&root, list));
+
+    // Stage 6: the geometry at t = 0.
+    let fundament = fundament?;
+    let contacts = contacts?;
+    check_gaps(&root, &fundament, &contacts);
+
+    let machine = Machine {
+        fundament,
+        platform: platform?,
+        contacts,
+        rotors: rotors?,
+        drive: drive?,
+        sensors: sensors?,
+        controller: controller?,
+        law: law?,
+        simulation: simulation?,
+    };
+    problems.is_empty().then_some(machine)
+}
+
+/// An optional section: the table when present, the empty table when omitted,
+/// `None` when present but not a table (reported).
+fn optional<'a>(root: &Section<'a>, key: &'static str, empty: &'a Table) -> Option<Section<'a>> {
+    match root.section(key, Need::Optional) {
+        Some(s) => Some(s),
+        None if root.has(key) => None,
+        // Key paths of this stand-in are never shown: an empty table has no unknown
+        // key, and every key read from it has a default.
+        None => Some(Section::root(empty, root.problems())),
+    }
+}
+
+/// An element of an array of tables that is not a table (reported).
+fn refused_element<T>() -> Named<T> {
+    Named {
+        given: false,
+        name: None,
+        value: None,
+    }
+}
+
+/// `[fundament]`: point, normal (non-zero, normalised here), gravity.
+fn read_fundament(s: &Section) -> Option<Fundament> {
+    let point = s.vec2("point", Need::Default(DEFAULT_FUNDAMENT_POINT), Limit::Any);
+    let normal = s
+        .vec2(
+            "normal",
+            Need::Default(DEFAULT_FUNDAMENT_NORMAL),
+            Limit::Any,
+        )
+        .and_then(|n| unit_normal(s, n));
+    let gravity = s.vec2("gravity", Need::Default(DEFAULT_GRAVITY), Limit::Any);
+    s.finish();
+    Some(Fundament {
+        point: point?,
+        normal: normal?,
+        gravity: gravity?,
+    })
+}
+
+/// `n / |n|`, refusing a zero (or overflowing) length.
+fn unit_normal(s: &Section, n: [f64; 2]) -> Option<[f64; 2]> {
+    // |n|^2 must be a positive finite number for n / |n| to be a direction.
+    let len2 = n[0] * n[0] + n[1] * n[1];
+    if len2 > 0.0 && len2.is_finite() {
+        let len = len2.sqrt();
+        return Some([n[0] / len, n[1] / len]);
+    }
+    let message = if len2 == 0.0 {
+        format!(
+            "must not be zero length: it is the direction from the fundament towards the platform, e.g. [0, 1] (got {})",
+            vector(n)
+        )
+    } else {
+        format!(
+            "is too long to normalise (got {}); use a unit vector",
+            vector(n)
+        )
+    };
+    s.problem("normal", message);
+    None
+}
+
+/// `[platform]`: mass and inertia > 0, position, angle (default 0), velocity
+/// (default [0, 0]), angular velocity (default 0).
+fn read_platform(s: &Section) -> Option<Platform> {
+    let mass = s.number("mass", Need::Required, Limit::Positive);
+    let inertia = s.number("inertia", Need::Required, Limit::Positive);
+    let position = s.vec2("position", Need::Required, Limit::Any);
+    let angle = s.number("angle", Need::Default(0.0), Limit::Any);
+    let velocity = s.vec2("velocity", Need::Default([0.0, 0.0]), Limit::Any);
+    let angular_velocity = s.number("angular_velocity", Need::Default(0.0), Limit::Any);
+    s.finish();
+    Some(Platform {
+        mass: mass?,
+        inertia: inertia?,
+        position: position?,
+        angle: angle?,
+        velocity: velocity?,
+        angular_velocity: angular_velocity?,
+    })
+}
+
+/// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
+fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
+    let given = s.string("name", Need::Optional);
+    match given {
+        Some(n) if n.is_empty() => {
+            s.problem(
+                "name",
+                format!(
+                    "must not be empty (omit it for the default {prefix}{})",
+                    index + 1
+                ),
+            );
+            (true, None)
+        }
+        Some(n) => (true, Some(n)),
+        None if s.has("name") => (true, None), // not a string, reported
+        None => (false, Some(format!("{prefix}{}", index + 1))),
+    }
+}
+
+/// One `[[contacts]]` table: name (default `K{i+1}`), point, restitution in
+/// [0, 1], friction >= 0, weight > 0 (default 1).
+fn read_contact(index: usize, s: &Section) -> Named<MachineContact> {
+    let (given, name) = read_name(s, index, "K");
+    let point = s.vec2("point", Need::Required, Limit::Any);
+    let restitution = s.number("restitution", Need::Required, Limit::Between(0.0, 1.0));
+    let friction = s.number("friction", Need::Required, Limit::NonNegative);
+    let weight = s.number("weight", Need::Default(1.0), Limit::Positive);
+    s.finish();
+    let value = (|| {
+        Some(MachineContact {
+            name: name.clone()?,
+            point: point?,
+            restitution: restitution?,
+            friction: friction?,
+            weight: weight?,
+        })
+    })();
+    Named { given, name, value }
+}
+
+/// One `[[rotors]]` table: name (default `R{i+1}`), axis, eccentric mass >= 0,
+/// eccentricity >= 0 (> 0 with an eccentric mass), inertia > 0, sense, angle and
+/// index angle (default 0), and its own `[rotors.motor]` keys if any.
+fn read_rotor(index: usize, s: &Section) -> Named<RotorKeys> {
+    let (given, name) = read_name(s, index, "R");
+    let axis = s.vec2("axis", Need::Required, Limit::Any);
+    let eccentric_mass = s.number("eccentric_mass", Need::Required, Limit::NonNegative);
+    let eccentricity = s.number("eccentricity", Need::Required, Limit::NonNegative);
+    let inertia = s.number("inertia", Need::Required, Limit::Positive);
+    let sense = s.choice("sense", Need::Required, &SENSES).map(|v| match v {
+        "ccw" => Sense::Ccw,
+        _ => Sense::Cw,
+    });
+    let angle = s.number("angle", Need::Default(0.0), Limit::Any);
+    let index_angle = s.number("index_angle", Need::Default(0.0), Limit::Any);
+    let own_motor = match s.section("motor", Need::Optional) {
+        Some(m) => Some(read_motor(&m)),
+        None if s.has("motor") => None, // not a table, reported
+        None => Some([Read::Absent; 6]),
+    };
+    s.finish();
+    // An eccentric mass needs an arm: m > 0 at e = 0 is a mistake, not a plain rotor.
+    if let (Some(m), Some(e)) = (eccentric_mass, eccentricity) {
+        if m > 0.0 && e == 0.0 {
+            s.problem(
+                "eccentricity",
+                format!(
+                    "must be > 0 when eccentric_mass > 0 (got 0 with eccentric_mass {}); for a plain rotor set eccentric_mass = 0",
+                    number(m)
+                ),
+            );
+        }
+    }
+    let eccentric_ok =
+        matches!((eccentric_mass, eccentricity), (Some(m), Some(e)) if !(m > 0.0 && e == 0.0));
+    let rotor = (|| {
+        Some(Rotor {
+            name: name.clone()?,
+            axis: axis?,
+            eccentric_mass: eccentric_mass.filter(|_| eccentric_ok)?,
+            eccentricity: eccentricity?,
+            inertia: inertia?,
+            sense: sense?,
+            angle: angle?,
+            index_angle: index_angle?,
+            // A placeholder until stage 4 merges the motor.
+            motor: MotorParams {
+                resistance: 0.0,
+                inductance: 0.0,
+                torque_constant: 0.0,
+                coulomb_friction: 0.0,
+                viscous_friction: 0.0,
+                current_limit: 0.0,
+            },
+        })
+    })();
+    Named {
+        given,
+        name,
+        value: Some(RotorKeys { rotor, own_motor }),
+    }
+}
+
+/// A motor table: every key optional here (stage 4 says what is missing), each
+/// checked against its limit.
+fn read_motor(s: &Section) -> MotorKeys {
+    let mut keys = [Read::Absent; 6];
+    for (slot, (key, limit, _)) in keys.iter_mut().zip(MOTOR) {
+        if s.has(key) {
+            *slot = match s.number(key, Need::Required, limit) {
+                Some(x) => Read::Value(x),
+                None => Read::Refused,
+            };
+        }
+    }
+    s.finish();
+    keys
+}
+
+/// `[sensors]`: encoder counts (an integer >= 4, a multiple of 4), current noise and
+/// encoder jitter >= 0.
+fn read_sensors(s: &Section) -> Option<Sensors> {
+    let counts = s.integer(
+        "encoder_counts",
+        Need::Default(DEFAULT_ENCODER_COUNTS),
+        Limit::Between(4.0, f64::from(u32::MAX)),
+    );
+    // x4 decoding counts every edge of both channels: 4 increments per line.
+    let counts = counts.and_then(|c| {
+        if c % 4 == 0 {
+            u32::try_from(c).ok()
+        } else {
+            s.problem(
+                "encoder_counts",
+                format!(
+                    "must be a multiple of 4: increments per revolution after x4 decoding, 4 x the encoder's lines (got {c})"
+                ),
+            );
+            None
+        }
+    });
+    let current_noise = s.number("current_noise", Need::Default(0.0), Limit::NonNegative);
+    let encoder_jitter = s.number("encoder_jitter", Need::Default(0.0), Limit::NonNegative);
+    s.finish();
+    Some(Sensors {
+        encoder_counts: counts?,
+        current_noise: current_noise?,
+        encoder_jitter: encoder_jitter?,
+    })
+}
+
+/// `[controller]`: rate in (0, [`MAX_RATE_HZ`]] Hz, speed > 0 rpm, tuning table path
+/// (optional, non-empty, resolved against `dir`; not read here).
+fn read_controller(s: &Section, dir: &Path) -> Option<ControllerSettings> {
+    let rate_hz = s
+        .number("rate_hz", Need::Default(DEFAULT_RATE_HZ), Limit::Positive)
+        .and_then(|r| {
+            if r <= MAX_RATE_HZ {
+                Some(r)
+            } else {
+                s.problem(
+                    "rate_hz",
+                    format!(
+                        "must be in (0, {}] Hz, the control tick the firmware can run (got {})",
+                        number(MAX_RATE_HZ),
+                        number(r)
+                    ),
+                );
+                None
+            }
+        });
+    let speed_rpm = s.number(
+        "speed_rpm",
+        Need::Default(DEFAULT_SPEED_RPM),
+        Limit::Positive,
+    );
+    let has_table = s.has("tuning_table");
+    let tuning_table = match s.string("tuning_table", Need::Optional) {
+        Some(t) if t.is_empty() => {
+            s.problem(
+                "tuning_table",
+                "must not be empty: a file name relative to the machine file (or omit the key)",
+            );
+            None
+        }
+        Some(t) => Some(Some(dir.join(t))),
+        None if has_table => None, // not a string, reported
+        None => Some(None),
+    };
+    s.finish();
+    Some(ControllerSettings {
+        rate_hz: rate_hz?,
+        speed_rpm: speed_rpm?,
+        tuning_table: tuning_table?,
+    })
+}
+
+/// `[simulation]`: t_end > 0, output step > 0, seed a non-negative integer.
+fn read_simulation(s: &Section) -> Option<Simulation> {
+    let t_end = s.number("t_end", Need::Default(DEFAULT_T_END), Limit::Positive);
+    let output_step = s.number(
+        "output_step",
+        Need::Default(DEFAULT_OUTPUT_STEP),
+        Limit::Positive,
+    );
+    let seed = s.integer("seed", Need::Default(DEFAULT_SEED), Limit::NonNegative);
+    s.finish();
+    Some(Simulation {
+        t_end: t_end?,
+        output_step: output_step?,
+        // An i64 >= 0 always fits a u64.
+        seed: u64::try_from(seed?).ok()?,
+    })
+}
+
+/// Stage 4: each rotor's motor is `[motor]` with every key the rotor's own
+/// `[rotors.motor]` gives in its place. A key neither gives is reported once for the
+/// machine: at `motor` when the file has no `[motor]`, else at `motor.KEY`.
+fn merge_motors(
+    root: &Section,
+    list: Vec<Named<RotorKeys>>,
+    machine: Option<&MotorKeys>,
+    has_motor: bool,
+) -> Vec<Named<Rotor>> {
+    let mut missing = [false; 6];
+    let rotors = list
+        .into_iter()
+        .map(|named| {
+            let value = named.value.and_then(|keys| {
+                let own = keys.own_motor?;
+                let base = machine?;
+                let mut values = [0.0; 6];
+                let mut ok = true;
+                for k in 0..6 {
+                    let read = match own[k] {
+                        Read::Absent => base[k],
+                        other => other,
+                    };
+                    match read {
+                        Read::Value(x) => values[k] = x,
+                        Read::Refused => ok = false,
+                        Read::Absent => {
+                            missing[k] = true;
+                            ok = false;
+                        }
+                    }
+                }
+                let mut rotor = keys.rotor?;
+                rotor.motor = MotorParams {
+                    resistance: values[0],
+                    inductance: values[1],
+                    torque_constant: values[2],
+                    coulomb_friction: values[3],
+                    viscous_friction: values[4],
+                    current_limit: values[5],
+                };
+                ok.then_some(rotor)
+            });
+            Named {
+                given: named.given,
+                name: named.name,
+                value,
+            }
+        })
+        .collect();
+    let missing_keys: Vec<&str> = MOTOR
+        .iter()
+        .zip(missing)
+        .filter(|(_, m)| *m)
+        .map(|((key, _, _), _)| *key)
+        .collect();
+    if !has_motor && !missing_keys.is_empty() {
+        root.problem(
+            "motor",
+            format!(
+                "missing; required: a table [motor], the rotors' brushed DC motor (a rotor's own [rotors.motor] may replace any of its keys; missing for some rotor: {})",
+                missing_keys.join(", ")
+            ),
+        );
+    } else {
+        for ((key, limit, unit), _) in MOTOR.iter().zip(missing).filter(|(_, m)| *m) {
+            let range = match limit {
+                Limit::Positive => "> 0",
+                _ => ">= 0",
+            };
+            root.problem(
+                &format!("motor.{key}"),
+                format!(
+                    "missing; required: a number {range} ({unit}), here or in the [rotors.motor] of every rotor"
+                ),
+            );
+        }
+    }
+    rotors
+}
+
+/// Unique names among `list`; `what` is `contact` or `rotor`, `array` its key.
+fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
+    let mut ok = true;
+    let mut seen: Vec<(&str, usize)> = Vec::new();
+    for (i, element) in list.iter().enumerate() {
+        let Some(name) = element.name.as_deref() else {
+            continue;
+        };
+        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
+            let message = if element.given {
+                format!(
+                    "duplicate {what} name {name:?} ({array}[{first}] has it already); names must be unique"
+                )
+            } else {
+                format!(
+                    "this {what}'s default name {name:?} is already used by {array}[{first}]; give it a unique name"
+                )
+            };
+            root.problem(&format!("{array}[{i}].name"), message);
+            ok = false;
+        } else {
+            seen.push((name, i));
+        }
+    }
+    ok
+}
+
+/// 1 to [`MAX_CONTACTS`] contacts (the impact solver's limit), names unique.
+fn check_contacts(root: &Section, list: Vec<Named<MachineContact>>) -> Option<Vec<MachineContact>> {
+    if list.is_empty() {
+        root.problem(
+            "contacts",
+            "no contact: at least one [[contacts]] table is required",
+        );
+        return None;
+    }
+    let mut ok = check_names(root, "contacts", "contact", &list);
+    if list.len() > MAX_CONTACTS {
+        root.problem(
+            "contacts",
+            format!(
+                "{} contacts; at most {MAX_CONTACTS} are allowed (the impact solver's limit)",
+                list.len()
+            ),
+        );
+        ok = false;
+    }
+    let contacts = list
+        .into_iter()
+        .map(|c| c.value)
+        .collect::<Option<Vec<_>>>();
+    contacts.filter(|_| ok)
+}
+
+/// Exactly two rotors, names unique.
+fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<[Rotor; 2]> {
+    let ok = check_names(root, "rotors", "rotor", &list);
+    if list.len() != 2 {
+        root.problem(
+            "rotors",
+            format!(
+                "exactly two [[rotors]] tables are required (got {}): rotor 1, then rotor 2",
+                list.len()
+            ),
+        );
+        return None;
+    }
+    let rotors = list
+        .into_iter()
+        .map(|r| r.value)
+        .collect::<Option<Vec<_>>>()?;
+    let rotors: [Rotor; 2] = rotors.try_into().ok()?;
+    ok.then_some(rotors)
+}
+
+/// Stage 6: every contact on or above the fundament at `t = 0`:
+/// `gap = n . (K - P) >= 0` with `P` the fundament's point and `n` its unit normal
+/// (within [`GAP_TOLERANCE`]).
+fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]) {
+    let (p, n) = (fundament.point, fundament.normal);
+    for (i, c) in contacts.iter().enumerate() {
+        let gap = n[0] * (c.point[0] - p[0]) + n[1] * (c.point[1] - p[1]);
+        if gap < -GAP_TOLERANCE {
+            root.problem(
+                &format!("contacts[{i}].point"),
+                format!(
+                    "contact {} is below the fundament at t = 0: gap n . (K - P) = {} m (K = {}, fundament point P = {}, normal n = {}); it must be >= 0, on or above the fundament",
+                    c.name,
+                    number(gap),
+                    vector(c.point),
+                    vector(p),
+                    vector(n)
+                ),
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine_set::{Node, SCHEMA};
+
+    const REFERENCE: &str = include_str!("../../examples/vibro-driver.toml");
+
+    /// A table of the schema: how to reach it in the TOML (keys, and `0` for the
+    /// first element of an array), the reader's key path, and its keys.
+    fn schema_tables() -> Vec<(Vec<&'static str>, String, Vec<&'static str>)> {
+        fn walk(
+            steps: Vec<&'static str>,
+            path: String,
+            keys: &'static [(&'static str, Node)],
+            out: &mut Vec<(Vec<&'static str>, String, Vec<&'static str>)>,
+        ) {
+            out.push((
+                steps.clone(),
+                path.clone(),
+                keys.iter().map(|k| k.0).collect(),
+            ));
+            let join = |p: &str, k: &str| {
+                if p.is_empty() {
+                    k.to_string()
+                } else {
+                    format!("{p}.{k}")
+                }
+            };
+            for (key, node) in keys {
+                let mut next = steps.clone();
+                next.push(key);
+                match node {
+                    Node::Value => {}
+                    Node::Table(inner) => walk(next, join(&path, key), inner, out),
+                    Node::Array { keys: inner, .. } => {
+                        next.push("0");
+                        walk(next, format!("{}[0]", join(&path, key)), inner, out);
+                    }
+                }
+            }
+        }
+        let mut out = Vec::new();
+        walk(Vec::new(), String::new(), SCHEMA, &mut out);
+        out
+    }
+
+    /// The table at `steps` (an array stands for its first element), created where
+    /// absent.
+    fn table_at<'t>(mut t: &'t mut Table, steps: &[&str]) -> &'t mut Table {
+        for step in steps {
+            let v = t
+                .entry(step.to_string())
+                .or_insert_with(|| toml::Value::Table(Table::new()));
+            t = match v {
+                toml::Value::Table(inner) => inner,
+                toml::Value::Array(items) => match &mut items[0] {
+                    toml::Value::Table(inner) => inner,
+                    _ => unreachable!("the reference's arrays hold tables"),
+                },
+                _ => unreachable!("the reference's sections are tables"),
+            };
+        }
+        t
+    }
+
+    #[test]
+    fn the_reader_reads_exactly_the_schema_keys() {
+        // An unknown key in every table of the schema: the reader's "allowed here"
+        // list, the keys it read, must be the schema's (which --set uses).
+        for (steps, path, keys) in schema_tables() {
+            let mut table: Table = toml::from_str(REFERENCE).unwrap();
+            let steps: Vec<&str> = steps.into_iter().filter(|s| *s != "0").collect();
+            table_at(&mut table, &steps).insert("zzz".into(), toml::Value::Integer(1));
+            let problems = Problems::new("m.toml");
+            assert!(check(&table, &problems, Path::new("")).is_none());
+            let key = if path.is_empty() {
+                "zzz".to_string()
+            } else {
+                format!("{path}.zzz")
+            };
+            let list = problems.into_vec();
+            let p = list
+                .iter()
+                .find(|p| p.location == Location::Key(key.clone()))
+                .unwrap_or_else(|| panic!("no problem at {key}: {list:?}"));
+            let allowed = p.message.split("allowed here: ").nth(1).unwrap();
+            let mut read: Vec<&str> = allowed.trim_end_matches(')').split(", ").collect();
+            let mut keys = keys;
+            read.sort_unstable();
+            keys.sort_unstable();
+            assert_eq!(read, keys, "at {path:?}");
+        }
+    }
+
+    #[test]
+    fn the_reference_machine_reads() {
+        let m = Machine::from_text("m.toml", REFERENCE, Path::new("examples"), &[]).unwrap();
+        assert_eq!(m.rotors[0].sense, Sense::Ccw);
+        assert_eq!(m.rotors[1].sense, Sense::Cw);
+        assert_eq!(m.rotors[1].motor, m.rotors[0].motor);
+        assert_eq!(m.controller.tuning_table, None);
+        assert!((m.total_mass() - 2.02).abs() < 1e-12);
+    }
+
+    #[test]
+    fn problems_in_set_values_name_the_set() {
+        let sets = ["contacts.K1.friction=-1".to_string()];
+        let e = Machine::from_text("m.toml", REFERENCE, Path::new(""), &sets).unwrap_err();
+        assert_eq!(
+            input::render(&e),
+            "error: m.toml: contacts[0].friction: must be >= 0 (got -1) (from --set contacts.K1.friction=-1)\n"
+        );
+    }
 }

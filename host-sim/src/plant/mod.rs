@@ -1,3 +1,16 @@
 //! The simulated vibro driver: platform, rotors, motors, contacts, sensors.
+//!
+//! - [`model`]: the constant model (platform-frame geometry) from a machine file;
+//! - [`dynamics`]: equations of motion in `(x, y, theta, phi_1, phi_2)`;
+//! - [`motor`]: the brushed DC motors and their driver;
+//! - [`integrator`]: Dormand-Prince 5(4) with dense output;
+//! - [`simulator`]: the hybrid simulation (modes, events, impacts, Zeno, Painleve);
+//! - [`sensors`]: encoders with index pulses, current measurement.
+// Numeric kernels index several parallel arrays with one loop variable.
+#![allow(clippy::needless_range_loop)]
+pub mod dynamics;
+pub mod integrator;
+pub mod model;
 pub mod motor;
 pub mod sensors;
+pub mod simulator;

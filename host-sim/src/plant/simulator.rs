@@ -1,0 +1,993 @@
+//! The hybrid simulation of the vibro driver: smooth motion between events, and
+//! events located to high accuracy.
+//!
+//! Between events every contact is in a fixed **mode**: open, or closed and
+//! sticking, or closed and slipping one way. In a mode the motion is smooth: closed
+//! contacts are held at zero normal acceleration (and sticking ones at zero
+//! tangential acceleration) by contact forces from a linear system, with friction
+//! `-mu s lambda_n` on slipping ones; where sticking feet leave the forces
+//! undetermined, the weighted minimum norm shares them by the contacts' `weight`
+//! (`shared::impact::lcp::solve_states`). The state `(q, q', i)` is integrated by
+//! Dormand-Prince 5(4) ([`super::integrator`]).
+//!
+//! Stages of [`Plant::advance_to`], per accepted step:
+//! 1. evaluate the **event functions** at the step's end: an open contact's gap, a
+//!    closed contact's normal force (lift-off), a slipping contact's slip velocity,
+//!    a sticking contact's distance to the friction cone `mu lambda_n - |lambda_t|`;
+//! 2. where one changed sign, locate the earliest crossing on the dense output
+//!    (Illinois false position, to [`Settings::event_time_tolerance`]), cut the step
+//!    there and **handle the event**: an impact (the `shared` solver, all contacts
+//!    within [`Settings::together_gap`] of the fundament in one impact, the whole
+//!    mechanism's Delassus matrix with the rotors free), then the new modes from
+//!    the complementarity problem at acceleration level (contact, lift-off, stick,
+//!    slip); a problem with no consistent solution is a **Painleve** configuration,
+//!    resolved by a tangential impact;
+//! 3. otherwise accept the step, project the closed contacts back onto their
+//!    constraints (the integrator's drift, far below its tolerance) and record
+//!    output rows.
+//!
+//! **Zeno**: an impact whose rebound is slower than [`Settings::zeno_velocity`] is
+//! the tail of an accumulation of impacts. It is closed plastically at once and the
+//! accumulation point is reported: the remaining bounces of a contact with
+//! effective restitution `e = v+/v-` under a normal acceleration `a` last
+//! `sum_k 2 v+ e^k / a = 2 v+ / (a (1 - e))` (a geometric series). The threshold is
+//! far below every velocity that matters (1e-6 m/s by default): halving or doubling
+//! it moves the rest point by less than the event tolerance.
+
+use shared::impact::lcp::{find_direction, solve_states, NormalRule, Tolerances};
+use shared::impact::linalg::{solve_weighted, Vector, DIM};
+use shared::impact::{solve, ImpactLaw, ImpactProblem, SlipState, MAX_CONTACTS};
+
+use super::dynamics::{ContactKinematics, Frame, DOF};
+use super::integrator::{attempt, Attempt, Step, Tolerance};
+use super::model::PlantModel;
+use super::motor::{DcMotor, Winding};
+use crate::trace::{EventKind, EventRow, TraceRow};
+
+/// Size of the integrated state: `q` (5), `q'` (5), winding currents (2).
+pub const NY: usize = 2 * DOF + 2;
+
+/// The mode of a contact between events.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ContactMode {
+    /// Not touching, or touching and separating.
+    Open,
+    /// Touching, held by a normal force; tangential velocity held at zero.
+    Stick,
+    /// Touching, slipping along `+t`.
+    SlipPositive,
+    /// Touching, slipping along `-t`.
+    SlipNegative,
+}
+
+impl ContactMode {
+    fn from_slip(s: SlipState) -> Self {
+        match s {
+            SlipState::Stick => ContactMode::Stick,
+            SlipState::SlipPositive => ContactMode::SlipPositive,
+            SlipState::SlipNegative => ContactMode::SlipNegative,
+        }
+    }
+
+    fn slip_state(self) -> SlipState {
+        match self {
+            ContactMode::SlipPositive => SlipState::SlipPositive,
+            ContactMode::SlipNegative => SlipState::SlipNegative,
+            _ => SlipState::Stick,
+        }
+    }
+
+    fn closed(self) -> bool {
+        self != ContactMode::Open
+    }
+}
+
+/// Numerical settings, with the reasons for their defaults.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    /// Relative tolerance of the integrator. 1e-8: the platform's travel per
+    /// revolution is a small difference of large motions.
+    pub rtol: f64,
+    /// Largest step, s. 1e-3 s: no event hides inside a step (a foot that dips
+    /// below the fundament and back within one is found at its gap's minimum), so
+    /// the step is limited only for the dense output's sake.
+    pub max_step: f64,
+    /// Contacts within this gap of the fundament take part in the same impact, m.
+    /// 1e-7 m: far below any flight height, far above the event location error
+    /// (a contact approaching at 1 m/s moves 1e-12 m within the time tolerance).
+    pub together_gap: f64,
+    /// Rebound speed below which an impact ends an accumulation (Zeno), m/s.
+    pub zeno_velocity: f64,
+    /// Time tolerance of event location, s.
+    pub event_time_tolerance: f64,
+    /// Contact velocities within this are zero, m/s.
+    pub velocity_tolerance: f64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            rtol: 1e-8,
+            max_step: 1e-3,
+            together_gap: 1e-7,
+            zeno_velocity: 1e-6,
+            event_time_tolerance: 1e-12,
+            velocity_tolerance: 1e-7,
+        }
+    }
+}
+
+/// Coordinates held still (for tests against closed forms).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Holds {
+    /// Hold the platform (x, y, theta).
+    pub platform: bool,
+    /// Hold both rotors at their current speed relative to the platform.
+    pub rotors: bool,
+}
+
+impl Holds {
+    fn mask(self) -> [bool; DOF] {
+        let p = self.platform;
+        let r = self.rotors;
+        [p, p, p, r, r]
+    }
+}
+
+/// Contact forces and accelerations at a state, in the current modes.
+struct Evaluation {
+    ydot: [f64; NY],
+    /// Normal force of each contact (0 when open), N.
+    lambda_n: [f64; MAX_CONTACTS],
+    /// Tangential force of each contact, N.
+    lambda_t: [f64; MAX_CONTACTS],
+}
+
+/// The simulated machine: model, state, modes, inputs and what happened.
+pub struct Plant {
+    /// The constant model.
+    pub model: PlantModel,
+    /// Numerical settings.
+    pub settings: Settings,
+    /// Coordinates held still.
+    pub holds: Holds,
+    /// Time, s.
+    pub t: f64,
+    /// State `(q, q', i)`.
+    pub y: [f64; NY],
+    /// The contacts' modes.
+    pub modes: Vec<ContactMode>,
+    /// What the H-bridges put on the windings.
+    pub winding: [Winding; 2],
+    /// Events so far.
+    pub events: Vec<EventRow>,
+    /// Impact instants so far.
+    pub impacts: usize,
+    /// Warnings (deduplicated).
+    pub warnings: Vec<String>,
+    /// Accepted integration steps so far.
+    pub steps: u64,
+    motors: [DcMotor; 2],
+    h: f64,
+    fsal: Option<[f64; NY]>,
+}
+
+impl Plant {
+    /// A plant at `t = 0` in state `y` (see [`NY`]), windings open, modes decided
+    /// from the state.
+    pub fn new(model: PlantModel, y: [f64; NY], settings: Settings, holds: Holds) -> Self {
+        let motors = [
+            DcMotor::new(model.rotors[0].motor.clone()),
+            DcMotor::new(model.rotors[1].motor.clone()),
+        ];
+        let n = model.contacts.len();
+        let mut plant = Plant {
+            model,
+            settings,
+            holds,
+            t: 0.0,
+            y,
+            modes: vec![ContactMode::Open; n],
+            winding: [Winding::Open, Winding::Open],
+            events: Vec::new(),
+            impacts: 0,
+            warnings: Vec::new(),
+            steps: 0,
+            motors,
+            h: 1e-5,
+            fsal: None,
+        };
+        plant.settle();
+        plant
+    }
+
+    /// Sets what the H-bridges put on the windings (held until changed).
+    pub fn set_winding(&mut self, winding: [Winding; 2]) {
+        if winding != self.winding {
+            self.winding = winding;
+            self.fsal = None;
+            self.clamp_currents();
+        }
+    }
+
+    /// Generalized coordinates `q`.
+    pub fn q(&self) -> [f64; DOF] {
+        core::array::from_fn(|i| self.y[i])
+    }
+
+    /// Generalized velocities `q'`.
+    pub fn v(&self) -> [f64; DOF] {
+        core::array::from_fn(|i| self.y[DOF + i])
+    }
+
+    /// Winding currents, A.
+    pub fn currents(&self) -> [f64; 2] {
+        [self.y[2 * DOF], self.y[2 * DOF + 1]]
+    }
+
+    /// The configuration terms at `q` with the holds applied.
+    fn frame(&self, q: &[f64; DOF]) -> Frame {
+        Frame::locked(&self.model, q, &self.holds.mask())
+    }
+
+    /// Adds a warning once.
+    fn warn(&mut self, w: String) {
+        if !self.warnings.contains(&w) {
+            self.warnings.push(w);
+        }
+    }
+
+    /// Accelerations and contact forces at `y` in the current modes.
+    fn evaluate(&self, y: &[f64; NY]) -> Evaluation {
+        self.evaluate_with_modes(y, &self.modes)
+    }
+
+    /// Accelerations and contact forces at `y` with the contacts in `modes`.
+    fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
+        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
+        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        let frame = self.frame(&q);
+
+        // Motors: shaft speed relative to the platform in the driven sense.
+        let mut tau = [0.0; 2];
+        let mut di = [0.0; 2];
+        for k in 0..2 {
+            let s = self.model.rotors[k].sense;
+            let omega_m = s * v[3 + k];
+            let i = y[2 * DOF + k];
+            tau[k] = s * self.motors[k].shaft_torque(i, omega_m);
+            di[k] = self.motors[k].current_rate(self.winding[k], i, omega_m);
+        }
+        let mut f = frame.forces(&self.model, &v, tau);
+        for (i, held) in self.holds.mask().iter().enumerate() {
+            if *held {
+                f[i] = 0.0;
+            }
+        }
+        let mut acc = frame.solve(&f);
+
+        // Closed contacts: forces from their mode's equations.
+        let mut lambda_n = [0.0; MAX_CONTACTS];
+        let mut lambda_t = [0.0; MAX_CONTACTS];
+        let closed: Vec<usize> = (0..modes.len()).filter(|j| modes[*j].closed()).collect();
+        if !closed.is_empty() {
+            let sys = self.contact_system(&frame, &q, &v, &closed, Some(&acc));
+            let mut active = [false; MAX_CONTACTS];
+            let mut mode = [SlipState::Stick; MAX_CONTACTS];
+            for (r, &j) in closed.iter().enumerate() {
+                active[r] = true;
+                mode[r] = modes[j].slip_state();
+            }
+            let zeros = [0.0; MAX_CONTACTS];
+            // No solution of the closed contacts' equations: no contact force (the
+            // mode is re-decided at the next event).
+            if let Some((_, d, _)) = solve_states(
+                &sys.problem,
+                &sys.base_n,
+                &sys.base_t,
+                &active,
+                &mode,
+                Some(&zeros),
+                None,
+            ) {
+                for (r, &j) in closed.iter().enumerate() {
+                    lambda_n[j] = d.x[r];
+                    lambda_t[j] = d.y[r];
+                    for i in 0..DOF {
+                        acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
+                    }
+                }
+            }
+        }
+        let mut ydot = [0.0; NY];
+        ydot[..DOF].copy_from_slice(&v);
+        ydot[DOF..2 * DOF].copy_from_slice(&acc);
+        ydot[2 * DOF] = di[0];
+        ydot[2 * DOF + 1] = di[1];
+        Evaluation {
+            ydot,
+            lambda_n,
+            lambda_t,
+        }
+    }
+
+    /// The contact problem of the contacts `set`: Delassus matrix
+    /// `W = J M^-1 J^T` (rotors free unless held), `M^-1 J^T`, and, given the
+    /// accelerations without contact forces, the contact accelerations they add to.
+    fn contact_system(
+        &self,
+        frame: &Frame,
+        q: &[f64; DOF],
+        v: &[f64; DOF],
+        set: &[usize],
+        acc_free: Option<&[f64; DOF]>,
+    ) -> ContactSystem {
+        let mut sys = ContactSystem {
+            problem: ImpactProblem::new(self.model.law),
+            minv_jn: [[0.0; DOF]; MAX_CONTACTS],
+            minv_jt: [[0.0; DOF]; MAX_CONTACTS],
+            kin: Vec::with_capacity(set.len()),
+            base_n: [0.0; MAX_CONTACTS],
+            base_t: [0.0; MAX_CONTACTS],
+        };
+        sys.problem.len = set.len();
+        for (r, &j) in set.iter().enumerate() {
+            let k = frame.contact(&self.model, j, q, v);
+            sys.minv_jn[r] = frame.solve(&k.j_n);
+            sys.minv_jt[r] = frame.solve(&k.j_t);
+            sys.problem.u_n[r] = k.u_n;
+            sys.problem.u_t[r] = k.u_t;
+            sys.problem.contacts[r] = self.model.contacts[j].law;
+            if let Some(a) = acc_free {
+                let row = |jr: &[f64; DOF]| (0..DOF).map(|i| jr[i] * a[i]).sum::<f64>();
+                sys.base_n[r] = row(&k.j_n) + k.bias_n;
+                sys.base_t[r] = row(&k.j_t) + k.bias_t;
+            }
+            sys.kin.push(k);
+        }
+        for r in 0..set.len() {
+            for c in 0..set.len() {
+                let (jn, jt) = (&sys.kin[r].j_n, &sys.kin[r].j_t);
+                let dotp =
+                    |a: &[f64; DOF], b: &[f64; DOF]| (0..DOF).map(|i| a[i] * b[i]).sum::<f64>();
+                sys.problem.w_nn[r][c] = dotp(jn, &sys.minv_jn[c]);
+                sys.problem.w_nt[r][c] = dotp(jn, &sys.minv_jt[c]);
+                sys.problem.w_tt[r][c] = dotp(jt, &sys.minv_jt[c]);
+            }
+        }
+        sys
+    }
+
+    /// The event functions at `y`: each contact's, negative once its event happened.
+    fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
+        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
+        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        let needs_forces = self.modes.iter().any(|m| m.closed());
+        let ev = needs_forces.then(|| self.evaluate(y));
+        let frame = Frame::new(&self.model, &q);
+        (0..self.modes.len())
+            .map(|j| {
+                let k = frame.contact(&self.model, j, &q, &v);
+                let mu = self.model.contacts[j].law.friction;
+                let (ln, lt) = ev
+                    .as_ref()
+                    .map_or((0.0, 0.0), |e| (e.lambda_n[j], e.lambda_t[j]));
+                match self.modes[j] {
+                    ContactMode::Open => k.gap,
+                    ContactMode::Stick => mu * ln - lt.abs(),
+                    ContactMode::SlipPositive => k.u_t.min(ln),
+                    ContactMode::SlipNegative => (-k.u_t).min(ln),
+                }
+                .min(if self.modes[j].closed() {
+                    ln
+                } else {
+                    f64::INFINITY
+                })
+            })
+            .collect()
+    }
+
+    /// Integrates until `t_target`, handling every event on the way; `record` is
+    /// called with the states to output (see [`Output`]).
+    pub fn advance_to(&mut self, t_target: f64, record: &mut dyn FnMut(Output<'_>)) {
+        let tol = self.tolerance();
+        let mut ev0 = self.event_values(&self.y);
+        while self.t < t_target {
+            let f0 = match self.fsal {
+                Some(f) => f,
+                None => {
+                    let f = self.evaluate(&self.y).ydot;
+                    self.fsal = Some(f);
+                    f
+                }
+            };
+            let remaining = t_target - self.t;
+            let h = self.h.min(self.settings.max_step).min(remaining);
+            let (t, y) = (self.t, self.y);
+            let outcome = {
+                let this = &*self;
+                let mut rhs = |_t: f64, yy: &[f64; NY]| this.evaluate(yy).ydot;
+                attempt(&mut rhs, t, &y, &f0, h, &tol)
+            };
+            match outcome {
+                Attempt::Rejected(next) => {
+                    self.h = next;
+                    if self.h < 1e-14 {
+                        self.warn(format!(
+                            "integrator: step size underflow at t = {:.9} s; state held",
+                            self.t
+                        ));
+                        self.t = t_target;
+                        return;
+                    }
+                }
+                Attempt::Accepted(step, next) => {
+                    self.steps += 1;
+                    // Keep the suggested size unless the step was cut by the target.
+                    if h < remaining || next < self.h {
+                        self.h = next;
+                    }
+                    let ev1 = self.event_values(&step.y1);
+                    match self.first_crossing(&step, &ev0, &ev1) {
+                        Some((te, ye)) => {
+                            record(Output::Dense(&step, te));
+                            self.t = te;
+                            self.y = ye;
+                            record(Output::Before(self.t, &self.y));
+                            self.fsal = None;
+                            self.settle();
+                            record(Output::After(self.t, &self.y));
+                            ev0 = self.event_values(&self.y);
+                        }
+                        None => {
+                            record(Output::Dense(&step, step.t1()));
+                            self.t = step.t1();
+                            self.y = step.y1;
+                            self.fsal = Some(step.f1);
+                            self.clamp_currents();
+                            if self.modes.iter().any(|m| m.closed()) {
+                                self.project();
+                                self.fsal = None;
+                                ev0 = self.event_values(&self.y);
+                            } else {
+                                ev0 = ev1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The integrator's tolerances: relative `rtol`, absolute per component scaled
+    /// to the machine (1e-3 of a contact point's spacing in position, of 1 rad, of
+    /// 1 m/s, of 1 A, times `rtol`).
+    fn tolerance(&self) -> Tolerance<NY> {
+        let r = self.settings.rtol;
+        let mut atol = [r; NY];
+        for a in atol.iter_mut().take(DOF) {
+            *a = 1e-3 * r;
+        }
+        Tolerance { rtol: r, atol }
+    }
+
+    /// Clamps the winding currents to the drivers' limits.
+    fn clamp_currents(&mut self) {
+        for k in 0..2 {
+            self.y[2 * DOF + k] =
+                self.motors[k].project_current(self.winding[k], self.y[2 * DOF + k]);
+        }
+    }
+
+    /// The earliest event in `step`, located on its dense output.
+    fn first_crossing(
+        &self,
+        step: &Step<NY>,
+        ev0: &[f64],
+        ev1: &[f64],
+    ) -> Option<(f64, [f64; NY])> {
+        let mut best: Option<f64> = None;
+        let mut consider = |te: f64| {
+            if best.is_none_or(|b| te < b) {
+                best = Some(te);
+            }
+        };
+        for j in 0..ev0.len() {
+            if ev0[j] > 0.0 && ev1[j] <= 0.0 {
+                let f = |y: &[f64; NY]| self.event_values(y)[j];
+                consider(self.locate(step, &f, step.t0, step.t1(), ev0[j], ev1[j]));
+            } else if ev0[j] > 0.0 && ev1[j] > 0.0 && self.modes[j] == ContactMode::Open {
+                // Grazing: the gap may dip below zero and come back inside the step.
+                // Its minimum is where u_n goes from - to +; check the gap there.
+                let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
+                let (u0, u1) = (un(&step.y0), un(&step.y1));
+                if u0 < 0.0 && u1 > 0.0 {
+                    let neg_un = |y: &[f64; NY]| -un(y);
+                    let t_min = self.locate(step, &neg_un, step.t0, step.t1(), -u0, -u1);
+                    let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
+                    let g_min = gap(&step.at(t_min));
+                    if g_min <= 0.0 {
+                        consider(self.locate(step, &gap, step.t0, t_min, ev0[j], g_min));
+                    }
+                }
+            } else if ev0[j] <= 0.0 && ev1[j] <= 0.0 && self.modes[j] == ContactMode::Open {
+                // An open contact that starts at the fundament (just after an impact
+                // or a lift-off) and ends the step below it, approaching: a whole
+                // flight inside the step. Bracket its apex (u_n from + to -), then
+                // the gap's root after it.
+                let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
+                let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
+                let (u0, u1) = (un(&step.y0), un(&step.y1));
+                if u1 >= -self.settings.velocity_tolerance {
+                    continue;
+                }
+                let apex = if u0 > 0.0 {
+                    self.locate(step, &un, step.t0, step.t1(), u0, u1)
+                } else {
+                    step.t0
+                };
+                let g_apex = gap(&step.at(apex));
+                if g_apex > 0.0 {
+                    consider(self.locate(step, &gap, apex, step.t1(), g_apex, ev1[j]));
+                } else {
+                    consider(apex);
+                }
+            }
+        }
+        best.map(|te| {
+            if te >= step.t1() {
+                (step.t1(), step.y1)
+            } else if te <= step.t0 {
+                (step.t0, step.y0)
+            } else {
+                (te, step.at(te))
+            }
+        })
+    }
+
+    /// Contact `j`'s kinematics at state `y`.
+    fn contact_at(&self, y: &[f64; NY], j: usize) -> ContactKinematics {
+        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
+        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        Frame::new(&self.model, &q).contact(&self.model, j, &q, &v)
+    }
+
+    /// Illinois false position on the dense output for the function `f`, from
+    /// `f(a) = fa > 0` to `f(b) = fb <= 0`; returns a time where `f <= 0`.
+    fn locate(
+        &self,
+        step: &Step<NY>,
+        f: &dyn Fn(&[f64; NY]) -> f64,
+        a: f64,
+        b: f64,
+        fa: f64,
+        fb: f64,
+    ) -> f64 {
+        let (mut a, mut b, mut fa, mut fb) = (a, b, fa, fb);
+        let mut side = 0i8;
+        for _ in 0..200 {
+            if b - a <= self.settings.event_time_tolerance {
+                break;
+            }
+            let mut c = (a * fb - b * fa) / (fb - fa);
+            if !(c > a && c < b) {
+                c = 0.5 * (a + b);
+            }
+            let fc = f(&step.at(c));
+            if fc > 0.0 {
+                a = c;
+                fa = fc;
+                if side == 1 {
+                    fb *= 0.5;
+                }
+                side = 1;
+            } else {
+                b = c;
+                fb = fc;
+                if side == -1 {
+                    fa *= 0.5;
+                }
+                side = -1;
+            }
+        }
+        b
+    }
+
+    /// At an event: impacts where contacts approach, then the contacts' modes from
+    /// the complementarity problem at acceleration level.
+    fn settle(&mut self) {
+        for _ in 0..16 {
+            let q = self.q();
+            let v = self.v();
+            let frame = Frame::new(&self.model, &q);
+            let kin: Vec<ContactKinematics> = (0..self.model.contacts.len())
+                .map(|j| frame.contact(&self.model, j, &q, &v))
+                .collect();
+            let touching: Vec<usize> = (0..kin.len())
+                .filter(|j| kin[*j].gap <= self.settings.together_gap)
+                .collect();
+            if touching
+                .iter()
+                .any(|j| kin[*j].u_n < -self.settings.velocity_tolerance)
+            {
+                self.impact(&touching);
+                continue;
+            }
+            self.decide_modes(&touching, &kin);
+            return;
+        }
+        self.warn(format!(
+            "contacts: no consistent state after 16 impacts at t = {:.9} s",
+            self.t
+        ));
+    }
+
+    /// One impact of the contacts `set` (all within the together gap).
+    fn impact(&mut self, set: &[usize]) {
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let outcome = match solve(&sys.problem) {
+            Ok(o) => o,
+            Err(e) => {
+                self.warn(format!("impact at t = {:.9} s not solved: {e:?}", self.t));
+                return;
+            }
+        };
+        let approach = (0..set.len())
+            .map(|r| -sys.problem.u_n[r])
+            .fold(0.0, f64::max);
+        let rebound = (0..set.len())
+            .filter(|r| outcome.contacts[*r].normal_impulse > 0.0)
+            .map(|r| outcome.contacts[r].normal_velocity_after)
+            .fold(0.0, f64::max);
+
+        // Zeno: a rebound slower than the threshold ends an accumulation; close it
+        // plastically and report the accumulation point.
+        let zeno = rebound > 0.0 && rebound < self.settings.zeno_velocity;
+        let outcome = if zeno {
+            let mut plastic = sys.problem.clone();
+            for r in 0..set.len() {
+                plastic.contacts[r].restitution = 0.0;
+            }
+            solve(&plastic).unwrap_or(outcome)
+        } else {
+            outcome
+        };
+
+        // Velocity jump: q'+ = q'- + M^-1 J^T P.
+        for (r, &j) in set.iter().enumerate() {
+            let c = &outcome.contacts[r];
+            for i in 0..DOF {
+                self.y[DOF + i] +=
+                    c.normal_impulse * sys.minv_jn[r][i] + c.tangential_impulse * sys.minv_jt[r][i];
+            }
+            if c.normal_impulse > 0.0 || sys.problem.u_n[r] < 0.0 {
+                self.events.push(EventRow {
+                    t: self.t,
+                    kind: EventKind::Impact,
+                    contact: self.model.contacts[j].name.clone(),
+                    normal_velocity_before: c.normal_velocity_before,
+                    normal_velocity_after: c.normal_velocity_after,
+                    normal_impulse: c.normal_impulse,
+                    tangential_impulse: c.tangential_impulse,
+                    case: Some(c.case.number()),
+                    detail: String::new(),
+                });
+            }
+        }
+        self.impacts += 1;
+        self.fsal = None;
+        if !outcome.warnings.is_empty() {
+            let w = outcome.warnings;
+            use shared::impact::Warnings as W;
+            if w.contains(W::ENERGY_GAINED) && self.model.law != ImpactLaw::Newton {
+                self.warn(
+                    "impacts: energy gained at an impact (unequal restitution at several contacts)"
+                        .into(),
+                );
+            }
+            if w.contains(W::PENETRATION_LEFT) {
+                self.warn("impacts: a contact still approached after an impact".into());
+            }
+            if w.contains(W::INCONSISTENT) {
+                self.warn("impacts: inconsistent contact states inside an impact".into());
+            }
+        }
+        if zeno {
+            // Remaining flight time of the accumulation: 2 v+ / (a (1 - e)).
+            let e = (rebound / approach).clamp(0.0, 0.999_999);
+            let acc = self.free_normal_acceleration(set);
+            let remaining = if acc < 0.0 {
+                2.0 * rebound / (-acc * (1.0 - e))
+            } else {
+                0.0
+            };
+            let at = self.t + remaining;
+            for &j in set {
+                self.events.push(EventRow {
+                    t: self.t,
+                    kind: EventKind::Zeno,
+                    contact: self.model.contacts[j].name.clone(),
+                    normal_velocity_before: 0.0,
+                    normal_velocity_after: 0.0,
+                    normal_impulse: 0.0,
+                    tangential_impulse: 0.0,
+                    case: None,
+                    detail: format!("accumulation_time={at:.12}"),
+                });
+            }
+        }
+    }
+
+    /// The largest (least negative) normal acceleration without contact forces
+    /// among `set`, m/s^2.
+    fn free_normal_acceleration(&self, set: &[usize]) -> f64 {
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let open = vec![ContactMode::Open; self.modes.len()];
+        let e = self.evaluate_with_modes(&self.y, &open);
+        set.iter()
+            .map(|&j| {
+                let k = frame.contact(&self.model, j, &q, &v);
+                (0..DOF).map(|i| k.j_n[i] * e.ydot[DOF + i]).sum::<f64>() + k.bias_n
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// The modes of the touching contacts (not approaching) from the
+    /// complementarity problem at acceleration level; the rest open.
+    fn decide_modes(&mut self, touching: &[usize], kin: &[ContactKinematics]) {
+        let old = self.modes.clone();
+        let mut new = vec![ContactMode::Open; self.modes.len()];
+        let candidates: Vec<usize> = touching
+            .iter()
+            .copied()
+            .filter(|j| kin[*j].u_n <= self.settings.velocity_tolerance)
+            .collect();
+        if !candidates.is_empty() {
+            // Accelerations with every contact open.
+            let open = vec![ContactMode::Open; self.modes.len()];
+            let free = self.evaluate_with_modes(&self.y, &open);
+            let acc: [f64; DOF] = core::array::from_fn(|i| free.ydot[DOF + i]);
+            let q = self.q();
+            let v = self.v();
+            let frame = self.frame(&q);
+            let sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
+            let mut slip = [0.0; MAX_CONTACTS];
+            for (r, &j) in candidates.iter().enumerate() {
+                slip[r] = kin[j].u_t;
+            }
+            let scale_a = sys
+                .base_n
+                .iter()
+                .chain(sys.base_t.iter())
+                .fold(1.0, |m: f64, a| m.max(a.abs()));
+            let tol = Tolerances {
+                velocity: 1e-9 * scale_a,
+                impulse: 1e-9 * scale_a * self.model.total_mass(),
+            };
+            // Slip states from the slip velocities, with zero below the tolerance.
+            let mut slip_snapped = slip;
+            for s in slip_snapped.iter_mut() {
+                if s.abs() <= self.settings.velocity_tolerance {
+                    *s = 0.0;
+                }
+            }
+            let zeros = [0.0; MAX_CONTACTS];
+            let d = find_direction(
+                &sys.problem,
+                &sys.base_n,
+                &sys.base_t,
+                &slip_snapped,
+                NormalRule::Target(&zeros),
+                &tol,
+            );
+            if !d.consistent || !d.ends_at_one {
+                self.painleve(&candidates);
+                return;
+            }
+            for (r, &j) in candidates.iter().enumerate() {
+                if d.x[r] > tol.impulse {
+                    new[j] = ContactMode::from_slip(d.mode[r]);
+                }
+            }
+        }
+        // Events for the changes.
+        for j in 0..new.len() {
+            let (a, b) = (old[j], new[j]);
+            if a == b {
+                continue;
+            }
+            let kind = match (a.closed(), b.closed(), b) {
+                (false, true, _) => EventKind::Contact,
+                (true, false, _) => EventKind::Liftoff,
+                (true, true, ContactMode::Stick) => EventKind::Stick,
+                (true, true, _) => EventKind::Slip,
+                (false, false, _) => continue,
+            };
+            self.events.push(EventRow {
+                t: self.t,
+                kind,
+                contact: self.model.contacts[j].name.clone(),
+                normal_velocity_before: kin[j].u_n,
+                normal_velocity_after: kin[j].u_n,
+                normal_impulse: 0.0,
+                tangential_impulse: 0.0,
+                case: None,
+                detail: mode_name(b).into(),
+            });
+        }
+        self.modes = new;
+        self.fsal = None;
+        self.project();
+    }
+
+    /// A Painleve configuration: the contact problem has no consistent solution
+    /// (or its only way out is unbounded). Reported, and resolved by a tangential
+    /// impact: the impulse-space problem of the touching contacts, which under
+    /// friction develops a normal impulse even from zero normal velocity until the
+    /// slip stops (Genot & Brogliato 1999).
+    fn painleve(&mut self, set: &[usize]) {
+        for &j in set {
+            self.events.push(EventRow {
+                t: self.t,
+                kind: EventKind::Painleve,
+                contact: self.model.contacts[j].name.clone(),
+                normal_velocity_before: 0.0,
+                normal_velocity_after: 0.0,
+                normal_impulse: 0.0,
+                tangential_impulse: 0.0,
+                case: None,
+                detail: "no consistent contact force; tangential impact".into(),
+            });
+        }
+        self.warn(format!(
+            "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
+            self.t
+        ));
+        // Tangential impact: the stuck state is reached impulsively; take the
+        // contacts as sticking and closed (a plastic tangential impulse).
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let mut rows: Vec<([f64; DOF], [f64; DOF], f64)> = Vec::new();
+        for (r, _) in set.iter().enumerate() {
+            rows.push((sys.kin[r].j_n, sys.minv_jn[r], sys.kin[r].u_n.min(0.0)));
+            rows.push((sys.kin[r].j_t, sys.minv_jt[r], sys.kin[r].u_t));
+        }
+        self.project_rows(&rows);
+        for &j in set {
+            self.modes[j] = ContactMode::Stick;
+        }
+        self.fsal = None;
+    }
+
+    /// Projects the state onto the closed contacts' constraints: velocities
+    /// (`u_n = 0`, and `u_t = 0` when sticking) by the mass-weighted least change
+    /// `dq' = -M^-1 J^T W^+ (J q')`, and positions (`gap = 0`) likewise.
+    fn project(&mut self) {
+        let closed: Vec<usize> = (0..self.modes.len())
+            .filter(|j| self.modes[*j].closed())
+            .collect();
+        if closed.is_empty() {
+            return;
+        }
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let mut vel_rows = Vec::new();
+        let mut pos_rows = Vec::new();
+        for &j in &closed {
+            let k = frame.contact(&self.model, j, &q, &v);
+            let minv_n = frame.solve(&k.j_n);
+            vel_rows.push((k.j_n, minv_n, k.u_n));
+            pos_rows.push((k.j_n, minv_n, k.gap));
+            if self.modes[j] == ContactMode::Stick {
+                vel_rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
+            }
+        }
+        self.project_rows(&vel_rows);
+        // Positions: one Gauss-Newton step on the gaps.
+        if let Some(dq) = least_change(&pos_rows) {
+            for i in 0..DOF {
+                self.y[i] += dq[i];
+            }
+        }
+    }
+
+    /// Applies the least mass-weighted velocity change that zeroes the rows.
+    fn project_rows(&mut self, rows: &[([f64; DOF], [f64; DOF], f64)]) {
+        if let Some(dv) = least_change(rows) {
+            for i in 0..DOF {
+                self.y[DOF + i] += dv[i];
+            }
+        }
+    }
+
+    /// The trace row of state `y` at `t` with duties `duty`.
+    pub fn row(t: f64, y: &[f64; NY], duty: [f64; 2]) -> TraceRow {
+        TraceRow {
+            t,
+            x: y[0],
+            y: y[1],
+            angle: y[2],
+            vx: y[DOF],
+            vy: y[DOF + 1],
+            omega: y[DOF + 2],
+            phi1: y[3],
+            phi2: y[4],
+            omega1: y[DOF + 3],
+            omega2: y[DOF + 4],
+            i1: y[2 * DOF],
+            i2: y[2 * DOF + 1],
+            duty1: duty[0],
+            duty2: duty[1],
+        }
+    }
+
+    /// Total mechanical energy (kinetic plus gravity's potential), J.
+    pub fn mechanical_energy(&self) -> f64 {
+        let q = self.q();
+        let frame = Frame::new(&self.model, &q);
+        frame.kinetic_energy(&self.v()) + frame.potential_energy(&self.model, &q)
+    }
+}
+
+/// What [`Plant::advance_to`] hands the recorder.
+pub enum Output<'a> {
+    /// An accepted step, valid up to this time (inclusive): sample its dense output.
+    Dense(&'a Step<NY>, f64),
+    /// The state just before an event.
+    Before(f64, &'a [f64; NY]),
+    /// The state just after an event.
+    After(f64, &'a [f64; NY]),
+}
+
+/// A contact problem assembled for a set of contacts.
+struct ContactSystem {
+    problem: ImpactProblem<f64, MAX_CONTACTS>,
+    minv_jn: [[f64; DOF]; MAX_CONTACTS],
+    minv_jt: [[f64; DOF]; MAX_CONTACTS],
+    kin: Vec<ContactKinematics>,
+    base_n: [f64; MAX_CONTACTS],
+    base_t: [f64; MAX_CONTACTS],
+}
+
+/// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
+/// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
+fn least_change(rows: &[([f64; DOF], [f64; DOF], f64)]) -> Option<[f64; DOF]> {
+    let n = rows.len().min(DIM);
+    if n == 0 {
+        return None;
+    }
+    let mut w = [[0.0; DIM]; DIM];
+    let mut b: Vector<f64> = [0.0; DIM];
+    for r in 0..n {
+        for c in 0..n {
+            w[r][c] = (0..DOF).map(|i| rows[r].0[i] * rows[c].1[i]).sum();
+        }
+        b[r] = -rows[r].2;
+    }
+    let (x, _) = solve_weighted(&w, &b, &[1.0; DIM], n)?;
+    let mut dx = [0.0; DOF];
+    for r in 0..n {
+        for i in 0..DOF {
+            dx[i] += x[r] * rows[r].1[i];
+        }
+    }
+    Some(dx)
+}
+
+/// The name of a mode in the events CSV's detail.
+fn mode_name(m: ContactMode) -> &'static str {
+    match m {
+        ContactMode::Open => "open",
+        ContactMode::Stick => "stick",
+        ContactMode::SlipPositive => "slip+",
+        ContactMode::SlipNegative => "slip-",
+    }
+}

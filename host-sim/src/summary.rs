@@ -1,0 +1,568 @@
+//! The summary of a run (spec `machine.md`, `host-sim run --format json`): mean
+//! velocity, distance, impacts, rotor speeds and phase offset, computed from the
+//! recorded trace and events.
+//!
+//! Every statistic "over the second half" runs from `T/2` to `T`, with `T` the time
+//! of the last trace row and `T/2` the midpoint between the first and the last row
+//! (the first row is at `t = 0` in a run, so this is the spec's `T/2`). Values at
+//! `T/2` are interpolated linearly between the rows around it.
+//!
+//! Phase convention (spec, must): a rotor's encoder angle is
+//! `theta_k = s_k (phi_k - index_angle_k)`, `s_k = +1` for ccw and `-1` for cw; the
+//! phase offset is `theta_1 - theta_2` in degrees, wrapped to [0, 360).
+
+use std::f64::consts::PI;
+
+use crate::machine::{Machine, Rotor};
+use crate::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
+
+/// Converts rad/s to rpm: `60 / (2 pi)`.
+const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * PI);
+
+/// `x` degrees wrapped to [0, 360).
+pub fn wrap_deg_360(x: f64) -> f64 {
+    let r = x.rem_euclid(360.0);
+    // rem_euclid rounds a tiny negative x up to 360 itself.
+    if r >= 360.0 {
+        0.0
+    } else {
+        r
+    }
+}
+
+/// `x` degrees wrapped to (-180, 180].
+pub fn wrap_deg_180(x: f64) -> f64 {
+    // y in [0, 360), so 180 - y in (-180, 180].
+    let y = wrap_deg_360(180.0 - x);
+    180.0 - y
+}
+
+/// A rotor's encoder angle `theta = s (phi - index_angle)`, rad, not wrapped.
+pub fn encoder_angle(phi: f64, rotor: &Rotor) -> f64 {
+    rotor.sense.sign() * (phi - rotor.index_angle)
+}
+
+/// The phase offset `theta_1 - theta_2` in degrees, wrapped to [0, 360), of the
+/// eccentric angles `phi1`, `phi2` (rad, platform frame) of `machine`'s rotors.
+pub fn phase_offset_deg(phi1: f64, phi2: f64, machine: &Machine) -> f64 {
+    let [r1, r2] = &machine.rotors;
+    let theta = encoder_angle(phi1, r1) - encoder_angle(phi2, r2);
+    wrap_deg_360(theta.to_degrees())
+}
+
+/// The distinct times of the impact events, ascending (the rows of one
+/// simultaneous impact share their `t`, so each instant counts once).
+pub fn impact_times(events: &[EventRow]) -> Vec<f64> {
+    let mut times: Vec<f64> = events
+        .iter()
+        .filter(|e| e.kind == EventKind::Impact)
+        .map(|e| e.t)
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup_by(|a, b| a.to_bits() == b.to_bits());
+    times
+}
+
+/// The platform position and rotor angles at time `t`, interpolated linearly
+/// between the last row with `row.t <= t` and the first row after it (so of two
+/// rows at one event time, the later, "after", one is used). Before the first row
+/// or after the last, that row's values. `rows` must not be empty.
+///
+/// Returns `(x, phi1, phi2)`.
+fn at_time(rows: &[TraceRow], t: f64) -> (f64, f64, f64) {
+    let values = |r: &TraceRow| (r.x, r.phi1, r.phi2);
+    // Index of the first row strictly after t.
+    let i = rows.partition_point(|r| r.t <= t);
+    if i == 0 {
+        return values(&rows[0]);
+    }
+    if i == rows.len() {
+        return values(&rows[i - 1]);
+    }
+    let (a, b) = (&rows[i - 1], &rows[i]);
+    // b.t > t >= a.t, so the denominator is positive.
+    let f = (t - a.t) / (b.t - a.t);
+    let lerp = |p: f64, q: f64| p + (q - p) * f;
+    (lerp(a.x, b.x), lerp(a.phi1, b.phi1), lerp(a.phi2, b.phi2))
+}
+
+/// The phase offset samples of the second half with their trapezoidal time weights:
+/// the interpolated value at `half`, then every row after it. Weights
+/// `w_i = (t_{i+1} - t_{i-1}) / 2` (one-sided at the ends) make the mean a time
+/// average however the rows are spaced; rows repeated at an event time get no
+/// weight of their own. When the half has no duration, equal weights.
+fn second_half_offsets(rows: &[TraceRow], half: f64, machine: &Machine) -> Vec<(f64, f64)> {
+    let (_, phi1, phi2) = at_time(rows, half);
+    let mut samples = vec![(half, phase_offset_deg(phi1, phi2, machine))];
+    samples.extend(
+        rows.iter()
+            .filter(|r| r.t > half)
+            .map(|r| (r.t, phase_offset_deg(r.phi1, r.phi2, machine))),
+    );
+    let n = samples.len();
+    let mut weighted: Vec<(f64, f64)> = (0..n)
+        .map(|i| {
+            let before = samples[i.saturating_sub(1)].0;
+            let after = samples[(i + 1).min(n - 1)].0;
+            ((after - before) / 2.0, samples[i].1)
+        })
+        .collect();
+    let total: f64 = weighted.iter().map(|(w, _)| w).sum();
+    if !(total > 0.0 && total.is_finite()) {
+        for (w, _) in &mut weighted {
+            *w = 1.0;
+        }
+    }
+    weighted
+}
+
+/// The circular mean of weighted angles in degrees, wrapped to [0, 360):
+/// `atan2(sum w sin a, sum w cos a)`.
+fn circular_mean_deg(samples: &[(f64, f64)]) -> f64 {
+    let (mut s, mut c) = (0.0, 0.0);
+    for (w, a) in samples {
+        let a = a.to_radians();
+        s += w * a.sin();
+        c += w * a.cos();
+    }
+    wrap_deg_360(s.atan2(c).to_degrees())
+}
+
+/// The weighted RMS of `a - commanded` wrapped to (-180, 180], degrees.
+fn rms_error_deg(samples: &[(f64, f64)], commanded: f64) -> f64 {
+    let (mut sum, mut total) = (0.0, 0.0);
+    for (w, a) in samples {
+        let e = wrap_deg_180(a - commanded);
+        sum += w * e * e;
+        total += w;
+    }
+    (sum / total).sqrt()
+}
+
+/// The spec's summary of a run from its trace rows (times ascending, possibly two
+/// rows at an event time) and its events.
+///
+/// - `mean_velocity = (x(T) - x(T/2)) / (T/2)`, `distance = x(T) - x(0)`;
+/// - `impacts`: the number of distinct impact times;
+/// - `rotor_speed_rpm[k] = s_k (phi_k(T) - phi_k(T/2)) / (T/2)` in rpm (phi is
+///   unwrapped, so this is the exact mean speed in the driven sense);
+/// - `phase_offset_deg`: the time-weighted circular mean of the offset over the
+///   second half; `phase_error_deg_rms`: the RMS of (offset - commanded), wrapped to
+///   (-180, 180], over the second half when `commanded_offset_deg` is given, else 0;
+/// - `final_state`: the last row.
+///
+/// An empty trace gives zeros, the machine's initial state as the final state and a
+/// warning. A trace of no duration gives zero velocities and speeds.
+pub fn summarize(
+    rows: &[TraceRow],
+    events: &[EventRow],
+    machine: &Machine,
+    commanded_offset_deg: Option<f64>,
+    state: &str,
+    faults: Vec<String>,
+    mut warnings: Vec<String>,
+) -> Summary {
+    let impacts = impact_times(events).len();
+    let (Some(first), Some(last)) = (rows.first(), rows.last()) else {
+        let p = &machine.platform;
+        warnings.push("the run recorded no trace rows: the summary is empty".to_string());
+        return Summary {
+            impacts,
+            state: state.to_string(),
+            faults,
+            final_state: FinalState {
+                position: p.position,
+                angle: p.angle,
+                velocity: p.velocity,
+                angular_velocity: p.angular_velocity,
+            },
+            warnings,
+            ..Summary::default()
+        };
+    };
+
+    // The second half: from the midpoint to the end.
+    let t_end = last.t;
+    let half = 0.5 * (first.t + t_end);
+    let duration = t_end - half;
+    let (x_half, phi1_half, phi2_half) = at_time(rows, half);
+    let rate = |end: f64, mid: f64| {
+        if duration > 0.0 {
+            (end - mid) / duration
+        } else {
+            0.0
+        }
+    };
+
+    // Travel.
+    let mean_velocity = rate(last.x, x_half);
+    let distance = last.x - first.x;
+
+    // Rotor speeds in the driven sense: s_k dphi_k/dt, in rpm.
+    let [r1, r2] = &machine.rotors;
+    let rotor_speed_rpm = [
+        r1.sense.sign() * rate(last.phi1, phi1_half) * RPM_PER_RAD_S,
+        r2.sense.sign() * rate(last.phi2, phi2_half) * RPM_PER_RAD_S,
+    ];
+
+    // Phase offset and its error over the second half.
+    let offsets = second_half_offsets(rows, half, machine);
+    let phase_offset_deg = circular_mean_deg(&offsets);
+    let phase_error_deg_rms = match commanded_offset_deg {
+        Some(c) => rms_error_deg(&offsets, c),
+        None => 0.0,
+    };
+
+    Summary {
+        t_end,
+        mean_velocity,
+        distance,
+        impacts,
+        rotor_speed_rpm,
+        phase_offset_deg,
+        phase_error_deg_rms,
+        state: state.to_string(),
+        faults,
+        final_state: FinalState {
+            position: [last.x, last.y],
+            angle: last.angle,
+            velocity: [last.vx, last.vy],
+            angular_velocity: last.omega,
+        },
+        warnings,
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A machine like the spec's example: rotor 1 "left" ccw, rotor 2 "right" cw,
+    /// index angles given (rad).
+    pub(crate) fn machine(index: [f64; 2]) -> Machine {
+        let text = format!(
+            r#"
+[platform]
+mass = 2.0
+inertia = 7.3e-3
+position = [0.0, 0.03]
+angle = 0.0
+[[contacts]]
+name = "K1"
+point = [-0.08, 0.0]
+restitution = 0.3
+friction = 0.4
+[[rotors]]
+name = "left"
+axis = [-0.03, 0.03]
+eccentric_mass = 0.01
+eccentricity = 0.02
+inertia = 6.0e-6
+sense = "ccw"
+angle = 0.0
+index_angle = {:?}
+[[rotors]]
+name = "right"
+axis = [0.03, 0.03]
+eccentric_mass = 0.01
+eccentricity = 0.02
+inertia = 6.0e-6
+sense = "cw"
+angle = 0.0
+index_angle = {:?}
+[motor]
+resistance = 2.0
+inductance = 0.5e-3
+torque_constant = 0.02
+coulomb_friction = 1.0e-3
+viscous_friction = 1.0e-6
+current_limit = 2.0
+[drive]
+supply_voltage = 12.0
+"#,
+            index[0], index[1]
+        );
+        Machine::from_text("test.toml", &text, std::path::Path::new(""), &[])
+            .unwrap_or_else(|p| panic!("{}", crate::input::render(&p)))
+    }
+
+    /// An impact event at `t`.
+    pub(crate) fn impact(t: f64, contact: &str) -> EventRow {
+        EventRow {
+            t,
+            kind: EventKind::Impact,
+            contact: contact.to_string(),
+            normal_velocity_before: -0.1,
+            normal_velocity_after: 0.03,
+            normal_impulse: 0.2,
+            tangential_impulse: 0.01,
+            case: Some(1),
+            detail: String::new(),
+        }
+    }
+
+    /// Rows every `dt` from 0 to `t_end` of `f(t)`.
+    fn rows(t_end: f64, dt: f64, f: impl Fn(f64) -> TraceRow) -> Vec<TraceRow> {
+        let n = (t_end / dt).round() as usize;
+        (0..=n).map(|i| f(i as f64 * dt)).collect()
+    }
+
+    const TOL: f64 = 1e-9;
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol
+    }
+
+    #[test]
+    fn wrapping() {
+        assert_eq!(wrap_deg_360(0.0), 0.0);
+        assert_eq!(wrap_deg_360(360.0), 0.0);
+        assert_eq!(wrap_deg_360(-90.0), 270.0);
+        assert_eq!(wrap_deg_360(725.0), 5.0);
+        assert_eq!(wrap_deg_360(-1e-20), 0.0);
+        assert_eq!(wrap_deg_180(180.0), 180.0);
+        assert_eq!(wrap_deg_180(-180.0), 180.0);
+        assert_eq!(wrap_deg_180(190.0), -170.0);
+        assert_eq!(wrap_deg_180(-10.0), -10.0);
+        assert_eq!(wrap_deg_180(350.0), -10.0);
+    }
+
+    #[test]
+    fn phase_offset_follows_the_convention() {
+        let m = machine([0.0, 0.0]);
+        // Rotor 1 ccw at +30 deg, rotor 2 cw at -60 deg: theta_1 = 30, theta_2 = 60.
+        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m);
+        assert!(close(offset, 330.0, TOL), "{offset}");
+        // Index angles shift each theta: theta_1 = 30 - 10, theta_2 = -(-60 - 20) = 80.
+        let m = machine([10f64.to_radians(), 20f64.to_radians()]);
+        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m);
+        assert!(close(offset, 300.0, TOL), "{offset}");
+        // A mirror-symmetric counter-rotating pair (phi_2 = pi - phi_1), with
+        // phi_1 = 45 deg: theta_1 = 45, theta_2 = -135, offset 180: vertical.
+        let m = machine([0.0, 0.0]);
+        let offset = phase_offset_deg(45f64.to_radians(), 135f64.to_radians(), &m);
+        assert!(close(offset, 180.0, TOL), "{offset}");
+    }
+
+    #[test]
+    fn constant_velocity_and_speeds() {
+        // x = 0.1 + 0.05 t, rotor 1 ccw at 50 rev/s, rotor 2 cw at 40 rev/s (phi
+        // decreasing), over 2 s: mean velocity 0.05 m/s, distance 0.1 m, speeds 3000
+        // and 2400 rpm.
+        let w1 = 2.0 * PI * 50.0;
+        let w2 = 2.0 * PI * 40.0;
+        let trace = rows(2.0, 1e-3, |t| TraceRow {
+            t,
+            x: 0.1 + 0.05 * t,
+            y: 0.03,
+            vx: 0.05,
+            phi1: w1 * t,
+            phi2: -w2 * t,
+            omega1: w1,
+            omega2: -w2,
+            ..TraceRow::default()
+        });
+        let s = summarize(
+            &trace,
+            &[],
+            &machine([0.0, 0.0]),
+            None,
+            "open-loop",
+            vec![],
+            vec![],
+        );
+        assert_eq!(s.t_end, 2.0);
+        assert!(close(s.mean_velocity, 0.05, TOL), "{}", s.mean_velocity);
+        assert!(close(s.distance, 0.1, TOL), "{}", s.distance);
+        assert!(
+            close(s.rotor_speed_rpm[0], 3000.0, 1e-6),
+            "{:?}",
+            s.rotor_speed_rpm
+        );
+        assert!(
+            close(s.rotor_speed_rpm[1], 2400.0, 1e-6),
+            "{:?}",
+            s.rotor_speed_rpm
+        );
+        assert_eq!(s.phase_error_deg_rms, 0.0);
+        assert_eq!(s.state, "open-loop");
+        assert_eq!(s.impacts, 0);
+        assert_eq!(s.final_state.position, [0.2, 0.03]);
+        assert_eq!(s.final_state.velocity, [0.05, 0.0]);
+    }
+
+    #[test]
+    fn midpoint_is_interpolated_between_uneven_rows() {
+        // Rows at 0, 0.3, 1.3, 2.0 with x = t^2 at the rows: T/2 = 1 falls between
+        // 0.3 (x 0.09) and 1.3 (x 1.69): x(1) = 0.09 + 1.6 * 0.7 = 1.21, so the mean
+        // velocity is (4 - 1.21) / 1 = 2.79.
+        let trace: Vec<TraceRow> = [0.0, 0.3, 1.3, 2.0]
+            .iter()
+            .map(|&t| TraceRow {
+                t,
+                x: t * t,
+                ..TraceRow::default()
+            })
+            .collect();
+        let s = summarize(&trace, &[], &machine([0.0; 2]), None, "s", vec![], vec![]);
+        assert!(close(s.mean_velocity, 2.79, TOL), "{}", s.mean_velocity);
+        assert!(close(s.distance, 4.0, TOL));
+    }
+
+    #[test]
+    fn duplicate_rows_at_the_midpoint_are_handled() {
+        // An event at exactly T/2 = 1 gives two rows at t = 1 (x continuous, v
+        // jumps); the mean velocity takes x(1) = 1 from them: (3 - 1) / 1 = 2.
+        let row = |t: f64, x: f64, vx: f64| TraceRow {
+            t,
+            x,
+            vx,
+            ..TraceRow::default()
+        };
+        let trace = vec![
+            row(0.0, 0.0, 1.0),
+            row(0.5, 0.5, 1.0),
+            row(1.0, 1.0, 1.0),
+            row(1.0, 1.0, 3.0),
+            row(1.5, 2.0, 3.0),
+            row(2.0, 3.0, 3.0),
+        ];
+        let s = summarize(&trace, &[], &machine([0.0; 2]), None, "s", vec![], vec![]);
+        assert!(close(s.mean_velocity, 2.0, TOL), "{}", s.mean_velocity);
+        assert_eq!(s.final_state.velocity, [3.0, 0.0]);
+    }
+
+    #[test]
+    fn impacts_count_distinct_instants() {
+        // Two contacts at one instant, then one, then one more: three instants. Other
+        // kinds do not count.
+        let mut events = vec![
+            impact(0.1, "K1"),
+            impact(0.1, "K2"),
+            impact(0.25, "K1"),
+            impact(0.4, "K2"),
+        ];
+        let mut liftoff = impact(0.3, "K1");
+        liftoff.kind = EventKind::Liftoff;
+        events.push(liftoff);
+        let trace = rows(1.0, 0.1, |t| TraceRow {
+            t,
+            ..TraceRow::default()
+        });
+        let s = summarize(
+            &trace,
+            &events,
+            &machine([0.0; 2]),
+            None,
+            "s",
+            vec![],
+            vec![],
+        );
+        assert_eq!(s.impacts, 3);
+        assert_eq!(impact_times(&events), [0.1, 0.25, 0.4]);
+    }
+
+    #[test]
+    fn known_offset_and_its_error() {
+        // Both rotors at 50 rev/s in their driven senses (rotor 2 cw, so phi2
+        // decreases), rotor 1 ahead by 90 deg: theta_1 - theta_2 = 90 always.
+        // Commanded 80: error 10 at every row, RMS 10.
+        let w = 2.0 * PI * 50.0;
+        let trace = rows(1.0, 1e-3, |t| TraceRow {
+            t,
+            phi1: w * t + PI / 2.0,
+            phi2: -w * t,
+            ..TraceRow::default()
+        });
+        let m = machine([0.0; 2]);
+        let s = summarize(&trace, &[], &m, Some(80.0), "run", vec![], vec![]);
+        assert!(
+            close(s.phase_offset_deg, 90.0, 1e-6),
+            "{}",
+            s.phase_offset_deg
+        );
+        assert!(
+            close(s.phase_error_deg_rms, 10.0, 1e-6),
+            "{}",
+            s.phase_error_deg_rms
+        );
+        // Commanded 270: error 180 (wrapped to +180), RMS 180.
+        let s = summarize(&trace, &[], &m, Some(270.0), "run", vec![], vec![]);
+        assert!(
+            close(s.phase_error_deg_rms, 180.0, 1e-6),
+            "{}",
+            s.phase_error_deg_rms
+        );
+    }
+
+    #[test]
+    fn circular_mean_wraps_around_zero() {
+        // The offset alternates 350 and 10 deg row by row in the second half: its
+        // circular mean is 0 (an arithmetic mean would say 180). Against a command
+        // of 0 the RMS error is 10.
+        let trace = rows(2.0, 0.5, |t| {
+            let offset: f64 = if (t / 0.5).round() as i64 % 2 == 0 {
+                -10.0
+            } else {
+                10.0
+            };
+            TraceRow {
+                t,
+                phi1: offset.to_radians(),
+                ..TraceRow::default()
+            }
+        });
+        // Rows at 1.0 (350), 1.5 (10), 2.0 (350) with trapezoid weights 0.25, 0.5,
+        // 0.25: the sines cancel, the mean is exactly 0 (or 360 rounded to 0).
+        let s = summarize(
+            &trace,
+            &[],
+            &machine([0.0; 2]),
+            Some(0.0),
+            "s",
+            vec![],
+            vec![],
+        );
+        let off = wrap_deg_180(s.phase_offset_deg);
+        assert!(close(off, 0.0, 1e-9), "{}", s.phase_offset_deg);
+        assert!(s.phase_offset_deg >= 0.0 && s.phase_offset_deg < 360.0);
+        assert!(
+            close(s.phase_error_deg_rms, 10.0, 1e-9),
+            "{}",
+            s.phase_error_deg_rms
+        );
+    }
+
+    #[test]
+    fn circular_mean_of_a_spread_near_the_wrap() {
+        // Offsets 355 and 15 with equal time weight: the mean is 5 deg.
+        let samples = [(1.0, 355.0), (1.0, 15.0)];
+        assert!(close(circular_mean_deg(&samples), 5.0, 1e-9));
+        let samples = [(1.0, 340.0), (1.0, 350.0)];
+        assert!(close(circular_mean_deg(&samples), 345.0, 1e-9));
+    }
+
+    #[test]
+    fn empty_and_single_row_traces() {
+        let m = machine([0.0; 2]);
+        let s = summarize(&[], &[], &m, Some(90.0), "idle", vec!["f".into()], vec![]);
+        assert_eq!(s.t_end, 0.0);
+        assert_eq!(s.final_state.position, [0.0, 0.03]);
+        assert_eq!(s.warnings.len(), 1);
+        assert_eq!(s.faults, ["f"]);
+
+        let one = [TraceRow {
+            t: 0.0,
+            x: 0.5,
+            phi1: PI / 2.0,
+            ..TraceRow::default()
+        }];
+        let s = summarize(&one, &[], &m, Some(80.0), "idle", vec![], vec![]);
+        assert_eq!(s.mean_velocity, 0.0);
+        assert_eq!(s.rotor_speed_rpm, [0.0, 0.0]);
+        assert!(close(s.phase_offset_deg, 90.0, 1e-9));
+        assert!(close(s.phase_error_deg_rms, 10.0, 1e-9));
+        assert_eq!(s.final_state.position, [0.5, 0.0]);
+        assert!(s.warnings.is_empty());
+    }
+}
