@@ -91,7 +91,11 @@ fn sets(args: &[&str]) -> Vec<String> {
 
 /// Loads `text` from a temp file with `--set`s.
 fn load(text: &str, set: &[&str]) -> Result<Machine, Vec<Problem>> {
-    Machine::load(&write(text), &sets(set))
+    let path = write(text);
+    let result = Machine::load(&path, &sets(set));
+    // Leave no files behind; a failure to remove them is no failure of the test.
+    let _ = std::fs::remove_dir_all(path.parent().expect("a temp dir"));
+    result
 }
 
 /// The problems of a refused load.
@@ -276,6 +280,7 @@ fn the_tuning_table_is_resolved_against_the_machine_files_directory() {
         m.controller.tuning_table,
         Some(PathBuf::from("/abs/t.toml"))
     );
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[test]
@@ -651,7 +656,9 @@ fn several_problems_are_all_reported() {
 
 #[test]
 fn a_missing_file_is_one_problem() {
-    let e = Machine::load(&temp_dir().join("none.toml"), &[]).unwrap_err();
+    let dir = temp_dir();
+    let e = Machine::load(&dir.join("none.toml"), &[]).unwrap_err();
+    let _ = std::fs::remove_dir_all(dir);
     assert_eq!(e.len(), 1);
     assert!(e[0]
         .to_string()

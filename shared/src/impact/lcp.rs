@@ -144,10 +144,19 @@ fn complementary_direction<T: Real, const N: usize>(
     budget: &mut u32,
 ) -> Option<Direction<T, N>> {
     let n = p.len;
-    for size in (0..=n).rev() {
+    // Only contacts at or below their target can take impulse; a contact above it
+    // (separating) joins when its normal velocity comes down to the target, which
+    // is an event of the path (see `released_event`), not a choice made here.
+    let mut candidate_mask = 0u32;
+    for i in 0..n {
+        if base.u_n[i] <= g[i] + tol.velocity {
+            candidate_mask |= 1 << i;
+        }
+    }
+    for size in (0..=candidate_mask.count_ones() as usize).rev() {
         let mut best: Option<(T, Direction<T, N>)> = None;
         for mask in 0u32..(1u32 << n) {
-            if mask.count_ones() as usize != size {
+            if mask & !candidate_mask != 0 || mask.count_ones() as usize != size {
                 continue;
             }
             let mut active = [false; N];
@@ -460,7 +469,9 @@ fn admissible<T: Real, const N: usize>(
                 }
             }
         } else if let Some(g) = target {
-            if base.u_n[i] + d.du_n[i] < g[i] - tol.velocity {
+            // A released candidate must end at or above its target; a separating
+            // contact may come down to it within the piece (an event).
+            if base.u_n[i] <= g[i] + tol.velocity && base.u_n[i] + d.du_n[i] < g[i] - tol.velocity {
                 return false;
             }
         }

@@ -69,7 +69,7 @@ pub fn solve_weighted<T: Real>(
     // Accept only a consistent system: the residual must vanish to the tolerance.
     let b_scale = (0..n).fold(T::ZERO, |m, i| m.max(b[i].abs()));
     let x_scale = (0..n).fold(T::ZERO, |m, i| m.max(x[i].abs()));
-    let tol = rank_tolerance::<T>().sqrt() * (b_scale + scale * x_scale);
+    let tol = rank_tolerance::<T>() * (b_scale + scale * x_scale);
     for i in 0..n {
         let mut r = -b[i];
         for j in 0..n {
