@@ -15,7 +15,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use shared::impact::ImpactLaw;
 
-use crate::impact_command;
+use crate::{impact_command, run_command};
 
 /// Exit status of a success.
 pub const EXIT_OK: u8 = 0;
@@ -38,6 +38,39 @@ pub struct Cli {
 pub enum Command {
     /// Solve one impact of a rigid body at one or several contact points.
     Impact(ImpactArgs),
+    /// Simulate a machine file: the platform, its rotors, motors and impacts.
+    Run(RunArgs),
+}
+
+/// Arguments of `host-sim run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The machine file (TOML; see docs/machine-file.md).
+    #[arg(value_name = "MACHINE.toml")]
+    pub machine: PathBuf,
+    /// Drive the windings open loop: constant voltages `V1,V2` (V, signed; `0,0`
+    /// shorts the windings), or `coast` (windings open).
+    #[arg(long, value_name = "V1,V2|coast", allow_hyphen_values = true)]
+    pub open_loop: Option<String>,
+    /// End time, s (default: the file's `simulation.t_end`).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub t_end: Option<f64>,
+    /// Write the trace as CSV (one row per `output_step`, and around each event).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: Option<PathBuf>,
+    /// Write the events as CSV (one row per contact per event).
+    #[arg(long, value_name = "FILE.csv")]
+    pub events: Option<PathBuf>,
+    /// Write a plot of the run as SVG.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+    /// Output format of the summary.
+    #[arg(long, value_enum, default_value_t = Format::Table)]
+    pub format: Format,
+    /// Override a key of the machine file, e.g. `contacts.K1.friction=0.2`
+    /// (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 /// Arguments of `host-sim impact`.
@@ -99,6 +132,7 @@ pub struct Output {
 pub fn run(cli: Cli) -> Output {
     match cli.command {
         Command::Impact(args) => impact_command::run(&args),
+        Command::Run(args) => run_command::run(&args),
     }
 }
 
@@ -125,7 +159,9 @@ mod tests {
     #[test]
     fn impact_options_parse() {
         let cli = Cli::try_parse_from(["host-sim", "impact", "c.toml", "--law", "newton"]).unwrap();
-        let Command::Impact(a) = cli.command;
+        let Command::Impact(a) = cli.command else {
+            panic!("parsed as another command");
+        };
         assert_eq!(a.law, Some(LawArg::Newton));
         assert_eq!(a.format, Format::Table);
         let e = Cli::try_parse_from(["host-sim", "impact", "c.toml", "--law", "x"]).unwrap_err();

@@ -13,6 +13,8 @@
 //! - [`summary`]: the run's summary statistics computed from its trace and events;
 //! - [`run_output`]: the summary as JSON or a table, trace and events as CSV, whole files;
 //! - [`plot`]: the run as an SVG figure for people;
+//! - [`simulation`]: a whole run, tick by tick, with trace, events and summary;
+//! - [`run_command`]: `host-sim run`, from machine file to outputs;
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
@@ -25,7 +27,9 @@ pub mod machine;
 pub mod machine_set;
 pub mod plant;
 pub mod plot;
+pub mod run_command;
 pub mod run_output;
+pub mod simulation;
 pub mod summary;
 pub mod text;
 pub mod trace;

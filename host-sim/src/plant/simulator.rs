@@ -929,6 +929,50 @@ impl Plant {
         }
     }
 
+    /// The generalized force that the holds exert at the current state: on
+    /// `(x, y, theta)` the force (N, N) and moment (N m) holding the platform, on
+    /// `(phi_1, phi_2)` the torques holding the rotors' speeds; zero where nothing
+    /// is held. `Q_hold = M q'' - Q` with the true mass matrix and the accelerations
+    /// the holds allow (zero on held coordinates); contact forces included in `Q`.
+    pub fn holding_force(&self) -> [f64; DOF] {
+        let q = self.q();
+        let v = self.v();
+        let e = self.evaluate(&self.y);
+        let acc: [f64; DOF] = core::array::from_fn(|i| e.ydot[DOF + i]);
+        let frame = Frame::new(&self.model, &q);
+        let mut tau = [0.0; 2];
+        for k in 0..2 {
+            let s = self.model.rotors[k].sense;
+            tau[k] = s * self.motors[k].shaft_torque(self.y[2 * DOF + k], s * v[3 + k]);
+        }
+        let mut f = frame.forces(&self.model, &v, tau);
+        // Contact forces: J^T lambda.
+        for j in 0..self.modes.len() {
+            if self.modes[j].closed() {
+                let k = frame.contact(&self.model, j, &q, &v);
+                for i in 0..DOF {
+                    f[i] += k.j_n[i] * e.lambda_n[j] + k.j_t[i] * e.lambda_t[j];
+                }
+            }
+        }
+        let mask = self.holds.mask();
+        core::array::from_fn(|i| {
+            if !mask[i] {
+                return 0.0;
+            }
+            (0..DOF).map(|j| frame.mass[i][j] * acc[j]).sum::<f64>() - f[i]
+        })
+    }
+
+    /// Contact forces of the closed contacts at the current state: (normal,
+    /// tangential) per contact, N; zero for open ones.
+    pub fn contact_forces(&self) -> Vec<[f64; 2]> {
+        let e = self.evaluate(&self.y);
+        (0..self.modes.len())
+            .map(|j| [e.lambda_n[j], e.lambda_t[j]])
+            .collect()
+    }
+
     /// Total mechanical energy (kinetic plus gravity's potential), J.
     pub fn mechanical_energy(&self) -> f64 {
         let q = self.q();

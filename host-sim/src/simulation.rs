@@ -1,0 +1,192 @@
+//! A whole simulation run of a machine: the plant stepped from control tick to
+//! control tick, what drives the motors decided at each tick, the trace and the
+//! events recorded, the summary computed.
+//!
+//! Stages of [`simulate`]:
+//! 1. build the plant from the machine file ([`crate::plant`]);
+//! 2. at every control tick `t_k = k / rate_hz`, ask the [`Driver`] for the
+//!    windings (open loop: constant; the controller later), then integrate to the
+//!    next tick; the integrator stops exactly at ticks and locates every event
+//!    between them;
+//! 3. record a trace row every `output_step` (from the integrator's dense output)
+//!    and just before and after each event;
+//! 4. summarize ([`crate::summary`]).
+
+use crate::machine::Machine;
+use crate::plant::model::{initial_state, PlantModel};
+use crate::plant::motor::Winding;
+use crate::plant::simulator::{Holds, Output, Plant, Settings, NY};
+use crate::summary::summarize;
+use crate::trace::{EventRow, Summary, TraceRow};
+
+/// What drives the windings, asked at every control tick.
+pub trait Driver {
+    /// The windings from `t` to the next tick, and the duties to record.
+    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]);
+    /// The controller's state name for the summary (`open-loop` without one).
+    fn state(&self) -> String;
+    /// The commanded phase offset, degrees, if one is commanded.
+    fn commanded_offset_deg(&self) -> Option<f64> {
+        None
+    }
+    /// Latched faults, by name.
+    fn faults(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// Open loop: constant winding voltages, or open windings (coast).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OpenLoop {
+    /// Constant voltages on the windings, V (signed, within the supply).
+    Voltages([f64; 2]),
+    /// Windings open: the rotors coast.
+    Coast,
+}
+
+/// The open-loop driver.
+pub struct OpenLoopDriver {
+    mode: OpenLoop,
+    supply: f64,
+}
+
+impl OpenLoopDriver {
+    /// Voltages are clamped to the supply (the H-bridge cannot do more).
+    pub fn new(mode: OpenLoop, supply: f64) -> Self {
+        OpenLoopDriver { mode, supply }
+    }
+}
+
+impl Driver for OpenLoopDriver {
+    fn windings(&mut self, _t: f64, _plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+        match self.mode {
+            OpenLoop::Coast => ([Winding::Open, Winding::Open], [0.0, 0.0]),
+            OpenLoop::Voltages(v) => {
+                let duty = v.map(|u| (u / self.supply).clamp(-1.0, 1.0));
+                (duty.map(|d| Winding::from_duty(d, self.supply)), duty)
+            }
+        }
+    }
+
+    fn state(&self) -> String {
+        "open-loop".into()
+    }
+}
+
+/// Options of a run.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// End time, s.
+    pub t_end: f64,
+    /// Numerical settings of the plant.
+    pub settings: Settings,
+    /// Coordinates held still (tests only; the command holds nothing).
+    pub holds: Holds,
+}
+
+/// What a run produced.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Trace rows: every `output_step`, and just before and after every event.
+    pub rows: Vec<TraceRow>,
+    /// Events, in time order.
+    pub events: Vec<EventRow>,
+    /// The summary.
+    pub summary: Summary,
+    /// Accepted integration steps.
+    pub steps: u64,
+}
+
+/// Collects trace rows from the plant's outputs.
+struct Recorder {
+    rows: Vec<TraceRow>,
+    output_step: f64,
+    /// Index of the next regular output time `k * output_step`.
+    next: u64,
+    duty: [f64; 2],
+}
+
+impl Recorder {
+    fn regular_time(&self) -> f64 {
+        self.next as f64 * self.output_step
+    }
+
+    fn take(&mut self, out: Output<'_>) {
+        match out {
+            Output::Dense(step, upto) => {
+                while self.regular_time() <= upto {
+                    let t = self.regular_time();
+                    let y = if t >= step.t1() { step.y1 } else { step.at(t) };
+                    self.push(t, &y);
+                    self.next += 1;
+                }
+            }
+            Output::Before(t, y) | Output::After(t, y) => self.push(t, y),
+        }
+    }
+
+    fn push(&mut self, t: f64, y: &[f64; NY]) {
+        self.rows.push(Plant::row(t, y, self.duty));
+    }
+}
+
+/// Simulates `machine` from `t = 0` to `options.t_end` with `driver` at the
+/// machine's control rate.
+pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions) -> RunResult {
+    // 1. The plant.
+    let model = PlantModel::new(machine);
+    let mut plant = Plant::new(
+        model,
+        initial_state(machine),
+        options.settings,
+        options.holds,
+    );
+
+    // 2.-3. Tick by tick.
+    let rate = machine.controller.rate_hz;
+    let mut rec = Recorder {
+        rows: Vec::new(),
+        output_step: machine.simulation.output_step,
+        next: 0,
+        duty: [0.0; 2],
+    };
+    let mut tick: u64 = 0;
+    loop {
+        let t = tick as f64 / rate;
+        if t >= options.t_end {
+            break;
+        }
+        let (windings, duty) = driver.windings(plant.t, &plant);
+        plant.set_winding(windings);
+        rec.duty = duty;
+        if tick == 0 {
+            let y = plant.y;
+            rec.push(0.0, &y);
+            rec.next = 1;
+        }
+        tick += 1;
+        let t_next = (tick as f64 / rate).min(options.t_end);
+        plant.advance_to(t_next, &mut |out| rec.take(out));
+    }
+    if rec.rows.last().is_none_or(|r| r.t < plant.t) {
+        let y = plant.y;
+        rec.push(plant.t, &y);
+    }
+
+    // 4. Summary.
+    let summary = summarize(
+        &rec.rows,
+        &plant.events,
+        machine,
+        driver.commanded_offset_deg(),
+        &driver.state(),
+        driver.faults(),
+        plant.warnings.clone(),
+    );
+    RunResult {
+        rows: rec.rows,
+        events: plant.events,
+        summary,
+        steps: plant.steps,
+    }
+}

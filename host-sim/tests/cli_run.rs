@@ -1,0 +1,217 @@
+//! `host-sim run` through the real binary: the spec's JSON summary, the trace and
+//! events CSV headers, the plot, determinism, and clear refusals (exit 2, no panic)
+//! for bad files and options.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn machine() -> PathBuf {
+    root().join("examples/vibro-driver.toml")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-sim-cli-run-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+struct Run {
+    status: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn run(args: &[&str]) -> Run {
+    let out = bin().args(args).output().expect("host-sim runs");
+    let run = Run {
+        status: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    };
+    assert!(
+        !run.stderr.contains("panicked") && !run.stderr.contains("backtrace"),
+        "{}",
+        run.stderr
+    );
+    run
+}
+
+#[test]
+fn json_summary_has_the_spec_keys_in_order() {
+    let m = machine();
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "12,12",
+        "--t-end",
+        "0.5",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
+    let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+    assert_eq!(
+        keys,
+        [
+            "t_end",
+            "mean_velocity",
+            "distance",
+            "impacts",
+            "rotor_speed_rpm",
+            "phase_offset_deg",
+            "phase_error_deg_rms",
+            "state",
+            "faults",
+            "final",
+            "warnings"
+        ]
+    );
+    let fin: Vec<&str> = v["final"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(String::as_str)
+        .collect();
+    assert_eq!(fin, ["position", "angle", "velocity", "angular_velocity"]);
+    assert_eq!(v["state"], "open-loop");
+    assert_eq!(v["t_end"], 0.5);
+    assert_eq!(v["phase_error_deg_rms"], 0.0);
+    // Both motors at 12 V spin up in their driven sense.
+    for k in 0..2 {
+        assert!(v["rotor_speed_rpm"][k].as_f64().unwrap() > 1000.0, "{v}");
+    }
+}
+
+#[test]
+fn files_are_written_with_the_spec_headers() {
+    let (out, events, plot) = (scratch("t.csv"), scratch("e.csv"), scratch("p.svg"));
+    let m = machine();
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "12,12",
+        "--t-end",
+        "0.4",
+        "--out",
+        out.to_str().unwrap(),
+        "--events",
+        events.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let trace = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        trace.starts_with("t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2\n")
+    );
+    // One row per output step (1 ms) at least, times non-decreasing.
+    let times: Vec<f64> = trace
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(times.len() >= 401, "{} rows", times.len());
+    assert!(times.windows(2).all(|w| w[1] >= w[0]));
+    let ev = std::fs::read_to_string(&events).unwrap();
+    assert!(ev.starts_with(
+        "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail\n"
+    ));
+    assert!(
+        ev.contains(",impact,K1,") || ev.contains(",impact,K2,"),
+        "{ev}"
+    );
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"));
+}
+
+#[test]
+fn same_file_and_seed_give_identical_output() {
+    let m = machine();
+    let args = [
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "12,11",
+        "--t-end",
+        "0.6",
+        "--format",
+        "json",
+    ];
+    let a = run(&args);
+    let b = run(&args);
+    assert_eq!(a.status, 0);
+    assert_eq!(a.stdout, b.stdout);
+}
+
+#[test]
+fn bad_options_are_refused_with_exit_2() {
+    let m = machine();
+    let m = m.to_str().unwrap();
+    let r = run(&["run", m, "--open-loop", "12"]);
+    assert_eq!(r.status, 2);
+    assert!(
+        r.stderr.contains("--open-loop 12") && r.stderr.contains("coast"),
+        "{}",
+        r.stderr
+    );
+    let r = run(&["run", m]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("--open-loop"), "{}", r.stderr);
+    let r = run(&["run", m, "--open-loop", "coast", "--t-end", "-1"]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("--t-end"), "{}", r.stderr);
+    let r = run(&[
+        "run",
+        m,
+        "--open-loop",
+        "coast",
+        "--set",
+        "contacts.K9.friction=0.2",
+    ]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("K9"), "{}", r.stderr);
+}
+
+#[test]
+fn bad_machine_file_names_the_key() {
+    let f = scratch("bad.toml");
+    let text = std::fs::read_to_string(machine())
+        .unwrap()
+        .replace("friction = 0.4", "friction = -0.4");
+    std::fs::write(&f, text).unwrap();
+    let r = run(&["run", f.to_str().unwrap(), "--open-loop", "coast"]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("contacts[0].friction"), "{}", r.stderr);
+}
+
+#[test]
+fn unwritable_output_is_refused_and_nothing_is_left() {
+    let m = machine();
+    let target = scratch("no-such-dir").join("t.csv");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "coast",
+        "--t-end",
+        "0.05",
+        "--out",
+        target.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("t.csv"), "{}", r.stderr);
+    assert!(!target.exists());
+}
