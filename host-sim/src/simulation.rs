@@ -116,7 +116,7 @@ impl Recorder {
             Output::Dense(step, upto) => {
                 while self.regular_time() <= upto {
                     let t = self.regular_time();
-                    let y = if t >= step.t1() { step.y1 } else { step.at(t) };
+                    let y = step.at(t);
                     self.push(t, &y);
                     self.next += 1;
                 }

@@ -35,14 +35,18 @@
 //! it moves the rest point by less than the event tolerance.
 
 use shared::impact::lcp::{find_direction, solve_states, NormalRule, Tolerances};
-use shared::impact::linalg::{solve_weighted, Vector, DIM};
+use shared::impact::linalg::{solve_weighted, Solved, Vector, DIM};
 use shared::impact::{solve, ImpactLaw, ImpactProblem, SlipState, MAX_CONTACTS};
 
-use super::dynamics::{ContactKinematics, Frame, DOF};
+use super::dynamics::{contact_kinematics, ContactKinematics, Frame, DOF};
+use super::friction_split::{within_cones, Cones, Unknown};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::PlantModel;
 use super::motor::{DcMotor, Winding};
 use crate::trace::{EventKind, EventRow, TraceRow};
+
+/// Events handled at one instant without progress before the step is taken anyway.
+const MAX_STALLED_EVENTS: u32 = 16;
 
 /// Size of the integrated state: `q` (5), `q'` (5), winding currents (2).
 pub const NY: usize = 2 * DOF + 2;
@@ -141,6 +145,8 @@ struct Evaluation {
     lambda_n: [f64; MAX_CONTACTS],
     /// Tangential force of each contact, N.
     lambda_t: [f64; MAX_CONTACTS],
+    /// Every sticking contact's force is inside its cone, every normal force >= 0.
+    cones_ok: bool,
 }
 
 /// The simulated machine: model, state, modes, inputs and what happened.
@@ -269,6 +275,7 @@ impl Plant {
         // Closed contacts: forces from their mode's equations.
         let mut lambda_n = [0.0; MAX_CONTACTS];
         let mut lambda_t = [0.0; MAX_CONTACTS];
+        let mut cones_ok = true;
         let closed: Vec<usize> = (0..modes.len()).filter(|j| modes[*j].closed()).collect();
         if !closed.is_empty() {
             let sys = self.contact_system(&frame, &q, &v, &closed, Some(&acc));
@@ -281,7 +288,7 @@ impl Plant {
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
             // mode is re-decided at the next event).
-            if let Some((_, d, _)) = solve_states(
+            if let Some((_, d, how)) = solve_states(
                 &sys.problem,
                 &sys.base_n,
                 &sys.base_t,
@@ -290,13 +297,18 @@ impl Plant {
                 Some(&zeros),
                 None,
             ) {
+                let (x, y, ok) = self.share_within_cones(&closed, modes, &sys, &d.x, &d.y, how);
+                cones_ok = ok;
                 for (r, &j) in closed.iter().enumerate() {
-                    lambda_n[j] = d.x[r];
-                    lambda_t[j] = d.y[r];
+                    lambda_n[j] = x[r];
+                    lambda_t[j] = y[r];
+                    // The internal forces do no work: accelerations from either split.
                     for i in 0..DOF {
                         acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
                     }
                 }
+            } else {
+                cones_ok = false;
             }
         }
         let mut ydot = [0.0; NY];
@@ -308,7 +320,93 @@ impl Plant {
             ydot,
             lambda_n,
             lambda_t,
+            cones_ok,
         }
+    }
+
+    /// The closed contacts' forces with the internal forces chosen so that every
+    /// sticking contact is inside its cone ([`super::friction_split`]), where the
+    /// equations left them undetermined; and whether every cone holds.
+    fn share_within_cones(
+        &self,
+        closed: &[usize],
+        modes: &[ContactMode],
+        sys: &ContactSystem,
+        x: &[f64; MAX_CONTACTS],
+        y: &[f64; MAX_CONTACTS],
+        how: Solved,
+    ) -> (Vec<f64>, Vec<f64>, bool) {
+        let mut xs: Vec<f64> = (0..closed.len()).map(|r| x[r]).collect();
+        let mut ys: Vec<f64> = (0..closed.len()).map(|r| y[r]).collect();
+        let friction: Vec<f64> = closed
+            .iter()
+            .map(|&j| self.model.contacts[j].law.friction)
+            .collect();
+        let sticking: Vec<bool> = closed
+            .iter()
+            .map(|&j| modes[j] == ContactMode::Stick)
+            .collect();
+        let inside = |xs: &[f64], ys: &[f64]| {
+            (0..closed.len()).all(|r| {
+                let tol = 1e-9 * (xs[r].abs() + ys[r].abs());
+                xs[r] >= -tol && (!sticking[r] || ys[r].abs() <= friction[r] * xs[r] + tol)
+            })
+        };
+        if inside(&xs, &ys) || how == Solved::Unique || !sticking.iter().any(|s| *s) {
+            let ok = inside(&xs, &ys);
+            return (xs, ys, ok);
+        }
+        // The unknown forces and their generalized directions.
+        let mut unknowns = Vec::new();
+        let mut z = Vec::new();
+        for (r, _) in closed.iter().enumerate() {
+            let k = &sys.kin[r];
+            let coeff = match modes[closed[r]] {
+                ContactMode::SlipPositive => -friction[r],
+                ContactMode::SlipNegative => friction[r],
+                _ => 0.0,
+            };
+            let dir: [f64; DOF] = core::array::from_fn(|i| k.j_n[i] + coeff * k.j_t[i]);
+            unknowns.push(Unknown {
+                direction: dir,
+                contact: r,
+                normal: true,
+            });
+            z.push(xs[r]);
+            if sticking[r] {
+                unknowns.push(Unknown {
+                    direction: k.j_t,
+                    contact: r,
+                    normal: false,
+                });
+                z.push(ys[r]);
+            }
+        }
+        let ok = within_cones(
+            &unknowns,
+            &mut z,
+            &Cones {
+                friction: &friction,
+                sticking: &sticking,
+            },
+        );
+        for (u, value) in unknowns.iter().zip(&z) {
+            if u.normal {
+                xs[u.contact] = *value;
+            } else {
+                ys[u.contact] = *value;
+            }
+        }
+        for r in 0..closed.len() {
+            if !sticking[r] {
+                ys[r] = match modes[closed[r]] {
+                    ContactMode::SlipPositive => -friction[r] * xs[r],
+                    ContactMode::SlipNegative => friction[r] * xs[r],
+                    _ => ys[r],
+                };
+            }
+        }
+        (xs, ys, ok)
     }
 
     /// The contact problem of the contacts `set`: Delassus matrix
@@ -358,23 +456,27 @@ impl Plant {
         sys
     }
 
-    /// The event functions at `y`: each contact's, negative once its event happened.
+    /// The event functions at `y`, negative once their event happened: each
+    /// contact's, then each motor driver's current limit (`I_lim - |i|`, which
+    /// starts the clamp: the current's equation switches there).
     fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
         let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
         let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
-        let frame = Frame::new(&self.model, &q);
+        let cs = q[2].sin_cos();
         (0..self.modes.len())
             .map(|j| {
-                let k = frame.contact(&self.model, j, &q, &v);
+                let k = contact_kinematics(&self.model, cs, j, &q, &v);
                 let mu = self.model.contacts[j].law.friction;
                 let (ln, lt) = ev
                     .as_ref()
                     .map_or((0.0, 0.0), |e| (e.lambda_n[j], e.lambda_t[j]));
                 match self.modes[j] {
                     ContactMode::Open => k.gap,
-                    ContactMode::Stick => mu * ln - lt.abs(),
+                    // A contact held exactly at its cone's edge by the split stays
+                    // positive: the event is the cone being exceeded.
+                    ContactMode::Stick => mu * ln - lt.abs() + 1e-9 * (mu * ln + lt.abs()),
                     ContactMode::SlipPositive => k.u_t.min(ln),
                     ContactMode::SlipNegative => (-k.u_t).min(ln),
                 }
@@ -384,6 +486,12 @@ impl Plant {
                     f64::INFINITY
                 })
             })
+            .chain((0..2).map(|k| match self.winding[k] {
+                Winding::Voltage(_) => {
+                    self.model.rotors[k].motor.current_limit - y[2 * DOF + k].abs()
+                }
+                Winding::Open => f64::INFINITY,
+            }))
             .collect()
     }
 
@@ -392,6 +500,7 @@ impl Plant {
     pub fn advance_to(&mut self, t_target: f64, record: &mut dyn FnMut(Output<'_>)) {
         let tol = self.tolerance();
         let mut ev0 = self.event_values(&self.y);
+        let mut stalled = 0u32;
         while self.t < t_target {
             let f0 = match self.fsal {
                 Some(f) => f,
@@ -429,8 +538,9 @@ impl Plant {
                     }
                     let ev1 = self.event_values(&step.y1);
                     match self.first_crossing(&step, &ev0, &ev1) {
-                        Some((te, ye)) => {
-                            record(Output::Dense(&step, te));
+                        Some((te, ye)) if te > step.t0 || stalled < MAX_STALLED_EVENTS => {
+                            stalled = if te > step.t0 { 0 } else { stalled + 1 };
+                            record(Output::Dense(self.dense(&step), te));
                             self.t = te;
                             self.y = ye;
                             record(Output::Before(self.t, &self.y));
@@ -439,8 +549,17 @@ impl Plant {
                             record(Output::After(self.t, &self.y));
                             ev0 = self.event_values(&self.y);
                         }
-                        None => {
-                            record(Output::Dense(&step, step.t1()));
+                        found => {
+                            if found.is_some() {
+                                // The same event at the same instant, handled again
+                                // and again without effect: take the step as it is.
+                                self.warn(format!(
+                                    "events: no progress at t = {:.9} s; a step was taken past an event",
+                                    self.t
+                                ));
+                                stalled = 0;
+                            }
+                            record(Output::Dense(self.dense(&step), step.t1()));
                             self.t = step.t1();
                             self.y = step.y1;
                             self.fsal = Some(step.f1);
@@ -496,6 +615,8 @@ impl Plant {
             if ev0[j] > 0.0 && ev1[j] <= 0.0 {
                 let f = |y: &[f64; NY]| self.event_values(y)[j];
                 consider(self.locate(step, &f, step.t0, step.t1(), ev0[j], ev1[j]));
+            } else if j >= self.modes.len() {
+                continue;
             } else if ev0[j] > 0.0 && ev1[j] > 0.0 && self.modes[j] == ContactMode::Open {
                 // Grazing: the gap may dip below zero and come back inside the step.
                 // Its minimum is where u_n goes from - to +; check the gap there.
@@ -530,7 +651,17 @@ impl Plant {
                 if g_apex > 0.0 {
                     consider(self.locate(step, &gap, apex, step.t1(), g_apex, ev1[j]));
                 } else {
-                    consider(apex);
+                    // Touching at the apex and sinking from there (a contact left
+                    // open with zero velocity whose force would have been
+                    // negligible): the event is where it sinks below the
+                    // together gap, which it may not do within this step.
+                    let below = |y: &[f64; NY]| gap(y) + self.settings.together_gap;
+                    let (b0, b1) = (below(&step.at(apex)), below(&step.y1));
+                    if b0 > 0.0 && b1 <= 0.0 {
+                        consider(self.locate(step, &below, apex, step.t1(), b0, b1));
+                    } else if b0 <= 0.0 {
+                        consider(apex);
+                    }
                 }
             }
         }
@@ -545,11 +676,21 @@ impl Plant {
         })
     }
 
+    /// The dense output of `step` as the plant reports it.
+    fn dense<'a>(&'a self, step: &'a Step<NY>) -> Dense<'a> {
+        Dense {
+            t0: step.t0,
+            step,
+            motors: &self.motors,
+            winding: self.winding,
+        }
+    }
+
     /// Contact `j`'s kinematics at state `y`.
     fn contact_at(&self, y: &[f64; NY], j: usize) -> ContactKinematics {
         let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
         let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
-        Frame::new(&self.model, &q).contact(&self.model, j, &q, &v)
+        contact_kinematics(&self.model, q[2].sin_cos(), j, &q, &v)
     }
 
     /// Illinois false position on the dense output for the function `f`, from
@@ -596,6 +737,8 @@ impl Plant {
     /// At an event: impacts where contacts approach, then the contacts' modes from
     /// the complementarity problem at acceleration level.
     fn settle(&mut self) {
+        // A current that reached its driver's limit is held there.
+        self.clamp_currents();
         for _ in 0..16 {
             let q = self.q();
             let v = self.v();
@@ -741,6 +884,19 @@ impl Plant {
     /// complementarity problem at acceleration level; the rest open.
     fn decide_modes(&mut self, touching: &[usize], kin: &[ContactKinematics]) {
         let old = self.modes.clone();
+        // Sticking contacts whose cone is being exceeded (their stick event fired):
+        // at the event both states are admissible to rounding, and stick would be
+        // kept forever; they are decided with a friction margin of 1e-7 instead.
+        let leaving: Vec<bool> = {
+            let e = self.evaluate(&self.y);
+            (0..old.len())
+                .map(|j| {
+                    let mu = self.model.contacts[j].law.friction;
+                    let (ln, lt) = (e.lambda_n[j], e.lambda_t[j].abs());
+                    old[j] == ContactMode::Stick && mu * ln - lt + 1e-9 * (mu * ln + lt) <= 0.0
+                })
+                .collect()
+        };
         let mut new = vec![ContactMode::Open; self.modes.len()];
         let candidates: Vec<usize> = touching
             .iter()
@@ -755,7 +911,12 @@ impl Plant {
             let q = self.q();
             let v = self.v();
             let frame = self.frame(&q);
-            let sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
+            let mut sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
+            for (r, &j) in candidates.iter().enumerate() {
+                if leaving[j] {
+                    sys.problem.contacts[r].friction *= 1.0 - 1e-7;
+                }
+            }
             let mut slip = [0.0; MAX_CONTACTS];
             for (r, &j) in candidates.iter().enumerate() {
                 slip[r] = kin[j].u_t;
@@ -789,10 +950,34 @@ impl Plant {
                 self.painleve(&candidates);
                 return;
             }
+            // Any positive force closes the contact: a force below rounding still
+            // means the contact is loaded (its lift-off is then an event).
             for (r, &j) in candidates.iter().enumerate() {
-                if d.x[r] > tol.impulse {
+                if d.x[r] > 0.0 {
                     new[j] = ContactMode::from_slip(d.mode[r]);
                 }
+            }
+        }
+        // A contact at zero slip that the complementarity problem made slip at
+        // its cone's edge (because the minimum-norm split overloads it) sticks
+        // when some split of the internal forces keeps every cone.
+        let saturated: Vec<usize> = (0..new.len())
+            .filter(|&j| {
+                matches!(
+                    new[j],
+                    ContactMode::SlipPositive | ContactMode::SlipNegative
+                ) && kin[j].u_t.abs() <= self.settings.velocity_tolerance
+                    && !leaving[j]
+            })
+            .collect();
+        if !saturated.is_empty() {
+            let mut trial = new.clone();
+            for &j in &saturated {
+                trial[j] = ContactMode::Stick;
+            }
+            let e = self.evaluate_with_modes(&self.y, &trial);
+            if e.cones_ok {
+                new = trial;
             }
         }
         // Events for the changes.
@@ -981,10 +1166,42 @@ impl Plant {
     }
 }
 
+/// An accepted step's dense output, as the plant reports states: the 4th-order
+/// interpolant with the winding currents held to their drivers (within the
+/// current limit, zero on open windings; the interpolant of a step along the
+/// limit can overshoot it by the step's error).
+pub struct Dense<'a> {
+    /// Start of the step, s.
+    pub t0: f64,
+    step: &'a Step<NY>,
+    motors: &'a [DcMotor; 2],
+    winding: [Winding; 2],
+}
+
+impl Dense<'_> {
+    /// The state at `t` in `[t0, t1]`.
+    pub fn at(&self, t: f64) -> [f64; NY] {
+        let mut y = if t >= self.step.t1() {
+            self.step.y1
+        } else {
+            self.step.at(t)
+        };
+        for k in 0..2 {
+            y[2 * DOF + k] = self.motors[k].project_current(self.winding[k], y[2 * DOF + k]);
+        }
+        y
+    }
+
+    /// End of the step, s.
+    pub fn t1(&self) -> f64 {
+        self.step.t1()
+    }
+}
+
 /// What [`Plant::advance_to`] hands the recorder.
 pub enum Output<'a> {
     /// An accepted step, valid up to this time (inclusive): sample its dense output.
-    Dense(&'a Step<NY>, f64),
+    Dense(Dense<'a>, f64),
     /// The state just before an event.
     Before(f64, &'a [f64; NY]),
     /// The state just after an event.
