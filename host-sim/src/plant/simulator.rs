@@ -176,6 +176,8 @@ pub struct Plant {
     motors: [DcMotor; 2],
     h: f64,
     fsal: Option<[f64; NY]>,
+    /// Inside the resolution of a Painleve configuration.
+    resolving_painleve: bool,
 }
 
 impl Plant {
@@ -202,6 +204,7 @@ impl Plant {
             motors,
             h: 1e-5,
             fsal: None,
+            resolving_painleve: false,
         };
         plant.settle();
         plant
@@ -1033,22 +1036,75 @@ impl Plant {
             "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
             self.t
         ));
-        // Tangential impact: the stuck state is reached impulsively; take the
-        // contacts as sticking and closed (a plastic tangential impulse).
+        // Tangential impact (Genot & Brogliato 1999): the impulse-space problem of
+        // the touching contacts started at zero normal velocity (a tiny approach,
+        // 1e-6 of the slip speed, so that the solver runs its compression). Under
+        // the jam the normal impulse grows, with friction at the cone, until the
+        // slip stops; plastic (restitution 0): nothing was stored by an approach.
+        if self.resolving_painleve {
+            for &j in set {
+                self.modes[j] = ContactMode::Stick;
+            }
+            self.project();
+            self.fsal = None;
+            return;
+        }
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
         let sys = self.contact_system(&frame, &q, &v, set, None);
-        let mut rows: Vec<([f64; DOF], [f64; DOF], f64)> = Vec::new();
-        for (r, _) in set.iter().enumerate() {
-            rows.push((sys.kin[r].j_n, sys.minv_jn[r], sys.kin[r].u_n.min(0.0)));
-            rows.push((sys.kin[r].j_t, sys.minv_jt[r], sys.kin[r].u_t));
+        let mut problem = sys.problem.clone();
+        let slip = (0..set.len())
+            .map(|r| problem.u_t[r].abs())
+            .fold(0.0, f64::max);
+        for r in 0..set.len() {
+            problem.u_n[r] = problem.u_n[r].min(-1e-6 * slip.max(self.settings.velocity_tolerance));
+            problem.contacts[r].restitution = 0.0;
         }
-        self.project_rows(&rows);
-        for &j in set {
-            self.modes[j] = ContactMode::Stick;
+        match solve(&problem) {
+            Ok(outcome) => {
+                for (r, &j) in set.iter().enumerate() {
+                    let c = &outcome.contacts[r];
+                    for i in 0..DOF {
+                        self.y[DOF + i] += c.normal_impulse * sys.minv_jn[r][i]
+                            + c.tangential_impulse * sys.minv_jt[r][i];
+                    }
+                    self.events.push(EventRow {
+                        t: self.t,
+                        kind: EventKind::Impact,
+                        contact: self.model.contacts[j].name.clone(),
+                        normal_velocity_before: sys.problem.u_n[r],
+                        normal_velocity_after: c.normal_velocity_after,
+                        normal_impulse: c.normal_impulse,
+                        tangential_impulse: c.tangential_impulse,
+                        case: Some(c.case.number()),
+                        detail: "tangential impact".into(),
+                    });
+                }
+                self.impacts += 1;
+            }
+            Err(e) => {
+                // The solver could not resolve it: hold the contacts stuck by the
+                // least velocity change (a plastic tangential impulse without the
+                // cone), and say so.
+                self.warn(format!(
+                    "contacts: tangential impact at t = {:.9} s not solved ({e:?}); contacts held",
+                    self.t
+                ));
+                let mut rows: Vec<([f64; DOF], [f64; DOF], f64)> = Vec::new();
+                for r in 0..set.len() {
+                    rows.push((sys.kin[r].j_n, sys.minv_jn[r], sys.kin[r].u_n.min(0.0)));
+                    rows.push((sys.kin[r].j_t, sys.minv_jt[r], sys.kin[r].u_t));
+                }
+                self.project_rows(&rows);
+            }
         }
         self.fsal = None;
+        // The modes from the velocities after the tangential impact; a second
+        // Painleve configuration at the same instant holds the contacts stuck.
+        self.resolving_painleve = true;
+        self.settle();
+        self.resolving_painleve = false;
     }
 
     /// Projects the state onto the closed contacts' constraints: velocities

@@ -1,0 +1,163 @@
+//! A Painleve configuration reached with high friction on one foot: the platform
+//! slides on foot K1 (the other foot in the air) with friction 2. No contact
+//! force is consistent with Coulomb's law there; the plant must report a
+//! `painleve` event, resolve it by a tangential impact, and go on without
+//! sinking into the fundament or gaining energy.
+
+use std::path::Path;
+
+use host_sim::machine::Machine;
+use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::motor::Winding;
+use host_sim::plant::simulator::{Holds, Plant, Settings};
+use host_sim::trace::EventKind;
+
+const G: f64 = 9.81;
+const MASS: f64 = 2.0;
+const INERTIA: f64 = 7.3e-3;
+const MU: f64 = 2.0;
+/// Foot K1 relative to the platform's centre of mass, m.
+const R1: [f64; 2] = [-0.1, -0.1];
+/// Sliding velocity of the platform (to the left), m/s.
+const VX: f64 = -0.5;
+
+fn machine() -> Machine {
+    let text = format!(
+        r#"
+[platform]
+mass = {MASS}
+inertia = {INERTIA}
+position = [0.0, 0.1]
+velocity = [{VX}, 0.0]
+
+[[contacts]]
+name = "K1"
+point = [{x1}, {y1}]
+restitution = 0.3
+friction = {MU}
+
+[[contacts]]
+name = "K2"
+point = [0.1, 0.05]
+restitution = 0.3
+friction = 0.4
+
+[[rotors]]
+name = "left"
+axis = [-0.03, 0.13]
+eccentric_mass = 0.0
+eccentricity = 0.0
+inertia = 6.0e-6
+sense = "ccw"
+
+[[rotors]]
+name = "right"
+axis = [0.03, 0.13]
+eccentric_mass = 0.0
+eccentricity = 0.0
+inertia = 6.0e-6
+sense = "cw"
+
+[motor]
+resistance = 2.0
+inductance = 0.5e-3
+torque_constant = 0.02
+coulomb_friction = 0.0
+viscous_friction = 0.0
+current_limit = 2.0
+
+[drive]
+supply_voltage = 12.0
+"#,
+        x1 = R1[0],
+        y1 = 0.1 + R1[1],
+    );
+    Machine::from_text("painleve.toml", &text, Path::new("."), &[]).expect("valid machine")
+}
+
+/// The premise, by hand: foot K1 at `r = (-0.1, -0.1)` from C, fundament normal
+/// `n = (0, 1)`, tangent `t = (-1, 0)`. Its velocity `(-0.5, 0)` is along `+t`:
+/// slip `s = +1`, friction `-mu lambda_n` along `t`. A normal force `lambda_n`
+/// changes the foot's normal acceleration by `(W_nn - mu W_nt) lambda_n` with
+/// `W_nn = 1/m + (r x n)^2 / J`, `W_nt = (r x n)(r x t) / J` (rotors without
+/// eccentric mass do not couple). Gravity alone accelerates the foot at `-g`
+/// along `n`. With `W_nn - mu W_nt < 0` a positive force only pulls it down
+/// further: no `lambda_n >= 0` gives a non-negative normal acceleration, and
+/// `lambda_n = 0` leaves it accelerating into the fundament. (The rotors' own
+/// inertia adds only to the rotor coordinates.)
+#[test]
+fn the_configuration_has_no_consistent_contact_force() {
+    let r_x_n = R1[0]; // (r_x, r_y) x (0, 1) = r_x
+    let r_x_t = R1[1]; // (r_x, r_y) x (-1, 0) = r_y
+    let w_nn = 1.0 / MASS + r_x_n * r_x_n / INERTIA;
+    let w_nt = r_x_n * r_x_t / INERTIA;
+    assert!(
+        w_nn - MU * w_nt < 0.0,
+        "W_nn - mu W_nt = {}",
+        w_nn - MU * w_nt
+    );
+    // Normal acceleration without contact force: -g (no spin yet).
+    let free = -G;
+    // Any lambda_n >= 0 gives free + (w_nn - mu w_nt) lambda_n < 0.
+    for lambda in [0.0, 1.0, 10.0, 1e3] {
+        assert!(free + (w_nn - MU * w_nt) * lambda < 0.0);
+    }
+}
+
+#[test]
+fn painleve_is_reported_and_resolved_by_a_tangential_impact() {
+    let m = machine();
+    let mut plant = Plant::new(
+        PlantModel::new(&m),
+        initial_state(&m),
+        Settings::default(),
+        Holds::default(),
+    );
+    plant.set_winding([Winding::Open, Winding::Open]);
+    let energy0 = plant.mechanical_energy();
+
+    // Reported at t = 0 for K1.
+    let painleve: Vec<_> = plant
+        .events
+        .iter()
+        .filter(|e| e.kind == EventKind::Painleve)
+        .collect();
+    assert!(
+        painleve.iter().any(|e| e.contact == "K1" && e.t == 0.0),
+        "{:?}",
+        plant.events
+    );
+    // Resolved by a tangential impact at K1: a positive normal impulse, friction
+    // inside the cone, the slip stopped (the jam ends in stick), no energy gained.
+    let impact = plant
+        .events
+        .iter()
+        .find(|e| e.kind == EventKind::Impact && e.contact == "K1")
+        .expect("a tangential impact at K1");
+    assert!(impact.normal_impulse > 0.0, "{impact:?}");
+    assert!(impact.tangential_impulse.abs() <= MU * impact.normal_impulse * (1.0 + 1e-12));
+    let e_after = plant.mechanical_energy();
+    assert!(
+        e_after <= energy0 * (1.0 + 1e-12),
+        "energy {energy0} -> {e_after}"
+    );
+
+    // And the run goes on: a second of simulated time, K1 never below the
+    // fundament beyond the together gap, the energy never above the start.
+    let mut lowest = f64::INFINITY;
+    let mut highest_energy = f64::NEG_INFINITY;
+    for k in 1..=200 {
+        plant.advance_to(k as f64 * 0.005, &mut |_| {});
+        let q = plant.q();
+        let (s, c) = q[2].sin_cos();
+        let foot_y = q[1] + s * R1[0] + c * R1[1];
+        lowest = lowest.min(foot_y);
+        highest_energy = highest_energy.max(plant.mechanical_energy());
+    }
+    assert!((plant.t - 1.0).abs() < 1e-12);
+    assert!(lowest >= -1e-7, "K1 sank to {lowest} m");
+    assert!(
+        highest_energy <= energy0 * (1.0 + 1e-9),
+        "energy rose to {highest_energy} from {energy0}"
+    );
+}
