@@ -27,14 +27,13 @@ fi
 # Build once, quietly, so that the runs below print only their results.
 cargo build --release -p host-sim
 mkdir -p "$OUT"
-SIM="target/release/host-sim"
 
 echo "==== host-sim run $MACHINE --open-loop 12,12 ===="
-"$SIM" run "$MACHINE" --open-loop 12,12 \
+cargo run --quiet --release -p host-sim -- run "$MACHINE" --open-loop 12,12 \
     --out "$OUT/vibro-driver.csv" --events "$OUT/vibro-driver-events.csv" \
     --plot "$OUT/vibro-driver.svg"
 echo "wrote $OUT/vibro-driver.csv, $OUT/vibro-driver-events.csv, $OUT/vibro-driver.svg (open the SVG in a browser)"
 
 echo
 echo "==== host-sim impact $CASE ===="
-"$SIM" impact "$CASE"
+cargo run --quiet --release -p host-sim -- impact "$CASE"
