@@ -16,7 +16,9 @@ cd "$ROOT"
 
 # The STM32F405's core: Cortex-M4F with the single-precision FPU.
 FIRMWARE_TARGET="thumbv7em-none-eabihf"
-FIRMWARE_ELF="firmware/target/$FIRMWARE_TARGET/release/firmware"
+# The firmware is built from firmware/, so its target directory is firmware/target
+# unless CARGO_TARGET_DIR says otherwise.
+FIRMWARE_ELF="${CARGO_TARGET_DIR:-firmware/target}/$FIRMWARE_TARGET/release/firmware"
 
 # The steps, in the order they run.
 STEPS=(
