@@ -5,6 +5,8 @@
 //! - [`impact`]: the impact model of the reference paper (simultaneous impacts at
 //!   several points with restitution and Coulomb friction), integrated in impulse
 //!   space piecewise exactly;
+//! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
+//!   ramps, tuning table and latched faults, one `step(inputs, dt)` per tick in `f32`;
 //! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
 #![no_std]
 #![warn(missing_docs)]
@@ -12,6 +14,7 @@
 // chains would hide the formulas they implement.
 #![allow(clippy::needless_range_loop)]
 
+pub mod controller;
 pub mod impact;
 pub mod real;
 

@@ -1,0 +1,104 @@
+//! Angles and speeds: wrapping on the circle, circular interpolation, unit changes.
+//!
+//! Offsets are in degrees as the spec writes them (`machine.md`, "Phase convention"):
+//! a phase offset lives in [0, 360), a phase error in (-180, 180]. Everything here is
+//! linear arithmetic and `floor` (libm, exact): no trigonometry, so nothing depends on
+//! micromath's approximations.
+
+/// Degrees in a turn.
+pub const TURN_DEG: f32 = 360.0;
+/// Radians in a turn, `2 pi`.
+pub const TURN_RAD: f32 = core::f32::consts::TAU;
+/// rpm per rad/s: `60 / (2 pi)`.
+pub const RPM_PER_RAD_S: f32 = 60.0 / core::f32::consts::TAU;
+/// Degrees per radian: `180 / pi`.
+pub const DEG_PER_RAD: f32 = 180.0 / core::f32::consts::PI;
+
+/// `x` wrapped to [0, 360) degrees: `x - 360 floor(x / 360)`.
+///
+/// Rounding can give exactly 360 for a tiny negative `x`; that is returned as 0 so
+/// the result is always inside the interval. A non-finite `x` gives 0.
+pub fn wrap_deg(x: f32) -> f32 {
+    if !x.is_finite() {
+        return 0.0;
+    }
+    let r = x - TURN_DEG * libm::floorf(x / TURN_DEG);
+    if (0.0..TURN_DEG).contains(&r) {
+        r
+    } else {
+        0.0
+    }
+}
+
+/// `x` wrapped to (-180, 180] degrees: the signed angle of the shorter arc, with an
+/// exact half turn counted as +180. A non-finite `x` gives 0.
+pub fn wrap_deg_signed(x: f32) -> f32 {
+    let r = wrap_deg(x);
+    if r > 180.0 {
+        r - TURN_DEG
+    } else {
+        r
+    }
+}
+
+/// Circular interpolation between offsets `a` and `b` (degrees) at `t` in [0, 1],
+/// along the shorter arc:
+///
+/// ```text
+///   o(t) = wrap(a + t wrap_signed(b - a))
+/// ```
+///
+/// e.g. 350 and 10 give 0 at `t = 0.5`, not 180. Offsets exactly opposite (a half
+/// turn apart) go the increasing way (`wrap_signed` gives +180). The result is in
+/// [0, 360).
+pub fn lerp_deg(a: f32, b: f32, t: f32) -> f32 {
+    wrap_deg(a + t * wrap_deg_signed(b - a))
+}
+
+/// rpm to rad/s.
+pub fn rpm_to_rad_s(rpm: f32) -> f32 {
+    rpm / RPM_PER_RAD_S
+}
+
+/// rad/s to rpm.
+pub fn rad_s_to_rpm(rad_s: f32) -> f32 {
+    rad_s * RPM_PER_RAD_S
+}
+
+/// Which side of the vertical line an offset lies on: `Some(true)` in (0, 180) (the
+/// force leans right, as for rightward travel), `Some(false)` in (180, 360), `None`
+/// on the line itself (0 or 180: a horizontal or vertical force).
+pub fn leans_right(offset_deg: f32) -> Option<bool> {
+    let o = wrap_deg(offset_deg);
+    if o > 0.0 && o < 180.0 {
+        Some(true)
+    } else if o > 180.0 {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_stays_in_range() {
+        assert_eq!(wrap_deg(360.0), 0.0);
+        assert_eq!(wrap_deg(-90.0), 270.0);
+        assert_eq!(wrap_deg(725.0), 5.0);
+        assert_eq!(wrap_deg(-1.0e-9), 0.0);
+        assert_eq!(wrap_deg(f32::NAN), 0.0);
+        assert_eq!(wrap_deg_signed(270.0), -90.0);
+        assert_eq!(wrap_deg_signed(180.0), 180.0);
+        assert_eq!(wrap_deg_signed(-180.0), 180.0);
+    }
+
+    #[test]
+    fn lerp_takes_the_shorter_arc() {
+        assert!((lerp_deg(350.0, 10.0, 0.5) - 0.0).abs() < 1e-4);
+        assert!((lerp_deg(10.0, 350.0, 0.25) - 5.0).abs() < 1e-4);
+        assert!((lerp_deg(80.0, 100.0, 0.5) - 90.0).abs() < 1e-4);
+    }
+}

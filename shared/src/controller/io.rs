@@ -1,0 +1,192 @@
+//! What the controller reads and writes each tick: [`Inputs`], [`Command`],
+//! [`Outputs`], [`Telemetry`], and the names of its [`State`]s.
+//!
+//! Rotor 1 is index 0 of every pair, rotor 2 index 1, in the machine file's order
+//! (`[[rotors]]`). Every angle, speed, current and duty is signed in the rotor's
+//! *driven sense* (the `sense` of the machine file): positive is the way the rotor
+//! turns when driven forward, whichever way that is in the platform frame.
+
+use super::faults::Faults;
+
+/// Travel direction along the platform's x axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Direction {
+    /// Towards +x (offsets near 90 degrees for the reference machine).
+    Right,
+    /// Towards -x (offsets near 270 degrees).
+    Left,
+}
+
+/// A command from the host (or the firmware's own panel), at most one per tick.
+///
+/// Any command, [`Command::Heartbeat`] included, proves the link alive
+/// ([`super::FaultLimits::link_timeout_s`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Ramp both rotors down to rest, then go idle (motors off).
+    Stop,
+    /// Run both rotors at `speed_rpm` with the phase offset the tuning table gives
+    /// for `direction` at that speed.
+    Travel {
+        /// Which way to travel.
+        direction: Direction,
+        /// Rotor speed, rpm, in the driven sense; within
+        /// [`super::Params::min_speed_rpm`, `max_speed_rpm`] or the command is refused.
+        speed_rpm: f32,
+    },
+    /// Run both rotors at `speed_rpm` and hold the phase offset `offset_deg`.
+    HoldOffset {
+        /// Rotor speed, rpm, as for [`Command::Travel`].
+        speed_rpm: f32,
+        /// Phase offset `theta_1 - theta_2`, degrees, finite (wrapped to [0, 360)).
+        offset_deg: f32,
+    },
+    /// Clear the latched faults whose cause is gone; back to [`State::Idle`] when
+    /// none is left. Never starts the motors.
+    ResetFaults,
+    /// Nothing but "the link is alive".
+    Heartbeat,
+}
+
+/// Why the processor started: the controller is built once per start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ResetCause {
+    /// Power-on, a reset pin or a deliberate software reset: start idle.
+    PowerOn,
+    /// The independent watchdog fired: start in [`State::Fault`] with
+    /// [`Faults::WATCHDOG_RESET`] latched, so a crash never restarts the motors on
+    /// its own.
+    Watchdog,
+}
+
+/// The sampled inputs of one control tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Inputs {
+    /// Encoder counters, counts after x4 decoding, wrapping at `2^32`; they increase
+    /// when the rotor turns in its driven sense. Travel between ticks is
+    /// `now.wrapping_sub(before) as i32`.
+    pub encoder: [u32; 2],
+    /// The counter value latched at an index pulse since the previous tick, `None`
+    /// when there was none. The index marks `theta = 0` (spec: `theta = s (phi -
+    /// index_angle)`), so the controller's angle is `theta = 2 pi (count -
+    /// index_count) / N`.
+    pub index: [Option<u32>; 2],
+    /// Winding currents, A, measured, positive when driving the rotor forward.
+    pub current: [f32; 2],
+    /// Motor supply (DC bus) voltage, V, measured.
+    pub supply_voltage: f32,
+    /// `true` when the E-stop circuit is open (pressed, or a wire broken).
+    pub estop: bool,
+    /// A command received since the previous tick.
+    pub command: Option<Command>,
+}
+
+impl Default for Inputs {
+    /// Counters at 0, no index, no current, 0 V, E-stop closed, no command.
+    fn default() -> Self {
+        Inputs {
+            encoder: [0; 2],
+            index: [None; 2],
+            current: [0.0; 2],
+            supply_voltage: 0.0,
+            estop: false,
+            command: None,
+        }
+    }
+}
+
+/// The controller's state (the sequence of a run).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum State {
+    /// Motors off (driver disabled, windings open), waiting for a run command.
+    Idle,
+    /// Soft start: the speed ramps up to the commanded speed (fast through the
+    /// resonance band); the phase loop joins once both index pulses have been seen
+    /// and the speed is above [`super::Params::phase_loop_min_rpm`].
+    Starting,
+    /// At the commanded speed with the phase loop holding the offset; speed and
+    /// offset changes still ramp.
+    Running,
+    /// Ramping down to rest after [`Command::Stop`]; then [`State::Idle`].
+    Stopping,
+    /// A fault is latched: motors off until [`Command::ResetFaults`] clears it.
+    Fault,
+}
+
+impl State {
+    /// `idle`, `starting`, `running`, `stopping` or `fault`.
+    pub fn name(self) -> &'static str {
+        match self {
+            State::Idle => "idle",
+            State::Starting => "starting",
+            State::Running => "running",
+            State::Stopping => "stopping",
+            State::Fault => "fault",
+        }
+    }
+
+    /// Whether the motors are driven in this state (before the fault override).
+    pub fn drives(self) -> bool {
+        matches!(self, State::Starting | State::Running | State::Stopping)
+    }
+}
+
+/// Measurements and internal references of one tick, for logs and plots.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Telemetry {
+    /// Filtered rotor speeds, rpm, in the driven sense.
+    pub speed_rpm: [f32; 2],
+    /// Speed references of the speed loops, rpm: the ramp plus and minus half the
+    /// phase loop's trim (0 when not driving).
+    pub speed_ref_rpm: [f32; 2],
+    /// Whether the phase offset is measured: both index pulses seen.
+    pub phase_valid: bool,
+    /// Measured phase offset `theta_1 - theta_2`, degrees in [0, 360) (0 until
+    /// `phase_valid`).
+    pub phase_offset_deg: f32,
+    /// Whether the phase loop is closed this tick.
+    pub phase_loop_closed: bool,
+    /// The offset reference the phase loop follows (the ramped one), degrees in
+    /// [0, 360); meaningful while `phase_loop_closed` (otherwise the last one).
+    pub commanded_offset_deg: f32,
+    /// Where the offset reference is heading: the table's offset at the current
+    /// speed reference, or the held offset, degrees in [0, 360); meaningful while
+    /// `phase_loop_closed`.
+    pub target_offset_deg: f32,
+    /// Phase error `commanded - measured`, degrees in (-180, 180] (0 while the phase
+    /// loop is open).
+    pub phase_error_deg: f32,
+    /// Measured winding currents, A (as read; NaN passes through).
+    pub current: [f32; 2],
+    /// Measured supply voltage, V (as read).
+    pub supply_voltage: f32,
+    /// The duties written, in [-1, 1] (equal to [`Outputs::duty`]).
+    pub duty: [f32; 2],
+    /// The command of this tick was refused: out-of-range values, or a run command
+    /// while a fault is latched.
+    pub command_rejected: bool,
+}
+
+/// What the controller writes each tick. Built afresh every tick, so a value from an
+/// earlier tick can never pass through.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Outputs {
+    /// Signed duty per motor in [-1, 1]: `duty x supply` on the winding, positive
+    /// driving the rotor forward (its driven sense). 0 whenever `enable` is false.
+    pub duty: [f32; 2],
+    /// Driver enable: false leaves the windings open (the motors coast).
+    pub enable: bool,
+    /// The state after this tick.
+    pub state: State,
+    /// Latched faults after this tick (empty unless `state` is [`State::Fault`]).
+    pub faults: Faults,
+    /// Measurements and references of this tick.
+    pub telemetry: Telemetry,
+}

@@ -1,0 +1,639 @@
+//! The motor controller of the vibro driver (issue 4): a pure state machine,
+//! `step(inputs, dt) -> outputs`, run at [`CONTROL_RATE_HZ`] by the firmware and in
+//! lockstep by host-sim. Time is passed in, never read from a clock; there is no
+//! heap and no panic on any input.
+//!
+//! # What it does
+//!
+//! Two counter-rotating unbalance rotors are run at a commanded speed while a
+//! phase-lock loop holds their phase offset `theta_1 - theta_2` (spec `machine.md`,
+//! "Phase convention") where the exciting force pushes the platform the commanded
+//! way: the offset of the tuning table for the direction and speed
+//! ([`Command::Travel`]), or an explicit one ([`Command::HoldOffset`]).
+//!
+//! Modules, one job each:
+//! - [`io`]: inputs, commands, outputs, telemetry, states;
+//! - [`params`]: parameters and the design rules of their defaults;
+//! - [`encoder`]: speed from counts, angle from the index pulse, encoder checks;
+//! - [`ramp`]: speed ramp (soft start, fast through the resonance band) and offset
+//!   ramp (direction changes through the vertical-force offset);
+//! - [`speed_loop`]: feedforward + PI per rotor, anti-windup;
+//! - [`phase_loop`]: PI on the phase error, giving the rotors a speed difference;
+//! - [`faults`]: the fault flags and their checks;
+//! - [`tuning`]: the offset table, interpolated circularly;
+//! - [`angle`]: wrapping and units.
+//!
+//! # States
+//!
+//! ```text
+//!   Idle --Travel/HoldOffset--> Starting --ramp done, phase loop closed--> Running
+//!   Starting/Running --Stop--> Stopping --ramp at 0, rotors slow--> Idle
+//!   Stopping --Travel/HoldOffset--> Starting
+//!   any --fault--> Fault --ResetFaults, causes gone--> Idle
+//! ```
+//!
+//! A run starts from the measured speed (0 at rest) and ramps at
+//! [`Params::speed_ramp_rpm_s`], at [`Params::resonance_ramp_rpm_s`] inside
+//! [`Params::resonance_band_rpm`]. The phase offset is known once both rotors have
+//! shown their index pulse (the angle `theta_k` is counted from it); until then, and
+//! below [`Params::phase_loop_min_rpm`], the phase loop is open and both rotors get
+//! the same reference. When it closes, the offset reference starts at the measured
+//! offset (no bump) and ramps to the target at [`Params::offset_ramp_deg_s`]; a
+//! change of side (right to left or back) passes 180 degrees, the vertical force
+//! ([`ramp::OffsetRamp`]). After a fault is reset the controller is idle: only a new
+//! run command starts the motors again, never the reset itself.
+//!
+//! # Faults: safe state and detection bounds
+//!
+//! Every fault's safe state is the same: driver disabled (windings open) and duty 0
+//! on both motors, written in the very tick that detects it, latched until
+//! [`Command::ResetFaults`]. A reset clears only the faults whose cause is gone: the
+//! E-stop released, the supply back in range, the currents back under the limit;
+//! [`Faults::PARAMS`] never clears.
+//!
+//! Worst-case detection times, counted in the time passed in as `dt`, from the first
+//! tick whose inputs show the condition (reference parameters at 1 kHz in brackets).
+//! A timed condition fires at the latest in the `ceil(T/dt)`-th consecutive tick that
+//! shows it, i.e. at most `T` after the first one ([`faults`]):
+//!
+//! | fault | condition | detected within |
+//! | --- | --- | --- |
+//! | `ESTOP` | E-stop input active | the same tick |
+//! | `OVER_CURRENT` | `\|i\| > over_current_a` or NaN | `over_current_time_s` [2 ms] |
+//! | `SUPPLY` | supply outside [min, max] or NaN | `supply_time_s` [10 ms] |
+//! | `ENCODER` | count jump above `encoder_max_speed_rpm`, index off a whole turn or outside the counts travelled | the same tick |
+//! | `ENCODER` | no index after `N + tol` counts | the tick the travel passes `N + tol` [21 ms at 3000 rpm] |
+//! | `ENCODER` | driven, reads slow, current low (no counts) | `t_fall + encoder_time_s` [18 + 50 ms]; any current: `t_fall + stall_time_s + encoder_time_s` |
+//! | `STALL` | driven, slow, current high | `t_fall + stall_time_s` [18 + 300 ms]; any current: `t_fall + stall_time_s + encoder_time_s` |
+//! | `PHASE_LOCK_LOST` | `\|phase error\| > phase_error_max_deg` while running, the error unwrapped so that slipping whole turns keeps it large | `phase_lost_time_s` [0.5 s] |
+//! | `LINK_LOST` | no command or heartbeat while starting or running (a stop heads for rest on its own; idle needs no link) | `link_timeout_s` after the last one [0.5 s] |
+//! | `WATCHDOG_RESET` | built with [`ResetCause::Watchdog`] | at construction |
+//! | `PARAMS` | [`Params::validate`] fails | at construction |
+//!
+//! `t_fall` is the time the filtered speed takes to fall from `w0` below the stall
+//! speed once the counts stop: `ceil(ln(w0 / w_stall) / ln(1 + dt / tau_f))` ticks,
+//! about `tau_f ln(w0 / w_stall)` [18 ticks from 3000 rpm to 100 rpm]. "Driven"
+//! means `|duty| >= stall_duty` in the previous tick; the speed loop gets there
+//! within a tick or two of a rotor stopping under load.
+//!
+//! The phase error the checks, the phase loop and the telemetry see is measured
+//! against the offset reference in force over the tick just ended.
+//!
+//! # Odd inputs
+//!
+//! - `dt`: NaN, infinite or <= 0 is taken as one nominal tick; otherwise it is
+//!   clamped to [0.1, 10] nominal ticks. A broken tick source is the watchdog's to
+//!   catch; the controller stays defined.
+//! - A NaN or infinite current is an over-current; it is left out of the current
+//!   filter. A NaN supply voltage is out of range; the feedforward then uses the
+//!   nominal supply.
+//! - Any encoder values are accepted; inconsistent ones raise `ENCODER`.
+//! - A command with a NaN, infinite or out-of-range speed or offset is refused
+//!   ([`Telemetry::command_rejected`]) and changes nothing.
+
+pub mod angle;
+pub mod encoder;
+pub mod faults;
+pub mod io;
+pub mod params;
+pub mod phase_loop;
+pub mod ramp;
+pub mod speed_loop;
+pub mod tuning;
+
+pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
+pub use faults::{FaultMonitor, Faults, Observation};
+pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry};
+pub use params::{
+    FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
+};
+pub use tuning::{TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
+
+use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
+use phase_loop::PhaseLoop;
+use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};
+use speed_loop::{SpeedLoop, SpeedLoopInput};
+
+/// Where a run's offset comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum OffsetSource {
+    /// The tuning table's offset for this direction at the ramped speed.
+    Table(Direction),
+    /// A fixed offset, degrees in [0, 360).
+    Fixed(f32),
+}
+
+/// What the current run command asks for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RunTarget {
+    /// Rotor speed, rpm.
+    speed_rpm: f32,
+    /// Offset source.
+    offset: OffsetSource,
+}
+
+/// One tick's measurements.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Measurement {
+    /// Filtered speeds, rad/s.
+    speed_rad_s: [f32; 2],
+    /// Encoder inconsistencies.
+    anomaly: [Option<EncoderAnomaly>; 2],
+    /// Measured offset `theta_1 - theta_2`, degrees in [0, 360), once both index
+    /// pulses are known.
+    offset_deg: Option<f32>,
+}
+
+/// The vibro driver's motor controller. See the module documentation.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    /// The parameters in use (the reference ones if those given were invalid).
+    params: Params,
+    /// Why the given parameters were refused.
+    params_error: Option<ParamError>,
+    /// Current state.
+    state: State,
+    /// Latched faults.
+    faults: Faults,
+    /// Encoder tracking, per rotor.
+    encoders: [EncoderTracker; 2],
+    /// Filtered currents, A.
+    current_filtered: [f32; 2],
+    /// Fault timers.
+    monitor: FaultMonitor,
+    /// Time since the last command or heartbeat, s.
+    link_age_s: f32,
+    /// The run command in force (starting, running).
+    target: Option<RunTarget>,
+    /// The ramped speed reference, rpm.
+    ramp_rpm: f32,
+    /// The offset reference.
+    offset: OffsetRamp,
+    /// Whether the phase loop is closed.
+    phase_closed: bool,
+    /// The phase error unwrapped since the loop closed (the sum of its wrapped
+    /// tick-to-tick changes), degrees, with the last wrapped error.
+    phase_error_unwrapped: Option<(f32, f32)>,
+    /// Phase loop state.
+    phase_loop: PhaseLoop,
+    /// Speed loop states.
+    speed_loops: [SpeedLoop; 2],
+    /// Time since a stop's ramp reached 0, s.
+    stop_elapsed_s: f32,
+    /// Duties written in the previous tick.
+    last_duty: [f32; 2],
+}
+
+impl Controller {
+    /// A controller at rest: [`State::Idle`] after a power-on, [`State::Fault`] with
+    /// [`Faults::WATCHDOG_RESET`] after a watchdog reset. Invalid `params` are
+    /// replaced by [`Params::reference`] and latch [`Faults::PARAMS`], which never
+    /// clears ([`Controller::params_error`] says why).
+    pub fn new(params: &Params, reset: ResetCause) -> Self {
+        let (params, params_error) = match params.validate() {
+            Ok(()) => (params.clone(), None),
+            Err(e) => (Params::reference(), Some(e)),
+        };
+        let mut faults = Faults::NONE;
+        if params_error.is_some() {
+            faults |= Faults::PARAMS;
+        }
+        if reset == ResetCause::Watchdog {
+            faults |= Faults::WATCHDOG_RESET;
+        }
+        let encoder = EncoderTracker::new(
+            params.encoder_counts,
+            params.limits.index_tolerance_counts,
+            params.speed_filter_tau_s,
+        );
+        Controller {
+            state: if faults.is_empty() {
+                State::Idle
+            } else {
+                State::Fault
+            },
+            faults,
+            params_error,
+            encoders: [encoder; 2],
+            current_filtered: [0.0; 2],
+            monitor: FaultMonitor::new(),
+            link_age_s: 0.0,
+            target: None,
+            ramp_rpm: 0.0,
+            offset: OffsetRamp::new(ramp::VERTICAL_OFFSET_DEG),
+            phase_closed: false,
+            phase_error_unwrapped: None,
+            phase_loop: PhaseLoop::new(),
+            speed_loops: [SpeedLoop::new(); 2],
+            stop_elapsed_s: 0.0,
+            last_duty: [0.0; 2],
+            params,
+        }
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Why the parameters given to [`Controller::new`] were refused, if they were.
+    pub fn params_error(&self) -> Option<ParamError> {
+        self.params_error
+    }
+
+    /// The current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// The latched faults.
+    pub fn faults(&self) -> Faults {
+        self.faults
+    }
+
+    /// One control tick: `inputs` sampled now, `dt` s since the previous tick.
+    ///
+    /// Stages, in order:
+    /// 1. **Time**: `dt` made usable (module documentation, "Odd inputs").
+    /// 2. **Measure**: encoder speeds, index checks, the measured phase offset and
+    ///    its error against the offset reference in force over the last tick;
+    ///    current filter; link age.
+    /// 3. **Check faults** on those measurements and the previous tick's duties;
+    ///    new faults are latched and the state becomes [`State::Fault`].
+    /// 4. **Command**: this tick's command moves the state machine
+    ///    ([`Command::ResetFaults`] clears what it may).
+    /// 5. **References**: the speed ramp; the phase loop opens or closes; the
+    ///    offset reference ramps; starting becomes running, a finished stop idle.
+    /// 6. **Phase loop**: the speed difference that corrects the phase error, split
+    ///    between the rotors' speed references.
+    /// 7. **Speed loops**: feedforward + PI to duties.
+    /// 8. **Output**, built afresh: with any fault latched, or idle, the safe state
+    ///    (enable off, duty 0) overrides whatever the loops computed.
+    pub fn step(&mut self, inputs: &Inputs, dt: f32) -> Outputs {
+        let p = &self.params;
+
+        // 1. Time.
+        let tick = p.tick_s();
+        let dt = if dt.is_finite() && dt > 0.0 {
+            dt.clamp(0.1 * tick, 10.0 * tick)
+        } else {
+            tick
+        };
+
+        // 2. Measure.
+        let m = self.measure(inputs, dt);
+        let phase_error_deg = match (self.phase_closed, m.offset_deg) {
+            (true, Some(o)) => Some(wrap_deg_signed(self.offset.reference_deg() - o)),
+            _ => None,
+        };
+        // Unwrapped for the lock check: a rotor slipping whole turns would otherwise
+        // bring the wrapped error back through 0 every turn and restart the timer.
+        self.phase_error_unwrapped = phase_error_deg.map(|e| match self.phase_error_unwrapped {
+            Some((sum, last)) => (sum + wrap_deg_signed(e - last), e),
+            None => (e, e),
+        });
+        self.link_age_s = if inputs.command.is_some() {
+            0.0
+        } else {
+            self.link_age_s + dt
+        };
+
+        // 3. Check faults.
+        let obs = Observation {
+            state: self.state,
+            duty: self.last_duty,
+            speed_rpm: m.speed_rad_s.map(rad_s_to_rpm),
+            current: inputs.current,
+            current_filtered: self.current_filtered,
+            encoder_anomaly: m.anomaly,
+            phase_error_deg: self.phase_error_unwrapped.map(|(sum, _)| sum),
+            supply_voltage: inputs.supply_voltage,
+            estop: inputs.estop,
+            link_age_s: self.link_age_s,
+        };
+        let found = self.monitor.check(&obs, &self.params.limits, dt);
+        if !found.is_empty() {
+            self.latch(found);
+        }
+
+        // 4. Command.
+        let rejected = self.command(inputs.command, &obs, &m, found);
+
+        // 5. References.
+        let (accel_rpm_s, offset_rate_deg_s) = self.references(&m, dt);
+
+        // 6. Phase loop: dw = w1 - w2, rad/s.
+        let p = &self.params;
+        let ramp_rad_s = rpm_to_rad_s(self.ramp_rpm);
+        let dw = match (self.phase_closed, phase_error_deg) {
+            (true, Some(e)) => {
+                let limit = rpm_to_rad_s(p.phase_trim_max_rpm)
+                    .min(p.phase_trim_fraction * ramp_rad_s.max(0.0));
+                self.phase_loop.update(
+                    e / DEG_PER_RAD,
+                    offset_rate_deg_s / DEG_PER_RAD,
+                    p.phase_kp,
+                    p.phase_ki,
+                    limit,
+                    dt,
+                )
+            }
+            _ => {
+                self.phase_loop.reset();
+                0.0
+            }
+        };
+        let speed_ref = [ramp_rad_s + 0.5 * dw, ramp_rad_s - 0.5 * dw];
+
+        // 7. Speed loops.
+        let supply_v = if inputs.supply_voltage.is_finite()
+            && inputs.supply_voltage >= 0.5 * p.supply_nominal_v
+        {
+            inputs.supply_voltage
+        } else {
+            p.supply_nominal_v
+        };
+        let mut duty = [0.0; 2];
+        if self.state.drives() {
+            for k in 0..2 {
+                let input = SpeedLoopInput {
+                    speed_ref_rad_s: speed_ref[k],
+                    accel_ref_rad_s2: rpm_to_rad_s(accel_rpm_s),
+                    speed_rad_s: m.speed_rad_s[k],
+                    supply_v,
+                };
+                duty[k] = self.speed_loops[k].update(
+                    &input,
+                    &p.speed_gains[k],
+                    &p.rotors[k],
+                    p.min_duty,
+                    dt,
+                );
+            }
+        } else {
+            self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
+        }
+
+        // 8. Output, with the safe-state override.
+        let enable = self.state.drives() && self.faults.is_empty();
+        let duty = if enable {
+            duty.map(|d| {
+                if d.is_finite() {
+                    d.clamp(-1.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+        } else {
+            [0.0; 2]
+        };
+        self.last_duty = duty;
+        let driving = self.state.drives();
+        Outputs {
+            duty,
+            enable,
+            state: self.state,
+            faults: self.faults,
+            telemetry: Telemetry {
+                speed_rpm: m.speed_rad_s.map(rad_s_to_rpm),
+                speed_ref_rpm: if driving {
+                    speed_ref.map(rad_s_to_rpm)
+                } else {
+                    [0.0; 2]
+                },
+                phase_valid: m.offset_deg.is_some(),
+                phase_offset_deg: m.offset_deg.unwrap_or(0.0),
+                phase_loop_closed: self.phase_closed,
+                commanded_offset_deg: self.offset.reference_deg(),
+                target_offset_deg: self.offset.target_deg(),
+                phase_error_deg: if self.phase_closed {
+                    phase_error_deg.unwrap_or(0.0)
+                } else {
+                    0.0
+                },
+                current: inputs.current,
+                supply_voltage: inputs.supply_voltage,
+                duty,
+                command_rejected: rejected,
+            },
+        }
+    }
+
+    /// Stage 2: encoders, phase offset, current filter.
+    fn measure(&mut self, inputs: &Inputs, dt: f32) -> Measurement {
+        let p = &self.params;
+        let max_counts = p.max_counts(dt);
+        let mut speed_rad_s = [0.0; 2];
+        let mut anomaly = [None; 2];
+        let mut angle = [None; 2];
+        for k in 0..2 {
+            let s = self.encoders[k].update(inputs.encoder[k], inputs.index[k], dt, max_counts);
+            speed_rad_s[k] = s.speed_rad_s;
+            anomaly[k] = s.anomaly;
+            angle[k] = s.angle_counts;
+        }
+
+        // theta_1 - theta_2 from the angles since the index, exact in counts:
+        //   offset = 360 ((a1 - a2) mod N) / N   degrees.
+        let n = p.encoder_counts as i64;
+        let offset_deg = match angle {
+            [Some(a1), Some(a2)] => {
+                let d = (a1 as i64 - a2 as i64).rem_euclid(n);
+                Some(wrap_deg(d as f32 * (TURN_DEG / p.encoder_counts as f32)))
+            }
+            _ => None,
+        };
+
+        // Currents: first-order low-pass, non-finite samples skipped.
+        let alpha = dt / (p.current_filter_tau_s + dt);
+        for k in 0..2 {
+            let i = inputs.current[k];
+            if i.is_finite() {
+                self.current_filtered[k] += alpha * (i - self.current_filtered[k]);
+            }
+        }
+
+        Measurement {
+            speed_rad_s,
+            anomaly,
+            offset_deg,
+        }
+    }
+
+    /// Latch `found`: motors off, references and loops back to rest.
+    fn latch(&mut self, found: Faults) {
+        self.faults |= found;
+        self.state = State::Fault;
+        self.stop_run();
+    }
+
+    /// Forget the run: no target, ramps and loops at rest, phase loop open.
+    fn stop_run(&mut self) {
+        self.target = None;
+        self.ramp_rpm = 0.0;
+        self.phase_closed = false;
+        self.phase_loop.reset();
+        self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
+        self.stop_elapsed_s = 0.0;
+    }
+
+    /// Stage 4: apply this tick's command; true if it was refused. `found`: the
+    /// faults detected in this very tick, which a reset in the same tick leaves
+    /// latched so that they are reported at least once.
+    fn command(
+        &mut self,
+        command: Option<Command>,
+        obs: &Observation,
+        m: &Measurement,
+        found: Faults,
+    ) -> bool {
+        match command {
+            None | Some(Command::Heartbeat) => false,
+            Some(Command::ResetFaults) => {
+                if self.state == State::Fault {
+                    let keep =
+                        FaultMonitor::present(obs, &self.params.limits) | Faults::PARAMS | found;
+                    self.faults = Faults::from_bits(self.faults.bits() & keep.bits());
+                    if self.faults.is_empty() {
+                        self.state = State::Idle;
+                        self.monitor.clear();
+                        self.stop_run();
+                    }
+                }
+                false
+            }
+            Some(Command::Stop) => {
+                if matches!(self.state, State::Starting | State::Running) {
+                    self.state = State::Stopping;
+                    self.stop_elapsed_s = 0.0;
+                }
+                false
+            }
+            Some(Command::Travel {
+                direction,
+                speed_rpm,
+            }) => self.run(speed_rpm, OffsetSource::Table(direction), m),
+            Some(Command::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            }) => {
+                if offset_deg.is_finite() {
+                    self.run(speed_rpm, OffsetSource::Fixed(wrap_deg(offset_deg)), m)
+                } else {
+                    true
+                }
+            }
+        }
+    }
+
+    /// A run command: refused in a fault or out of the speed range; otherwise it
+    /// sets the target and starts from idle or a stop.
+    fn run(&mut self, speed_rpm: f32, offset: OffsetSource, m: &Measurement) -> bool {
+        let p = &self.params;
+        if self.state == State::Fault
+            || !(speed_rpm >= p.min_speed_rpm && speed_rpm <= p.max_speed_rpm)
+        {
+            return true;
+        }
+        if self.state == State::Idle {
+            // Start from the speed the rotors have (0 at rest, more if coasting).
+            self.stop_run();
+            let max = self.params.max_speed_rpm;
+            let mean = rad_s_to_rpm(0.5 * (m.speed_rad_s[0] + m.speed_rad_s[1]));
+            self.ramp_rpm = if mean.is_finite() {
+                mean.clamp(0.0, max)
+            } else {
+                0.0
+            };
+        }
+        self.target = Some(RunTarget { speed_rpm, offset });
+        if self.state != State::Running {
+            self.state = State::Starting;
+        }
+        if self.phase_closed {
+            let to = self.target_offset();
+            self.offset.retarget(to, true);
+        }
+        false
+    }
+
+    /// The offset the current target asks for at the ramped speed, degrees.
+    fn target_offset(&self) -> f32 {
+        match self.target.map(|t| t.offset) {
+            Some(OffsetSource::Table(direction)) => {
+                self.params.tuning.offset(direction, self.ramp_rpm)
+            }
+            Some(OffsetSource::Fixed(o)) => o,
+            None => self.offset.target_deg(),
+        }
+    }
+
+    /// Stage 5: ramp the speed and the offset, open or close the phase loop, move
+    /// between states. Returns the speed reference's acceleration (rpm/s) and the
+    /// offset reference's rate (degrees/s).
+    fn references(&mut self, m: &Measurement, dt: f32) -> (f32, f32) {
+        let p = &self.params;
+        let target_rpm = match (self.state, self.target) {
+            (State::Starting | State::Running, Some(t)) => t.speed_rpm,
+            (State::Stopping, _) => 0.0,
+            _ => {
+                self.ramp_rpm = 0.0;
+                self.phase_closed = false;
+                return (0.0, 0.0);
+            }
+        };
+
+        // Speed ramp.
+        let rates = SpeedRampRates {
+            normal_rpm_s: p.speed_ramp_rpm_s,
+            resonance_rpm_s: p.resonance_ramp_rpm_s,
+            band_rpm: p.resonance_band_rpm,
+        };
+        let (ramp, accel) = ramp_speed(self.ramp_rpm, target_rpm, &rates, dt);
+        self.ramp_rpm = ramp;
+
+        // Phase loop open or closed: closed with both angles known above its speed.
+        let can_close = m.offset_deg.is_some() && self.ramp_rpm >= p.phase_loop_min_rpm;
+        if can_close && !self.phase_closed {
+            self.phase_closed = true;
+            self.phase_loop.reset();
+            self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
+            let to = self.target_offset();
+            self.offset.retarget(to, true);
+        } else if !can_close && self.phase_closed {
+            self.phase_closed = false;
+            self.phase_loop.reset();
+        }
+
+        // Offset ramp; the table's offset follows the ramped speed.
+        let mut offset_rate = 0.0;
+        if self.phase_closed {
+            if self.state != State::Stopping {
+                let to = self.target_offset();
+                self.offset.retarget(to, false);
+            }
+            let moved = self.offset.step(p.offset_ramp_deg_s * dt);
+            offset_rate = moved / dt;
+        }
+
+        // State changes.
+        match self.state {
+            State::Starting if self.ramp_rpm == target_rpm && self.phase_closed => {
+                self.state = State::Running;
+            }
+            State::Stopping if self.ramp_rpm == 0.0 => {
+                self.stop_elapsed_s += dt;
+                let slow = m
+                    .speed_rad_s
+                    .iter()
+                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < p.stop_speed_rpm);
+                if slow || self.stop_elapsed_s >= p.stop_timeout_s {
+                    self.state = State::Idle;
+                    self.stop_run();
+                }
+            }
+            _ => {}
+        }
+        (accel, offset_rate)
+    }
+}
