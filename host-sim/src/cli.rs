@@ -48,6 +48,16 @@ pub struct RunArgs {
     /// The machine file (TOML; see docs/machine-file.md).
     #[arg(value_name = "MACHINE.toml")]
     pub machine: PathBuf,
+    /// Command the controller (the firmware's, in the loop at `rate_hz`): travel
+    /// right or left at `--speed`, or stop.
+    #[arg(long, value_enum, value_name = "right|left|stop")]
+    pub command: Option<CommandArg>,
+    /// Rotor speed for `--command`, rpm (default: `[controller].speed_rpm`).
+    #[arg(long, value_name = "RPM")]
+    pub speed: Option<f64>,
+    /// Hold this phase offset, degrees, instead of the tuning table's.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub offset: Option<f64>,
     /// Drive the windings open loop: constant voltages `V1,V2` (V, signed; `0,0`
     /// shorts the windings), or `coast` (windings open).
     #[arg(long, value_name = "V1,V2|coast", allow_hyphen_values = true)]
@@ -106,6 +116,17 @@ impl From<LawArg> for ImpactLaw {
             LawArg::Stronge => ImpactLaw::Stronge,
         }
     }
+}
+
+/// What `--command` asks of the controller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CommandArg {
+    /// Travel right.
+    Right,
+    /// Travel left.
+    Left,
+    /// Stay stopped.
+    Stop,
 }
 
 /// How a command prints its result.

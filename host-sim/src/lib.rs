@@ -13,12 +13,15 @@
 //! - [`summary`]: the run's summary statistics computed from its trace and events;
 //! - [`run_output`]: the summary as JSON or a table, trace and events as CSV, whole files;
 //! - [`plot`]: the run as an SVG figure for people;
+//! - [`closed_loop`]: the `shared` controller in the loop with the simulated sensors;
 //! - [`simulation`]: a whole run, tick by tick, with trace, events and summary;
 //! - [`run_command`]: `host-sim run`, from machine file to outputs;
+//! - [`tuning_file`]: the tuning table file (speed -> best offsets);
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod closed_loop;
 pub mod impact_case;
 pub mod impact_command;
 pub mod impact_report;
@@ -33,3 +36,4 @@ pub mod simulation;
 pub mod summary;
 pub mod text;
 pub mod trace;
+pub mod tuning_file;

@@ -33,6 +33,10 @@ pub trait Driver {
     fn faults(&self) -> Vec<String> {
         Vec::new()
     }
+    /// Events of the driver since the last call (state changes, faults).
+    fn events(&mut self) -> Vec<EventRow> {
+        Vec::new()
+    }
 }
 
 /// Open loop: constant winding voltages, or open windings (coast).
@@ -156,7 +160,7 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
         if t >= options.t_end {
             break;
         }
-        let (windings, duty) = driver.windings(plant.t, &plant);
+        let (windings, duty) = driver.windings(t, &plant);
         plant.set_winding(windings);
         rec.duty = duty;
         if tick == 0 {
@@ -173,10 +177,13 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
         rec.push(plant.t, &y);
     }
 
-    // 4. Summary.
+    // 4. Summary, with the driver's events merged in time order.
+    let mut events = plant.events;
+    events.extend(driver.events());
+    events.sort_by(|a, b| a.t.total_cmp(&b.t));
     let summary = summarize(
         &rec.rows,
-        &plant.events,
+        &events,
         machine,
         driver.commanded_offset_deg(),
         &driver.state(),
@@ -185,7 +192,7 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
     );
     RunResult {
         rows: rec.rows,
-        events: plant.events,
+        events,
         summary,
         steps: plant.steps,
     }

@@ -42,15 +42,6 @@ pub struct State {
     pub v: [f64; DOF],
 }
 
-/// `a` reduced to about `[-pi, pi]`: the rotor angles grow without bound (a
-/// thousand radians a minute at 3000 rpm), and `sin_cos` of a large argument takes
-/// libm's slow reduction path; this one costs a multiply and a round, with the
-/// same rounding (`|a| eps`).
-#[inline]
-pub fn reduced(a: f64) -> f64 {
-    a - core::f64::consts::TAU * (a / core::f64::consts::TAU).round()
-}
-
 /// `z x r = (-r_y, r_x)`.
 #[inline]
 pub fn perp(r: [f64; 2]) -> [f64; 2] {
@@ -145,7 +136,7 @@ impl Frame {
 
     /// The configuration-dependent terms at `q`.
     pub fn new(model: &PlantModel, q: &[f64; DOF]) -> Self {
-        let cs = reduced(q[2]).sin_cos();
+        let cs = q[2].sin_cos();
         let mut rho = [[0.0; 2]; 2];
         let mut eps = [[0.0; 2]; 2];
         let mut m = [[0.0; DOF]; DOF];
@@ -156,7 +147,7 @@ impl Frame {
         for k in 0..2 {
             let rot = &model.rotors[k];
             rho[k] = rotate(cs, rot.axis);
-            let (s, c) = reduced(q[2] + q[3 + k]).sin_cos();
+            let (s, c) = (q[2] + q[3 + k]).sin_cos();
             eps[k] = [rot.eccentricity * c, rot.eccentricity * s];
             let r = [rho[k][0] + eps[k][0], rho[k][1] + eps[k][1]];
             let (mk, ik) = (rot.mass, rot.inertia);

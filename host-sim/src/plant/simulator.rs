@@ -484,11 +484,16 @@ impl Plant {
                     // A contact held exactly at its cone's edge by the split stays
                     // positive: the event is the cone being exceeded.
                     ContactMode::Stick => mu * ln - lt.abs() + 1e-9 * (mu * ln + lt.abs()),
-                    ContactMode::SlipPositive => k.u_t.min(ln),
-                    ContactMode::SlipNegative => (-k.u_t).min(ln),
+                    // Slip stops: s u_t falls below -tolerance (a slip that starts
+                    // from zero must be able to end, or friction would push along
+                    // the motion).
+                    ContactMode::SlipPositive => k.u_t + self.settings.velocity_tolerance,
+                    ContactMode::SlipNegative => -k.u_t + self.settings.velocity_tolerance,
                 }
                 .min(if self.modes[j].closed() {
-                    ln
+                    // Lift-off: the normal force goes below a margin of 1e-9 of the
+                    // weight (a contact closed at zero force must be able to leave).
+                    ln + self.force_margin()
                 } else {
                     f64::INFINITY
                 })
@@ -595,8 +600,8 @@ impl Plant {
     /// platform's position (the travel per impact is a small difference of large
     /// motions), `rtol` rad, rad/s, m/s elsewhere, and `rtol` times the current
     /// limit on the winding currents (their natural scale; tighter only adds steps
-    /// to follow the 0.25 ms electrical transient: 63 k instead of 56 k accepted
-    /// steps for 10 s of the reference machine).
+    /// to follow the 0.25 ms electrical transient: about 10 % more accepted steps
+    /// for the reference machine with `rtol` amperes).
     fn tolerance(&self) -> Tolerance<NY> {
         let r = self.settings.rtol;
         let mut atol = [r; NY];
@@ -679,7 +684,17 @@ impl Plant {
                     if b0 > 0.0 && b1 <= 0.0 {
                         consider(self.locate(step, &below, apex, step.t1(), b0, b1));
                     } else if b0 <= 0.0 {
-                        consider(apex);
+                        // Already at the together gap's edge: the event is where it
+                        // starts to approach measurably (then an impact, however
+                        // slow, which an accumulation closes).
+                        let tol = self.settings.velocity_tolerance;
+                        let approach = |y: &[f64; NY]| un(y) + tol;
+                        let (a0, a1) = (approach(&step.at(apex)), approach(&step.y1));
+                        if a0 > 0.0 && a1 <= 0.0 {
+                            consider(self.locate(step, &approach, apex, step.t1(), a0, a1));
+                        } else {
+                            consider(apex);
+                        }
                     }
                 }
             }
@@ -693,6 +708,12 @@ impl Plant {
                 (te, step.at(te))
             }
         })
+    }
+
+    /// Margin of the lift-off event, N: 1e-9 of the machine's weight.
+    fn force_margin(&self) -> f64 {
+        let g = self.model.gravity;
+        1e-9 * self.model.total_mass() * (g[0] * g[0] + g[1] * g[1]).sqrt()
     }
 
     /// The dense output of `step` as the plant reports it.
@@ -903,6 +924,42 @@ impl Plant {
     /// complementarity problem at acceleration level; the rest open.
     fn decide_modes(&mut self, touching: &[usize], kin: &[ContactKinematics]) {
         let old = self.modes.clone();
+        // A slip that ended (its event fires within the velocity tolerance of zero)
+        // ends exactly: the least mass-weighted velocity change that zeroes its
+        // slip and keeps the closed contacts' normal velocities, so the choice
+        // between stick and slip starts from zero slip and cannot chatter.
+        let ending: Vec<usize> = (0..old.len())
+            .filter(|&j| {
+                matches!(
+                    old[j],
+                    ContactMode::SlipPositive | ContactMode::SlipNegative
+                ) && kin[j].u_t.abs() <= 2.0 * self.settings.velocity_tolerance
+            })
+            .collect();
+        let refreshed: Vec<ContactKinematics>;
+        let kin = if ending.is_empty() {
+            kin
+        } else {
+            let q = self.q();
+            let v = self.v();
+            let frame = self.frame(&q);
+            let mut rows = Vec::new();
+            for j in 0..old.len() {
+                if old[j].closed() {
+                    let k = frame.contact(&self.model, j, &q, &v);
+                    rows.push((k.j_n, frame.solve(&k.j_n), k.u_n));
+                    if ending.contains(&j) || old[j] == ContactMode::Stick {
+                        rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
+                    }
+                }
+            }
+            self.project_rows(&rows);
+            let (q, v) = (self.q(), self.v());
+            refreshed = (0..old.len())
+                .map(|j| frame.contact(&self.model, j, &q, &v))
+                .collect();
+            &refreshed
+        };
         // Sticking contacts whose cone is being exceeded (their stick event fired):
         // at the event both states are admissible to rounding, and stick would be
         // kept forever; they are decided with a friction margin of 1e-7 instead.
@@ -970,10 +1027,22 @@ impl Plant {
                 return;
             }
             // Any positive force closes the contact: a force below rounding still
-            // means the contact is loaded (its lift-off is then an event).
+            // means the contact is loaded (its lift-off is then an event). So does
+            // a contact left without force whose normal acceleration is zero to
+            // rounding (touching, at rest, not separating): whether it loads or
+            // leaves is decided by what follows, which the lift-off event (normal
+            // force going negative) tells; left open, it would sink and bounce
+            // without end.
+            let acc_tol = 1e-9 * scale_a;
             for (r, &j) in candidates.iter().enumerate() {
+                let a_n = sys.base_n[r] + d.du_n[r];
                 if d.x[r] > 0.0 {
                     new[j] = ContactMode::from_slip(d.mode[r]);
+                } else if a_n <= acc_tol {
+                    new[j] = match kinematic_mode(kin[j].u_t, self.settings.velocity_tolerance) {
+                        Some(m) => m,
+                        None => ContactMode::Stick,
+                    };
                 }
             }
         }
@@ -995,7 +1064,13 @@ impl Plant {
                 trial[j] = ContactMode::Stick;
             }
             let e = self.evaluate_with_modes(&self.y, &trial);
-            if e.cones_ok {
+            // Strictly inside the cones, so that their stick events can still fire.
+            let strictly_inside = (0..trial.len()).all(|j| {
+                trial[j] != ContactMode::Stick
+                    || self.model.contacts[j].law.friction * e.lambda_n[j] - e.lambda_t[j].abs()
+                        >= 0.0
+            });
+            if e.cones_ok && strictly_inside {
                 new = trial;
             }
         }
@@ -1313,6 +1388,17 @@ fn least_change(rows: &[([f64; DOF], [f64; DOF], f64)]) -> Option<[f64; DOF]> {
         }
     }
     Some(dx)
+}
+
+/// The slip mode a tangential velocity imposes, or `None` within the tolerance.
+fn kinematic_mode(u_t: f64, tol: f64) -> Option<ContactMode> {
+    if u_t > tol {
+        Some(ContactMode::SlipPositive)
+    } else if u_t < -tol {
+        Some(ContactMode::SlipNegative)
+    } else {
+        None
+    }
 }
 
 /// The name of a mode in the events CSV's detail.

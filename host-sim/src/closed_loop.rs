@@ -1,0 +1,265 @@
+//! Software in the loop: the `shared` controller (the code the firmware runs)
+//! stepped at the machine's control rate, seeing the simulated sensors and
+//! driving the simulated motors.
+//!
+//! Each control tick ([`ControllerDriver::windings`]):
+//! 1. sample the sensors from the plant's state: quadrature encoders (quantised,
+//!    wrapping 32-bit counters, index pulses, edge jitter) and the current
+//!    measurement (noise, offset), all from the machine's seed;
+//! 2. hand the controller the commands due, a heartbeat (the host is present),
+//!    the supply voltage and the E-stop input;
+//! 3. step the controller with `dt = 1 / rate_hz` (time is passed in);
+//! 4. put `duty x supply` on the windings (the H-bridge's averaged PWM), or open
+//!    them when the controller disables its outputs (motors off);
+//! 5. record the controller's state changes and faults as events.
+
+use shared::controller::{
+    Command, Controller, Inputs, MachineConstants, Outputs, Params, ResetCause, RotorModel, State,
+};
+
+use crate::input::Problem;
+use crate::machine::Machine;
+use crate::plant::motor::Winding;
+use crate::plant::sensors::{CurrentSensor, Encoder};
+use crate::plant::simulator::Plant;
+use crate::simulation::Driver;
+use crate::trace::{EventKind, EventRow};
+use crate::tuning_file;
+
+/// Faults injected from outside the controller (scenarios).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Injected {
+    /// Encoder signals lost: the counter and index of rotor k stop.
+    pub encoder_dropout: [bool; 2],
+    /// Supply voltage instead of the nominal one, V.
+    pub supply_voltage: Option<f64>,
+    /// Offset added to the current measurement of rotor k, A.
+    pub current_offset: [f64; 2],
+    /// Commands and heartbeats from the host are lost.
+    pub link_lost: bool,
+    /// The E-stop input is active.
+    pub estop: bool,
+}
+
+/// The controller in the loop.
+pub struct ControllerDriver {
+    controller: Controller,
+    encoders: [Encoder; 2],
+    frozen_count: [Option<u32>; 2],
+    currents: [CurrentSensor; 2],
+    supply: f64,
+    dt: f32,
+    /// Commands still to send: (time, command), in time order.
+    schedule: Vec<(f64, Command)>,
+    /// Faults injected now.
+    pub injected: Injected,
+    last: Option<Outputs>,
+    events: Vec<EventRow>,
+    /// Telemetry of every tick: (t, outputs).
+    pub history: Vec<(f64, Outputs)>,
+    record_history: bool,
+}
+
+/// The controller's constants for a machine file.
+pub fn machine_constants(m: &Machine) -> MachineConstants {
+    let rotor = |k: usize| {
+        let r = &m.rotors[k];
+        RotorModel {
+            resistance_ohm: r.motor.resistance as f32,
+            torque_constant: r.motor.torque_constant as f32,
+            // The rotor with its eccentric mass, about its axis.
+            inertia_kg_m2: (r.inertia + r.eccentric_mass * r.eccentricity * r.eccentricity) as f32,
+        }
+    };
+    // The band the ramps hurry through: around lift-off, where the exciting
+    // force 2 m e w^2 equals the weight M g (from 0.7 to 1.18 times that speed:
+    // 1500 to 2500 rpm for the reference machine, lift-off at 2125 rpm).
+    let me: f64 = (0..2)
+        .map(|k| m.rotors[k].eccentric_mass * m.rotors[k].eccentricity)
+        .sum::<f64>()
+        / 2.0;
+    let g = (m.fundament.gravity[0].powi(2) + m.fundament.gravity[1].powi(2)).sqrt();
+    let band = if me > 0.0 {
+        let w = (m.total_mass() * g / (2.0 * me)).sqrt();
+        let rpm = w * 30.0 / std::f64::consts::PI;
+        [(0.7 * rpm) as f32, (1.18 * rpm) as f32]
+    } else {
+        [0.0, 0.0]
+    };
+    MachineConstants {
+        rate_hz: m.controller.rate_hz as f32,
+        encoder_counts: m.sensors.encoder_counts,
+        supply_voltage_v: m.drive.supply_voltage as f32,
+        current_limit_a: m.rotors[0]
+            .motor
+            .current_limit
+            .min(m.rotors[1].motor.current_limit) as f32,
+        rotors: [rotor(0), rotor(1)],
+        resonance_band_rpm: band,
+    }
+}
+
+/// The controller's parameters for a machine file, with its tuning table if it
+/// names one (problems name the table file and key).
+pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
+    let mut p = Params::from_machine(&machine_constants(m));
+    if let Some(path) = &m.controller.tuning_table {
+        let rows = tuning_file::read(path)?;
+        match tuning_file::table(&rows) {
+            Some(t) => p.tuning = t,
+            None => {
+                return Err(vec![Problem {
+                    file: path.display().to_string(),
+                    location: crate::input::Location::Key("rows".into()),
+                    message: "the controller refused the table (check speeds and offsets)".into(),
+                }])
+            }
+        }
+    }
+    Ok(p)
+}
+
+impl ControllerDriver {
+    /// The controller for `machine`, powered on, with `schedule` commands.
+    pub fn new(machine: &Machine, schedule: Vec<(f64, Command)>) -> Result<Self, Vec<Problem>> {
+        let params = params(machine)?;
+        let seed = machine.simulation.seed;
+        let encoders =
+            [0, 1].map(|k| Encoder::for_rotor(k, &machine.rotors[k], &machine.sensors, seed));
+        let currents = [0, 1].map(|k| CurrentSensor::for_rotor(k, &machine.sensors, seed));
+        Ok(ControllerDriver {
+            controller: Controller::new(&params, ResetCause::PowerOn),
+            encoders,
+            frozen_count: [None; 2],
+            currents,
+            supply: machine.drive.supply_voltage,
+            dt: (1.0 / machine.controller.rate_hz) as f32,
+            schedule,
+            injected: Injected::default(),
+            last: None,
+            events: Vec::new(),
+            history: Vec::new(),
+            record_history: false,
+        })
+    }
+
+    /// Keep every tick's outputs in [`ControllerDriver::history`] (scenarios).
+    pub fn record_history(&mut self, on: bool) {
+        self.record_history = on;
+    }
+
+    /// The last outputs.
+    pub fn last(&self) -> Option<&Outputs> {
+        self.last.as_ref()
+    }
+
+    fn event(&mut self, t: f64, kind: EventKind, detail: String) {
+        self.events.push(EventRow {
+            t,
+            kind,
+            contact: String::new(),
+            normal_velocity_before: 0.0,
+            normal_velocity_after: 0.0,
+            normal_impulse: 0.0,
+            tangential_impulse: 0.0,
+            case: None,
+            detail,
+        });
+    }
+}
+
+impl Driver for ControllerDriver {
+    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+        // 1. Sensors.
+        let q = plant.q();
+        let v = plant.v();
+        let i = plant.currents();
+        let mut encoder = [0u32; 2];
+        let mut index = [None; 2];
+        for k in 0..2 {
+            let r = self.encoders[k].sample(t, q[3 + k], v[3 + k]);
+            if self.injected.encoder_dropout[k] {
+                encoder[k] = *self.frozen_count[k].get_or_insert(r.count);
+            } else {
+                self.frozen_count[k] = None;
+                encoder[k] = r.count;
+                index[k] = r.index_count;
+            }
+        }
+        let current = [0, 1]
+            .map(|k| (self.currents[k].measure(i[k]) + self.injected.current_offset[k]) as f32);
+        let supply = self.injected.supply_voltage.unwrap_or(self.supply);
+
+        // 2. Commands due, else a heartbeat.
+        let mut command = None;
+        while self
+            .schedule
+            .first()
+            .is_some_and(|(tc, _)| *tc <= t + 1e-12)
+        {
+            let (_, c) = self.schedule.remove(0);
+            command = Some(c);
+        }
+        if self.injected.link_lost {
+            command = None;
+        } else if command.is_none() {
+            command = Some(Command::Heartbeat);
+        }
+
+        // 3. Step.
+        let inputs = Inputs {
+            encoder,
+            index,
+            current,
+            supply_voltage: supply as f32,
+            estop: self.injected.estop,
+            command,
+        };
+        let out = self.controller.step(&inputs, self.dt);
+
+        // 5. Events: state changes and new faults.
+        let (old_state, old_faults) = self
+            .last
+            .map_or((State::Idle, Default::default()), |o| (o.state, o.faults));
+        if out.state != old_state || self.last.is_none() {
+            self.event(t, EventKind::State, out.state.name().to_string());
+        }
+        for name in out.faults.names() {
+            if !old_faults.names().any(|n| n == name) {
+                self.event(t, EventKind::Fault, name.to_string());
+            }
+        }
+        self.last = Some(out);
+        if self.record_history {
+            self.history.push((t, out));
+        }
+
+        // 4. The H-bridges.
+        if out.enable {
+            let duty = out.duty.map(f64::from);
+            (duty.map(|d| Winding::from_duty(d, supply)), duty)
+        } else {
+            ([Winding::Open, Winding::Open], [0.0, 0.0])
+        }
+    }
+
+    fn state(&self) -> String {
+        self.last.map_or("idle", |o| o.state.name()).to_string()
+    }
+
+    fn commanded_offset_deg(&self) -> Option<f64> {
+        self.last
+            .filter(|o| o.state == State::Running)
+            .map(|o| f64::from(o.telemetry.target_offset_deg))
+    }
+
+    fn faults(&self) -> Vec<String> {
+        self.last
+            .map(|o| o.faults.names().map(str::to_string).collect())
+            .unwrap_or_default()
+    }
+
+    fn events(&mut self) -> Vec<EventRow> {
+        std::mem::take(&mut self.events)
+    }
+}
