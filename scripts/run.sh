@@ -2,13 +2,16 @@
 # The project's main job, from a fresh clone: build the host tool and simulate the
 # reference machine (examples/vibro-driver.toml).
 #
-# Now: the machine open loop, both motors at 12 V, for 10 s: the platform lifts,
-# rocks and lands on its two feet; the rotors spin up and synchronise by themselves
-# (their offset settles near 180 degrees, the vertical exciting force, so the travel
-# stops once they are synchronised). The closed-loop phase control that makes it
-# travel comes with the controller issue. Writes out/ (trace, events, plot) and
-# prints the summary; then the paper's Fig. 5 impact, solved by `host-sim impact`.
+# 1. The machine with the controller in the loop (the `shared` controller the
+#    firmware runs, stepped at the control rate, seeing simulated encoders, index
+#    pulses and currents), commanded to travel right at 3000 rpm for 10 s: the
+#    rotors ramp up through the platform's lift-off band, lock at the tuned phase
+#    offset, and the platform travels right.
+# 2. The same machine open loop, both motors at 12 V: the rotors synchronise by
+#    themselves near 180 degrees (the vertical force), so it barely travels.
+# 3. The paper's Fig. 5 impact, solved by `host-sim impact`.
 #
+# Writes out/ (traces, events, plots) and prints the summaries.
 # Needs only cargo; the first run compiles host-sim (well under a minute).
 set -euo pipefail
 
@@ -28,11 +31,18 @@ fi
 cargo build --release -p host-sim
 mkdir -p "$OUT"
 
+echo "==== host-sim run $MACHINE --command right ===="
+cargo run --quiet --release -p host-sim -- run "$MACHINE" --command right \
+    --out "$OUT/vibro-driver-right.csv" --events "$OUT/vibro-driver-right-events.csv" \
+    --plot "$OUT/vibro-driver-right.svg"
+echo "wrote $OUT/vibro-driver-right.{csv,svg} and the events (open the SVG in a browser)"
+
+echo
 echo "==== host-sim run $MACHINE --open-loop 12,12 ===="
 cargo run --quiet --release -p host-sim -- run "$MACHINE" --open-loop 12,12 \
-    --out "$OUT/vibro-driver.csv" --events "$OUT/vibro-driver-events.csv" \
-    --plot "$OUT/vibro-driver.svg"
-echo "wrote $OUT/vibro-driver.csv, $OUT/vibro-driver-events.csv, $OUT/vibro-driver.svg (open the SVG in a browser)"
+    --out "$OUT/vibro-driver-open-loop.csv" --events "$OUT/vibro-driver-open-loop-events.csv" \
+    --plot "$OUT/vibro-driver-open-loop.svg"
+echo "wrote $OUT/vibro-driver-open-loop.{csv,svg} and the events"
 
 echo
 echo "==== host-sim impact $CASE ===="
