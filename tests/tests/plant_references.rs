@@ -621,6 +621,7 @@ fn free_rotor_spin_up_is_the_second_order_step_response() {
     let holds = Holds {
         platform: true,
         rotors: false,
+        ..Holds::default()
     };
     let mut plant = rig.plant(settings, holds, |_| {});
     let u = 12.0;
@@ -712,6 +713,7 @@ fn run_current_limit() -> (Rig, Vec<LimitSample>, f64) {
     let holds = Holds {
         platform: true,
         rotors: false,
+        ..Holds::default()
     };
     let mut plant = rig.plant(Settings::default(), holds, |_| {});
     let u = CLAMP_VOLTAGE;
@@ -976,6 +978,7 @@ fn exciting_force_lies_along_half_the_offset_with_amplitude_2_m_e_w2() {
     let holds = Holds {
         platform: true,
         rotors: true,
+        ..Holds::default()
     };
     for offset_deg in [0.0f64, 60.0, 90.0, 180.0, 270.0] {
         let d = offset_deg.to_radians();
@@ -1286,6 +1289,7 @@ fn slide_run(mu: f64, b: f64, w: f64) -> SlideRun {
     let holds = Holds {
         platform: false,
         rotors: true,
+        ..Holds::default()
     };
     let mut plant = rig.plant(Settings::default(), holds, |y| {
         y[8] = w;
@@ -1458,6 +1462,7 @@ fn sticking_contact_forces_stay_in_the_friction_cone() {
         let holds = Holds {
             platform: false,
             rotors: true,
+            ..Holds::default()
         };
         let mut plant = r.plant(Settings::default(), holds, |y| {
             y[8] = w;

@@ -39,6 +39,7 @@ fn mean_velocity(offset_deg: f64, t_end: f64, settings: Settings) -> f64 {
     let holds = Holds {
         platform: false,
         rotors: true,
+        ..Holds::default()
     };
     let mut plant = Plant::new(PlantModel::new(&m), y, settings, holds);
     plant.advance_to(t_end / 2.0, &mut |_| {});

@@ -128,13 +128,15 @@ pub struct Holds {
     pub platform: bool,
     /// Hold both rotors at their current speed relative to the platform.
     pub rotors: bool,
+    /// Rotor k jammed: held at rest relative to the platform (fault injection).
+    pub jammed: [bool; 2],
 }
 
 impl Holds {
     fn mask(self) -> [bool; DOF] {
         let p = self.platform;
         let r = self.rotors;
-        [p, p, p, r, r]
+        [p, p, p, r || self.jammed[0], r || self.jammed[1]]
     }
 }
 
@@ -220,6 +222,20 @@ impl Plant {
             self.fsal = None;
             self.ev_cache = None;
             self.clamp_currents();
+        }
+    }
+
+    /// Jams rotor `k` (or frees it): a jammed rotor stops at once relative to the
+    /// platform (the bearing seizes; the impulse of the stop on the platform is
+    /// not modelled) and stays at rest; its motor then stalls against the jam.
+    pub fn set_jam(&mut self, k: usize, jammed: bool) {
+        if self.holds.jammed[k] != jammed {
+            self.holds.jammed[k] = jammed;
+            if jammed {
+                self.y[DOF + 3 + k] = 0.0;
+            }
+            self.fsal = None;
+            self.ev_cache = None;
         }
     }
 
