@@ -21,6 +21,9 @@ use crate::trace::{EventRow, Summary, TraceRow};
 
 /// What drives the windings, asked at every control tick.
 pub trait Driver {
+    /// Acts on the plant before the tick's windings are asked for (fault
+    /// injection: a jammed rotor). Nothing by default.
+    fn before_tick(&mut self, _t: f64, _plant: &mut Plant) {}
     /// The windings from `t` to the next tick, and the duties to record.
     fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]);
     /// The controller's state name for the summary (`open-loop` without one).
@@ -160,6 +163,7 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
         if t >= options.t_end {
             break;
         }
+        driver.before_tick(t, &mut plant);
         let (windings, duty) = driver.windings(t, &plant);
         plant.set_winding(windings);
         rec.duty = duty;
