@@ -141,6 +141,7 @@ impl Holds {
 }
 
 /// Contact forces and accelerations at a state, in the current modes.
+#[derive(Clone)]
 struct Evaluation {
     ydot: [f64; NY],
     /// Normal force of each contact (0 when open), N.
@@ -182,6 +183,11 @@ pub struct Plant {
     resolving_painleve: bool,
     /// Event functions of the state left by the last `advance_to`.
     ev_cache: Option<([f64; NY], Vec<f64>)>,
+    /// The last evaluation in the current modes, with its state.
+    last_evaluation:
+        std::cell::RefCell<Option<([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation)>>,
+    /// The windings of the last evaluation.
+    last_winding: std::cell::Cell<[Winding; 2]>,
 }
 
 impl Plant {
@@ -210,6 +216,8 @@ impl Plant {
             fsal: None,
             resolving_painleve: false,
             ev_cache: None,
+            last_evaluation: std::cell::RefCell::new(None),
+            last_winding: std::cell::Cell::new([Winding::Open, Winding::Open]),
         };
         plant.settle();
         plant
@@ -268,7 +276,19 @@ impl Plant {
 
     /// Accelerations and contact forces at `y` in the current modes.
     fn evaluate(&self, y: &[f64; NY]) -> Evaluation {
-        self.evaluate_with_modes(y, &self.modes)
+        // The last evaluation is kept: the event functions at a step's end ask
+        // for the state the integrator's last stage has just evaluated (FSAL).
+        let mut modes = [ContactMode::Open; MAX_CONTACTS];
+        modes[..self.modes.len()].copy_from_slice(&self.modes);
+        if let Some((yc, mc, e)) = self.last_evaluation.borrow().as_ref() {
+            if yc == y && *mc == modes && self.winding == self.last_winding.get() {
+                return e.clone();
+            }
+        }
+        let e = self.evaluate_with_modes(y, &self.modes);
+        *self.last_evaluation.borrow_mut() = Some((*y, modes, e.clone()));
+        self.last_winding.set(self.winding);
+        e
     }
 
     /// Accelerations and contact forces at `y` with the contacts in `modes`.
