@@ -140,6 +140,9 @@ impl Holds {
     }
 }
 
+/// An evaluation with the state and modes it was made at.
+type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
+
 /// Contact forces and accelerations at a state, in the current modes.
 #[derive(Clone)]
 struct Evaluation {
@@ -184,8 +187,7 @@ pub struct Plant {
     /// Event functions of the state left by the last `advance_to`.
     ev_cache: Option<([f64; NY], Vec<f64>)>,
     /// The last evaluation in the current modes, with its state.
-    last_evaluation:
-        std::cell::RefCell<Option<([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation)>>,
+    last_evaluation: std::cell::RefCell<Option<CachedEvaluation>>,
     /// The windings of the last evaluation.
     last_winding: std::cell::Cell<[Winding; 2]>,
 }
