@@ -7,6 +7,10 @@
 //!   space piecewise exactly;
 //! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
 //!   ramps, tuning table and latched faults, one `step(inputs, dt)` per tick in `f32`;
+//! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
+//!   decoder that never trusts a length, the messages and the answer to every frame;
+//! - [`storage`]: the tuning table and self-test results in two flash sectors used in
+//!   turn, each record with a magic word, a version, a sequence number and a CRC-32;
 //! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
 #![no_std]
 #![warn(missing_docs)]
@@ -16,6 +20,8 @@
 
 pub mod controller;
 pub mod impact;
+pub mod protocol;
 pub mod real;
+pub mod storage;
 
 pub use real::Real;

@@ -1,0 +1,742 @@
+//! The messages: ids, the [`Request`]s the host sends, the [`Response`]s the device
+//! sends, and their payload layouts (little-endian, fixed, no padding; `f32` is IEEE
+//! 754 binary32). Every layout is listed in `docs/protocol.md`.
+
+use crate::controller::{
+    Command, Direction, Faults, Outputs, State, Telemetry, TuningTable, MAX_TUNING_ROWS,
+};
+use crate::storage::SelfTest;
+
+use super::frame::Frame;
+use super::wire::{Reader, Writer};
+
+/// Message ids: requests (host to device) below `0x80`, responses (device to host)
+/// from `0x80`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum MessageId {
+    /// [`Request::Heartbeat`].
+    Heartbeat = 0x01,
+    /// [`Request::GetStatus`].
+    GetStatus = 0x02,
+    /// [`Request::Stop`].
+    Stop = 0x03,
+    /// [`Request::Travel`].
+    Travel = 0x04,
+    /// [`Request::HoldOffset`].
+    HoldOffset = 0x05,
+    /// [`Request::ResetFaults`].
+    ResetFaults = 0x06,
+    /// [`Request::ReadTuningTable`].
+    ReadTuningTable = 0x07,
+    /// [`Request::WriteTuningTable`].
+    WriteTuningTable = 0x08,
+    /// [`Request::RunSelfTest`].
+    RunSelfTest = 0x09,
+    /// [`Request::ReadSelfTest`].
+    ReadSelfTest = 0x0A,
+    /// [`Request::StreamTelemetry`].
+    StreamTelemetry = 0x0B,
+    /// [`Response::Ack`].
+    Ack = 0x80,
+    /// [`Response::Nack`].
+    Nack = 0x81,
+    /// [`Response::Status`].
+    Status = 0x82,
+    /// [`Response::TuningTable`].
+    TuningTable = 0x83,
+    /// [`Response::SelfTest`].
+    SelfTestResult = 0x84,
+    /// [`Response::Telemetry`] (unsolicited).
+    Telemetry = 0x85,
+}
+
+impl MessageId {
+    /// Every id, requests first.
+    pub const ALL: [MessageId; 17] = [
+        MessageId::Heartbeat,
+        MessageId::GetStatus,
+        MessageId::Stop,
+        MessageId::Travel,
+        MessageId::HoldOffset,
+        MessageId::ResetFaults,
+        MessageId::ReadTuningTable,
+        MessageId::WriteTuningTable,
+        MessageId::RunSelfTest,
+        MessageId::ReadSelfTest,
+        MessageId::StreamTelemetry,
+        MessageId::Ack,
+        MessageId::Nack,
+        MessageId::Status,
+        MessageId::TuningTable,
+        MessageId::SelfTestResult,
+        MessageId::Telemetry,
+    ];
+
+    /// The id of byte `b`, if there is one.
+    pub fn from_u8(b: u8) -> Option<MessageId> {
+        MessageId::ALL.into_iter().find(|id| *id as u8 == b)
+    }
+
+    /// Whether the host sends it (ids below `0x80`).
+    pub fn is_request(self) -> bool {
+        (self as u8) < 0x80
+    }
+}
+
+/// Why a payload does not make a message; [`NackReason::from`] gives the answer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParseError {
+    /// No message of this kind (request or response) has this id.
+    UnknownId,
+    /// The payload length is wrong for the id.
+    BadLength,
+    /// A field is outside its domain: an enum or flag value without a meaning, a
+    /// reserved byte not 0, a non-finite command value, an invalid tuning table.
+    BadValue,
+}
+
+/// Why a request was refused ([`Response::Nack`]), one byte on the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum NackReason {
+    /// The id is no request ([`ParseError::UnknownId`]).
+    UnknownMessage = 1,
+    /// The payload length is wrong for the id ([`ParseError::BadLength`]).
+    BadLength = 2,
+    /// A field is outside its domain ([`ParseError::BadValue`]).
+    BadValue = 3,
+    /// The header was right but the frame CRC-32 was not ([`super::FrameError::BadCrc`]).
+    BadCrc = 4,
+    /// The header announced more than [`super::MAX_PAYLOAD`] bytes.
+    TooLong = 5,
+    /// The header carried another protocol version; the Nack's own header carries
+    /// the device's [`super::PROTOCOL_VERSION`].
+    BadVersion = 6,
+    /// Needs the motors stopped: state idle or fault and both rotors below
+    /// [`crate::storage::WRITE_MAX_SPEED_RPM`] ([`crate::storage::may_write`]).
+    NotStopped = 7,
+    /// A fault is latched: reset it first (for [`Request::RunSelfTest`]).
+    Faulted = 8,
+    /// The flash write failed; the previous table is still the one in use and in
+    /// flash.
+    StorageFailed = 9,
+    /// The device is busy (a self-test runs) and refuses this request for now.
+    Busy = 10,
+}
+
+impl NackReason {
+    /// Every reason, in code order.
+    pub const ALL: [NackReason; 10] = [
+        NackReason::UnknownMessage,
+        NackReason::BadLength,
+        NackReason::BadValue,
+        NackReason::BadCrc,
+        NackReason::TooLong,
+        NackReason::BadVersion,
+        NackReason::NotStopped,
+        NackReason::Faulted,
+        NackReason::StorageFailed,
+        NackReason::Busy,
+    ];
+
+    /// The reason of code `b`, if there is one.
+    pub fn from_u8(b: u8) -> Option<NackReason> {
+        NackReason::ALL.into_iter().find(|r| *r as u8 == b)
+    }
+}
+
+impl From<ParseError> for NackReason {
+    fn from(e: ParseError) -> Self {
+        match e {
+            ParseError::UnknownId => NackReason::UnknownMessage,
+            ParseError::BadLength => NackReason::BadLength,
+            ParseError::BadValue => NackReason::BadValue,
+        }
+    }
+}
+
+/// Shortest telemetry stream period, ms: a [`Response::Telemetry`] frame is
+/// `14 + 60 = 74` bytes, 6.4 ms at 115200 baud; every 20 ms that is a third of the
+/// link, which leaves room for the answers.
+pub const MIN_TELEMETRY_PERIOD_MS: u16 = 20;
+
+/// A message from the host.
+// No heap to box the table in: a request lives on the stack while it is handled.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Request {
+    /// "The link is alive" (a ping): answered [`Response::Ack`]. Every valid request
+    /// counts as a heartbeat; this one is for a host with nothing else to say.
+    Heartbeat,
+    /// Answered [`Response::Status`].
+    GetStatus,
+    /// [`Command::Stop`]; answered Ack.
+    Stop,
+    /// [`Command::Travel`]; answered Ack (handed to the controller; its range check
+    /// shows in [`Telemetry::command_rejected`]) or Nack.
+    Travel {
+        /// Which way.
+        direction: Direction,
+        /// Rotor speed, rpm, finite.
+        speed_rpm: f32,
+    },
+    /// [`Command::HoldOffset`]; answered like [`Request::Travel`].
+    HoldOffset {
+        /// Rotor speed, rpm, finite.
+        speed_rpm: f32,
+        /// Phase offset, degrees, finite.
+        offset_deg: f32,
+    },
+    /// [`Command::ResetFaults`]; answered Ack.
+    ResetFaults,
+    /// Answered [`Response::TuningTable`]: the table in use.
+    ReadTuningTable,
+    /// Replace the tuning table, in use and in flash; only with the motors stopped.
+    /// Answered Ack once it is stored, else Nack (`NotStopped`, `StorageFailed`).
+    WriteTuningTable(TuningTable),
+    /// Start the self-test (motors stopped, no fault); answered Ack once started.
+    RunSelfTest,
+    /// Answered [`Response::SelfTest`].
+    ReadSelfTest,
+    /// Send [`Response::Telemetry`] every `period_ms` (0: stop the stream); answered
+    /// Ack, or Nack `BadValue` below [`MIN_TELEMETRY_PERIOD_MS`].
+    StreamTelemetry {
+        /// Period, ms; 0 or at least [`MIN_TELEMETRY_PERIOD_MS`].
+        period_ms: u16,
+    },
+}
+
+/// Where a self-test stands ([`SelfTestReport::status`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum SelfTestStatus {
+    /// None has run since the table was written, or ever: the result is all zero.
+    NotRun = 0,
+    /// One is running; the result is not final.
+    Running = 1,
+    /// The last one completed; the result is its measurements (whether they pass is
+    /// [`SelfTest::passed`]).
+    Done = 2,
+    /// The last one was stopped (a fault, the E-stop, a stop command); the result
+    /// is what it had measured.
+    Aborted = 3,
+}
+
+impl SelfTestStatus {
+    /// The status of code `b`, if there is one.
+    pub fn from_u8(b: u8) -> Option<SelfTestStatus> {
+        [
+            SelfTestStatus::NotRun,
+            SelfTestStatus::Running,
+            SelfTestStatus::Done,
+            SelfTestStatus::Aborted,
+        ]
+        .into_iter()
+        .find(|s| *s as u8 == b)
+    }
+}
+
+/// The self-test as the device reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SelfTestReport {
+    /// Where it stands.
+    pub status: SelfTestStatus,
+    /// Its measurements.
+    pub result: SelfTest,
+}
+
+impl SelfTestReport {
+    /// Payload bytes: status `u8`, 3 reserved zero bytes, [`SelfTest::LEN`] bytes.
+    pub const LEN: usize = 4 + SelfTest::LEN;
+}
+
+/// The controller's state, faults and telemetry at one tick, with the device's
+/// clock: the body of [`Response::Status`] and [`Response::Telemetry`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StatusReport {
+    /// Time since the device started, ms, wrapping at `2^32` (49.7 days).
+    pub uptime_ms: u32,
+    /// Controller state.
+    pub state: State,
+    /// Latched faults.
+    pub faults: Faults,
+    /// The tick's measurements and references.
+    pub telemetry: Telemetry,
+}
+
+impl StatusReport {
+    /// Payload bytes: see `docs/protocol.md`.
+    pub const LEN: usize = 60;
+
+    /// The report of a controller tick's outputs at `uptime_ms`.
+    pub fn from_outputs(uptime_ms: u32, outputs: &Outputs) -> Self {
+        StatusReport {
+            uptime_ms,
+            state: outputs.state,
+            faults: outputs.faults,
+            telemetry: outputs.telemetry,
+        }
+    }
+}
+
+/// A message from the device.
+// No heap to box the table in: a response lives on the stack until it is encoded.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Response {
+    /// The request with the frame's sequence number and id `request` was accepted.
+    Ack {
+        /// The id of the request answered (a raw byte: it may be unknown).
+        request: u8,
+    },
+    /// The request with the frame's sequence number and id `request` was refused.
+    Nack {
+        /// The id of the request answered (a raw byte: it may be unknown).
+        request: u8,
+        /// Why.
+        reason: NackReason,
+    },
+    /// The answer to [`Request::GetStatus`].
+    Status(StatusReport),
+    /// The answer to [`Request::ReadTuningTable`]: the table in use.
+    TuningTable(TuningTable),
+    /// The answer to [`Request::ReadSelfTest`].
+    SelfTest(SelfTestReport),
+    /// Sent unsolicited every period of [`Request::StreamTelemetry`], with the
+    /// device's own sequence counter in the header.
+    Telemetry(StatusReport),
+}
+
+/// A message type that travels in frames: requests and responses.
+pub trait Message: Sized {
+    /// Its id.
+    fn id(&self) -> MessageId;
+
+    /// Write its payload into `out`; its length, or `None` if `out` is too small
+    /// ([`super::MAX_PAYLOAD`] bytes always suffice).
+    fn write_payload(&self, out: &mut [u8]) -> Option<usize>;
+
+    /// The message in a frame: its id, then the payload's exact length and values.
+    fn parse(frame: &Frame<'_>) -> Result<Self, ParseError>;
+}
+
+/// Wire code of a direction: 0 right, 1 left.
+fn direction_code(d: Direction) -> u8 {
+    match d {
+        Direction::Right => 0,
+        Direction::Left => 1,
+    }
+}
+
+/// Wire code of a state: 0 idle, 1 starting, 2 running, 3 stopping, 4 fault.
+fn state_code(s: State) -> u8 {
+    match s {
+        State::Idle => 0,
+        State::Starting => 1,
+        State::Running => 2,
+        State::Stopping => 3,
+        State::Fault => 4,
+    }
+}
+
+/// The state of a wire code.
+fn state_from_code(b: u8) -> Option<State> {
+    [
+        State::Idle,
+        State::Starting,
+        State::Running,
+        State::Stopping,
+        State::Fault,
+    ]
+    .into_iter()
+    .find(|s| state_code(*s) == b)
+}
+
+/// Telemetry flag bits.
+const PHASE_VALID: u8 = 1 << 0;
+/// See [`Telemetry::phase_loop_closed`].
+const PHASE_LOOP_CLOSED: u8 = 1 << 1;
+/// See [`Telemetry::command_rejected`].
+const COMMAND_REJECTED: u8 = 1 << 2;
+
+/// Bytes of one tuning row: speed, right offset, left offset, `f32` each.
+pub const TUNING_ROW_LEN: usize = 12;
+
+/// Write a table: row count `u8`, then the rows.
+pub(crate) fn write_table(w: &mut Writer<'_>, table: &TuningTable) {
+    let rows = table.rows();
+    w.u8(rows.len().min(usize::from(u8::MAX)) as u8);
+    for row in rows {
+        w.f32(row.speed_rpm);
+        w.f32(row.right_offset_deg);
+        w.f32(row.left_offset_deg);
+    }
+}
+
+/// Read a table written by [`write_table`] that fills the payload exactly.
+fn read_table(payload: &[u8]) -> Result<TuningTable, ParseError> {
+    let mut r = Reader::new(payload);
+    let count = usize::from(r.u8().ok_or(ParseError::BadLength)?);
+    if payload.len() != 1 + count * TUNING_ROW_LEN {
+        return Err(ParseError::BadLength);
+    }
+    if count > MAX_TUNING_ROWS {
+        return Err(ParseError::BadValue);
+    }
+    let mut rows = [(0.0f32, 0.0f32, 0.0f32); MAX_TUNING_ROWS];
+    for row in rows.iter_mut().take(count) {
+        let (Some(s), Some(a), Some(b)) = (r.f32(), r.f32(), r.f32()) else {
+            return Err(ParseError::BadLength);
+        };
+        *row = (s, a, b);
+    }
+    TuningTable::from_rows(rows.get(..count).unwrap_or(&[])).map_err(|_| ParseError::BadValue)
+}
+
+/// Write a status report ([`StatusReport::LEN`] bytes).
+fn write_status(w: &mut Writer<'_>, s: &StatusReport) {
+    let t = &s.telemetry;
+    let mut flags = 0;
+    if t.phase_valid {
+        flags |= PHASE_VALID;
+    }
+    if t.phase_loop_closed {
+        flags |= PHASE_LOOP_CLOSED;
+    }
+    if t.command_rejected {
+        flags |= COMMAND_REJECTED;
+    }
+    w.u32(s.uptime_ms);
+    w.u8(state_code(s.state));
+    w.u8(flags);
+    w.u16(s.faults.bits());
+    for v in [
+        t.speed_rpm[0],
+        t.speed_rpm[1],
+        t.speed_ref_rpm[0],
+        t.speed_ref_rpm[1],
+        t.phase_offset_deg,
+        t.commanded_offset_deg,
+        t.target_offset_deg,
+        t.phase_error_deg,
+        t.current[0],
+        t.current[1],
+        t.supply_voltage,
+        t.duty[0],
+        t.duty[1],
+    ] {
+        w.f32(v);
+    }
+}
+
+/// Read a status report that fills the payload exactly.
+fn read_status(payload: &[u8]) -> Result<StatusReport, ParseError> {
+    if payload.len() != StatusReport::LEN {
+        return Err(ParseError::BadLength);
+    }
+    let mut r = Reader::new(payload);
+    let mut f = [0.0f32; 13];
+    let (Some(uptime_ms), Some(state), Some(flags), Some(bits)) =
+        (r.u32(), r.u8(), r.u8(), r.u16())
+    else {
+        return Err(ParseError::BadLength);
+    };
+    for v in f.iter_mut() {
+        *v = r.f32().ok_or(ParseError::BadLength)?;
+    }
+    let state = state_from_code(state).ok_or(ParseError::BadValue)?;
+    let faults = Faults::from_bits(bits);
+    if faults.bits() != bits || flags & !(PHASE_VALID | PHASE_LOOP_CLOSED | COMMAND_REJECTED) != 0 {
+        return Err(ParseError::BadValue);
+    }
+    let [s1, s2, r1, r2, phase, commanded, target, error, i1, i2, supply, d1, d2] = f;
+    Ok(StatusReport {
+        uptime_ms,
+        state,
+        faults,
+        telemetry: Telemetry {
+            speed_rpm: [s1, s2],
+            speed_ref_rpm: [r1, r2],
+            phase_valid: flags & PHASE_VALID != 0,
+            phase_offset_deg: phase,
+            phase_loop_closed: flags & PHASE_LOOP_CLOSED != 0,
+            commanded_offset_deg: commanded,
+            target_offset_deg: target,
+            phase_error_deg: error,
+            current: [i1, i2],
+            supply_voltage: supply,
+            duty: [d1, d2],
+            command_rejected: flags & COMMAND_REJECTED != 0,
+        },
+    })
+}
+
+/// Check that a payload has exactly `len` bytes.
+fn expect_len(payload: &[u8], len: usize) -> Result<Reader<'_>, ParseError> {
+    if payload.len() == len {
+        Ok(Reader::new(payload))
+    } else {
+        Err(ParseError::BadLength)
+    }
+}
+
+/// A finite `f32` (command values), else [`ParseError::BadValue`].
+fn finite(v: Option<f32>) -> Result<f32, ParseError> {
+    match v {
+        Some(v) if v.is_finite() => Ok(v),
+        Some(_) => Err(ParseError::BadValue),
+        None => Err(ParseError::BadLength),
+    }
+}
+
+impl Request {
+    /// The controller command this request carries. Every valid request proves the
+    /// link alive, so the requests that carry no motion command give
+    /// [`Command::Heartbeat`]: the device hands exactly one command per valid
+    /// request to the controller ([`super::Device::command`]).
+    pub fn command(&self) -> Command {
+        match *self {
+            Request::Stop => Command::Stop,
+            Request::Travel {
+                direction,
+                speed_rpm,
+            } => Command::Travel {
+                direction,
+                speed_rpm,
+            },
+            Request::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            } => Command::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            },
+            Request::ResetFaults => Command::ResetFaults,
+            Request::Heartbeat
+            | Request::GetStatus
+            | Request::ReadTuningTable
+            | Request::WriteTuningTable(_)
+            | Request::RunSelfTest
+            | Request::ReadSelfTest
+            | Request::StreamTelemetry { .. } => Command::Heartbeat,
+        }
+    }
+
+    /// Whether the request is a motion command (stop, travel, hold, reset): its
+    /// Ack or Nack is the controller's acceptance ([`super::Device::command`]).
+    pub fn is_command(&self) -> bool {
+        !matches!(self.command(), Command::Heartbeat)
+    }
+}
+
+impl From<Command> for Request {
+    /// The request that carries `command` (the host side of [`Request::command`]).
+    fn from(command: Command) -> Self {
+        match command {
+            Command::Stop => Request::Stop,
+            Command::Travel {
+                direction,
+                speed_rpm,
+            } => Request::Travel {
+                direction,
+                speed_rpm,
+            },
+            Command::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            } => Request::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            },
+            Command::ResetFaults => Request::ResetFaults,
+            Command::Heartbeat => Request::Heartbeat,
+        }
+    }
+}
+
+impl Message for Request {
+    fn id(&self) -> MessageId {
+        match self {
+            Request::Heartbeat => MessageId::Heartbeat,
+            Request::GetStatus => MessageId::GetStatus,
+            Request::Stop => MessageId::Stop,
+            Request::Travel { .. } => MessageId::Travel,
+            Request::HoldOffset { .. } => MessageId::HoldOffset,
+            Request::ResetFaults => MessageId::ResetFaults,
+            Request::ReadTuningTable => MessageId::ReadTuningTable,
+            Request::WriteTuningTable(_) => MessageId::WriteTuningTable,
+            Request::RunSelfTest => MessageId::RunSelfTest,
+            Request::ReadSelfTest => MessageId::ReadSelfTest,
+            Request::StreamTelemetry { .. } => MessageId::StreamTelemetry,
+        }
+    }
+
+    fn write_payload(&self, out: &mut [u8]) -> Option<usize> {
+        let mut w = Writer::new(out);
+        match self {
+            Request::Travel {
+                direction,
+                speed_rpm,
+            } => {
+                w.u8(direction_code(*direction));
+                w.f32(*speed_rpm);
+            }
+            Request::HoldOffset {
+                speed_rpm,
+                offset_deg,
+            } => {
+                w.f32(*speed_rpm);
+                w.f32(*offset_deg);
+            }
+            Request::WriteTuningTable(table) => write_table(&mut w, table),
+            Request::StreamTelemetry { period_ms } => w.u16(*period_ms),
+            Request::Heartbeat
+            | Request::GetStatus
+            | Request::Stop
+            | Request::ResetFaults
+            | Request::ReadTuningTable
+            | Request::RunSelfTest
+            | Request::ReadSelfTest => {}
+        }
+        w.finish()
+    }
+
+    fn parse(frame: &Frame<'_>) -> Result<Self, ParseError> {
+        let id = MessageId::from_u8(frame.id)
+            .filter(|id| id.is_request())
+            .ok_or(ParseError::UnknownId)?;
+        let p = frame.payload;
+        let empty = |request: Request| expect_len(p, 0).map(|_| request);
+        match id {
+            MessageId::Heartbeat => empty(Request::Heartbeat),
+            MessageId::GetStatus => empty(Request::GetStatus),
+            MessageId::Stop => empty(Request::Stop),
+            MessageId::ResetFaults => empty(Request::ResetFaults),
+            MessageId::ReadTuningTable => empty(Request::ReadTuningTable),
+            MessageId::RunSelfTest => empty(Request::RunSelfTest),
+            MessageId::ReadSelfTest => empty(Request::ReadSelfTest),
+            MessageId::Travel => {
+                let mut r = expect_len(p, 5)?;
+                let direction = match r.u8() {
+                    Some(0) => Direction::Right,
+                    Some(1) => Direction::Left,
+                    Some(_) => return Err(ParseError::BadValue),
+                    None => return Err(ParseError::BadLength),
+                };
+                let speed_rpm = finite(r.f32())?;
+                Ok(Request::Travel {
+                    direction,
+                    speed_rpm,
+                })
+            }
+            MessageId::HoldOffset => {
+                let mut r = expect_len(p, 8)?;
+                let speed_rpm = finite(r.f32())?;
+                let offset_deg = finite(r.f32())?;
+                Ok(Request::HoldOffset {
+                    speed_rpm,
+                    offset_deg,
+                })
+            }
+            MessageId::WriteTuningTable => read_table(p).map(Request::WriteTuningTable),
+            MessageId::StreamTelemetry => {
+                let mut r = expect_len(p, 2)?;
+                let period_ms = r.u16().ok_or(ParseError::BadLength)?;
+                if period_ms != 0 && period_ms < MIN_TELEMETRY_PERIOD_MS {
+                    return Err(ParseError::BadValue);
+                }
+                Ok(Request::StreamTelemetry { period_ms })
+            }
+            // Responses were filtered out above.
+            MessageId::Ack
+            | MessageId::Nack
+            | MessageId::Status
+            | MessageId::TuningTable
+            | MessageId::SelfTestResult
+            | MessageId::Telemetry => Err(ParseError::UnknownId),
+        }
+    }
+}
+
+impl Message for Response {
+    fn id(&self) -> MessageId {
+        match self {
+            Response::Ack { .. } => MessageId::Ack,
+            Response::Nack { .. } => MessageId::Nack,
+            Response::Status(_) => MessageId::Status,
+            Response::TuningTable(_) => MessageId::TuningTable,
+            Response::SelfTest(_) => MessageId::SelfTestResult,
+            Response::Telemetry(_) => MessageId::Telemetry,
+        }
+    }
+
+    fn write_payload(&self, out: &mut [u8]) -> Option<usize> {
+        let mut w = Writer::new(out);
+        match self {
+            Response::Ack { request } => w.u8(*request),
+            Response::Nack { request, reason } => {
+                w.u8(*request);
+                w.u8(*reason as u8);
+            }
+            Response::Status(s) | Response::Telemetry(s) => write_status(&mut w, s),
+            Response::TuningTable(table) => write_table(&mut w, table),
+            Response::SelfTest(report) => {
+                w.u8(report.status as u8);
+                w.zeros(3);
+                report.result.write(&mut w);
+            }
+        }
+        w.finish()
+    }
+
+    fn parse(frame: &Frame<'_>) -> Result<Self, ParseError> {
+        let id = MessageId::from_u8(frame.id)
+            .filter(|id| !id.is_request())
+            .ok_or(ParseError::UnknownId)?;
+        let p = frame.payload;
+        match id {
+            MessageId::Ack => {
+                let mut r = expect_len(p, 1)?;
+                let request = r.u8().ok_or(ParseError::BadLength)?;
+                Ok(Response::Ack { request })
+            }
+            MessageId::Nack => {
+                let mut r = expect_len(p, 2)?;
+                let (Some(request), Some(reason)) = (r.u8(), r.u8()) else {
+                    return Err(ParseError::BadLength);
+                };
+                let reason = NackReason::from_u8(reason).ok_or(ParseError::BadValue)?;
+                Ok(Response::Nack { request, reason })
+            }
+            MessageId::Status => read_status(p).map(Response::Status),
+            MessageId::Telemetry => read_status(p).map(Response::Telemetry),
+            MessageId::TuningTable => read_table(p).map(Response::TuningTable),
+            MessageId::SelfTestResult => {
+                let mut r = expect_len(p, SelfTestReport::LEN)?;
+                let status = r.u8().ok_or(ParseError::BadLength)?;
+                let status = SelfTestStatus::from_u8(status).ok_or(ParseError::BadValue)?;
+                r.zeros(3).ok_or(ParseError::BadValue)?;
+                let result = SelfTest::read(&mut r).ok_or(ParseError::BadValue)?;
+                Ok(Response::SelfTest(SelfTestReport { status, result }))
+            }
+            // Requests were filtered out above.
+            MessageId::Heartbeat
+            | MessageId::GetStatus
+            | MessageId::Stop
+            | MessageId::Travel
+            | MessageId::HoldOffset
+            | MessageId::ResetFaults
+            | MessageId::ReadTuningTable
+            | MessageId::WriteTuningTable
+            | MessageId::RunSelfTest
+            | MessageId::ReadSelfTest
+            | MessageId::StreamTelemetry => Err(ParseError::UnknownId),
+        }
+    }
+}

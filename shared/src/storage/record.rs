@@ -1,0 +1,167 @@
+//! The flash record: its byte layout, [`encode_record`] and the checks of
+//! [`parse_record`].
+//!
+//! ```text
+//!  offset  size  field
+//!  0       4     magic MAGIC = "VIBT" (0x54424956 little-endian): written last (the commit)
+//!  4       2     format version FORMAT_VERSION, u16
+//!  6       2     payload length PAYLOAD_LEN, u16
+//!  8       4     sequence number, u32 (one more at every store, compared modulo 2^32)
+//!  12      412   payload:
+//!                  0   row count u8, 1..=32
+//!                  1   self-test present u8, 0 or 1
+//!                  2   2 reserved zero bytes
+//!                  4   32 rows x (speed_rpm, right_offset_deg, left_offset_deg) f32;
+//!                      rows past the count are zero
+//!                  388 self-test, 24 bytes (storage::SelfTest), zero when absent
+//!  424     4     CRC-32/ISO-HDLC of bytes 0..424 (the magic as MAGIC included)
+//! ```
+//!
+//! Everything is little-endian (as the STM32 stores a programmed word). A record is
+//! valid only if every check passes: the magic, the version, the payload length,
+//! the CRC, then the payload's own rules (count, flags, reserved and unused bytes
+//! zero, a tuning table [`TuningTable::from_rows`] accepts).
+//!
+//! # Erased and zeroed flash never validate
+//!
+//! Erased flash reads `0xFF`: magic `0xFFFFFFFF`, length `0xFFFF`; zeroed flash (the
+//! QEMU model, or a cut mid-way) reads magic `0`, length 0. Both fail the magic and
+//! the length checks, and the CRC check as well: CRC-32/ISO-HDLC of 424 bytes of
+//! `0xFF` is not `0xFFFFFFFF` (only a run of exactly 4 bytes has that CRC), and of
+//! 424 zero bytes is not 0 (the init makes it non-zero for every non-zero length).
+//! `tests/storage.rs` checks both, for every length.
+
+use crate::controller::{TuningTable, MAX_TUNING_ROWS};
+use crate::protocol::crc::Crc32;
+use crate::protocol::wire::{Reader, Writer};
+use crate::protocol::TUNING_ROW_LEN;
+
+use super::self_test::SelfTest;
+
+/// The commit word, first in the record and written last: the bytes `"VIBT"`. Not
+/// `0xFFFFFFFF` (erased) nor `0` (zeroed), and no byte of it is `0xFF`, so a magic
+/// whose programming was cut at any bit reads different.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"VIBT");
+
+/// The record layout's version; a record of another version is not read.
+pub const FORMAT_VERSION: u16 = 1;
+
+/// Bytes before the payload: magic, version, length, sequence.
+pub const HEADER_LEN: usize = 12;
+
+/// Payload bytes: counts and flags (4), [`MAX_TUNING_ROWS`] rows, a [`SelfTest`].
+pub const PAYLOAD_LEN: usize = 4 + MAX_TUNING_ROWS * TUNING_ROW_LEN + SelfTest::LEN;
+
+/// Bytes of the CRC at the end.
+pub const CRC_LEN: usize = 4;
+
+/// Bytes of a whole record, a multiple of 4 (whole words).
+pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + CRC_LEN;
+
+/// Words of a record.
+pub const RECORD_WORDS: usize = RECORD_LEN / 4;
+
+// A record is programmed in whole 32-bit words.
+const _: () = assert!(RECORD_LEN & 3 == 0);
+
+/// What a record stores: the tuning table and the self-test results.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Record {
+    /// The tuning table to use.
+    pub tuning: TuningTable,
+    /// The latest self-test result, if one was stored.
+    pub self_test: Option<SelfTest>,
+}
+
+/// Write `record` with sequence number `sequence` as its [`RECORD_LEN`] bytes.
+pub fn encode_record(record: &Record, sequence: u32) -> [u8; RECORD_LEN] {
+    let mut bytes = [0u8; RECORD_LEN];
+    let mut w = Writer::new(&mut bytes);
+
+    // Header.
+    w.u32(MAGIC);
+    w.u16(FORMAT_VERSION);
+    w.u16(PAYLOAD_LEN as u16);
+    w.u32(sequence);
+
+    // Payload: counts and flags, the rows in fixed slots, the self-test.
+    let rows = record.tuning.rows();
+    w.u8(rows.len().min(MAX_TUNING_ROWS) as u8);
+    w.u8(u8::from(record.self_test.is_some()));
+    w.zeros(2);
+    for slot in 0..MAX_TUNING_ROWS {
+        match rows.get(slot) {
+            Some(row) => {
+                w.f32(row.speed_rpm);
+                w.f32(row.right_offset_deg);
+                w.f32(row.left_offset_deg);
+            }
+            None => w.zeros(TUNING_ROW_LEN),
+        }
+    }
+    match &record.self_test {
+        Some(test) => test.write(&mut w),
+        None => w.zeros(SelfTest::LEN),
+    }
+    // The layout fills the array exactly (checked by the tests).
+    let end = w.finish().unwrap_or(0);
+
+    // CRC of everything before it.
+    let crc = Crc32::new()
+        .update(bytes.get(..end).unwrap_or(&[]))
+        .finish();
+    if let Some(slot) = bytes.get_mut(end..end + CRC_LEN) {
+        slot.copy_from_slice(&crc.to_le_bytes());
+    }
+    bytes
+}
+
+/// The record in `bytes` and its sequence number, if every check passes (see the
+/// module documentation).
+pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
+    // CRC first: it covers everything else.
+    let (body, crc) = bytes.split_last_chunk::<CRC_LEN>()?;
+    if Crc32::new().update(body).finish() != u32::from_le_bytes(*crc) {
+        return None;
+    }
+
+    // Header.
+    let mut r = Reader::new(body);
+    if r.u32()? != MAGIC || r.u16()? != FORMAT_VERSION || usize::from(r.u16()?) != PAYLOAD_LEN {
+        return None;
+    }
+    let sequence = r.u32()?;
+
+    // Counts and flags.
+    let count = usize::from(r.u8()?);
+    let has_self_test = match r.u8()? {
+        0 => false,
+        1 => true,
+        _ => return None,
+    };
+    r.zeros(2)?;
+    if !(1..=MAX_TUNING_ROWS).contains(&count) {
+        return None;
+    }
+
+    // Rows: the first `count` make the table, the others are zero.
+    let mut rows = [(0.0f32, 0.0f32, 0.0f32); MAX_TUNING_ROWS];
+    for (slot, row) in rows.iter_mut().enumerate() {
+        if slot < count {
+            *row = (r.f32()?, r.f32()?, r.f32()?);
+        } else {
+            r.zeros(TUNING_ROW_LEN)?;
+        }
+    }
+    let tuning = TuningTable::from_rows(rows.get(..count)?).ok()?;
+
+    // Self-test, or zeros.
+    let self_test = if has_self_test {
+        Some(SelfTest::read(&mut r)?)
+    } else {
+        r.zeros(SelfTest::LEN)?;
+        None
+    };
+    r.is_empty()
+        .then_some((Record { tuning, self_test }, sequence))
+}

@@ -1,0 +1,341 @@
+//! The parameter store (`shared::storage`): the record layout byte for byte, the
+//! CRC over erased and zeroed flash, round trips, and the power-cut proof: a
+//! simulated flash that loses power after every possible number of bytes of a
+//! store, in every starting situation, always loads the previous record (or the new
+//! one once the store has completed), never garbage, never nothing when a record
+//! existed.
+
+use shared::controller::{State, TuningTable};
+use shared::protocol::crc::crc32;
+use shared::storage::record::{
+    encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
+};
+use shared::storage::sim::SIM_SECTOR_BYTES;
+use shared::storage::{
+    is_newer, load, may_write, store, Flash, Record, RotorSelfTest, SelfTest, SimError, SimFlash,
+    StoreError, Stored, MAGIC, PARAM_SECTORS,
+};
+
+fn record(k: u32) -> Record {
+    let rows: Vec<(f32, f32, f32)> = (0..=(k % 32))
+        .map(|i| {
+            (
+                100.0 * i as f32 + k as f32,
+                (i * 7 + k) as f32 % 360.0,
+                (200 + i + k) as f32 % 360.0,
+            )
+        })
+        .collect();
+    Record {
+        tuning: TuningTable::from_rows(&rows).unwrap(),
+        self_test: (k % 2 == 1).then_some(SelfTest {
+            rotors: [
+                RotorSelfTest {
+                    motor_polarity_ok: true,
+                    encoder_polarity_ok: true,
+                    index_seen: true,
+                    counts_per_rev: 4096 + k,
+                    index_offset_counts: 17 * k,
+                },
+                RotorSelfTest {
+                    motor_polarity_ok: matches!(k % 3, 0),
+                    encoder_polarity_ok: true,
+                    index_seen: false,
+                    counts_per_rev: 0,
+                    index_offset_counts: 0,
+                },
+            ],
+        }),
+    }
+}
+
+/// Units of work (bytes erased or programmed) of one store on `SimFlash`.
+const STORE_WORK: usize = SIM_SECTOR_BYTES + RECORD_LEN;
+
+#[test]
+fn the_layout_is_as_documented() {
+    assert_eq!(HEADER_LEN, 12);
+    assert_eq!(PAYLOAD_LEN, 412);
+    assert_eq!(RECORD_LEN, 428);
+    assert_eq!(RECORD_WORDS * 4, RECORD_LEN);
+    const { assert!(RECORD_LEN <= SIM_SECTOR_BYTES) };
+    assert_eq!(MAGIC.to_le_bytes(), *b"VIBT");
+
+    let r = Record {
+        tuning: TuningTable::from_rows(&[(0.0, 90.0, 270.0), (3000.0, 80.0, 280.0)]).unwrap(),
+        self_test: None,
+    };
+    let bytes = encode_record(&r, 0x0102_0304);
+    assert_eq!(&bytes[0..4], b"VIBT");
+    assert_eq!(&bytes[4..6], &1u16.to_le_bytes());
+    assert_eq!(&bytes[6..8], &412u16.to_le_bytes());
+    assert_eq!(&bytes[8..12], &[4, 3, 2, 1]);
+    assert_eq!(&bytes[12..16], &[2, 0, 0, 0]); // 2 rows, no self-test
+    assert_eq!(&bytes[16..20], &0f32.to_le_bytes());
+    assert_eq!(&bytes[20..24], &90f32.to_le_bytes());
+    assert_eq!(&bytes[24..28], &270f32.to_le_bytes());
+    assert_eq!(&bytes[28..32], &3000f32.to_le_bytes());
+    assert!(bytes[40..424].iter().all(|&b| b == 0));
+    assert_eq!(&bytes[424..428], &crc32(&bytes[..424]).to_le_bytes());
+    assert_eq!(parse_record(&bytes), Some((r, 0x0102_0304)));
+}
+
+#[test]
+fn erased_or_zeroed_flash_never_validates() {
+    // The CRC alone: over every length up to twice a record's, a run of 0xFF never
+    // has the CRC 0xFFFFFFFF, except the 4-byte run (shorter than any record), and
+    // a run of 0x00 never the CRC 0 (only the empty run has it).
+    assert_eq!(crc32(&[]), 0);
+    for n in 1..=2 * RECORD_LEN {
+        let ff = crc32(&vec![0xFF; n]);
+        assert_eq!(ff == 0xFFFF_FFFF, n == 4, "{n} bytes of 0xFF");
+        assert_ne!(crc32(&vec![0x00; n]), 0, "{n} bytes of 0x00");
+    }
+    // Whole records.
+    assert_eq!(parse_record(&[0xFF; RECORD_LEN]), None);
+    assert_eq!(parse_record(&[0x00; RECORD_LEN]), None);
+    // Whole flashes.
+    assert_eq!(load(&SimFlash::new()), None);
+    assert_eq!(load(&SimFlash::filled(0x00)), None);
+    // The magic is neither, and no byte of it is 0xFF.
+    assert_ne!(MAGIC, 0xFFFF_FFFF);
+    assert_ne!(MAGIC, 0);
+    assert!(MAGIC.to_le_bytes().iter().all(|&b| b != 0xFF));
+}
+
+#[test]
+fn a_valid_crc_is_not_enough() {
+    // Records that pass the CRC but break a payload rule are refused: the CRC
+    // recomputed after each change.
+    let good = encode_record(&record(3), 9);
+    let reseal = |mut b: [u8; RECORD_LEN]| {
+        let crc = crc32(&b[..RECORD_LEN - 4]);
+        b[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+        b
+    };
+    let mut cases = Vec::new();
+    let mut b = good;
+    b[0] ^= 1; // magic
+    cases.push(b);
+    let mut b = good;
+    b[4] = 2; // version
+    cases.push(b);
+    let mut b = good;
+    b[6] = 0; // length
+    cases.push(b);
+    let mut b = good;
+    b[12] = 0; // no row
+    cases.push(b);
+    let mut b = good;
+    b[12] = 33; // too many rows
+    cases.push(b);
+    let mut b = good;
+    b[13] = 2; // self-test flag neither 0 nor 1
+    cases.push(b);
+    let mut b = good;
+    b[14] = 1; // reserved
+    cases.push(b);
+    let mut b = good;
+    b[16..20].copy_from_slice(&f32::NAN.to_le_bytes()); // a NaN speed
+    cases.push(b);
+    let mut b = good;
+    b[12 + 4 + 4 * 12 + 1] = 1; // an unused row slot (record(3) has 4 rows)
+    cases.push(b);
+    let mut b = good;
+    b[12 + 388 + 1] = 1; // a reserved byte of rotor 1's self-test
+    cases.push(b);
+    let mut b = good;
+    b[12 + 388] |= 0x08; // an unknown self-test flag
+    cases.push(b);
+    let mut b = encode_record(&record(2), 9); // no self-test ...
+    b[12 + 388 + 4] = 1; // ... but bytes in its place
+    cases.push(b);
+    for (i, case) in cases.into_iter().enumerate() {
+        assert_eq!(parse_record(&reseal(case)), None, "case {i}");
+    }
+    assert!(parse_record(&good).is_some());
+}
+
+#[test]
+fn stores_alternate_and_load_takes_the_newest() {
+    let mut flash = SimFlash::new();
+    for k in 0..6u32 {
+        let stored = store(&mut flash, &record(k)).unwrap();
+        assert_eq!(stored.sequence, k + 1);
+        assert_eq!(stored.slot, (k % 2) as usize);
+        assert_eq!(load(&flash), Some(stored));
+    }
+    assert_eq!(flash.erases(), 6);
+    assert_eq!(flash.words_programmed(), 6 * RECORD_WORDS as u32);
+}
+
+#[test]
+fn a_corrupt_newest_record_falls_back_to_the_older() {
+    let mut flash = SimFlash::new();
+    let old = store(&mut flash, &record(1)).unwrap();
+    let new = store(&mut flash, &record(2)).unwrap();
+    assert_eq!(load(&flash), Some(new.clone()));
+    // A bit flipped anywhere in the newest record: the older one is taken.
+    for byte in (0..RECORD_LEN).step_by(7) {
+        let mut f = flash.clone();
+        f.corrupt(PARAM_SECTORS[new.slot].address + byte as u32, 0x10)
+            .unwrap();
+        assert_eq!(load(&f), Some(old.clone()), "byte {byte}");
+        // The next store overwrites the corrupt sector, not the good one.
+        let next = store(&mut f, &record(3)).unwrap();
+        assert_eq!(next.slot, new.slot);
+        assert_eq!(next.sequence, old.sequence + 1);
+    }
+}
+
+#[test]
+fn sequence_numbers_compare_across_the_wrap() {
+    assert!(is_newer(1, 0));
+    assert!(is_newer(0, u32::MAX));
+    assert!(!is_newer(u32::MAX, 0));
+    assert!(!is_newer(5, 5));
+    // Two records around the wrap: the one after it is the newer.
+    let mut flash = SimFlash::new();
+    let a = encode_record(&record(1), u32::MAX);
+    let b = encode_record(&record(2), 0);
+    for (slot, bytes) in [(0, a), (1, b)] {
+        let base = PARAM_SECTORS[slot].address;
+        for (i, w) in bytes.chunks_exact(4).enumerate() {
+            let word = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+            flash.program_word(base + 4 * i as u32, word).unwrap();
+        }
+    }
+    let loaded = load(&flash).unwrap();
+    assert_eq!((loaded.slot, loaded.sequence), (1, 0));
+    assert_eq!(store(&mut flash, &record(3)).unwrap().sequence, 1);
+}
+
+#[test]
+fn the_sim_flash_follows_the_chip_rules() {
+    let mut flash = SimFlash::new();
+    let base = PARAM_SECTORS[0].address;
+    assert_eq!(flash.program_word(base + 2, 0), Err(SimError::Unaligned));
+    assert_eq!(
+        flash.program_word(0x0800_0000, 0),
+        Err(SimError::OutOfRange)
+    );
+    flash.program_word(base, 0x1234_5678).unwrap();
+    assert_eq!(flash.program_word(base, 0), Err(SimError::NotErased));
+    let mut out = [0u8; 6];
+    flash.read(base, &mut out).unwrap();
+    assert_eq!(out, [0x78, 0x56, 0x34, 0x12, 0xFF, 0xFF]);
+    flash.erase(&PARAM_SECTORS[0]).unwrap();
+    flash.read(base, &mut out).unwrap();
+    assert_eq!(out, [0xFF; 6]);
+    // A cut: the power stays off until power_on.
+    flash.cut_after(2);
+    assert_eq!(flash.program_word(base, 0), Err(SimError::PowerCut));
+    assert!(flash.is_off());
+    flash.read(base, &mut out).unwrap();
+    assert_eq!(out[..4], [0x00, 0x00, 0xF0, 0xFF]);
+    assert_eq!(flash.erase(&PARAM_SECTORS[1]), Err(SimError::PowerCut));
+    flash.power_on();
+    assert!(!flash.is_off());
+    flash.erase(&PARAM_SECTORS[0]).unwrap();
+}
+
+/// The flash states a store can start from, with the record `load` gives before it.
+fn starting_points() -> Vec<(&'static str, SimFlash, Option<Stored>)> {
+    let mut points = Vec::new();
+    points.push(("erased", SimFlash::new(), None));
+    points.push(("zeroed", SimFlash::filled(0x00), None));
+
+    let mut one = SimFlash::new();
+    let r1 = store(&mut one, &record(1)).unwrap();
+    points.push(("one record", one.clone(), Some(r1)));
+
+    let mut two = one.clone();
+    let r2 = store(&mut two, &record(2)).unwrap();
+    points.push(("two records", two.clone(), Some(r2)));
+
+    let mut three = two.clone();
+    let r3 = store(&mut three, &record(3)).unwrap();
+    points.push(("three records", three, Some(r3.clone())));
+
+    // The newest record's sector next to a half-written one (an earlier cut).
+    let mut cut = two.clone();
+    cut.cut_after(SIM_SECTOR_BYTES + RECORD_LEN / 2);
+    assert!(store(&mut cut, &record(9)).is_err());
+    cut.power_on();
+    let newest = load(&two);
+    assert_eq!(load(&cut), newest);
+    points.push(("after an earlier cut", cut, newest));
+    points
+}
+
+#[test]
+fn a_power_cut_at_every_byte_keeps_the_last_good_record() {
+    let new = record(20);
+    for (name, start, old) in starting_points() {
+        assert_eq!(load(&start), old, "{name}");
+        let mut completed_at = None;
+        for n in 0..=STORE_WORK + 1 {
+            let mut flash = start.clone();
+            flash.cut_after(n);
+            let result = store(&mut flash, &new);
+            // Power back: what does the next boot load?
+            flash.power_on();
+            let loaded = load(&flash);
+            match result {
+                Ok(stored) => {
+                    // Completed: the new record, and the old one still beside it.
+                    completed_at.get_or_insert(n);
+                    assert_eq!(loaded.as_ref(), Some(&stored), "{name}, cut after {n}");
+                    assert_eq!(stored.record, new);
+                    if let Some(old) = &old {
+                        assert_ne!(stored.slot, old.slot);
+                        assert!(is_newer(stored.sequence, old.sequence));
+                    }
+                }
+                Err(error) => {
+                    // Cut: exactly the previous record (or none if there was none).
+                    assert_eq!(error, StoreError::Flash(SimError::PowerCut));
+                    assert_eq!(loaded, old, "{name}, cut after {n} bytes");
+                    // And the next store, power back, succeeds.
+                    let again = store(&mut flash, &new).unwrap();
+                    assert_eq!(load(&flash), Some(again));
+                }
+            }
+        }
+        // The store completes only once every byte is done: the magic last.
+        assert_eq!(completed_at, Some(STORE_WORK), "{name}");
+    }
+}
+
+#[test]
+fn a_cut_during_the_commit_word_never_validates_the_new_record() {
+    // The four bytes of the magic, each half programmed in turn.
+    let mut start = SimFlash::new();
+    let old = store(&mut start, &record(5)).unwrap();
+    for n in STORE_WORK - 4..STORE_WORK {
+        let mut flash = start.clone();
+        flash.cut_after(n);
+        assert!(store(&mut flash, &record(6)).is_err());
+        flash.power_on();
+        let bytes = flash.sector_bytes(1 - old.slot).unwrap();
+        let magic = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
+        assert_ne!(magic, MAGIC);
+        // Everything after the magic was already written.
+        assert_eq!(
+            &bytes[4..RECORD_LEN],
+            &encode_record(&record(6), old.sequence + 1)[4..]
+        );
+        assert_eq!(load(&flash), Some(old.clone()));
+    }
+}
+
+#[test]
+fn writes_only_with_the_driver_off_and_the_rotors_at_rest() {
+    assert!(may_write(State::Idle, [0.0, 0.0]));
+    assert!(may_write(State::Fault, [-10.0, 10.0]));
+    assert!(!may_write(State::Idle, [10.5, 0.0]));
+    assert!(!may_write(State::Idle, [0.0, f32::NAN]));
+    for state in [State::Starting, State::Running, State::Stopping] {
+        assert!(!may_write(state, [0.0, 0.0]));
+    }
+}

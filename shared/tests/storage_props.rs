@@ -1,0 +1,74 @@
+//! The parameter store under random histories (proptest): any sequence of stores,
+//! each completed or cut by a power loss at a random byte, always loads the last
+//! record whose store completed (none before the first), and sequence numbers grow
+//! by one per completed store.
+
+use proptest::prelude::*;
+
+use shared::controller::TuningTable;
+use shared::storage::record::RECORD_LEN;
+use shared::storage::sim::SIM_SECTOR_BYTES;
+use shared::storage::{load, store, Record, RotorSelfTest, SelfTest, SimFlash};
+
+fn record() -> impl Strategy<Value = Record> {
+    (
+        prop::collection::vec((1.0f32..500.0, 0.0f32..360.0, 0.0f32..360.0), 1..=32),
+        prop::option::of((any::<[bool; 6]>(), any::<[u32; 4]>())),
+    )
+        .prop_map(|(rows, test)| {
+            let mut speed = 0.0;
+            let rows: Vec<(f32, f32, f32)> = rows
+                .into_iter()
+                .map(|(step, right, left)| {
+                    speed += step;
+                    (speed, right, left)
+                })
+                .collect();
+            let rotor = |b: &[bool], cpr: u32, offset: u32| RotorSelfTest {
+                motor_polarity_ok: b[0],
+                encoder_polarity_ok: b[1],
+                index_seen: b[2],
+                counts_per_rev: cpr,
+                index_offset_counts: offset,
+            };
+            Record {
+                tuning: TuningTable::from_rows(&rows).unwrap(),
+                self_test: test.map(|(b, n)| SelfTest {
+                    rotors: [rotor(&b[..3], n[0], n[1]), rotor(&b[3..], n[2], n[3])],
+                }),
+            }
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_last_completed_store_is_what_loads(
+        history in prop::collection::vec(
+            (record(), prop::option::of(0usize..SIM_SECTOR_BYTES + RECORD_LEN + 50)),
+            1..12,
+        ),
+        zeroed in any::<bool>(),
+    ) {
+        let mut flash = if zeroed { SimFlash::filled(0) } else { SimFlash::new() };
+        let mut last: Option<(Record, u32)> = None;
+        for (record, cut) in history {
+            if let Some(n) = cut {
+                flash.cut_after(n);
+            }
+            let result = store(&mut flash, &record);
+            flash.power_on();
+            match result {
+                Ok(stored) => {
+                    let expected_seq = last.as_ref().map_or(1, |(_, s)| s + 1);
+                    prop_assert_eq!(stored.sequence, expected_seq);
+                    last = Some((record, stored.sequence));
+                }
+                Err(_) => prop_assert!(cut.is_some()),
+            }
+            let loaded = load(&flash).map(|s| (s.record, s.sequence));
+            prop_assert_eq!(loaded, last.clone());
+        }
+    }
+}
