@@ -15,7 +15,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use shared::impact::ImpactLaw;
 
-use crate::{impact_command, run_command};
+use crate::{impact_command, run_command, scenario_command, tune_command};
 
 /// Exit status of a success.
 pub const EXIT_OK: u8 = 0;
@@ -40,6 +40,23 @@ pub enum Command {
     Impact(ImpactArgs),
     /// Simulate a machine file: the platform, its rotors, motors and impacts.
     Run(RunArgs),
+    /// Run a scenario file: timed commands and injected faults, with expectations
+    /// judged PASS or FAIL (exit 0 all pass, 1 any fails, 2 a bad file).
+    Scenario(ScenarioArgs),
+    /// Sweep rotor speed and phase offset in closed loop; find the best offsets
+    /// for rightward and leftward travel at each speed (see docs/tuning.md).
+    Tune(TuneArgs),
+}
+
+/// Arguments of `host-sim scenario`.
+#[derive(Debug, Args)]
+pub struct ScenarioArgs {
+    /// The scenario file (TOML; see docs/scenarios.md).
+    #[arg(value_name = "SCENARIO.toml")]
+    pub scenario: PathBuf,
+    /// Output format of the report.
+    #[arg(long, value_enum, default_value_t = Format::Table)]
+    pub format: Format,
 }
 
 /// Arguments of `host-sim run`.
@@ -75,6 +92,40 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
     /// Output format of the summary.
+    #[arg(long, value_enum, default_value_t = Format::Table)]
+    pub format: Format,
+    /// Override a key of the machine file, e.g. `contacts.K1.friction=0.2`
+    /// (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+/// Arguments of `host-sim tune`.
+#[derive(Debug, Args)]
+pub struct TuneArgs {
+    /// The machine file (TOML; see docs/machine-file.md).
+    #[arg(value_name = "MACHINE.toml")]
+    pub machine: PathBuf,
+    /// Rotor speeds, rpm: `A:B:STEP` from A to B, both included, or one value
+    /// (default: `[controller].speed_rpm` -500 to +500 in steps of 250).
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true)]
+    pub speeds: Option<String>,
+    /// Phase offsets, degrees: `A:B:STEP` from A to B, both included (360 is 0
+    /// and runs once), or one value [default: 0:360:15].
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true)]
+    pub offsets: Option<String>,
+    /// End time of each run, s; the mean velocity is over the second half
+    /// [default: 5].
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub t_end: Option<f64>,
+    /// Write the tuning table (best offsets per speed) that
+    /// `[controller].tuning_table` names.
+    #[arg(long, value_name = "FILE.toml")]
+    pub write: Option<PathBuf>,
+    /// Write a plot of mean velocity against offset, one line per speed, as SVG.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
+    /// Output format of the result.
     #[arg(long, value_enum, default_value_t = Format::Table)]
     pub format: Format,
     /// Override a key of the machine file, e.g. `contacts.K1.friction=0.2`
@@ -154,6 +205,8 @@ pub fn run(cli: Cli) -> Output {
     match cli.command {
         Command::Impact(args) => impact_command::run(&args),
         Command::Run(args) => run_command::run(&args),
+        Command::Scenario(args) => scenario_command::run(&args),
+        Command::Tune(args) => tune_command::run(&args),
     }
 }
 

@@ -16,7 +16,12 @@
 //! - [`closed_loop`]: the `shared` controller in the loop with the simulated sensors;
 //! - [`simulation`]: a whole run, tick by tick, with trace, events and summary;
 //! - [`run_command`]: `host-sim run`, from machine file to outputs;
+//! - [`scenario`]: scenario files (timed commands, injected faults, expectations)
+//!   and their runner;
+//! - [`scenario_command`]: `host-sim scenario`, from scenario file to PASS/FAIL report;
 //! - [`tuning_file`]: the tuning table file (speed -> best offsets);
+//! - [`tune_command`]: `host-sim tune`, the sweep of speed and offset, best offsets;
+//! - [`tune_plot`]: the sweep as an SVG figure for people;
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
@@ -32,8 +37,12 @@ pub mod plant;
 pub mod plot;
 pub mod run_command;
 pub mod run_output;
+pub mod scenario;
+pub mod scenario_command;
 pub mod simulation;
 pub mod summary;
 pub mod text;
 pub mod trace;
+pub mod tune_command;
+pub mod tune_plot;
 pub mod tuning_file;

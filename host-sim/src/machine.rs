@@ -1005,7 +1005,10 @@ mod tests {
         assert_eq!(m.rotors[0].sense, Sense::Ccw);
         assert_eq!(m.rotors[1].sense, Sense::Cw);
         assert_eq!(m.rotors[1].motor, m.rotors[0].motor);
-        assert_eq!(m.controller.tuning_table, None);
+        assert_eq!(
+            m.controller.tuning_table,
+            Some(Path::new("examples").join("vibro-driver.tuning.toml"))
+        );
         assert!((m.total_mass() - 2.02).abs() < 1e-12);
     }
 

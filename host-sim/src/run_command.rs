@@ -178,9 +178,21 @@ fn controller_schedule(
 ) -> Result<Vec<(f64, Command)>, Vec<String>> {
     let mut problems = Vec::new();
     let speed = args.speed.unwrap_or(machine.controller.speed_rpm);
-    if !(speed.is_finite() && speed > 0.0) {
+    // The controller refuses speeds outside its range (and would stay idle):
+    // say so here instead. Stop needs no speed.
+    let limits = crate::closed_loop::params(machine)
+        .map(|p| (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm)))
+        .unwrap_or((0.0, f64::INFINITY));
+    let in_range = speed.is_finite() && speed >= limits.0 && speed <= limits.1;
+    if c != CommandArg::Stop && !in_range {
+        let origin = if args.speed.is_some() {
+            "--speed"
+        } else {
+            "controller.speed_rpm"
+        };
         problems.push(format!(
-            "error: --speed {speed}: must be a positive speed in rpm"
+            "error: {origin} {speed}: the controller runs the rotors from {:.0} to {:.0} rpm (80 % of the motors' no-load speed)",
+            limits.0, limits.1
         ));
     }
     if let Some(o) = args.offset {

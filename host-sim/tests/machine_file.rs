@@ -154,7 +154,17 @@ fn the_reference_machine_loads() {
     assert_eq!(m.sensors.encoder_counts, 4096);
     assert_eq!(m.controller.rate_hz, 1000.0);
     assert_eq!(m.controller.speed_rpm, 3000.0);
-    assert_eq!(m.controller.tuning_table, None);
+    // The table `host-sim tune --write` generated, beside the machine file.
+    let table = m
+        .controller
+        .tuning_table
+        .as_ref()
+        .expect("the reference machine names its table");
+    assert!(
+        table.ends_with("examples/vibro-driver.tuning.toml"),
+        "{table:?}"
+    );
+    assert!(table.exists());
     assert_eq!(m.law, ImpactLaw::Poisson);
     assert_eq!(m.simulation.seed, 1);
 }

@@ -213,8 +213,12 @@ fn garbage() -> impl Strategy<Value = Vec<u8>> {
             ],
             0..64
         ),
+        // A frame cut at least 4 bytes short: cut 1 to 3 bytes short, the next
+        // frame's first bytes (A5 5A 01) can complete it into a valid frame, which
+        // the decoder then rightly accepts, taking the next frame's sync (a case
+        // the generator found: a frame whose last CRC byte was A5).
         (any_frame(), any::<prop::sample::Index>()).prop_map(|(f, cut)| {
-            let n = cut.index(f.len());
+            let n = cut.index(f.len() - 3);
             f[..n].to_vec()
         }),
         (

@@ -1,0 +1,1731 @@
+//! Scenario files: a machine, a timed list of commands to the controller and of
+//! faults injected into the simulation, and expectations on what the controller and
+//! the platform do; `docs/scenarios.md` gives every key, default and rule.
+//!
+//! ```toml
+//! machine = "../../examples/vibro-driver.toml"   # relative to the scenario file
+//! t_end = 4.0
+//!
+//! [[commands]]
+//! t = 0.0
+//! command = "right"
+//! speed_rpm = 3000
+//!
+//! [[faults]]
+//! t = 2.0
+//! kind = "encoder_dropout"
+//! rotor = 1
+//!
+//! [[expect]]
+//! kind = "fault"
+//! fault = "encoder"
+//! within = [2.0, 2.4]
+//! ```
+//!
+//! Reading a scenario ([`load`]):
+//! 1. read and parse the TOML ([`crate::input`]);
+//! 2. every key on its own, with its key path (`faults[1].kind`), unknown keys with a
+//!    "did you mean";
+//! 3. the machine file, relative to the scenario file, with the scenario's `set`
+//!    overrides ([`Machine::load`]) and its controller parameters;
+//! 4. what needs the machine: times within `t_end` (default the machine's
+//!    `simulation.t_end`), at most one command per control tick, the run speed of a
+//!    command (default the machine's `controller.speed_rpm`);
+//! 5. every problem at once.
+//!
+//! Running it ([`run`]):
+//! 1. the controller in the loop ([`ControllerDriver`]) with the commands as its
+//!    schedule, wrapped in a [`ScenarioDriver`];
+//! 2. at every control tick, before the controller steps, the injected faults in
+//!    force are set ([`ScenarioDriver::before_tick`]: the sensors', supply's, link's
+//!    and E-stop's in [`Injected`], a jammed rotor in the plant);
+//! 3. simulate ([`simulate`]), recording every tick's time, the platform's `x` and
+//!    the controller's outputs ([`Tick`]);
+//! 4. judge every expectation on those records ([`Outcome`]), and find the first
+//!    fault latched after each injection ([`Detection`]).
+
+use std::path::{Path, PathBuf};
+
+use shared::controller::{Command, Direction, Faults, Outputs, State};
+use toml::{Table, Value};
+
+use crate::closed_loop::{self, ControllerDriver, Injected};
+use crate::input::{self, Limit, Location, Need, Problem, Problems, Section};
+use crate::machine::Machine;
+use crate::plant::motor::Winding;
+use crate::plant::simulator::{Holds, Plant, Settings};
+use crate::simulation::{simulate, Driver, RunOptions};
+use crate::text::{sig, signed};
+use crate::trace::EventRow;
+
+/// The commands a scenario can send, as written in the file.
+pub const COMMANDS: [&str; 6] = ["right", "left", "stop", "hold", "reset", "heartbeat"];
+/// The faults a scenario can inject, as written in the file.
+pub const FAULT_KINDS: [&str; 6] = [
+    "encoder_dropout",
+    "jammed_rotor",
+    "supply_sag",
+    "current_offset",
+    "lost_commands",
+    "estop",
+];
+/// The kinds of expectation, as written in the file.
+pub const EXPECT_KINDS: [&str; 7] = [
+    "state", "travel", "speed", "phase", "fault", "no_fault", "safe",
+];
+/// The controller's states, as [`State::name`] writes them.
+pub const STATES: [&str; 5] = ["idle", "starting", "running", "stopping", "fault"];
+/// Travel directions.
+pub const DIRECTIONS: [&str; 2] = ["right", "left"];
+
+/// Default `min_speed` of a travel expectation, m/s: 1 mm/s, far above the drift
+/// of a platform that only rattles in place (the reference machine standing still
+/// moves by nothing; at the vertical-force offset 180 degrees, by well under
+/// 0.1 mm/s) and far below the 29 mm/s it travels at 3000 rpm.
+pub const DEFAULT_MIN_TRAVEL_SPEED: f64 = 1.0e-3;
+
+/// Slack on times when deciding whether a control tick lies in a window, s: ticks
+/// are `k / rate_hz` in floating point, a window's ends decimal numbers.
+const TIME_EPS: f64 = 1.0e-9;
+
+/// A command to the controller at a time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimedCommand {
+    /// When, s: sent at the first control tick at or after it.
+    pub t: f64,
+    /// The command (run speeds resolved).
+    pub command: Command,
+    /// Its key path in the file (`commands[0]`).
+    pub key: String,
+    /// Its name in the file (`right`, `reset`, ...).
+    pub name: &'static str,
+}
+
+/// A fault injected into the simulation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InjectedFault {
+    /// The encoder of rotor `rotor` (0 or 1) loses its signals: the counter
+    /// stops, no index pulse.
+    EncoderDropout {
+        /// Rotor index, 0 or 1.
+        rotor: usize,
+    },
+    /// Rotor `rotor` (0 or 1) seizes: it stops at once relative to the platform
+    /// and stays at rest ([`Plant::set_jam`]).
+    JammedRotor {
+        /// Rotor index, 0 or 1.
+        rotor: usize,
+    },
+    /// The supply sags (or rises) to `voltage`, V: the controller measures it and
+    /// the H-bridges put `duty x voltage` on the windings.
+    SupplySag {
+        /// Supply voltage, V, >= 0.
+        voltage: f64,
+    },
+    /// The current measurement of rotor `rotor` (0 or 1) reads `amps` too high.
+    CurrentOffset {
+        /// Rotor index, 0 or 1.
+        rotor: usize,
+        /// Offset added to the measurement, A.
+        amps: f64,
+    },
+    /// Commands and heartbeats from the host are lost (a command due meanwhile is
+    /// lost, not delayed).
+    LostCommands,
+    /// The E-stop input is active.
+    Estop,
+}
+
+impl InjectedFault {
+    /// Its kind as written in the file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            InjectedFault::EncoderDropout { .. } => "encoder_dropout",
+            InjectedFault::JammedRotor { .. } => "jammed_rotor",
+            InjectedFault::SupplySag { .. } => "supply_sag",
+            InjectedFault::CurrentOffset { .. } => "current_offset",
+            InjectedFault::LostCommands => "lost_commands",
+            InjectedFault::Estop => "estop",
+        }
+    }
+
+    /// A short description: `encoder_dropout rotor 1`, `supply_sag 8 V`.
+    pub fn describe(&self) -> String {
+        match self {
+            InjectedFault::EncoderDropout { rotor } | InjectedFault::JammedRotor { rotor } => {
+                format!("{} rotor {}", self.kind(), rotor + 1)
+            }
+            InjectedFault::SupplySag { voltage } => format!("supply_sag {} V", sig(*voltage)),
+            InjectedFault::CurrentOffset { rotor, amps } => {
+                format!("current_offset rotor {} {} A", rotor + 1, signed(*amps))
+            }
+            InjectedFault::LostCommands | InjectedFault::Estop => self.kind().to_string(),
+        }
+    }
+}
+
+/// A fault injected over a time window.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Injection {
+    /// Start, s: in force from the first control tick at or after it.
+    pub t: f64,
+    /// End, s (`t + duration`): gone from the first control tick at or after it;
+    /// `None` until the end of the run.
+    pub until: Option<f64>,
+    /// What is injected.
+    pub fault: InjectedFault,
+    /// Its key path in the file (`faults[0]`).
+    pub key: String,
+}
+
+impl Injection {
+    /// Whether it is in force at the control tick at `t`.
+    pub fn active(&self, t: f64) -> bool {
+        t >= self.t - TIME_EPS && self.until.is_none_or(|u| t < u - TIME_EPS)
+    }
+}
+
+/// When a condition is judged: at some tick of a window, or at every tick of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum When {
+    /// `within = [t0, t1]`: at some control tick in the window (ends included).
+    Within([f64; 2]),
+    /// `between = [t0, t1]`: at every control tick in the window (ends included).
+    Between([f64; 2]),
+}
+
+impl When {
+    /// `at some tick in [0, 1.5] s` or `at every tick in [2, 4] s`.
+    fn describe(&self) -> String {
+        match self {
+            When::Within(w) => format!("at some tick in {}", window(*w)),
+            When::Between(w) => format!("at every tick in {}", window(*w)),
+        }
+    }
+}
+
+/// What a scenario expects.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Expectation {
+    /// The controller is in `state` (at some tick, or at every tick, of a window).
+    State {
+        /// The state.
+        state: State,
+        /// When.
+        when: When,
+    },
+    /// The platform travels `direction`: its mean velocity `(x(t1) - x(t0)) / (t1 -
+    /// t0)` has that sign and at least `min_speed` m/s.
+    Travel {
+        /// Which way.
+        direction: Direction,
+        /// The window `[t0, t1]`, s.
+        between: [f64; 2],
+        /// Least |mean velocity|, m/s.
+        min_speed: f64,
+    },
+    /// The controller's measured (filtered) speed of each rotor named stays in
+    /// `range_rpm` at every tick of the window.
+    Speed {
+        /// Rotor indices (0, 1), both when the file names none.
+        rotors: Vec<usize>,
+        /// `[low, high]`, rpm, in the driven sense.
+        range_rpm: [f64; 2],
+        /// The window `[t0, t1]`, s.
+        between: [f64; 2],
+    },
+    /// The measured phase offset `theta_1 - theta_2` lies in the circular range
+    /// from `range_deg[0]` up to `range_deg[1]` (at some tick, or at every tick).
+    Phase {
+        /// `[from, to]`, degrees, `from <= to < from + 360`.
+        range_deg: [f64; 2],
+        /// When.
+        when: When,
+    },
+    /// `fault` is newly latched at some tick of `within`, and from that tick the
+    /// outputs are safe (enable off, duty 0) for as long as it stays latched.
+    Fault {
+        /// The fault flag.
+        fault: Faults,
+        /// Its name.
+        name: &'static str,
+        /// The window, s.
+        within: [f64; 2],
+    },
+    /// No fault is latched at any tick of the window (the whole run when `None`).
+    NoFault {
+        /// The window, s.
+        between: Option<[f64; 2]>,
+    },
+    /// The outputs are safe (enable off, duty 0 on both motors) at every tick of
+    /// the window (`from = t` is `[t, t_end]`).
+    Safe {
+        /// The window, s.
+        between: [f64; 2],
+    },
+}
+
+impl Expectation {
+    /// Its kind as written in the file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Expectation::State { .. } => "state",
+            Expectation::Travel { .. } => "travel",
+            Expectation::Speed { .. } => "speed",
+            Expectation::Phase { .. } => "phase",
+            Expectation::Fault { .. } => "fault",
+            Expectation::NoFault { .. } => "no_fault",
+            Expectation::Safe { .. } => "safe",
+        }
+    }
+}
+
+/// A checked scenario, ready to run.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// The scenario file, as named.
+    pub file: String,
+    /// The machine file, resolved against the scenario file's directory.
+    pub machine_file: PathBuf,
+    /// The machine, with the scenario's overrides applied.
+    pub machine: Machine,
+    /// The `--set KEY=VALUE` overrides of the machine file (`set`).
+    pub sets: Vec<String>,
+    /// End time, s.
+    pub t_end: f64,
+    /// Commands, in time order.
+    pub commands: Vec<TimedCommand>,
+    /// Injected faults, in file order.
+    pub faults: Vec<Injection>,
+    /// Expectations, in file order, with their key paths (`expect[0]`).
+    pub expectations: Vec<(String, Expectation)>,
+}
+
+/// Reads and checks the scenario file at `path` (stages of the module doc): every
+/// problem at once, those of the scenario file first, then the machine file's.
+pub fn load(path: &Path) -> Result<Scenario, Vec<Problem>> {
+    let text = input::read_text(path).map_err(|p| vec![p])?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    from_text(&path.display().to_string(), &text, dir)
+}
+
+/// Checks the text of a scenario file named `file` (for messages) whose machine
+/// path is relative to `dir`, as [`load`] does.
+pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Problem>> {
+    // 1. TOML.
+    let table = input::parse(file, text).map_err(|p| vec![p])?;
+
+    // 2. Every key on its own.
+    let problems = Problems::new(file);
+    let raw = read(&table, &problems);
+
+    // 3. The machine, only with its overrides all read (else it is another machine).
+    let mut machine_problems = Vec::new();
+    let machine = match (&raw.machine, &raw.sets) {
+        (Some(rel), Some(sets)) => {
+            let path = dir.join(rel);
+            if !path.is_file() {
+                problems.at(
+                    "machine",
+                    format!(
+                        "no such file: {} (the path is relative to the scenario file)",
+                        path.display()
+                    ),
+                );
+                None
+            } else {
+                match Machine::load(&path, sets) {
+                    Ok(m) => match closed_loop::params(&m) {
+                        Ok(_) => Some((path, m)),
+                        Err(ps) => {
+                            machine_problems = ps;
+                            None
+                        }
+                    },
+                    Err(ps) => {
+                        machine_problems =
+                            ps.into_iter().map(|p| blame_set(p, sets, file)).collect();
+                        None
+                    }
+                }
+            }
+        }
+        _ => None,
+    };
+
+    // 4. What needs the machine.
+    let scenario = resolve(raw, machine, &problems);
+
+    // 5. Every problem.
+    let mut all = problems.into_vec();
+    all.extend(machine_problems);
+    match scenario {
+        Some(s) if all.is_empty() => Ok(s),
+        _ => {
+            if all.is_empty() {
+                all.push(Problem {
+                    file: file.to_string(),
+                    location: Location::File,
+                    message: "internal error: the scenario was refused without a reason".into(),
+                });
+            }
+            Err(all)
+        }
+    }
+}
+
+/// A problem of a `set` entry, which the machine reader names `--set KEY=VALUE`,
+/// moved to the scenario's key `set[i]`.
+fn blame_set(p: Problem, sets: &[String], file: &str) -> Problem {
+    match sets.iter().position(|s| p.file == format!("--set {s}")) {
+        Some(i) => Problem {
+            file: file.to_string(),
+            location: Location::Key(format!("set[{i}]")),
+            message: format!("{:?}: {}", sets[i], p.message),
+        },
+        None => p,
+    }
+}
+
+/// A command as read, its speed not yet defaulted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum RawCommand {
+    Travel(Direction, Option<f64>),
+    Hold(Option<f64>, f64),
+    Stop,
+    Reset,
+    Heartbeat,
+}
+
+/// The scenario as read, key by key (`None` where refused).
+struct Raw {
+    machine: Option<String>,
+    t_end: Option<f64>,
+    /// `Some(vec![])` without a `set`; `None` when refused.
+    sets: Option<Vec<String>>,
+    commands: Vec<(String, f64, &'static str, RawCommand)>,
+    faults: Vec<(String, f64, Option<f64>, InjectedFault)>,
+    expects: Vec<(String, RawExpect)>,
+    /// Some element was refused.
+    refused: bool,
+}
+
+/// An expectation as read: `from` of a `safe` needs `t_end`.
+enum RawExpect {
+    Ready(Expectation),
+    SafeFrom(f64),
+}
+
+/// Stage 2: every key on its own.
+fn read(table: &Table, problems: &Problems) -> Raw {
+    let root = Section::root(table, problems);
+    let machine = root.string("machine", Need::Required);
+    let t_end = root.number("t_end", Need::Optional, Limit::Positive);
+    let sets = read_sets(&root, table);
+    let mut raw = Raw {
+        machine,
+        t_end,
+        sets,
+        commands: Vec::new(),
+        faults: Vec::new(),
+        expects: Vec::new(),
+        refused: false,
+    };
+    for (i, s) in root
+        .sections("commands")
+        .unwrap_or_default()
+        .iter()
+        .enumerate()
+    {
+        match s.as_ref().and_then(read_command) {
+            Some((t, name, c)) => raw.commands.push((format!("commands[{i}]"), t, name, c)),
+            None => raw.refused = true,
+        }
+    }
+    for (i, s) in root
+        .sections("faults")
+        .unwrap_or_default()
+        .iter()
+        .enumerate()
+    {
+        match s.as_ref().and_then(read_fault) {
+            Some((t, d, f)) => raw.faults.push((format!("faults[{i}]"), t, d, f)),
+            None => raw.refused = true,
+        }
+    }
+    let has_expect = root.has("expect");
+    let expects = root.sections("expect");
+    let no_expect = expects.as_ref().is_some_and(|e| e.is_empty());
+    for (i, s) in expects.unwrap_or_default().iter().enumerate() {
+        match s.as_ref().and_then(read_expect) {
+            Some(e) => raw.expects.push((format!("expect[{i}]"), e)),
+            None => raw.refused = true,
+        }
+    }
+    if no_expect {
+        let what = if has_expect { "is empty" } else { "is missing" };
+        root.problem(
+            "expect",
+            format!("{what}: a scenario needs at least one [[expect]] to pass or fail"),
+        );
+    }
+    root.finish();
+    raw
+}
+
+/// `set = ["KEY=VALUE", ...]`: an array of strings.
+fn read_sets(root: &Section<'_>, table: &Table) -> Option<Vec<String>> {
+    if !root.has("set") {
+        return Some(Vec::new());
+    }
+    let Some(Value::Array(items)) = table.get("set") else {
+        root.problem(
+            "set",
+            "must be an array of strings \"KEY=VALUE\" (machine-file overrides, as --set takes)",
+        );
+        return None;
+    };
+    let mut sets = Vec::new();
+    let mut ok = true;
+    for (i, item) in items.iter().enumerate() {
+        match item {
+            Value::String(s) => sets.push(s.clone()),
+            other => {
+                root.problem(
+                    &format!("set[{i}]"),
+                    format!("must be a string \"KEY=VALUE\" (got {other})"),
+                );
+                ok = false;
+            }
+        }
+    }
+    ok.then_some(sets)
+}
+
+/// A window `[t0, t1]` with `0 <= t0 <= t1` (`t1 <= t_end` is checked later).
+fn read_window(s: &Section<'_>, key: &'static str, need: Need<[f64; 2]>) -> Option<[f64; 2]> {
+    if need == Need::Required && !s.has(key) {
+        s.problem(key, "missing; required: a time window [t0, t1], s");
+        return None;
+    }
+    let w = s.vec2(key, Need::Optional, Limit::NonNegative)?;
+    if w[0] > w[1] {
+        s.problem(
+            key,
+            format!(
+                "must be [t0, t1] with t0 <= t1, s (got {})",
+                input::vector(w)
+            ),
+        );
+        return None;
+    }
+    Some(w)
+}
+
+/// Reports keys that `kind` does not take when present (and marks them known, so
+/// that they are not also reported as unknown).
+fn not_for(s: &Section<'_>, keys: &[&'static str], kind: &str, takers: &str) {
+    for key in keys {
+        if s.has(key) {
+            s.problem(key, format!("does not apply to {kind} (only to {takers})"));
+        }
+    }
+}
+
+/// A rotor number 1 or 2, as index 0 or 1.
+fn read_rotor(s: &Section<'_>, need: Need<i64>) -> Option<usize> {
+    s.integer("rotor", need, Limit::Between(1.0, 2.0))
+        .map(|r| r as usize - 1)
+}
+
+/// One `[[commands]]` table: (t, name, command).
+fn read_command(s: &Section<'_>) -> Option<(f64, &'static str, RawCommand)> {
+    let t = s.number("t", Need::Required, Limit::NonNegative);
+    let name = s.choice("command", Need::Required, &COMMANDS);
+    let Some(name) = name else {
+        // Without the command the other keys cannot be judged; a misspelt
+        // `command` can.
+        if !s.has("command") {
+            s.finish();
+        }
+        return None;
+    };
+    let command = match name {
+        "right" | "left" | "hold" => {
+            let speed = s.number("speed_rpm", Need::Optional, Limit::Positive);
+            let speed_ok = speed.is_some() || !s.has("speed_rpm");
+            if name == "hold" {
+                let offset = s.number("offset_deg", Need::Required, Limit::Any);
+                offset
+                    .filter(|_| speed_ok)
+                    .map(|o| RawCommand::Hold(speed, o))
+            } else {
+                not_for(s, &["offset_deg"], "command right or left", "command hold");
+                let d = if name == "right" {
+                    Direction::Right
+                } else {
+                    Direction::Left
+                };
+                speed_ok.then_some(RawCommand::Travel(d, speed))
+            }
+        }
+        _ => {
+            not_for(
+                s,
+                &["speed_rpm", "offset_deg"],
+                &format!("command {name}"),
+                "commands right, left and hold",
+            );
+            Some(match name {
+                "stop" => RawCommand::Stop,
+                "reset" => RawCommand::Reset,
+                _ => RawCommand::Heartbeat,
+            })
+        }
+    };
+    s.finish();
+    Some((t?, name, command?))
+}
+
+/// One `[[faults]]` table: (t, duration, fault).
+fn read_fault(s: &Section<'_>) -> Option<(f64, Option<f64>, InjectedFault)> {
+    let t = s.number("t", Need::Required, Limit::NonNegative);
+    let Some(kind) = s.choice("kind", Need::Required, &FAULT_KINDS) else {
+        // Without a kind the other keys cannot be judged; a misspelt `kind` can.
+        if !s.has("kind") {
+            s.finish();
+        }
+        return None;
+    };
+    let duration = s.number("duration", Need::Optional, Limit::Positive);
+    let duration_ok = duration.is_some() || !s.has("duration");
+    let fault = match kind {
+        "encoder_dropout" => {
+            read_rotor(s, Need::Required).map(|rotor| InjectedFault::EncoderDropout { rotor })
+        }
+        "jammed_rotor" => {
+            read_rotor(s, Need::Required).map(|rotor| InjectedFault::JammedRotor { rotor })
+        }
+        "supply_sag" => s
+            .number("voltage", Need::Required, Limit::NonNegative)
+            .map(|voltage| InjectedFault::SupplySag { voltage }),
+        "current_offset" => {
+            let rotor = read_rotor(s, Need::Required);
+            let amps = s.number("amps", Need::Required, Limit::Any);
+            rotor
+                .zip(amps)
+                .map(|(rotor, amps)| InjectedFault::CurrentOffset { rotor, amps })
+        }
+        "lost_commands" => Some(InjectedFault::LostCommands),
+        _ => Some(InjectedFault::Estop),
+    };
+    s.finish();
+    let fault = fault?;
+    duration_ok.then_some(())?;
+    Some((t?, duration, fault))
+}
+
+/// `within` or `between`, exactly one.
+fn read_when(s: &Section<'_>) -> Option<When> {
+    let has = (s.has("within"), s.has("between"));
+    let within = read_window(s, "within", Need::Optional);
+    let between = read_window(s, "between", Need::Optional);
+    match has {
+        (true, true) => {
+            s.problem(
+                "between",
+                "give either `within` (at some tick) or `between` (at every tick), not both",
+            );
+            None
+        }
+        (false, false) => {
+            s.problems().at(
+                s.path(),
+                "missing `within = [t0, t1]` (at some tick) or `between = [t0, t1]` (at every tick)",
+            );
+            None
+        }
+        (true, false) => within.map(When::Within),
+        (false, true) => between.map(When::Between),
+    }
+}
+
+/// One `[[expect]]` table.
+fn read_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let Some(kind) = s.choice("kind", Need::Required, &EXPECT_KINDS) else {
+        // Without a kind the other keys cannot be judged; a misspelt `kind` can.
+        if !s.has("kind") {
+            s.finish();
+        }
+        return None;
+    };
+    let e = read_expect_keys(s, kind);
+    s.finish();
+    e
+}
+
+/// The keys of an `[[expect]]` of `kind`.
+fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
+    match kind {
+        "state" => {
+            let state = s
+                .choice("state", Need::Required, &STATES)
+                .and_then(state_from_name);
+            let when = read_when(s);
+            Some(RawExpect::Ready(Expectation::State {
+                state: state?,
+                when: when?,
+            }))
+        }
+        "travel" => {
+            let direction = s.choice("direction", Need::Required, &DIRECTIONS);
+            let between = read_window(s, "between", Need::Required);
+            let min_speed = s.number(
+                "min_speed",
+                Need::Default(DEFAULT_MIN_TRAVEL_SPEED),
+                Limit::NonNegative,
+            );
+            if let Some(w) = between.filter(|w| w[0] >= w[1]) {
+                s.problem(
+                    "between",
+                    format!(
+                        "must be [t0, t1] with t0 < t1, s (got {})",
+                        input::vector(w)
+                    ),
+                );
+                return None;
+            }
+            let direction = match direction? {
+                "right" => Direction::Right,
+                _ => Direction::Left,
+            };
+            Some(RawExpect::Ready(Expectation::Travel {
+                direction,
+                between: between?,
+                min_speed: min_speed?,
+            }))
+        }
+        "speed" => {
+            let rotor = read_rotor(s, Need::Optional);
+            let rotor_ok = rotor.is_some() || !s.has("rotor");
+            let range = s.vec2("range_rpm", Need::Required, Limit::Any);
+            let between = read_window(s, "between", Need::Required);
+            if let Some(r) = range.filter(|r| r[0] > r[1]) {
+                s.problem(
+                    "range_rpm",
+                    format!(
+                        "must be [low, high] with low <= high, rpm (got {})",
+                        input::vector(r)
+                    ),
+                );
+                return None;
+            }
+            rotor_ok.then_some(())?;
+            Some(RawExpect::Ready(Expectation::Speed {
+                rotors: rotor.map_or(vec![0, 1], |r| vec![r]),
+                range_rpm: range?,
+                between: between?,
+            }))
+        }
+        "phase" => {
+            let range = s.vec2("range_deg", Need::Required, Limit::Any);
+            let when = read_when(s);
+            if let Some(r) = range.filter(|r| !(r[0] <= r[1] && r[1] < r[0] + 360.0)) {
+                s.problem(
+                    "range_deg",
+                    format!(
+                        "must be [from, to] with from <= to < from + 360, degrees, read counter-clockwise from `from` (e.g. [350, 370] for 350 to 10) (got {})",
+                        input::vector(r)
+                    ),
+                );
+                return None;
+            }
+            Some(RawExpect::Ready(Expectation::Phase {
+                range_deg: range?,
+                when: when?,
+            }))
+        }
+        "fault" => {
+            let names: Vec<&'static str> = Faults::ALL.iter().map(|(_, n)| *n).collect();
+            let name = s.choice("fault", Need::Required, &names);
+            let within = read_window(s, "within", Need::Required);
+            let name = name?;
+            let fault = Faults::ALL.iter().find(|(_, n)| *n == name)?.0;
+            Some(RawExpect::Ready(Expectation::Fault {
+                fault,
+                name,
+                within: within?,
+            }))
+        }
+        "no_fault" => {
+            let has_between = s.has("between");
+            let between = read_window(s, "between", Need::Optional);
+            if has_between && between.is_none() {
+                return None;
+            }
+            Some(RawExpect::Ready(Expectation::NoFault { between }))
+        }
+        _ => {
+            let has = (s.has("from"), s.has("between"));
+            let from = s.number("from", Need::Optional, Limit::NonNegative);
+            let between = read_window(s, "between", Need::Optional);
+            match has {
+                (true, true) => {
+                    s.problem(
+                        "between",
+                        "give either `from = t` (to the end) or `between = [t0, t1]`, not both",
+                    );
+                    None
+                }
+                (false, false) => {
+                    s.problems().at(
+                        s.path(),
+                        "missing `from = t` (to the end) or `between = [t0, t1]`",
+                    );
+                    None
+                }
+                (true, false) => from.map(RawExpect::SafeFrom),
+                (false, true) => {
+                    between.map(|between| RawExpect::Ready(Expectation::Safe { between }))
+                }
+            }
+        }
+    }
+}
+
+/// The state named `name` ([`State::name`]).
+pub fn state_from_name(name: &str) -> Option<State> {
+    [
+        State::Idle,
+        State::Starting,
+        State::Running,
+        State::Stopping,
+        State::Fault,
+    ]
+    .into_iter()
+    .find(|s| s.name() == name)
+}
+
+/// Stage 4: times against `t_end` and the control ticks, speeds defaulted.
+fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -> Option<Scenario> {
+    // Without the machine only what the scenario itself says is checked.
+    let m = machine.as_ref().map(|(_, m)| m);
+    let t_end = raw
+        .t_end
+        .or(m.map(|m| m.simulation.t_end))
+        .unwrap_or(f64::INFINITY);
+    let end_note = if raw.t_end.is_some() {
+        format!("t_end = {} s", sig(t_end))
+    } else {
+        format!("t_end = {} s, the machine's simulation.t_end", sig(t_end))
+    };
+    let rate = m.map(|m| m.controller.rate_hz);
+    let tick_of = |t: f64| rate.map(|r| (t * r - 1e-6).ceil().max(0.0) as u64);
+
+    // Commands: before the end, one a tick, in time order.
+    let mut commands: Vec<TimedCommand> = Vec::new();
+    for (key, t, name, c) in &raw.commands {
+        if *t >= t_end {
+            problems.at(
+                &format!("{key}.t"),
+                format!("must be before the end, {end_note} (got {})", sig(*t)),
+            );
+            continue;
+        }
+        let default_speed = m.map_or(0.0, |m| m.controller.speed_rpm);
+        let speed = |s: Option<f64>| s.unwrap_or(default_speed) as f32;
+        let command = match *c {
+            RawCommand::Travel(direction, s) => Command::Travel {
+                direction,
+                speed_rpm: speed(s),
+            },
+            RawCommand::Hold(s, o) => Command::HoldOffset {
+                speed_rpm: speed(s),
+                offset_deg: o.rem_euclid(360.0) as f32,
+            },
+            RawCommand::Stop => Command::Stop,
+            RawCommand::Reset => Command::ResetFaults,
+            RawCommand::Heartbeat => Command::Heartbeat,
+        };
+        if let Some(other) = commands
+            .iter()
+            .find(|o| tick_of(o.t).is_some() && tick_of(o.t) == tick_of(*t))
+        {
+            problems.at(
+                &format!("{key}.t"),
+                format!(
+                    "{} s falls on the same control tick as {}.t = {} s: the controller takes one command a tick ({} Hz)",
+                    sig(*t),
+                    other.key,
+                    sig(other.t),
+                    sig(rate.unwrap_or(0.0))
+                ),
+            );
+            continue;
+        }
+        commands.push(TimedCommand {
+            t: *t,
+            command,
+            key: key.clone(),
+            name,
+        });
+    }
+    commands.sort_by(|a, b| a.t.total_cmp(&b.t));
+
+    // Faults: starting before the end.
+    let mut faults = Vec::new();
+    for (key, t, duration, fault) in &raw.faults {
+        if *t >= t_end {
+            problems.at(
+                &format!("{key}.t"),
+                format!("must be before the end, {end_note} (got {})", sig(*t)),
+            );
+            continue;
+        }
+        faults.push(Injection {
+            t: *t,
+            until: duration.map(|d| t + d),
+            fault: *fault,
+            key: key.clone(),
+        });
+    }
+
+    // Expectations: windows within the run.
+    let mut expectations = Vec::new();
+    for (key, e) in raw.expects {
+        let (e, window_key, w) = match e {
+            RawExpect::SafeFrom(t) => (
+                Expectation::Safe {
+                    between: [t, t_end],
+                },
+                "from",
+                [t, t],
+            ),
+            RawExpect::Ready(e) => {
+                let (name, w) = match &e {
+                    Expectation::State { when, .. } | Expectation::Phase { when, .. } => match when
+                    {
+                        When::Within(w) => ("within", *w),
+                        When::Between(w) => ("between", *w),
+                    },
+                    Expectation::Travel { between, .. }
+                    | Expectation::Speed { between, .. }
+                    | Expectation::Safe { between } => ("between", *between),
+                    Expectation::Fault { within, .. } => ("within", *within),
+                    Expectation::NoFault { between } => ("between", between.unwrap_or([0.0, 0.0])),
+                };
+                (e, name, w)
+            }
+        };
+        if w[1] > t_end + TIME_EPS {
+            let got = if window_key == "from" {
+                sig(w[0])
+            } else {
+                window(w)
+            };
+            problems.at(
+                &format!("{key}.{window_key}"),
+                format!(
+                    "must lie within the run, [0, {}] s ({end_note}; got {got})",
+                    sig(t_end)
+                ),
+            );
+            continue;
+        }
+        expectations.push((key, e));
+    }
+
+    if raw.refused || raw.machine.is_none() || !problems.is_empty() {
+        return None;
+    }
+    let (machine_file, machine) = machine?;
+    Some(Scenario {
+        file: problems.file().to_string(),
+        machine_file,
+        machine,
+        sets: raw.sets.unwrap_or_default(),
+        t_end,
+        commands,
+        faults,
+        expectations,
+    })
+}
+
+/// One control tick as recorded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tick {
+    /// Time, s.
+    pub t: f64,
+    /// The platform's x (centre of mass) at the tick, m.
+    pub x: f64,
+    /// What the controller wrote at the tick.
+    pub out: Outputs,
+}
+
+/// The controller in the loop with a scenario's injected faults, recording every
+/// tick.
+pub struct ScenarioDriver<'s> {
+    /// The controller in the loop (its schedule holds the scenario's commands).
+    pub inner: ControllerDriver,
+    /// The faults to inject.
+    faults: &'s [Injection],
+    /// Every tick so far.
+    pub ticks: Vec<Tick>,
+}
+
+impl<'s> ScenarioDriver<'s> {
+    /// The controller for `scenario`'s machine with its commands as the schedule.
+    pub fn new(scenario: &'s Scenario) -> Result<Self, Vec<Problem>> {
+        let schedule = scenario.commands.iter().map(|c| (c.t, c.command)).collect();
+        Ok(ScenarioDriver {
+            inner: ControllerDriver::new(&scenario.machine, schedule)?,
+            faults: &scenario.faults,
+            ticks: Vec::new(),
+        })
+    }
+}
+
+impl Driver for ScenarioDriver<'_> {
+    /// The faults in force at `t`, from scratch: overlapping windows combine
+    /// (dropouts and jams by rotor, current offsets add, the lowest supply wins).
+    fn before_tick(&mut self, t: f64, plant: &mut Plant) {
+        let mut injected = Injected::default();
+        let mut jam = [false; 2];
+        for f in self.faults.iter().filter(|f| f.active(t)) {
+            match f.fault {
+                InjectedFault::EncoderDropout { rotor } => injected.encoder_dropout[rotor] = true,
+                InjectedFault::JammedRotor { rotor } => jam[rotor] = true,
+                InjectedFault::SupplySag { voltage } => {
+                    injected.supply_voltage = Some(
+                        injected
+                            .supply_voltage
+                            .map_or(voltage, |v: f64| v.min(voltage)),
+                    );
+                }
+                InjectedFault::CurrentOffset { rotor, amps } => {
+                    injected.current_offset[rotor] += amps;
+                }
+                InjectedFault::LostCommands => injected.link_lost = true,
+                InjectedFault::Estop => injected.estop = true,
+            }
+        }
+        self.inner.injected = injected;
+        for (k, on) in jam.into_iter().enumerate() {
+            plant.set_jam(k, on);
+        }
+        self.inner.before_tick(t, plant);
+    }
+
+    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+        let w = self.inner.windings(t, plant);
+        if let Some(out) = self.inner.last() {
+            self.ticks.push(Tick {
+                t,
+                x: plant.q()[0],
+                out: *out,
+            });
+        }
+        w
+    }
+
+    fn state(&self) -> String {
+        self.inner.state()
+    }
+
+    fn commanded_offset_deg(&self) -> Option<f64> {
+        self.inner.commanded_offset_deg()
+    }
+
+    fn faults(&self) -> Vec<String> {
+        self.inner.faults()
+    }
+
+    fn events(&mut self) -> Vec<EventRow> {
+        self.inner.events()
+    }
+}
+
+/// How one expectation came out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// Its key path, `expect[0]`.
+    pub key: String,
+    /// Its kind, `state`, `fault`, ...
+    pub kind: &'static str,
+    /// Whether it holds.
+    pub pass: bool,
+    /// What it asks, in words.
+    pub expected: String,
+    /// What the run did, in words.
+    pub measured: String,
+}
+
+/// The first fault latched at or after an injection's start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Detection {
+    /// The injection's key path, `faults[0]`.
+    pub key: String,
+    /// What was injected, `encoder_dropout rotor 1`.
+    pub injected: String,
+    /// Its start, s.
+    pub t: f64,
+    /// The faults newly latched at the first tick that latched any, and that
+    /// tick's time, s; `None` if none was latched to the end.
+    pub latched: Option<(Vec<String>, f64)>,
+}
+
+/// What running a scenario produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// The scenario file, as named.
+    pub scenario: String,
+    /// The machine file, resolved.
+    pub machine: String,
+    /// End time, s.
+    pub t_end: f64,
+    /// One per expectation, in file order.
+    pub outcomes: Vec<Outcome>,
+    /// One per injected fault, in file order.
+    pub detections: Vec<Detection>,
+    /// The controller's state at the end.
+    pub final_state: String,
+}
+
+impl Report {
+    /// Every expectation holds.
+    pub fn passed(&self) -> bool {
+        self.outcomes.iter().all(|o| o.pass)
+    }
+}
+
+/// Runs `scenario` (stages of the module doc). Fails only if the controller's
+/// parameters cannot be built (the tuning table changed since [`load`]).
+pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
+    // 1.-3. Simulate with the scenario's driver.
+    let mut driver = ScenarioDriver::new(scenario)?;
+    let options = RunOptions {
+        t_end: scenario.t_end,
+        settings: Settings::default(),
+        holds: Holds::default(),
+    };
+    let result = simulate(&scenario.machine, &mut driver, &options);
+    let mut samples: Vec<(f64, f64)> = driver.ticks.iter().map(|k| (k.t, k.x)).collect();
+    if let Some(row) = result.rows.last() {
+        if samples.last().is_none_or(|s| s.0 < row.t) {
+            samples.push((row.t, row.x));
+        }
+    }
+    let ticks = &driver.ticks;
+
+    // 4. Judge.
+    let outcomes = scenario
+        .expectations
+        .iter()
+        .map(|(key, e)| {
+            let (pass, expected, measured) = judge(e, ticks, &samples, scenario.t_end);
+            Outcome {
+                key: key.clone(),
+                kind: e.kind(),
+                pass,
+                expected,
+                measured,
+            }
+        })
+        .collect();
+    let detections = scenario
+        .faults
+        .iter()
+        .map(|f| Detection {
+            key: f.key.clone(),
+            injected: f.fault.describe(),
+            t: f.t,
+            latched: first_latch_after(ticks, f.t),
+        })
+        .collect();
+    Ok(Report {
+        scenario: scenario.file.clone(),
+        machine: scenario.machine_file.display().to_string(),
+        t_end: scenario.t_end,
+        outcomes,
+        detections,
+        final_state: driver.state(),
+    })
+}
+
+/// `[t0, t1] s`.
+fn window(w: [f64; 2]) -> String {
+    format!("[{}, {}] s", sig(w[0]), sig(w[1]))
+}
+
+/// Whether the tick at `t` lies in `w` (ends included).
+fn in_window(t: f64, w: [f64; 2]) -> bool {
+    t >= w[0] - TIME_EPS && t <= w[1] + TIME_EPS
+}
+
+/// The ticks in `w`.
+fn ticks_in(ticks: &[Tick], w: [f64; 2]) -> impl Iterator<Item = &Tick> + '_ {
+    ticks.iter().filter(move |k| in_window(k.t, w))
+}
+
+/// Safe outputs: driver disabled, duty 0 on both motors.
+fn is_safe(out: &Outputs) -> bool {
+    !out.enable && out.duty == [0.0, 0.0]
+}
+
+/// `x(t)` interpolated linearly between samples (held beyond them).
+fn x_at(samples: &[(f64, f64)], t: f64) -> f64 {
+    let i = samples.partition_point(|s| s.0 < t);
+    match (
+        i.checked_sub(1).and_then(|j| samples.get(j)),
+        samples.get(i),
+    ) {
+        (Some(a), Some(b)) if b.0 > a.0 => a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0),
+        (_, Some(b)) => b.1,
+        (Some(a), None) => a.1,
+        (None, None) => 0.0,
+    }
+}
+
+/// Whether `o` lies in the circular range from `r[0]` up to `r[1]`, degrees.
+fn in_phase_range(o: f64, r: [f64; 2]) -> bool {
+    (o - r[0]).rem_euclid(360.0) <= r[1] - r[0] + 1e-9
+}
+
+/// The faults newly latched at the first tick at or after `t0` that latched any.
+fn first_latch_after(ticks: &[Tick], t0: f64) -> Option<(Vec<String>, f64)> {
+    let mut before = Faults::NONE;
+    for k in ticks {
+        let new = k.out.faults.without(before);
+        if k.t >= t0 - TIME_EPS && !new.is_empty() {
+            return Some((new.names().map(str::to_string).collect(), k.t));
+        }
+        before = k.out.faults;
+    }
+    None
+}
+
+/// What an expectation asks and what the run did: (pass, expected, measured).
+type Verdict = (bool, String, String);
+
+/// Judges one expectation on the ticks and the platform's `x` samples.
+fn judge(e: &Expectation, ticks: &[Tick], samples: &[(f64, f64)], t_end: f64) -> Verdict {
+    match e {
+        Expectation::State { state, when } => judge_state(*state, when, ticks),
+        Expectation::Travel {
+            direction,
+            between,
+            min_speed,
+        } => judge_travel(*direction, *between, *min_speed, samples),
+        Expectation::Speed {
+            rotors,
+            range_rpm,
+            between,
+        } => judge_speed(rotors, *range_rpm, *between, ticks),
+        Expectation::Phase { range_deg, when } => judge_phase(*range_deg, when, ticks),
+        Expectation::Fault {
+            fault,
+            name,
+            within,
+        } => judge_fault(*fault, name, *within, ticks, t_end),
+        Expectation::NoFault { between } => judge_no_fault(between.unwrap_or([0.0, t_end]), ticks),
+        Expectation::Safe { between } => judge_safe(*between, ticks),
+    }
+}
+
+/// `no control tick in [t0, t1] s`: a window between two ticks judges nothing.
+fn none_in(w: [f64; 2]) -> String {
+    format!("no control tick in {}", window(w))
+}
+
+/// The state at some tick (reached), or at every tick, of the window.
+fn judge_state(state: State, when: &When, ticks: &[Tick]) -> Verdict {
+    let expected = format!("{} {}", state.name(), when.describe());
+    let (pass, measured) = match when {
+        When::Within(w) => match ticks_in(ticks, *w).find(|k| k.out.state == state) {
+            Some(k) => (true, format!("reached at {} s", sig(k.t))),
+            None => {
+                let seen = states_seen(ticks_in(ticks, *w));
+                (false, format!("not reached; states in the window: {seen}"))
+            }
+        },
+        When::Between(w) => {
+            let mut inside = ticks_in(ticks, *w).peekable();
+            if inside.peek().is_none() {
+                (false, none_in(*w))
+            } else {
+                match inside.find(|k| k.out.state != state) {
+                    Some(k) => (false, format!("{} at {} s", k.out.state.name(), sig(k.t))),
+                    None => (true, format!("{} throughout", state.name())),
+                }
+            }
+        }
+    };
+    (pass, expected, measured)
+}
+
+/// The sign and size of the mean velocity over the window.
+fn judge_travel(
+    direction: Direction,
+    between: [f64; 2],
+    min_speed: f64,
+    samples: &[(f64, f64)],
+) -> Verdict {
+    let (name, sign) = match direction {
+        Direction::Right => ("right", 1.0),
+        Direction::Left => ("left", -1.0),
+    };
+    let expected = format!(
+        "{name}: mean velocity {}{} mm/s or more over {}",
+        if sign > 0.0 { "+" } else { "-" },
+        sig(min_speed * 1e3),
+        window(between)
+    );
+    let v = (x_at(samples, between[1]) - x_at(samples, between[0])) / (between[1] - between[0]);
+    let pass = v * sign >= min_speed && v * sign > 0.0;
+    (pass, expected, format!("{:+.2} mm/s", v * 1e3))
+}
+
+/// The rotors' measured speeds at every tick of the window.
+fn judge_speed(
+    rotors: &[usize],
+    range_rpm: [f64; 2],
+    between: [f64; 2],
+    ticks: &[Tick],
+) -> Verdict {
+    let names: Vec<String> = rotors.iter().map(|r| (r + 1).to_string()).collect();
+    let expected = format!(
+        "rotor {} in [{}, {}] rpm at every tick in {}",
+        names.join(" and "),
+        sig(range_rpm[0]),
+        sig(range_rpm[1]),
+        window(between)
+    );
+    let mut parts = Vec::new();
+    let mut pass = true;
+    for &r in rotors {
+        let speeds: Vec<(f64, f64)> = ticks_in(ticks, between)
+            .map(|k| (k.t, f64::from(k.out.telemetry.speed_rpm[r])))
+            .collect();
+        if speeds.is_empty() {
+            return (false, expected, none_in(between));
+        }
+        let lo = speeds.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
+        let hi = speeds.iter().map(|s| s.1).fold(f64::NEG_INFINITY, f64::max);
+        let mut part = format!("rotor {}: {:.1} to {:.1} rpm", r + 1, lo, hi);
+        let out = speeds
+            .iter()
+            .find(|s| !(s.1 >= range_rpm[0] && s.1 <= range_rpm[1]));
+        if let Some(s) = out {
+            pass = false;
+            part.push_str(&format!(" (first out at {} s: {:.1})", sig(s.0), s.1));
+        }
+        parts.push(part);
+    }
+    (pass, expected, parts.join("; "))
+}
+
+/// The measured phase offset at some tick, or at every tick, of the window.
+fn judge_phase(range_deg: [f64; 2], when: &When, ticks: &[Tick]) -> Verdict {
+    let expected = format!(
+        "offset in [{}, {}] deg {}",
+        sig(range_deg[0]),
+        sig(range_deg[1]),
+        when.describe()
+    );
+    let offset = |k: &Tick| {
+        k.out
+            .telemetry
+            .phase_valid
+            .then_some(f64::from(k.out.telemetry.phase_offset_deg))
+    };
+    let (pass, measured) = match when {
+        When::Within(w) => {
+            let hit = ticks_in(ticks, *w).find_map(|k| {
+                offset(k)
+                    .filter(|o| in_phase_range(*o, range_deg))
+                    .map(|o| (k.t, o))
+            });
+            match hit {
+                Some((t, o)) => (true, format!("{o:.1} deg at {} s", sig(t))),
+                None => (false, "never in the range in the window".to_string()),
+            }
+        }
+        When::Between(w) => {
+            let inside: Vec<&Tick> = ticks_in(ticks, *w).collect();
+            let bad = inside
+                .iter()
+                .find(|k| !offset(k).is_some_and(|o| in_phase_range(o, range_deg)));
+            match (inside.first(), bad) {
+                (None, _) => (false, none_in(*w)),
+                (_, Some(k)) => match offset(k) {
+                    Some(o) => (false, format!("{o:.1} deg at {} s", sig(k.t))),
+                    None => (
+                        false,
+                        format!("not measured at {} s (no index yet)", sig(k.t)),
+                    ),
+                },
+                (Some(first), None) => {
+                    let last = inside.last().map_or(first, |k| k);
+                    (
+                        true,
+                        format!(
+                            "in range throughout ({:.1} deg at {} s, {:.1} deg at {} s)",
+                            offset(first).unwrap_or(0.0),
+                            sig(first.t),
+                            offset(last).unwrap_or(0.0),
+                            sig(last.t)
+                        ),
+                    )
+                }
+            }
+        }
+    };
+    (pass, expected, measured)
+}
+
+/// The fault newly latched in the window, and safe outputs while it stays latched.
+fn judge_fault(fault: Faults, name: &str, within: [f64; 2], ticks: &[Tick], t_end: f64) -> Verdict {
+    let expected = format!(
+        "{name} latched at some tick in {}, outputs safe while latched",
+        window(within)
+    );
+    // Rising edges of the flag.
+    let edges: Vec<usize> = (0..ticks.len())
+        .filter(|&i| {
+            ticks[i].out.faults.contains(fault)
+                && (i == 0 || !ticks[i - 1].out.faults.contains(fault))
+        })
+        .collect();
+    let Some(&i) = edges.iter().find(|&&i| in_window(ticks[i].t, within)) else {
+        let elsewhere = match edges.first() {
+            Some(&i) => format!(" (latched at {} s)", sig(ticks[i].t)),
+            None => format!(" (never latched; faults seen: {})", faults_seen(ticks)),
+        };
+        return (
+            false,
+            expected,
+            format!("not latched in the window{elsewhere}"),
+        );
+    };
+    let held: Vec<&Tick> = ticks[i..]
+        .iter()
+        .take_while(|k| k.out.faults.contains(fault))
+        .collect();
+    let latched = format!("latched at {} s", sig(ticks[i].t));
+    match held.iter().find(|k| !is_safe(&k.out)) {
+        Some(k) => (
+            false,
+            expected,
+            format!(
+                "{latched}, but not safe at {} s (enable {}, duty [{:.3}, {:.3}])",
+                sig(k.t),
+                k.out.enable,
+                k.out.duty[0],
+                k.out.duty[1]
+            ),
+        ),
+        None => {
+            let until = match ticks.get(i + held.len()) {
+                Some(k) => format!("until cleared at {} s", sig(k.t)),
+                None => format!("to the end ({} s)", sig(t_end)),
+            };
+            (true, expected, format!("{latched}, safe {until}"))
+        }
+    }
+}
+
+/// No fault at any tick of the window.
+fn judge_no_fault(w: [f64; 2], ticks: &[Tick]) -> Verdict {
+    let expected = format!("no fault at any tick in {}", window(w));
+    match ticks_in(ticks, w).find(|k| !k.out.faults.is_empty()) {
+        Some(k) => (
+            false,
+            expected,
+            format!("{} at {} s", k.out.faults, sig(k.t)),
+        ),
+        None => (true, expected, "none".to_string()),
+    }
+}
+
+/// Safe outputs at every tick of the window.
+fn judge_safe(between: [f64; 2], ticks: &[Tick]) -> Verdict {
+    let expected = format!("enable off and duty 0 at every tick in {}", window(between));
+    let mut inside = ticks_in(ticks, between).peekable();
+    if inside.peek().is_none() {
+        return (false, expected, none_in(between));
+    }
+    match inside.find(|k| !is_safe(&k.out)) {
+        Some(k) => (
+            false,
+            expected,
+            format!(
+                "{} at {} s: enable {}, duty [{:.3}, {:.3}]",
+                k.out.state.name(),
+                sig(k.t),
+                k.out.enable,
+                k.out.duty[0],
+                k.out.duty[1]
+            ),
+        ),
+        None => (true, expected, "safe throughout".to_string()),
+    }
+}
+
+/// The states of `ticks` in order of appearance, each with the time it first
+/// shows: `starting (0 s), running (0.71 s)`.
+fn states_seen<'a>(ticks: impl Iterator<Item = &'a Tick>) -> String {
+    let mut seen: Vec<(State, f64)> = Vec::new();
+    for k in ticks {
+        if seen.last().is_none_or(|s| s.0 != k.out.state) {
+            seen.push((k.out.state, k.t));
+        }
+    }
+    if seen.is_empty() {
+        return "none (no control tick)".to_string();
+    }
+    seen.iter()
+        .map(|(s, t)| format!("{} ({} s)", s.name(), sig(*t)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Every fault latched during the run, with the time it was first latched.
+fn faults_seen(ticks: &[Tick]) -> String {
+    let mut seen: Vec<String> = Vec::new();
+    let mut before = Faults::NONE;
+    for k in ticks {
+        for name in k.out.faults.without(before).names() {
+            seen.push(format!("{name} at {} s", sig(k.t)));
+        }
+        before = k.out.faults;
+    }
+    if seen.is_empty() {
+        "none".to_string()
+    } else {
+        seen.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The directory of the reference machine.
+    fn examples() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
+    }
+
+    /// A scenario on the reference machine with `body` appended.
+    fn parse(body: &str) -> Result<Scenario, Vec<String>> {
+        let text = format!("machine = \"vibro-driver.toml\"\n{body}");
+        from_text("s.toml", &text, &examples())
+            .map_err(|ps| ps.iter().map(|p| p.to_string()).collect())
+    }
+
+    #[test]
+    fn a_scenario_reads_with_its_defaults() {
+        let s = parse(
+            "[[commands]]\nt = 1.0\ncommand = \"hold\"\noffset_deg = -90\n\
+             [[commands]]\nt = 0.0\ncommand = \"left\"\n\
+             [[faults]]\nt = 2.0\nkind = \"current_offset\"\nrotor = 2\namps = -1.5\nduration = 0.5\n\
+             [[expect]]\nkind = \"safe\"\nfrom = 9.0\n\
+             [[expect]]\nkind = \"travel\"\ndirection = \"left\"\nbetween = [1.0, 2.0]\n",
+        )
+        .unwrap();
+        // t_end and the speed from the machine; commands in time order.
+        assert_eq!(s.t_end, 10.0);
+        assert_eq!(s.commands[0].name, "left");
+        assert_eq!(
+            s.commands[0].command,
+            Command::Travel {
+                direction: Direction::Left,
+                speed_rpm: 3000.0
+            }
+        );
+        assert_eq!(
+            s.commands[1].command,
+            Command::HoldOffset {
+                speed_rpm: 3000.0,
+                offset_deg: 270.0
+            }
+        );
+        assert_eq!(s.faults[0].until, Some(2.5));
+        assert_eq!(
+            s.faults[0].fault,
+            InjectedFault::CurrentOffset {
+                rotor: 1,
+                amps: -1.5
+            }
+        );
+        assert_eq!(
+            s.expectations[0].1,
+            Expectation::Safe {
+                between: [9.0, 10.0]
+            }
+        );
+        assert_eq!(
+            s.expectations[1].1,
+            Expectation::Travel {
+                direction: Direction::Left,
+                between: [1.0, 2.0],
+                min_speed: DEFAULT_MIN_TRAVEL_SPEED
+            }
+        );
+    }
+
+    #[test]
+    fn every_problem_is_reported_with_its_key_path() {
+        let e = parse(
+            "t_end = 2.0\nset = [\"simulation.seed=2\"]\n\
+             [[commands]]\nt = 0.0\ncommand = \"rigth\"\n\
+             [[commands]]\nt = 0.5\ncommand = \"stop\"\n\
+             [[commands]]\nt = 0.4996\ncommand = \"reset\"\n\
+             [[commands]]\nt = 3.0\ncommand = \"heartbeat\"\n\
+             [[faults]]\nt = 1.0\nkind = \"encodr\"\n\
+             [[faults]]\nt = 1.0\nknd = \"estop\"\n\
+             [[expect]]\nkind = \"fault\"\nfault = \"encoder\"\nwithin = [1.0, 5.0]\n\
+             [[expect]]\nkind = \"state\"\nstate = \"idle\"\n\
+             [[expect]]\nkind = \"travel\"\ndirection = \"up\"\nbetween = [1.0, 1.0]\n",
+        )
+        .unwrap_err();
+        let expected = [
+            "s.toml: commands[0].command: unknown value \"rigth\"; did you mean \"right\"?",
+            "s.toml: faults[0].kind: unknown value \"encodr\"; did you mean \"encoder_dropout\"?",
+            "s.toml: faults[1].kind: missing",
+            "s.toml: faults[1].knd: unknown key; did you mean `kind`?",
+            "s.toml: expect[1]: missing `within = [t0, t1]`",
+            "s.toml: expect[2].direction: unknown value \"up\"",
+            "s.toml: expect[2].between: must be [t0, t1] with t0 < t1",
+            "s.toml: commands[2].t: 0.4996 s falls on the same control tick as commands[1].t = 0.5 s",
+            "s.toml: commands[3].t: must be before the end, t_end = 2 s (got 3)",
+            "s.toml: expect[0].within: must lie within the run, [0, 2] s",
+        ];
+        for x in expected {
+            assert!(e.iter().any(|l| l.contains(x)), "missing {x:?} in {e:#?}");
+        }
+        assert_eq!(e.len(), expected.len(), "{e:#?}");
+    }
+
+    #[test]
+    fn a_scenario_needs_a_machine_and_an_expectation() {
+        let e = from_text("s.toml", "t_end = 1\n", &examples()).unwrap_err();
+        let e: Vec<String> = e.iter().map(|p| p.to_string()).collect();
+        assert!(e[0].contains("machine: missing"), "{e:?}");
+        assert!(e[1].contains("expect: is missing"), "{e:?}");
+        let e = parse("[[expect]]\nkind = \"no_fault\"\n").map(|_| ());
+        assert!(e.is_ok(), "{e:?}");
+        let e = from_text(
+            "s.toml",
+            "machine = \"none.toml\"\n[[expect]]\nkind = \"no_fault\"\n",
+            &examples(),
+        )
+        .unwrap_err();
+        assert!(e[0].to_string().contains("machine: no such file"), "{e:?}");
+    }
+
+    #[test]
+    fn an_injection_holds_from_its_tick_to_its_end() {
+        let f = Injection {
+            t: 2.0,
+            until: Some(2.5),
+            fault: InjectedFault::Estop,
+            key: "faults[0]".into(),
+        };
+        assert!(!f.active(1.999));
+        assert!(f.active(2000.0 / 1000.0));
+        assert!(f.active(2.499));
+        assert!(!f.active(2500.0 / 1000.0));
+        let forever = Injection { until: None, ..f };
+        assert!(forever.active(1e9));
+    }
+
+    #[test]
+    fn phase_ranges_are_circular() {
+        assert!(in_phase_range(355.0, [350.0, 370.0]));
+        assert!(in_phase_range(5.0, [350.0, 370.0]));
+        assert!(!in_phase_range(15.0, [350.0, 370.0]));
+        assert!(in_phase_range(90.0, [80.0, 100.0]));
+        assert!(!in_phase_range(270.0, [80.0, 100.0]));
+    }
+
+    #[test]
+    fn x_is_interpolated_between_samples() {
+        let s = [(0.0, 0.0), (1.0, 2.0), (2.0, 2.0)];
+        assert_eq!(x_at(&s, 0.5), 1.0);
+        assert_eq!(x_at(&s, 1.0), 2.0);
+        assert_eq!(x_at(&s, 5.0), 2.0);
+        assert_eq!(x_at(&s, -1.0), 0.0);
+    }
+
+    /// Expectations of every kind that this short run breaks, and some it keeps:
+    /// each is judged, none panics, and the failures say what was measured.
+    #[test]
+    fn every_kind_of_expectation_can_fail() {
+        let s = parse(
+            "t_end = 1.0\n\
+             [[commands]]\nt = 0.0\ncommand = \"right\"\n\
+             [[faults]]\nt = 0.9\nkind = \"estop\"\n\
+             [[expect]]\nkind = \"state\"\nstate = \"running\"\nwithin = [0.0, 0.5]\n\
+             [[expect]]\nkind = \"state\"\nstate = \"starting\"\nbetween = [0.0, 0.8]\n\
+             [[expect]]\nkind = \"travel\"\ndirection = \"left\"\nbetween = [0.8, 0.9]\n\
+             [[expect]]\nkind = \"speed\"\nrotor = 2\nrange_rpm = [2900, 3100]\nbetween = [0.1, 0.2]\n\
+             [[expect]]\nkind = \"phase\"\nrange_deg = [170, 190]\nbetween = [0.0, 0.1]\n\
+             [[expect]]\nkind = \"fault\"\nfault = \"stall\"\nwithin = [0.0, 1.0]\n\
+             [[expect]]\nkind = \"no_fault\"\n\
+             [[expect]]\nkind = \"safe\"\nfrom = 0.5\n\
+             [[expect]]\nkind = \"fault\"\nfault = \"estop\"\nwithin = [0.9, 0.9]\n\
+             [[expect]]\nkind = \"no_fault\"\nbetween = [0.0, 0.899]\n",
+        )
+        .unwrap();
+        let r = run(&s).unwrap();
+        let got: Vec<(bool, &str)> = r
+            .outcomes
+            .iter()
+            .map(|o| (o.pass, o.measured.as_str()))
+            .collect();
+        let expected = [
+            (false, "not reached; states in the window: starting (0 s)"),
+            (false, "running at 0.71 s"),
+            (false, "+"),
+            (false, "rotor 2: "),
+            (false, "not measured at 0 s (no index yet)"),
+            (
+                false,
+                "not latched in the window (never latched; faults seen: estop at 0.9 s)",
+            ),
+            (false, "estop at 0.9 s"),
+            (false, "starting at 0.5 s: enable true, duty [0.491, 0.478]"),
+            (true, "latched at 0.9 s, safe to the end (1 s)"),
+            (true, "none"),
+        ];
+        assert_eq!(got.len(), expected.len());
+        for ((pass, measured), (want_pass, want)) in got.iter().zip(expected) {
+            assert_eq!(*pass, want_pass, "{measured}");
+            assert!(measured.starts_with(want), "{measured:?} vs {want:?}");
+        }
+        assert!(!r.passed());
+        assert_eq!(r.detections[0].latched, Some((vec!["estop".into()], 0.9)));
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Scenario files stitched from valid and broken lines are judged, never
+        /// a panic.
+        #[test]
+        fn reading_never_panics(lines in proptest::collection::vec(0usize..24, 0..14)) {
+            const LINES: [&str; 24] = [
+                "t_end = 1.0", "t_end = -1", "set = [1]", "set = [\"x\"]",
+                "[[commands]]", "t = 0.5", "t = nan", "command = \"hold\"",
+                "command = \"right\"", "speed_rpm = 1e9", "offset_deg = \"x\"",
+                "[[faults]]", "kind = \"jammed_rotor\"", "rotor = 2.5", "duration = 0",
+                "[[expect]]", "kind = \"phase\"", "range_deg = [1]",
+                "within = [0.5, 0.2]", "between = [0, 1]", "from = 2",
+                "kind = \"safe\"", "[expect]", "expect = 3",
+            ];
+            let body: Vec<&str> = lines.iter().map(|&i| LINES[i]).collect();
+            let _ = parse(&body.join("\n"));
+        }
+    }
+}

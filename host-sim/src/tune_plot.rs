@@ -1,0 +1,415 @@
+//! `host-sim tune --plot`: the sweep as a self-contained SVG figure for people.
+//!
+//! One panel: mean velocity (mm/s) against phase offset (degrees, 0 to 360, ticks
+//! every 45), one line per speed, in the style of `host-sim run --plot`
+//! ([`crate::plot`]): sans-serif text, ticks at "nice" values, a darker zero line,
+//! a legend. When the offsets go round the turn, each line is closed at 360 with
+//! its value at 0. The best offsets are marked on their line's colour: a filled
+//! triangle pointing up for rightward travel, an open one pointing down for
+//! leftward travel; a run that did not hold its offset is drawn as a grey ring.
+//! Values that are not finite break the line and are never written.
+
+use std::fmt::Write as _;
+
+use crate::tune_command::{Best, Tuning};
+
+/// Figure width, px.
+const WIDTH: f64 = 960.0;
+/// Figure height, px.
+const HEIGHT: f64 = 600.0;
+/// Left margin: tick labels and the rotated axis label.
+const LEFT: f64 = 86.0;
+/// Right margin: the legend.
+const RIGHT: f64 = 190.0;
+/// Top margin: title and subtitle.
+const TOP: f64 = 66.0;
+/// Bottom margin: offset tick labels and the axis label.
+const BOTTOM: f64 = 56.0;
+
+/// Line colours, one per speed, in turn (the common categorical palette).
+const COLORS: [&str; 10] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf",
+];
+
+/// Text with `&`, `<`, `>`, `"`, `'` escaped for XML (control characters blanked).
+fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            c if (c as u32) < 0x20 && !matches!(c, '\t' | '\n' | '\r') => out.push(' '),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A tick step near `span / target`: 1, 2, 2.5 or 5 times a power of ten.
+fn nice_step(span: f64, target: f64) -> f64 {
+    let raw = span / target;
+    let magnitude = 10f64.powf(raw.log10().floor());
+    let f = raw / magnitude;
+    let nice = [1.0, 2.0, 2.5, 5.0]
+        .into_iter()
+        .find(|n| f <= *n)
+        .unwrap_or(10.0);
+    nice * magnitude
+}
+
+/// The value axis for the finite values: bounds on whole ticks, always
+/// including 0 (the sign of travel is the point), and the step.
+fn value_axis(values: impl Iterator<Item = f64>) -> ((f64, f64), f64) {
+    let (mut lo, mut hi) = values
+        .filter(|v| v.is_finite())
+        .fold((0.0f64, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    if !(hi - lo).is_finite() || hi - lo <= 0.0 {
+        (lo, hi) = (-1.0, 1.0);
+    }
+    let step = nice_step(hi - lo, 6.0);
+    (
+        ((lo / step).floor() * step, (hi / step).ceil() * step),
+        step,
+    )
+}
+
+/// The values `lo, lo + step, ...` up to `hi`, at most 100.
+fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+    let first = (lo / step - 1e-9).ceil();
+    (0..100)
+        .map(|i| (first + f64::from(i)) * step)
+        .take_while(|v| *v <= hi + step * 1e-9)
+        .collect()
+}
+
+/// A tick label with as many decimals as the step needs, never `-0`.
+fn tick_label(v: f64, step: f64) -> String {
+    let decimals = (0..=6usize)
+        .find(|d| {
+            let scaled = step * 10f64.powi(*d as i32);
+            (scaled - scaled.round()).abs() < 1e-6 * scaled.max(1.0)
+        })
+        .unwrap_or(6);
+    let s = format!("{v:.decimals$}");
+    if s.trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
+        s.trim_start_matches('-').to_string()
+    } else {
+        s
+    }
+}
+
+/// A linear map from `from` values to `to` pixels, clamped to a band around the
+/// figure so that an absurd value cannot write an absurdly long number.
+fn map(v: f64, from: (f64, f64), to: (f64, f64)) -> f64 {
+    (to.0 + (v - from.0) / (from.1 - from.0) * (to.1 - to.0)).clamp(-1e5, 1e5)
+}
+
+/// A triangle marker centred at `(x, y)`: pointing up (`up`) or down.
+fn triangle(x: f64, y: f64, up: bool) -> String {
+    let (tip, base) = if up { (-6.0, 4.0) } else { (6.0, -4.0) };
+    format!(
+        "{:.1},{:.1} {:.1},{:.1} {:.1},{:.1}",
+        x,
+        y + tip,
+        x - 5.5,
+        y + base,
+        x + 5.5,
+        y + base
+    )
+}
+
+/// The figure of a sweep, with `title` on top. Returns a complete SVG document.
+pub fn plot_svg(t: &Tuning, title: &str) -> String {
+    let g = &t.grid;
+    let n = g.offsets_deg.len();
+    let (left, right) = (LEFT, WIDTH - RIGHT);
+    let (top, bottom) = (TOP, HEIGHT - BOTTOM);
+    let x_of = |o: f64| map(o, (0.0, 360.0), (left, right));
+
+    // The value axis, in mm/s.
+    let values = t
+        .runs
+        .iter()
+        .map(|r| r.mean_velocity)
+        .chain(t.right.iter().chain(&t.left).map(|b| b.mean_velocity))
+        .map(|v| v * 1e3);
+    let ((lo, hi), step) = value_axis(values);
+    let y_of = |v: f64| map(v * 1e3, (lo, hi), (bottom, top));
+
+    let mut svg = String::new();
+    let _ = writeln!(
+        svg,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" fill="#222">"##
+    );
+    let _ = writeln!(svg, "<title>{}</title>", escape(title));
+    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        svg,
+        r#"<text x="{LEFT}" y="26" font-size="17" font-weight="bold">{}</text>"#,
+        escape(title)
+    );
+    let subtitle = format!(
+        "{} runs of {} s, each holding its offset from t = 0; mean velocity over the second half; positive = right",
+        t.run_count,
+        crate::text::sig(g.t_end)
+    );
+    let _ = writeln!(
+        svg,
+        r##"<text x="{LEFT}" y="46" font-size="12" fill="#555">{}</text>"##,
+        escape(&subtitle)
+    );
+
+    // Frame, grid lines and ticks.
+    let _ = writeln!(
+        svg,
+        r##"<rect x="{left:.1}" y="{top:.1}" width="{:.1}" height="{:.1}" fill="#fbfbfb" stroke="#999" stroke-width="1"/>"##,
+        right - left,
+        bottom - top
+    );
+    for v in ticks(lo, hi, step) {
+        let py = map(v, (lo, hi), (bottom, top));
+        let colour = if v.abs() < step * 1e-9 {
+            "#888"
+        } else {
+            "#e3e3e3"
+        };
+        let _ = writeln!(
+            svg,
+            r#"<line x1="{left:.1}" y1="{py:.1}" x2="{right:.1}" y2="{py:.1}" stroke="{colour}" stroke-width="1"/><text x="{:.1}" y="{:.1}" font-size="11" text-anchor="end">{}</text>"#,
+            left - 6.0,
+            py + 4.0,
+            tick_label(v, step)
+        );
+    }
+    for o in ticks(0.0, 360.0, 45.0) {
+        let px = x_of(o);
+        let _ = writeln!(
+            svg,
+            r##"<line x1="{px:.1}" y1="{top:.1}" x2="{px:.1}" y2="{bottom:.1}" stroke="#e3e3e3" stroke-width="1"/><text x="{px:.1}" y="{:.1}" font-size="11" text-anchor="middle">{}</text>"##,
+            bottom + 16.0,
+            tick_label(o, 45.0)
+        );
+    }
+    let mid = (top + bottom) / 2.0;
+    let _ = writeln!(
+        svg,
+        r#"<text x="22" y="{mid:.1}" font-size="12" text-anchor="middle" transform="rotate(-90 22 {mid:.1})">mean velocity (mm/s)</text>"#
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text x="{:.1}" y="{:.1}" font-size="12" text-anchor="middle">phase offset theta1 - theta2 (deg)</text>"#,
+        (left + right) / 2.0,
+        bottom + 38.0
+    );
+
+    // One line per speed, closed at 360 when the offsets go round the turn.
+    let circular = g.circular() && g.offsets_deg.first() == Some(&0.0);
+    let mut rings = String::new();
+    // The best offsets are drawn last, over every line.
+    let mut bests = String::new();
+    for (k, speed) in g.speeds_rpm.iter().enumerate() {
+        let colour = COLORS[k % COLORS.len()];
+        let dash = if k >= COLORS.len() {
+            r#" stroke-dasharray="6 3""#
+        } else {
+            ""
+        };
+        let row = &t.runs[k * n..(k + 1) * n];
+        let mut points: Vec<(f64, f64)> = row
+            .iter()
+            .map(|r| (r.offset_deg, r.mean_velocity))
+            .collect();
+        if circular {
+            points.push((360.0, row[0].mean_velocity));
+        }
+        let mut runs: Vec<String> = vec![String::new()];
+        for (o, v) in points {
+            if !v.is_finite() {
+                runs.push(String::new());
+                continue;
+            }
+            if let Some(last) = runs.last_mut() {
+                if !last.is_empty() {
+                    last.push(' ');
+                }
+                let _ = write!(last, "{:.1},{:.1}", x_of(o), y_of(v));
+            }
+        }
+        for pts in runs.iter().filter(|p| !p.is_empty()) {
+            let _ = writeln!(
+                svg,
+                r#"<polyline points="{pts}" fill="none" stroke="{colour}" stroke-width="1.6" stroke-linejoin="round"{dash}/>"#
+            );
+        }
+        for r in row.iter().filter(|r| r.mean_velocity.is_finite()) {
+            let (px, py) = (x_of(r.offset_deg), y_of(r.mean_velocity));
+            if r.not_held.is_some() {
+                let _ = writeln!(
+                    rings,
+                    r##"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="#777" stroke-width="1.5"/>"##
+                );
+            } else {
+                let _ = writeln!(
+                    svg,
+                    r#"<circle cx="{px:.1}" cy="{py:.1}" r="2" fill="{colour}"/>"#
+                );
+            }
+        }
+
+        // The best offsets of this speed.
+        let marks = |list: &[Best], up: bool, svg: &mut String| {
+            for b in list.iter().filter(|b| b.speed_rpm == *speed) {
+                if !(b.offset_deg.is_finite() && b.mean_velocity.is_finite()) {
+                    continue;
+                }
+                let fill = if up { colour } else { "white" };
+                let _ = writeln!(
+                    svg,
+                    r#"<polygon points="{}" fill="{fill}" stroke="{colour}" stroke-width="1.5"/>"#,
+                    triangle(x_of(b.offset_deg), y_of(b.mean_velocity), up)
+                );
+            }
+        };
+        marks(&t.right, true, &mut bests);
+        marks(&t.left, false, &mut bests);
+    }
+    svg.push_str(&rings);
+    svg.push_str(&bests);
+
+    // The legend, right of the plot.
+    let lx = right + 18.0;
+    let mut ly = top + 12.0;
+    for (k, speed) in g.speeds_rpm.iter().enumerate() {
+        let colour = COLORS[k % COLORS.len()];
+        let dash = if k >= COLORS.len() {
+            r#" stroke-dasharray="6 3""#
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            svg,
+            r#"<line x1="{lx:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="{colour}" stroke-width="2.5"{dash}/><text x="{:.1}" y="{ly:.1}" font-size="12">{} rpm</text>"#,
+            ly - 4.0,
+            lx + 20.0,
+            ly - 4.0,
+            lx + 26.0,
+            crate::text::sig(*speed)
+        );
+        ly += 18.0;
+    }
+    ly += 8.0;
+    for (text, up) in [("best right", true), ("best left", false)] {
+        let fill = if up { "#444" } else { "white" };
+        let _ = writeln!(
+            svg,
+            r##"<polygon points="{}" fill="{fill}" stroke="#444" stroke-width="1.5"/><text x="{:.1}" y="{ly:.1}" font-size="12">{text}</text>"##,
+            triangle(lx + 10.0, ly - 4.0, up),
+            lx + 26.0
+        );
+        ly += 18.0;
+    }
+    if t.runs.iter().any(|r| r.not_held.is_some()) {
+        let _ = writeln!(
+            svg,
+            r##"<circle cx="{:.1}" cy="{:.1}" r="5" fill="none" stroke="#777" stroke-width="1.5"/><text x="{:.1}" y="{ly:.1}" font-size="12">offset not held</text>"##,
+            lx + 10.0,
+            ly - 4.0,
+            lx + 26.0
+        );
+    }
+    svg.push_str("</svg>\n");
+    svg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tune_command::{Grid, Refinement, RunOutcome};
+
+    fn tuning(v: impl Fn(f64, f64) -> f64) -> Tuning {
+        let grid = Grid {
+            speeds_rpm: vec![2500.0, 3000.0],
+            offsets_deg: (0..8).map(|i| f64::from(i) * 45.0).collect(),
+            t_end: 4.0,
+        };
+        let runs: Vec<RunOutcome> = grid
+            .points()
+            .into_iter()
+            .map(|(s, o)| RunOutcome {
+                speed_rpm: s,
+                offset_deg: o,
+                mean_velocity: v(s, o),
+                not_held: (o == 180.0).then(|| "ended `fault`".to_string()),
+                plant_warnings: vec![],
+            })
+            .collect();
+        let best = |o: f64| Best {
+            speed_rpm: 3000.0,
+            offset_deg: o,
+            mean_velocity: v(3000.0, o),
+            grid_offset_deg: o,
+            grid_mean_velocity: v(3000.0, o),
+            refinement: Refinement::Parabola,
+        };
+        Tuning {
+            run_count: runs.len(),
+            grid,
+            runs,
+            right: vec![best(90.0)],
+            left: vec![best(270.0)],
+            warnings: vec![],
+        }
+    }
+
+    #[test]
+    fn the_figure_is_well_formed_and_labelled() {
+        let t = tuning(|s, o| s * 1e-5 * o.to_radians().sin());
+        let svg = plot_svg(&t, "tune <reference> & co");
+        let doc = roxmltree::Document::parse(&svg).expect("well-formed XML");
+        assert_eq!(doc.root_element().tag_name().name(), "svg");
+        for label in [
+            "2500 rpm",
+            "3000 rpm",
+            "best right",
+            "best left",
+            "offset not held",
+            "mean velocity (mm/s)",
+            "phase offset theta1 - theta2 (deg)",
+            "tune &lt;reference&gt; &amp; co",
+        ] {
+            assert!(svg.contains(label), "no {label}");
+        }
+        // One closed line per speed, two best marks plus two legend marks.
+        assert_eq!(svg.matches("<polyline").count(), 2);
+        assert_eq!(svg.matches("<polygon").count(), 4);
+    }
+
+    #[test]
+    fn non_finite_values_break_lines_and_are_not_written() {
+        let t = tuning(|_, o| if o == 90.0 { f64::NAN } else { 0.01 });
+        let svg = plot_svg(&t, "gaps");
+        roxmltree::Document::parse(&svg).expect("well-formed XML");
+        for bad in ["NaN", "nan", "inf"] {
+            assert!(!svg.contains(bad), "{bad} written");
+        }
+        let t = tuning(|_, _| f64::NAN);
+        let svg = plot_svg(&t, "all gaps");
+        roxmltree::Document::parse(&svg).expect("well-formed XML");
+        assert!(!svg.contains("NaN"));
+    }
+
+    #[test]
+    fn the_value_axis_includes_zero() {
+        assert_eq!(value_axis([12.0, 31.0].into_iter()), ((0.0, 40.0), 10.0));
+        assert_eq!(value_axis([-30.0, 30.0].into_iter()), ((-30.0, 30.0), 10.0));
+        assert_eq!(value_axis(std::iter::empty()), ((-1.0, 1.0), 0.5));
+        assert_eq!(tick_label(-1e-17, 0.5), "0.0");
+    }
+}

@@ -1,0 +1,289 @@
+//! `host-sim tune` through the real binary: the spec's JSON on a tiny grid, the
+//! same output on one and on two threads, best offsets on the right side of the
+//! vertical for the reference machine, a `--write` table that a machine file can
+//! name, and clear refusals (exit 2, no panic) of bad options.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use host_sim::closed_loop;
+use host_sim::machine::Machine;
+use host_sim::tuning_file;
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn machine() -> PathBuf {
+    root().join("examples/vibro-driver.toml")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-sim-cli-tune-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+struct Run {
+    status: i32,
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs `host-sim` with `args` on `threads` rayon threads (None: all cores).
+fn run_on(threads: Option<usize>, args: &[&str]) -> Run {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_host-sim"));
+    cmd.args(args);
+    match threads {
+        Some(n) => cmd.env("RAYON_NUM_THREADS", n.to_string()),
+        None => cmd.env_remove("RAYON_NUM_THREADS"),
+    };
+    let out = cmd.output().expect("host-sim runs");
+    let run = Run {
+        status: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    };
+    assert!(
+        !run.stderr.contains("panicked") && !run.stderr.contains("backtrace"),
+        "{}",
+        run.stderr
+    );
+    run
+}
+
+fn keys(v: &Value) -> Vec<&str> {
+    v.as_object()
+        .expect("an object")
+        .keys()
+        .map(String::as_str)
+        .collect()
+}
+
+/// The tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0 and runs once).
+/// 4 s, not less: the offset reference ramps at 180 deg/s and passes 180 on its
+/// way to 270, holding it from 1.7 s on, and `mean_velocity` is over the second
+/// half (from 2 s).
+fn tiny(threads: usize, write: &Path, plot: &Path) -> Run {
+    let m = machine();
+    run_on(
+        Some(threads),
+        &[
+            "tune",
+            m.to_str().unwrap(),
+            "--speeds",
+            "2750:3000:250",
+            "--offsets",
+            "0:360:90",
+            "--t-end",
+            "4",
+            "--format",
+            "json",
+            "--write",
+            write.to_str().unwrap(),
+            "--plot",
+            plot.to_str().unwrap(),
+        ],
+    )
+}
+
+#[test]
+fn a_tiny_sweep_gives_the_spec_json_the_same_on_one_and_two_threads() {
+    let (w1, w2) = (scratch("one.tuning.toml"), scratch("two.tuning.toml"));
+    let (p1, p2) = (scratch("one.svg"), scratch("two.svg"));
+    let one = tiny(1, &w1, &p1);
+    let two = tiny(2, &w2, &p2);
+    assert_eq!(one.status, 0, "{}", one.stderr);
+    assert_eq!(two.status, 0, "{}", two.stderr);
+
+    // Determinism: stdout and files byte for byte, whatever the thread count.
+    assert_eq!(one.stdout, two.stdout);
+    // (The header's "regenerate with" command names the file written.)
+    let table = |p: &Path, name: &str| {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .replace(name, "NAME.tuning.toml")
+    };
+    assert_eq!(table(&w1, "one.tuning.toml"), table(&w2, "two.tuning.toml"));
+    assert_eq!(std::fs::read(&p1).unwrap(), std::fs::read(&p2).unwrap());
+    assert!(
+        one.stderr.contains("tune: ") && one.stderr.contains(" runs in "),
+        "{}",
+        one.stderr
+    );
+
+    // The spec's keys (and the documented `warnings`).
+    let doc: Value = serde_json::from_str(&one.stdout).expect("JSON");
+    assert_eq!(keys(&doc), ["grid", "best", "warnings"]);
+    let grid = doc["grid"].as_array().unwrap();
+    assert_eq!(grid.len(), 8, "2 speeds x 4 offsets");
+    for p in grid {
+        assert_eq!(keys(p), ["speed_rpm", "offset_deg", "mean_velocity"]);
+        assert!(p["mean_velocity"].is_f64());
+    }
+    let offsets: Vec<f64> = grid[..4]
+        .iter()
+        .map(|p| p["offset_deg"].as_f64().unwrap())
+        .collect();
+    assert_eq!(offsets, [0.0, 90.0, 180.0, 270.0]);
+    assert_eq!(keys(&doc["best"]), ["right", "left"]);
+    assert!(
+        doc["warnings"].as_array().unwrap().is_empty(),
+        "{}",
+        doc["warnings"]
+    );
+
+    // Best offsets of the reference machine: right in (0, 180) travelling right,
+    // left in (180, 360) travelling left (force along offset / 2: up-and-right
+    // for offsets in (0, 180)).
+    for (way, lo, hi, sign) in [("right", 0.0, 180.0, 1.0), ("left", 180.0, 360.0, -1.0)] {
+        let list = doc["best"][way].as_array().unwrap();
+        assert_eq!(list.len(), 2, "{way}: one per speed");
+        for b in list {
+            assert_eq!(keys(b), ["speed_rpm", "offset_deg", "mean_velocity"]);
+            let o = b["offset_deg"].as_f64().unwrap();
+            let v = b["mean_velocity"].as_f64().unwrap();
+            assert!(o > lo && o < hi, "{way}: offset {o}");
+            assert!(sign * v > 0.005, "{way}: mean velocity {v} m/s");
+        }
+    }
+
+    // The table reads back, the controller takes it, a machine file can name it.
+    let text = std::fs::read_to_string(&w1).unwrap();
+    let rows = tuning_file::parse("one.tuning.toml", &text).expect("a tuning table");
+    assert_eq!(rows.len(), 2);
+    assert_eq!((rows[0].0, rows[1].0), (2750.0, 3000.0));
+    assert!(tuning_file::table(&rows).is_some());
+    assert!(text.starts_with("# "), "a header comment");
+    let machine_text = std::fs::read_to_string(machine())
+        .unwrap()
+        .replace(
+            "# tuning_table = \"vibro-driver.tuning.toml\"",
+            "tuning_table = \"one.tuning.toml\"",
+        )
+        .replace(
+            "tuning_table = \"vibro-driver.tuning.toml\"",
+            "tuning_table = \"one.tuning.toml\"",
+        );
+    let dir = w1.parent().unwrap();
+    let m = Machine::from_text("m.toml", &machine_text, dir, &[]).expect("the machine");
+    assert_eq!(m.controller.tuning_table.as_deref(), Some(w1.as_path()));
+    let params = closed_loop::params(&m).expect("the machine's table loads");
+    assert_eq!(params.tuning.rows().len(), 2);
+
+    // The plot is a well-formed SVG with a line per speed.
+    let svg = std::fs::read_to_string(&p1).unwrap();
+    roxmltree::Document::parse(&svg).expect("well-formed SVG");
+    assert!(svg.contains("2750 rpm") && svg.contains("3000 rpm"));
+}
+
+#[test]
+fn one_point_prints_a_table_and_warns_when_the_run_is_too_short() {
+    let m = machine();
+    let r = run_on(
+        None,
+        &[
+            "tune",
+            m.to_str().unwrap(),
+            "--speeds",
+            "3000",
+            "--offsets",
+            "90",
+            "--t-end",
+            "0.5",
+        ],
+    );
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    for text in [
+        "rpm \\ deg",
+        "best offsets",
+        "* the offset was not held",
+        "3000 rpm, 90 deg: offset not held",
+        "raise --t-end",
+    ] {
+        assert!(r.stdout.contains(text), "no {text:?} in\n{}", r.stdout);
+    }
+}
+
+#[test]
+fn bad_options_exit_2_naming_the_option() {
+    let m = machine();
+    let m = m.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["--speeds", "3500:2500:250"],
+            "--speeds 3500:2500:250: B must be >= A",
+        ),
+        (
+            &["--offsets", "0:360:0"],
+            "--offsets 0:360:0: STEP must be > 0",
+        ),
+        (
+            &["--offsets", "0:360:-15"],
+            "--offsets 0:360:-15: STEP must be > 0",
+        ),
+        (
+            &["--offsets", "nan:360:15"],
+            "--offsets nan:360:15: A, B and STEP must be finite",
+        ),
+        (
+            &["--offsets", "0:360"],
+            "--offsets 0:360: expected A:B:STEP",
+        ),
+        (
+            &["--offsets", "0:720:15"],
+            "--offsets 0:720:15: spans more than one turn",
+        ),
+        (
+            &["--offsets", "0:1e6:1"],
+            "--offsets 0:1e6:1: 1000001 points, at most 10000",
+        ),
+        (
+            &["--speeds", "100:500:100"],
+            "--speeds 100:500:100: 100, 200 rpm outside the controller's speed range",
+        ),
+        (
+            &["--speeds", "1000:4000:1"],
+            "3001 speeds x 24 offsets = 72024 runs, at most 10000",
+        ),
+        (&["--t-end", "0"], "--t-end 0: must be a positive number"),
+        (
+            &["--t-end", "nan"],
+            "--t-end NaN: must be a positive number",
+        ),
+        (
+            &["--speeds", "1000:4200:100", "--write", "x.toml"],
+            "--write: the controller's table holds at most 32 rows",
+        ),
+        (&["--set", "platform.mass=-1"], "platform.mass"),
+    ];
+    for (extra, message) in cases {
+        let mut args = vec!["tune", m];
+        args.extend_from_slice(extra);
+        let r = run_on(None, &args);
+        assert_eq!(r.status, 2, "{args:?}: {}", r.stderr);
+        assert!(r.stderr.contains(message), "{args:?}: {}", r.stderr);
+        assert!(r.stdout.is_empty(), "{args:?}: {}", r.stdout);
+    }
+    // Several problems at once, one line each.
+    let r = run_on(
+        None,
+        &[
+            "tune",
+            m,
+            "--speeds",
+            "x",
+            "--offsets",
+            "1:0:1",
+            "--t-end",
+            "-1",
+        ],
+    );
+    assert_eq!(r.status, 2);
+    assert_eq!(r.stderr.lines().count(), 3, "{}", r.stderr);
+    // A machine file that is not there.
+    let r = run_on(None, &["tune", "no-such-machine.toml"]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("no-such-machine.toml"), "{}", r.stderr);
+}
