@@ -38,8 +38,9 @@
 //! shown their index pulse (the angle `theta_k` is counted from it); until then, and
 //! below [`Params::phase_loop_min_rpm`], the phase loop is open and both rotors get
 //! the same reference. When it closes, the offset reference starts at the measured
-//! offset (no bump) and ramps to the target at [`Params::offset_ramp_deg_s`]; a
-//! change of side (right to left or back) passes 180 degrees, the vertical force
+//! offset (no bump) and ramps to the target along the shorter arc at
+//! [`Params::offset_ramp_deg_s`]; a later change of side (right to left or back,
+//! while running) passes 180 degrees, the vertical force
 //! ([`ramp::OffsetRamp`]). After a fault is reset the controller is idle: only a new
 //! run command starts the motors again, never the reset itself.
 //!
@@ -597,9 +598,13 @@ impl Controller {
         if can_close && !self.phase_closed {
             self.phase_closed = true;
             self.phase_loop.reset();
+            // From the measured offset along the shorter arc: at closing the
+            // rotors are slow (the loop closes at `phase_loop_min_rpm`) and the
+            // platform barely excited, so the through-180 rule of direction
+            // changes would only delay a start to the left by half a turn.
             self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
             let to = self.target_offset();
-            self.offset.retarget(to, true);
+            self.offset.retarget(to, false);
         } else if !can_close && self.phase_closed {
             self.phase_closed = false;
             self.phase_loop.reset();
