@@ -22,6 +22,7 @@
 //! - [`tuning_file`]: the tuning table file (speed -> best offsets);
 //! - [`tune_command`]: `host-sim tune`, the sweep of speed and offset, best offsets;
 //! - [`tune_plot`]: the sweep as an SVG figure for people;
+//! - [`svg`]: text escaping and axis ticks for the SVG figures;
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
@@ -41,6 +42,7 @@ pub mod scenario;
 pub mod scenario_command;
 pub mod simulation;
 pub mod summary;
+pub mod svg;
 pub mod text;
 pub mod trace;
 pub mod tune_command;

@@ -18,6 +18,7 @@
 //! each pixel column, so peaks stay. Values that are not finite break the line and
 //! are never written. Text uses the generic `sans-serif` family: nothing to load.
 
+use crate::svg::{escape, nice_step, tick_label, ticks};
 use std::fmt::Write as _;
 
 use crate::machine::Machine;
@@ -110,43 +111,6 @@ impl Scale {
     }
 }
 
-/// Text with `&`, `<`, `>`, `"`, `'` escaped for XML.
-fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            // XML 1.0 forbids most control characters outright.
-            c if (c as u32) < 0x20 && !matches!(c, '\t' | '\n' | '\r') => out.push(' '),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// A tick step near `span / target` that is 1, 2, 2.5 or 5 times a power of ten.
-fn nice_step(span: f64, target: f64) -> f64 {
-    let raw = span / target;
-    let magnitude = 10f64.powf(raw.log10().floor());
-    let f = raw / magnitude;
-    let nice = if f <= 1.0 {
-        1.0
-    } else if f <= 2.0 {
-        2.0
-    } else if f <= 2.5 {
-        2.5
-    } else if f <= 5.0 {
-        5.0
-    } else {
-        10.0
-    };
-    nice * magnitude
-}
-
 /// The lowest and highest finite value of a panel's lines, if any.
 fn extent<'a>(values: impl Iterator<Item = &'a f64>) -> Option<(f64, f64)> {
     values
@@ -174,37 +138,6 @@ fn value_axis(data: Option<(f64, f64)>) -> ((f64, f64), f64) {
         (((lo / step).floor()) * step, ((hi / step).ceil()) * step),
         step,
     )
-}
-
-/// The values `lo, lo + step, ...` up to `hi`, at most 100.
-fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
-    let first = (lo / step - 1e-9).ceil();
-    (0..100)
-        .map(|i| (first + i as f64) * step)
-        .take_while(|v| *v <= hi + step * 1e-9)
-        .collect()
-}
-
-/// A tick label: as many decimals as the step needs, never `-0`.
-fn tick_label(v: f64, step: f64) -> String {
-    if v.abs() >= 1e6 || step < 1e-6 {
-        return crate::text::sig(v);
-    }
-    let decimals = (0..=6usize)
-        .find(|d| {
-            let scaled = step * 10f64.powi(*d as i32);
-            (scaled - scaled.round()).abs() < 1e-6 * scaled.max(1.0)
-        })
-        .unwrap_or(6);
-    let s = format!("{v:.decimals$}");
-    if s.trim_start_matches('-')
-        .chars()
-        .all(|c| c == '0' || c == '.')
-    {
-        s.trim_start_matches('-').to_string()
-    } else {
-        s
-    }
 }
 
 /// A line's points split into runs to draw: a non-finite point ends a run; with a

@@ -9,6 +9,7 @@
 //! leftward travel; a run that did not hold its offset is drawn as a grey ring.
 //! Values that are not finite break the line and are never written.
 
+use crate::svg::{escape, nice_step, tick_label, ticks};
 use std::fmt::Write as _;
 
 use crate::tune_command::{Best, Tuning};
@@ -32,35 +33,6 @@ const COLORS: [&str; 10] = [
     "#bcbd22", "#17becf",
 ];
 
-/// Text with `&`, `<`, `>`, `"`, `'` escaped for XML (control characters blanked).
-fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c if (c as u32) < 0x20 && !matches!(c, '\t' | '\n' | '\r') => out.push(' '),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// A tick step near `span / target`: 1, 2, 2.5 or 5 times a power of ten.
-fn nice_step(span: f64, target: f64) -> f64 {
-    let raw = span / target;
-    let magnitude = 10f64.powf(raw.log10().floor());
-    let f = raw / magnitude;
-    let nice = [1.0, 2.0, 2.5, 5.0]
-        .into_iter()
-        .find(|n| f <= *n)
-        .unwrap_or(10.0);
-    nice * magnitude
-}
-
 /// The value axis for the finite values: bounds on whole ticks, always
 /// including 0 (the sign of travel is the point), and the step.
 fn value_axis(values: impl Iterator<Item = f64>) -> ((f64, f64), f64) {
@@ -75,34 +47,6 @@ fn value_axis(values: impl Iterator<Item = f64>) -> ((f64, f64), f64) {
         ((lo / step).floor() * step, (hi / step).ceil() * step),
         step,
     )
-}
-
-/// The values `lo, lo + step, ...` up to `hi`, at most 100.
-fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
-    let first = (lo / step - 1e-9).ceil();
-    (0..100)
-        .map(|i| (first + f64::from(i)) * step)
-        .take_while(|v| *v <= hi + step * 1e-9)
-        .collect()
-}
-
-/// A tick label with as many decimals as the step needs, never `-0`.
-fn tick_label(v: f64, step: f64) -> String {
-    let decimals = (0..=6usize)
-        .find(|d| {
-            let scaled = step * 10f64.powi(*d as i32);
-            (scaled - scaled.round()).abs() < 1e-6 * scaled.max(1.0)
-        })
-        .unwrap_or(6);
-    let s = format!("{v:.decimals$}");
-    if s.trim_start_matches('-')
-        .chars()
-        .all(|c| c == '0' || c == '.')
-    {
-        s.trim_start_matches('-').to_string()
-    } else {
-        s
-    }
 }
 
 /// A linear map from `from` values to `to` pixels, clamped to a band around the
