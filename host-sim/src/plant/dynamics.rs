@@ -68,7 +68,7 @@ pub fn rotate(angle_cs: (f64, f64), v: [f64; 2]) -> [f64; 2] {
 }
 
 /// A contact point's kinematics at a state.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct ContactKinematics {
     /// Normal Jacobian row: `u_n = j_n . q'`.
     pub j_n: [f64; DOF],

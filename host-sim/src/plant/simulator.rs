@@ -321,9 +321,18 @@ impl Plant {
         let mut lambda_n = [0.0; MAX_CONTACTS];
         let mut lambda_t = [0.0; MAX_CONTACTS];
         let mut cones_ok = true;
-        let closed: Vec<usize> = (0..modes.len()).filter(|j| modes[*j].closed()).collect();
+        // The closed contacts, without allocating (this runs at every stage).
+        let mut closed_buf = [0usize; MAX_CONTACTS];
+        let mut n_closed = 0;
+        for (j, m) in modes.iter().enumerate() {
+            if m.closed() {
+                closed_buf[n_closed] = j;
+                n_closed += 1;
+            }
+        }
+        let closed = &closed_buf[..n_closed];
         if !closed.is_empty() {
-            let sys = self.contact_system(&frame, &q, &v, &closed, Some(&acc));
+            let sys = self.contact_system(&frame, &q, &v, closed, Some(&acc));
             let mut active = [false; MAX_CONTACTS];
             let mut mode = [SlipState::Stick; MAX_CONTACTS];
             for (r, &j) in closed.iter().enumerate() {
@@ -342,7 +351,7 @@ impl Plant {
                 Some(&zeros),
                 None,
             ) {
-                let (x, y, ok) = self.share_within_cones(&closed, modes, &sys, &d.x, &d.y, how);
+                let (x, y, ok) = self.share_within_cones(closed, modes, &sys, &d.x, &d.y, how);
                 cones_ok = ok;
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
@@ -469,7 +478,7 @@ impl Plant {
             problem: ImpactProblem::new(self.model.law),
             minv_jn: [[0.0; DOF]; MAX_CONTACTS],
             minv_jt: [[0.0; DOF]; MAX_CONTACTS],
-            kin: Vec::with_capacity(set.len()),
+            kin: [ContactKinematics::default(); MAX_CONTACTS],
             base_n: [0.0; MAX_CONTACTS],
             base_t: [0.0; MAX_CONTACTS],
         };
@@ -486,7 +495,7 @@ impl Plant {
                 sys.base_n[r] = row(&k.j_n) + k.bias_n;
                 sys.base_t[r] = row(&k.j_t) + k.bias_t;
             }
-            sys.kin.push(k);
+            sys.kin[r] = k;
         }
         for r in 0..set.len() {
             for c in 0..set.len() {
@@ -1398,7 +1407,7 @@ struct ContactSystem {
     problem: ImpactProblem<f64, MAX_CONTACTS>,
     minv_jn: [[f64; DOF]; MAX_CONTACTS],
     minv_jt: [[f64; DOF]; MAX_CONTACTS],
-    kin: Vec<ContactKinematics>,
+    kin: [ContactKinematics; MAX_CONTACTS],
     base_n: [f64; MAX_CONTACTS],
     base_t: [f64; MAX_CONTACTS],
 }
