@@ -200,7 +200,7 @@ fn read_contact(index: usize, s: &Section) -> ContactKeys {
     let point = s.vec2("point", Need::Required, Limit::Any);
     let normal = s
         .vec2("normal", Need::Required, Limit::Any)
-        .and_then(|n| unit_normal(s, n));
+        .and_then(|n| s.unit_vector("normal", n, "the direction from the obstacle to the body"));
     let restitution = s.number("restitution", Need::Required, Limit::Between(0.0, 1.0));
     let friction = s.number("friction", Need::Required, Limit::NonNegative);
     let weight = s.number("weight", Need::Default(1.0), Limit::Positive);
@@ -221,29 +221,6 @@ fn read_contact(index: usize, s: &Section) -> ContactKeys {
         name,
         contact,
     }
-}
-
-/// `n / |n|`, refusing a zero (or overflowing) length.
-fn unit_normal(s: &Section, n: [f64; 2]) -> Option<[f64; 2]> {
-    // |n|^2 must be a positive finite number for n / |n| to be a direction.
-    let len2 = n[0] * n[0] + n[1] * n[1];
-    if len2 > 0.0 && len2.is_finite() {
-        let len = len2.sqrt();
-        return Some([n[0] / len, n[1] / len]);
-    }
-    let message = if len2 == 0.0 {
-        format!(
-            "must not be zero length: it is the direction from the obstacle to the body, e.g. [0, 1] (got {})",
-            vector(n)
-        )
-    } else {
-        format!(
-            "is too long to normalise (got {}); use a unit vector",
-            vector(n)
-        )
-    };
-    s.problem("normal", message);
-    None
 }
 
 /// At least one contact, at most [`MAX_CONTACTS`], names unique.

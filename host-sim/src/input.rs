@@ -618,6 +618,30 @@ impl<'a> Section<'a> {
         Some(list)
     }
 
+    /// `n / |n|` for the vector read at `key`, refusing a zero (or overflowing)
+    /// length; `meaning` says what the direction is, for the message.
+    pub fn unit_vector(&self, key: &'static str, n: [f64; 2], meaning: &str) -> Option<[f64; 2]> {
+        // |n|^2 must be a positive finite number for n / |n| to be a direction.
+        let len2 = n[0] * n[0] + n[1] * n[1];
+        if len2 > 0.0 && len2.is_finite() {
+            let len = len2.sqrt();
+            return Some([n[0] / len, n[1] / len]);
+        }
+        let message = if len2 == 0.0 {
+            format!(
+                "must not be zero length: it is {meaning}, e.g. [0, 1] (got {})",
+                vector(n)
+            )
+        } else {
+            format!(
+                "is too long to normalise (got {}); use a unit vector",
+                vector(n)
+            )
+        };
+        self.problem(key, message);
+        None
+    }
+
     /// Reports every key of this table that no read asked for, with a "did you
     /// mean" among the keys that were asked for, and the list of those.
     /// Call it once, after the last read of this table.

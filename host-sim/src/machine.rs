@@ -457,7 +457,13 @@ fn read_fundament(s: &Section) -> Option<Fundament> {
             Need::Default(DEFAULT_FUNDAMENT_NORMAL),
             Limit::Any,
         )
-        .and_then(|n| unit_normal(s, n));
+        .and_then(|n| {
+            s.unit_vector(
+                "normal",
+                n,
+                "the direction from the fundament towards the platform",
+            )
+        });
     let gravity = s.vec2("gravity", Need::Default(DEFAULT_GRAVITY), Limit::Any);
     s.finish();
     Some(Fundament {
@@ -465,29 +471,6 @@ fn read_fundament(s: &Section) -> Option<Fundament> {
         normal: normal?,
         gravity: gravity?,
     })
-}
-
-/// `n / |n|`, refusing a zero (or overflowing) length.
-fn unit_normal(s: &Section, n: [f64; 2]) -> Option<[f64; 2]> {
-    // |n|^2 must be a positive finite number for n / |n| to be a direction.
-    let len2 = n[0] * n[0] + n[1] * n[1];
-    if len2 > 0.0 && len2.is_finite() {
-        let len = len2.sqrt();
-        return Some([n[0] / len, n[1] / len]);
-    }
-    let message = if len2 == 0.0 {
-        format!(
-            "must not be zero length: it is the direction from the fundament towards the platform, e.g. [0, 1] (got {})",
-            vector(n)
-        )
-    } else {
-        format!(
-            "is too long to normalise (got {}); use a unit vector",
-            vector(n)
-        )
-    };
-    s.problem("normal", message);
-    None
 }
 
 /// `[platform]`: mass and inertia > 0, position, angle (default 0), velocity

@@ -18,7 +18,7 @@
 //! each pixel column, so peaks stay. Values that are not finite break the line and
 //! are never written. Text uses the generic `sans-serif` family: nothing to load.
 
-use crate::svg::{escape, nice_step, tick_label, ticks};
+use crate::svg::{escape, nice_step, open_document, tick_label, ticks};
 use std::fmt::Write as _;
 
 use crate::machine::Machine;
@@ -486,17 +486,7 @@ pub fn plot_svg(rows: &[TraceRow], events: &[EventRow], machine: &Machine, title
     let t_step = nice_step(t1 - t0, 10.0);
 
     let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" fill="#222">"##
-    );
-    let _ = writeln!(svg, "<title>{}</title>", escape(title));
-    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(
-        svg,
-        r#"<text x="{LEFT}" y="24" font-size="17" font-weight="bold">{}</text>"#,
-        escape(title)
-    );
+    open_document(&mut svg, WIDTH, height, title, LEFT, 24.0);
     let subtitle = format!(
         "{} rows from t = {} s to {} s; rotor 1 \"{}\", rotor 2 \"{}\"; phase offset theta_k = s_k (phi_k - index_angle_k)",
         rows.len(),

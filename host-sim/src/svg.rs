@@ -1,5 +1,6 @@
 //! Small pieces shared by the hand-written SVG figures ([`crate::plot`],
-//! [`crate::tune_plot`]): text escaping and "nice" axis ticks.
+//! [`crate::tune_plot`]): the document's opening, text escaping and "nice" axis
+//! ticks.
 
 /// Text with `&`, `<`, `>`, `"`, `'` escaped for XML.
 pub fn escape(s: &str) -> String {
@@ -67,4 +68,21 @@ pub fn tick_label(v: f64, step: f64) -> String {
     } else {
         s
     }
+}
+
+/// Opens an SVG document of `width x height` px on white, with `title` as its
+/// `<title>` and as a bold heading at (`x`, `y`).
+pub fn open_document(svg: &mut String, width: f64, height: f64, title: &str, x: f64, y: f64) {
+    use std::fmt::Write;
+    let _ = writeln!(
+        svg,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}" font-family="sans-serif" fill="#222">"##
+    );
+    let _ = writeln!(svg, "<title>{}</title>", escape(title));
+    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        svg,
+        r#"<text x="{x}" y="{y}" font-size="17" font-weight="bold">{}</text>"#,
+        escape(title)
+    );
 }

@@ -9,7 +9,7 @@
 //! leftward travel; a run that did not hold its offset is drawn as a grey ring.
 //! Values that are not finite break the line and are never written.
 
-use crate::svg::{escape, nice_step, tick_label, ticks};
+use crate::svg::{escape, nice_step, open_document, tick_label, ticks};
 use std::fmt::Write as _;
 
 use crate::tune_command::{Best, Tuning};
@@ -88,17 +88,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
     let y_of = |v: f64| map(v * 1e3, (lo, hi), (bottom, top));
 
     let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" fill="#222">"##
-    );
-    let _ = writeln!(svg, "<title>{}</title>", escape(title));
-    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(
-        svg,
-        r#"<text x="{LEFT}" y="26" font-size="17" font-weight="bold">{}</text>"#,
-        escape(title)
-    );
+    open_document(&mut svg, WIDTH, HEIGHT, title, LEFT, 26.0);
     let subtitle = format!(
         "{} runs of {} s, each holding its offset from t = 0; mean velocity over the second half; positive = right",
         t.run_count,
