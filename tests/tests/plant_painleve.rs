@@ -136,6 +136,33 @@ fn painleve_is_reported_and_resolved_by_a_tangential_impact() {
         .expect("a tangential impact at K1");
     assert!(impact.normal_impulse > 0.0, "{impact:?}");
     assert!(impact.tangential_impulse.abs() <= MU * impact.normal_impulse * (1.0 + 1e-12));
+    // Second method: the impact is plastic and ends with the foot stuck (normal
+    // and tangential velocity zero), so whatever its path the total impulse is
+    // the one that brings the foot's velocity from (u_n, u_t) = (0, 0.5) to zero:
+    // W P = -u0 with the foot's 2x2 Delassus block, by hand from the platform's
+    // mass and inertia (the rotors carry no eccentric mass, so they do not
+    // couple): W_nn = 1/m + (r x n)^2/J, W_nt = (r x n)(r x t)/J,
+    // W_tt = 1/m + (r x t)^2/J, r x n = r_x, r x t = r_y, u_t0 = t . v = -VX.
+    let (rn, rt) = (R1[0], R1[1]);
+    let w_nn = 1.0 / MASS + rn * rn / INERTIA;
+    let w_nt = rn * rt / INERTIA;
+    let w_tt = 1.0 / MASS + rt * rt / INERTIA;
+    let u_t0 = -VX;
+    let det = w_nn * w_tt - w_nt * w_nt;
+    let p_n = w_nt * u_t0 / det;
+    let p_t = -w_nn * u_t0 / det;
+    // The impact starts from a nudge of 1e-6 of the slip speed in approach.
+    assert!(
+        (impact.normal_impulse - p_n).abs() <= 1e-5 * p_n.abs(),
+        "{} vs {p_n}",
+        impact.normal_impulse
+    );
+    assert!(
+        (impact.tangential_impulse - p_t).abs() <= 1e-5 * p_t.abs(),
+        "{} vs {p_t}",
+        impact.tangential_impulse
+    );
+    assert!(impact.normal_velocity_after.abs() <= 1e-6 * u_t0);
     let e_after = plant.mechanical_energy();
     assert!(
         e_after <= energy0 * (1.0 + 1e-12),
