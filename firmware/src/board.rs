@@ -33,6 +33,7 @@ use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
 use stm32f4xx_hal::timer::{CounterHz, Event};
 use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
+use crate::flash::ParamFlash;
 use crate::motor_out::MotorOut;
 
 /// Frequency of the external crystal (HSE), Hz.
@@ -180,6 +181,8 @@ pub struct Board {
     pub rx: Rx<USART2>,
     /// The independent watchdog, started with [`WATCHDOG_TIMEOUT_MS`].
     pub watchdog: IndependentWatchdog,
+    /// The flash controller, for the parameter sectors.
+    pub flash: ParamFlash,
     /// Why the processor started.
     pub reset_cause: ResetCause,
 }
@@ -299,6 +302,7 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
         tx,
         rx,
         watchdog,
+        flash: ParamFlash::new(dp.FLASH),
         reset_cause,
     }
 }

@@ -23,6 +23,7 @@
 use defmt_rtt as _; // global defmt logger over RTT
 
 mod board;
+mod flash;
 mod link;
 mod motor_out;
 mod panic;
@@ -36,7 +37,9 @@ mod tuning {
 mod app {
     use heapless::spsc::{Consumer, Producer};
     use shared::controller::{Controller, Inputs, Params, State, TuningTable, CONTROL_RATE_HZ};
-    use shared::protocol::StatusReport;
+    use shared::protocol::link::{no_telemetry, Link, LinkState};
+    use shared::protocol::{SelfTestReport, SelfTestStatus, StatusReport};
+    use shared::storage;
     use stm32f4xx_hal::gpio::{Input, PB0, PC4, PC5};
     use stm32f4xx_hal::pac::{TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
@@ -45,7 +48,8 @@ mod app {
     use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
     use crate::board::{self, Encoders, Sense};
-    use crate::link::{no_telemetry, Link, LinkState, RxRing};
+    use crate::flash::ParamFlash;
+    use crate::link::RxRing;
     use crate::motor_out::{self, MotorOut};
     use crate::tuning::TUNING_ROWS;
 
@@ -76,6 +80,7 @@ mod app {
         rx_in: Producer<'static, u8>,
         rx_out: Consumer<'static, u8>,
         link: Link,
+        flash: ParamFlash,
         /// Time since start, ms, counted in control ticks.
         uptime_ms: u32,
         /// The state of the previous tick, to log changes.
@@ -86,12 +91,27 @@ mod app {
     fn init(cx: init::Context) -> (Shared, Local) {
         let b = board::setup(cx.device);
 
-        // Parameters: the reference machine with the compiled-in tuning table.
+        // Parameters: the reference machine with the table stored in flash, or
+        // the compiled-in one when none is stored (first start).
         let mut params = Params::reference();
-        match TuningTable::from_rows(&TUNING_ROWS) {
-            Ok(table) => params.tuning = table,
-            Err(e) => defmt::error!("compiled-in tuning table rejected: {}", e),
+        let stored = storage::load(&b.flash);
+        match &stored {
+            Some(s) => {
+                defmt::info!("tuning table from flash, record {=u32}", s.sequence);
+                params.tuning = s.record.tuning.clone();
+            }
+            None => match TuningTable::from_rows(&TUNING_ROWS) {
+                Ok(table) => params.tuning = table,
+                Err(e) => defmt::error!("compiled-in tuning table rejected: {}", e),
+            },
         }
+        let stored_self_test = stored
+            .as_ref()
+            .and_then(|s| s.record.self_test)
+            .map(|result| SelfTestReport {
+                status: SelfTestStatus::Done,
+                result,
+            });
         let controller = Controller::new(&params, b.reset_cause);
         if let Some(e) = controller.params_error() {
             defmt::error!(
@@ -108,17 +128,16 @@ mod app {
             TUNING_ROWS.len()
         );
 
-        let link = LinkState {
-            status: StatusReport {
+        let link = LinkState::new(
+            StatusReport {
                 uptime_ms: 0,
                 state: controller.state(),
                 faults: controller.faults(),
                 telemetry: no_telemetry(),
             },
-            command: None,
-            tuning: controller.params().tuning.clone(),
-            telemetry_period_ms: 0,
-        };
+            controller.params().tuning.clone(),
+            stored_self_test,
+        );
         let (rx_in, rx_out) = cx.local.rx_ring.split();
         let last_state = controller.state();
 
@@ -142,6 +161,7 @@ mod app {
                 rx_in,
                 rx_out,
                 link: Link::new(),
+                flash: b.flash,
                 uptime_ms: 0,
                 last_state,
             },
@@ -187,7 +207,15 @@ mod app {
         let encoder = cx.local.encoders.counts();
         let index = cx.shared.index.lock(core::mem::take);
         let analog = cx.local.sense.read();
-        let command = cx.shared.link.lock(|l| l.command.take());
+        let (command, new_tuning) = cx
+            .shared
+            .link
+            .lock(|l| (l.command.take(), l.new_tuning.take()));
+        if let Some(table) = new_tuning {
+            if !cx.local.controller.set_tuning(table) {
+                defmt::warn!("new tuning table not taken: motors running");
+            }
+        }
         let inputs = Inputs {
             encoder,
             index,
@@ -234,15 +262,17 @@ mod app {
     }
 
     /// The link: decode, answer, stream telemetry; sleep when there is nothing.
-    #[idle(local = [link, rx_out, tx], shared = [link])]
+    #[idle(local = [link, rx_out, tx, flash], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
             let now_ms = cx.shared.link.lock(|l| l.status.uptime_ms);
             let tx = &mut *cx.local.tx;
+            let rx = &mut *cx.local.rx_out;
             let busy = cx.local.link.poll(
-                cx.local.rx_out,
+                || rx.dequeue(),
                 now_ms,
                 |f| cx.shared.link.lock(|l| f(l)),
+                cx.local.flash,
                 |bytes| {
                     let _ = tx.bwrite_all(bytes);
                 },

@@ -242,6 +242,18 @@ impl Controller {
         self.params_error
     }
 
+    /// Use `table` from now on (a table written over the link and stored). Only
+    /// with the motors off ([`State::Idle`] or [`State::Fault`]): a running
+    /// machine keeps its table, and `false` says the table was not taken.
+    pub fn set_tuning(&mut self, table: TuningTable) -> bool {
+        if matches!(self.state, State::Idle | State::Fault) {
+            self.params.tuning = table;
+            true
+        } else {
+            false
+        }
+    }
+
     /// The current state.
     pub fn state(&self) -> State {
         self.state

@@ -6,7 +6,8 @@
 //! - [`crc`]: CRC-16/CCITT-FALSE (header) and CRC-32/ISO-HDLC (frame, flash record);
 //! - [`frame`]: the frame layout, [`encode_frame`], the streaming [`Decoder`];
 //! - [`message`]: message ids, [`Request`], [`Response`] and their payloads;
-//! - [`handler`]: the answer rule, on a [`Device`].
+//! - [`handler`]: the answer rule, on a [`Device`];
+//! - [`link`]: the device's end of the link as the firmware runs it ([`link::Link`]).
 //!
 //! # Link
 //!
@@ -30,6 +31,7 @@
 pub mod crc;
 pub mod frame;
 pub mod handler;
+pub mod link;
 pub mod message;
 pub(crate) mod wire;
 

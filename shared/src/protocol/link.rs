@@ -1,0 +1,287 @@
+//! The device's end of the link, as the firmware runs it: received bytes ->
+//! [`Decoder`] -> one answer per frame ([`answer_event`]) -> encoded frames back;
+//! the telemetry stream; the flash writes. It lives here, not in `firmware/`, so
+//! that host tests (and `host-sim device`'s tests) run the very code the board runs.
+//!
+//! Data flow on the board: the UART RX interrupt pushes bytes into a ring;
+//! [`Link::poll`] (the lowest-priority task) takes them one by one, decodes,
+//! answers against [`LinkState`] (shared with the control task under a lock) and
+//! hands the encoded answers to a send function. Commands reach the control task
+//! through [`LinkState::command`], one per tick; a new tuning table through
+//! [`LinkState::new_tuning`]; a self-test request through
+//! [`LinkState::self_test_requested`].
+
+use super::{
+    answer_event, encode, Decoder, Device, NackReason, Response, SelfTestReport, SelfTestStatus,
+    StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+};
+use crate::controller::{Command, Telemetry, TuningTable};
+use crate::storage::{self, Flash, Record};
+
+/// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
+/// pass, so the caller gets to sleep and to check its clock.
+pub const POLL_CHUNK: usize = 64;
+
+/// What the link and the control task share (under a lock on the board).
+#[derive(Clone, Debug)]
+pub struct LinkState {
+    /// The latest control tick's report (written by the control task each tick).
+    pub status: StatusReport,
+    /// A command waiting for the next control tick (taken by the control task).
+    pub command: Option<Command>,
+    /// The tuning table in use (a copy of the controller's).
+    pub tuning: TuningTable,
+    /// A tuning table stored in flash and waiting for the control task to hand it
+    /// to the controller (taken by the control task).
+    pub new_tuning: Option<TuningTable>,
+    /// The self-test's status and latest result (written by the control task).
+    pub self_test: SelfTestReport,
+    /// A self-test was requested and waits for the control task to start it.
+    pub self_test_requested: bool,
+    /// A finished self-test's result waits to be stored in flash with the table
+    /// (set by the control task; the link stores it when writing is allowed).
+    pub self_test_unsaved: bool,
+    /// Telemetry period, ms (0: none).
+    pub telemetry_period_ms: u16,
+}
+
+impl LinkState {
+    /// The state at start: `status` of the controller before its first tick, the
+    /// table in use, the stored self-test result if any.
+    pub fn new(
+        status: StatusReport,
+        tuning: TuningTable,
+        self_test: Option<SelfTestReport>,
+    ) -> Self {
+        LinkState {
+            status,
+            command: None,
+            tuning,
+            new_tuning: None,
+            self_test: self_test.unwrap_or(SelfTestReport {
+                status: SelfTestStatus::NotRun,
+                result: Default::default(),
+            }),
+            self_test_requested: false,
+            self_test_unsaved: false,
+            telemetry_period_ms: 0,
+        }
+    }
+
+    /// The record to store: the table in use and the self-test result, if the
+    /// self-test finished.
+    fn record(&self, tuning: &TuningTable) -> Record {
+        Record {
+            tuning: tuning.clone(),
+            self_test: (self.self_test.status == SelfTestStatus::Done)
+                .then_some(self.self_test.result),
+        }
+    }
+}
+
+/// Telemetry before the first control tick: all zero, nothing measured.
+pub fn no_telemetry() -> Telemetry {
+    Telemetry {
+        speed_rpm: [0.0; 2],
+        speed_ref_rpm: [0.0; 2],
+        phase_valid: false,
+        phase_offset_deg: 0.0,
+        phase_loop_closed: false,
+        commanded_offset_deg: 0.0,
+        target_offset_deg: 0.0,
+        phase_error_deg: 0.0,
+        current: [0.0; 2],
+        supply_voltage: 0.0,
+        duty: [0.0; 2],
+        command_rejected: false,
+    }
+}
+
+/// [`LinkState`] with the flash: the [`Device`] the handler answers on.
+struct Session<'a, F: Flash + ?Sized> {
+    state: &'a mut LinkState,
+    flash: &'a mut F,
+}
+
+impl<F: Flash + ?Sized> Device for Session<'_, F> {
+    fn status(&self) -> StatusReport {
+        self.state.status
+    }
+
+    fn command(&mut self, command: Command) -> Result<(), NackReason> {
+        // A self-test drives the motors itself: only stop (which aborts it) and
+        // heartbeats while it runs.
+        let testing = self.state.self_test.status == SelfTestStatus::Running
+            || self.state.self_test_requested;
+        if testing && !matches!(command, Command::Stop | Command::Heartbeat) {
+            return Err(NackReason::Busy);
+        }
+        // A heartbeat never replaces a motion command still waiting.
+        let waiting = matches!(self.state.command, Some(c) if c != Command::Heartbeat);
+        if !(command == Command::Heartbeat && waiting) {
+            self.state.command = Some(command);
+        }
+        Ok(())
+    }
+
+    fn tuning_table(&self) -> TuningTable {
+        self.state.tuning.clone()
+    }
+
+    fn store_tuning_table(&mut self, table: &TuningTable) -> Result<(), NackReason> {
+        let record = self.state.record(table);
+        match storage::store(self.flash, &record) {
+            Ok(_) => {
+                self.state.tuning = table.clone();
+                self.state.new_tuning = Some(table.clone());
+                // The self-test result went into this record too.
+                self.state.self_test_unsaved = false;
+                Ok(())
+            }
+            Err(_) => Err(NackReason::StorageFailed),
+        }
+    }
+
+    fn self_test(&self) -> SelfTestReport {
+        self.state.self_test
+    }
+
+    fn start_self_test(&mut self) -> Result<(), NackReason> {
+        self.state.self_test_requested = true;
+        Ok(())
+    }
+
+    fn set_telemetry_period(&mut self, period_ms: u16) {
+        self.state.telemetry_period_ms = period_ms;
+    }
+}
+
+/// The link task's own state: decoder, output buffer, clocks of the last byte and
+/// the last telemetry frame.
+pub struct Link {
+    decoder: Decoder,
+    /// One encoded frame.
+    out: [u8; MAX_FRAME],
+    /// Sequence counter of the telemetry stream.
+    telemetry_seq: u16,
+    /// Uptime of the last telemetry frame, ms.
+    last_telemetry_ms: u32,
+    /// Uptime at which the last byte came, ms.
+    last_byte_ms: u32,
+}
+
+impl Default for Link {
+    fn default() -> Self {
+        Link::new()
+    }
+}
+
+impl Link {
+    /// A link with nothing received.
+    pub const fn new() -> Self {
+        Link {
+            decoder: Decoder::new(),
+            out: [0; MAX_FRAME],
+            telemetry_seq: 0,
+            last_telemetry_ms: 0,
+            last_byte_ms: 0,
+        }
+    }
+
+    /// One pass of the link task at uptime `now_ms`:
+    ///
+    /// 1. take up to [`POLL_CHUNK`] bytes from `rx` (`None`: nothing more now);
+    /// 2. give up on a frame after [`FRAME_GAP_TIMEOUT_MS`] of silence inside it;
+    /// 3. decode and answer every frame on the state (reached through
+    ///    `with_state`, which takes the lock) and `flash`, and `send` the answers;
+    /// 4. store a finished self-test's result, when the motors allow a write;
+    /// 5. send telemetry when due.
+    ///
+    /// Returns whether a byte came (the caller sleeps otherwise).
+    pub fn poll<F: Flash + ?Sized>(
+        &mut self,
+        mut rx: impl FnMut() -> Option<u8>,
+        now_ms: u32,
+        mut with_state: impl FnMut(&mut dyn FnMut(&mut LinkState)),
+        flash: &mut F,
+        mut send: impl FnMut(&[u8]),
+    ) -> bool {
+        // 1. Received bytes into a local chunk.
+        let mut chunk = [0u8; POLL_CHUNK];
+        let mut n = 0;
+        while n < chunk.len() {
+            match rx() {
+                Some(b) => {
+                    chunk[n] = b;
+                    n += 1;
+                }
+                None => break,
+            }
+        }
+
+        // 2. Silence inside a frame.
+        if n > 0 {
+            self.last_byte_ms = now_ms;
+        } else if self.decoder.held() > 0
+            && now_ms.wrapping_sub(self.last_byte_ms) >= FRAME_GAP_TIMEOUT_MS
+        {
+            self.decoder.abandon();
+            self.last_byte_ms = now_ms;
+        }
+
+        // 3. Every frame of the chunk, answered.
+        let mut input = chunk.get(..n).unwrap_or(&[]);
+        while let Some(event) = self.decoder.decode(&mut input) {
+            let mut event = Some(event);
+            let mut answer = None;
+            with_state(&mut |state| {
+                if let Some(event) = event.take() {
+                    let mut session = Session {
+                        state,
+                        flash: &mut *flash,
+                    };
+                    answer = answer_event(&mut session, event);
+                }
+            });
+            if let Some((seq, response)) = answer {
+                if let Ok(len) = encode(&response, seq, &mut self.out) {
+                    send(self.out.get(..len).unwrap_or(&[]));
+                }
+            }
+        }
+
+        // 4. A self-test result to keep.
+        with_state(&mut |state| {
+            if state.self_test_unsaved
+                && storage::may_write(state.status.state, state.status.telemetry.speed_rpm)
+            {
+                let record = state.record(&state.tuning);
+                // A failed write leaves the result reported but unsaved; the next
+                // table write stores it.
+                let _ = storage::store(&mut *flash, &record);
+                state.self_test_unsaved = false;
+            }
+        });
+
+        // 5. Telemetry when due.
+        let mut report = None;
+        with_state(&mut |state| {
+            let period = u32::from(state.telemetry_period_ms);
+            if period > 0 && now_ms.wrapping_sub(self.last_telemetry_ms) >= period {
+                report = Some(state.status);
+            }
+        });
+        if let Some(status) = report {
+            self.last_telemetry_ms = now_ms;
+            self.telemetry_seq = self.telemetry_seq.wrapping_add(1);
+            if let Ok(len) = encode(
+                &Response::Telemetry(status),
+                self.telemetry_seq,
+                &mut self.out,
+            ) {
+                send(self.out.get(..len).unwrap_or(&[]));
+            }
+        }
+        n > 0
+    }
+}
