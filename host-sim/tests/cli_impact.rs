@@ -2,11 +2,13 @@
 //! (`impact-case.md`, "Bad input") exits 2 with the key path and a helpful message
 //! and never panics; the example case files run and print the spec's JSON.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use serde_json::Value;
+
+mod common;
+use common::{keys, run as host_sim};
 
 /// The spec's example case, valid.
 const GOOD: &str = r#"law = "poisson"
@@ -39,37 +41,6 @@ normal = [1.0, 0.0]
 restitution = 0.5
 friction = 0.2
 "#;
-
-struct Run {
-    status: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn host_sim(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(args)
-        .current_dir(repo())
-        .output()
-        .expect("the binary runs");
-    let run = Run {
-        status: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    };
-    // Whatever happened, never a panic or a backtrace.
-    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
-    assert!(
-        !run.stderr.to_lowercase().contains("backtrace"),
-        "{}",
-        run.stderr
-    );
-    run
-}
 
 /// Writes `text` to a fresh file and returns its path.
 fn case_file(text: &str) -> String {
@@ -337,14 +308,6 @@ const EXAMPLES: [&str; 4] = [
     "examples/impact/rocking-block.toml",
     "examples/impact/platform-two-feet.toml",
 ];
-
-fn keys(v: &Value) -> Vec<&str> {
-    v.as_object()
-        .expect("an object")
-        .keys()
-        .map(String::as_str)
-        .collect()
-}
 
 /// Runs an example with `--format json` and checks the document's shape.
 fn example_json(file: &str, extra: &[&str]) -> Value {

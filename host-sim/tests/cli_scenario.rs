@@ -2,19 +2,15 @@
 //! one PASS line per expectation), a failing expectation gives exit 1 with a FAIL
 //! line, a bad file gives exit 2 with every problem's key path, never a panic.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
 
 use serde_json::Value;
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+mod common;
+use common::{root, run};
 
 fn scratch(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("host-sim-cli-scenario-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
+    let path = common::scratch("cli-scenario", name);
     std::fs::write(&path, text).unwrap();
     path
 }
@@ -23,30 +19,6 @@ fn scratch(name: &str, text: &str) -> PathBuf {
 fn scenario_text(body: &str) -> String {
     let machine = root().join("examples/vibro-driver.toml");
     format!("machine = '{}'\n{body}", machine.display())
-}
-
-struct Run {
-    status: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn run(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(args)
-        .output()
-        .expect("host-sim runs");
-    let run = Run {
-        status: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    };
-    assert!(
-        !run.stderr.contains("panicked") && !run.stderr.contains("backtrace"),
-        "{}",
-        run.stderr
-    );
-    run
 }
 
 #[test]

@@ -4,61 +4,28 @@
 //! name, and clear refusals (exit 2, no panic) of bad options.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use host_sim::closed_loop;
 use host_sim::machine::Machine;
 use host_sim::tuning_file;
 use serde_json::Value;
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn machine() -> PathBuf {
-    root().join("examples/vibro-driver.toml")
-}
+mod common;
+use common::{keys, machine, Run};
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("host-sim-cli-tune-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-struct Run {
-    status: i32,
-    stdout: String,
-    stderr: String,
+    common::scratch("cli-tune", name)
 }
 
 /// Runs `host-sim` with `args` on `threads` rayon threads (None: all cores).
 fn run_on(threads: Option<usize>, args: &[&str]) -> Run {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_host-sim"));
+    let mut cmd = common::host_sim();
     cmd.args(args);
     match threads {
         Some(n) => cmd.env("RAYON_NUM_THREADS", n.to_string()),
         None => cmd.env_remove("RAYON_NUM_THREADS"),
     };
-    let out = cmd.output().expect("host-sim runs");
-    let run = Run {
-        status: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    };
-    assert!(
-        !run.stderr.contains("panicked") && !run.stderr.contains("backtrace"),
-        "{}",
-        run.stderr
-    );
-    run
-}
-
-fn keys(v: &Value) -> Vec<&str> {
-    v.as_object()
-        .expect("an object")
-        .keys()
-        .map(String::as_str)
-        .collect()
+    common::finish(cmd)
 }
 
 /// The tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0 and runs once).

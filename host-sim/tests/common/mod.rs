@@ -1,0 +1,72 @@
+//! What the command-line tests share: the repository's paths, scratch files, and
+//! running the `host-sim` binary with the check that no run ever panics.
+// Each test file uses its own subset of these.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The reference machine file.
+pub fn machine() -> PathBuf {
+    root().join("examples/vibro-driver.toml")
+}
+
+/// A path `name` in a scratch directory of this test binary (`tag` names it).
+pub fn scratch(tag: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-sim-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    dir.join(name)
+}
+
+/// What a run of the binary gave.
+pub struct Run {
+    /// Exit status (-1 when killed by a signal).
+    pub status: i32,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+/// The `host-sim` binary, to add arguments and environment to.
+pub fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+/// Run `cmd` to the end. Whatever happened, never a panic nor a backtrace.
+pub fn finish(mut cmd: Command) -> Run {
+    let out = cmd.output().expect("host-sim runs");
+    let run = Run {
+        status: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    };
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    assert!(
+        !run.stderr.to_lowercase().contains("backtrace"),
+        "{}",
+        run.stderr
+    );
+    run
+}
+
+/// Run `host-sim` with `args` from the repository root.
+pub fn run(args: &[&str]) -> Run {
+    let mut cmd = host_sim();
+    cmd.args(args).current_dir(root());
+    finish(cmd)
+}
+
+/// The keys of a JSON object, in order (the spec fixes the order).
+pub fn keys(v: &Value) -> Vec<&str> {
+    v.as_object()
+        .expect("a JSON object")
+        .keys()
+        .map(String::as_str)
+        .collect()
+}
