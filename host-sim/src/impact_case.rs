@@ -15,7 +15,9 @@ use std::path::Path;
 
 use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody, MAX_CONTACTS};
 
-use crate::input::{self, number, vector, Limit, Need, Problem, Problems, Section};
+use crate::input::{
+    self, check_names, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
+};
 
 /// The impact laws a case file may name, in the order the docs list them.
 pub const LAWS: [&str; 3] = ["poisson", "newton", "stronge"];
@@ -101,16 +103,6 @@ struct BodyKeys {
     angular_velocity: Option<f64>,
 }
 
-/// A contact's keys as read.
-struct ContactKeys {
-    /// The name the file gives, if it gives a valid one.
-    given_name: Option<String>,
-    /// The given name, or `K{i+1}`; `None` when the given one is invalid.
-    name: Option<String>,
-    /// Point, unit normal and law; `None` when some key is missing or invalid.
-    contact: Option<BodyContact<f64>>,
-}
-
 /// Stages 1 to 4; `None` when some problem was recorded.
 fn check(table: &toml::Table, problems: &Problems) -> Option<ImpactCase> {
     let root = Section::root(table, problems);
@@ -134,10 +126,10 @@ fn check(table: &toml::Table, problems: &Problems) -> Option<ImpactCase> {
             .map(|(i, s)| match s {
                 Some(s) => read_contact(i, s),
                 // Not a table: reported, no name to check.
-                None => ContactKeys {
-                    given_name: None,
+                None => Named {
+                    given: false,
                     name: None,
-                    contact: None,
+                    value: None,
                 },
             })
             .collect::<Vec<_>>()
@@ -184,19 +176,8 @@ fn read_body(s: &Section) -> BodyKeys {
 
 /// One `[[contacts]]` table: name (default `K{i+1}`), point, normal (non-zero,
 /// normalised here), restitution in [0, 1], friction >= 0, weight > 0 (default 1).
-fn read_contact(index: usize, s: &Section) -> ContactKeys {
-    let given_name = s.string("name", Need::Optional);
-    if given_name.as_deref() == Some("") {
-        s.problem(
-            "name",
-            "must not be empty (omit it for the default K1, K2, ...)",
-        );
-    }
-    let name = match &given_name {
-        Some(n) => Some(n.clone()),
-        None if s.has("name") => None, // invalid, reported
-        None => Some(format!("K{}", index + 1)),
-    };
+fn read_contact(index: usize, s: &Section) -> Named<BodyContact<f64>> {
+    let (given, name) = read_name(s, index, "K");
     let point = s.vec2("point", Need::Required, Limit::Any);
     let normal = s
         .vec2("normal", Need::Required, Limit::Any)
@@ -216,15 +197,15 @@ fn read_contact(index: usize, s: &Section) -> ContactKeys {
             },
         })
     })();
-    ContactKeys {
-        given_name,
+    Named {
+        given,
         name,
-        contact,
+        value: contact,
     }
 }
 
 /// At least one contact, at most [`MAX_CONTACTS`], names unique.
-fn check_contacts(root: &Section, list: Vec<ContactKeys>) -> Option<Vec<NamedContact>> {
+fn check_contacts(root: &Section, list: Vec<Named<BodyContact<f64>>>) -> Option<Vec<NamedContact>> {
     if list.is_empty() {
         root.problem(
             "contacts",
@@ -232,7 +213,7 @@ fn check_contacts(root: &Section, list: Vec<ContactKeys>) -> Option<Vec<NamedCon
         );
         return None;
     }
-    let mut ok = true;
+    let mut ok = check_names(root, "contacts", "contact", &list);
     if list.len() > MAX_CONTACTS {
         root.problem(
             "contacts",
@@ -243,34 +224,12 @@ fn check_contacts(root: &Section, list: Vec<ContactKeys>) -> Option<Vec<NamedCon
         );
         ok = false;
     }
-    // Names, given or default, must be unique: the JSON output is keyed by them.
-    let mut seen: Vec<(&str, usize)> = Vec::new();
-    for (i, keys) in list.iter().enumerate() {
-        let Some(name) = keys.name.as_deref() else {
-            continue;
-        };
-        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
-            let message = if keys.given_name.is_some() {
-                format!(
-                    "duplicate contact name {name:?} (contacts[{first}] has it already); names must be unique"
-                )
-            } else {
-                format!(
-                    "this contact's default name {name:?} is already used by contacts[{first}]; give it a unique name"
-                )
-            };
-            root.problem(&format!("contacts[{i}].name"), message);
-            ok = false;
-        } else {
-            seen.push((name, i));
-        }
-    }
     let contacts = list
         .into_iter()
         .map(|k| {
             Some(NamedContact {
                 name: k.name?,
-                contact: k.contact?,
+                contact: k.value?,
             })
         })
         .collect::<Option<Vec<_>>>();

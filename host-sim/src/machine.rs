@@ -23,7 +23,10 @@ use shared::impact::{ImpactLaw, MAX_CONTACTS};
 use toml::Table;
 
 use crate::impact_case::LAWS;
-use crate::input::{self, number, vector, Limit, Location, Need, Problem, Problems, Section};
+use crate::input::{
+    self, check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
+    Section,
+};
 use crate::machine_set;
 
 /// The obstacle line the platform strikes, and gravity.
@@ -325,16 +328,6 @@ const MOTOR: [(&str, Limit, &str); 6] = [
 /// A motor table's keys as read (`[motor]` or a rotor's own `[rotors.motor]`).
 type MotorKeys = [Read<f64>; 6];
 
-/// A named element (`[[contacts]]`, `[[rotors]]`) as read.
-struct Named<T> {
-    /// Whether the file gives the name (else the default, or refused).
-    given: bool,
-    /// The name, given or default; `None` when the given one is refused.
-    name: Option<String>,
-    /// The element's values; `None` when some key is missing or refused.
-    value: Option<T>,
-}
-
 /// A rotor's keys as read, its motor not yet merged.
 struct RotorKeys {
     /// Everything but the motor (whose value is a placeholder here).
@@ -491,26 +484,6 @@ fn read_platform(s: &Section) -> Option<Platform> {
         velocity: velocity?,
         angular_velocity: angular_velocity?,
     })
-}
-
-/// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
-fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
-    let given = s.string("name", Need::Optional);
-    match given {
-        Some(n) if n.is_empty() => {
-            s.problem(
-                "name",
-                format!(
-                    "must not be empty (omit it for the default {prefix}{})",
-                    index + 1
-                ),
-            );
-            (true, None)
-        }
-        Some(n) => (true, Some(n)),
-        None if s.has("name") => (true, None), // not a string, reported
-        None => (false, Some(format!("{prefix}{}", index + 1))),
-    }
 }
 
 /// One `[[contacts]]` table: name (default `K{i+1}`), point, restitution in
@@ -788,33 +761,6 @@ fn merge_motors(
         }
     }
     rotors
-}
-
-/// Unique names among `list`; `what` is `contact` or `rotor`, `array` its key.
-fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
-    let mut ok = true;
-    let mut seen: Vec<(&str, usize)> = Vec::new();
-    for (i, element) in list.iter().enumerate() {
-        let Some(name) = element.name.as_deref() else {
-            continue;
-        };
-        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
-            let message = if element.given {
-                format!(
-                    "duplicate {what} name {name:?} ({array}[{first}] has it already); names must be unique"
-                )
-            } else {
-                format!(
-                    "this {what}'s default name {name:?} is already used by {array}[{first}]; give it a unique name"
-                )
-            };
-            root.problem(&format!("{array}[{i}].name"), message);
-            ok = false;
-        } else {
-            seen.push((name, i));
-        }
-    }
-    ok
 }
 
 /// 1 to [`MAX_CONTACTS`] contacts (the impact solver's limit), names unique.
