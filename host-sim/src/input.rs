@@ -668,6 +668,64 @@ impl<'a> Section<'a> {
     }
 }
 
+/// A named element of an array of tables (`[[contacts]]`, `[[rotors]]`) as read.
+pub(crate) struct Named<T> {
+    /// Whether the file gives the name (else the default, or refused).
+    pub given: bool,
+    /// The name, given or default; `None` when the given one is refused.
+    pub name: Option<String>,
+    /// The element's values; `None` when some key is missing or refused.
+    pub value: Option<T>,
+}
+
+/// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
+pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
+    let given = s.string("name", Need::Optional);
+    match given {
+        Some(n) if n.is_empty() => {
+            s.problem(
+                "name",
+                format!(
+                    "must not be empty (omit it for the default {prefix}{})",
+                    index + 1
+                ),
+            );
+            (true, None)
+        }
+        Some(n) => (true, Some(n)),
+        None if s.has("name") => (true, None), // not a string, reported
+        None => (false, Some(format!("{prefix}{}", index + 1))),
+    }
+}
+
+/// Unique names among `list` (problems reported on `root`); `what` is the element
+/// (`contact`, `rotor`), `array` its key.
+pub(crate) fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
+    let mut ok = true;
+    let mut seen: Vec<(&str, usize)> = Vec::new();
+    for (i, element) in list.iter().enumerate() {
+        let Some(name) = element.name.as_deref() else {
+            continue;
+        };
+        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
+            let message = if element.given {
+                format!(
+                    "duplicate {what} name {name:?} ({array}[{first}] has it already); names must be unique"
+                )
+            } else {
+                format!(
+                    "this {what}'s default name {name:?} is already used by {array}[{first}]; give it a unique name"
+                )
+            };
+            root.problem(&format!("{array}[{i}].name"), message);
+            ok = false;
+        } else {
+            seen.push((name, i));
+        }
+    }
+    ok
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -790,62 +848,4 @@ mod tests {
         assert_eq!(number(f64::NEG_INFINITY), "-inf");
         assert_eq!(number(2.0), "2");
     }
-}
-
-/// A named element of an array of tables (`[[contacts]]`, `[[rotors]]`) as read.
-pub(crate) struct Named<T> {
-    /// Whether the file gives the name (else the default, or refused).
-    pub given: bool,
-    /// The name, given or default; `None` when the given one is refused.
-    pub name: Option<String>,
-    /// The element's values; `None` when some key is missing or refused.
-    pub value: Option<T>,
-}
-
-/// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
-pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
-    let given = s.string("name", Need::Optional);
-    match given {
-        Some(n) if n.is_empty() => {
-            s.problem(
-                "name",
-                format!(
-                    "must not be empty (omit it for the default {prefix}{})",
-                    index + 1
-                ),
-            );
-            (true, None)
-        }
-        Some(n) => (true, Some(n)),
-        None if s.has("name") => (true, None), // not a string, reported
-        None => (false, Some(format!("{prefix}{}", index + 1))),
-    }
-}
-
-/// Unique names among `list` (problems reported on `root`); `what` is the element
-/// (`contact`, `rotor`), `array` its key.
-pub(crate) fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
-    let mut ok = true;
-    let mut seen: Vec<(&str, usize)> = Vec::new();
-    for (i, element) in list.iter().enumerate() {
-        let Some(name) = element.name.as_deref() else {
-            continue;
-        };
-        if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
-            let message = if element.given {
-                format!(
-                    "duplicate {what} name {name:?} ({array}[{first}] has it already); names must be unique"
-                )
-            } else {
-                format!(
-                    "this {what}'s default name {name:?} is already used by {array}[{first}]; give it a unique name"
-                )
-            };
-            root.problem(&format!("{array}[{i}].name"), message);
-            ok = false;
-        } else {
-            seen.push((name, i));
-        }
-    }
-    ok
 }
