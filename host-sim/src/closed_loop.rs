@@ -12,6 +12,10 @@
 //! 4. put `duty x supply` on the windings (the H-bridge's averaged PWM), or open
 //!    them when the controller disables its outputs (motors off);
 //! 5. record the controller's state changes and faults as events.
+//!
+//! A self-test ([`shared::controller::self_test`]) starts at a set time
+//! ([`ControllerDriver::start_self_test_at`]), as the firmware starts it when the
+//! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
     Command, Controller, Inputs, MachineConstants, Outputs, Params, ResetCause, RotorModel, State,
@@ -39,6 +43,13 @@ pub struct Injected {
     pub link_lost: bool,
     /// The E-stop input is active.
     pub estop: bool,
+    /// Encoder channels A and B of rotor k swapped: the controller sees its counter
+    /// and index latch negated (counting down when the rotor turns forward).
+    pub encoder_reversed: [bool; 2],
+    /// Motor leads of rotor k swapped between the H-bridge and the motor (and its
+    /// current sense): the winding gets `-duty x supply`; the current measured in
+    /// the winding follows it.
+    pub motor_reversed: [bool; 2],
 }
 
 /// The controller in the loop.
@@ -58,10 +69,15 @@ pub struct ControllerDriver {
     /// Telemetry of every tick: (t, outputs).
     pub history: Vec<(f64, Outputs)>,
     record_history: bool,
+    /// When to start a self-test, s (taken once tried).
+    self_test_at: Option<f64>,
+    /// When the self-test was asked for, and whether it started.
+    self_test_started: Option<(f64, bool)>,
 }
 
 /// The controller's constants for a machine file.
 pub fn machine_constants(m: &Machine) -> MachineConstants {
+    let g = (m.fundament.gravity[0].powi(2) + m.fundament.gravity[1].powi(2)).sqrt();
     let rotor = |k: usize| {
         let r = &m.rotors[k];
         RotorModel {
@@ -69,6 +85,9 @@ pub fn machine_constants(m: &Machine) -> MachineConstants {
             torque_constant: r.motor.torque_constant as f32,
             // The rotor with its eccentric mass, about its axis.
             inertia_kg_m2: (r.inertia + r.eccentric_mass * r.eccentricity * r.eccentricity) as f32,
+            // The eccentric's weight torque (horizontal) plus Coulomb friction.
+            load_torque_nm: (r.eccentric_mass * r.eccentricity * g + r.motor.coulomb_friction)
+                as f32,
         }
     };
     // The band the ramps hurry through: around lift-off, where the exciting
@@ -78,7 +97,6 @@ pub fn machine_constants(m: &Machine) -> MachineConstants {
         .map(|k| m.rotors[k].eccentric_mass * m.rotors[k].eccentricity)
         .sum::<f64>()
         / 2.0;
-    let g = (m.fundament.gravity[0].powi(2) + m.fundament.gravity[1].powi(2)).sqrt();
     let band = if me > 0.0 {
         let w = (m.total_mass() * g / (2.0 * me)).sqrt();
         let rpm = w * 30.0 / std::f64::consts::PI;
@@ -140,7 +158,25 @@ impl ControllerDriver {
             events: Vec::new(),
             history: Vec::new(),
             record_history: false,
+            self_test_at: None,
+            self_test_started: None,
         })
+    }
+
+    /// Start a self-test at the first control tick at or after `t` s (just before
+    /// that tick's step, as the firmware's control task does).
+    pub fn start_self_test_at(&mut self, t: f64) {
+        self.self_test_at = Some(t);
+    }
+
+    /// When the self-test was asked for and whether the controller started it.
+    pub fn self_test_started(&self) -> Option<(f64, bool)> {
+        self.self_test_started
+    }
+
+    /// The controller in the loop.
+    pub fn controller(&self) -> &Controller {
+        &self.controller
     }
 
     /// Keep every tick's outputs in [`ControllerDriver::history`] (scenarios).
@@ -177,7 +213,11 @@ impl Driver for ControllerDriver {
         let mut encoder = [0u32; 2];
         let mut index = [None; 2];
         for k in 0..2 {
-            let r = self.encoders[k].sample(t, q[3 + k], v[3 + k]);
+            let mut r = self.encoders[k].sample(t, q[3 + k], v[3 + k]);
+            if self.injected.encoder_reversed[k] {
+                r.count = r.count.wrapping_neg();
+                r.index_count = r.index_count.map(u32::wrapping_neg);
+            }
             if self.injected.encoder_dropout[k] {
                 encoder[k] = *self.frozen_count[k].get_or_insert(r.count);
             } else {
@@ -206,7 +246,13 @@ impl Driver for ControllerDriver {
             command = Some(Command::Heartbeat);
         }
 
-        // 3. Step.
+        // 3. Step (a self-test due starts first).
+        if self.self_test_at.is_some_and(|ts| ts <= t + 1e-12) {
+            self.self_test_at = None;
+            let started = self.controller.start_self_test();
+            // Started, the state change shows as an event of the step below.
+            self.self_test_started = Some((t, started));
+        }
         let inputs = Inputs {
             encoder,
             index,
@@ -237,7 +283,14 @@ impl Driver for ControllerDriver {
         // 4. The H-bridges.
         if out.enable {
             let duty = out.duty.map(f64::from);
-            (duty.map(|d| Winding::from_duty(d, supply)), duty)
+            let applied = [0, 1].map(|k| {
+                if self.injected.motor_reversed[k] {
+                    -duty[k]
+                } else {
+                    duty[k]
+                }
+            });
+            (applied.map(|d| Winding::from_duty(d, supply)), duty)
         } else {
             ([Winding::Open, Winding::Open], [0.0, 0.0])
         }

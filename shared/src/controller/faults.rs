@@ -19,8 +19,10 @@ use super::params::FaultLimits;
 use super::State;
 
 /// Latched faults as bit flags (`u16`); empty means healthy.
+///
+/// In defmt logs (feature `defmt`) it prints as the set flags' constant names in bit
+/// order joined by `|` (`ESTOP`, `STALL|ENCODER`), or `none`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Faults(u16);
 
 impl Faults {
@@ -115,6 +117,40 @@ impl fmt::Display for Faults {
             f.write_str(name)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for Faults {
+    /// The set flags' constant names in bit order joined by `|`, or `none`. Each
+    /// name is a literal format string: interned, a few bytes on the wire, no heap.
+    fn format(&self, f: defmt::Formatter<'_>) {
+        if self.is_empty() {
+            defmt::write!(f, "none");
+            return;
+        }
+        let mut first = true;
+        for (flag, _) in Faults::ALL {
+            if !self.contains(flag) {
+                continue;
+            }
+            if !first {
+                defmt::write!(f, "|");
+            }
+            first = false;
+            match flag {
+                Faults::STALL => defmt::write!(f, "STALL"),
+                Faults::OVER_CURRENT => defmt::write!(f, "OVER_CURRENT"),
+                Faults::ENCODER => defmt::write!(f, "ENCODER"),
+                Faults::PHASE_LOCK_LOST => defmt::write!(f, "PHASE_LOCK_LOST"),
+                Faults::LINK_LOST => defmt::write!(f, "LINK_LOST"),
+                Faults::SUPPLY => defmt::write!(f, "SUPPLY"),
+                Faults::ESTOP => defmt::write!(f, "ESTOP"),
+                Faults::WATCHDOG_RESET => defmt::write!(f, "WATCHDOG_RESET"),
+                Faults::PARAMS => defmt::write!(f, "PARAMS"),
+                _ => defmt::write!(f, "{=u16:#x}", flag.0),
+            }
+        }
     }
 }
 

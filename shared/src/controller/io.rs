@@ -116,10 +116,14 @@ pub enum State {
     Stopping,
     /// A fault is latched: motors off until [`Command::ResetFaults`] clears it.
     Fault,
+    /// The first-run self-test drives the motors, one at a time, gently and open
+    /// loop ([`super::self_test`]); then [`State::Idle`]. [`Command::Stop`] aborts it
+    /// (idle), a fault too ([`State::Fault`]); run commands are refused meanwhile.
+    SelfTest,
 }
 
 impl State {
-    /// `idle`, `starting`, `running`, `stopping` or `fault`.
+    /// `idle`, `starting`, `running`, `stopping`, `fault` or `self_test`.
     pub fn name(self) -> &'static str {
         match self {
             State::Idle => "idle",
@@ -127,12 +131,16 @@ impl State {
             State::Running => "running",
             State::Stopping => "stopping",
             State::Fault => "fault",
+            State::SelfTest => "self_test",
         }
     }
 
     /// Whether the motors are driven in this state (before the fault override).
     pub fn drives(self) -> bool {
-        matches!(self, State::Starting | State::Running | State::Stopping)
+        matches!(
+            self,
+            State::Starting | State::Running | State::Stopping | State::SelfTest
+        )
     }
 }
 
@@ -169,7 +177,7 @@ pub struct Telemetry {
     /// The duties written, in [-1, 1] (equal to [`Outputs::duty`]).
     pub duty: [f32; 2],
     /// The command of this tick was refused: out-of-range values, or a run command
-    /// while a fault is latched.
+    /// while a fault is latched or a self-test runs.
     pub command_rejected: bool,
 }
 

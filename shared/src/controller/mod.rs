@@ -21,6 +21,7 @@
 //! - [`phase_loop`]: PI on the phase error, giving the rotors a speed difference;
 //! - [`faults`]: the fault flags and their checks;
 //! - [`tuning`]: the offset table, interpolated circularly;
+//! - [`self_test`]: the first-run self-test (polarities, index, counts per turn);
 //! - [`angle`]: wrapping and units.
 //!
 //! # States
@@ -29,7 +30,9 @@
 //!   Idle --Travel/HoldOffset--> Starting --ramp done, phase loop closed--> Running
 //!   Starting/Running --Stop--> Stopping --ramp at 0, rotors slow--> Idle
 //!   Stopping --Travel/HoldOffset--> Starting
-//!   any --fault--> Fault --ResetFaults, causes gone--> Idle
+//!   Idle --start_self_test()--> SelfTest --done--> Idle
+//!   SelfTest --Stop--> Idle (aborted)
+//!   any --fault--> Fault --ResetFaults, causes gone--> Idle   (a self-test: aborted)
 //! ```
 //!
 //! A run starts from the measured speed (0 at rest) and ramps at
@@ -62,8 +65,8 @@
 //! | `ESTOP` | E-stop input active | the same tick |
 //! | `OVER_CURRENT` | `\|i\| > over_current_a` or NaN | `over_current_time_s` [2 ms] |
 //! | `SUPPLY` | supply outside [min, max] or NaN | `supply_time_s` [10 ms] |
-//! | `ENCODER` | count jump above `encoder_max_speed_rpm`, index off a whole turn or outside the counts travelled | the same tick |
-//! | `ENCODER` | no index after `N + tol` counts | the tick the travel passes `N + tol` [21 ms at 3000 rpm] |
+//! | `ENCODER` | count jump above `encoder_max_speed_rpm`, index off a whole turn or outside the counts travelled (the index: not in [`State::SelfTest`], which measures it) | the same tick |
+//! | `ENCODER` | no index after `N + tol` counts (not in [`State::SelfTest`]) | the tick the travel passes `N + tol` [21 ms at 3000 rpm] |
 //! | `ENCODER` | driven, reads slow, current low (no counts) | `t_fall + encoder_time_s` [18 + 50 ms]; any current: `t_fall + stall_time_s + encoder_time_s` |
 //! | `STALL` | driven, slow, current high | `t_fall + stall_time_s` [18 + 300 ms]; any current: `t_fall + stall_time_s + encoder_time_s` |
 //! | `PHASE_LOCK_LOST` | `\|phase error\| > phase_error_max_deg` while running, the error unwrapped so that slipping whole turns keeps it large | `phase_lost_time_s` [0.5 s] |
@@ -99,6 +102,7 @@ pub mod io;
 pub mod params;
 pub mod phase_loop;
 pub mod ramp;
+pub mod self_test;
 pub mod speed_loop;
 pub mod tuning;
 
@@ -110,9 +114,12 @@ pub use params::{
 };
 pub use tuning::{TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
 
+use crate::protocol::{SelfTestReport, SelfTestStatus};
+use crate::storage::SelfTest;
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
 use phase_loop::PhaseLoop;
 use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};
+use self_test::{SelfTestConfig, SelfTestRun, SelfTestSample};
 use speed_loop::{SpeedLoop, SpeedLoopInput};
 
 /// Where a run's offset comes from.
@@ -183,6 +190,13 @@ pub struct Controller {
     stop_elapsed_s: f32,
     /// Duties written in the previous tick.
     last_duty: [f32; 2],
+    /// Filtered speeds of the previous tick, rpm (whether a self-test may start).
+    last_speed_rpm: [f32; 2],
+    /// The self-test in progress ([`State::SelfTest`]).
+    self_test: Option<SelfTestRun>,
+    /// The last self-test's status and result (not run: all zero).
+    self_test_status: SelfTestStatus,
+    self_test_result: SelfTest,
 }
 
 impl Controller {
@@ -228,6 +242,10 @@ impl Controller {
             speed_loops: [SpeedLoop::new(); 2],
             stop_elapsed_s: 0.0,
             last_duty: [0.0; 2],
+            last_speed_rpm: [0.0; 2],
+            self_test: None,
+            self_test_status: SelfTestStatus::NotRun,
+            self_test_result: SelfTest::default(),
             params,
         }
     }
@@ -254,6 +272,51 @@ impl Controller {
         }
     }
 
+    /// Start the first-run self-test ([`self_test`]): only from [`State::Idle`]
+    /// with no fault latched and both rotors at rest (the last tick's speeds within
+    /// [`self_test::REST_RPM`]); `false` says it did not start and changes nothing.
+    /// The state is [`State::SelfTest`] until it finishes ([`State::Idle`], status
+    /// `Done`) or is aborted by a fault ([`State::Fault`]) or [`Command::Stop`]
+    /// ([`State::Idle`]), both with status `Aborted`.
+    pub fn start_self_test(&mut self) -> bool {
+        let at_rest = self
+            .last_speed_rpm
+            .iter()
+            .all(|w| libm::fabsf(*w) <= self_test::REST_RPM);
+        if self.state != State::Idle || !self.faults.is_empty() || !at_rest {
+            return false;
+        }
+        self.stop_run();
+        self.self_test = Some(SelfTestRun::new(SelfTestConfig::from_params(&self.params)));
+        self.self_test_status = SelfTestStatus::Running;
+        self.self_test_result = SelfTest::default();
+        self.state = State::SelfTest;
+        true
+    }
+
+    /// The self-test's status and result: `NotRun` (all zero) until one is started
+    /// on this controller, then `Running` with what it has measured so far, then
+    /// `Done` or `Aborted` with its measurements.
+    pub fn self_test_report(&self) -> SelfTestReport {
+        let result = match (&self.self_test, self.self_test_status) {
+            (Some(run), SelfTestStatus::Running) => run.result(),
+            _ => self.self_test_result,
+        };
+        SelfTestReport {
+            status: self.self_test_status,
+            result,
+        }
+    }
+
+    /// End the self-test in progress, if one is, with `status`.
+    fn end_self_test(&mut self, status: SelfTestStatus) {
+        if let Some(mut run) = self.self_test.take() {
+            run.abort();
+            self.self_test_result = run.result();
+            self.self_test_status = status;
+        }
+    }
+
     /// The current state.
     pub fn state(&self) -> State {
         self.state
@@ -274,12 +337,15 @@ impl Controller {
     /// 3. **Check faults** on those measurements and the previous tick's duties;
     ///    new faults are latched and the state becomes [`State::Fault`].
     /// 4. **Command**: this tick's command moves the state machine
-    ///    ([`Command::ResetFaults`] clears what it may).
+    ///    ([`Command::ResetFaults`] clears what it may, [`Command::Stop`] aborts a
+    ///    self-test); in [`State::SelfTest`] the self-test then steps and gives
+    ///    the duties (or ends: [`State::Idle`]).
     /// 5. **References**: the speed ramp; the phase loop opens or closes; the
     ///    offset reference ramps; starting becomes running, a finished stop idle.
     /// 6. **Phase loop**: the speed difference that corrects the phase error, split
     ///    between the rotors' speed references.
-    /// 7. **Speed loops**: feedforward + PI to duties.
+    /// 7. **Speed loops**: feedforward + PI to duties (the self-test's duties in
+    ///    [`State::SelfTest`]).
     /// 8. **Output**, built afresh: with any fault latched, or idle, the safe state
     ///    (enable off, duty 0) overrides whatever the loops computed.
     pub fn step(&mut self, inputs: &Inputs, dt: f32) -> Outputs {
@@ -312,13 +378,19 @@ impl Controller {
         };
 
         // 3. Check faults.
+        // The self-test measures the index itself: only count jumps are faults.
+        let testing = self.state == State::SelfTest;
+        let encoder_anomaly = m.anomaly.map(|a| match a {
+            Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
+            other => other,
+        });
         let obs = Observation {
             state: self.state,
             duty: self.last_duty,
             speed_rpm: m.speed_rad_s.map(rad_s_to_rpm),
             current: inputs.current,
             current_filtered: self.current_filtered,
-            encoder_anomaly: m.anomaly,
+            encoder_anomaly,
             phase_error_deg: self.phase_error_unwrapped.map(|(sum, _)| sum),
             supply_voltage: inputs.supply_voltage,
             estop: inputs.estop,
@@ -331,6 +403,30 @@ impl Controller {
 
         // 4. Command.
         let rejected = self.command(inputs.command, &obs, &m, found);
+        self.last_speed_rpm = obs.speed_rpm;
+
+        // 4b. Self-test: its duties, or its end.
+        let mut test_duty = [0.0; 2];
+        if self.state == State::SelfTest {
+            if let Some(run) = self.self_test.as_mut() {
+                let step = run.step(
+                    &SelfTestSample {
+                        encoder: inputs.encoder,
+                        index: inputs.index,
+                        current: inputs.current,
+                        speed_rpm: obs.speed_rpm,
+                    },
+                    dt,
+                );
+                test_duty = step.duty;
+                if step.done {
+                    self.end_self_test(SelfTestStatus::Done);
+                    self.state = State::Idle;
+                }
+            } else {
+                self.state = State::Idle;
+            }
+        }
 
         // 5. References.
         let (accel_rpm_s, offset_rate_deg_s) = self.references(&m, dt);
@@ -367,7 +463,10 @@ impl Controller {
             p.supply_nominal_v
         };
         let mut duty = [0.0; 2];
-        if self.state.drives() {
+        if self.state == State::SelfTest {
+            duty = test_duty;
+            self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
+        } else if self.state.drives() {
             for k in 0..2 {
                 let input = SpeedLoopInput {
                     speed_ref_rad_s: speed_ref[k],
@@ -475,6 +574,7 @@ impl Controller {
 
     /// Latch `found`: motors off, references and loops back to rest.
     fn latch(&mut self, found: Faults) {
+        self.end_self_test(SelfTestStatus::Aborted);
         self.faults |= found;
         self.state = State::Fault;
         self.stop_run();
@@ -516,7 +616,10 @@ impl Controller {
                 false
             }
             Some(Command::Stop) => {
-                if matches!(self.state, State::Starting | State::Running) {
+                if self.state == State::SelfTest {
+                    self.end_self_test(SelfTestStatus::Aborted);
+                    self.state = State::Idle;
+                } else if matches!(self.state, State::Starting | State::Running) {
                     self.state = State::Stopping;
                     self.stop_elapsed_s = 0.0;
                 }
@@ -543,7 +646,7 @@ impl Controller {
     /// sets the target and starts from idle or a stop.
     fn run(&mut self, speed_rpm: f32, offset: OffsetSource, m: &Measurement) -> bool {
         let p = &self.params;
-        if self.state == State::Fault
+        if matches!(self.state, State::Fault | State::SelfTest)
             || !(speed_rpm >= p.min_speed_rpm && speed_rpm <= p.max_speed_rpm)
         {
             return true;

@@ -68,6 +68,11 @@ pub struct RotorModel {
     /// Inertia `J` about the axis, eccentric mass included (`J_rotor + m e^2`),
     /// kg m^2, > 0.
     pub inertia_kg_m2: f32,
+    /// The largest torque that holds the rotor back at low speed, N m, >= 0: the
+    /// eccentric's weight torque `m e g` (greatest with the eccentric horizontal)
+    /// plus the motor's Coulomb friction; 0 if unknown. Sizes the self-test's duty
+    /// ([`super::self_test`]).
+    pub load_torque_nm: f32,
 }
 
 /// What [`Params::from_machine`] needs to know of the machine (its file's values).
@@ -93,7 +98,8 @@ pub struct MachineConstants {
 impl MachineConstants {
     /// The reference machine, `examples/vibro-driver.toml`: 1 kHz, 4096 counts,
     /// 12 V, 2 A, `R = 2 ohm`, `k = 0.02 N m/A`, `J = 6e-6 + 0.01 x 0.02^2 = 1e-5
-    /// kg m^2`. Resonance band 1500 to 2500 rpm: the platform (rigid, on rigid feet)
+    /// kg m^2`, load torque `m e g + T_c = 0.01 x 0.02 x 9.81 + 1e-3 = 2.962e-3 N m`.
+    /// Resonance band 1500 to 2500 rpm: the platform (rigid, on rigid feet)
     /// lifts off from 2125 rpm, where the exciting force `2 m e w^2` equals the
     /// weight; from about half to 1.4 times the weight it chatters with irregular
     /// partial lift-offs, so the ramps cross that band quickly.
@@ -106,6 +112,7 @@ impl MachineConstants {
             resistance_ohm: 2.0,
             torque_constant: 0.02,
             inertia_kg_m2: 1.0e-5,
+            load_torque_nm: 2.962e-3,
         }; 2],
         resonance_band_rpm: [1500.0, 2500.0],
     };
@@ -383,6 +390,11 @@ impl Params {
             check(positive(r.resistance_ohm), "rotors.resistance_ohm", POS)?;
             check(positive(r.torque_constant), "rotors.torque_constant", POS)?;
             check(positive(r.inertia_kg_m2), "rotors.inertia_kg_m2", POS)?;
+            check(
+                non_negative(r.load_torque_nm),
+                "rotors.load_torque_nm",
+                NONNEG,
+            )?;
         }
         check(
             non_negative(self.speed_filter_tau_s),

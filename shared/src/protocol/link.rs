@@ -15,8 +15,8 @@ use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, SelfTestReport, SelfTestStatus,
     StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use crate::controller::{Command, Telemetry, TuningTable};
-use crate::storage::{self, Flash, Record};
+use crate::controller::{Command, Controller, Outputs, Params, Telemetry, TuningTable};
+use crate::storage::{self, Flash, Record, Stored};
 
 /// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
 /// pass, so the caller gets to sleep and to check its clock.
@@ -45,7 +45,36 @@ pub struct LinkState {
     pub telemetry_period_ms: u16,
 }
 
+/// Take the stored record's tuning table into `params` (a table written over the
+/// link wins over the compiled-in one); `stored` is [`storage::load`]'s answer.
+pub fn use_stored(params: &mut Params, stored: Option<&Stored>) {
+    if let Some(s) = stored {
+        params.tuning = s.record.tuning.clone();
+    }
+}
+
 impl LinkState {
+    /// The state at start, for `controller` before its first tick, with the
+    /// self-test result of the `stored` record if it holds one.
+    pub fn at_start(controller: &Controller, stored: Option<&Stored>) -> Self {
+        let self_test = stored
+            .and_then(|s| s.record.self_test)
+            .map(|result| SelfTestReport {
+                status: SelfTestStatus::Done,
+                result,
+            });
+        LinkState::new(
+            StatusReport {
+                uptime_ms: 0,
+                state: controller.state(),
+                faults: controller.faults(),
+                telemetry: no_telemetry(),
+            },
+            controller.params().tuning.clone(),
+            self_test,
+        )
+    }
+
     /// The state at start: `status` of the controller before its first tick, the
     /// table in use, the stored self-test result if any.
     pub fn new(
@@ -68,6 +97,47 @@ impl LinkState {
         }
     }
 
+    /// The control task's side, before its step: hand a newly stored tuning
+    /// table to `controller`, start a requested self-test, and take the waiting
+    /// command for this tick. A self-test the controller refuses (the link
+    /// checked idle and at rest on the previous tick's status; the controller
+    /// checks again) is reported aborted, nothing measured.
+    pub fn take_for_tick(&mut self, controller: &mut Controller) -> ForTick {
+        let tuning_refused = match self.new_tuning.take() {
+            Some(table) => !controller.set_tuning(table),
+            None => false,
+        };
+        let self_test_refused =
+            core::mem::take(&mut self.self_test_requested) && !controller.start_self_test();
+        if self_test_refused {
+            self.self_test = SelfTestReport {
+                status: SelfTestStatus::Aborted,
+                result: Default::default(),
+            };
+        }
+        ForTick {
+            command: self.command.take(),
+            tuning_refused,
+            self_test_refused,
+        }
+    }
+
+    /// The control task's side, after its step: the tick's status at
+    /// `uptime_ms`, and the controller's `self_test` report. A report still
+    /// `NotRun` (no test since the start) keeps the result loaded from flash; a
+    /// test that just finished is marked for storing with the table.
+    pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, self_test: SelfTestReport) {
+        self.status = StatusReport::from_outputs(uptime_ms, out);
+        if self_test.status != SelfTestStatus::NotRun {
+            if self.self_test.status == SelfTestStatus::Running
+                && self_test.status == SelfTestStatus::Done
+            {
+                self.self_test_unsaved = true;
+            }
+            self.self_test = self_test;
+        }
+    }
+
     /// The record to store: the table in use and the self-test result, if the
     /// self-test finished.
     fn record(&self, tuning: &TuningTable) -> Record {
@@ -77,6 +147,17 @@ impl LinkState {
                 .then_some(self.self_test.result),
         }
     }
+}
+
+/// What [`LinkState::take_for_tick`] took for the control tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForTick {
+    /// The command for this tick, if one came.
+    pub command: Option<Command>,
+    /// A new tuning table came but the controller kept its own (motors running).
+    pub tuning_refused: bool,
+    /// A self-test was requested but the controller did not start it.
+    pub self_test_refused: bool,
 }
 
 /// Telemetry before the first control tick: all zero, nothing measured.

@@ -334,7 +334,8 @@ fn direction_code(d: Direction) -> u8 {
     }
 }
 
-/// Wire code of a state: 0 idle, 1 starting, 2 running, 3 stopping, 4 fault.
+/// Wire code of a state: 0 idle, 1 starting, 2 running, 3 stopping, 4 fault,
+/// 5 self-test.
 fn state_code(s: State) -> u8 {
     match s {
         State::Idle => 0,
@@ -342,6 +343,7 @@ fn state_code(s: State) -> u8 {
         State::Running => 2,
         State::Stopping => 3,
         State::Fault => 4,
+        State::SelfTest => 5,
     }
 }
 
@@ -353,6 +355,7 @@ fn state_from_code(b: u8) -> Option<State> {
         State::Running,
         State::Stopping,
         State::Fault,
+        State::SelfTest,
     ]
     .into_iter()
     .find(|s| state_code(*s) == b)

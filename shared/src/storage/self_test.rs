@@ -1,12 +1,17 @@
 //! The results of the first-run self-test, stored with the tuning table
 //! ([`super::record`]) and read over the UART ([`crate::protocol::Request::ReadSelfTest`]).
 //!
-//! What the firmware's self-test measures, per rotor, with the motors driven gently
-//! one at a time (the test itself is the firmware's; this is its result):
-//! - motor polarity: a positive duty turns the rotor in its driven sense;
-//! - encoder polarity: the counts increase while the rotor turns in its driven sense;
+//! What the self-test ([`crate::controller::self_test`], run by the controller in
+//! [`crate::controller::State::SelfTest`]) measures, per rotor, with the motors driven
+//! gently one at a time (this is its result):
+//! - motor polarity: the winding current followed the duty's sign;
+//! - encoder polarity: the counts followed the current's sign;
 //! - the index pulse: seen at all, and where;
 //! - counts per revolution: the counts between two index pulses.
+//!
+//! With only an encoder and a current sense, which way the rotor really turned is
+//! not measurable (a motor swapped at its own terminals and a swapped encoder read
+//! as all good): the mechanical sense must be checked by eye during the test.
 
 use crate::protocol::wire::{Reader, Writer};
 
@@ -14,13 +19,17 @@ use crate::protocol::wire::{Reader, Writer};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RotorSelfTest {
-    /// A positive duty turned the rotor in its driven sense (as the machine file's
-    /// `sense` says); false: the motor's wires are swapped, or it did not turn.
+    /// The rotor moved and the winding current (positive when driving forward)
+    /// followed the positive test duty: the bridge, the winding and the current
+    /// sense agree. False: the motor's leads are swapped between the bridge and the
+    /// current sense, the current sense is reversed or dead, or the rotor did not
+    /// turn. Leads swapped at the motor itself pass: check the sense by eye.
     pub motor_polarity_ok: bool,
-    /// The encoder counted up while the rotor turned in its driven sense; false:
-    /// channels A and B are swapped, or no count came.
+    /// The rotor moved and the encoder counted the way the current pushed (up for a
+    /// positive current). False: channels A and B are swapped, the current sense is
+    /// dead, or the rotor did not turn.
     pub encoder_polarity_ok: bool,
-    /// An index pulse was seen during the test.
+    /// An index pulse was seen while the rotor was driven.
     pub index_seen: bool,
     /// Counts between two consecutive index pulses (after x4 decoding), as measured;
     /// 0 when fewer than two were seen. Compare with the machine file's
