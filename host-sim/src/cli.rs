@@ -15,7 +15,8 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use shared::impact::ImpactLaw;
 
-use crate::{impact_command, run_command, scenario_command, tune_command};
+pub use crate::device::args::{DeviceArgs, DeviceSimArgs};
+use crate::{device, impact_command, run_command, scenario_command, tune_command};
 
 /// Exit status of a success.
 pub const EXIT_OK: u8 = 0;
@@ -46,6 +47,13 @@ pub enum Command {
     /// Sweep rotor speed and phase offset in closed loop; find the best offsets
     /// for rightward and leftward travel at each speed (see docs/tuning.md).
     Tune(TuneArgs),
+    /// Talk to the board over its UART (a serial port or tcp:HOST:PORT): status,
+    /// travel, stop, hold, reset, telemetry, self-test, tuning table (see
+    /// docs/cli-device.md).
+    Device(DeviceArgs),
+    /// A simulated board to talk to with `device`: the firmware's controller and
+    /// link on simulated rotors, behind a pseudo-terminal or a TCP port.
+    DeviceSim(DeviceSimArgs),
 }
 
 /// Arguments of `host-sim scenario`.
@@ -207,6 +215,8 @@ pub fn run(cli: Cli) -> Output {
         Command::Run(args) => run_command::run(&args),
         Command::Scenario(args) => scenario_command::run(&args),
         Command::Tune(args) => tune_command::run(&args),
+        Command::Device(args) => device::commands::run(&args),
+        Command::DeviceSim(args) => device::serve::run(&args),
     }
 }
 

@@ -23,11 +23,14 @@
 //! - [`tune_command`]: `host-sim tune`, the sweep of speed and offset, best offsets;
 //! - [`tune_plot`]: the sweep as an SVG figure for people;
 //! - [`svg`]: text escaping and axis ticks for the SVG figures;
+//! - [`device`]: `host-sim device` (the UART link to the board) and
+//!   `host-sim device-sim` (a simulated board to talk to);
 //! - [`cli`]: the command line and exit statuses.
 #![warn(missing_docs)]
 
 pub mod cli;
 pub mod closed_loop;
+pub mod device;
 pub mod impact_case;
 pub mod impact_command;
 pub mod impact_report;

@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
@@ -31,6 +32,8 @@ pub struct Run {
     pub status: i32,
     pub stdout: String,
     pub stderr: String,
+    /// Wall-clock time of the run.
+    pub took: Duration,
 }
 
 /// The `host-sim` binary, to add arguments and environment to.
@@ -40,11 +43,13 @@ pub fn host_sim() -> Command {
 
 /// Run `cmd` to the end. Whatever happened, never a panic nor a backtrace.
 pub fn finish(mut cmd: Command) -> Run {
+    let start = Instant::now();
     let out = cmd.output().expect("host-sim runs");
     let run = Run {
         status: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
         stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        took: start.elapsed(),
     };
     assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
     assert!(

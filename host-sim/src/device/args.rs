@@ -1,0 +1,207 @@
+//! The command lines of `host-sim device` and `host-sim device-sim`.
+
+use std::path::PathBuf;
+
+use clap::{Args, Subcommand, ValueEnum};
+
+use super::client::DEFAULT_RETRIES;
+
+/// Arguments of `host-sim device`.
+#[derive(Debug, Args)]
+pub struct DeviceArgs {
+    /// The device: a serial port (`/dev/ttyUSB0`, `/dev/pts/N`), opened raw at
+    /// 115200 baud 8N1, or `tcp:HOST:PORT` (a socket carrying the same bytes).
+    #[arg(long, value_name = "PORT", global = true)]
+    pub port: Option<String>,
+    /// Tries of a request after the first, each after its answer timeout (100 ms;
+    /// 5 s for a table write).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_RETRIES, global = true)]
+    pub retries: u32,
+    /// What to ask of the device.
+    #[command(subcommand)]
+    pub command: DeviceCommand,
+}
+
+/// The requests `host-sim device` makes.
+#[derive(Debug, Subcommand)]
+pub enum DeviceCommand {
+    /// State, faults and the latest telemetry.
+    Status,
+    /// Travel right or left: both rotors at `--speed`, the phase offset from the
+    /// device's tuning table.
+    Travel(TravelArgs),
+    /// Ramp both rotors down to rest.
+    Stop,
+    /// Run both rotors at `--speed` and hold the phase offset `--offset`.
+    Hold(HoldArgs),
+    /// Clear the latched faults whose cause is gone.
+    Reset,
+    /// Stream telemetry (readable lines, or CSV), keeping the link alive with
+    /// heartbeats; Ctrl-C ends it.
+    Telemetry(TelemetryArgs),
+    /// Run the self-test (motors stopped, no fault) and print its result per rotor.
+    SelfTest(SelfTestArgs),
+    /// Read or write the device's tuning table (the file format of `host-sim tune
+    /// --write`).
+    #[command(subcommand)]
+    Table(TableCommand),
+}
+
+/// A travel direction on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DirectionArg {
+    /// Towards +x.
+    Right,
+    /// Towards -x.
+    Left,
+}
+
+/// Arguments of `host-sim device travel`.
+#[derive(Debug, Args)]
+pub struct TravelArgs {
+    /// Which way.
+    #[arg(value_enum, value_name = "right|left")]
+    pub direction: DirectionArg,
+    /// Rotor speed, rpm (> 0; the device refuses speeds outside its range).
+    #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
+    pub speed: f32,
+    /// Keep the link alive for S seconds (a heartbeat every 50 ms), then stop.
+    /// Without it the command returns at once and the device stops the motors
+    /// (fault link_lost) 0.5 s after the last request, unless another command
+    /// (`telemetry`) keeps the link alive.
+    #[arg(long = "for", value_name = "S", allow_negative_numbers = true)]
+    pub for_s: Option<f64>,
+}
+
+/// Arguments of `host-sim device hold`.
+#[derive(Debug, Args)]
+pub struct HoldArgs {
+    /// Phase offset to hold, degrees (wrapped to [0, 360)).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub offset: f32,
+    /// Rotor speed, rpm (> 0).
+    #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
+    pub speed: f32,
+    /// Keep the link alive for S seconds, then stop (as for `travel`).
+    #[arg(long = "for", value_name = "S", allow_negative_numbers = true)]
+    pub for_s: Option<f64>,
+}
+
+/// Arguments of `host-sim device telemetry`.
+#[derive(Debug, Args)]
+pub struct TelemetryArgs {
+    /// Stream period, ms (20 to 65535).
+    #[arg(long, value_name = "MS", default_value_t = 100)]
+    pub period: u16,
+    /// Stop after S seconds (default: at Ctrl-C).
+    #[arg(
+        long,
+        value_name = "S",
+        allow_negative_numbers = true,
+        conflicts_with = "count"
+    )]
+    pub duration: Option<f64>,
+    /// Stop after N frames.
+    #[arg(long, value_name = "N")]
+    pub count: Option<u64>,
+    /// Write CSV (a header, then a row per frame) to FILE, written whole at the
+    /// end, or to stdout with `-` instead of the readable lines.
+    #[arg(long, value_name = "FILE|-")]
+    pub csv: Option<String>,
+}
+
+/// Arguments of `host-sim device self-test`.
+#[derive(Debug, Args)]
+pub struct SelfTestArgs {
+    /// Give up when the self-test has not finished after S seconds.
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 30.0,
+        allow_negative_numbers = true
+    )]
+    pub timeout: f64,
+}
+
+/// `host-sim device table ...`.
+#[derive(Debug, Subcommand)]
+pub enum TableCommand {
+    /// Download the tuning table in use (to stdout, or to `--out`).
+    Read {
+        /// Write the table file here (whole) instead of stdout.
+        #[arg(long, value_name = "FILE.toml")]
+        out: Option<PathBuf>,
+    },
+    /// Upload a tuning table file: stored in the device's flash and used from
+    /// then on (motors stopped only).
+    Write {
+        /// The tuning table file (as `host-sim tune --write` writes it).
+        #[arg(value_name = "FILE.toml")]
+        file: PathBuf,
+    },
+}
+
+/// Arguments of `host-sim device-sim`.
+#[derive(Debug, Args)]
+pub struct DeviceSimArgs {
+    /// Listen on `tcp:HOST:PORT` (port 0: any free port) instead of opening a
+    /// pseudo-terminal. The first line printed is the `--port` to give
+    /// `host-sim device`.
+    #[arg(long, value_name = "tcp:HOST:PORT")]
+    pub listen: Option<String>,
+    /// The tuning table the device starts with (default: 90 deg right, 270 left
+    /// at every speed).
+    #[arg(long, value_name = "FILE.toml")]
+    pub table: Option<PathBuf>,
+    /// Corrupt the line: flip one bit of every Nth byte, either way.
+    #[arg(long, value_name = "N")]
+    pub flip_every: Option<u32>,
+    /// Corrupt the line: send garbage before every Nth frame.
+    #[arg(long, value_name = "N")]
+    pub garbage_every: Option<u32>,
+    /// Exit after S seconds (default: at Ctrl-C).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub duration: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+    use crate::cli::{Cli, Command};
+
+    fn device(args: &[&str]) -> DeviceArgs {
+        let mut all = vec!["host-sim", "device"];
+        all.extend_from_slice(args);
+        match Cli::try_parse_from(all).expect("parses").command {
+            Command::Device(a) => a,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn the_port_goes_before_or_after_the_command() {
+        let a = device(&["--port", "/dev/ttyUSB0", "status"]);
+        assert_eq!(a.port.as_deref(), Some("/dev/ttyUSB0"));
+        let a = device(&["travel", "left", "--speed", "3000", "--port", "tcp:h:1"]);
+        assert_eq!(a.port.as_deref(), Some("tcp:h:1"));
+        assert_eq!(a.retries, DEFAULT_RETRIES);
+        let DeviceCommand::Travel(t) = a.command else {
+            panic!("not travel");
+        };
+        assert_eq!(
+            (t.direction, t.speed, t.for_s),
+            (DirectionArg::Left, 3000.0, None)
+        );
+        let a = device(&["--port", "p", "hold", "--offset", "-30", "--speed", "2800"]);
+        assert!(
+            matches!(a.command, DeviceCommand::Hold(HoldArgs { offset, .. }) if offset == -30.0)
+        );
+        let a = device(&["--port", "p", "table", "write", "t.toml"]);
+        assert!(matches!(
+            a.command,
+            DeviceCommand::Table(TableCommand::Write { .. })
+        ));
+    }
+}

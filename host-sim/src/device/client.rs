@@ -1,0 +1,330 @@
+//! The host's end of the link: requests numbered, sent, sent again after
+//! [`ANSWER_TIMEOUT_MS`] with the same sequence number ([`STORE_ANSWER_TIMEOUT_MS`]
+//! for a table write), answers matched by sequence number, unsolicited telemetry
+//! frames kept aside, everything else (garbage, corrupt frames, stale answers to an
+//! earlier try) dropped.
+
+use std::collections::VecDeque;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+use shared::protocol::{
+    encode, Decoder, Message, MessageId, NackReason, Request, Response, StatusReport,
+    ANSWER_TIMEOUT_MS, MAX_FRAME, STORE_ANSWER_TIMEOUT_MS,
+};
+
+use super::port::Port;
+
+/// Tries of a request after the first, by default: six tries of 100 ms fit in the
+/// controller's 0.5 s link timeout plus one.
+pub const DEFAULT_RETRIES: u32 = 5;
+
+/// Why a request got no usable answer.
+#[derive(Debug)]
+pub enum LinkError {
+    /// No answer to any try.
+    NoAnswer {
+        /// The request's name.
+        request: &'static str,
+        /// Tries sent.
+        tries: u32,
+        /// Wait after each, ms.
+        timeout_ms: u32,
+    },
+    /// The port failed (closed, unplugged).
+    Io(std::io::Error),
+}
+
+impl fmt::Display for LinkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkError::NoAnswer {
+                request,
+                tries,
+                timeout_ms,
+            } => write!(
+                f,
+                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms \
+                 (is the port right, the device powered, its firmware running at 115200 baud?)"
+            ),
+            LinkError::Io(e) => write!(f, "the port failed: {e}"),
+        }
+    }
+}
+
+/// Counters of a client (for `--verbose` reports and tests).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClientStats {
+    /// Requests sent again after a timeout or a `Nack(BadCrc)`.
+    pub retries: u32,
+    /// Frames and candidates rejected by the decoder (corruption on the line).
+    pub rejected: u32,
+    /// Answers to another sequence number (late answers to an earlier try).
+    pub stale: u32,
+}
+
+/// A device at the end of a [`Port`].
+pub struct Client {
+    port: Box<dyn Port>,
+    decoder: Decoder,
+    /// The last sequence number used.
+    seq: u16,
+    retries: u32,
+    /// Telemetry frames received, oldest first, with when they came.
+    telemetry: VecDeque<(Instant, StatusReport)>,
+    stats: ClientStats,
+}
+
+/// The name of a request for messages.
+pub fn request_name(request: &Request) -> &'static str {
+    match request.id() {
+        MessageId::Heartbeat => "Heartbeat",
+        MessageId::GetStatus => "GetStatus",
+        MessageId::Stop => "Stop",
+        MessageId::Travel => "Travel",
+        MessageId::HoldOffset => "HoldOffset",
+        MessageId::ResetFaults => "ResetFaults",
+        MessageId::ReadTuningTable => "ReadTuningTable",
+        MessageId::WriteTuningTable => "WriteTuningTable",
+        MessageId::RunSelfTest => "RunSelfTest",
+        MessageId::ReadSelfTest => "ReadSelfTest",
+        MessageId::StreamTelemetry => "StreamTelemetry",
+        _ => "a response",
+    }
+}
+
+/// What a Nack reason means, for people.
+pub fn nack_text(reason: NackReason) -> &'static str {
+    match reason {
+        NackReason::UnknownMessage => "unknown message (another protocol version?)",
+        NackReason::BadLength => "bad payload length (another protocol version?)",
+        NackReason::BadValue => "a value out of its domain",
+        NackReason::BadCrc => "the frame arrived corrupted",
+        NackReason::TooLong => "frame too long",
+        NackReason::BadVersion => "another protocol version",
+        NackReason::NotStopped => {
+            "the motors must be stopped (state idle or fault, rotors at rest)"
+        }
+        NackReason::Faulted => "a fault is latched: reset it first",
+        NackReason::StorageFailed => {
+            "the flash write failed; the previous table is still in use and in flash"
+        }
+        NackReason::Busy => "busy: a self-test is running",
+    }
+}
+
+impl Client {
+    /// A client on `port`, trying each request `1 + retries` times.
+    pub fn new(port: Box<dyn Port>, retries: u32) -> Client {
+        Client {
+            port,
+            decoder: Decoder::new(),
+            // Start anywhere: a device that still holds an answer of an earlier
+            // session's sequence number 1 is then not mistaken for ours.
+            seq: seed_seq(),
+            retries,
+            telemetry: VecDeque::new(),
+            stats: ClientStats::default(),
+        }
+    }
+
+    /// The counters so far.
+    pub fn stats(&self) -> ClientStats {
+        self.stats
+    }
+
+    /// Take the telemetry frames received so far.
+    pub fn take_telemetry(&mut self) -> Vec<(Instant, StatusReport)> {
+        self.telemetry.drain(..).collect()
+    }
+
+    /// Send `request` and wait for its answer, trying again after each timeout
+    /// and after a `Nack(BadCrc)` (the request was corrupted on the way).
+    pub fn request(&mut self, request: &Request) -> Result<Response, LinkError> {
+        self.seq = self.seq.wrapping_add(1);
+        let seq = self.seq;
+        let mut frame = [0u8; MAX_FRAME];
+        // Every request fits a frame (the table has at most 32 rows).
+        let len = encode(request, seq, &mut frame).unwrap_or(0);
+        let timeout_ms = if matches!(request, Request::WriteTuningTable(_)) {
+            STORE_ANSWER_TIMEOUT_MS
+        } else {
+            ANSWER_TIMEOUT_MS
+        };
+        let tries = 1 + self.retries;
+        for attempt in 0..tries {
+            if attempt > 0 {
+                self.stats.retries += 1;
+            }
+            self.port.write_all(&frame[..len]).map_err(LinkError::Io)?;
+            let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
+            match self.wait_answer(seq, deadline)? {
+                Some(Response::Nack {
+                    reason: NackReason::BadCrc,
+                    ..
+                }) => continue,
+                Some(response) => return Ok(response),
+                None => continue,
+            }
+        }
+        Err(LinkError::NoAnswer {
+            request: request_name(request),
+            tries,
+            timeout_ms,
+        })
+    }
+
+    /// Read until the answer to `seq` or `deadline`, keeping telemetry.
+    fn wait_answer(&mut self, seq: u16, deadline: Instant) -> Result<Option<Response>, LinkError> {
+        loop {
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(None);
+            }
+            if let Some(answer) = self.read_some(deadline - now, Some(seq))? {
+                return Ok(Some(answer));
+            }
+        }
+    }
+
+    /// Read and decode for up to `wait` (telemetry only, no answer awaited).
+    pub fn pump(&mut self, wait: Duration) -> Result<(), LinkError> {
+        let deadline = Instant::now() + wait;
+        loop {
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(());
+            }
+            self.read_some(deadline - now, None)?;
+        }
+    }
+
+    /// One read of at most `wait`; the answer to `seq` if it came.
+    fn read_some(
+        &mut self,
+        wait: Duration,
+        seq: Option<u16>,
+    ) -> Result<Option<Response>, LinkError> {
+        let mut buf = [0u8; 512];
+        let n = self
+            .port
+            .read_timeout(&mut buf, wait.min(Duration::from_millis(20)))
+            .map_err(LinkError::Io)?;
+        let mut input = &buf[..n];
+        let mut answer = None;
+        while let Some(event) = self.decoder.decode(&mut input) {
+            let Ok(frame) = event else {
+                self.stats.rejected += 1;
+                continue;
+            };
+            let frame_seq = frame.seq;
+            match Response::parse(&frame) {
+                Ok(Response::Telemetry(report)) => {
+                    self.telemetry.push_back((Instant::now(), report));
+                }
+                Ok(response) if Some(frame_seq) == seq && answer.is_none() => {
+                    answer = Some(response);
+                }
+                Ok(_) => self.stats.stale += 1,
+                Err(_) => self.stats.rejected += 1,
+            }
+        }
+        Ok(answer)
+    }
+}
+
+/// A sequence number to start from: from the clock, so that two runs rarely
+/// start at the same number.
+fn seed_seq() -> u16 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| (d.subsec_nanos() >> 10) as u16)
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::VecDeque;
+    use std::io;
+
+    use super::*;
+    use crate::device::sim::{Noise, SimDevice};
+    use shared::controller::State;
+
+    /// The simulated device at the end of an in-memory line, a control tick per
+    /// read.
+    struct SimPort {
+        device: SimDevice,
+        pending: VecDeque<u8>,
+    }
+
+    impl Port for SimPort {
+        fn read_timeout(&mut self, buf: &mut [u8], _timeout: Duration) -> io::Result<usize> {
+            self.device.tick();
+            let out = self.device.receive();
+            self.pending.extend(out);
+            let n = buf.len().min(self.pending.len());
+            for (b, p) in buf.iter_mut().zip(self.pending.drain(..n)) {
+                *b = p;
+            }
+            if n == 0 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Ok(n)
+        }
+
+        fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
+            self.device.push_rx(bytes);
+            Ok(())
+        }
+    }
+
+    fn client(noise: Noise, retries: u32) -> Client {
+        Client::new(
+            Box::new(SimPort {
+                device: SimDevice::new(None, noise),
+                pending: VecDeque::new(),
+            }),
+            retries,
+        )
+    }
+
+    #[test]
+    fn answers_come_through_a_corrupting_line_by_retrying() {
+        // One bit flipped in every 97th byte either way: most status frames (74
+        // bytes) are hit, never four in a row; garbage before every other frame.
+        let mut c = client(
+            Noise {
+                flip_every: Some(97),
+                garbage_every: Some(2),
+            },
+            10,
+        );
+        for _ in 0..8 {
+            match c.request(&Request::GetStatus) {
+                Ok(Response::Status(s)) => assert_eq!(s.state, State::Idle),
+                other => panic!("{other:?}"),
+            }
+        }
+        let stats = c.stats();
+        assert!(stats.retries >= 3, "{stats:?}");
+        assert!(stats.rejected >= 3, "{stats:?}");
+    }
+
+    #[test]
+    fn telemetry_is_kept_apart_from_answers() {
+        let mut c = client(Noise::default(), 0);
+        assert!(matches!(
+            c.request(&Request::StreamTelemetry { period_ms: 20 }),
+            Ok(Response::Ack { .. })
+        ));
+        c.pump(Duration::from_millis(150)).unwrap();
+        assert!(matches!(
+            c.request(&Request::GetStatus),
+            Ok(Response::Status(_))
+        ));
+        let frames = c.take_telemetry();
+        assert!(frames.len() >= 3, "{}", frames.len());
+        assert_eq!(c.stats(), ClientStats::default());
+    }
+}

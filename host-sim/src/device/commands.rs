@@ -1,0 +1,486 @@
+//! `host-sim device --port PORT <COMMAND>`: the arguments checked, the port
+//! opened, the requests made through a [`Client`], the answers printed.
+//!
+//! Exit status: 0 done; 1 the device refused (a Nack) or did not answer, or the
+//! port failed while in use; 2 a user mistake (a bad or missing option, a port that
+//! cannot be opened, an unreadable table file).
+
+use std::io::Write;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use shared::controller::{Direction, TuningTable};
+use shared::protocol::{
+    Request, Response, SelfTestReport, SelfTestStatus, StatusReport, HEARTBEAT_PERIOD_MS,
+    MIN_TELEMETRY_PERIOD_MS,
+};
+
+use super::args::{
+    DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TelemetryArgs,
+    TravelArgs,
+};
+use super::client::{nack_text, request_name, Client, LinkError};
+use super::interrupt;
+use super::port::PortSpec;
+use super::report;
+use crate::cli::{Output, EXIT_FAILURE, EXIT_OK, EXIT_USAGE};
+use crate::input;
+use crate::tuning_file;
+
+/// How often the streaming commands send a heartbeat: twice per
+/// [`HEARTBEAT_PERIOD_MS`].
+const HEARTBEAT_EVERY: Duration = Duration::from_millis(HEARTBEAT_PERIOD_MS as u64 / 2);
+
+/// How often the self-test is polled.
+const SELF_TEST_POLL: Duration = Duration::from_millis(50);
+
+/// The header comment of a table read from the device.
+pub const TABLE_HEADER: &str =
+    "Tuning table read from the device by `host-sim device table read`.\n\
+Rows: speed_rpm ascending; offsets in degrees for rightward and leftward travel.";
+
+/// Why a command failed: a user mistake (exit 2) or the device/link (exit 1).
+enum Failure {
+    Usage(String),
+    Device(String),
+}
+
+impl From<LinkError> for Failure {
+    fn from(e: LinkError) -> Self {
+        Failure::Device(format!("error: {e}"))
+    }
+}
+
+/// Runs `host-sim device`.
+pub fn run(args: &DeviceArgs) -> Output {
+    let mut stdout = String::new();
+    match run_inner(args, &mut stdout) {
+        Ok(()) => Output {
+            stdout,
+            stderr: String::new(),
+            status: EXIT_OK,
+        },
+        Err(Failure::Usage(msg)) => Output {
+            stdout,
+            stderr: line(msg),
+            status: EXIT_USAGE,
+        },
+        Err(Failure::Device(msg)) => Output {
+            stdout,
+            stderr: line(msg),
+            status: EXIT_FAILURE,
+        },
+    }
+}
+
+fn line(mut s: String) -> String {
+    if !s.ends_with('\n') {
+        s.push('\n');
+    }
+    s
+}
+
+/// Everything checked before the port is opened, so that a mistake in an
+/// option never reaches the device.
+fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> {
+    let port = args.port.as_deref().ok_or_else(|| {
+        Failure::Usage(
+            "error: --port: missing: name the device, a serial port (e.g. --port /dev/ttyUSB0) \
+             or tcp:HOST:PORT (e.g. --port tcp:127.0.0.1:5555, as `host-sim device-sim --listen` serves)"
+                .into(),
+        )
+    })?;
+    let port = PortSpec::parse(port).map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
+    let positive = |flag: &str, v: f64, unit: &str| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(Failure::Usage(format!(
+                "error: {flag}: must be a number of {unit} above 0 (got {v})"
+            )))
+        }
+    };
+    let mut table = None;
+    match &args.command {
+        DeviceCommand::Travel(a) => {
+            positive("--speed", f64::from(a.speed), "rpm")?;
+            if let Some(s) = a.for_s {
+                positive("--for", s, "seconds")?;
+            }
+        }
+        DeviceCommand::Hold(a) => {
+            positive("--speed", f64::from(a.speed), "rpm")?;
+            if !a.offset.is_finite() {
+                return Err(Failure::Usage(format!(
+                    "error: --offset: must be a finite number of degrees (got {})",
+                    a.offset
+                )));
+            }
+            if let Some(s) = a.for_s {
+                positive("--for", s, "seconds")?;
+            }
+        }
+        DeviceCommand::Telemetry(a) => {
+            if a.period < MIN_TELEMETRY_PERIOD_MS {
+                return Err(Failure::Usage(format!(
+                    "error: --period: must be {MIN_TELEMETRY_PERIOD_MS} to 65535 ms (got {})",
+                    a.period
+                )));
+            }
+            if let Some(d) = a.duration {
+                positive("--duration", d, "seconds")?;
+            }
+            if let Some(file) = a.csv.as_deref().filter(|f| *f != "-") {
+                writable_dir("--csv", Path::new(file))?;
+            }
+            if a.count == Some(0) {
+                return Err(Failure::Usage(
+                    "error: --count: must be at least 1 frame (got 0)".into(),
+                ));
+            }
+        }
+        DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
+        DeviceCommand::Table(TableCommand::Write { file }) => {
+            let rows = tuning_file::read(file)
+                .map_err(|problems| Failure::Usage(input::render(&problems)))?;
+            let t = tuning_file::table(&rows).ok_or_else(|| {
+                Failure::Usage(format!(
+                    "error: {}: rows: the controller refuses the table (speeds >= 0 strictly ascending, offsets 0 to 360)",
+                    file.display()
+                ))
+            })?;
+            table = Some(t);
+        }
+        DeviceCommand::Table(TableCommand::Read { out }) => {
+            if let Some(file) = out {
+                writable_dir("--out", file)?;
+            }
+        }
+        DeviceCommand::Status | DeviceCommand::Stop | DeviceCommand::Reset => {}
+    }
+    Ok((port, table))
+}
+
+/// An output file's folder must exist (checked before talking to the device, so
+/// that its answers are not lost at the end).
+fn writable_dir(flag: &str, file: &Path) -> Result<(), Failure> {
+    match file.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(Failure::Usage(format!(
+            "error: {flag}: {}: the folder {} does not exist",
+            file.display(),
+            dir.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
+    let (port, table) = check(args)?;
+    // A port that cannot be opened is a bad --port, as a missing file is.
+    let port = port
+        .open()
+        .map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
+    let mut client = Client::new(port, args.retries);
+    match &args.command {
+        DeviceCommand::Status => {
+            let s = status(&mut client)?;
+            out.push_str(&report::status_text(&s));
+        }
+        DeviceCommand::Travel(a) => travel(&mut client, a, out)?,
+        DeviceCommand::Hold(a) => hold(&mut client, a, out)?,
+        DeviceCommand::Stop => {
+            command(&mut client, &Request::Stop)?;
+            out.push_str("stop: accepted\n");
+        }
+        DeviceCommand::Reset => {
+            command(&mut client, &Request::ResetFaults)?;
+            // The controller clears the faults at its next tick.
+            std::thread::sleep(Duration::from_millis(20));
+            let s = status(&mut client)?;
+            out.push_str(&format!(
+                "reset: accepted; state {}, faults {}\n",
+                s.state.name(),
+                report::faults_text(s.faults)
+            ));
+        }
+        DeviceCommand::Telemetry(a) => telemetry(&mut client, a, out)?,
+        DeviceCommand::SelfTest(a) => self_test(&mut client, a, out)?,
+        DeviceCommand::Table(TableCommand::Read { out: file }) => {
+            table_read(&mut client, file.as_deref(), out)?
+        }
+        DeviceCommand::Table(TableCommand::Write { file }) => {
+            let table = table.unwrap_or_default();
+            command(&mut client, &Request::WriteTuningTable(table.clone()))?;
+            out.push_str(&format!(
+                "table write: {} rows from {} stored in the device's flash and in use\n",
+                table.rows().len(),
+                file.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A request answered by Ack; a Nack or any other answer is a failure.
+fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
+    match client.request(request)? {
+        Response::Ack { .. } => Ok(()),
+        Response::Nack { reason, .. } => Err(Failure::Device(format!(
+            "error: the device refused {}: {}",
+            request_name(request),
+            nack_text(reason)
+        ))),
+        other => Err(unexpected(request, &other)),
+    }
+}
+
+fn unexpected(request: &Request, response: &Response) -> Failure {
+    Failure::Device(format!(
+        "error: the device answered {} with an unexpected {:?}",
+        request_name(request),
+        shared::protocol::Message::id(response)
+    ))
+}
+
+fn status(client: &mut Client) -> Result<StatusReport, Failure> {
+    match client.request(&Request::GetStatus)? {
+        Response::Status(s) => Ok(s),
+        Response::Nack { reason, .. } => Err(Failure::Device(format!(
+            "error: the device refused GetStatus: {}",
+            nack_text(reason)
+        ))),
+        other => Err(unexpected(&Request::GetStatus, &other)),
+    }
+}
+
+fn travel(client: &mut Client, a: &TravelArgs, out: &mut String) -> Result<(), Failure> {
+    let (direction, name) = match a.direction {
+        DirectionArg::Right => (Direction::Right, "right"),
+        DirectionArg::Left => (Direction::Left, "left"),
+    };
+    command(
+        client,
+        &Request::Travel {
+            direction,
+            speed_rpm: a.speed,
+        },
+    )?;
+    out.push_str(&format!("travel {name} at {} rpm: accepted\n", a.speed));
+    keep_alive(client, a.for_s, out)
+}
+
+fn hold(client: &mut Client, a: &HoldArgs, out: &mut String) -> Result<(), Failure> {
+    command(
+        client,
+        &Request::HoldOffset {
+            speed_rpm: a.speed,
+            offset_deg: a.offset,
+        },
+    )?;
+    out.push_str(&format!(
+        "hold offset {} deg at {} rpm: accepted\n",
+        a.offset, a.speed
+    ));
+    keep_alive(client, a.for_s, out)
+}
+
+/// After a motion command: return at once (`None`), or keep the link alive for
+/// `for_s` seconds (Ctrl-C ends it early), then stop.
+fn keep_alive(client: &mut Client, for_s: Option<f64>, out: &mut String) -> Result<(), Failure> {
+    let Some(for_s) = for_s else {
+        return Ok(());
+    };
+    interrupt::catch();
+    let end = Instant::now() + Duration::from_secs_f64(for_s);
+    while Instant::now() < end && !interrupt::interrupted() {
+        client.request(&Request::Heartbeat)?;
+        client.pump(HEARTBEAT_EVERY.min(end.saturating_duration_since(Instant::now())))?;
+    }
+    let s = status(client)?;
+    command(client, &Request::Stop)?;
+    out.push_str(&format!(
+        "after {:.1} s: {}\nstop: accepted\n",
+        for_s,
+        report::telemetry_line(&s).trim_start()
+    ));
+    Ok(())
+}
+
+/// Where the telemetry goes.
+enum Sink {
+    /// Readable lines on stdout, as they come.
+    Lines,
+    /// CSV on stdout, as it comes.
+    CsvStdout,
+    /// Readable lines on stdout and CSV kept for a file written at the end.
+    CsvFile(String, String),
+}
+
+fn telemetry(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result<(), Failure> {
+    let mut sink = match a.csv.as_deref() {
+        None => Sink::Lines,
+        Some("-") => Sink::CsvStdout,
+        Some(file) => Sink::CsvFile(file.to_string(), format!("{}\n", report::CSV_HEADER)),
+    };
+    let stdout = std::io::stdout();
+    let emit = |text: &str| {
+        let mut lock = stdout.lock();
+        let _ = lock.write_all(text.as_bytes());
+        let _ = lock.flush();
+    };
+    if matches!(sink, Sink::CsvStdout) {
+        emit(&format!("{}\n", report::CSV_HEADER));
+    }
+    interrupt::catch();
+    command(
+        client,
+        &Request::StreamTelemetry {
+            period_ms: a.period,
+        },
+    )?;
+    let end = a
+        .duration
+        .map(|d| Instant::now() + Duration::from_secs_f64(d));
+    let mut frames: u64 = 0;
+    let mut result = Ok(());
+    'stream: loop {
+        if interrupt::interrupted() || end.is_some_and(|e| Instant::now() >= e) {
+            break;
+        }
+        // A heartbeat, then frames until the next one is due.
+        if let Err(e) = client.request(&Request::Heartbeat) {
+            result = Err(Failure::from(e));
+            break;
+        }
+        let next = Instant::now() + HEARTBEAT_EVERY;
+        loop {
+            for (_, report) in client.take_telemetry() {
+                frames += 1;
+                match &mut sink {
+                    Sink::Lines => emit(&format!("{}\n", report::telemetry_line(&report))),
+                    Sink::CsvStdout => emit(&format!("{}\n", report::csv_row(&report))),
+                    Sink::CsvFile(_, csv) => {
+                        emit(&format!("{}\n", report::telemetry_line(&report)));
+                        csv.push_str(&report::csv_row(&report));
+                        csv.push('\n');
+                    }
+                }
+                if a.count.is_some_and(|n| frames >= n) {
+                    break 'stream;
+                }
+            }
+            let now = Instant::now();
+            if now >= next || interrupt::interrupted() {
+                break;
+            }
+            let wait = next - now;
+            let wait = end.map_or(wait, |e| wait.min(e.saturating_duration_since(now)));
+            if wait.is_zero() {
+                break;
+            }
+            if let Err(e) = client.pump(wait) {
+                result = Err(Failure::from(e));
+                break 'stream;
+            }
+        }
+    }
+    // The stream off, whatever ended it (tried even after a failure).
+    let off = command(client, &Request::StreamTelemetry { period_ms: 0 });
+    result?;
+    off?;
+    if let Sink::CsvFile(file, csv) = &sink {
+        std::fs::write(file, csv)
+            .map_err(|e| Failure::Device(format!("error: --csv: {file}: cannot write: {e}")))?;
+        out.push_str(&format!("telemetry: {frames} frames written to {file}\n"));
+    }
+    Ok(())
+}
+
+fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
+    match client.request(&Request::ReadSelfTest)? {
+        Response::SelfTest(r) => Ok(r),
+        other => Err(unexpected(&Request::ReadSelfTest, &other)),
+    }
+}
+
+fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<(), Failure> {
+    interrupt::catch();
+    command(client, &Request::RunSelfTest)?;
+    let start = Instant::now();
+    let timeout = Duration::from_secs_f64(a.timeout);
+    // A device that accepted the test but never reports it running.
+    let never_started = Duration::from_secs(2).min(timeout);
+    loop {
+        // Every poll is a heartbeat too.
+        let r = read_self_test(client)?;
+        match r.status {
+            SelfTestStatus::Done | SelfTestStatus::Aborted => {
+                out.push_str(&report::self_test_text(&r));
+                return if r.status == SelfTestStatus::Done {
+                    Ok(())
+                } else {
+                    Err(Failure::Device(
+                        "error: the self-test was aborted (a fault, the E-stop or a stop)".into(),
+                    ))
+                };
+            }
+            SelfTestStatus::NotRun if start.elapsed() >= never_started => {
+                return Err(Failure::Device(format!(
+                    "error: the device accepted the self-test but has not started it after {:.1} s",
+                    never_started.as_secs_f64()
+                )));
+            }
+            _ => {}
+        }
+        if start.elapsed() >= timeout {
+            return Err(Failure::Device(format!(
+                "error: the self-test did not finish within {} s (--timeout); status: {}",
+                a.timeout,
+                report::self_test_status(r.status)
+            )));
+        }
+        if interrupt::interrupted() {
+            command(client, &Request::Stop)?;
+            return Err(Failure::Device(
+                "error: interrupted: the self-test was stopped".into(),
+            ));
+        }
+        client.pump(SELF_TEST_POLL)?;
+    }
+}
+
+fn table_read(client: &mut Client, file: Option<&Path>, out: &mut String) -> Result<(), Failure> {
+    let table = match client.request(&Request::ReadTuningTable)? {
+        Response::TuningTable(t) => t,
+        other => return Err(unexpected(&Request::ReadTuningTable, &other)),
+    };
+    let rows: Vec<tuning_file::Row> = table
+        .rows()
+        .iter()
+        .map(|r| {
+            (
+                f64::from(r.speed_rpm),
+                f64::from(r.right_offset_deg),
+                f64::from(r.left_offset_deg),
+            )
+        })
+        .collect();
+    let text = tuning_file::write(&rows, TABLE_HEADER);
+    match file {
+        None => out.push_str(&text),
+        Some(path) => {
+            std::fs::write(path, &text).map_err(|e| {
+                Failure::Usage(format!(
+                    "error: --out: {}: cannot write: {e}",
+                    path.display()
+                ))
+            })?;
+            out.push_str(&format!(
+                "table read: {} rows written to {}\n",
+                rows.len(),
+                path.display()
+            ));
+        }
+    }
+    Ok(())
+}

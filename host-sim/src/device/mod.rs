@@ -1,0 +1,25 @@
+//! `host-sim device` (the host's end of the UART link to the board) and
+//! `host-sim device-sim` (a board without hardware), both speaking the `shared`
+//! protocol (`docs/protocol.md`, `docs/cli-device.md`).
+//!
+//! - [`args`]: the command lines;
+//! - [`port`]: the byte pipe: a serial port raw at 115200 baud 8N1, a TCP socket,
+//!   a pseudo-terminal;
+//! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
+//! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
+//! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
+//! - [`interrupt`]: Ctrl-C as a flag, so streams end cleanly;
+//! - [`rotors`]: the simulator's two motors and rotors with their sensors;
+//! - [`sim`]: the simulated device: the firmware's control tick and link task;
+//! - [`serve`]: `host-sim device-sim`, the simulated device in real time behind a
+//!   pseudo-terminal or a TCP port.
+
+pub mod args;
+pub mod client;
+pub mod commands;
+pub mod interrupt;
+pub mod port;
+pub mod report;
+pub mod rotors;
+pub mod serve;
+pub mod sim;

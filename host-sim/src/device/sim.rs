@@ -1,0 +1,291 @@
+//! A device without hardware: the firmware's control task and link task, as
+//! `firmware/src/main.rs` runs them, on simulated rotors and a simulated flash.
+//!
+//! - control tick ([`SimDevice::tick`], at the controller's rate): take the
+//!   command, a new tuning table and a self-test request from the [`LinkState`],
+//!   step the [`Controller`] on the sensors of [`Rotors`], publish the status and
+//!   the self-test's report;
+//! - link ([`SimDevice::receive`]): the received bytes through the firmware's
+//!   [`Link`] (decode, answer, telemetry, flash writes on a [`SimFlash`]).
+//!
+//! [`Noise`] corrupts the line deterministically both ways (bit flips, garbage
+//! between frames), for the host's retries to be tried.
+
+use std::collections::VecDeque;
+
+use shared::controller::{Controller, Inputs, Params, ResetCause, TuningTable};
+use shared::protocol::link::{use_stored, Link, LinkState};
+use shared::storage::{self, SimFlash};
+
+use super::rotors::Rotors;
+
+/// Deterministic corruption of the line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Noise {
+    /// Flip one bit of every Nth byte either way (counted separately each way).
+    pub flip_every: Option<u32>,
+    /// Send a burst of garbage (with sync bytes in it) before every Nth frame.
+    pub garbage_every: Option<u32>,
+}
+
+/// Byte counters and a pseudo-random state for [`Noise`].
+#[derive(Clone, Debug)]
+struct NoiseState {
+    noise: Noise,
+    rx_bytes: u64,
+    tx_bytes: u64,
+    frames: u64,
+    random: u64,
+}
+
+impl NoiseState {
+    fn next_random(&mut self) -> u64 {
+        // xorshift64*
+        let mut x = self.random;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.random = x;
+        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    fn corrupt(&mut self, byte: u8, rx: bool) -> u8 {
+        let Some(every) = self.noise.flip_every.filter(|&n| n > 0) else {
+            return byte;
+        };
+        let count = if rx {
+            self.rx_bytes += 1;
+            self.rx_bytes
+        } else {
+            self.tx_bytes += 1;
+            self.tx_bytes
+        };
+        if count.checked_rem(u64::from(every)) == Some(0) {
+            byte ^ (1 << (self.next_random() % 8))
+        } else {
+            byte
+        }
+    }
+
+    /// Garbage to send before the next frame, if due.
+    fn garbage(&mut self) -> Vec<u8> {
+        self.frames += 1;
+        match self.noise.garbage_every.filter(|&n| n > 0) {
+            Some(every) if self.frames.checked_rem(u64::from(every)) == Some(0) => {
+                let n = 1 + self.next_random() % 24;
+                let mut out: Vec<u8> = (0..n).map(|_| self.next_random() as u8).collect();
+                // A false start: a sync pattern and part of a header.
+                out.extend_from_slice(&[0xA5, 0x5A, 0x01]);
+                out
+            }
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// The simulated device.
+pub struct SimDevice {
+    controller: Controller,
+    rotors: Rotors,
+    link: Link,
+    state: LinkState,
+    flash: SimFlash,
+    rx: VecDeque<u8>,
+    uptime_ms: u32,
+    /// Milliseconds per control tick (1 at the reference 1 kHz).
+    tick_ms: u32,
+    noise: NoiseState,
+    last: Option<shared::controller::Outputs>,
+}
+
+impl SimDevice {
+    /// The reference machine's controller with `tuning` (a stored table in flash
+    /// wins, as on the board; none is stored at first), rotors at rest.
+    pub fn new(tuning: Option<TuningTable>, noise: Noise) -> SimDevice {
+        let mut params = Params::reference();
+        if let Some(t) = tuning {
+            params.tuning = t;
+        }
+        let flash = SimFlash::new();
+        let stored = storage::load(&flash);
+        use_stored(&mut params, stored.as_ref());
+        let controller = Controller::new(&params, ResetCause::PowerOn);
+        let state = LinkState::at_start(&controller, stored.as_ref());
+        let tick_ms = (params.tick_s() * 1000.0).round().max(1.0) as u32;
+        SimDevice {
+            rotors: Rotors::new(&shared::controller::MachineConstants::REFERENCE),
+            controller,
+            link: Link::new(),
+            state,
+            flash,
+            rx: VecDeque::new(),
+            uptime_ms: 0,
+            tick_ms,
+            noise: NoiseState {
+                noise,
+                rx_bytes: 0,
+                tx_bytes: 0,
+                frames: 0,
+                random: 0x9E37_79B9_7F4A_7C15,
+            },
+            last: None,
+        }
+    }
+
+    /// Milliseconds per control tick.
+    pub fn tick_ms(&self) -> u32 {
+        self.tick_ms
+    }
+
+    /// Uptime, ms.
+    pub fn uptime_ms(&self) -> u32 {
+        self.uptime_ms
+    }
+
+    /// The state shared by the link and the control task.
+    pub fn link_state(&self) -> &LinkState {
+        &self.state
+    }
+
+    /// The simulated flash.
+    pub fn flash(&self) -> &SimFlash {
+        &self.flash
+    }
+
+    /// The simulated flash, to cut its power.
+    pub fn flash_mut(&mut self) -> &mut SimFlash {
+        &mut self.flash
+    }
+
+    /// The rotor speeds, rpm (the simulation's truth, not the controller's
+    /// estimate).
+    pub fn speeds_rpm(&self) -> [f64; 2] {
+        self.rotors.speeds_rpm()
+    }
+
+    /// One control tick, as the firmware's control task.
+    pub fn tick(&mut self) {
+        self.uptime_ms = self.uptime_ms.wrapping_add(self.tick_ms);
+        let dt = f64::from(self.tick_ms) / 1000.0;
+        let index = self.rotors.advance(self.last.as_ref(), dt);
+        // The firmware's control-task glue, as on the board.
+        let command = self.state.take_for_tick(&mut self.controller).command;
+        let inputs = Inputs {
+            encoder: self.rotors.counts(),
+            index,
+            current: self.rotors.currents(),
+            supply_voltage: self.rotors.supply(),
+            estop: false,
+            command,
+        };
+        let out = self.controller.step(&inputs, dt as f32);
+        let report = self.controller.self_test_report();
+        self.state.publish(self.uptime_ms, &out, report);
+        self.last = Some(out);
+    }
+
+    /// Bytes received from the host (corrupted first, if noise is set).
+    pub fn push_rx(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            let b = self.noise.corrupt(b, true);
+            self.rx.push_back(b);
+        }
+    }
+
+    /// One pass of the link task at the current uptime, as the firmware's idle
+    /// loop: every byte received so far decoded and answered, telemetry when due;
+    /// the bytes to send back.
+    pub fn receive(&mut self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let now = self.uptime_ms;
+        let rx = &mut self.rx;
+        let state = &mut self.state;
+        let noise = &mut self.noise;
+        loop {
+            let busy = self.link.poll(
+                || rx.pop_front(),
+                now,
+                |f| f(state),
+                &mut self.flash,
+                |frame| {
+                    out.extend(noise.garbage());
+                    for &b in frame {
+                        out.push(noise.corrupt(b, false));
+                    }
+                },
+            );
+            if !busy {
+                break;
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shared::controller::{Command, Direction, State};
+    use shared::protocol::SelfTestStatus;
+
+    fn run(dev: &mut SimDevice, ms: u32) {
+        for _ in 0..ms / dev.tick_ms() {
+            dev.tick();
+            if dev.link_state().status.state != State::Idle {
+                // The host's heartbeat.
+                dev.state.command.get_or_insert(Command::Heartbeat);
+            }
+        }
+    }
+
+    #[test]
+    fn the_controller_runs_the_simulated_rotors() {
+        let mut dev = SimDevice::new(None, Noise::default());
+        dev.state.command = Some(Command::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        });
+        run(&mut dev, 4000);
+        let s = dev.link_state().status;
+        assert_eq!(s.state, State::Running, "{s:?}");
+        assert!(s.faults.is_empty(), "{s:?}");
+        for v in dev.speeds_rpm() {
+            assert!((v - 3000.0).abs() < 60.0, "{v}");
+        }
+        assert!(s.telemetry.phase_loop_closed, "{s:?}");
+        assert!(s.telemetry.phase_error_deg.abs() < 10.0, "{s:?}");
+        dev.state.command = Some(Command::Stop);
+        run(&mut dev, 4000);
+        let s = dev.link_state().status;
+        assert_eq!(s.state, State::Idle, "{s:?}");
+        assert!(s.faults.is_empty(), "{s:?}");
+    }
+
+    #[test]
+    fn the_self_test_runs_on_request_and_its_result_is_stored() {
+        let mut dev = SimDevice::new(None, Noise::default());
+        dev.state.self_test_requested = true;
+        let mut ms = 0;
+        while dev.link_state().self_test.status != SelfTestStatus::Done {
+            dev.tick();
+            dev.receive();
+            ms += 1;
+            assert!(ms < 20_000, "{:?}", dev.link_state().self_test);
+        }
+        let result = dev.link_state().self_test.result;
+        for r in result.rotors {
+            assert!(r.passed(), "{r:?}");
+            assert_eq!(r.counts_per_rev, 4096);
+        }
+        // Rotor 1 starts 30 degrees past its index, rotor 2 200 degrees.
+        assert_eq!(result.rotors[0].index_offset_counts, 4096 * 330 / 360);
+        assert_eq!(result.rotors[1].index_offset_counts, 4096 * 160 / 360);
+        // Stored with the table once the rotors rest.
+        for _ in 0..3000 {
+            dev.tick();
+            dev.receive();
+        }
+        let stored = storage::load(dev.flash()).expect("a record");
+        assert_eq!(stored.record.self_test, Some(result));
+    }
+}

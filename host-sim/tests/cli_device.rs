@@ -1,0 +1,544 @@
+//! `host-sim device` through the real binary against the firmware's link code
+//! (`shared::protocol::link::Link` with the controller on simulated rotors and a
+//! `SimFlash`, served in this process over TCP, or as `host-sim device-sim` behind
+//! a pseudo-terminal): every subcommand, a table round trip, telemetry as CSV, a
+//! noisy line, a silent device, and clear refusals (exit 2, no panic) of bad input.
+
+use std::io::{BufRead, BufReader, Read};
+use std::net::TcpListener;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+mod common;
+use common::Run;
+
+use host_sim::device::commands::TABLE_HEADER;
+use host_sim::device::report::CSV_HEADER;
+use host_sim::device::serve::{serve, Endpoint};
+use host_sim::device::sim::{Noise, SimDevice};
+use host_sim::tuning_file;
+use shared::storage;
+
+/// A simulated device served over TCP on this machine until dropped.
+struct Device {
+    port: String,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<SimDevice>>,
+}
+
+impl Device {
+    fn start(noise: Noise) -> Device {
+        let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
+        let port = endpoint.port_name();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut device = SimDevice::new(None, noise);
+            // At most a minute, whatever happens to the test.
+            let end = Instant::now() + Duration::from_secs(60);
+            serve(&mut endpoint, &mut device, || {
+                !flag.load(Ordering::SeqCst) && Instant::now() < end
+            });
+            device
+        });
+        Device {
+            port,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// Stop serving; the device as it ended.
+    fn finish(mut self) -> SimDevice {
+        self.stop.store(true, Ordering::SeqCst);
+        self.thread
+            .take()
+            .expect("running")
+            .join()
+            .expect("the device thread ran")
+    }
+
+    /// `host-sim device --port PORT args...`.
+    fn run(&self, args: &[&str]) -> Run {
+        let mut all = vec!["device", "--port", &self.port];
+        all.extend_from_slice(args);
+        host_sim(&all)
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// What the tests expect of a finished run.
+trait Outcome {
+    /// Exit 0: its standard output.
+    fn ok(&self) -> &str;
+    /// Exit 2 (a user's mistake): its standard error.
+    fn usage(&self) -> &str;
+}
+
+impl Outcome for Run {
+    fn ok(&self) -> &str {
+        assert_eq!(
+            self.status, 0,
+            "stdout:\n{}\nstderr:\n{}",
+            self.stdout, self.stderr
+        );
+        &self.stdout
+    }
+
+    fn usage(&self) -> &str {
+        assert_eq!(
+            self.status, 2,
+            "stdout:\n{}\nstderr:\n{}",
+            self.stdout, self.stderr
+        );
+        &self.stderr
+    }
+}
+
+/// Runs `host-sim` with `args`, no standard input.
+fn host_sim(args: &[&str]) -> Run {
+    let mut cmd = common::host_sim();
+    cmd.args(args).stdin(Stdio::null());
+    common::finish(cmd)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("cli-device", name)
+}
+
+/// The value of `key` in `host-sim device status` output.
+fn field<'a>(status: &'a str, key: &str) -> &'a str {
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(key).map(str::trim))
+        .unwrap_or_else(|| panic!("no `{key}` in\n{status}"))
+}
+
+#[test]
+fn status_travel_stop_hold_and_reset() {
+    let dev = Device::start(Noise::default());
+    let s = dev.run(&["status"]);
+    assert_eq!(field(s.ok(), "state"), "idle");
+    assert_eq!(field(s.ok(), "faults"), "none");
+
+    let t = dev.run(&["travel", "right", "--speed", "3000"]);
+    assert!(
+        t.ok().contains("travel right at 3000 rpm: accepted"),
+        "{}",
+        t.stdout
+    );
+    let s = dev.run(&["status"]);
+    let state = field(s.ok(), "state");
+    assert!(state == "starting" || state == "running", "{}", s.stdout);
+
+    let t = dev.run(&["stop"]);
+    assert_eq!(t.ok(), "stop: accepted\n");
+    let s = dev.run(&["status"]);
+    let state = field(s.ok(), "state");
+    assert!(state == "stopping" || state == "idle", "{}", s.stdout);
+
+    // Hold an offset for a while (heartbeats keep the link), then stop.
+    let h = dev.run(&["hold", "--offset", "120", "--speed", "2800", "--for", "1.5"]);
+    let out = h.ok();
+    assert!(
+        out.contains("hold offset 120 deg at 2800 rpm: accepted"),
+        "{out}"
+    );
+    assert!(out.contains("running"), "{out}");
+    assert!(out.contains("(target 120.0)"), "{out}");
+    assert!(out.ends_with("stop: accepted\n"), "{out}");
+
+    // Travel without heartbeats: the controller latches link_lost; reset clears it.
+    dev.run(&["travel", "left", "--speed", "3000"]).ok();
+    std::thread::sleep(Duration::from_millis(900));
+    let s = dev.run(&["status"]);
+    assert_eq!(field(s.ok(), "state"), "fault");
+    assert_eq!(field(s.ok(), "faults"), "link_lost");
+    let r = dev.run(&["reset"]);
+    assert_eq!(r.ok(), "reset: accepted; state idle, faults none\n");
+
+    // A device refusal is exit 1 with the reason: no table write while the
+    // rotors still coast.
+    let file = scratch("refused.toml");
+    std::fs::write(&file, tuning_file::write(&[(3000.0, 80.0, 280.0)], "t")).unwrap();
+    let w = dev.run(&["table", "write", file.to_str().unwrap()]);
+    assert_eq!(w.status, 1, "{}{}", w.stdout, w.stderr);
+    assert!(
+        w.stderr
+            .contains("refused WriteTuningTable: the motors must be stopped"),
+        "{}",
+        w.stderr
+    );
+    dev.finish();
+}
+
+#[test]
+fn a_table_written_reads_back_identical_and_is_in_flash() {
+    let dev = Device::start(Noise::default());
+    let rows = tuning_file::read(&PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../examples/vibro-driver.tuning.toml"
+    )))
+    .expect("the example table reads");
+    // The file as `table read` writes it, so the round trip is byte for byte.
+    let file = scratch("table.toml");
+    let text = tuning_file::write(&rows, TABLE_HEADER);
+    std::fs::write(&file, &text).unwrap();
+    let w = dev.run(&["table", "write", file.to_str().unwrap()]);
+    assert!(w.ok().contains("5 rows"), "{}", w.stdout);
+
+    let back = scratch("table-back.toml");
+    let _ = std::fs::remove_file(&back);
+    let r = dev.run(&["table", "read", "--out", back.to_str().unwrap()]);
+    assert!(r.ok().contains("5 rows written to"), "{}", r.stdout);
+    assert_eq!(std::fs::read_to_string(&back).unwrap(), text);
+    // To stdout as well.
+    assert_eq!(dev.run(&["table", "read"]).ok(), text);
+
+    let device = dev.finish();
+    let stored = storage::load(device.flash()).expect("a record in flash");
+    assert_eq!(stored.record.tuning, tuning_file::table(&rows).unwrap());
+    assert_eq!(device.link_state().tuning, stored.record.tuning);
+}
+
+#[test]
+fn telemetry_as_csv_has_a_header_and_n_rows() {
+    let dev = Device::start(Noise::default());
+    let csv = scratch("telemetry.csv");
+    let _ = std::fs::remove_file(&csv);
+    let t = dev.run(&[
+        "telemetry",
+        "--period",
+        "20",
+        "--count",
+        "6",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(
+        t.ok().contains("telemetry: 6 frames written to"),
+        "{}",
+        t.stdout
+    );
+    // The readable lines too.
+    assert_eq!(t.stdout.lines().filter(|l| l.contains(" idle ")).count(), 6);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 7, "{text}");
+    assert_eq!(lines[0], CSV_HEADER);
+    let columns = CSV_HEADER.split(',').count();
+    let mut last = None;
+    for row in &lines[1..] {
+        let fields: Vec<&str> = row.split(',').collect();
+        assert_eq!(fields.len(), columns, "{row}");
+        assert_eq!(fields[1], "idle");
+        let uptime: u32 = fields[0].parse().unwrap();
+        assert!(last.is_none_or(|l| uptime > l), "{text}");
+        last = Some(uptime);
+    }
+
+    // To stdout: the header and the rows only.
+    let t = dev.run(&["telemetry", "--period", "20", "--count", "3", "--csv", "-"]);
+    let lines: Vec<&str> = t.ok().lines().collect();
+    assert_eq!(lines.len(), 4, "{}", t.stdout);
+    assert_eq!(lines[0], CSV_HEADER);
+
+    // By duration, readable lines: about 5 frames in 0.5 s at 100 ms.
+    let t = dev.run(&["telemetry", "--duration", "0.5"]);
+    let n = t.ok().lines().count();
+    assert!((2..=7).contains(&n), "{}", t.stdout);
+
+    // The stream is off at the end.
+    let device = dev.finish();
+    assert_eq!(device.link_state().telemetry_period_ms, 0);
+}
+
+#[test]
+fn a_noisy_line_still_gives_the_right_answers() {
+    // A bit flipped in every 211th byte either way, garbage before every 3rd
+    // frame the device sends.
+    let dev = Device::start(Noise {
+        flip_every: Some(211),
+        garbage_every: Some(3),
+    });
+    let r = |args: &[&str]| {
+        let mut all = vec!["--retries", "10"];
+        all.extend_from_slice(args);
+        dev.run(&all)
+    };
+    for _ in 0..3 {
+        let s = r(&["status"]);
+        assert_eq!(field(s.ok(), "state"), "idle");
+    }
+    r(&["travel", "right", "--speed", "3000"]).ok();
+    let t = r(&["telemetry", "--period", "20", "--count", "20", "--csv", "-"]);
+    let rows: Vec<&str> = t.ok().lines().skip(1).collect();
+    assert_eq!(rows.len(), 20);
+    assert!(rows
+        .iter()
+        .all(|l| l.contains(",starting,") || l.contains(",running,")));
+    assert_eq!(r(&["stop"]).ok(), "stop: accepted\n");
+    let s = r(&["status"]);
+    let state = field(s.ok(), "state");
+    assert!(state == "stopping" || state == "idle", "{}", s.stdout);
+    dev.finish();
+}
+
+#[test]
+fn a_device_that_never_answers_is_a_clear_timeout() {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = format!("tcp:{}", listener.local_addr().unwrap());
+    // Accepts, reads and says nothing.
+    std::thread::spawn(move || {
+        if let Ok((mut s, _)) = listener.accept() {
+            let _ = s.set_read_timeout(Some(Duration::from_secs(10)));
+            let mut buf = [0u8; 256];
+            while matches!(s.read(&mut buf), Ok(n) if n > 0) {}
+        }
+    });
+    let r = host_sim(&["device", "--port", &port, "--retries", "2", "status"]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr
+            .contains("no answer from the device to GetStatus after 3 tries of 100 ms"),
+        "{}",
+        r.stderr
+    );
+    assert!(r.took < Duration::from_secs(10), "{:?}", r.took);
+}
+
+#[test]
+fn bad_input_is_refused_with_exit_2() {
+    let table = scratch("bad-table.toml");
+    std::fs::write(
+        &table,
+        "[[rows]]\nspeed_rpm = 3000\nright_offset_deg = 400\nleft_offset_deg = 10\n",
+    )
+    .unwrap();
+    let missing = scratch("no-such-table.toml");
+    let p = "tcp:127.0.0.1:9";
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["device", "status"], "--port: missing"),
+        (
+            vec!["device", "--port", "tcp:localhost", "status"],
+            "tcp:HOST:PORT",
+        ),
+        (
+            vec!["device", "--port", p, "travel", "up", "--speed", "3000"],
+            "right",
+        ),
+        (vec!["device", "--port", p, "travel", "right"], "--speed"),
+        (
+            vec!["device", "--port", p, "travel", "right", "--speed", "fast"],
+            "--speed",
+        ),
+        (
+            vec!["device", "--port", p, "travel", "right", "--speed", "NaN"],
+            "--speed",
+        ),
+        (
+            vec!["device", "--port", p, "travel", "left", "--speed", "-5"],
+            "above 0",
+        ),
+        (
+            vec![
+                "device", "--port", p, "hold", "--offset", "inf", "--speed", "3000",
+            ],
+            "--offset",
+        ),
+        (
+            vec!["device", "--port", p, "telemetry", "--period", "5"],
+            "--period: must be 20 to 65535",
+        ),
+        (
+            vec!["device", "--port", p, "telemetry", "--count", "0"],
+            "--count",
+        ),
+        (
+            vec![
+                "device",
+                "--port",
+                p,
+                "telemetry",
+                "--duration",
+                "1",
+                "--count",
+                "3",
+            ],
+            "--count",
+        ),
+        (
+            vec!["device", "--port", p, "self-test", "--timeout", "-1"],
+            "--timeout",
+        ),
+        (
+            vec![
+                "device",
+                "--port",
+                p,
+                "table",
+                "write",
+                table.to_str().unwrap(),
+            ],
+            "rows[0].right_offset_deg",
+        ),
+        (
+            vec![
+                "device",
+                "--port",
+                p,
+                "table",
+                "write",
+                missing.to_str().unwrap(),
+            ],
+            "no-such-table.toml",
+        ),
+        (
+            vec![
+                "device",
+                "--port",
+                p,
+                "telemetry",
+                "--csv",
+                "/no/such/dir/t.csv",
+            ],
+            "/no/such/dir",
+        ),
+        (
+            vec![
+                "device",
+                "--port",
+                p,
+                "table",
+                "read",
+                "--out",
+                "/no/such/dir/t.toml",
+            ],
+            "/no/such/dir",
+        ),
+        (
+            vec!["device", "--port", "/no/such/tty", "status"],
+            "/no/such/tty",
+        ),
+        (vec!["device", "--port", p, "frobnicate"], "frobnicate"),
+        (
+            vec!["device-sim", "--listen", "/dev/ttyS0"],
+            "tcp:HOST:PORT",
+        ),
+        (vec!["device-sim", "--flip-every", "0"], "--flip-every"),
+        (
+            vec!["device-sim", "--table", missing.to_str().unwrap()],
+            "no-such-table.toml",
+        ),
+    ];
+    for (args, expect) in cases {
+        let r = host_sim(&args);
+        let stderr = r.usage();
+        assert!(stderr.contains(expect), "{args:?}: {stderr}");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn device_sim_serves_a_pseudo_terminal() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["device-sim", "--duration", "20"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("device-sim runs");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    let port = first
+        .trim()
+        .strip_prefix("port: ")
+        .unwrap_or_else(|| panic!("first line {first:?}"))
+        .to_string();
+    assert!(port.starts_with("/dev/"), "{port}");
+    let s = host_sim(&["device", "--port", &port, "status"]);
+    let result = s.status;
+    let t = host_sim(&["device", "--port", &port, "table", "read"]);
+    // Ends the process it started, by its handle.
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(result, 0, "{}", s.stderr);
+    assert_eq!(field(&s.stdout, "state"), "idle");
+    assert!(t.ok().contains("right_offset_deg = 90.0"), "{}", t.stdout);
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_ends_the_stream_cleanly() {
+    let dev = Device::start(Noise::default());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["device", "--port", &dev.port, "telemetry", "--period", "20"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    // Two frames, then Ctrl-C.
+    for _ in 0..2 {
+        let line = lines.next().expect("a line").unwrap();
+        assert!(line.contains(" idle "), "{line}");
+    }
+    let pid = i32::try_from(child.id()).unwrap();
+    // SAFETY: signals the child this test started, by its id.
+    unsafe {
+        libc::kill(pid, libc::SIGINT);
+    }
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    let device = dev.finish();
+    assert_eq!(device.link_state().telemetry_period_ms, 0);
+}
+
+#[test]
+fn the_self_test_runs_and_reports_each_rotor() {
+    let dev = Device::start(Noise::default());
+    // Too short a timeout: a clear error, the test still running on the device.
+    let t = dev.run(&["self-test", "--timeout", "0.2"]);
+    assert_eq!(t.status, 1, "{}{}", t.stdout, t.stderr);
+    assert!(
+        t.stderr
+            .contains("the self-test did not finish within 0.2 s (--timeout); status: running"),
+        "{}",
+        t.stderr
+    );
+    // A second one while it runs is refused.
+    let busy = dev.run(&["self-test"]);
+    assert_eq!(busy.status, 1, "{}{}", busy.stdout, busy.stderr);
+    assert!(
+        busy.stderr.contains("refused RunSelfTest: busy"),
+        "{}",
+        busy.stderr
+    );
+    dev.run(&["stop"]).ok();
+    // Wait until the stop has aborted it and the rotors rest, then run it whole.
+    let start = Instant::now();
+    let t = loop {
+        let t = dev.run(&["self-test"]);
+        if t.status == 0 || start.elapsed() > Duration::from_secs(10) {
+            break t;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let out = t.ok();
+    assert!(out.starts_with("self-test       done\n"), "{out}");
+    assert_eq!(out.matches("PASS").count(), 2, "{out}");
+    assert_eq!(out.matches("counts per rev     4096").count(), 2, "{out}");
+    dev.finish();
+}

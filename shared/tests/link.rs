@@ -1,0 +1,356 @@
+//! The device's end of the link (`shared::protocol::link::Link`), the code the
+//! firmware runs, driven directly: every frame answered once, in order; a table
+//! write stored in flash, and a power cut during it keeping the old table; the
+//! telemetry period; a frame cut short abandoned after the frame gap; arbitrary
+//! bytes never a panic, and every byte sent a valid response frame.
+
+use std::collections::VecDeque;
+
+use proptest::prelude::*;
+use shared::controller::{Direction, Faults, State, TuningTable};
+use shared::protocol::link::{no_telemetry, Link, LinkState};
+use shared::protocol::{
+    encode, Decoder, Message, NackReason, Request, Response, SelfTestStatus, StatusReport,
+    FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+};
+use shared::storage::{self, SimFlash};
+
+/// A link with its state and flash, as the firmware holds them.
+struct Device {
+    link: Link,
+    state: LinkState,
+    flash: SimFlash,
+    rx: VecDeque<u8>,
+}
+
+impl Device {
+    fn new() -> Device {
+        Device {
+            link: Link::new(),
+            state: LinkState::new(
+                StatusReport {
+                    uptime_ms: 0,
+                    state: State::Idle,
+                    faults: Faults::NONE,
+                    telemetry: no_telemetry(),
+                },
+                TuningTable::default_offsets(),
+                None,
+            ),
+            flash: SimFlash::new(),
+            rx: VecDeque::new(),
+        }
+    }
+
+    /// Receive `bytes`, then run the link task at `now_ms` until it has taken
+    /// every byte; the bytes it sent.
+    fn exchange(&mut self, bytes: &[u8], now_ms: u32) -> Vec<u8> {
+        self.rx.extend(bytes.iter().copied());
+        let mut out = Vec::new();
+        let Device {
+            link,
+            state,
+            flash,
+            rx,
+        } = self;
+        loop {
+            let busy = link.poll(
+                || rx.pop_front(),
+                now_ms,
+                |f| f(state),
+                flash,
+                |frame| out.extend_from_slice(frame),
+            );
+            if !busy {
+                break;
+            }
+        }
+        out
+    }
+}
+
+fn frame(request: &Request, seq: u16) -> Vec<u8> {
+    let mut buf = [0u8; MAX_FRAME];
+    let n = encode(request, seq, &mut buf).expect("encodes");
+    buf[..n].to_vec()
+}
+
+/// Every frame in `bytes` as `(seq, response)`; panics on anything else.
+fn responses(bytes: &[u8]) -> Vec<(u16, Response)> {
+    let mut decoder = Decoder::new();
+    let mut input = bytes;
+    let mut out = Vec::new();
+    while let Some(event) = decoder.decode(&mut input) {
+        let frame = event.expect("the device sends valid frames only");
+        out.push((frame.seq, Response::parse(&frame).expect("a response")));
+    }
+    assert_eq!(decoder.held(), 0, "a frame cut short");
+    out
+}
+
+fn table(rows: &[(f32, f32, f32)]) -> TuningTable {
+    TuningTable::from_rows(rows).expect("a valid table")
+}
+
+#[test]
+fn every_frame_is_answered_once_in_order() {
+    let mut dev = Device::new();
+    let requests = [
+        Request::Heartbeat,
+        Request::GetStatus,
+        Request::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        },
+        Request::HoldOffset {
+            speed_rpm: 2800.0,
+            offset_deg: 120.0,
+        },
+        Request::Stop,
+        Request::ResetFaults,
+        Request::ReadTuningTable,
+        Request::WriteTuningTable(table(&[(2500.0, 90.0, 270.0), (3000.0, 81.1, 278.9)])),
+        Request::ReadSelfTest,
+        Request::StreamTelemetry { period_ms: 0 },
+        Request::RunSelfTest,
+    ];
+    let mut bytes = Vec::new();
+    for (k, r) in requests.iter().enumerate() {
+        bytes.extend(frame(r, 100 + k as u16));
+    }
+    // A corrupted frame (payload flipped): Nack BadCrc to its sequence number.
+    let mut bad = frame(&Request::GetStatus, 500);
+    let last = bad.len() - 1;
+    bad[last] ^= 0x01;
+    bytes.extend(&bad);
+    let answers = responses(&dev.exchange(&bytes, 10));
+    assert_eq!(answers.len(), requests.len() + 1);
+    for (k, (seq, response)) in answers.iter().take(requests.len()).enumerate() {
+        assert_eq!(*seq, 100 + k as u16);
+        let id = requests[k].id() as u8;
+        match (&requests[k], response) {
+            (Request::GetStatus, Response::Status(s)) => assert_eq!(s.state, State::Idle),
+            (Request::ReadTuningTable, Response::TuningTable(t)) => {
+                assert_eq!(*t, TuningTable::default_offsets())
+            }
+            (Request::ReadSelfTest, Response::SelfTest(r)) => {
+                assert_eq!(r.status, SelfTestStatus::NotRun)
+            }
+            (_, Response::Ack { request }) => assert_eq!(*request, id),
+            (r, other) => panic!("{r:?} answered {other:?}"),
+        }
+    }
+    assert_eq!(
+        answers[requests.len()],
+        (
+            500,
+            Response::Nack {
+                request: Request::GetStatus.id() as u8,
+                reason: NackReason::BadCrc
+            }
+        )
+    );
+    // The last motion command waits for the control tick; the self-test request
+    // too.
+    assert_eq!(
+        dev.state.command,
+        Some(shared::controller::Command::ResetFaults)
+    );
+    assert!(dev.state.self_test_requested);
+}
+
+#[test]
+fn a_table_write_is_stored_and_a_power_cut_keeps_the_old_table() {
+    let old = table(&[(2500.0, 90.0, 270.0), (3000.0, 81.1, 278.9)]);
+    let new = table(&[(2000.0, 100.0, 260.0)]);
+    let mut dev = Device::new();
+    let answers = responses(&dev.exchange(&frame(&Request::WriteTuningTable(old.clone()), 1), 5));
+    assert_eq!(
+        answers,
+        [(
+            1,
+            Response::Ack {
+                request: Request::WriteTuningTable(old.clone()).id() as u8
+            }
+        )]
+    );
+    assert_eq!(
+        storage::load(&dev.flash).expect("stored").record.tuning,
+        old
+    );
+    assert_eq!(dev.state.tuning, old);
+    assert_eq!(dev.state.new_tuning.take(), Some(old.clone()));
+
+    // A cut after every few bytes of the next store: Nack StorageFailed, the old
+    // table still in use and the one that loads.
+    let id = Request::WriteTuningTable(new.clone()).id() as u8;
+    for cut in (0..1452).step_by(37) {
+        let mut d = Device::new();
+        d.exchange(&frame(&Request::WriteTuningTable(old.clone()), 1), 5);
+        d.state.new_tuning = None;
+        d.flash.cut_after(cut);
+        let answers = responses(&d.exchange(&frame(&Request::WriteTuningTable(new.clone()), 2), 6));
+        assert_eq!(
+            answers,
+            [(
+                2,
+                Response::Nack {
+                    request: id,
+                    reason: NackReason::StorageFailed
+                }
+            )],
+            "cut after {cut} bytes"
+        );
+        assert_eq!(d.state.tuning, old, "cut after {cut}");
+        assert_eq!(d.state.new_tuning, None, "cut after {cut}");
+        d.flash.power_on();
+        assert_eq!(
+            storage::load(&d.flash)
+                .expect("the old record")
+                .record
+                .tuning,
+            old,
+            "cut after {cut}"
+        );
+    }
+
+    // Refused while the motors run: nothing written.
+    let mut d = Device::new();
+    d.state.status.state = State::Running;
+    d.state.status.telemetry.speed_rpm = [3000.0; 2];
+    let answers = responses(&d.exchange(&frame(&Request::WriteTuningTable(new.clone()), 3), 5));
+    assert_eq!(
+        answers,
+        [(
+            3,
+            Response::Nack {
+                request: id,
+                reason: NackReason::NotStopped
+            }
+        )]
+    );
+    assert_eq!(d.flash.erases(), 0);
+}
+
+#[test]
+fn telemetry_comes_at_its_period_until_turned_off() {
+    let mut dev = Device::new();
+    let answers =
+        responses(&dev.exchange(&frame(&Request::StreamTelemetry { period_ms: 50 }, 7), 0));
+    assert_eq!(answers.len(), 1);
+    let mut telemetry = Vec::new();
+    for now in 1..=1000 {
+        dev.state.status.uptime_ms = now;
+        for (seq, r) in responses(&dev.exchange(&[], now)) {
+            match r {
+                Response::Telemetry(s) => telemetry.push((seq, s.uptime_ms)),
+                other => panic!("{other:?}"),
+            }
+        }
+    }
+    // Every 50 ms: 20 frames in 1 s, numbered by the device's own counter.
+    assert_eq!(telemetry.len(), 20, "{telemetry:?}");
+    for w in telemetry.windows(2) {
+        assert_eq!(w[1].1 - w[0].1, 50);
+        assert_eq!(w[1].0, w[0].0.wrapping_add(1));
+    }
+    // Off: an Ack, then nothing.
+    let answers =
+        responses(&dev.exchange(&frame(&Request::StreamTelemetry { period_ms: 0 }, 8), 1001));
+    assert!(
+        matches!(answers[..], [(8, Response::Ack { .. })]),
+        "{answers:?}"
+    );
+    for now in 1002..2000 {
+        assert!(dev.exchange(&[], now).is_empty());
+    }
+    // Below the shortest period: refused.
+    let answers =
+        responses(&dev.exchange(&frame(&Request::StreamTelemetry { period_ms: 10 }, 9), 2000));
+    assert!(
+        matches!(
+            answers[..],
+            [(
+                9,
+                Response::Nack {
+                    reason: NackReason::BadValue,
+                    ..
+                }
+            )]
+        ),
+        "{answers:?}"
+    );
+}
+
+#[test]
+fn a_frame_cut_short_is_abandoned_after_the_frame_gap() {
+    // The start of a table write (its header announces 385 bytes), cut short.
+    let long = frame(
+        &Request::WriteTuningTable(
+            TuningTable::from_rows(
+                &(0..32)
+                    .map(|k| (100.0 * k as f32, 90.0, 270.0))
+                    .collect::<Vec<_>>(),
+            )
+            .unwrap(),
+        ),
+        2,
+    );
+    let ping = frame(&Request::Heartbeat, 3);
+
+    // Without the gap, the next frame is swallowed as the cut frame's payload.
+    let mut dev = Device::new();
+    assert!(dev.exchange(&long[..30], 100).is_empty());
+    assert!(dev
+        .exchange(&ping, 100 + FRAME_GAP_TIMEOUT_MS - 1)
+        .is_empty());
+
+    // After the gap, the cut frame is dropped and the next frame answered.
+    let mut dev = Device::new();
+    assert!(dev.exchange(&long[..30], 100).is_empty());
+    assert!(dev.exchange(&[], 100 + FRAME_GAP_TIMEOUT_MS - 1).is_empty());
+    assert!(dev.exchange(&[], 100 + FRAME_GAP_TIMEOUT_MS).is_empty());
+    let answers = responses(&dev.exchange(&ping, 100 + FRAME_GAP_TIMEOUT_MS + 1));
+    assert_eq!(
+        answers,
+        [(
+            3,
+            Response::Ack {
+                request: Request::Heartbeat.id() as u8
+            }
+        )]
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    /// Arbitrary bytes in arbitrary chunks at arbitrary times, with valid frames
+    /// among them: no panic, and everything sent is whole, valid response frames.
+    #[test]
+    fn arbitrary_bytes_never_panic(
+        chunks in proptest::collection::vec(
+            (proptest::collection::vec(any::<u8>(), 0..120), 0u32..80, any::<bool>()),
+            0..40,
+        ),
+    ) {
+        let mut dev = Device::new();
+        let mut now = 0u32;
+        let mut sent = Vec::new();
+        for (k, (bytes, step, with_frame)) in chunks.iter().enumerate() {
+            now = now.wrapping_add(*step);
+            let mut input = bytes.clone();
+            if *with_frame {
+                input.extend(frame(&Request::GetStatus, k as u16));
+            }
+            sent.extend(dev.exchange(&input, now));
+        }
+        let mut decoder = Decoder::new();
+        let mut input = &sent[..];
+        while let Some(event) = decoder.decode(&mut input) {
+            let frame = event.expect("valid frames only");
+            prop_assert!(Response::parse(&frame).is_ok());
+        }
+        prop_assert_eq!(decoder.held(), 0);
+    }
+}
