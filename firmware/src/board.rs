@@ -11,7 +11,17 @@
 //! | encoder 2 Z (index) | PC5 | EXTI9_5, rising edge |
 //! | current 1, current 2, supply voltage | PC0, PC1, PC2 | ADC1 IN10, IN11, IN12 |
 //! | host link TX/RX | PA2, PA3 | USART2 (AF7) |
-//! | E-stop (normally closed to GND) | PB0 | EXTI0, pull-up, rising edge = open |
+//! | E-stop (normally closed to GND), software path | PB0 | EXTI0, pull-up, rising edge = open |
+//! | E-stop, the same contact, hardware path | PA6 | TIM8_BKIN (AF3), pull-up, active high |
+//!
+//! The E-stop contact goes to two pins joined on the board: PA6, TIM8's break
+//! input, which clears MOE in hardware the moment the circuit opens (see
+//! `motor_out`), and PB0, whose EXTI0 interrupt (priority 4) cuts in software and
+//! whose level the controller reads every tick. Why not PA6 alone (an AF pin's
+//! input still feeds EXTI): PA6 is EXTI line 6, which shares the EXTI9_5 vector
+//! with the index of encoder 2 (PC5, EXTI5), so the E-stop would run at the index
+//! task's priority and every index pulse would also enter the E-stop handler.
+//! TIM8_BKIN exists only on PA6 on the 64-pin package (PI4 is not bonded out).
 //!
 //! Why TIM8 and not TIM1: on the 64-pin STM32F405RG, TIM1 CH4 exists only on PA11
 //! (USB OTG FS D-), and CH2/CH3 only on PA9/PA10 (USB VBUS sense and ID). TIM8 is
@@ -117,12 +127,20 @@ pub fn raw_count(i: usize) -> u32 {
     }
 }
 
-/// Whether the E-stop circuit is open (pressed, or a wire broken): PB0 high
-/// (pulled up; the closed contact holds it at GND). A register read, callable
-/// from anywhere.
+/// Whether the E-stop circuit is open (pressed, or a wire broken): PB0 high or PA6
+/// (TIM8_BKIN) high (pulled up; the closed contact holds them at GND), or TIM8's
+/// break has cut the outputs since the last tick that did not drive (a break the
+/// pins no longer show: a short opening, or a fault on the PA6 side only). Register
+/// reads, callable from anywhere.
 pub fn estop_open() -> bool {
-    // SAFETY: read-only access to GPIOB's input data register.
-    unsafe { (*pac::GPIOB::ptr()).idr().read().idr0().bit_is_set() }
+    // SAFETY: read-only access to the input data registers of GPIOA and GPIOB.
+    let (pb0, pa6) = unsafe {
+        (
+            (*pac::GPIOB::ptr()).idr().read().idr0().bit_is_set(),
+            (*pac::GPIOA::ptr()).idr().read().idr6().bit_is_set(),
+        )
+    };
+    pb0 || pa6 || crate::motor_out::break_tripped()
 }
 
 /// ADC1 and the three analog inputs.
@@ -142,7 +160,11 @@ pub struct Analog3 {
 }
 
 impl Sense {
-    /// Convert the three channels one after the other (blocking, about 14 us).
+    /// Convert the three channels one after the other (blocking, about 14 us), at
+    /// whatever point of the PWM period the tick falls. Conversions triggered by
+    /// TIM8 at the middle of the on-time, read without waiting, are the next step:
+    /// `docs/hardware.md`, "ADC triggering", has the plan and why it waits for a
+    /// board.
     pub fn read(&mut self) -> Analog3 {
         let volts = |raw: u16| f32::from(raw) * (VREF_V / ADC_FULL_SCALE);
         let c1 = volts(self.adc.convert(&self.current1, SAMPLE_TIME));
@@ -218,7 +240,10 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpioc = dp.GPIOC.split(&mut rcc);
 
-    // H-bridges: TIM8 CH1..CH4 at PWM_HZ, channels disabled until the first tick.
+    // H-bridges: TIM8 CH1..CH4 at PWM_HZ; the break input PA6 (AF3, pulled up,
+    // the E-stop contact holds it low) set up before `MotorOut::new` arms the break.
+    // Outputs off (MOE = 0) until the first tick that enables.
+    let break_input = gpioa.pa6.into_alternate::<3>().internal_resistor(Pull::Up);
     let (pwm, (c1, c2, c3, c4)) = dp.TIM8.pwm_hz(PWM_HZ.Hz(), &mut rcc);
     let motors = MotorOut::new(
         pwm,
@@ -228,6 +253,7 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
             c3.with(gpioc.pc8).erase(),
             c4.with(gpioc.pc9).erase(),
         ],
+        break_input,
     );
 
     // Encoders: TIM2 on PA15/PB3, TIM5 on PA0/PA1, x4 quadrature decoding.
@@ -285,6 +311,12 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
     tick.start((CONTROL_RATE_HZ as u32).Hz())
         .expect("TIM7 rate");
     tick.listen(Event::Update);
+
+    // A debugger halting the core stops TIM8, which then disables its outputs as
+    // if MOE were 0: a breakpoint never leaves the motors driven.
+    dp.DBGMCU
+        .apb2_fz()
+        .modify(|_, w| w.dbg_tim8_stop().set_bit());
 
     // Watchdog: frozen while a debugger halts the core, then started.
     let mut watchdog = IndependentWatchdog::new(dp.IWDG);

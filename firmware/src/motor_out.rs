@@ -1,22 +1,48 @@
 //! Motor outputs: a signed duty per motor onto the two PWM inputs of its H-bridge
-//! (TIM8 CH1/CH2 for motor 1, CH3/CH4 for motor 2, see `board.rs`), and [`cut`],
-//! which switches all four outputs off from any context, the panic handler included.
+//! (TIM8 CH1/CH2 for motor 1, CH3/CH4 for motor 2, see `board.rs`), TIM8's hardware
+//! break on the E-stop, and [`cut`], which switches all four outputs off from any
+//! context, the panic handler included.
 //!
 //! # Drive scheme (sign-magnitude, coasting in the off-time)
 //!
 //! An H-bridge with two inputs IN1/IN2 (DRV8871-like): IN1 = PWM, IN2 = low drives
 //! forward with duty `d`; IN1 = low, IN2 = PWM drives in reverse; both low leaves the
-//! bridge in coast (outputs high-impedance). So `duty = d` in [-1, 1] maps to
-//! `(IN1, IN2) = (max(d, 0), max(-d, 0))` ([`bridge_duties`]).
+//! bridge in coast (outputs high-impedance; both high would brake). So `duty = d` in
+//! [-1, 1] maps to `(IN1, IN2) = (max(d, 0), max(-d, 0))` ([`bridge_duties`]).
 //!
-//! # Off state
+//! # Off state: MOE = 0, every input driven low
 //!
-//! [`cut`] clears MOE (main output enable) and AOE (automatic output enable, which
-//! the HAL sets and which would set MOE again at the next update event), disables
-//! the four channels (CCxE) and zeroes the compare registers. With MOE = 0 and
-//! CCxE = 0 the timer no longer drives the pins: the H-bridge inputs need pull-downs
-//! (the DRV8871 has them inside) so the bridge sees both inputs low (coast).
+//! The four channels stay enabled (CCxE = 1, active high, idle level OISx = 0) from
+//! [`MotorOut::new`] on; whether the bridges are driven is decided by TIM8's main
+//! output enable (MOE) alone. With OSSI = 1 ("off-state selection for idle"), MOE = 0
+//! makes the timer drive every output to its idle level, low: both inputs of both
+//! bridges low, coast. The pins are driven, not left floating, so the bridge's own
+//! pull-downs (the DRV8871 has them inside) matter only before init and after a reset.
+//!
+//! MOE is cleared in three ways:
+//! - **in hardware by the break input** (BKIN, PA6, wired to the same normally
+//!   closed E-stop contact as PB0): BKE = 1, BKP = 1 (active high: the circuit
+//!   opened lets the pull-up take it high). The break clears MOE asynchronously,
+//!   without the clock or any software, within the gate delays, and sets BIF. While
+//!   the input stays active MOE cannot be set, neither by software nor by AOE;
+//! - **by [`cut`]**, from the E-stop interrupt (EXTI0 on PB0), the panic and
+//!   HardFault handlers and every control tick that does not enable;
+//! - **by a debugger halt**: DBG_TIM8_STOP (board.rs) stops TIM8 while the core is
+//!   halted, and the timer then disables its outputs as if MOE were 0.
+//!
+//! AOE = 0: MOE is never set again automatically (at an update event) after a break.
+//! Only [`MotorOut::apply`] sets it, when the controller enables *and* neither the
+//! E-stop pins nor the break flag say stop. A break the controller has not yet seen
+//! (BIF set) keeps the outputs off: [`crate::board::estop_open`] reports it, the
+//! controller latches `ESTOP`, and the flag is cleared by the next tick that does
+//! not enable ([`MotorOut::apply`]), so `ResetFaults` then works as for any E-stop.
+//!
+//! BDTR is configured once, at [`MotorOut::new`]; afterwards only MOE (and AOE,
+//! cleared again) is written, by [`cut`] and [`MotorOut::apply`]. The LOCK field
+//! cannot protect it: the HAL's PWM setup writes BDTR first (AOE), and the first
+//! write after reset freezes LOCK (RM0090, TIMx_BDTR), at "off".
 
+use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
 
@@ -53,88 +79,143 @@ fn compare(fraction: f32, max: u16) -> u16 {
     }
 }
 
+/// TIM8's registers, without owning the peripheral.
+fn tim8() -> &'static pac::tim1::RegisterBlock {
+    // SAFETY: the callers only read, or write bits that switch outputs off (MOE,
+    // BIF, the compare values), except `MotorOut`, which owns the timer.
+    unsafe { &*TIM8::ptr() }
+}
+
 /// The two H-bridges on TIM8: channels in the order CH1..CH4 (motor 1 IN1, IN2,
-/// motor 2 IN1, IN2).
+/// motor 2 IN1, IN2), and the break input.
 pub struct MotorOut {
     /// Kept so the timer stays configured and running.
     _pwm: PwmHzManager<TIM8>,
     /// TIM8 CH1..CH4.
     channels: [ErasedChannel<TIM8>; 4],
+    /// PA6 as TIM8_BKIN, held so nothing else can take the pin.
+    _break_input: PA6<Alternate<3>>,
     /// Compare value for 100 % duty (the auto-reload value + 1).
     max_duty: u16,
 }
 
 impl MotorOut {
-    /// Take the configured timer and its four channels; leaves the outputs cut.
-    pub fn new(pwm: PwmHzManager<TIM8>, channels: [ErasedChannel<TIM8>; 4]) -> Self {
+    /// Take the configured timer, its four channels and the break input pin (PA6
+    /// in AF3 with its pull-up); cut the outputs, arm the hardware break and set
+    /// the off state (module documentation). The outputs stay off until the first
+    /// [`MotorOut::apply`] that enables.
+    pub fn new(
+        pwm: PwmHzManager<TIM8>,
+        mut channels: [ErasedChannel<TIM8>; 4],
+        break_input: PA6<Alternate<3>>,
+    ) -> Self {
         let max_duty = pwm.get_max_duty();
         cut();
+        // One write of BDTR: break enabled, active high; no automatic output
+        // enable; with MOE = 0 the enabled outputs driven to their idle level, low
+        // (OSSI; OSSR = 1 likewise, which matters only for complementary outputs,
+        // unused here); no dead time (two-input bridges switch one input at a
+        // time); MOE = 0.
+        let tim = tim8();
+        tim.bdtr().write(|w| {
+            w.moe().clear_bit();
+            w.aoe().clear_bit();
+            w.bkp().set_bit();
+            w.bke().set_bit();
+            w.ossr().set_bit();
+            w.ossi().set_bit();
+            w.lock().off();
+            w.dtg().set(0)
+        });
+        // Idle levels low (OIS1..OIS4 in CR2 = 0, the reset value, never written).
+        // Compare values 0 (done by `cut`), then the channels on for good: with
+        // MOE = 0 they drive the idle level.
+        for ch in channels.iter_mut() {
+            ch.enable();
+        }
+        // A break latched while the timer was being set up is not an E-stop the
+        // controller should see: clear it if the input is inactive now.
+        clear_break();
         MotorOut {
             _pwm: pwm,
             channels,
+            _break_input: break_input,
             max_duty,
         }
     }
 
     /// Write one tick's outputs: the signed duties of motors 1 and 2 when `enable`,
-    /// otherwise (or when the E-stop circuit is open) [`cut`].
+    /// otherwise [`cut`] (and clear a break flag the controller has seen).
     ///
     /// Called every control tick with the controller's fresh outputs, so a stale
-    /// duty never survives a tick.
+    /// duty never survives a tick. MOE is set only when the controller enables, the
+    /// E-stop pins read closed and no break has occurred since the last tick that
+    /// did not enable ([`crate::board::estop_open`]).
     pub fn apply(&mut self, duty: [f32; 2], enable: bool) {
-        if !enable || crate::board::estop_open() {
+        if !enable {
+            cut();
+            // The controller has had the E-stop (the break flag is part of
+            // `estop_open`) in this tick's inputs and is not driving: the flag has
+            // done its job. Clears only once the input is inactive again.
+            clear_break();
+            return;
+        }
+        if crate::board::estop_open() {
+            // Leaves a break flag set: the next tick's inputs report it.
             cut();
             return;
         }
-        // Compare values: IN1/IN2 of motor 1, then of motor 2.
+        // Compare values: IN1/IN2 of motor 1, then of motor 2 (preloaded: they act
+        // at the next update event).
         let max = self.max_duty;
         for (m, d) in duty.iter().enumerate() {
             let (in1, in2) = bridge_duties(*d);
             self.channels[2 * m].set_duty(compare(in1, max));
             self.channels[2 * m + 1].set_duty(compare(in2, max));
         }
-        for ch in self.channels.iter_mut() {
-            ch.enable();
-        }
-        // MOE last, and only while the E-stop circuit is closed: checked with
-        // interrupts off, so the E-stop interrupt cannot cut between the check and
-        // the write and then have its cut undone by this write.
+        // MOE last, and only while the E-stop circuit is closed and no break has
+        // occurred: checked with interrupts off, so the E-stop interrupt cannot cut
+        // between the check and the write and then have its cut undone by this
+        // write. (While the break input is active the hardware refuses MOE anyway.)
         cortex_m::interrupt::free(|_| {
             if !crate::board::estop_open() {
-                // SAFETY: a single read-modify-write of TIM8 BDTR with interrupts
-                // off; the only other writer is `cut`, which cannot preempt here.
-                let tim = unsafe { &*TIM8::ptr() };
-                tim.bdtr().modify(|_, w| w.moe().set_bit());
+                tim8().bdtr().modify(|_, w| w.moe().set_bit());
             }
         });
     }
 }
 
-/// Switch all four H-bridge inputs off at once: clear MOE and AOE, disable CH1..CH4,
-/// zero the compare registers. Writes TIM8's registers directly, without owning the
-/// peripheral, so the E-stop interrupt, the panic and fault handlers can call it
-/// whatever state the rest of the firmware is in. Idempotent; harmless before TIM8
-/// is clocked (the writes are then ignored).
+/// Whether TIM8's break has occurred (BIF) since the flag was last cleared: the
+/// break input went active and cleared MOE in hardware. A register read.
+pub fn break_tripped() -> bool {
+    tim8().sr().read().bif().bit_is_set()
+}
+
+/// Clear the break flag (BIF). The hardware keeps it set while the break input is
+/// still active, so this never hides a present E-stop.
+fn clear_break() {
+    tim8().sr().write(|w| w.bif().clear());
+}
+
+/// Switch all four H-bridge inputs off at once: clear MOE (and AOE), so the timer
+/// drives every input to its idle level (low: coast), and zero the compare
+/// registers. Writes TIM8's registers directly, without owning the peripheral, so
+/// the E-stop interrupt, the panic and fault handlers can call it whatever state
+/// the rest of the firmware is in. Idempotent; harmless before TIM8 is clocked (the
+/// writes are then ignored). Before [`MotorOut::new`] has set the off-state
+/// configuration the channels are disabled, so MOE = 0 leaves the pins undriven
+/// (the bridge's pull-downs hold them low).
 pub fn cut() {
-    // SAFETY: only writes that switch outputs off; racing with `MotorOut::apply`
-    // is resolved there (MOE set with interrupts off after an E-stop check).
-    let tim: &pac::tim1::RegisterBlock = unsafe { &*TIM8::ptr() };
-    // Main output off first: it acts at once, asynchronously to the counter.
+    let tim = tim8();
+    // Main output off first: it acts at once, asynchronously to the counter. AOE
+    // off too: the HAL's PWM setup sets it, and it would set MOE again at the next
+    // update event (`MotorOut::new` leaves it off for good).
     tim.bdtr()
         .modify(|_, w| w.moe().clear_bit().aoe().clear_bit());
-    // Then the channels and their compare values (preloaded: they act at the next
-    // update, the channel disable at once).
-    tim.ccer().modify(|_, w| {
-        w.cc1e()
-            .clear_bit()
-            .cc2e()
-            .clear_bit()
-            .cc3e()
-            .clear_bit()
-            .cc4e()
-            .clear_bit()
-    });
+    // Then the compare values (preloaded: they act at the next update), so a later
+    // MOE does not start from old duties.
     for i in 0..4 {
+        // SAFETY: any value is a valid compare value.
         tim.ccr(i).write(|w| unsafe { w.bits(0) });
     }
 }
