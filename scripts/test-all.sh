@@ -5,8 +5,9 @@
 #   scripts/test-all.sh STEP...      # run only these steps (names: see STEPS below)
 #
 # On a fresh machine it needs only what CI has: the Rust toolchain through rustup,
-# gcc and python3. It installs the firmware target and the rustfmt and clippy
-# components itself. CI runs it through .ci/run (see docs/development.md).
+# gcc, python3 and apt (as root). It installs the firmware target, the rustfmt and
+# clippy components, flip-link and defmt-print (cargo install) and
+# qemu-system-arm (apt) itself, each only when missing. CI runs it through .ci/run (see docs/development.md).
 #
 # To add a gate: write a function `step_NAME` below and add NAME to STEPS.
 set -euo pipefail
@@ -33,6 +34,7 @@ STEPS=(
     firmware_clippy
     firmware_build
     firmware_size
+    firmware_qemu
 )
 
 # ---------------------------------------------------------------------------
@@ -54,6 +56,23 @@ step_setup() {
             rustup component add "$component"
         fi
     done
+    # The firmware links through flip-link (firmware/.cargo/config.toml); the
+    # qemu run needs defmt-print to decode its log.
+    local tool
+    for tool in flip-link defmt-print; do
+        if command -v "$tool" >/dev/null; then
+            echo "$tool: installed"
+        else
+            cargo install --locked "$tool"
+        fi
+    done
+    if command -v qemu-system-arm >/dev/null; then
+        echo "qemu-system-arm: installed"
+    else
+        apt-get update
+        DEBIAN_FRONTEND=noninteractive apt-get install -y qemu-system-arm
+    fi
+    qemu-system-arm --version | head -n 1
 }
 
 step_fmt() {
@@ -95,6 +114,7 @@ step_firmware_fmt() {
 
 step_firmware_clippy() {
     (cd firmware && cargo clippy --release --locked -- -D warnings)
+    (cd firmware && cargo clippy --release --locked --features qemu -- -D warnings)
 }
 
 step_firmware_build() {
@@ -122,6 +142,13 @@ step_firmware_size() {
         printf "firmware flash: %d bytes (%.2f %% of %d KiB)\n", t + d, 100 * (t + d) / (fk * 1024), fk
         printf "firmware static RAM: %d bytes (%.2f %% of %d KiB; the stack uses the rest)\n", d + b, 100 * (d + b) / (rk * 1024), rk
     }'
+}
+
+# The `qemu` build on QEMU's STM32F405 (netduinoplus2): the controller, the link
+# and a scripted host; its checks and its log against firmware/qemu/expected.txt
+# (docs/firmware-qemu.md).
+step_firmware_qemu() {
+    bash scripts/firmware-qemu.sh
 }
 
 # ---------------------------------------------------------------------------

@@ -17,29 +17,125 @@
 //! | 2 | `control` | TIM7 | 1 kHz: sample, `Controller::step`, write duties, feed the watchdog |
 //! | 1 | `uart_rx` | USART2 | push received bytes into the ring |
 //! | 0 | `idle` | - | decode frames, answer, send telemetry, sleep |
+//!
+//! # The `qemu` build
+//!
+//! With the cargo feature `qemu` the same controller and link run on QEMU's
+//! `netduinoplus2` machine, which has no RCC, GPIO, TIM1/TIM8, watchdog or flash
+//! controller: the app `qemu_app` (module `qemu`) ticks the control task from
+//! SysTick, reads a model of the rotors instead of the board, stores parameters in
+//! RAM ([`shared::storage::SimFlash`]) and runs a scripted host in `idle`; it logs
+//! over semihosting and exits with the result of its checks. The control stages
+//! that touch no peripheral ([`start`], [`take_link`], [`publish`]) are the ones
+//! below, shared by both apps. See `docs/firmware-qemu.md`.
 #![no_std]
 #![no_main]
 
+#[cfg(not(feature = "qemu"))]
 use defmt_rtt as _; // global defmt logger over RTT
+#[cfg(feature = "qemu")]
+use defmt_semihosting as _; // global defmt logger over semihosting (QEMU)
 
+#[cfg(not(feature = "qemu"))]
 mod board;
+#[cfg(not(feature = "qemu"))]
 mod flash;
+#[cfg(not(feature = "qemu"))]
 mod link;
+#[cfg(not(feature = "qemu"))]
 mod motor_out;
 mod panic;
+#[cfg(feature = "qemu")]
+mod qemu;
 
-/// The tuning table compiled in from `examples/vibro-driver.tuning.toml` (build.rs).
+/// The tuning table compiled in (build.rs): `VIBRO_TUNING`, else the machine
+/// file's `tuning_table`.
 mod tuning {
     include!(concat!(env!("OUT_DIR"), "/tuning.rs"));
 }
 
+/// The machine's constants compiled in from the machine file (build.rs,
+/// `VIBRO_MACHINE`, default `examples/vibro-driver.toml`).
+mod machine {
+    include!(concat!(env!("OUT_DIR"), "/machine.rs"));
+}
+
+use shared::controller::{Command, Controller, Outputs, Params, ResetCause, State, TuningTable};
+use shared::protocol::link::{use_stored, LinkState};
+use shared::protocol::SelfTestReport;
+use shared::storage::{self, Flash};
+
+/// The controller and the link's state at start: the compiled-in machine with the
+/// tuning table stored in `flash`, or the compiled-in one when none is stored
+/// (first start); the stored self-test result, if any.
+fn start<F: Flash>(flash: &F, reset_cause: ResetCause) -> (Controller, LinkState) {
+    let mut params = Params::from_machine(&machine::MACHINE);
+    let stored = storage::load(flash);
+    match &stored {
+        Some(s) => defmt::info!("tuning table from flash, record {=u32}", s.sequence),
+        None => match TuningTable::from_rows(&tuning::TUNING_ROWS) {
+            Ok(table) => params.tuning = table,
+            Err(e) => defmt::error!("compiled-in tuning table rejected: {}", e),
+        },
+    }
+    use_stored(&mut params, stored.as_ref());
+    let controller = Controller::new(&params, reset_cause);
+    if let Some(e) = controller.params_error() {
+        defmt::error!(
+            "parameters invalid: {=str} must be {=str}",
+            e.field,
+            e.requirement
+        );
+    }
+    defmt::info!(
+        "vibro driver {=str}: reset cause {}, state {=str}, {=usize} tuning rows",
+        env!("CARGO_PKG_VERSION"),
+        reset_cause,
+        controller.state().name(),
+        tuning::TUNING_ROWS.len()
+    );
+    let link = LinkState::at_start(&controller, stored.as_ref());
+    (controller, link)
+}
+
+/// Control stage 1, the link's part: take the pending command, hand a newly
+/// stored tuning table to the controller, start a requested self-test.
+fn take_link(
+    controller: &mut Controller,
+    link: &mut impl rtic::Mutex<T = LinkState>,
+) -> Option<Command> {
+    let taken = link.lock(|l| l.take_for_tick(controller));
+    if taken.tuning_refused {
+        defmt::warn!("new tuning table not taken: motors running");
+    }
+    if taken.self_test_refused {
+        defmt::warn!("self-test not started: not idle, a fault, or a rotor turning");
+    }
+    taken.command
+}
+
+/// Control stage 4: publish the tick's status and the self-test's for the link;
+/// log a state change.
+fn publish(
+    link: &mut impl rtic::Mutex<T = LinkState>,
+    uptime_ms: u32,
+    out: &Outputs,
+    self_test: SelfTestReport,
+    last_state: &mut State,
+) {
+    link.lock(|l| l.publish(uptime_ms, out, self_test));
+    if out.state != *last_state {
+        defmt::info!("state {=str}, faults {}", out.state.name(), out.faults);
+        *last_state = out.state;
+    }
+}
+
+#[cfg(not(feature = "qemu"))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, Inputs, Params, State, TuningTable, CONTROL_RATE_HZ};
-    use shared::protocol::link::{no_telemetry, Link, LinkState};
-    use shared::protocol::{SelfTestReport, SelfTestStatus, StatusReport};
-    use shared::storage;
+    use shared::controller::{Controller, Inputs, State, CONTROL_RATE_HZ};
+    use shared::protocol::link::{Link, LinkState};
     use stm32f4xx_hal::gpio::{Input, PB0, PC4, PC5};
     use stm32f4xx_hal::pac::{TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
@@ -51,7 +147,6 @@ mod app {
     use crate::flash::ParamFlash;
     use crate::link::RxRing;
     use crate::motor_out::{self, MotorOut};
-    use crate::tuning::TUNING_ROWS;
 
     /// Milliseconds per control tick.
     const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
@@ -93,51 +188,7 @@ mod app {
 
         // Parameters: the reference machine with the table stored in flash, or
         // the compiled-in one when none is stored (first start).
-        let mut params = Params::reference();
-        let stored = storage::load(&b.flash);
-        match &stored {
-            Some(s) => {
-                defmt::info!("tuning table from flash, record {=u32}", s.sequence);
-                params.tuning = s.record.tuning.clone();
-            }
-            None => match TuningTable::from_rows(&TUNING_ROWS) {
-                Ok(table) => params.tuning = table,
-                Err(e) => defmt::error!("compiled-in tuning table rejected: {}", e),
-            },
-        }
-        let stored_self_test = stored
-            .as_ref()
-            .and_then(|s| s.record.self_test)
-            .map(|result| SelfTestReport {
-                status: SelfTestStatus::Done,
-                result,
-            });
-        let controller = Controller::new(&params, b.reset_cause);
-        if let Some(e) = controller.params_error() {
-            defmt::error!(
-                "parameters invalid: {=str} must be {=str}",
-                e.field,
-                e.requirement
-            );
-        }
-        defmt::info!(
-            "vibro driver {=str}: reset cause {}, state {=str}, {=usize} tuning rows",
-            env!("CARGO_PKG_VERSION"),
-            b.reset_cause,
-            controller.state().name(),
-            TUNING_ROWS.len()
-        );
-
-        let link = LinkState::new(
-            StatusReport {
-                uptime_ms: 0,
-                state: controller.state(),
-                faults: controller.faults(),
-                telemetry: no_telemetry(),
-            },
-            controller.params().tuning.clone(),
-            stored_self_test,
-        );
+        let (controller, link) = crate::start(&b.flash, b.reset_cause);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
         let last_state = controller.state();
 
@@ -207,15 +258,7 @@ mod app {
         let encoder = cx.local.encoders.counts();
         let index = cx.shared.index.lock(core::mem::take);
         let analog = cx.local.sense.read();
-        let (command, new_tuning) = cx
-            .shared
-            .link
-            .lock(|l| (l.command.take(), l.new_tuning.take()));
-        if let Some(table) = new_tuning {
-            if !cx.local.controller.set_tuning(table) {
-                defmt::warn!("new tuning table not taken: motors running");
-            }
-        }
+        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
         let inputs = Inputs {
             encoder,
             index,
@@ -233,12 +276,13 @@ mod app {
         cx.local.motors.apply(out.duty, out.enable);
 
         // Stage 4: publish the status for the link.
-        let status = StatusReport::from_outputs(*cx.local.uptime_ms, &out);
-        cx.shared.link.lock(|l| l.status = status);
-        if out.state != *cx.local.last_state {
-            defmt::info!("state {=str}, faults {}", out.state.name(), out.faults);
-            *cx.local.last_state = out.state;
-        }
+        crate::publish(
+            &mut cx.shared.link,
+            *cx.local.uptime_ms,
+            &out,
+            cx.local.controller.self_test_report(),
+            cx.local.last_state,
+        );
 
         // Stage 5: the tick completed: feed the watchdog. Also in Fault (a defined
         // safe state with the motors off): not feeding there would turn every
@@ -281,5 +325,219 @@ mod app {
                 cortex_m::asm::wfi();
             }
         }
+    }
+}
+
+/// The `qemu` build's app (docs/firmware-qemu.md): the control task on SysTick
+/// with the rotor model, the scripted host in `idle`.
+#[cfg(feature = "qemu")]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
+mod qemu_app {
+    use shared::controller::{Controller, Inputs, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::protocol::link::{Link, LinkState};
+    use shared::storage::SimFlash;
+
+    use crate::qemu::plant::Plant;
+    use crate::qemu::script::{Io, Progress, Script};
+    use crate::qemu::world::World;
+    use crate::qemu::{self, checks, cycles, stack};
+
+    /// Milliseconds per control tick.
+    const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
+    /// SysTick reload for one control tick.
+    const RELOAD: u32 = cycles::SYSTICK_HZ / CONTROL_RATE_HZ as u32 - 1;
+
+    #[shared]
+    struct Shared {
+        /// Status, pending command, table: between the control and the link task.
+        link: LinkState,
+        /// Injected faults and observed facts: between the control task and the script.
+        world: World,
+    }
+
+    #[local]
+    struct Local {
+        controller: Controller,
+        plant: Plant,
+        uptime_ms: u32,
+        last_state: State,
+        flash: SimFlash,
+        /// SysTick calibration: `(instructions, counts)` of a known loop.
+        calibration: (u32, u32),
+    }
+
+    #[init]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        stack::paint();
+        let mut syst = cx.core.SYST;
+
+        // Calibrate SysTick against a loop of known length (interrupts are off).
+        syst.set_clock_source(cortex_m::peripheral::syst::SystClkSource::Core);
+        syst.set_reload(0x00FF_FFFF);
+        syst.clear_current();
+        syst.enable_counter();
+        let calibration = cycles::calibrate();
+        syst.disable_counter();
+
+        // No board::setup: RCC waits would hang in QEMU. Flash in RAM, erased as
+        // QEMU's unwritten flash reads (0x00), so nothing is stored at start.
+        let flash = SimFlash::filled(0x00);
+        let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
+        let last_state = controller.state();
+
+        // The control tick.
+        cycles::start(&mut syst, RELOAD);
+
+        (
+            Shared {
+                link,
+                world: World::default(),
+            },
+            Local {
+                controller,
+                plant: Plant::new(),
+                uptime_ms: 0,
+                last_state,
+                flash,
+                calibration,
+            },
+        )
+    }
+
+    /// The control tick at CONTROL_RATE_HZ: sample the model, step, drive the
+    /// model, publish. The same stages as the board's `control`.
+    #[task(
+        binds = SysTick,
+        priority = 2,
+        local = [controller, plant, uptime_ms, last_state],
+        shared = [link, world]
+    )]
+    fn control(mut cx: control::Context) {
+        // The task's stack use: painted below its stack pointer here, measured
+        // at the end from idle's stack pointer (the exception frame included).
+        let sp = cortex_m::register::msp::read() as usize;
+        stack::paint_window(sp);
+        let tick = qemu::next_tick();
+        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+
+        // Stage 1: sample the model and take the command.
+        let injected = cx.shared.world.lock(|w| w.injected);
+        let sample = cx.local.plant.sample();
+        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
+        let inputs = Inputs {
+            encoder: sample.encoder,
+            index: sample.index,
+            current: sample.current,
+            supply_voltage: sample.supply_voltage,
+            estop: injected.estop_open,
+            command,
+        };
+
+        // Stage 2: the controller, with the nominal tick, timed by SysTick.
+        let dt = cx.local.controller.params().tick_s();
+        let before = cycles::now();
+        let out = cx.local.controller.step(&inputs, dt);
+        let counts = cycles::elapsed(before, cycles::now());
+
+        // Stage 3: drive the model for one tick.
+        cx.local.plant.step(out.duty, out.enable, &injected);
+
+        // Stage 4: publish.
+        crate::publish(
+            &mut cx.shared.link,
+            *cx.local.uptime_ms,
+            &out,
+            cx.local.controller.self_test_report(),
+            cx.local.last_state,
+        );
+        let plant = &*cx.local.plant;
+        cx.shared
+            .world
+            .lock(|w| w.observe(tick, &out, plant, counts));
+        let used = stack::above_idle(stack::window_lowest(sp));
+        cx.shared
+            .world
+            .lock(|w| w.control_stack = w.control_stack.max(used));
+    }
+
+    /// The scripted host, once per control tick; then the measurements and the
+    /// verdict.
+    #[idle(local = [flash, calibration, link: Link = Link::new(), script: Script = Script::new()], shared = [link, world])]
+    fn idle(mut cx: idle::Context) -> ! {
+        // The stack init used; from here on, what the run uses.
+        let init_stack = stack::used();
+        stack::reset();
+        stack::paint();
+        let mut seen = 0;
+        loop {
+            // Sleep until the next control tick (checked with interrupts off, so
+            // a tick between the check and the WFI still wakes it).
+            stack::record_idle_sp();
+            let tick = cortex_m::interrupt::free(|_| {
+                let t = qemu::tick();
+                if t == seen {
+                    cortex_m::asm::wfi();
+                }
+                t
+            });
+            if tick == seen {
+                continue;
+            }
+            seen = tick;
+            let mut io = Io {
+                tick,
+                link: cx.local.link,
+                flash: cx.local.flash,
+                state: &mut cx.shared.link,
+                world: &mut cx.shared.world,
+            };
+            if cx.local.script.run(&mut io) == Progress::Done || cx.local.script.completed() {
+                break;
+            }
+        }
+        let run_stack = stack::used();
+        report(
+            init_stack,
+            run_stack,
+            *cx.local.calibration,
+            &mut cx.shared.world,
+        );
+        checks::finish()
+    }
+
+    /// Log the measurements (lines starting with `measure:`, left out of the
+    /// comparison with the expected output) and check them against the goals.
+    fn report(
+        init_stack: usize,
+        run_stack: usize,
+        calibration: (u32, u32),
+        world: &mut impl rtic::Mutex<T = World>,
+    ) {
+        let (ins, counts) = calibration;
+        defmt::info!(
+            "measure: calibration: {=u32} instructions in {=u32} SysTick counts",
+            ins,
+            counts
+        );
+        let (off, driving, control_stack) =
+            world.lock(|w| (w.cost_off, w.cost_driving, w.control_stack));
+        for (what, cost) in [("motors off", off), ("driving", driving)] {
+            defmt::info!(
+                "measure: control step, {=str}: {=u32} steps, mean {=u32} / max {=u32} SysTick counts = mean {=u32} / max {=u32} instructions",
+                what,
+                cost.steps,
+                cost.mean(),
+                cost.max,
+                cycles::instructions(cost.mean(), calibration),
+                cycles::instructions(cost.max, calibration)
+            );
+        }
+        defmt::info!(
+            "measure: stack used: init {=usize} bytes, run {=usize} bytes (scripted host included), of {=usize}; control task {=usize} bytes on top of idle",
+            init_stack,
+            run_stack,
+            stack::size(),
+            control_stack
+        );
     }
 }
