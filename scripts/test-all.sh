@@ -35,6 +35,7 @@ STEPS=(
     firmware_build
     firmware_size
     firmware_qemu
+    firmware_qemu_device
 )
 
 # ---------------------------------------------------------------------------
@@ -115,6 +116,7 @@ step_firmware_fmt() {
 step_firmware_clippy() {
     (cd firmware && cargo clippy --release --locked -- -D warnings)
     (cd firmware && cargo clippy --release --locked --features qemu -- -D warnings)
+    (cd firmware && cargo clippy --release --locked --features qemu-uart -- -D warnings)
 }
 
 step_firmware_build() {
@@ -149,6 +151,13 @@ step_firmware_size() {
 # (docs/firmware-qemu.md).
 step_firmware_qemu() {
     bash scripts/firmware-qemu.sh
+}
+
+# The real `host-sim device` against the `qemu-uart` build in QEMU, over the
+# emulated USART2 on a TCP port: status, table write/read, self-test, travel,
+# telemetry CSV, stop (docs/firmware-qemu.md, "The link on the emulated USART").
+step_firmware_qemu_device() {
+    bash scripts/firmware-qemu-device.sh
 }
 
 # ---------------------------------------------------------------------------

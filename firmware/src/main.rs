@@ -330,7 +330,7 @@ mod app {
 
 /// The `qemu` build's app (docs/firmware-qemu.md): the control task on SysTick
 /// with the rotor model, the scripted host in `idle`.
-#[cfg(feature = "qemu")]
+#[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod qemu_app {
     use shared::controller::{Controller, Inputs, ResetCause, State, CONTROL_RATE_HZ};
@@ -539,5 +539,172 @@ mod qemu_app {
             stack::size(),
             control_stack
         );
+    }
+}
+
+/// The `qemu-uart` build's app (docs/firmware-qemu.md, "The link on the emulated
+/// USART"): the control task on SysTick with the rotor model, as in `qemu_app`;
+/// the link served on USART2 as on the board (an RX interrupt filling a ring,
+/// `Link::poll` in `idle`), for a real host on QEMU's `-serial`. No checks and no
+/// exit: it runs until QEMU is stopped (a panic or a fault exits with status 1).
+#[cfg(feature = "qemu-uart")]
+#[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
+mod qemu_uart_app {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use heapless::spsc::{Consumer, Producer};
+    use shared::controller::{Controller, Inputs, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::protocol::link::{Link, LinkState};
+    use shared::storage::SimFlash;
+
+    use crate::qemu::plant::{Injected, Plant};
+    use crate::qemu::uart::{self, RxRing, UartRx, UartTx};
+    use crate::qemu::{self, cycles};
+
+    /// Milliseconds per control tick.
+    const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
+    /// SysTick reload for one control tick.
+    const RELOAD: u32 = cycles::SYSTICK_HZ / CONTROL_RATE_HZ as u32 - 1;
+
+    /// Bytes received but dropped because the ring was full.
+    static DROPPED: AtomicU32 = AtomicU32::new(0);
+
+    #[shared]
+    struct Shared {
+        /// Status, pending command, table: between the control and the link task.
+        link: LinkState,
+    }
+
+    #[local]
+    struct Local {
+        controller: Controller,
+        plant: Plant,
+        uptime_ms: u32,
+        last_state: State,
+        flash: SimFlash,
+        rx: UartRx,
+        tx: UartTx,
+        rx_in: Producer<'static, u8>,
+        rx_out: Consumer<'static, u8>,
+    }
+
+    #[init(local = [rx_ring: RxRing = RxRing::new()])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let mut syst = cx.core.SYST;
+        // No RCC: the USART's registers only (QEMU needs no clock for it).
+        let (rx, tx) = uart::split(cx.device.USART2);
+        let (rx_in, rx_out) = cx.local.rx_ring.split();
+
+        // Flash in RAM, erased as QEMU's unwritten flash reads (0x00).
+        let flash = SimFlash::filled(0x00);
+        let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
+        let last_state = controller.state();
+        defmt::info!("qemu-uart: the link on USART2 at 115200 baud");
+
+        cycles::start(&mut syst, RELOAD);
+
+        (
+            Shared { link },
+            Local {
+                controller,
+                plant: Plant::new(),
+                uptime_ms: 0,
+                last_state,
+                flash,
+                rx,
+                tx,
+                rx_in,
+                rx_out,
+            },
+        )
+    }
+
+    /// The control tick at CONTROL_RATE_HZ: sample the model, step, drive the
+    /// model, publish. The same stages as the board's `control`.
+    #[task(
+        binds = SysTick,
+        priority = 2,
+        local = [controller, plant, uptime_ms, last_state],
+        shared = [link]
+    )]
+    fn control(mut cx: control::Context) {
+        qemu::next_tick();
+        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+
+        // Stage 1: sample the model and take the command.
+        let sample = cx.local.plant.sample();
+        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
+        let inputs = Inputs {
+            encoder: sample.encoder,
+            index: sample.index,
+            current: sample.current,
+            supply_voltage: sample.supply_voltage,
+            estop: false,
+            command,
+        };
+
+        // Stage 2: the controller, with the nominal tick.
+        let dt = cx.local.controller.params().tick_s();
+        let out = cx.local.controller.step(&inputs, dt);
+
+        // Stage 3: drive the model for one tick (nothing injected).
+        cx.local
+            .plant
+            .step(out.duty, out.enable, &Injected::default());
+
+        // Stage 4: publish.
+        crate::publish(
+            &mut cx.shared.link,
+            *cx.local.uptime_ms,
+            &out,
+            cx.local.controller.self_test_report(),
+            cx.local.last_state,
+        );
+    }
+
+    /// USART2: move received bytes into the ring (counted and dropped when it is
+    /// full; the frame CRC then rejects the frame and the host sends it again).
+    #[task(binds = USART2, priority = 1, local = [rx, rx_in])]
+    fn uart_rx(cx: uart_rx::Context) {
+        for _ in 0..16 {
+            match cx.local.rx.read() {
+                Some(byte) => {
+                    if cx.local.rx_in.enqueue(byte).is_err() {
+                        DROPPED.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+                None => break,
+            }
+        }
+    }
+
+    /// The link, as on the board: decode, answer, stream telemetry; sleep when
+    /// there is nothing.
+    #[idle(local = [link: Link = Link::new(), rx_out, tx, flash], shared = [link])]
+    fn idle(mut cx: idle::Context) -> ! {
+        let mut dropped = 0;
+        loop {
+            let now_ms = cx.shared.link.lock(|l| l.status.uptime_ms);
+            let tx = &mut *cx.local.tx;
+            let rx = &mut *cx.local.rx_out;
+            let busy = cx.local.link.poll(
+                || rx.dequeue(),
+                now_ms,
+                |f| cx.shared.link.lock(|l| f(l)),
+                cx.local.flash,
+                |bytes| tx.write_all(bytes),
+            );
+            let now_dropped = DROPPED.load(Ordering::Relaxed);
+            if now_dropped != dropped {
+                defmt::warn!(
+                    "USART2: {=u32} received bytes dropped (ring full)",
+                    now_dropped
+                );
+                dropped = now_dropped;
+            }
+            if !busy {
+                cortex_m::asm::wfi();
+            }
+        }
     }
 }

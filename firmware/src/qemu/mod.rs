@@ -11,13 +11,28 @@
 //!   real `Link::poll` in bytes, and injects faults into the model ([`world`]);
 //! - measures the stack ([`stack`]) and the control step's instruction count;
 //! - logs over semihosting and exits with the verdict of its checks ([`checks`]).
+//!
+//! With the cargo feature `qemu-uart` as well, the scripted host, its checks and
+//! the measurements are left out: the link runs on the emulated USART2 ([`uart`]),
+//! for a real host (`host-sim device --port tcp:...`) to talk to, and the run
+//! lasts until QEMU is stopped.
 
+// `qemu-uart` uses only `exit` (the panic handler's).
+#[cfg_attr(feature = "qemu-uart", allow(dead_code, unused_macros, unused_imports))]
 pub mod checks;
+#[cfg_attr(feature = "qemu-uart", allow(dead_code))]
 pub mod cycles;
+#[cfg(not(feature = "qemu-uart"))]
 pub mod host;
+#[cfg_attr(feature = "qemu-uart", allow(dead_code))]
 pub mod plant;
+#[cfg(not(feature = "qemu-uart"))]
 pub mod script;
+#[cfg(not(feature = "qemu-uart"))]
 pub mod stack;
+#[cfg(feature = "qemu-uart")]
+pub mod uart;
+#[cfg(not(feature = "qemu-uart"))]
 pub mod world;
 
 use core::sync::atomic::{AtomicU32, Ordering};
