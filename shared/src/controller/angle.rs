@@ -18,11 +18,34 @@ pub const DEG_PER_RAD: f32 = 180.0 / core::f32::consts::PI;
 ///
 /// Rounding can give exactly 360 for a tiny negative `x`; that is returned as 0 so
 /// the result is always inside the interval. A non-finite `x` gives 0.
+#[inline]
 pub fn wrap_deg(x: f32) -> f32 {
+    // The usual cases, without the formula's division and floor but with its
+    // result: inside already (an offset, or an offset plus one tick's step),
+    // `floor(x / 360) = 0` and `r = x`; zero (the change of an error that did not
+    // move), `r = +0` for either sign of zero; a turn below (a negative difference
+    // of offsets), `floor(x / 360) = -1` and `r = x + 360` (then checked as below;
+    // a tiny negative `x` rounds to 360 and gives 0, as the formula does).
+    if x > 0.0 && x < TURN_DEG {
+        return x;
+    }
+    if x == 0.0 {
+        return 0.0;
+    }
+    if (-TURN_DEG..0.0).contains(&x) {
+        let r = x + TURN_DEG;
+        return if r < TURN_DEG { r } else { 0.0 };
+    }
+    wrap_deg_formula(x)
+}
+
+/// [`wrap_deg`] by its formula, for every `x`.
+#[inline(never)]
+fn wrap_deg_formula(x: f32) -> f32 {
     if !x.is_finite() {
         return 0.0;
     }
-    let r = x - TURN_DEG * libm::floorf(x / TURN_DEG);
+    let r = x - TURN_DEG * floor(x / TURN_DEG);
     if (0.0..TURN_DEG).contains(&r) {
         r
     } else {
@@ -30,8 +53,29 @@ pub fn wrap_deg(x: f32) -> f32 {
     }
 }
 
+/// `floor(y)`, the same value as `libm::floorf` (signed zeros and NaN included)
+/// without its call: the Cortex-M4F has no rounding instruction, so `libm::floorf`
+/// is a software routine of a few dozen instructions, run several times a control
+/// tick. For `|y| < 2^23` the conversion to `i32` truncates exactly (one `vcvt`)
+/// and a negative non-integer is then one too high; every `|y| >= 2^23` (and an
+/// infinity) is already an integer, and NaN stays NaN.
+fn floor(y: f32) -> f32 {
+    if libm::fabsf(y) < 8_388_608.0 {
+        let t = y as i32 as f32;
+        if t > y {
+            t - 1.0
+        } else {
+            // `t` has the sign of `y` except for a zero: floor(-0.0) = -0.0.
+            libm::copysignf(t, y)
+        }
+    } else {
+        y
+    }
+}
+
 /// `x` wrapped to (-180, 180] degrees: the signed angle of the shorter arc, with an
 /// exact half turn counted as +180. A non-finite `x` gives 0.
+#[inline]
 pub fn wrap_deg_signed(x: f32) -> f32 {
     let r = wrap_deg(x);
     if r > 180.0 {
@@ -93,6 +137,69 @@ mod tests {
         assert_eq!(wrap_deg_signed(270.0), -90.0);
         assert_eq!(wrap_deg_signed(180.0), 180.0);
         assert_eq!(wrap_deg_signed(-180.0), 180.0);
+    }
+
+    #[test]
+    fn floor_is_libm_floor() {
+        let check = |y: f32| assert_eq!(floor(y).to_bits(), libm::floorf(y).to_bits(), "{y:e}");
+        for y in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.0e-9,
+            1.0e-40,
+            -1.0e-40,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            3.0e9,
+            -3.0e9,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ] {
+            check(y);
+        }
+        // A sweep of bit patterns across the magnitudes, both signs.
+        let mut bits = 0x0000_0001u32;
+        while bits < 0x7f80_0000 {
+            check(f32::from_bits(bits));
+            check(-f32::from_bits(bits));
+            bits += 0x0000_0f31;
+        }
+        assert!(floor(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn wrap_is_the_floor_formula() {
+        let reference = |x: f32| {
+            if !x.is_finite() {
+                return 0.0;
+            }
+            let r = x - TURN_DEG * libm::floorf(x / TURN_DEG);
+            if (0.0..TURN_DEG).contains(&r) {
+                r
+            } else {
+                0.0
+            }
+        };
+        let mut x = -2000.0f32;
+        while x < 2000.0 {
+            for y in [x, x.next_up(), x.next_down()] {
+                assert_eq!(wrap_deg(y).to_bits(), reference(y).to_bits(), "{y}");
+            }
+            x += 0.37;
+        }
+        for y in [
+            0.0, -0.0, 360.0, -360.0, 1.0e-40, -1.0e-40, 1.0e30, -1.0e30, 359.99997,
+        ] {
+            assert_eq!(wrap_deg(y).to_bits(), reference(y).to_bits(), "{y}");
+        }
     }
 
     #[test]

@@ -45,6 +45,11 @@ pub struct SpeedEstimator {
     last_count: Option<u32>,
     /// The filtered speed, rad/s.
     speed_rad_s: f32,
+    /// The filter's per-`dt` constants, `(dt, N dt, dt / (tau + dt))`: computed
+    /// for the `dt` of a tick and reused while the next ticks pass the same `dt`
+    /// (recomputed when it changes), which saves a division every tick. `None`
+    /// until the first usable `dt`.
+    coefficients: Option<(f32, f32, f32)>,
 }
 
 impl SpeedEstimator {
@@ -56,6 +61,7 @@ impl SpeedEstimator {
             tau_s: if tau_s >= 0.0 { tau_s } else { 0.0 },
             last_count: None,
             speed_rad_s: 0.0,
+            coefficients: None,
         }
     }
 
@@ -85,13 +91,26 @@ impl SpeedEstimator {
         self.last_count = Some(count);
     }
 
-    /// The filter step on `delta` counts over `dt` s.
+    /// The filter step on `delta` counts over `dt` s; a `dt` that is not finite
+    /// and > 0 changes nothing.
     fn feed(&mut self, delta: i32, dt: f32) {
-        if dt > 0.0 && dt.is_finite() {
-            let raw = TURN_RAD * delta as f32 / (self.counts_per_rev as f32 * dt);
-            let alpha = dt / (self.tau_s + dt);
-            self.speed_rad_s += alpha * (raw - self.speed_rad_s);
-        }
+        let (n_dt, alpha) = match self.coefficients {
+            Some((kept, n_dt, alpha)) if kept == dt => (n_dt, alpha),
+            _ => {
+                // A new `dt`: checked, then `N dt` and `alpha = dt / (tau + dt)`
+                // for it (module documentation), kept until `dt` changes. Only a
+                // usable `dt` is kept, so one equal to the kept one needs no check.
+                if !(dt > 0.0 && dt.is_finite()) {
+                    return;
+                }
+                let n_dt = self.counts_per_rev as f32 * dt;
+                let alpha = dt / (self.tau_s + dt);
+                self.coefficients = Some((dt, n_dt, alpha));
+                (n_dt, alpha)
+            }
+        };
+        let raw = TURN_RAD * delta as f32 / n_dt;
+        self.speed_rad_s += alpha * (raw - self.speed_rad_s);
     }
 
     /// The filtered speed, rad/s.
@@ -122,6 +141,10 @@ pub struct EncoderTracker {
     counts_per_rev: u32,
     /// Index tolerance, counts.
     tolerance: u32,
+    /// `N + tolerance`, saturated at `u32::MAX` (a travel since the index never
+    /// exceeds `2^31`, so saturating changes no comparison): more counts than this
+    /// without an index pulse is [`EncoderAnomaly::IndexMissing`].
+    missing_limit: u32,
     /// The speed estimate.
     speed: SpeedEstimator,
     /// The count latched at the last index pulse.
@@ -145,12 +168,15 @@ pub struct EncoderSample {
 
 impl EncoderTracker {
     /// A tracker for `counts_per_rev` counts per turn, index tolerance
-    /// `tolerance_counts`, speed filter time constant `tau_s`.
+    /// `tolerance_counts`, speed filter time constant `tau_s`. `counts_per_rev` is
+    /// taken in [1, 2^31 - 1] (the controller's are validated to at most 2^24), so
+    /// that the angle is computed in `i32`.
     pub fn new(counts_per_rev: u32, tolerance_counts: u32, tau_s: f32) -> Self {
-        let n = counts_per_rev.max(1);
+        let n = counts_per_rev.clamp(1, i32::MAX as u32);
         EncoderTracker {
             counts_per_rev: n,
             tolerance: tolerance_counts,
+            missing_limit: n.saturating_add(tolerance_counts),
             speed: SpeedEstimator::new(n, tau_s),
             index_count: None,
             origin: None,
@@ -164,9 +190,22 @@ impl EncoderTracker {
 
     /// The distance of `d` counts from the nearest whole number of turns, counts.
     fn off_turn(&self, d: i32) -> u32 {
-        let n = self.counts_per_rev as i64;
-        let r = (d as i64).rem_euclid(n);
-        r.min(n - r) as u32
+        let r = self.angle(d);
+        r.min(self.counts_per_rev - r)
+    }
+
+    /// `d mod N`, in [0, N): in 32 bits, which the Cortex-M4 divides in hardware
+    /// (a 64-bit remainder is a library call of about a hundred instructions);
+    /// `N` is in [1, 2^31 - 1] here ([`EncoderTracker::new`]), so it fits an
+    /// `i32`. Within the turn already (the angle since the last index pulse,
+    /// turning forward), `d` is the remainder itself and no division is needed.
+    #[inline]
+    fn angle(&self, d: i32) -> u32 {
+        if (d as u32) < self.counts_per_rev {
+            d as u32
+        } else {
+            d.rem_euclid(self.counts_per_rev as i32) as u32
+        }
     }
 
     /// Take one tick's counter and index latch, `dt` s after the previous tick;
@@ -189,7 +228,11 @@ impl EncoderTracker {
             anomaly = Some(EncoderAnomaly::Jump);
             self.speed.skip(count);
         } else {
-            self.speed.update(count, dt);
+            // `self.speed.update(count, dt)` with the `delta` already worked out.
+            if self.speed.last_count.is_some() {
+                self.speed.feed(delta, dt);
+            }
+            self.speed.last_count = Some(count);
         }
         let origin = *self.origin.get_or_insert(count);
 
@@ -218,14 +261,13 @@ impl EncoderTracker {
         // A turn and more without an index pulse.
         let reference = self.index_count.unwrap_or(origin);
         let travel = count.wrapping_sub(reference) as i32;
-        if travel.unsigned_abs() as u64 > self.counts_per_rev as u64 + self.tolerance as u64 {
+        if travel.unsigned_abs() > self.missing_limit {
             anomaly.get_or_insert(EncoderAnomaly::IndexMissing);
         }
 
-        let angle_counts = self.index_count.map(|c| {
-            let d = count.wrapping_sub(c) as i32 as i64;
-            d.rem_euclid(self.counts_per_rev as i64) as u32
-        });
+        let angle_counts = self
+            .index_count
+            .map(|c| self.angle(count.wrapping_sub(c) as i32));
         EncoderSample {
             speed_rad_s: self.speed.speed_rad_s(),
             angle_counts,

@@ -263,64 +263,9 @@ impl FaultMonitor {
             found |= Faults::SUPPLY;
         }
 
-        for k in 0..2 {
-            // Encoder inconsistencies: no delay.
-            if obs.encoder_anomaly[k].is_some() {
-                found |= Faults::ENCODER;
-            }
-
-            // Over-current on the raw reading (NaN counts as over).
-            let i = obs.current[k];
-            let over = i.is_nan() || libm::fabsf(i) > limits.over_current_a;
-            if persists(
-                &mut self.over_current_s[k],
-                over,
-                dt,
-                limits.over_current_time_s,
-            ) {
-                found |= Faults::OVER_CURRENT;
-            }
-
-            // Driven but not turning: stall or encoder, by the current.
-            let duty = obs.duty[k];
-            let driven = obs.state.drives() && libm::fabsf(duty) >= limits.stall_duty;
-            let forward = if duty < 0.0 {
-                -obs.speed_rpm[k]
-            } else {
-                obs.speed_rpm[k]
-            };
-            // NaN speed counts as slow (it cannot prove motion).
-            let slow = driven && (forward.is_nan() || forward < limits.stall_speed_rpm);
-            let loaded = libm::fabsf(obs.current_filtered[k]) >= limits.stall_current_a;
-            if persists(
-                &mut self.stall_s[k],
-                slow && loaded,
-                dt,
-                limits.stall_time_s,
-            ) {
-                found |= Faults::STALL;
-            }
-            if persists(
-                &mut self.encoder_s[k],
-                slow && !loaded,
-                dt,
-                limits.encoder_time_s,
-            ) {
-                found |= Faults::ENCODER;
-            }
-            if persists(
-                &mut self.not_turning_s[k],
-                slow,
-                dt,
-                limits.stall_time_s + limits.encoder_time_s,
-            ) {
-                found |= if loaded {
-                    Faults::STALL
-                } else {
-                    Faults::ENCODER
-                };
-            }
-        }
+        // Per rotor, written out for both (straight-line code, constant indices).
+        found |= self.check_rotor(0, obs, limits, dt);
+        found |= self.check_rotor(1, obs, limits, dt);
 
         // Phase lock: only while running with the loop closed.
         let phase_bad = obs.state == State::Running
@@ -338,6 +283,76 @@ impl FaultMonitor {
             found |= Faults::LINK_LOST;
         }
 
+        found
+    }
+
+    /// The checks of rotor `k` (see [`FaultMonitor::check`]).
+    #[inline(always)]
+    fn check_rotor(
+        &mut self,
+        k: usize,
+        obs: &Observation,
+        limits: &FaultLimits,
+        dt: f32,
+    ) -> Faults {
+        let mut found = Faults::NONE;
+
+        // Encoder inconsistencies: no delay.
+        if obs.encoder_anomaly[k].is_some() {
+            found |= Faults::ENCODER;
+        }
+
+        // Over-current on the raw reading (NaN counts as over).
+        let i = obs.current[k];
+        let over = i.is_nan() || libm::fabsf(i) > limits.over_current_a;
+        if persists(
+            &mut self.over_current_s[k],
+            over,
+            dt,
+            limits.over_current_time_s,
+        ) {
+            found |= Faults::OVER_CURRENT;
+        }
+
+        // Driven but not turning: stall or encoder, by the current.
+        let duty = obs.duty[k];
+        let driven = obs.state.drives() && libm::fabsf(duty) >= limits.stall_duty;
+        let forward = if duty < 0.0 {
+            -obs.speed_rpm[k]
+        } else {
+            obs.speed_rpm[k]
+        };
+        // NaN speed counts as slow (it cannot prove motion).
+        let slow = driven && (forward.is_nan() || forward < limits.stall_speed_rpm);
+        let loaded = libm::fabsf(obs.current_filtered[k]) >= limits.stall_current_a;
+        if persists(
+            &mut self.stall_s[k],
+            slow && loaded,
+            dt,
+            limits.stall_time_s,
+        ) {
+            found |= Faults::STALL;
+        }
+        if persists(
+            &mut self.encoder_s[k],
+            slow && !loaded,
+            dt,
+            limits.encoder_time_s,
+        ) {
+            found |= Faults::ENCODER;
+        }
+        if persists(
+            &mut self.not_turning_s[k],
+            slow,
+            dt,
+            limits.stall_time_s + limits.encoder_time_s,
+        ) {
+            found |= if loaded {
+                Faults::STALL
+            } else {
+                Faults::ENCODER
+            };
+        }
         found
     }
 

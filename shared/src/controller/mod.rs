@@ -152,11 +152,59 @@ struct Measurement {
     offset_deg: Option<f32>,
 }
 
+/// Constants of one `dt`, computed when the `dt` passed to a tick differs from the
+/// previous tick's and reused while it stays the same (every tick at a steady
+/// rate), so that a tick does not redo their checks and divisions.
+#[derive(Clone, Copy, Debug)]
+struct DtConstants {
+    /// The `dt` passed to [`Controller::step`], s; NaN before the first tick (a
+    /// NaN never matches, so it is always worked out).
+    given_dt: f32,
+    /// The usable `dt` made of it (stage 1 of [`Controller::step`]), s.
+    dt: f32,
+    /// [`Params::max_counts`] of `dt`.
+    max_counts: f32,
+    /// The current filter's `alpha = dt / (tau_i + dt)`.
+    current_alpha: f32,
+}
+
+/// The tuning table's offset at one speed, kept while neither changes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct TableOffset {
+    /// The direction asked for.
+    direction: Direction,
+    /// The speed asked for (its bits: a NaN never matches), rpm.
+    speed_bits: u32,
+    /// [`TuningTable::offset`] of both, degrees.
+    offset_deg: f32,
+}
+
+/// `[f(a[0]), f(a[1])]`: `<[T; 2]>::map` written out. The array method goes
+/// through a generic loop that `opt-level = "s"` leaves in place (with its stack
+/// copies); this is straight-line code for the rotor pairs of a tick.
+#[inline(always)]
+fn map2<T: Copy, U>(a: [T; 2], f: impl Fn(T) -> U) -> [U; 2] {
+    [f(a[0]), f(a[1])]
+}
+
 /// The vibro driver's motor controller. See the module documentation.
 #[derive(Clone, Debug)]
 pub struct Controller {
     /// The parameters in use (the reference ones if those given were invalid).
     params: Params,
+    /// The nominal tick, [`Params::tick_s`], s (computed once: the parameters other
+    /// than the tuning table never change).
+    tick_s: f32,
+    /// Degrees per encoder count, `360 / N` (computed once).
+    deg_per_count: f32,
+    /// [`Params::phase_trim_max_rpm`] in rad/s (computed once).
+    phase_trim_max_rad_s: f32,
+    /// The constants of the last tick's `dt`, recomputed when `dt` changes.
+    dt_constants: DtConstants,
+    /// The last table offset looked up, cleared when the table changes
+    /// ([`Controller::set_tuning`]): while the speed reference stays put (running
+    /// at the commanded speed) the table is not interpolated again every tick.
+    table_offset: Option<TableOffset>,
     /// Why the given parameters were refused.
     params_error: Option<ParamError>,
     /// Current state.
@@ -246,6 +294,16 @@ impl Controller {
             self_test: None,
             self_test_status: SelfTestStatus::NotRun,
             self_test_result: SelfTest::default(),
+            tick_s: params.tick_s(),
+            deg_per_count: TURN_DEG / params.encoder_counts as f32,
+            phase_trim_max_rad_s: rpm_to_rad_s(params.phase_trim_max_rpm),
+            dt_constants: DtConstants {
+                given_dt: f32::NAN,
+                dt: 0.0,
+                max_counts: 0.0,
+                current_alpha: 0.0,
+            },
+            table_offset: None,
             params,
         }
     }
@@ -266,6 +324,7 @@ impl Controller {
     pub fn set_tuning(&mut self, table: TuningTable) -> bool {
         if matches!(self.state, State::Idle | State::Fault) {
             self.params.tuning = table;
+            self.table_offset = None;
             true
         } else {
             false
@@ -349,15 +408,23 @@ impl Controller {
     /// 8. **Output**, built afresh: with any fault latched, or idle, the safe state
     ///    (enable off, duty 0) overrides whatever the loops computed.
     pub fn step(&mut self, inputs: &Inputs, dt: f32) -> Outputs {
-        let p = &self.params;
-
         // 1. Time.
-        let tick = p.tick_s();
-        let dt = if dt.is_finite() && dt > 0.0 {
-            dt.clamp(0.1 * tick, 10.0 * tick)
-        } else {
-            tick
-        };
+        if self.dt_constants.given_dt != dt {
+            let tick = self.tick_s;
+            let usable = if dt.is_finite() && dt > 0.0 {
+                dt.clamp(0.1 * tick, 10.0 * tick)
+            } else {
+                tick
+            };
+            let p = &self.params;
+            self.dt_constants = DtConstants {
+                given_dt: dt,
+                dt: usable,
+                max_counts: p.max_counts(usable),
+                current_alpha: usable / (p.current_filter_tau_s + usable),
+            };
+        }
+        let dt = self.dt_constants.dt;
 
         // 2. Measure.
         let m = self.measure(inputs, dt);
@@ -380,14 +447,14 @@ impl Controller {
         // 3. Check faults.
         // The self-test measures the index itself: only count jumps are faults.
         let testing = self.state == State::SelfTest;
-        let encoder_anomaly = m.anomaly.map(|a| match a {
+        let encoder_anomaly = map2(m.anomaly, |a| match a {
             Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
             other => other,
         });
         let obs = Observation {
             state: self.state,
             duty: self.last_duty,
-            speed_rpm: m.speed_rad_s.map(rad_s_to_rpm),
+            speed_rpm: map2(m.speed_rad_s, rad_s_to_rpm),
             current: inputs.current,
             current_filtered: self.current_filtered,
             encoder_anomaly,
@@ -436,8 +503,16 @@ impl Controller {
         let ramp_rad_s = rpm_to_rad_s(self.ramp_rpm);
         let dw = match (self.phase_closed, phase_error_deg) {
             (true, Some(e)) => {
-                let limit = rpm_to_rad_s(p.phase_trim_max_rpm)
-                    .min(p.phase_trim_fraction * ramp_rad_s.max(0.0));
+                // min(trim_max, fraction x max(ramp, 0)), written out: `f32::min`
+                // and `max` are library calls on the Cortex-M4F. The ramp is
+                // finite; a NaN would give 0 as `max` does.
+                let ramp_pos = if ramp_rad_s > 0.0 { ramp_rad_s } else { 0.0 };
+                let fraction = p.phase_trim_fraction * ramp_pos;
+                let limit = if fraction < self.phase_trim_max_rad_s {
+                    fraction
+                } else {
+                    self.phase_trim_max_rad_s
+                };
                 self.phase_loop.update(
                     e / DEG_PER_RAD,
                     offset_rate_deg_s / DEG_PER_RAD,
@@ -467,21 +542,18 @@ impl Controller {
             duty = test_duty;
             self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
         } else if self.state.drives() {
-            for k in 0..2 {
+            let accel_ref_rad_s2 = rpm_to_rad_s(accel_rpm_s);
+            let update = |k: usize, speed_loop: &mut SpeedLoop| {
                 let input = SpeedLoopInput {
                     speed_ref_rad_s: speed_ref[k],
-                    accel_ref_rad_s2: rpm_to_rad_s(accel_rpm_s),
+                    accel_ref_rad_s2,
                     speed_rad_s: m.speed_rad_s[k],
                     supply_v,
                 };
-                duty[k] = self.speed_loops[k].update(
-                    &input,
-                    &p.speed_gains[k],
-                    &p.rotors[k],
-                    p.min_duty,
-                    dt,
-                );
-            }
+                speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
+            };
+            let [loop1, loop2] = &mut self.speed_loops;
+            duty = [update(0, loop1), update(1, loop2)];
         } else {
             self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
         }
@@ -489,8 +561,12 @@ impl Controller {
         // 8. Output, with the safe-state override.
         let enable = self.state.drives() && self.faults.is_empty();
         let duty = if enable {
-            duty.map(|d| {
-                if d.is_finite() {
+            map2(duty, |d| {
+                // In range already (the loops' duties are): as it is; otherwise
+                // clamped, and 0 if not finite.
+                if libm::fabsf(d) <= 1.0 {
+                    d
+                } else if d.is_finite() {
                     d.clamp(-1.0, 1.0)
                 } else {
                     0.0
@@ -507,9 +583,9 @@ impl Controller {
             state: self.state,
             faults: self.faults,
             telemetry: Telemetry {
-                speed_rpm: m.speed_rad_s.map(rad_s_to_rpm),
+                speed_rpm: obs.speed_rpm,
                 speed_ref_rpm: if driving {
-                    speed_ref.map(rad_s_to_rpm)
+                    map2(speed_ref, rad_s_to_rpm)
                 } else {
                     [0.0; 2]
                 },
@@ -534,36 +610,43 @@ impl Controller {
     /// Stage 2: encoders, phase offset, current filter.
     fn measure(&mut self, inputs: &Inputs, dt: f32) -> Measurement {
         let p = &self.params;
-        let max_counts = p.max_counts(dt);
-        let mut speed_rad_s = [0.0; 2];
-        let mut anomaly = [None; 2];
-        let mut angle = [None; 2];
-        for k in 0..2 {
-            let s = self.encoders[k].update(inputs.encoder[k], inputs.index[k], dt, max_counts);
-            speed_rad_s[k] = s.speed_rad_s;
-            anomaly[k] = s.anomaly;
-            angle[k] = s.angle_counts;
-        }
+        let max_counts = self.dt_constants.max_counts;
+        let [e1, e2] = &mut self.encoders;
+        let s = [
+            e1.update(inputs.encoder[0], inputs.index[0], dt, max_counts),
+            e2.update(inputs.encoder[1], inputs.index[1], dt, max_counts),
+        ];
+        let speed_rad_s = map2(s, |s| s.speed_rad_s);
+        let anomaly = map2(s, |s| s.anomaly);
+        let angle = map2(s, |s| s.angle_counts);
 
         // theta_1 - theta_2 from the angles since the index, exact in counts:
         //   offset = 360 ((a1 - a2) mod N) / N   degrees.
-        let n = p.encoder_counts as i64;
+        // Both angles are in [0, N), so `a1 - a2` is in (-N, N) and the `mod N` is
+        // one addition of N to a negative difference (in 32 bits: N <= 2^24).
         let offset_deg = match angle {
             [Some(a1), Some(a2)] => {
-                let d = (a1 as i64 - a2 as i64).rem_euclid(n);
-                Some(wrap_deg(d as f32 * (TURN_DEG / p.encoder_counts as f32)))
+                let d = if a1 >= a2 {
+                    a1 - a2
+                } else {
+                    a1 + p.encoder_counts - a2
+                };
+                Some(wrap_deg(d as f32 * self.deg_per_count))
             }
             _ => None,
         };
 
-        // Currents: first-order low-pass, non-finite samples skipped.
-        let alpha = dt / (p.current_filter_tau_s + dt);
-        for k in 0..2 {
-            let i = inputs.current[k];
+        // Currents: first-order low-pass, non-finite samples skipped;
+        //   alpha = dt / (tau_i + dt)   (cached with dt).
+        let alpha = self.dt_constants.current_alpha;
+        let filter = |filtered: &mut f32, i: f32| {
             if i.is_finite() {
-                self.current_filtered[k] += alpha * (i - self.current_filtered[k]);
+                *filtered += alpha * (i - *filtered);
             }
-        }
+        };
+        let [i1, i2] = &mut self.current_filtered;
+        filter(i1, inputs.current[0]);
+        filter(i2, inputs.current[1]);
 
         Measurement {
             speed_rad_s,
@@ -674,10 +757,24 @@ impl Controller {
     }
 
     /// The offset the current target asks for at the ramped speed, degrees.
-    fn target_offset(&self) -> f32 {
+    fn target_offset(&mut self) -> f32 {
         match self.target.map(|t| t.offset) {
             Some(OffsetSource::Table(direction)) => {
-                self.params.tuning.offset(direction, self.ramp_rpm)
+                let speed_bits = self.ramp_rpm.to_bits();
+                match self.table_offset {
+                    Some(c) if c.direction == direction && c.speed_bits == speed_bits => {
+                        c.offset_deg
+                    }
+                    _ => {
+                        let offset_deg = self.params.tuning.offset(direction, self.ramp_rpm);
+                        self.table_offset = Some(TableOffset {
+                            direction,
+                            speed_bits,
+                            offset_deg,
+                        });
+                        offset_deg
+                    }
+                }
             }
             Some(OffsetSource::Fixed(o)) => o,
             None => self.offset.target_deg(),
@@ -707,6 +804,9 @@ impl Controller {
         };
         let (ramp, accel) = ramp_speed(self.ramp_rpm, target_rpm, &rates, dt);
         self.ramp_rpm = ramp;
+        let offset_step_deg = p.offset_ramp_deg_s * dt;
+        let stop_speed_rpm = p.stop_speed_rpm;
+        let stop_timeout_s = p.stop_timeout_s;
 
         // Phase loop open or closed: closed with both angles known above its speed.
         let can_close = m.offset_deg.is_some() && self.ramp_rpm >= p.phase_loop_min_rpm;
@@ -732,7 +832,7 @@ impl Controller {
                 let to = self.target_offset();
                 self.offset.retarget(to, false);
             }
-            let moved = self.offset.step(p.offset_ramp_deg_s * dt);
+            let moved = self.offset.step(offset_step_deg);
             offset_rate = moved / dt;
         }
 
@@ -746,8 +846,8 @@ impl Controller {
                 let slow = m
                     .speed_rad_s
                     .iter()
-                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < p.stop_speed_rpm);
-                if slow || self.stop_elapsed_s >= p.stop_timeout_s {
+                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < stop_speed_rpm);
+                if slow || self.stop_elapsed_s >= stop_timeout_s {
                     self.state = State::Idle;
                     self.stop_run();
                 }

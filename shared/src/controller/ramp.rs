@@ -24,7 +24,8 @@ pub struct SpeedRampRates {
 /// Returns the new value and the acceleration of the reference, rpm/s (for the
 /// feedforward). A non-finite target leaves `current` where it is.
 pub fn ramp_speed(current: f32, target: f32, rates: &SpeedRampRates, dt: f32) -> (f32, f32) {
-    if !target.is_finite() || !current.is_finite() || current == target {
+    // At the target (the steady state) first: equal values are never NaN.
+    if current == target || !target.is_finite() || !current.is_finite() {
         return (if current.is_finite() { current } else { 0.0 }, 0.0);
     }
     let [lo, hi] = rates.band_rpm;
@@ -40,10 +41,23 @@ pub fn ramp_speed(current: f32, target: f32, rates: &SpeedRampRates, dt: f32) ->
         rates.normal_rpm_s
     };
     let step = rate * dt;
+    // min(current + step, target) going up, max(current - step, target) going
+    // down, written out (`f32::min` and `max` are library calls on the
+    // Cortex-M4F); a NaN step gives the target, as they would.
     let next = if up {
-        (current + step).min(target)
+        let x = current + step;
+        if x < target {
+            x
+        } else {
+            target
+        }
     } else {
-        (current - step).max(target)
+        let x = current - step;
+        if x > target {
+            x
+        } else {
+            target
+        }
     };
     (next, (next - current) / dt)
 }
