@@ -21,11 +21,16 @@
 //! tried in that order; a slip state is consistent when the tangential velocity
 //! then moves in its direction. Where the equations leave the impulses
 //! undetermined (a singular Delassus matrix), the weighted minimum-norm solution
-//! with the contacts' weights is taken ([`super::linalg`]).
+//! with the contacts' weights is taken ([`super::linalg`]); where that split of
+//! the internal forces puts a normal rate below zero or a sticking contact outside
+//! its cone, the candidate is checked, and taken, at the closest split inside
+//! every cone ([`super::split`]), so that several sticking contacts share their
+//! friction as the cones allow rather than one cone at a time.
 
 use super::linalg::{solve_weighted, Matrix, Solved, Vector, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
+use super::split::within_cones;
 use crate::real::Real;
 
 /// Most candidate (active set, friction states) pairs tried for one direction.
@@ -297,7 +302,7 @@ fn first_consistent_states<T: Real, const N: usize>(
             };
             c /= 3;
         }
-        let Some((score, d, how)) = solve_states(
+        let Some((score, mut d, how)) = solve_states(
             p,
             base.u_n,
             base.u_t,
@@ -308,7 +313,13 @@ fn first_consistent_states<T: Real, const N: usize>(
         ) else {
             continue;
         };
-        if admissible(p, base, &cand, target, &d, tol) {
+        if admissible(p, base, &cand, target, fixed.is_none(), how, &mut d, tol) {
+            // The split may have moved along the internal forces: its norm.
+            let score = if how == Solved::Unique {
+                score
+            } else {
+                weighted_norm(p, &cand.active, &d.x, &d.y)
+            };
             return Some((score, d, how));
         }
     }
@@ -415,13 +426,7 @@ pub fn solve_states<T: Real, const N: usize>(
     for (q, &k) in ks.iter().enumerate().take(nk) {
         y[k] = sol[nx + q];
     }
-    let mut score = T::ZERO;
-    for i in 0..n {
-        if cand.active[i] {
-            let w = p.contacts[i].weight;
-            score += (x[i] * x[i] + y[i] * y[i]) / w;
-        }
-    }
+    let score = weighted_norm(p, &cand.active, &x, &y);
     let (du_n, du_t) = p.velocity_change(&x, &y);
     Some((
         score,
@@ -438,9 +443,65 @@ pub fn solve_states<T: Real, const N: usize>(
     ))
 }
 
+/// The weighted norm `sum (x_i^2 + y_i^2) / w_i` of the active contacts' rates.
+fn weighted_norm<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    active: &[bool; N],
+    x: &[T; N],
+    y: &[T; N],
+) -> T {
+    let mut score = T::ZERO;
+    for i in 0..p.len {
+        if active[i] {
+            score += (x[i] * x[i] + y[i] * y[i]) / p.contacts[i].weight;
+        }
+    }
+    score
+}
+
 /// Checks a candidate's solution: non-negative normal rates, released contacts
-/// reaching their targets, sticking forces inside the cone, slips moving their way.
+/// reaching their targets, sticking forces inside the cones, slips moving their way.
+///
+/// Where the candidate's system was singular and it has a sticking contact, the
+/// normal rates and the sticking forces are checked on the best split of the
+/// internal forces ([`super::split`]): the minimum-norm split may overload one
+/// sticking contact while another has friction to spare. When a split inside every
+/// cone exists, `d` takes it (its velocity rates are unchanged: internal forces
+/// change no contact velocity). `normals_free`: the normal rates were unknowns.
+#[allow(clippy::too_many_arguments)]
 fn admissible<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    base: &Base<'_, T, N>,
+    cand: &Candidate<N>,
+    target: Option<&[T; N]>,
+    normals_free: bool,
+    how: Solved,
+    d: &mut Direction<T, N>,
+    tol: &Tolerances<T>,
+) -> bool {
+    let sticking = (0..p.len).any(|i| cand.active[i] && cand.mode[i] == SlipState::Stick);
+    if how == Solved::MinimumNorm && sticking {
+        let (mut x, mut y) = (d.x, d.y);
+        let split = within_cones(
+            p,
+            &cand.active,
+            &cand.mode,
+            normals_free,
+            &mut x,
+            &mut y,
+            tol.impulse,
+        );
+        if !split.feasible() {
+            return false;
+        }
+        d.x = x;
+        d.y = y;
+    }
+    admissible_as_is(p, base, cand, target, d, tol)
+}
+
+/// [`admissible`] on the rates as they are.
+fn admissible_as_is<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     cand: &Candidate<N>,
