@@ -34,12 +34,12 @@
 //! far below every velocity that matters (1e-6 m/s by default): halving or doubling
 //! it moves the rest point by less than the event tolerance.
 
-use shared::impact::lcp::{find_direction, solve_states, NormalRule, Tolerances};
+use shared::impact::lcp::{find_direction, solve_states, Direction, NormalRule, Tolerances};
 use shared::impact::linalg::{solve_weighted, Solved, Vector, DIM};
+use shared::impact::split::within_cones;
 use shared::impact::{solve, ImpactLaw, ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::dynamics::{contact_kinematics, ContactKinematics, Frame, DOF};
-use super::friction_split::{within_cones, Cones, Unknown};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::PlantModel;
 use super::motor::{DcMotor, Winding};
@@ -351,7 +351,7 @@ impl Plant {
                 Some(&zeros),
                 None,
             ) {
-                let (x, y, ok) = self.share_within_cones(closed, modes, &sys, &d.x, &d.y, how);
+                let (x, y, ok) = self.share_within_cones(closed, modes, &sys, &d, how);
                 cones_ok = ok;
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
@@ -379,88 +379,51 @@ impl Plant {
     }
 
     /// The closed contacts' forces with the internal forces chosen so that every
-    /// sticking contact is inside its cone ([`super::friction_split`]), where the
-    /// equations left them undetermined; and whether every cone holds.
+    /// sticking contact is inside its cone, where the equations left them
+    /// undetermined ([`shared::impact::split`], the same split the mode decision's
+    /// stick check uses); and whether every cone holds.
     fn share_within_cones(
         &self,
         closed: &[usize],
         modes: &[ContactMode],
         sys: &ContactSystem,
-        x: &[f64; MAX_CONTACTS],
-        y: &[f64; MAX_CONTACTS],
+        d: &Direction<f64, MAX_CONTACTS>,
         how: Solved,
-    ) -> (Vec<f64>, Vec<f64>, bool) {
-        let mut xs: Vec<f64> = (0..closed.len()).map(|r| x[r]).collect();
-        let mut ys: Vec<f64> = (0..closed.len()).map(|r| y[r]).collect();
-        let friction: Vec<f64> = closed
-            .iter()
-            .map(|&j| self.model.contacts[j].law.friction)
-            .collect();
-        let sticking: Vec<bool> = closed
-            .iter()
-            .map(|&j| modes[j] == ContactMode::Stick)
-            .collect();
-        let inside = |xs: &[f64], ys: &[f64]| {
+    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS], bool) {
+        let (mut x, mut y) = (d.x, d.y);
+        let mut active = [false; MAX_CONTACTS];
+        let mut mode = [SlipState::Stick; MAX_CONTACTS];
+        for (r, &j) in closed.iter().enumerate() {
+            active[r] = true;
+            mode[r] = modes[j].slip_state();
+        }
+        let inside = |x: &[f64; MAX_CONTACTS], y: &[f64; MAX_CONTACTS]| {
             (0..closed.len()).all(|r| {
-                let tol = 1e-9 * (xs[r].abs() + ys[r].abs());
-                xs[r] >= -tol && (!sticking[r] || ys[r].abs() <= friction[r] * xs[r] + tol)
+                let tol = 1e-9 * (x[r].abs() + y[r].abs());
+                x[r] >= -tol
+                    && (mode[r] != SlipState::Stick
+                        || y[r].abs() <= sys.problem.contacts[r].friction * x[r] + tol)
             })
         };
-        if inside(&xs, &ys) || how == Solved::Unique || !sticking.iter().any(|s| *s) {
-            let ok = inside(&xs, &ys);
-            return (xs, ys, ok);
+        if inside(&x, &y)
+            || how == Solved::Unique
+            || !mode[..closed.len()].contains(&SlipState::Stick)
+        {
+            let ok = inside(&x, &y);
+            return (x, y, ok);
         }
-        // The unknown forces and their generalized directions.
-        let mut unknowns = Vec::new();
-        let mut z = Vec::new();
-        for (r, _) in closed.iter().enumerate() {
-            let k = &sys.kin[r];
-            let coeff = match modes[closed[r]] {
-                ContactMode::SlipPositive => -friction[r],
-                ContactMode::SlipNegative => friction[r],
-                _ => 0.0,
-            };
-            let dir: [f64; DOF] = core::array::from_fn(|i| k.j_n[i] + coeff * k.j_t[i]);
-            unknowns.push(Unknown {
-                direction: dir,
-                contact: r,
-                normal: true,
-            });
-            z.push(xs[r]);
-            if sticking[r] {
-                unknowns.push(Unknown {
-                    direction: k.j_t,
-                    contact: r,
-                    normal: false,
-                });
-                z.push(ys[r]);
-            }
-        }
-        let ok = within_cones(
-            &unknowns,
-            &mut z,
-            &Cones {
-                friction: &friction,
-                sticking: &sticking,
-            },
+        let scale =
+            (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
+        let split = within_cones(
+            &sys.problem,
+            &active,
+            &mode,
+            true,
+            &mut x,
+            &mut y,
+            1e-9 * scale,
         );
-        for (u, value) in unknowns.iter().zip(&z) {
-            if u.normal {
-                xs[u.contact] = *value;
-            } else {
-                ys[u.contact] = *value;
-            }
-        }
-        for r in 0..closed.len() {
-            if !sticking[r] {
-                ys[r] = match modes[closed[r]] {
-                    ContactMode::SlipPositive => -friction[r] * xs[r],
-                    ContactMode::SlipNegative => friction[r] * xs[r],
-                    _ => ys[r],
-                };
-            }
-        }
-        (xs, ys, ok)
+        (x, y, split.feasible())
     }
 
     /// The contact problem of the contacts `set`: Delassus matrix
