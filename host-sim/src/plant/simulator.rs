@@ -151,8 +151,6 @@ struct Evaluation {
     lambda_n: [f64; MAX_CONTACTS],
     /// Tangential force of each contact, N.
     lambda_t: [f64; MAX_CONTACTS],
-    /// Every sticking contact's force is inside its cone, every normal force >= 0.
-    cones_ok: bool,
 }
 
 /// The simulated machine: model, state, modes, inputs and what happened.
@@ -320,7 +318,6 @@ impl Plant {
         // Closed contacts: forces from their mode's equations.
         let mut lambda_n = [0.0; MAX_CONTACTS];
         let mut lambda_t = [0.0; MAX_CONTACTS];
-        let mut cones_ok = true;
         // The closed contacts, without allocating (this runs at every stage).
         let mut closed_buf = [0usize; MAX_CONTACTS];
         let mut n_closed = 0;
@@ -351,8 +348,7 @@ impl Plant {
                 Some(&zeros),
                 None,
             ) {
-                let (x, y, ok) = self.share_within_cones(closed, modes, &sys, &d, how);
-                cones_ok = ok;
+                let (x, y) = self.share_within_cones(closed, modes, &sys, &d, how);
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
@@ -361,8 +357,6 @@ impl Plant {
                         acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
                     }
                 }
-            } else {
-                cones_ok = false;
             }
         }
         let mut ydot = [0.0; NY];
@@ -374,14 +368,15 @@ impl Plant {
             ydot,
             lambda_n,
             lambda_t,
-            cones_ok,
         }
     }
 
     /// The closed contacts' forces with the internal forces chosen so that every
     /// sticking contact is inside its cone, where the equations left them
     /// undetermined ([`shared::impact::split`], the same split the mode decision's
-    /// stick check uses); and whether every cone holds.
+    /// stick check uses). Where no split holds every cone, the forces are left where
+    /// the largest violation is smallest, and the stick event function
+    /// (`mu lambda_n - |lambda_t|`) reports it.
     fn share_within_cones(
         &self,
         closed: &[usize],
@@ -389,7 +384,7 @@ impl Plant {
         sys: &ContactSystem,
         d: &Direction<f64, MAX_CONTACTS>,
         how: Solved,
-    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS], bool) {
+    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS]) {
         let (mut x, mut y) = (d.x, d.y);
         let mut active = [false; MAX_CONTACTS];
         let mut mode = [SlipState::Stick; MAX_CONTACTS];
@@ -409,12 +404,11 @@ impl Plant {
             || how == Solved::Unique
             || !mode[..closed.len()].contains(&SlipState::Stick)
         {
-            let ok = inside(&x, &y);
-            return (x, y, ok);
+            return (x, y);
         }
         let scale =
             (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
-        let split = within_cones(
+        within_cones(
             &sys.problem,
             &active,
             &mode,
@@ -423,7 +417,7 @@ impl Plant {
             &mut y,
             1e-9 * scale,
         );
-        (x, y, split.feasible())
+        (x, y)
     }
 
     /// The contact problem of the contacts `set`: Delassus matrix
@@ -1054,34 +1048,6 @@ impl Plant {
                         None => ContactMode::Stick,
                     };
                 }
-            }
-        }
-        // A contact at zero slip that the complementarity problem made slip at
-        // its cone's edge (because the minimum-norm split overloads it) sticks
-        // when some split of the internal forces keeps every cone.
-        let saturated: Vec<usize> = (0..new.len())
-            .filter(|&j| {
-                matches!(
-                    new[j],
-                    ContactMode::SlipPositive | ContactMode::SlipNegative
-                ) && kin[j].u_t.abs() <= self.settings.velocity_tolerance
-                    && !leaving[j]
-            })
-            .collect();
-        if !saturated.is_empty() {
-            let mut trial = new.clone();
-            for &j in &saturated {
-                trial[j] = ContactMode::Stick;
-            }
-            let e = self.evaluate_with_modes(&self.y, &trial);
-            // Strictly inside the cones, so that their stick events can still fire.
-            let strictly_inside = (0..trial.len()).all(|j| {
-                trial[j] != ContactMode::Stick
-                    || self.model.contacts[j].law.friction * e.lambda_n[j] - e.lambda_t[j].abs()
-                        >= 0.0
-            });
-            if e.cones_ok && strictly_inside {
-                new = trial;
             }
         }
         // Events for the changes.
