@@ -287,7 +287,7 @@ pub fn within_cones<T: Real, const N: usize>(
 ///
 /// (Hildreth, *A quadratic programming procedure*, Naval Research Logistics
 /// Quarterly 4, 1957; convergence to the projection for a non-empty feasible set:
-/// Lent & Censor, Math. Programming 19, 1980). Unlike primal coordinate descent it
+/// Lent & Censor, SIAM J. Control Optim. 18, 1980). Unlike primal coordinate descent it
 /// does not stop at a corner of coupled constraints. Returns true once every
 /// constraint holds to `tol / 4` within [`HILDRETH_SWEEPS`]; false otherwise (an
 /// empty or nearly empty feasible set: the multipliers grow without bound).
