@@ -156,21 +156,16 @@ fn both_feet_sticking_stay_inside_their_cones() {
 
 /// Every closed foot, at every sample: inside its cone, normal force >= 0.
 ///
-/// Fails on main as well as here: when both feet stick and their total friction
-/// reaches the total cone (t = 3.15 ms), the mode decision's complementarity
-/// problem leaves foot 2 out (its acceleration without contact forces is upward,
-/// +1.95 m/s^2, so `NormalRule::Target` treats it as separating), the solution with
-/// foot 1 slipping alone pulls foot 2 down to a normal acceleration <= 0, and
-/// `decide_modes` closes foot 2 as sticking without force ("a contact left without
-/// force whose normal acceleration is zero to rounding"); the closed contacts'
-/// equations then give foot 2 a force outside its cone, and its stick event
-/// function starts negative, so it never fires (foot 2 sticks with
-/// |lambda_t| / lambda_n up to 390 until it lifts off at 5.0 ms). Letting every
-/// touching contact take a share at acceleration level fixes that instant but
-/// then a slipping foot's normal force goes negative without a lift-off event;
-/// left for a follow-up (see the report of the friction-split branch).
+/// Failed before the mode decision let every touching contact take a share
+/// (`NormalRule::TargetAll`) and stopped re-closing a contact whose lift-off event
+/// fired: when both feet stuck and their total friction reached the total cone
+/// (t = 3.15 ms), the complementarity problem left foot 2 out (its acceleration
+/// without contact forces is upward, +1.95 m/s^2, so `NormalRule::Target` treated
+/// it as separating), the solution with foot 1 slipping alone pulled foot 2 down to
+/// a normal acceleration <= 0, and foot 2 was closed as sticking without force; its
+/// closed-contact force was then outside its cone (|lambda_t| / lambda_n up to 390)
+/// with its stick event already negative, until it lifted off at 5.0 ms.
 #[test]
-#[ignore = "known violation in the plant's mode decision, on main too; see the doc comment"]
 fn closed_feet_obey_coulomb_and_unilaterality() {
     let (worst_both, worst_other, _) = cone_violations(2.0);
     let worst = worst_both.max(worst_other);

@@ -988,6 +988,17 @@ impl Plant {
                 })
                 .collect()
         };
+        // Closed contacts whose lift-off event fired (normal force below the
+        // margin): at the event force and acceleration are both zero to rounding,
+        // and a contact closed again without force would stay closed with its
+        // lift-off function already negative; they close again only with a force.
+        let lifting: Vec<bool> = {
+            let e = self.evaluate(&self.y);
+            let margin = self.force_margin();
+            (0..old.len())
+                .map(|j| old[j].closed() && e.lambda_n[j] + margin <= 0.0)
+                .collect()
+        };
         let mut new = vec![ContactMode::Open; self.modes.len()];
         let candidates: Vec<usize> = touching
             .iter()
@@ -1034,7 +1045,7 @@ impl Plant {
                 &sys.base_n,
                 &sys.base_t,
                 &slip_snapped,
-                NormalRule::Target(&zeros),
+                NormalRule::TargetAll(&zeros),
                 &tol,
             );
             if !d.consistent || !d.ends_at_one {
@@ -1053,7 +1064,7 @@ impl Plant {
                 let a_n = sys.base_n[r] + d.du_n[r];
                 if d.x[r] > 0.0 {
                     new[j] = ContactMode::from_slip(d.mode[r]);
-                } else if a_n <= acc_tol {
+                } else if a_n <= acc_tol && !lifting[j] {
                     new[j] = match kinematic_mode(kin[j].u_t, self.settings.velocity_tolerance) {
                         Some(m) => m,
                         None => ContactMode::Stick,

@@ -13,6 +13,9 @@
 //!   makes it a linear complementarity problem:
 //!   `x >= 0, v = u_n + (W_eff x) - g >= 0, x . v = 0`,
 //!   solved by enumerating active sets (at most 2^8), largest first.
+//!   Contacts above their target take no share (they join at an event of the
+//!   path); [`NormalRule::TargetAll`] lets every contact take one (persistent
+//!   contact at acceleration level).
 //! - [`NormalRule::Fixed`]: `x` given (Poisson's and Stronge's restitution).
 //!
 //! Friction (Coulomb): a slipping contact's tangential rate is `y = -mu s x`; a
@@ -48,8 +51,15 @@ pub struct Tolerances<T> {
 /// How the normal impulse rates of a piece are chosen.
 #[derive(Clone, Copy, Debug)]
 pub enum NormalRule<'a, T, const N: usize> {
-    /// Complementarity toward these normal velocities at `lambda = 1`.
+    /// Complementarity toward these normal velocities at `lambda = 1`; contacts
+    /// above their target (separating) take no share (they join at an event of the
+    /// impulse path).
     Target(&'a [T; N]),
+    /// Complementarity toward these targets with every contact able to take a
+    /// share, also one above its target: persistent contact at acceleration level,
+    /// where a touching contact at rest whose free acceleration separates it can
+    /// still be held by the others' forces (there is no path for it to join later).
+    TargetAll(&'a [T; N]),
     /// These normal rates.
     Fixed(&'a [T; N]),
 }
@@ -79,6 +89,8 @@ struct Base<'a, T, const N: usize> {
     u_n: &'a [T; N],
     u_t: &'a [T; N],
     slip: &'a [T; N],
+    /// Every contact may take a share ([`NormalRule::TargetAll`]).
+    all: bool,
 }
 
 /// A candidate being assembled: active contacts and friction states.
@@ -102,10 +114,16 @@ pub fn find_direction<T: Real, const N: usize>(
     tol: &Tolerances<T>,
 ) -> Direction<T, N> {
     let mut budget = CANDIDATE_BUDGET;
-    let base = Base { u_n, u_t, slip };
+    let all = matches!(rule, NormalRule::TargetAll(_));
+    let base = Base {
+        u_n,
+        u_t,
+        slip,
+        all,
+    };
     match rule {
         NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget),
-        NormalRule::Target(g) => {
+        NormalRule::Target(g) | NormalRule::TargetAll(g) => {
             if let Some(d) = complementary_direction(p, &base, g, tol, &mut budget) {
                 return d;
             }
@@ -154,7 +172,7 @@ fn complementary_direction<T: Real, const N: usize>(
     // is an event of the path (see `released_event`), not a choice made here.
     let mut candidate_mask = 0u32;
     for i in 0..n {
-        if base.u_n[i] <= g[i] + tol.velocity {
+        if base.all || base.u_n[i] <= g[i] + tol.velocity {
             candidate_mask |= 1 << i;
         }
     }
@@ -531,8 +549,11 @@ fn admissible_as_is<T: Real, const N: usize>(
             }
         } else if let Some(g) = target {
             // A released candidate must end at or above its target; a separating
-            // contact may come down to it within the piece (an event).
-            if base.u_n[i] <= g[i] + tol.velocity && base.u_n[i] + d.du_n[i] < g[i] - tol.velocity {
+            // contact may come down to it within the piece (an event), except in
+            // persistent contact (`TargetAll`), where there is no piece.
+            if (base.all || base.u_n[i] <= g[i] + tol.velocity)
+                && base.u_n[i] + d.du_n[i] < g[i] - tol.velocity
+            {
                 return false;
             }
         }
