@@ -17,7 +17,7 @@
 
 use shared::impact::{
     solve, solve_body, BodyContact, BodyImpact, ContactLaw, ImpactLaw, ImpactProblem,
-    InteractionCase, PlanarBody, Warnings,
+    InteractionCase, PlanarBody, SlipState, Warnings,
 };
 
 const LAWS: [ImpactLaw; 3] = [ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
@@ -1133,5 +1133,71 @@ fn flat_two_foot_landing_frictionless() {
                 &ctx,
             );
         }
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// A flat two-foot landing at zero slip, both feet sticking: the friction shared
+// within the cones
+// ---------------------------------------------------------------------------------
+
+/// A platform (m, J about C = (0, h)) lands flat on two feet at x = -a and +a,
+/// spinning at omega0 with v_x = -omega0 h, so that both feet touch down at zero
+/// slip (u_t = -(v_x + omega0 h) = 0 at both), and with no restitution. If both feet
+/// stick, compression brings both contact points to rest: the body stops (three
+/// degrees of freedom, four zero contact velocities of rank three). Closed form from
+/// the momenta: `sum P = -m v`, so `P_n0 + P_n1 = -m v_y`, `P_t0 + P_t1 = m v_x`
+/// (t = (-1, 0)); the moment about C, `sum r_i x P_i = -J omega0` with
+/// `r_i = (-+a, -h)`, gives `P_n1 - P_n0 = -omega0 (J + m h^2) / a`. With the numbers
+/// below `P_n0 = 1.06`, `P_n1 = 2.94` N s and `P_t0 + P_t1 = 1.6` N s: foot 0 can
+/// hold at most `mu P_n0 = 0.477` N s, so the equal (minimum-norm) split, 0.8 N s
+/// each, is outside foot 0's cone, while both feet together hold up to
+/// `mu (P_n0 + P_n1) = 1.8` N s. The feet stick, and the split closest to the equal
+/// one puts foot 0 at its cone's edge: `P_t0 = mu P_n0`, `P_t1 = 1.6 - mu P_n0`.
+/// (Until the split was shared within the cones, foot 0 was reported slipping at
+/// zero slip velocity throughout, rather than case 7, no slip.)
+#[test]
+fn flat_two_foot_landing_sticking_shares_friction() {
+    let (m, jc, h, a, mu) = (4.0, 0.3, 0.4, 0.5, 0.45);
+    let omega0 = -1.0;
+    let (vx, vy) = (-omega0 * h, -1.0);
+    let pn1_minus_pn0 = -omega0 * (jc + m * h * h) / a;
+    let pn_sum = -m * vy;
+    let pn = [
+        (pn_sum - pn1_minus_pn0) / 2.0,
+        (pn_sum + pn1_minus_pn0) / 2.0,
+    ];
+    let pt_sum = m * vx;
+    let pt = [mu * pn[0], pt_sum - mu * pn[0]];
+    assert!(pt_sum / 2.0 > mu * pn[0] && pt_sum <= mu * pn_sum);
+    for law in LAWS {
+        let body = PlanarBody {
+            mass: m,
+            inertia: jc,
+            position: [0.0, h],
+            velocity: [vx, vy],
+            angular_velocity: omega0,
+        };
+        let feet = [
+            contact([-a, 0.0], [0.0, 1.0], 0.0, mu),
+            contact([a, 0.0], [0.0, 1.0], 0.0, mu),
+        ];
+        let out = solved(&body, None, &feet, law);
+        let ctx = (law, "two feet sticking");
+        let tol = 1e-9 * m;
+        check("v_x after", out.velocity_after[0], 0.0, 1e-9, &ctx);
+        check("v_y after", out.velocity_after[1], 0.0, 1e-9, &ctx);
+        check("omega after", out.angular_velocity_after, 0.0, 1e-9, &ctx);
+        for (i, c) in out.outcome.contacts[..2].iter().enumerate() {
+            check("P_n", c.normal_impulse, pn[i], tol, &ctx);
+            check("P_t", c.tangential_impulse, pt[i], tol, &ctx);
+            assert!(
+                c.segments.iter().all(|s| s.state == SlipState::Stick),
+                "foot {i} did not stick throughout: {:?} {ctx:?}",
+                c.segments
+            );
+            assert_eq!(c.case, InteractionCase::NoSlip, "foot {i} {ctx:?}");
+        }
+        assert!(out.outcome.warnings.is_empty(), "{ctx:?}");
     }
 }

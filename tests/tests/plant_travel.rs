@@ -84,3 +84,93 @@ fn travel_is_mirror_antisymmetric_in_the_offset() {
     let v180 = mean_velocity(180.0, 4.0, s);
     assert!(v180.abs() < 1e-9, "v(180) = {v180}");
 }
+
+/// Samples the reference machine travelling (90 degrees, rotors held at 3000 rpm)
+/// every 0.1 ms for `t_end` and returns, over the samples, the worst violation of
+/// Coulomb's law and of the unilateral constraint by a closed foot, relative to its
+/// force (`(|lambda_t| - mu lambda_n) / |lambda|` for a sticking foot,
+/// `-lambda_n / |lambda|` for any closed foot), separately for the samples where
+/// both feet stick and for the others, and how many samples had both feet sticking.
+fn cone_violations(t_end: f64) -> (f64, f64, usize) {
+    use host_sim::plant::simulator::ContactMode;
+    let phi1 = -FRAC_PI_2;
+    let phi2 = 90f64.to_radians() - phi1;
+    let sets = [
+        format!("rotors.0.angle={phi1}"),
+        format!("rotors.1.angle={phi2}"),
+    ];
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
+    let m = Machine::load(&path, &sets).expect("reference machine");
+    // The machine file's friction (both feet).
+    let mu = 0.4;
+    let w = 3000.0 * PI / 30.0;
+    let mut y = initial_state(&m);
+    y[8] = w;
+    y[9] = -w;
+    let holds = Holds {
+        platform: false,
+        rotors: true,
+        ..Holds::default()
+    };
+    let mut plant = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
+    let (mut worst_both, mut worst_other, mut both) = (0.0f64, 0.0f64, 0);
+    let samples = (t_end / 1e-4).round() as usize;
+    for k in 1..=samples {
+        plant.advance_to(k as f64 * 1e-4, &mut |_| {});
+        let forces = plant.contact_forces();
+        let both_stick = plant.modes.iter().all(|m| *m == ContactMode::Stick);
+        let mut worst = 0.0f64;
+        for (j, mode) in plant.modes.iter().enumerate() {
+            let [ln, lt] = forces[j];
+            let scale = ln.abs() + lt.abs() + 1e-9;
+            if *mode != ContactMode::Open {
+                worst = worst.max(-ln / scale);
+            }
+            if *mode == ContactMode::Stick {
+                worst = worst.max((lt.abs() - mu * ln) / scale);
+            }
+        }
+        if both_stick {
+            both += 1;
+            worst_both = worst_both.max(worst);
+        } else {
+            worst_other = worst_other.max(worst);
+        }
+    }
+    (worst_both, worst_other, both)
+}
+
+/// Both feet sticking together: the forces are fixed only up to the internal
+/// force between the feet, and the plant shares it within both cones
+/// (`shared::impact::split`): at every sample with both feet sticking, both are
+/// inside their cones to 1e-6 of their force (the event location's accuracy).
+#[test]
+fn both_feet_sticking_stay_inside_their_cones() {
+    let (worst_both, _, both) = cone_violations(2.0);
+    assert!(both >= 10, "{both} samples with both feet sticking");
+    assert!(
+        worst_both <= 1e-6,
+        "a sticking foot outside its cone by {worst_both} of its force"
+    );
+}
+
+/// Every closed foot, at every sample: inside its cone, normal force >= 0.
+///
+/// Failed before the mode decision let every touching contact take a share
+/// (`NormalRule::TargetAll`) and stopped re-closing a contact whose lift-off event
+/// fired: when both feet stuck and their total friction reached the total cone
+/// (t = 3.15 ms), the complementarity problem left foot 2 out (its acceleration
+/// without contact forces is upward, +1.95 m/s^2, so `NormalRule::Target` treated
+/// it as separating), the solution with foot 1 slipping alone pulled foot 2 down to
+/// a normal acceleration <= 0, and foot 2 was closed as sticking without force; its
+/// closed-contact force was then outside its cone (|lambda_t| / lambda_n up to 390)
+/// with its stick event already negative, until it lifted off at 5.0 ms.
+#[test]
+fn closed_feet_obey_coulomb_and_unilaterality() {
+    let (worst_both, worst_other, _) = cone_violations(2.0);
+    let worst = worst_both.max(worst_other);
+    assert!(
+        worst <= 1e-6,
+        "a closed foot violates its cone or pulls by {worst} of its force"
+    );
+}

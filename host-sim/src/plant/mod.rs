@@ -9,7 +9,6 @@
 // Numeric kernels index several parallel arrays with one loop variable.
 #![allow(clippy::needless_range_loop)]
 pub mod dynamics;
-pub mod friction_split;
 pub mod integrator;
 pub mod model;
 pub mod motor;

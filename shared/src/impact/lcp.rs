@@ -13,6 +13,9 @@
 //!   makes it a linear complementarity problem:
 //!   `x >= 0, v = u_n + (W_eff x) - g >= 0, x . v = 0`,
 //!   solved by enumerating active sets (at most 2^8), largest first.
+//!   Contacts above their target take no share (they join at an event of the
+//!   path); [`NormalRule::TargetAll`] lets every contact take one (persistent
+//!   contact at acceleration level).
 //! - [`NormalRule::Fixed`]: `x` given (Poisson's and Stronge's restitution).
 //!
 //! Friction (Coulomb): a slipping contact's tangential rate is `y = -mu s x`; a
@@ -21,11 +24,16 @@
 //! tried in that order; a slip state is consistent when the tangential velocity
 //! then moves in its direction. Where the equations leave the impulses
 //! undetermined (a singular Delassus matrix), the weighted minimum-norm solution
-//! with the contacts' weights is taken ([`super::linalg`]).
+//! with the contacts' weights is taken ([`super::linalg`]); where that split of
+//! the internal forces puts a normal rate below zero or a sticking contact outside
+//! its cone, the candidate is checked, and taken, at the closest split inside
+//! every cone ([`super::split`]), so that several sticking contacts share their
+//! friction as the cones allow rather than one cone at a time.
 
 use super::linalg::{solve_weighted, Matrix, Solved, Vector, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
+use super::split::within_cones;
 use crate::real::Real;
 
 /// Most candidate (active set, friction states) pairs tried for one direction.
@@ -43,8 +51,15 @@ pub struct Tolerances<T> {
 /// How the normal impulse rates of a piece are chosen.
 #[derive(Clone, Copy, Debug)]
 pub enum NormalRule<'a, T, const N: usize> {
-    /// Complementarity toward these normal velocities at `lambda = 1`.
+    /// Complementarity toward these normal velocities at `lambda = 1`; contacts
+    /// above their target (separating) take no share (they join at an event of the
+    /// impulse path).
     Target(&'a [T; N]),
+    /// Complementarity toward these targets with every contact able to take a
+    /// share, also one above its target: persistent contact at acceleration level,
+    /// where a touching contact at rest whose free acceleration separates it can
+    /// still be held by the others' forces (there is no path for it to join later).
+    TargetAll(&'a [T; N]),
     /// These normal rates.
     Fixed(&'a [T; N]),
 }
@@ -74,6 +89,8 @@ struct Base<'a, T, const N: usize> {
     u_n: &'a [T; N],
     u_t: &'a [T; N],
     slip: &'a [T; N],
+    /// Every contact may take a share ([`NormalRule::TargetAll`]).
+    all: bool,
 }
 
 /// A candidate being assembled: active contacts and friction states.
@@ -97,10 +114,16 @@ pub fn find_direction<T: Real, const N: usize>(
     tol: &Tolerances<T>,
 ) -> Direction<T, N> {
     let mut budget = CANDIDATE_BUDGET;
-    let base = Base { u_n, u_t, slip };
+    let all = matches!(rule, NormalRule::TargetAll(_));
+    let base = Base {
+        u_n,
+        u_t,
+        slip,
+        all,
+    };
     match rule {
         NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget),
-        NormalRule::Target(g) => {
+        NormalRule::Target(g) | NormalRule::TargetAll(g) => {
             if let Some(d) = complementary_direction(p, &base, g, tol, &mut budget) {
                 return d;
             }
@@ -149,7 +172,7 @@ fn complementary_direction<T: Real, const N: usize>(
     // is an event of the path (see `released_event`), not a choice made here.
     let mut candidate_mask = 0u32;
     for i in 0..n {
-        if base.u_n[i] <= g[i] + tol.velocity {
+        if base.all || base.u_n[i] <= g[i] + tol.velocity {
             candidate_mask |= 1 << i;
         }
     }
@@ -297,7 +320,7 @@ fn first_consistent_states<T: Real, const N: usize>(
             };
             c /= 3;
         }
-        let Some((score, d, how)) = solve_states(
+        let Some((score, mut d, how)) = solve_states(
             p,
             base.u_n,
             base.u_t,
@@ -308,7 +331,13 @@ fn first_consistent_states<T: Real, const N: usize>(
         ) else {
             continue;
         };
-        if admissible(p, base, &cand, target, &d, tol) {
+        if admissible(p, base, &cand, target, fixed.is_none(), how, &mut d, tol) {
+            // The split may have moved along the internal forces: its norm.
+            let score = if how == Solved::Unique {
+                score
+            } else {
+                weighted_norm(p, &cand.active, &d.x, &d.y)
+            };
             return Some((score, d, how));
         }
     }
@@ -415,13 +444,7 @@ pub fn solve_states<T: Real, const N: usize>(
     for (q, &k) in ks.iter().enumerate().take(nk) {
         y[k] = sol[nx + q];
     }
-    let mut score = T::ZERO;
-    for i in 0..n {
-        if cand.active[i] {
-            let w = p.contacts[i].weight;
-            score += (x[i] * x[i] + y[i] * y[i]) / w;
-        }
-    }
+    let score = weighted_norm(p, &cand.active, &x, &y);
     let (du_n, du_t) = p.velocity_change(&x, &y);
     Some((
         score,
@@ -438,9 +461,65 @@ pub fn solve_states<T: Real, const N: usize>(
     ))
 }
 
+/// The weighted norm `sum (x_i^2 + y_i^2) / w_i` of the active contacts' rates.
+fn weighted_norm<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    active: &[bool; N],
+    x: &[T; N],
+    y: &[T; N],
+) -> T {
+    let mut score = T::ZERO;
+    for i in 0..p.len {
+        if active[i] {
+            score += (x[i] * x[i] + y[i] * y[i]) / p.contacts[i].weight;
+        }
+    }
+    score
+}
+
 /// Checks a candidate's solution: non-negative normal rates, released contacts
-/// reaching their targets, sticking forces inside the cone, slips moving their way.
+/// reaching their targets, sticking forces inside the cones, slips moving their way.
+///
+/// Where the candidate's system was singular and it has a sticking contact, the
+/// normal rates and the sticking forces are checked on the best split of the
+/// internal forces ([`super::split`]): the minimum-norm split may overload one
+/// sticking contact while another has friction to spare. When a split inside every
+/// cone exists, `d` takes it (its velocity rates are unchanged: internal forces
+/// change no contact velocity). `normals_free`: the normal rates were unknowns.
+#[allow(clippy::too_many_arguments)]
 fn admissible<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    base: &Base<'_, T, N>,
+    cand: &Candidate<N>,
+    target: Option<&[T; N]>,
+    normals_free: bool,
+    how: Solved,
+    d: &mut Direction<T, N>,
+    tol: &Tolerances<T>,
+) -> bool {
+    let sticking = (0..p.len).any(|i| cand.active[i] && cand.mode[i] == SlipState::Stick);
+    if how == Solved::MinimumNorm && sticking {
+        let (mut x, mut y) = (d.x, d.y);
+        let split = within_cones(
+            p,
+            &cand.active,
+            &cand.mode,
+            normals_free,
+            &mut x,
+            &mut y,
+            tol.impulse,
+        );
+        if !split.feasible() {
+            return false;
+        }
+        d.x = x;
+        d.y = y;
+    }
+    admissible_as_is(p, base, cand, target, d, tol)
+}
+
+/// [`admissible`] on the rates as they are.
+fn admissible_as_is<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     cand: &Candidate<N>,
@@ -470,8 +549,11 @@ fn admissible<T: Real, const N: usize>(
             }
         } else if let Some(g) = target {
             // A released candidate must end at or above its target; a separating
-            // contact may come down to it within the piece (an event).
-            if base.u_n[i] <= g[i] + tol.velocity && base.u_n[i] + d.du_n[i] < g[i] - tol.velocity {
+            // contact may come down to it within the piece (an event), except in
+            // persistent contact (`TargetAll`), where there is no piece.
+            if (base.all || base.u_n[i] <= g[i] + tol.velocity)
+                && base.u_n[i] + d.du_n[i] < g[i] - tol.velocity
+            {
                 return false;
             }
         }

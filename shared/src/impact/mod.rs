@@ -10,6 +10,8 @@
 //!   restitution end.
 //! - [`lcp`] and [`linalg`]: the small dense linear algebra and the complementarity
 //!   problem that shares the normal impulse between contacts.
+//! - [`split`]: the internal forces that the equations leave undetermined with
+//!   several closed contacts, shared within the friction cones.
 //! - [`outcome`]: what an impact did at every contact: impulses by phase, the paper's
 //!   seven interaction cases, the slip/stick history, warnings.
 //! - [`body`]: one rigid body in plane motion, free or pinned at a pivot, turned into
@@ -21,6 +23,7 @@ pub mod linalg;
 pub mod outcome;
 pub mod problem;
 pub mod solver;
+pub mod split;
 
 pub use body::{body_problem, solve_body, BodyContact, BodyImpact, PivotImpulse, PlanarBody};
 pub use outcome::{
