@@ -130,6 +130,51 @@ fn publish(
     }
 }
 
+/// One control tick of the `qemu` builds on the rotor model, the same stages as
+/// the board's `control`: sample the model and take the command, step the
+/// controller with the nominal tick (timed in SysTick counts, returned with the
+/// outputs), drive the model for one tick with `injected`, publish.
+#[cfg(feature = "qemu")]
+fn qemu_tick(
+    controller: &mut Controller,
+    plant: &mut qemu::plant::Plant,
+    injected: &qemu::plant::Injected,
+    uptime_ms: u32,
+    link: &mut impl rtic::Mutex<T = LinkState>,
+    last_state: &mut State,
+) -> (Outputs, u32) {
+    // Stage 1: sample the model and take the command.
+    let sample = plant.sample();
+    let command = take_link(controller, link);
+    let inputs = shared::controller::Inputs {
+        encoder: sample.encoder,
+        index: sample.index,
+        current: sample.current,
+        supply_voltage: sample.supply_voltage,
+        estop: injected.estop_open,
+        command,
+    };
+
+    // Stage 2: the controller, with the nominal tick, timed by SysTick.
+    let dt = controller.params().tick_s();
+    let before = qemu::cycles::now();
+    let out = controller.step(&inputs, dt);
+    let counts = qemu::cycles::elapsed(before, qemu::cycles::now());
+
+    // Stage 3: drive the model for one tick.
+    plant.step(out.duty, out.enable, injected);
+
+    // Stage 4: publish.
+    publish(
+        link,
+        uptime_ms,
+        &out,
+        controller.self_test_report(),
+        last_state,
+    );
+    (out, counts)
+}
+
 #[cfg(not(feature = "qemu"))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
@@ -333,7 +378,7 @@ mod app {
 #[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod qemu_app {
-    use shared::controller::{Controller, Inputs, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, State, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
@@ -420,34 +465,13 @@ mod qemu_app {
         let tick = qemu::next_tick();
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
 
-        // Stage 1: sample the model and take the command.
         let injected = cx.shared.world.lock(|w| w.injected);
-        let sample = cx.local.plant.sample();
-        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
-        let inputs = Inputs {
-            encoder: sample.encoder,
-            index: sample.index,
-            current: sample.current,
-            supply_voltage: sample.supply_voltage,
-            estop: injected.estop_open,
-            command,
-        };
-
-        // Stage 2: the controller, with the nominal tick, timed by SysTick.
-        let dt = cx.local.controller.params().tick_s();
-        let before = cycles::now();
-        let out = cx.local.controller.step(&inputs, dt);
-        let counts = cycles::elapsed(before, cycles::now());
-
-        // Stage 3: drive the model for one tick.
-        cx.local.plant.step(out.duty, out.enable, &injected);
-
-        // Stage 4: publish.
-        crate::publish(
-            &mut cx.shared.link,
+        let (out, counts) = crate::qemu_tick(
+            cx.local.controller,
+            cx.local.plant,
+            &injected,
             *cx.local.uptime_ms,
-            &out,
-            cx.local.controller.self_test_report(),
+            &mut cx.shared.link,
             cx.local.last_state,
         );
         let plant = &*cx.local.plant;
@@ -553,7 +577,7 @@ mod qemu_uart_app {
     use core::sync::atomic::{AtomicU32, Ordering};
 
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, Inputs, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, State, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
@@ -630,34 +654,13 @@ mod qemu_uart_app {
     fn control(mut cx: control::Context) {
         qemu::next_tick();
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
-
-        // Stage 1: sample the model and take the command.
-        let sample = cx.local.plant.sample();
-        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
-        let inputs = Inputs {
-            encoder: sample.encoder,
-            index: sample.index,
-            current: sample.current,
-            supply_voltage: sample.supply_voltage,
-            estop: false,
-            command,
-        };
-
-        // Stage 2: the controller, with the nominal tick.
-        let dt = cx.local.controller.params().tick_s();
-        let out = cx.local.controller.step(&inputs, dt);
-
-        // Stage 3: drive the model for one tick (nothing injected).
-        cx.local
-            .plant
-            .step(out.duty, out.enable, &Injected::default());
-
-        // Stage 4: publish.
-        crate::publish(
-            &mut cx.shared.link,
+        // Nothing injected: the model as it is.
+        crate::qemu_tick(
+            cx.local.controller,
+            cx.local.plant,
+            &Injected::default(),
             *cx.local.uptime_ms,
-            &out,
-            cx.local.controller.self_test_report(),
+            &mut cx.shared.link,
             cx.local.last_state,
         );
     }
