@@ -115,7 +115,7 @@ fn take_link(
 }
 
 /// Control stage 4: publish the tick's status and the self-test's for the link;
-/// log a state change.
+/// log a state change, and the telemetry once a second while driving.
 fn publish(
     link: &mut impl rtic::Mutex<T = LinkState>,
     uptime_ms: u32,
@@ -128,7 +128,29 @@ fn publish(
         defmt::info!("state {=str}, faults {}", out.state.name(), out.faults);
         *last_state = out.state;
     }
+    // The defmt side of the telemetry: once a second while the motors are driven
+    // (the full stream at any rate is the link's, `StreamTelemetry`).
+    if out.state.drives() && uptime_ms.is_multiple_of(TELEMETRY_LOG_MS) {
+        let t = &out.telemetry;
+        defmt::info!(
+            "speed {=f32} {=f32} rpm (ref {=f32} {=f32}), offset {=f32} deg (target {=f32}, loop closed {=bool}), current {=f32} {=f32} A, duty {=f32} {=f32}",
+            t.speed_rpm[0],
+            t.speed_rpm[1],
+            t.speed_ref_rpm[0],
+            t.speed_ref_rpm[1],
+            t.phase_offset_deg,
+            t.target_offset_deg,
+            t.phase_loop_closed,
+            t.current[0],
+            t.current[1],
+            t.duty[0],
+            t.duty[1]
+        );
+    }
 }
+
+/// Period of the telemetry line in the defmt log while the motors are driven, ms.
+const TELEMETRY_LOG_MS: u32 = 1000;
 
 /// One control tick of the `qemu` builds on the rotor model, the same stages as
 /// the board's `control`: sample the model and take the command, step the
