@@ -70,8 +70,13 @@ step_setup() {
     if command -v qemu-system-arm >/dev/null; then
         echo "qemu-system-arm: installed"
     else
-        apt-get update
-        DEBIAN_FRONTEND=noninteractive apt-get install -y qemu-system-arm
+        # apt needs root: sudo when not root and sudo is there.
+        local as_root=()
+        if [[ $(id -u) -ne 0 ]] && command -v sudo >/dev/null; then
+            as_root=(sudo)
+        fi
+        "${as_root[@]}" apt-get update
+        "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y qemu-system-arm
     fi
     qemu-system-arm --version | head -n 1
 }
