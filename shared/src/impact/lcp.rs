@@ -30,7 +30,7 @@
 //! every cone ([`super::split`]), so that several sticking contacts share their
 //! friction as the cones allow rather than one cone at a time.
 
-use super::linalg::{solve_weighted, Matrix, Solved, Vector, DIM};
+use super::linalg::{solve_weighted_in, Solved, Vector, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
 use super::split::within_cones;
@@ -384,51 +384,24 @@ pub fn solve_states<T: Real, const N: usize>(
             nk += 1;
         }
     }
-    // Friction coupling of a slipping contact j: y_j = -mu_j s_j x_j.
-    let slip_coeff = |j: usize| -> T {
-        match cand.mode[j] {
-            SlipState::Stick => T::ZERO,
-            s => -p.contacts[j].friction * s.sign::<T>(),
-        }
-    };
-    let w_tn = |k: usize, j: usize| p.w_nt[j][k];
-
-    let mut a: Matrix<T> = [[T::ZERO; DIM]; DIM];
-    let mut b: Vector<T> = [T::ZERO; DIM];
-    let mut wts: Vector<T> = [T::ONE; DIM];
-    // Known part of the rates from fixed normal impulses.
     let fixed_x = fixed.copied().unwrap_or([T::ZERO; N]);
-    // Normal rows: (W_nn + W_nt S) x + W_nt,K y_K = g - u_n.
-    for (r, &i) in xs.iter().enumerate().take(nx) {
-        for (c, &j) in xs.iter().enumerate().take(nx) {
-            a[r][c] = p.w_nn[i][j] + p.w_nt[i][j] * slip_coeff(j);
-        }
-        for (q, &k) in ks.iter().enumerate().take(nk) {
-            a[r][nx + q] = p.w_nt[i][k];
-        }
-        let g = target.map_or(T::ZERO, |g| g[i]);
-        b[r] = g - u_n[i];
-        wts[r] = p.contacts[i].weight;
-    }
-    // Stick rows: (W_tn + W_tt S) x + W_tt,KK y_K = -u_t.
-    for (q, &k) in ks.iter().enumerate().take(nk) {
-        let r = nx + q;
-        for (c, &j) in xs.iter().enumerate().take(nx) {
-            a[r][c] = w_tn(k, j) + p.w_tt[k][j] * slip_coeff(j);
-        }
-        for (q2, &k2) in ks.iter().enumerate().take(nk) {
-            a[r][nx + q2] = p.w_tt[k][k2];
-        }
-        let mut rhs = -u_t[k];
-        for j in 0..n {
-            if fixed_x[j] != T::ZERO {
-                rhs -= (w_tn(k, j) + p.w_tt[k][j] * slip_coeff(j)) * fixed_x[j];
-            }
-        }
-        b[r] = rhs;
-        wts[r] = p.contacts[k].weight;
-    }
-    let (sol, how) = solve_weighted(&a, &b, &wts, nx + nk)?;
+    let system = System {
+        p,
+        u_n,
+        u_t,
+        cand,
+        xs: &xs[..nx],
+        ks: &ks[..nk],
+        target,
+        fixed_x: &fixed_x,
+    };
+    // Storage sized to the system (a 4-contact problem fits 8 x 8): the same
+    // arithmetic, a quarter of the copies of the largest size.
+    let (sol, how) = match nx + nk {
+        0..=4 => system.solve::<4>()?,
+        5..=8 => system.solve::<8>()?,
+        _ => system.solve::<DIM>()?,
+    };
 
     // Assemble the full rates.
     let mut x = fixed_x;
@@ -438,7 +411,7 @@ pub fn solve_states<T: Real, const N: usize>(
     let mut y = [T::ZERO; N];
     for j in 0..n {
         if cand.active[j] {
-            y[j] = slip_coeff(j) * x[j];
+            y[j] = system.slip_coeff(j) * x[j];
         }
     }
     for (q, &k) in ks.iter().enumerate().take(nk) {
@@ -459,6 +432,74 @@ pub fn solve_states<T: Real, const N: usize>(
         },
         how,
     ))
+}
+
+/// The equations of one candidate's states (see [`solve_states`]): unknowns the
+/// normal rates of `xs`, then the tangential rates of the sticking `ks`.
+struct System<'a, T, const N: usize> {
+    p: &'a ImpactProblem<T, N>,
+    u_n: &'a [T; N],
+    u_t: &'a [T; N],
+    cand: &'a Candidate<N>,
+    xs: &'a [usize],
+    ks: &'a [usize],
+    target: Option<&'a [T; N]>,
+    fixed_x: &'a [T; N],
+}
+
+impl<T: Real, const N: usize> System<'_, T, N> {
+    /// Friction coupling of a slipping contact j: y_j = -mu_j s_j x_j.
+    fn slip_coeff(&self, j: usize) -> T {
+        match self.cand.mode[j] {
+            SlipState::Stick => T::ZERO,
+            s => -self.p.contacts[j].friction * s.sign::<T>(),
+        }
+    }
+
+    /// Builds the system in `D x D` storage and solves it; the solution in the
+    /// order of the unknowns, padded to [`DIM`].
+    fn solve<const D: usize>(&self) -> Option<(Vector<T>, Solved)> {
+        let (p, xs, ks) = (self.p, self.xs, self.ks);
+        let (nx, nk) = (xs.len(), ks.len());
+        let w_tn = |k: usize, j: usize| p.w_nt[j][k];
+        let mut a = [[T::ZERO; D]; D];
+        let mut b = [T::ZERO; D];
+        let mut wts = [T::ONE; D];
+        // Normal rows: (W_nn + W_nt S) x + W_nt,K y_K = g - u_n.
+        for (r, &i) in xs.iter().enumerate() {
+            for (c, &j) in xs.iter().enumerate() {
+                a[r][c] = p.w_nn[i][j] + p.w_nt[i][j] * self.slip_coeff(j);
+            }
+            for (q, &k) in ks.iter().enumerate() {
+                a[r][nx + q] = p.w_nt[i][k];
+            }
+            let g = self.target.map_or(T::ZERO, |g| g[i]);
+            b[r] = g - self.u_n[i];
+            wts[r] = p.contacts[i].weight;
+        }
+        // Stick rows: (W_tn + W_tt S) x + W_tt,KK y_K = -u_t.
+        for (q, &k) in ks.iter().enumerate() {
+            let r = nx + q;
+            for (c, &j) in xs.iter().enumerate() {
+                a[r][c] = w_tn(k, j) + p.w_tt[k][j] * self.slip_coeff(j);
+            }
+            for (q2, &k2) in ks.iter().enumerate() {
+                a[r][nx + q2] = p.w_tt[k][k2];
+            }
+            let mut rhs = -self.u_t[k];
+            for j in 0..p.len {
+                if self.fixed_x[j] != T::ZERO {
+                    rhs -= (w_tn(k, j) + p.w_tt[k][j] * self.slip_coeff(j)) * self.fixed_x[j];
+                }
+            }
+            b[r] = rhs;
+            wts[r] = p.contacts[k].weight;
+        }
+        let (sol, how) = solve_weighted_in(&a, &b, &wts, nx + nk)?;
+        let mut out = [T::ZERO; DIM];
+        out[..nx + nk].copy_from_slice(&sol[..nx + nk]);
+        Some((out, how))
+    }
 }
 
 /// The weighted norm `sum (x_i^2 + y_i^2) / w_i` of the active contacts' rates.

@@ -49,14 +49,26 @@ pub fn solve_weighted<T: Real>(
     weights: &Vector<T>,
     n: usize,
 ) -> Option<(Vector<T>, Solved)> {
-    let mut x = [T::ZERO; DIM];
+    solve_weighted_in(a, b, weights, n)
+}
+
+/// [`solve_weighted`] in storage of `D x D` (`n <= D`): the same arithmetic in the
+/// same order, with the copies and scratch matrices sized to the problem rather
+/// than to [`DIM`] (a 4-contact system fits `D = 8`, a quarter of the storage).
+pub fn solve_weighted_in<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    b: &[T; D],
+    weights: &[T; D],
+    n: usize,
+) -> Option<([T; D], Solved)> {
+    let mut x = [T::ZERO; D];
     if n == 0 {
         return Some((x, Solved::Unique));
     }
     let scale = max_abs(a, n);
     if scale == T::ZERO {
         // A = 0: consistent only for b = 0, and then x = 0 is the minimum norm.
-        return if (0..n).all(|i| b[i] == T::ZERO) {
+        return if b[..n].iter().all(|v| *v == T::ZERO) {
             Some((x, Solved::MinimumNorm))
         } else {
             None
@@ -67,13 +79,13 @@ pub fn solve_weighted<T: Real>(
     }
     minimum_norm(a, b, weights, n, &mut x)?;
     // Accept only a consistent system: the residual must vanish to the tolerance.
-    let b_scale = (0..n).fold(T::ZERO, |m, i| m.max(b[i].abs()));
-    let x_scale = (0..n).fold(T::ZERO, |m, i| m.max(x[i].abs()));
+    let b_scale = b[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
+    let x_scale = x[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
     let tol = rank_tolerance::<T>() * (b_scale + scale * x_scale);
-    for i in 0..n {
-        let mut r = -b[i];
-        for j in 0..n {
-            r += a[i][j] * x[j];
+    for (row, bi) in a[..n].iter().zip(&b[..n]) {
+        let mut r = -*bi;
+        for (aij, xj) in row[..n].iter().zip(&x[..n]) {
+            r += *aij * *xj;
         }
         if r.abs() > tol || !r.is_finite() {
             return None;
@@ -83,10 +95,10 @@ pub fn solve_weighted<T: Real>(
 }
 
 /// Largest `|a_ij|` of the leading block.
-fn max_abs<T: Real>(a: &Matrix<T>, n: usize) -> T {
+fn max_abs<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> T {
     let mut m = T::ZERO;
-    for row in a.iter().take(n) {
-        for v in row.iter().take(n) {
+    for row in &a[..n] {
+        for v in &row[..n] {
             m = m.max(v.abs());
         }
     }
@@ -95,103 +107,113 @@ fn max_abs<T: Real>(a: &Matrix<T>, n: usize) -> T {
 
 /// Gaussian elimination with full pivoting. Writes the solution and returns true
 /// when the block has full rank (every pivot above `rank_tolerance * scale`).
-fn lu_full_pivot<T: Real>(
-    a: &Matrix<T>,
-    b: &Vector<T>,
+fn lu_full_pivot<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    b: &[T; D],
     n: usize,
     scale: T,
-    x: &mut Vector<T>,
+    x: &mut [T; D],
 ) -> bool {
     let mut m = *a;
     let mut rhs = *b;
-    let mut col_of = [0usize; DIM];
-    for (k, c) in col_of.iter_mut().enumerate().take(n) {
+    let mut col_of = [0usize; D];
+    for (k, c) in col_of[..n].iter_mut().enumerate() {
         *c = k;
     }
     let tol = rank_tolerance::<T>() * scale;
     for k in 0..n {
-        // Pivot: the largest remaining entry.
-        let (mut pr, mut pc, mut best) = (k, k, T::ZERO);
-        for (i, row) in m.iter().enumerate().take(n).skip(k) {
-            for (j, v) in row.iter().enumerate().take(n).skip(k) {
-                if v.abs() > best {
-                    best = v.abs();
-                    pr = i;
-                    pc = j;
-                }
-            }
-        }
+        let (pr, pc, best) = largest_entry(&m, k, n);
         if best <= tol || !best.is_finite() {
             return false;
         }
         m.swap(k, pr);
         rhs.swap(k, pr);
         if pc != k {
-            for row in m.iter_mut().take(n) {
+            for row in &mut m[..n] {
                 row.swap(k, pc);
             }
             col_of.swap(k, pc);
         }
-        // Eliminate below the pivot.
-        let pivot = m[k][k];
-        for i in (k + 1)..n {
-            let f = m[i][k] / pivot;
-            if f != T::ZERO {
-                for j in (k + 1)..n {
-                    let mkj = m[k][j];
-                    m[i][j] -= f * mkj;
-                }
-                let rk = rhs[k];
-                rhs[i] -= f * rk;
-            }
-            m[i][k] = T::ZERO;
-        }
+        eliminate_below(&mut m, &mut rhs, k, n);
     }
     // Back substitution, then undo the column permutation.
-    let mut y = [T::ZERO; DIM];
+    let mut y = [T::ZERO; D];
     for k in (0..n).rev() {
         let mut s = rhs[k];
-        for j in (k + 1)..n {
-            s -= m[k][j] * y[j];
+        for (mkj, yj) in m[k][k + 1..n].iter().zip(&y[k + 1..n]) {
+            s -= *mkj * *yj;
         }
         y[k] = s / m[k][k];
     }
-    for k in 0..n {
-        x[col_of[k]] = y[k];
+    for (c, yk) in col_of[..n].iter().zip(&y[..n]) {
+        x[*c] = *yk;
     }
-    (0..n).all(|k| x[k].is_finite())
+    x[..n].iter().all(|v| v.is_finite())
+}
+
+/// The full pivot of step `k`: the largest `|m_ij|` with `i, j` in `k..n` (the
+/// first one met, row by row), as (row, column, magnitude).
+fn largest_entry<T: Real, const D: usize>(
+    m: &[[T; D]; D],
+    k: usize,
+    n: usize,
+) -> (usize, usize, T) {
+    let (mut pr, mut pc, mut best) = (k, k, T::ZERO);
+    for (i, row) in m[k..n].iter().enumerate() {
+        for (j, v) in row[k..n].iter().enumerate() {
+            if v.abs() > best {
+                best = v.abs();
+                pr = k + i;
+                pc = k + j;
+            }
+        }
+    }
+    (pr, pc, best)
+}
+
+/// Eliminates column `k` below the pivot `m_kk` from the rows `k+1..n` and the
+/// right-hand side.
+fn eliminate_below<T: Real, const D: usize>(
+    m: &mut [[T; D]; D],
+    rhs: &mut [T; D],
+    k: usize,
+    n: usize,
+) {
+    let (upper, lower) = m.split_at_mut(k + 1);
+    let pivot_row = &upper[k];
+    let pivot = pivot_row[k];
+    let rk = rhs[k];
+    for (row, ri) in lower[..n - k - 1].iter_mut().zip(&mut rhs[k + 1..n]) {
+        let f = row[k] / pivot;
+        if f != T::ZERO {
+            for (mij, mkj) in row[k + 1..n].iter_mut().zip(&pivot_row[k + 1..n]) {
+                *mij -= f * *mkj;
+            }
+            *ri -= f * rk;
+        }
+        row[k] = T::ZERO;
+    }
 }
 
 /// Weighted minimum-norm solution `x = D A^T z`, `(A D A^T) z = b`, by pivoted
 /// Cholesky truncated at the numerical rank. Returns `None` on non-finite numbers.
-fn minimum_norm<T: Real>(
-    a: &Matrix<T>,
-    b: &Vector<T>,
-    weights: &Vector<T>,
+fn minimum_norm<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    b: &[T; D],
+    weights: &[T; D],
     n: usize,
-    x: &mut Vector<T>,
+    x: &mut [T; D],
 ) -> Option<()> {
-    // G = A D A^T (symmetric, positive semi-definite).
-    let mut g = [[T::ZERO; DIM]; DIM];
-    for i in 0..n {
-        for j in 0..=i {
-            let mut s = T::ZERO;
-            for k in 0..n {
-                s += a[i][k] * weights[k] * a[j][k];
-            }
-            g[i][j] = s;
-            g[j][i] = s;
-        }
-    }
+    let g = weighted_gram(a, weights, n);
     // Pivoted Cholesky: P^T G P = L L^T, stopping where the remaining diagonal
     // falls below the tolerance (the rank r).
-    let mut perm = [0usize; DIM];
-    for (k, p) in perm.iter_mut().enumerate().take(n) {
+    let mut perm = [0usize; D];
+    for (k, p) in perm[..n].iter_mut().enumerate() {
         *p = k;
     }
     let g_scale = (0..n).fold(T::ZERO, |m, i| m.max(g[i][i]));
     let tol = rank_tolerance::<T>() * g_scale;
-    let mut l = [[T::ZERO; DIM]; DIM];
+    let mut l = [[T::ZERO; D]; D];
     let mut rank = 0;
     for k in 0..n {
         // Remaining diagonal d_i = G_ii - sum_{m<k} L_im^2, choose the largest.
@@ -200,7 +222,7 @@ fn minimum_norm<T: Real>(
         for i in k..n {
             let pi = perm[i];
             let mut d = g[pi][pi];
-            for lm in l[i].iter().take(k) {
+            for lm in &l[i][..k] {
                 d -= *lm * *lm;
             }
             if d > best_d {
@@ -215,17 +237,19 @@ fn minimum_norm<T: Real>(
         l.swap(k, best);
         let lkk = best_d.sqrt();
         l[k][k] = lkk;
-        for i in (k + 1)..n {
-            let mut s = g[perm[i]][perm[k]];
-            for m in 0..k {
-                s -= l[i][m] * l[k][m];
+        let (upper, lower) = l.split_at_mut(k + 1);
+        let lk = &upper[k];
+        for (li, pi) in lower[..n - k - 1].iter_mut().zip(&perm[k + 1..n]) {
+            let mut s = g[*pi][perm[k]];
+            for (lim, lkm) in li[..k].iter().zip(&lk[..k]) {
+                s -= *lim * *lkm;
             }
-            l[i][k] = s / lkk;
+            li[k] = s / lkk;
         }
         rank = k + 1;
     }
     // Solve L11 L11^T z1 = b1 on the first `rank` pivots, z2 = 0.
-    let mut z = [T::ZERO; DIM];
+    let mut z = [T::ZERO; D];
     for k in 0..rank {
         let mut s = b[perm[k]];
         for m in 0..k {
@@ -240,15 +264,15 @@ fn minimum_norm<T: Real>(
         }
         z[k] = s / l[k][k];
     }
-    let mut zf = [T::ZERO; DIM];
+    let mut zf = [T::ZERO; D];
     for k in 0..rank {
         zf[perm[k]] = z[k];
     }
     // x = D A^T z.
-    for (j, xj) in x.iter_mut().enumerate().take(n) {
+    for (j, xj) in x[..n].iter_mut().enumerate() {
         let mut s = T::ZERO;
-        for (i, zi) in zf.iter().enumerate().take(n) {
-            s += a[i][j] * *zi;
+        for (row, zi) in a[..n].iter().zip(&zf[..n]) {
+            s += row[j] * *zi;
         }
         *xj = weights[j] * s;
         if !xj.is_finite() {
@@ -256,6 +280,26 @@ fn minimum_norm<T: Real>(
         }
     }
     Some(())
+}
+
+/// `G = A D A^T` of the leading block (symmetric, positive semi-definite).
+fn weighted_gram<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    weights: &[T; D],
+    n: usize,
+) -> [[T; D]; D] {
+    let mut g = [[T::ZERO; D]; D];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut s = T::ZERO;
+            for ((aik, wk), ajk) in a[i][..n].iter().zip(&weights[..n]).zip(&a[j][..n]) {
+                s += *aik * *wk * *ajk;
+            }
+            g[i][j] = s;
+            g[j][i] = s;
+        }
+    }
+    g
 }
 
 #[cfg(test)]
