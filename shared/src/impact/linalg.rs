@@ -7,11 +7,22 @@
 //!
 //! ```text
 //!   min x^T D^-1 x  subject to  A x = b,   D = diag(weights)
-//!   =>  x = D A^T z,  (A D A^T) z = b
 //! ```
 //!
-//! (Lagrange; Ben-Israel & Greville, *Generalized Inverses*, ch. 3), with
-//! `A D A^T` factored by Cholesky with diagonal pivoting, truncated at its rank.
+//! It is built from the LU factors that stopped at the rank `r` (Golub & Van Loan,
+//! *Matrix Computations*, 4th ed., sec. 3.4.9 and 5.7): with row and column
+//! permutations `P`, `Q`, `P A Q = L [U; 0]`, `U = [U11 U12]` of `r` rows, the
+//! system reads `U x' = c` with `x' = Q^T x` and `c` the first `r` entries of
+//! `L^-1 P b` (the others vanish when `b` is in the range). Then (Lagrange; Ben-Israel
+//! & Greville, *Generalized Inverses*, ch. 3)
+//!
+//! ```text
+//!   x' = D' U^T z,  (U D' U^T) z = c,   D' = Q^T D Q
+//! ```
+//!
+//! with the `r x r` matrix `U D' U^T` factored by Cholesky. It is the same solution
+//! as `x = D A^T z`, `(A D A^T) z = b` (the rows of `U` span those of `A`), without
+//! starting over on the `n x n` matrix `A D A^T`.
 
 use super::MAX_CONTACTS;
 use crate::real::Real;
@@ -74,10 +85,15 @@ pub fn solve_weighted_in<T: Real, const D: usize>(
             None
         };
     }
-    if lu_full_pivot(a, b, n, scale, &mut x) {
-        return Some((x, Solved::Unique));
+    let lu = Lu::factor(a, b, n, scale)?;
+    if lu.rank == n {
+        lu.back_substitute(&mut x);
+        return x[..n]
+            .iter()
+            .all(|v| v.is_finite())
+            .then_some((x, Solved::Unique));
     }
-    minimum_norm(a, b, weights, n, &mut x)?;
+    lu.minimum_norm(weights, &mut x)?;
     // Accept only a consistent system: the residual must vanish to the tolerance.
     let b_scale = b[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
     let x_scale = x[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
@@ -105,50 +121,155 @@ fn max_abs<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> T {
     m
 }
 
-/// Gaussian elimination with full pivoting. Writes the solution and returns true
-/// when the block has full rank (every pivot above `rank_tolerance * scale`).
-fn lu_full_pivot<T: Real, const D: usize>(
-    a: &[[T; D]; D],
-    b: &[T; D],
+/// Gaussian elimination with full pivoting, stopped at the numerical rank.
+struct Lu<T, const D: usize> {
+    /// Rows `0..rank`: `U` (upper trapezoidal, in permuted columns); below them
+    /// the remainder, every entry within the tolerance.
+    m: [[T; D]; D],
+    /// `L^-1 P b`.
+    rhs: [T; D],
+    /// Column `k` of the permuted system is unknown `col_of[k]` of the original.
+    col_of: [usize; D],
     n: usize,
-    scale: T,
-    x: &mut [T; D],
-) -> bool {
-    let mut m = *a;
-    let mut rhs = *b;
-    let mut col_of = [0usize; D];
-    for (k, c) in col_of[..n].iter_mut().enumerate() {
-        *c = k;
-    }
-    let tol = rank_tolerance::<T>() * scale;
-    for k in 0..n {
-        let (pr, pc, best) = largest_entry(&m, k, n);
-        if best <= tol || !best.is_finite() {
-            return false;
+    /// Pivots above `rank_tolerance * scale`.
+    rank: usize,
+}
+
+impl<T: Real, const D: usize> Lu<T, D> {
+    /// Factors the leading `n x n` block, stopping at the first pivot at or below
+    /// `rank_tolerance * scale`. `None` on a non-finite pivot.
+    fn factor(a: &[[T; D]; D], b: &[T; D], n: usize, scale: T) -> Option<Self> {
+        let mut lu = Lu {
+            m: *a,
+            rhs: *b,
+            col_of: [0usize; D],
+            n,
+            rank: 0,
+        };
+        for (k, c) in lu.col_of[..n].iter_mut().enumerate() {
+            *c = k;
         }
-        m.swap(k, pr);
-        rhs.swap(k, pr);
-        if pc != k {
-            for row in &mut m[..n] {
-                row.swap(k, pc);
+        let tol = rank_tolerance::<T>() * scale;
+        for k in 0..n {
+            let (pr, pc, best) = largest_entry(&lu.m, k, n);
+            if !best.is_finite() {
+                return None;
             }
-            col_of.swap(k, pc);
+            if best <= tol {
+                break;
+            }
+            lu.m.swap(k, pr);
+            lu.rhs.swap(k, pr);
+            if pc != k {
+                for row in &mut lu.m[..n] {
+                    row.swap(k, pc);
+                }
+                lu.col_of.swap(k, pc);
+            }
+            eliminate_below(&mut lu.m, &mut lu.rhs, k, n);
+            lu.rank = k + 1;
         }
-        eliminate_below(&mut m, &mut rhs, k, n);
+        Some(lu)
     }
-    // Back substitution, then undo the column permutation.
-    let mut y = [T::ZERO; D];
-    for k in (0..n).rev() {
-        let mut s = rhs[k];
-        for (mkj, yj) in m[k][k + 1..n].iter().zip(&y[k + 1..n]) {
-            s -= *mkj * *yj;
+
+    /// The unique solution of a full-rank block: back substitution, then the
+    /// column permutation undone.
+    fn back_substitute(&self, x: &mut [T; D]) {
+        let (m, n) = (&self.m, self.n);
+        let mut y = [T::ZERO; D];
+        for k in (0..n).rev() {
+            let mut s = self.rhs[k];
+            for (mkj, yj) in m[k][k + 1..n].iter().zip(&y[k + 1..n]) {
+                s -= *mkj * *yj;
+            }
+            y[k] = s / m[k][k];
         }
-        y[k] = s / m[k][k];
+        for (c, yk) in self.col_of[..n].iter().zip(&y[..n]) {
+            x[*c] = *yk;
+        }
     }
-    for (c, yk) in col_of[..n].iter().zip(&y[..n]) {
-        x[*c] = *yk;
+
+    /// The weighted minimum-norm solution of `U x' = c` (module docs):
+    /// `H = U D' U^T` (`r x r`), `H = R R^T` by Cholesky, `H z = c`,
+    /// `x' = D' U^T z`. `None` on a non-positive or non-finite Cholesky pivot.
+    fn minimum_norm(&self, weights: &[T; D], x: &mut [T; D]) -> Option<()> {
+        let (u, n, r) = (&self.m, self.n, self.rank);
+        let mut w = [T::ZERO; D];
+        for (wk, c) in w[..n].iter_mut().zip(&self.col_of[..n]) {
+            *wk = weights[*c];
+        }
+        // H_ab = sum_j U_aj D'_j U_bj over j >= max(a, b) (U is zero left of its
+        // diagonal), then its Cholesky factor in place (lower triangle).
+        let mut h = [[T::ZERO; D]; D];
+        for a in 0..r {
+            for b in 0..=a {
+                let mut s = T::ZERO;
+                for j in a..n {
+                    s += u[a][j] * w[j] * u[b][j];
+                }
+                h[a][b] = s;
+            }
+        }
+        cholesky_in_place(&mut h, r)?;
+        let mut z = self.rhs;
+        cholesky_solve(&h, r, &mut z);
+        // x' = D' U^T z; x[col_of[j]] = x'_j.
+        for j in 0..n {
+            let mut s = T::ZERO;
+            for a in 0..r.min(j + 1) {
+                s += u[a][j] * z[a];
+            }
+            let xj = w[j] * s;
+            if !xj.is_finite() {
+                return None;
+            }
+            x[self.col_of[j]] = xj;
+        }
+        Some(())
     }
-    x[..n].iter().all(|v| v.is_finite())
+}
+
+/// `H = R R^T` in the lower triangle of the leading `r x r` block (Golub & Van Loan,
+/// alg. 4.2.1). `None` where a pivot is not positive and finite.
+fn cholesky_in_place<T: Real, const D: usize>(h: &mut [[T; D]; D], r: usize) -> Option<()> {
+    for k in 0..r {
+        let mut d = h[k][k];
+        for m in 0..k {
+            d -= h[k][m] * h[k][m];
+        }
+        if d <= T::ZERO || !d.is_finite() {
+            return None;
+        }
+        let rkk = d.sqrt();
+        h[k][k] = rkk;
+        for i in (k + 1)..r {
+            let mut s = h[i][k];
+            for m in 0..k {
+                s -= h[i][m] * h[k][m];
+            }
+            h[i][k] = s / rkk;
+        }
+    }
+    Some(())
+}
+
+/// Solves `R R^T z = c` in place on the first `r` entries (forward, then back
+/// substitution with the factor of [`cholesky_in_place`]).
+fn cholesky_solve<T: Real, const D: usize>(h: &[[T; D]; D], r: usize, z: &mut [T; D]) {
+    for k in 0..r {
+        let mut s = z[k];
+        for m in 0..k {
+            s -= h[k][m] * z[m];
+        }
+        z[k] = s / h[k][k];
+    }
+    for k in (0..r).rev() {
+        let mut s = z[k];
+        for m in (k + 1)..r {
+            s -= h[m][k] * z[m];
+        }
+        z[k] = s / h[k][k];
+    }
 }
 
 /// The full pivot of step `k`: the largest `|m_ij|` with `i, j` in `k..n` (the
@@ -193,113 +314,6 @@ fn eliminate_below<T: Real, const D: usize>(
         }
         row[k] = T::ZERO;
     }
-}
-
-/// Weighted minimum-norm solution `x = D A^T z`, `(A D A^T) z = b`, by pivoted
-/// Cholesky truncated at the numerical rank. Returns `None` on non-finite numbers.
-fn minimum_norm<T: Real, const D: usize>(
-    a: &[[T; D]; D],
-    b: &[T; D],
-    weights: &[T; D],
-    n: usize,
-    x: &mut [T; D],
-) -> Option<()> {
-    let g = weighted_gram(a, weights, n);
-    // Pivoted Cholesky: P^T G P = L L^T, stopping where the remaining diagonal
-    // falls below the tolerance (the rank r).
-    let mut perm = [0usize; D];
-    for (k, p) in perm[..n].iter_mut().enumerate() {
-        *p = k;
-    }
-    let g_scale = (0..n).fold(T::ZERO, |m, i| m.max(g[i][i]));
-    let tol = rank_tolerance::<T>() * g_scale;
-    let mut l = [[T::ZERO; D]; D];
-    let mut rank = 0;
-    for k in 0..n {
-        // Remaining diagonal d_i = G_ii - sum_{m<k} L_im^2, choose the largest.
-        let mut best = k;
-        let mut best_d = -T::ONE;
-        for i in k..n {
-            let pi = perm[i];
-            let mut d = g[pi][pi];
-            for lm in &l[i][..k] {
-                d -= *lm * *lm;
-            }
-            if d > best_d {
-                best_d = d;
-                best = i;
-            }
-        }
-        if best_d <= tol || !best_d.is_finite() {
-            break;
-        }
-        perm.swap(k, best);
-        l.swap(k, best);
-        let lkk = best_d.sqrt();
-        l[k][k] = lkk;
-        let (upper, lower) = l.split_at_mut(k + 1);
-        let lk = &upper[k];
-        for (li, pi) in lower[..n - k - 1].iter_mut().zip(&perm[k + 1..n]) {
-            let mut s = g[*pi][perm[k]];
-            for (lim, lkm) in li[..k].iter().zip(&lk[..k]) {
-                s -= *lim * *lkm;
-            }
-            li[k] = s / lkk;
-        }
-        rank = k + 1;
-    }
-    // Solve L11 L11^T z1 = b1 on the first `rank` pivots, z2 = 0.
-    let mut z = [T::ZERO; D];
-    for k in 0..rank {
-        let mut s = b[perm[k]];
-        for m in 0..k {
-            s -= l[k][m] * z[m];
-        }
-        z[k] = s / l[k][k];
-    }
-    for k in (0..rank).rev() {
-        let mut s = z[k];
-        for m in (k + 1)..rank {
-            s -= l[m][k] * z[m];
-        }
-        z[k] = s / l[k][k];
-    }
-    let mut zf = [T::ZERO; D];
-    for k in 0..rank {
-        zf[perm[k]] = z[k];
-    }
-    // x = D A^T z.
-    for (j, xj) in x[..n].iter_mut().enumerate() {
-        let mut s = T::ZERO;
-        for (row, zi) in a[..n].iter().zip(&zf[..n]) {
-            s += row[j] * *zi;
-        }
-        *xj = weights[j] * s;
-        if !xj.is_finite() {
-            return None;
-        }
-    }
-    Some(())
-}
-
-/// `G = A D A^T` of the leading block (symmetric, positive semi-definite).
-fn weighted_gram<T: Real, const D: usize>(
-    a: &[[T; D]; D],
-    weights: &[T; D],
-    n: usize,
-) -> [[T; D]; D] {
-    let mut g = [[T::ZERO; D]; D];
-    for i in 0..n {
-        for j in 0..=i {
-            let mut s = T::ZERO;
-            for ((aik, wk), ajk) in a[i][..n].iter().zip(&weights[..n]).zip(&a[j][..n]) {
-                s += *aik * *wk * *ajk;
-            }
-            g[i][j] = s;
-            g[j][i] = s;
-        }
-    }
-    g
 }
 
 #[cfg(test)]
