@@ -7,13 +7,13 @@
 use std::collections::VecDeque;
 
 use proptest::prelude::*;
-use shared::controller::{Direction, Faults, State, TuningTable};
+use shared::controller::{Direction, Faults, Outputs, State, TuningTable};
 use shared::protocol::link::{no_telemetry, Link, LinkState};
 use shared::protocol::{
-    encode, Decoder, Message, NackReason, Request, Response, SelfTestStatus, StatusReport,
-    FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+    encode, Decoder, Message, NackReason, Request, Response, SelfTestReport, SelfTestStatus,
+    StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use shared::storage::{self, SimFlash};
+use shared::storage::{self, RotorSelfTest, SelfTest, SimFlash};
 
 /// A link with its state and flash, as the firmware holds them.
 struct Device {
@@ -230,6 +230,62 @@ fn a_table_write_is_stored_and_a_power_cut_keeps_the_old_table() {
         )]
     );
     assert_eq!(d.flash.erases(), 0);
+}
+
+/// A self-test aborted after a good one was stored: the next table write keeps
+/// the good result in flash (it is what a store writes, not the latest report).
+#[test]
+fn an_aborted_self_test_does_not_drop_the_stored_result() {
+    let good = SelfTest {
+        rotors: [RotorSelfTest {
+            motor_polarity_ok: true,
+            encoder_polarity_ok: true,
+            index_seen: true,
+            counts_per_rev: 4096,
+            index_offset_counts: 1209,
+        }; 2],
+    };
+    let mut dev = Device::new();
+    dev.state = LinkState::new(
+        dev.state.status,
+        TuningTable::default_offsets(),
+        Some(SelfTestReport {
+            status: SelfTestStatus::Done,
+            result: good,
+        }),
+    );
+    // A later test, aborted (E-stop), as the control task publishes it.
+    dev.state.self_test = SelfTestReport {
+        status: SelfTestStatus::Running,
+        result: SelfTest::default(),
+    };
+    let outputs = Outputs {
+        duty: [0.0; 2],
+        enable: false,
+        state: State::Idle,
+        faults: Faults::NONE,
+        telemetry: no_telemetry(),
+    };
+    dev.state.publish(
+        10,
+        &outputs,
+        SelfTestReport {
+            status: SelfTestStatus::Aborted,
+            result: SelfTest::default(),
+        },
+    );
+    assert_eq!(dev.state.self_test.status, SelfTestStatus::Aborted);
+    assert!(!dev.state.self_test_unsaved);
+
+    let new = table(&[(2000.0, 100.0, 260.0)]);
+    let answers = responses(&dev.exchange(&frame(&Request::WriteTuningTable(new.clone()), 1), 20));
+    assert!(
+        matches!(answers[..], [(1, Response::Ack { .. })]),
+        "{answers:?}"
+    );
+    let stored = storage::load(&dev.flash).expect("stored").record;
+    assert_eq!(stored.tuning, new);
+    assert_eq!(stored.self_test, Some(good));
 }
 
 #[test]

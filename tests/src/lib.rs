@@ -1,1 +1,29 @@
-//! Integration tests live in `tests/tests/`.
+//! Integration tests live in `tests/tests/`; this library holds what several of
+//! them share.
+
+/// A tiny deterministic generator (xorshift64*, Vigna 2016), so that random
+/// parameter sets are the same on every run and every machine.
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from `seed` (0 is taken as 1: xorshift needs a non-zero state).
+    pub fn new(seed: u64) -> Self {
+        Rng(seed.max(1))
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.0 = x;
+        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    /// Uniform in [lo, hi).
+    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+        lo + (hi - lo) * unit
+    }
+}

@@ -20,29 +20,9 @@ use shared::impact::{
     InteractionCase, PlanarBody, SlipState, Warnings,
 };
 
+use tests::Rng;
+
 const LAWS: [ImpactLaw; 3] = [ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
-
-/// A tiny deterministic generator (xorshift64*, Vigna 2016).
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Rng(seed.max(1))
-    }
-    fn next_u64(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * unit
-    }
-}
 
 /// Asserts `|got - expected| <= tol`, naming the quantity and the case.
 fn check(what: &str, got: f64, expected: f64, tol: f64, context: &dyn core::fmt::Debug) {

@@ -16,7 +16,7 @@ use super::{
     StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
 use crate::controller::{Command, Controller, Outputs, Params, Telemetry, TuningTable};
-use crate::storage::{self, Flash, Record, Stored};
+use crate::storage::{self, Flash, Record, SelfTest, Stored};
 
 /// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
 /// pass, so the caller gets to sleep and to check its clock.
@@ -41,6 +41,10 @@ pub struct LinkState {
     /// A finished self-test's result waits to be stored in flash with the table
     /// (set by the control task; the link stores it when writing is allowed).
     pub self_test_unsaved: bool,
+    /// The newest finished self-test's result: the stored one at start, replaced
+    /// when a test finishes. What a store writes with the table, so that a test
+    /// aborted later never drops a good result from flash.
+    pub finished_self_test: Option<SelfTest>,
     /// Telemetry period, ms (0: none).
     pub telemetry_period_ms: u16,
 }
@@ -82,11 +86,15 @@ impl LinkState {
         tuning: TuningTable,
         self_test: Option<SelfTestReport>,
     ) -> Self {
+        let finished_self_test = self_test
+            .filter(|r| r.status == SelfTestStatus::Done)
+            .map(|r| r.result);
         LinkState {
             status,
             command: None,
             tuning,
             new_tuning: None,
+            finished_self_test,
             self_test: self_test.unwrap_or(SelfTestReport {
                 status: SelfTestStatus::NotRun,
                 result: Default::default(),
@@ -133,18 +141,17 @@ impl LinkState {
                 && self_test.status == SelfTestStatus::Done
             {
                 self.self_test_unsaved = true;
+                self.finished_self_test = Some(self_test.result);
             }
             self.self_test = self_test;
         }
     }
 
-    /// The record to store: the table in use and the self-test result, if the
-    /// self-test finished.
+    /// The record to store: `tuning` and the newest finished self-test's result.
     fn record(&self, tuning: &TuningTable) -> Record {
         Record {
             tuning: tuning.clone(),
-            self_test: (self.self_test.status == SelfTestStatus::Done)
-                .then_some(self.self_test.result),
+            self_test: self.finished_self_test,
         }
     }
 }
