@@ -555,6 +555,7 @@ mod tests {
                 i2: 0.5,
                 duty1: 0.5,
                 duty2: 0.5,
+                ..TraceRow::default()
             }
         };
         let n = (t_end / dt).round() as usize;

@@ -134,7 +134,10 @@ pub fn run(args: &RunArgs) -> Output {
     for (path, what) in outputs {
         let Some(path) = path else { continue };
         let contents = match what {
-            OutputFile::Trace => trace_csv(&result.rows),
+            OutputFile::Trace => {
+                let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
+                trace_csv(&result.rows, &names)
+            }
             OutputFile::Events => events_csv(&result.events),
             OutputFile::Plot => {
                 crate::plot::plot_svg(&result.rows, &result.events, &machine, &title)

@@ -21,11 +21,30 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
 
+use shared::impact::MAX_CONTACTS;
+
 use crate::text::{self, Align, Table};
 use crate::trace::{EventRow, Summary, TraceRow};
 
-/// The trace CSV's header (spec `machine.md`, `--out`).
+/// The trace CSV's columns that every machine has (spec `machine.md`, `--out`);
+/// the contact forces follow ([`trace_header`]).
 pub const TRACE_HEADER: &str = "t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2";
+
+/// The trace CSV's header for a machine whose contacts are named `contacts`:
+/// [`TRACE_HEADER`], then per contact in file order `fn_<name>,ft_<name>` (the
+/// spec's addition: normal and tangential force of persistent contact, N).
+pub fn trace_header(contacts: &[String]) -> String {
+    let mut header = TRACE_HEADER.to_string();
+    for name in contacts {
+        let _ = write!(
+            header,
+            ",{},{}",
+            csv_text(&format!("fn_{name}")),
+            csv_text(&format!("ft_{name}"))
+        );
+    }
+    header
+}
 
 /// The events CSV's header (spec `machine.md`, `--events`).
 pub const EVENTS_HEADER: &str = "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail";
@@ -175,21 +194,24 @@ pub fn csv_text(s: &str) -> String {
     }
 }
 
-/// The `--out` trace: [`TRACE_HEADER`], then one line per row.
-pub fn trace_csv(rows: &[TraceRow]) -> String {
-    let mut out = String::with_capacity(32 + rows.len() * 15 * 12);
-    out.push_str(TRACE_HEADER);
+/// The `--out` trace of a machine whose contacts are named `contacts`:
+/// [`trace_header`], then one line per row.
+pub fn trace_csv(rows: &[TraceRow], contacts: &[String]) -> String {
+    let n = contacts.len().min(MAX_CONTACTS);
+    let mut out = String::with_capacity(32 + rows.len() * (15 + 2 * n) * 12);
+    out.push_str(&trace_header(&contacts[..n]));
     out.push('\n');
     for r in rows {
         let fields = [
             r.t, r.x, r.y, r.angle, r.vx, r.vy, r.omega, r.phi1, r.phi2, r.omega1, r.omega2, r.i1,
             r.i2, r.duty1, r.duty2,
         ];
-        for (i, v) in fields.iter().enumerate() {
+        let forces = (0..n).flat_map(|j| [r.normal_force[j], r.tangential_force[j]]);
+        for (i, v) in fields.into_iter().chain(forces).enumerate() {
             if i > 0 {
                 out.push(',');
             }
-            out.push_str(&csv_number(*v));
+            out.push_str(&csv_number(v));
         }
         out.push('\n');
     }
@@ -420,7 +442,7 @@ mod tests {
                 ..TraceRow::default()
             },
         ];
-        let csv = trace_csv(&rows);
+        let csv = trace_csv(&rows, &[]);
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(
             lines[0],
@@ -433,7 +455,26 @@ mod tests {
         assert_eq!(cells[0], "0.001");
         assert_eq!(cells[7].parse::<f64>().unwrap(), 1.0 / 3.0);
         assert_eq!(cells[14], "-1");
-        assert_eq!(trace_csv(&[]), format!("{TRACE_HEADER}\n"));
+        assert_eq!(trace_csv(&[], &[]), format!("{TRACE_HEADER}\n"));
+    }
+
+    #[test]
+    fn trace_has_the_contact_forces_per_contact_in_file_order() {
+        let mut row = TraceRow::default();
+        row.normal_force[0] = 9.5;
+        row.tangential_force[0] = -1.25;
+        row.normal_force[1] = 0.5;
+        // A third force beyond the machine's two contacts is not written.
+        row.normal_force[2] = 7.0;
+        let names = ["K1".to_string(), "rear, left".to_string()];
+        let csv = trace_csv(&[row], &names);
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(
+            lines[0],
+            format!("{TRACE_HEADER},fn_K1,ft_K1,\"fn_rear, left\",\"ft_rear, left\"")
+        );
+        assert!(lines[1].ends_with(",9.5,-1.25,0.5,0"), "{}", lines[1]);
+        assert_eq!(lines[1].split(',').count(), 19);
     }
 
     #[test]

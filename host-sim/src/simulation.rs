@@ -15,7 +15,7 @@
 use crate::machine::Machine;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::motor::Winding;
-use crate::plant::simulator::{Holds, Output, Plant, Settings, NY};
+use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::summary::summarize;
 use crate::trace::{EventRow, Summary, TraceRow};
 
@@ -124,16 +124,16 @@ impl Recorder {
                 while self.regular_time() <= upto {
                     let t = self.regular_time();
                     let y = step.at(t);
-                    self.push(t, &y);
+                    self.push(t, &y, &step.forces(&y));
                     self.next += 1;
                 }
             }
-            Output::Before(t, y) | Output::After(t, y) => self.push(t, y),
+            Output::Before(at) | Output::After(at) => self.push(at.t, at.y, &at.forces()),
         }
     }
 
-    fn push(&mut self, t: f64, y: &[f64; NY]) {
-        self.rows.push(Plant::row(t, y, self.duty));
+    fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
+        self.rows.push(Plant::row(t, y, self.duty, forces));
     }
 }
 
@@ -169,7 +169,7 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
         rec.duty = duty;
         if tick == 0 {
             let y = plant.y;
-            rec.push(0.0, &y);
+            rec.push(0.0, &y, &plant.forces_at(&y));
             rec.next = 1;
         }
         tick += 1;
@@ -178,7 +178,7 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
     }
     if rec.rows.last().is_none_or(|r| r.t < plant.t) {
         let y = plant.y;
-        rec.push(plant.t, &y);
+        rec.push(plant.t, &y, &plant.forces_at(&y));
     }
 
     // 4. Summary, with the driver's events merged in time order.

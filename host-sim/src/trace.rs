@@ -1,5 +1,7 @@
 //! What a simulation run records: trace rows, events and the summary.
 
+use shared::impact::MAX_CONTACTS;
+
 /// One row of the `--out` trace.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceRow {
@@ -33,6 +35,12 @@ pub struct TraceRow {
     pub duty1: f64,
     /// Duties, in [-1, 1].
     pub duty2: f64,
+    /// Normal force of persistent contact per contact in file order, N (0 while
+    /// open; impacts are in the events); entries past the machine's contacts are 0.
+    pub normal_force: [f64; MAX_CONTACTS],
+    /// Tangential force of persistent contact per contact, N, along the
+    /// fundament's tangent `t = (-n_y, n_x)`.
+    pub tangential_force: [f64; MAX_CONTACTS],
 }
 
 /// The kind of an event (spec `machine.md`, `--events`).

@@ -61,9 +61,14 @@ fn json_summary_has_the_spec_keys_in_order() {
     }
 }
 
-#[test]
-fn files_are_written_with_the_spec_headers() {
-    let (out, events, plot) = (scratch("t.csv"), scratch("e.csv"), scratch("p.svg"));
+/// The reference machine open loop at 12 V for 0.4 s, writing the trace, the
+/// events and the plot to scratch files named after `tag`: their paths.
+fn open_loop_files(tag: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (out, events, plot) = (
+        scratch(&format!("{tag}-t.csv")),
+        scratch(&format!("{tag}-e.csv")),
+        scratch(&format!("{tag}-p.svg")),
+    );
     let m = machine();
     let r = run(&[
         "run",
@@ -80,10 +85,16 @@ fn files_are_written_with_the_spec_headers() {
         plot.to_str().unwrap(),
     ]);
     assert_eq!(r.status, 0, "{}", r.stderr);
+    (out, events, plot)
+}
+
+#[test]
+fn files_are_written_with_the_spec_headers() {
+    let (out, events, plot) = open_loop_files("headers");
     let trace = std::fs::read_to_string(&out).unwrap();
-    assert!(
-        trace.starts_with("t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2\n")
-    );
+    assert!(trace.starts_with(
+        "t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2,fn_K1,ft_K1,fn_K2,ft_K2\n"
+    ));
     // One row per output step (1 ms) at least, times non-decreasing.
     let times: Vec<f64> = trace
         .lines()
@@ -102,6 +113,57 @@ fn files_are_written_with_the_spec_headers() {
     );
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"));
+}
+
+/// The trace's contact forces (`fn_<name>`, `ft_<name>`). At t = 0 the machine
+/// stands at rest on both feet with no current yet (the winding's inductance) and
+/// both eccentrics along +x: the platform is held, and each eccentric starts to
+/// fall about its axis, `psi'' = -m g e / (I + m e^2)`, so the feet carry the
+/// weight less the eccentrics' downward acceleration `e |psi''|`:
+/// `fn_K1 + fn_K2 = g (M_tot - sum m^2 e^2 / (I + m e^2))`, without friction.
+/// While it hops, a closed foot is never pulled beyond the force tolerance
+/// `eps_F` (1e-6 of the weight), an open one has no force, and no foot's friction
+/// leaves its cone (`|ft| <= 0.4 fn`) by more: the row just before a lift-off or
+/// a slip event shows the force at the event's threshold, `eps_F` past the
+/// boundary, to the event location's error (1 % of `eps_F` allowed).
+#[test]
+fn trace_has_contact_forces_that_never_pull() {
+    let (out, _, _) = open_loop_files("forces");
+    let trace = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = trace
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    let (g, m, e, i) = (9.81, 0.01, 0.02, 6e-6);
+    let weight = 2.02 * g;
+    let held = g * (2.02 - 2.0 * m * m * e * e / (i + m * e * e));
+    let first = &rows[0];
+    assert!(
+        (first[15] + first[17] - held).abs() < 1e-9 * weight,
+        "{first:?}"
+    );
+    assert!(
+        first[16].abs() < 1e-12 && first[18].abs() < 1e-12,
+        "{first:?}"
+    );
+    let tolerance = 1.01e-6 * weight;
+    let (mut loaded, mut free) = (0, 0);
+    for row in &rows {
+        for (fn_, ft) in [(row[15], row[16]), (row[17], row[18])] {
+            assert!(fn_ >= -tolerance, "a foot pulls: {row:?}");
+            assert!(
+                ft.abs() <= 0.4 * fn_.max(0.0) + tolerance,
+                "outside its cone: {row:?}"
+            );
+            if fn_ > 0.0 {
+                loaded += 1;
+            } else if ft == 0.0 {
+                free += 1;
+            }
+        }
+    }
+    assert!(loaded > 100 && free > 100, "{loaded} loaded, {free} free");
 }
 
 #[test]

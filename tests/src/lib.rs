@@ -1,6 +1,9 @@
 //! Integration tests live in `tests/tests/`; this library holds what several of
 //! them share.
 
+pub mod impact_oscillator;
+pub mod rig;
+
 /// A tiny deterministic generator (xorshift64*, Vigna 2016), so that random
 /// parameter sets are the same on every run and every machine.
 pub struct Rng(u64);

@@ -1280,3 +1280,70 @@ fn released_contact_makes_poisson_gain_energy() {
     assert!(out.kinetic_energy_after > out.kinetic_energy_before);
     assert!(out.outcome.warnings.contains(Warnings::ENERGY_GAINED));
 }
+
+/// Regression (found by `plant_unilateral.rs`'s property test, friction 100): two
+/// feet of a platform tilted by about a micro-radian strike at 1.5 and 0.3 mm/s
+/// with a slip of 8.3e-6 m/s. Root cause: the feet's tangential velocities differ
+/// only by the platform's rotation times their height difference, 9e-10 m/s here,
+/// which no impulse can end. When the second foot's slip ended it stuck, the first
+/// kept 9e-10 m/s (above the solver's zero, 1.5e-12) and was forced to slip; under
+/// friction 100 that state has no consistent proportion, and the fallback pushed
+/// until a slip event that never came: normal impulses of 39.7 N s, tangential
+/// impulses of -+2670 N s, both feet leaving at 40 m/s. Now a slip within 1e-6 of
+/// the impact's velocities that leaves no consistent proportion is taken as zero
+/// and its state chosen: both feet stick, and the impact dissipates.
+#[test]
+fn a_slip_no_impulse_can_end_does_not_run_away() {
+    let mut p = ImpactProblem::<f64, 8>::new(ImpactLaw::Poisson);
+    p.len = 2;
+    p.w_nn[0][0] = 0.849541710802985;
+    p.w_nn[0][1] = 0.16782312903012092;
+    p.w_nn[1][0] = 0.1678231290301208;
+    p.w_nn[1][1] = 0.8495906590605504;
+    p.w_nt[0][0] = 0.20406698591443517;
+    p.w_nt[0][1] = 0.20406750811461846;
+    p.w_nt[1][0] = -0.20408163818247393;
+    p.w_nt[1][1] = -0.20408216042015181;
+    p.w_tt[0][0] = 0.6308706713247192;
+    p.w_tt[0][1] = 0.6308709839688101;
+    p.w_tt[1][0] = 0.6308709839688101;
+    p.w_tt[1][1] = 0.6308712966137011;
+    p.u_n[0] = -0.001468449196389976;
+    p.u_n[1] = -0.00027916077648339904;
+    p.u_t[0] = 8.345437538970918e-6;
+    p.u_t[1] = 8.344526537499826e-6;
+    for c in p.contacts.iter_mut().take(2) {
+        *c = ContactLaw {
+            restitution: 0.48589786566413656,
+            friction: 100.0,
+            weight: 1.0,
+        };
+    }
+    let out = solve(&p).expect("solved");
+    assert!(
+        !out.warnings.contains(Warnings::INCONSISTENT),
+        "{:?}",
+        out.warnings
+    );
+    assert!(
+        !out.warnings.contains(Warnings::ENERGY_GAINED),
+        "{:?}",
+        out.warnings
+    );
+    assert!(
+        out.energy_change <= 0.0,
+        "energy change {}",
+        out.energy_change
+    );
+    for i in 0..2 {
+        let c = &out.contacts[i];
+        // Restitution gives back at most the approach speed.
+        assert!(c.normal_velocity_after >= -1e-12, "{c:?}");
+        assert!(c.normal_velocity_after <= 2e-3, "{c:?}");
+        assert!(
+            c.normal_impulse < 1e-2 && c.tangential_impulse.abs() < 1e-2,
+            "{c:?}"
+        );
+        assert!(c.tangential_velocity_after.abs() < 1e-8, "{c:?}");
+    }
+}

@@ -86,6 +86,25 @@ impl ContactMode {
     }
 }
 
+/// What an event function watches: each is positive until its event, and one
+/// function watches one condition.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Watch {
+    /// Open contact `j`: its gap, m (impact, or the contact closes).
+    Gap(usize),
+    /// Closed contact `j`: its normal force plus `eps_F`, N (lift-off).
+    NormalForce(usize),
+    /// Sticking contact `j`: `mu lambda_n - |lambda_t| + eps_F`, N (the cone is
+    /// exceeded).
+    Cone(usize),
+    /// Slipping contact `j`: `s u_t + eps_v`, m/s (the slip ends).
+    SlipEnds(usize),
+    /// Motor `k`'s driver: `I_lim - |i|`, A (the current limit is reached).
+    CurrentLimit(usize),
+    /// An unused slot (the second slot of an open contact).
+    Nothing,
+}
+
 /// Numerical settings, with the reasons for their defaults.
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
@@ -106,6 +125,16 @@ pub struct Settings {
     pub event_time_tolerance: f64,
     /// Contact velocities within this are zero, m/s.
     pub velocity_tolerance: f64,
+    /// The force tolerance of the contact modes, as a fraction of the machine's
+    /// weight: a closed contact lifts off where its normal force goes below
+    /// `-force_tolerance x weight`, a sticking one slips where its friction
+    /// leaves its cone by as much. 1e-6 (2e-5 N for the reference machine): a
+    /// thousand times the mode decision's tolerance, which must lie well above
+    /// rounding (1e-13 of the forces) and well below this margin, so that the
+    /// condition whose event fired is clearly violated at the decision; and small
+    /// enough to change nothing that matters (a lift-off delayed by
+    /// `eps_F / (d lambda_n / dt)`, 2e-9 s at 3000 rpm).
+    pub force_tolerance: f64,
 }
 
 impl Default for Settings {
@@ -117,6 +146,7 @@ impl Default for Settings {
             zeno_velocity: 1e-6,
             event_time_tolerance: 1e-12,
             velocity_tolerance: 1e-7,
+            force_tolerance: 1e-6,
         }
     }
 }
@@ -467,48 +497,76 @@ impl Plant {
         sys
     }
 
-    /// The event functions at `y`, negative once their event happened: each
-    /// contact's, then each motor driver's current limit (`I_lim - |i|`, which
-    /// starts the clamp: the current's equation switches there).
+    /// What event function `i` watches (see [`Watch`]): two slots per contact,
+    /// then one per motor driver.
+    fn watch(&self, i: usize) -> Watch {
+        let n = self.modes.len();
+        if i >= 2 * n {
+            return Watch::CurrentLimit(i - 2 * n);
+        }
+        let j = i / 2;
+        match (self.modes[j], i % 2) {
+            (ContactMode::Open, 0) => Watch::Gap(j),
+            (ContactMode::Open, _) => Watch::Nothing,
+            (_, 0) => Watch::NormalForce(j),
+            (ContactMode::Stick, _) => Watch::Cone(j),
+            // Without friction the slip's direction changes no force: no event.
+            (_, _) if self.model.contacts[j].law.friction == 0.0 => Watch::Nothing,
+            (_, _) => Watch::SlipEnds(j),
+        }
+    }
+
+    /// The event functions at `y`, each positive until its event and `<= 0`
+    /// once it happened, one function per condition (never combined: a function
+    /// that cannot change sign must not hide another's crossing). Slots `2j` and
+    /// `2j + 1` are contact `j`'s:
+    ///
+    /// | mode | slot `2j` | slot `2j + 1` |
+    /// | --- | --- | --- |
+    /// | open | gap, m | (none: `+inf`) |
+    /// | closed | `lambda_n + eps_F`, N (lift-off) | stick: `mu lambda_n - abs(lambda_t) + eps_F`, N (cone exceeded); slip: `s u_t + eps_v`, m/s (slip ends) |
+    ///
+    /// then each motor driver's `I_lim - |i|` (the current limit: the current's
+    /// equation switches there). `eps_F` is [`Plant::force_tolerance`] and
+    /// `eps_v` the velocity tolerance: a mode just decided starts with every
+    /// function at least that far from zero (the mode decision's own tolerance is
+    /// a thousandth of it), so a crossing is a change of sign, never a value that
+    /// was already zero.
     fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
         let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
         let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
         let cs = q[2].sin_cos();
-        (0..self.modes.len())
-            .map(|j| {
-                let k = contact_kinematics(&self.model, cs, j, &q, &v);
-                let mu = self.model.contacts[j].law.friction;
-                let (ln, lt) = ev
-                    .as_ref()
-                    .map_or((0.0, 0.0), |e| (e.lambda_n[j], e.lambda_t[j]));
-                match self.modes[j] {
-                    ContactMode::Open => k.gap,
-                    // A contact held exactly at its cone's edge by the split stays
-                    // positive: the event is the cone being exceeded.
-                    ContactMode::Stick => mu * ln - lt.abs() + 1e-9 * (mu * ln + lt.abs()),
-                    // Slip stops: s u_t falls below -tolerance (a slip that starts
-                    // from zero must be able to end, or friction would push along
-                    // the motion).
-                    ContactMode::SlipPositive => k.u_t + self.settings.velocity_tolerance,
-                    ContactMode::SlipNegative => -k.u_t + self.settings.velocity_tolerance,
-                }
-                .min(if self.modes[j].closed() {
-                    // Lift-off: the normal force goes below a margin of 1e-9 of the
-                    // weight (a contact closed at zero force must be able to leave).
-                    ln + self.force_margin()
-                } else {
-                    f64::INFINITY
-                })
-            })
-            .chain((0..2).map(|k| match self.winding[k] {
+        let eps_f = self.force_tolerance();
+        let eps_v = self.settings.velocity_tolerance;
+        let mut values = Vec::with_capacity(2 * self.modes.len() + 2);
+        for j in 0..self.modes.len() {
+            let k = contact_kinematics(&self.model, cs, j, &q, &v);
+            let mu = self.model.contacts[j].law.friction;
+            let (ln, lt) = ev
+                .as_ref()
+                .map_or((0.0, 0.0), |e| (e.lambda_n[j], e.lambda_t[j]));
+            let (normal, tangential) = match self.modes[j] {
+                ContactMode::Open => (k.gap, f64::INFINITY),
+                ContactMode::Stick => (ln + eps_f, mu * ln - lt.abs() + eps_f),
+                // Without friction the slip's direction changes no force.
+                _ if mu == 0.0 => (ln + eps_f, f64::INFINITY),
+                ContactMode::SlipPositive => (ln + eps_f, k.u_t + eps_v),
+                ContactMode::SlipNegative => (ln + eps_f, -k.u_t + eps_v),
+            };
+            values.push(normal);
+            values.push(tangential);
+        }
+        for k in 0..2 {
+            values.push(match self.winding[k] {
                 Winding::Voltage(_) => {
                     self.model.rotors[k].motor.current_limit - y[2 * DOF + k].abs()
                 }
                 Winding::Open => f64::INFINITY,
-            }))
-            .collect()
+            });
+        }
+        values
     }
 
     /// Integrates until `t_target`, handling every event on the way; `record` is
@@ -564,10 +622,18 @@ impl Plant {
                             record(Output::Dense(self.dense(&step), te));
                             self.t = te;
                             self.y = ye;
-                            record(Output::Before(self.t, &self.y));
+                            record(Output::Before(At {
+                                t: self.t,
+                                y: &self.y,
+                                plant: self,
+                            }));
                             self.fsal = None;
                             self.settle();
-                            record(Output::After(self.t, &self.y));
+                            record(Output::After(At {
+                                t: self.t,
+                                y: &self.y,
+                                plant: self,
+                            }));
                             ev0 = self.event_values(&self.y);
                         }
                         found => {
@@ -627,6 +693,20 @@ impl Plant {
     }
 
     /// The earliest event in `step`, located on its dense output.
+    ///
+    /// A function that changes sign between the step's ends is located by
+    /// [`Plant::locate`]. Three cases are found although both ends are positive,
+    /// or both are past the event:
+    /// - an open contact **grazing** the fundament inside the step, or making a
+    ///   **whole flight** inside it (its gap, below);
+    /// - a closed contact's function (normal force, cone, slip) that **dips**
+    ///   below zero and comes back inside the step: the parabola through its
+    ///   values at the step's start, middle and end ([`dip`]) predicts the
+    ///   minimum, and the function there is checked on the dense output;
+    /// - a closed contact whose normal force is already below `-eps_F` at the
+    ///   step's start (a mode left inconsistent, which the mode decision should
+    ///   never produce): the event is at the start, so a contact never stays
+    ///   closed while its mode's equations make it pull.
     fn first_crossing(
         &self,
         step: &Step<NY>,
@@ -639,68 +719,33 @@ impl Plant {
                 best = Some(te);
             }
         };
-        for j in 0..ev0.len() {
-            if ev0[j] > 0.0 && ev1[j] <= 0.0 {
-                let f = |y: &[f64; NY]| self.event_values(y)[j];
-                consider(self.locate(step, &f, step.t0, step.t1(), ev0[j], ev1[j]));
-            } else if j >= self.modes.len() {
+        // The event functions at the step's middle, computed once if needed.
+        let t_mid = step.t0 + 0.5 * step.h;
+        let mut mid: Option<Vec<f64>> = None;
+        for i in 0..ev0.len() {
+            let f = |y: &[f64; NY]| self.event_values(y)[i];
+            let watch = self.watch(i);
+            if ev0[i] > 0.0 && ev1[i] <= 0.0 {
+                consider(self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]));
                 continue;
-            } else if ev0[j] > 0.0 && ev1[j] > 0.0 && self.modes[j] == ContactMode::Open {
-                // Grazing: the gap may dip below zero and come back inside the step.
-                // Its minimum is where u_n goes from - to +; check the gap there.
-                let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
-                let (u0, u1) = (un(&step.y0), un(&step.y1));
-                if u0 < 0.0 && u1 > 0.0 {
-                    let neg_un = |y: &[f64; NY]| -un(y);
-                    let t_min = self.locate(step, &neg_un, step.t0, step.t1(), -u0, -u1);
-                    let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
-                    let g_min = gap(&step.at(t_min));
-                    if g_min <= 0.0 {
-                        consider(self.locate(step, &gap, step.t0, t_min, ev0[j], g_min));
+            }
+            match watch {
+                Watch::Gap(j) => {
+                    if let Some(te) = self.gap_event_inside(step, j, ev0[i], ev1[i]) {
+                        consider(te);
                     }
                 }
-            } else if ev0[j] <= 0.0 && ev1[j] <= 0.0 && self.modes[j] == ContactMode::Open {
-                // An open contact that starts at the fundament (just after an impact
-                // or a lift-off) and ends the step below it, approaching: a whole
-                // flight inside the step. Bracket its apex (u_n from + to -), then
-                // the gap's root after it.
-                let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
-                let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
-                let (u0, u1) = (un(&step.y0), un(&step.y1));
-                if u1 >= -self.settings.velocity_tolerance {
-                    continue;
-                }
-                let apex = if u0 > 0.0 {
-                    self.locate(step, &un, step.t0, step.t1(), u0, u1)
-                } else {
-                    step.t0
-                };
-                let g_apex = gap(&step.at(apex));
-                if g_apex > 0.0 {
-                    consider(self.locate(step, &gap, apex, step.t1(), g_apex, ev1[j]));
-                } else {
-                    // Touching at the apex and sinking from there (a contact left
-                    // open with zero velocity whose force would have been
-                    // negligible): the event is where it sinks below the
-                    // together gap, which it may not do within this step.
-                    let below = |y: &[f64; NY]| gap(y) + self.settings.together_gap;
-                    let (b0, b1) = (below(&step.at(apex)), below(&step.y1));
-                    if b0 > 0.0 && b1 <= 0.0 {
-                        consider(self.locate(step, &below, apex, step.t1(), b0, b1));
-                    } else if b0 <= 0.0 {
-                        // Already at the together gap's edge: the event is where it
-                        // starts to approach measurably (then an impact, however
-                        // slow, which an accumulation closes).
-                        let tol = self.settings.velocity_tolerance;
-                        let approach = |y: &[f64; NY]| un(y) + tol;
-                        let (a0, a1) = (approach(&step.at(apex)), approach(&step.y1));
-                        if a0 > 0.0 && a1 <= 0.0 {
-                            consider(self.locate(step, &approach, apex, step.t1(), a0, a1));
-                        } else {
-                            consider(apex);
+                Watch::NormalForce(_) | Watch::Cone(_) | Watch::SlipEnds(_) => {
+                    if ev0[i] > 0.0 && ev1[i] > 0.0 {
+                        let fm = mid.get_or_insert_with(|| self.event_values(&step.at(t_mid)))[i];
+                        if let Some(te) = self.dip(step, &f, [ev0[i], fm, ev1[i]]) {
+                            consider(te);
                         }
+                    } else if ev0[i] <= 0.0 && matches!(watch, Watch::NormalForce(_)) {
+                        consider(step.t0);
                     }
                 }
+                Watch::CurrentLimit(_) | Watch::Nothing => {}
             }
         }
         best.map(|te| {
@@ -714,10 +759,101 @@ impl Plant {
         })
     }
 
-    /// Margin of the lift-off event, N: 1e-9 of the machine's weight.
-    fn force_margin(&self) -> f64 {
+    /// A dip of a function below zero inside `step` although it is positive at
+    /// both ends: `values` at the start, the middle and the end. The parabola
+    /// through them, `f(s) = f0 + b s + c s^2` on `s in [0, 1]` with
+    /// `c = 2 (f1 - 2 fm + f0)`, `b = f1 - f0 - c`, has its minimum
+    /// `f0 - b^2 / (4 c)` at `s = -b / (2 c)`; where that is `<= 0` inside the step
+    /// (or the middle value itself is), the function is evaluated there on the
+    /// dense output and, if it is past its event, the crossing before it is
+    /// located.
+    fn dip(&self, step: &Step<NY>, f: &dyn Fn(&[f64; NY]) -> f64, values: [f64; 3]) -> Option<f64> {
+        let [f0, fm, f1] = values;
+        let t_at = |s: f64| step.t0 + s * step.h;
+        if fm <= 0.0 {
+            return Some(self.locate(step, f, step.t0, t_at(0.5), f0, fm));
+        }
+        let c = 2.0 * (f1 - 2.0 * fm + f0);
+        if c <= 0.0 {
+            return None;
+        }
+        let b = f1 - f0 - c;
+        let s_min = -b / (2.0 * c);
+        if !(s_min > 0.0 && s_min < 1.0) || f0 - b * b / (4.0 * c) > 0.0 {
+            return None;
+        }
+        let f_min = f(&step.at(t_at(s_min)));
+        (f_min <= 0.0).then(|| self.locate(step, f, step.t0, t_at(s_min), f0, f_min))
+    }
+
+    /// The event of open contact `j` inside `step` where its gap does not change
+    /// sign between the ends (`g0`, `g1`): grazing, or a whole flight.
+    fn gap_event_inside(&self, step: &Step<NY>, j: usize, g0: f64, g1: f64) -> Option<f64> {
+        let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
+        let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
+        let (u0, u1) = (un(&step.y0), un(&step.y1));
+        if g0 > 0.0 && g1 > 0.0 {
+            // Grazing: the gap may dip below zero and come back inside the step.
+            // Its minimum is where u_n goes from - to +; check the gap there.
+            if u0 < 0.0 && u1 > 0.0 {
+                let neg_un = |y: &[f64; NY]| -un(y);
+                let t_min = self.locate(step, &neg_un, step.t0, step.t1(), -u0, -u1);
+                let g_min = gap(&step.at(t_min));
+                if g_min <= 0.0 {
+                    return Some(self.locate(step, &gap, step.t0, t_min, g0, g_min));
+                }
+            }
+            return None;
+        }
+        if g0 > 0.0 || g1 > 0.0 || u1 >= -self.settings.velocity_tolerance {
+            return None;
+        }
+        // An open contact that starts at the fundament (just after an impact or a
+        // lift-off) and ends the step below it, approaching: a whole flight inside
+        // the step. Bracket its apex (u_n from + to -), then the gap's root after
+        // it.
+        let apex = if u0 > 0.0 {
+            self.locate(step, &un, step.t0, step.t1(), u0, u1)
+        } else {
+            step.t0
+        };
+        let g_apex = gap(&step.at(apex));
+        if g_apex > 0.0 {
+            return Some(self.locate(step, &gap, apex, step.t1(), g_apex, g1));
+        }
+        // Touching at the apex and sinking from there (a contact left open with
+        // zero velocity whose force would have been negligible): the event is
+        // where it sinks below the together gap, which it may not do within this
+        // step.
+        let below = |y: &[f64; NY]| gap(y) + self.settings.together_gap;
+        let (b0, b1) = (below(&step.at(apex)), below(&step.y1));
+        if b0 > 0.0 && b1 <= 0.0 {
+            return Some(self.locate(step, &below, apex, step.t1(), b0, b1));
+        }
+        if b0 > 0.0 {
+            return None;
+        }
+        // Already at the together gap's edge: the event is where it starts to
+        // approach measurably (then an impact, however slow, which an
+        // accumulation closes).
+        let tol = self.settings.velocity_tolerance;
+        let approach = |y: &[f64; NY]| un(y) + tol;
+        let (a0, a1) = (approach(&step.at(apex)), approach(&step.y1));
+        if a0 > 0.0 && a1 <= 0.0 {
+            Some(self.locate(step, &approach, apex, step.t1(), a0, a1))
+        } else {
+            Some(apex)
+        }
+    }
+
+    /// The force tolerance `eps_F` of the contact modes, N:
+    /// [`Settings::force_tolerance`] of the machine's weight (of its mass times
+    /// 1 m/s^2 where gravity is weaker). A closed contact's normal force stays
+    /// above `-eps_F`; a sticking contact's friction within `eps_F` of its cone.
+    pub fn force_tolerance(&self) -> f64 {
         let g = self.model.gravity;
-        1e-9 * self.model.total_mass() * (g[0] * g[0] + g[1] * g[1]).sqrt()
+        let g = (g[0] * g[0] + g[1] * g[1]).sqrt().max(1.0);
+        self.settings.force_tolerance * self.model.total_mass() * g
     }
 
     /// The dense output of `step` as the plant reports it.
@@ -725,8 +861,7 @@ impl Plant {
         Dense {
             t0: step.t0,
             step,
-            motors: &self.motors,
-            winding: self.winding,
+            plant: self,
         }
     }
 
@@ -936,12 +1071,16 @@ impl Plant {
         // not the split): without it `closed_loop` takes 89 s instead of 1.6 s,
         // `plant_references` 332 s instead of 0.3 s, and
         // `both_feet_sticking_stay_inside_their_cones` fails.
+        // Only where friction can stop the slip: the snap is the friction impulse
+        // that would have ended it; a frictionless contact has none (and no
+        // slip-end event), so nothing may change its slip.
         let ending: Vec<usize> = (0..old.len())
             .filter(|&j| {
                 matches!(
                     old[j],
                     ContactMode::SlipPositive | ContactMode::SlipNegative
                 ) && kin[j].u_t.abs() <= 2.0 * self.settings.velocity_tolerance
+                    && self.model.contacts[j].law.friction > 0.0
             })
             .collect();
         let refreshed: Vec<ContactKinematics>;
@@ -968,37 +1107,6 @@ impl Plant {
                 .collect();
             &refreshed
         };
-        // Sticking contacts whose cone is being exceeded (their stick event fired):
-        // at the event both states are admissible to rounding, and stick would be
-        // kept forever; they are decided with a friction margin of 1e-7 instead.
-        // Still needed with the cone-aware stick check (the split cannot help a
-        // contact whose best split is at the cone's edge): without it
-        // `sliding_starts_where_the_exciting_force_beats_friction` and
-        // `sticking_contact_forces_stay_in_the_friction_cone` fail. (A contact that
-        // the minimum-norm split made slip at its cone's edge is no longer re-tried
-        // as sticking here: `find_direction`'s stick check looks for a split inside
-        // every cone itself, `shared::impact::split`.)
-        let leaving: Vec<bool> = {
-            let e = self.evaluate(&self.y);
-            (0..old.len())
-                .map(|j| {
-                    let mu = self.model.contacts[j].law.friction;
-                    let (ln, lt) = (e.lambda_n[j], e.lambda_t[j].abs());
-                    old[j] == ContactMode::Stick && mu * ln - lt + 1e-9 * (mu * ln + lt) <= 0.0
-                })
-                .collect()
-        };
-        // Closed contacts whose lift-off event fired (normal force below the
-        // margin): at the event force and acceleration are both zero to rounding,
-        // and a contact closed again without force would stay closed with its
-        // lift-off function already negative; they close again only with a force.
-        let lifting: Vec<bool> = {
-            let e = self.evaluate(&self.y);
-            let margin = self.force_margin();
-            (0..old.len())
-                .map(|j| old[j].closed() && e.lambda_n[j] + margin <= 0.0)
-                .collect()
-        };
         let mut new = vec![ContactMode::Open; self.modes.len()];
         let candidates: Vec<usize> = touching
             .iter()
@@ -1006,45 +1114,53 @@ impl Plant {
             .filter(|j| kin[*j].u_n <= self.settings.velocity_tolerance)
             .collect();
         if !candidates.is_empty() {
-            // Accelerations with every contact open.
+            // The contact problem at acceleration level: with every contact open,
+            // the accelerations a_0 = M^-1 Q, and the contact accelerations they
+            // give (`base_n`, `base_t`); W = J M^-1 J^T.
             let open = vec![ContactMode::Open; self.modes.len()];
             let free = self.evaluate_with_modes(&self.y, &open);
             let acc: [f64; DOF] = core::array::from_fn(|i| free.ydot[DOF + i]);
             let q = self.q();
             let v = self.v();
             let frame = self.frame(&q);
-            let mut sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
-            for (r, &j) in candidates.iter().enumerate() {
-                if leaving[j] {
-                    sys.problem.contacts[r].friction *= 1.0 - 1e-7;
-                }
-            }
+            let sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
+            // Slip states from the slip velocities, with zero below the tolerance.
             let mut slip = [0.0; MAX_CONTACTS];
             for (r, &j) in candidates.iter().enumerate() {
-                slip[r] = kin[j].u_t;
+                if kin[j].u_t.abs() > self.settings.velocity_tolerance {
+                    slip[r] = kin[j].u_t;
+                }
             }
+            // The complementarity problem (normal force >= 0, normal acceleration
+            // >= 0, one of them zero; a sticking force inside its cone, a slipping
+            // one on its edge against the slip, a contact at zero slip slipping
+            // only the way it then moves), solved for all candidates together,
+            // whatever event brought us here. Its tolerance is a thousandth of the
+            // event functions' margin `eps_F` (and never below rounding), so the
+            // condition whose event fired is violated by a thousand times the
+            // tolerance and cannot be chosen again: a contact whose normal force
+            // reached -eps_F opens, a sticking contact whose friction left its
+            // cone by eps_F slips.
+            let eps_f = self.force_tolerance();
             let scale_a = sys
                 .base_n
                 .iter()
                 .chain(sys.base_t.iter())
                 .fold(1.0, |m: f64, a| m.max(a.abs()));
+            let mass = self.model.total_mass();
+            let tol_f = (1e-3 * eps_f).max(1e-13 * scale_a * mass);
+            // (The slips are already zero below the velocity tolerance.)
             let tol = Tolerances {
-                velocity: 1e-9 * scale_a,
-                impulse: 1e-9 * scale_a * self.model.total_mass(),
+                velocity: tol_f / mass,
+                impulse: tol_f,
+                zero_slip: 0.0,
             };
-            // Slip states from the slip velocities, with zero below the tolerance.
-            let mut slip_snapped = slip;
-            for s in slip_snapped.iter_mut() {
-                if s.abs() <= self.settings.velocity_tolerance {
-                    *s = 0.0;
-                }
-            }
             let zeros = [0.0; MAX_CONTACTS];
             let d = find_direction(
                 &sys.problem,
                 &sys.base_n,
                 &sys.base_t,
-                &slip_snapped,
+                &slip,
                 NormalRule::TargetAll(&zeros),
                 &tol,
             );
@@ -1052,23 +1168,13 @@ impl Plant {
                 self.painleve(&candidates);
                 return;
             }
-            // Any positive force closes the contact: a force below rounding still
-            // means the contact is loaded (its lift-off is then an event). So does
-            // a contact left without force whose normal acceleration is zero to
-            // rounding (touching, at rest, not separating): whether it loads or
-            // leaves is decided by what follows, which the lift-off event (normal
-            // force going negative) tells; left open, it would sink and bounce
-            // without end.
-            let acc_tol = 1e-9 * scale_a;
+            // The active set is closed, in its friction states; the rest open. A
+            // contact at the boundary (no force and no acceleration) is active
+            // when it can be (the enumeration tries the larger sets first): its
+            // lift-off is then the event where its force goes below -eps_F.
             for (r, &j) in candidates.iter().enumerate() {
-                let a_n = sys.base_n[r] + d.du_n[r];
-                if d.x[r] > 0.0 {
+                if d.active[r] {
                     new[j] = ContactMode::from_slip(d.mode[r]);
-                } else if a_n <= acc_tol && !lifting[j] {
-                    new[j] = match kinematic_mode(kin[j].u_t, self.settings.velocity_tolerance) {
-                        Some(m) => m,
-                        None => ContactMode::Stick,
-                    };
                 }
             }
         }
@@ -1238,8 +1344,9 @@ impl Plant {
         }
     }
 
-    /// The trace row of state `y` at `t` with duties `duty`.
-    pub fn row(t: f64, y: &[f64; NY], duty: [f64; 2]) -> TraceRow {
+    /// The trace row of state `y` at `t` with duties `duty` and the contact
+    /// forces `forces` at that state.
+    pub fn row(t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
         TraceRow {
             t,
             x: y[0],
@@ -1256,6 +1363,8 @@ impl Plant {
             i2: y[2 * DOF + 1],
             duty1: duty[0],
             duty2: duty[1],
+            normal_force: forces.normal,
+            tangential_force: forces.tangential,
         }
     }
 
@@ -1297,10 +1406,22 @@ impl Plant {
     /// Contact forces of the closed contacts at the current state: (normal,
     /// tangential) per contact, N; zero for open ones.
     pub fn contact_forces(&self) -> Vec<[f64; 2]> {
-        let e = self.evaluate(&self.y);
+        let f = self.forces_at(&self.y);
         (0..self.modes.len())
-            .map(|j| [e.lambda_n[j], e.lambda_t[j]])
+            .map(|j| [f.normal[j], f.tangential[j]])
             .collect()
+    }
+
+    /// The contact forces at state `y` in the current modes.
+    pub fn forces_at(&self, y: &[f64; NY]) -> ContactForces {
+        if !self.modes.iter().any(|m| m.closed()) {
+            return ContactForces::default();
+        }
+        let e = self.evaluate(y);
+        ContactForces {
+            normal: e.lambda_n,
+            tangential: e.lambda_t,
+        }
     }
 
     /// Total mechanical energy (kinetic plus gravity's potential), J.
@@ -1311,6 +1432,17 @@ impl Plant {
     }
 }
 
+/// The contact forces of persistent contact at a state, in the modes of that
+/// moment: per contact in file order, N (0 for open contacts; impacts are
+/// impulses, reported as events).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ContactForces {
+    /// Normal force `lambda_n` of each contact, N (along the fundament's normal).
+    pub normal: [f64; MAX_CONTACTS],
+    /// Tangential force `lambda_t` of each contact, N (along `t = (-n_y, n_x)`).
+    pub tangential: [f64; MAX_CONTACTS],
+}
+
 /// An accepted step's dense output, as the plant reports states: the 4th-order
 /// interpolant with the winding currents held to their drivers (within the
 /// current limit, zero on open windings; the interpolant of a step along the
@@ -1319,8 +1451,7 @@ pub struct Dense<'a> {
     /// Start of the step, s.
     pub t0: f64,
     step: &'a Step<NY>,
-    motors: &'a [DcMotor; 2],
-    winding: [Winding; 2],
+    plant: &'a Plant,
 }
 
 impl Dense<'_> {
@@ -1332,9 +1463,15 @@ impl Dense<'_> {
             self.step.at(t)
         };
         for k in 0..2 {
-            y[2 * DOF + k] = self.motors[k].project_current(self.winding[k], y[2 * DOF + k]);
+            y[2 * DOF + k] =
+                self.plant.motors[k].project_current(self.plant.winding[k], y[2 * DOF + k]);
         }
         y
+    }
+
+    /// The contact forces at state `y` of this step, in the step's modes.
+    pub fn forces(&self, y: &[f64; NY]) -> ContactForces {
+        self.plant.forces_at(y)
     }
 
     /// End of the step, s.
@@ -1343,14 +1480,31 @@ impl Dense<'_> {
     }
 }
 
+/// A state at an event, as [`Plant::advance_to`] reports it.
+pub struct At<'a> {
+    /// Time, s.
+    pub t: f64,
+    /// The state.
+    pub y: &'a [f64; NY],
+    plant: &'a Plant,
+}
+
+impl At<'_> {
+    /// The contact forces at this state, in the modes of that moment (before the
+    /// event: the old modes; after it: the new ones).
+    pub fn forces(&self) -> ContactForces {
+        self.plant.forces_at(self.y)
+    }
+}
+
 /// What [`Plant::advance_to`] hands the recorder.
 pub enum Output<'a> {
     /// An accepted step, valid up to this time (inclusive): sample its dense output.
     Dense(Dense<'a>, f64),
     /// The state just before an event.
-    Before(f64, &'a [f64; NY]),
+    Before(At<'a>),
     /// The state just after an event.
-    After(f64, &'a [f64; NY]),
+    After(At<'a>),
 }
 
 /// A contact problem assembled for a set of contacts.
@@ -1386,17 +1540,6 @@ fn least_change(rows: &[([f64; DOF], [f64; DOF], f64)]) -> Option<[f64; DOF]> {
         }
     }
     Some(dx)
-}
-
-/// The slip mode a tangential velocity imposes, or `None` within the tolerance.
-fn kinematic_mode(u_t: f64, tol: f64) -> Option<ContactMode> {
-    if u_t > tol {
-        Some(ContactMode::SlipPositive)
-    } else if u_t < -tol {
-        Some(ContactMode::SlipNegative)
-    } else {
-        None
-    }
 }
 
 /// The name of a mode in the events CSV's detail.

@@ -151,6 +151,9 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
             tol: Tolerances {
                 velocity: rel * v_scale,
                 impulse: rel * p_scale,
+                // A thousand times the velocity tolerance: 1e-6 of the impact's
+                // velocities in f64 (7.6e-3 in f32 would be too coarse: 1e-4).
+                zero_slip: (T::from_f64(1e3) * rel).min(T::from_f64(1e-4)) * v_scale,
             },
             rel,
             phase: Phase::Compression,
