@@ -2,6 +2,7 @@
 //! them share.
 
 pub mod impact_oscillator;
+pub mod moreau_jean;
 pub mod rig;
 
 /// A tiny deterministic generator (xorshift64*, Vigna 2016), so that random

@@ -29,7 +29,9 @@
 //! - The vertical-force offset 180 degrees gives no travel: by the mirror argument
 //!   `v(180) = -v(180)`; checked from the reference machine's own (asymmetric)
 //!   start, so that it is not the trivial symmetric case, against 5 % of the
-//!   travel at 90 degrees (measured: 0.1 mm/s, 0.4 %).
+//!   travel at 90 degrees (measured: 0.1 mm/s, 0.4 %). No travel is also what a
+//!   platform glued to the floor gives; that it hops every revolution at 180
+//!   degrees, in closed loop too, is checked in `plant_unilateral.rs`.
 //! - A second method: the mean velocity at a held offset agrees with the plant
 //!   alone with both rotors forced at exactly the commanded speed and offset (no
 //!   controller, no motors), within 5 %. The two differ by design: an impact jerks

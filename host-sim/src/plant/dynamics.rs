@@ -29,9 +29,7 @@
 //! generalized force is on `phi_k` only.
 
 use super::model::PlantModel;
-
-/// Number of generalized coordinates.
-pub const DOF: usize = 5;
+pub use super::model::DOF;
 
 /// The mechanical state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -6,6 +6,12 @@ use shared::impact::{ContactLaw, ImpactLaw};
 
 use crate::machine::{Machine, MotorParams};
 
+/// Number of generalized coordinates: `(x, y, theta, phi_1, phi_2)`.
+pub const DOF: usize = 5;
+
+/// Size of the integrated state: `q` (5), `q'` (5), winding currents (2).
+pub const NY: usize = 2 * DOF + 2;
+
 /// An unbalance rotor, in the platform frame.
 #[derive(Clone, Debug)]
 pub struct RotorModel {
@@ -121,11 +127,11 @@ impl PlantModel {
 
 /// The state at `t = 0` of a machine file: the platform's position, angle and
 /// velocities, the rotors' eccentric angles, rotors at rest relative to the
-/// platform, no current. Layout of [`super::simulator::NY`]:
+/// platform, no current. Layout of [`NY`]:
 /// `(x, y, theta, phi_1, phi_2, x', y', theta', phi_1', phi_2', i_1, i_2)`.
-pub fn initial_state(m: &Machine) -> [f64; super::simulator::NY] {
+pub fn initial_state(m: &Machine) -> [f64; NY] {
     let p = &m.platform;
-    let mut y = [0.0; super::simulator::NY];
+    let mut y = [0.0; NY];
     y[0] = p.position[0];
     y[1] = p.position[1];
     y[2] = p.angle;

@@ -1,0 +1,239 @@
+//! Contact forces in persistent contact: the motion in the current modes.
+//!
+//! Stages of [`Plant::evaluate_with_modes`]:
+//! 1. the accelerations without contact forces, `a_0 = M^-1 Q`;
+//! 2. the contact problem of the closed contacts ([`Plant::contact_system`]): the
+//!    Delassus blocks of `W = J M^-1 J^T` and the contact accelerations `J a_0`
+//!    plus the velocity-product parts;
+//! 3. the forces from the modes' equations (`shared::impact::lcp::solve_states`):
+//!    closed contacts at zero normal acceleration, sticking ones at zero
+//!    tangential acceleration, slipping ones with `lambda_t = -mu s lambda_n`;
+//! 4. where sticking feet leave internal forces free, the split inside every
+//!    cone ([`Plant::share_within_cones`], `shared::impact::split`);
+//! 5. `q'' = a_0 + M^-1 J^T lambda`.
+
+use shared::impact::lcp::{solve_states, Direction};
+use shared::impact::linalg::Solved;
+use shared::impact::split::within_cones;
+use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
+
+use super::super::dynamics::{ContactKinematics, Frame, DOF};
+use super::{ContactMode, Plant, NY};
+
+/// An evaluation with the state and modes it was made at.
+pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
+
+/// Contact forces and accelerations at a state, in the current modes.
+#[derive(Clone)]
+pub(super) struct Evaluation {
+    pub(super) ydot: [f64; NY],
+    /// Normal force of each contact (0 when open), N.
+    pub(super) lambda_n: [f64; MAX_CONTACTS],
+    /// Tangential force of each contact, N.
+    pub(super) lambda_t: [f64; MAX_CONTACTS],
+}
+
+/// A contact problem assembled for a set of contacts.
+pub(super) struct ContactSystem {
+    pub(super) problem: ImpactProblem<f64, MAX_CONTACTS>,
+    pub(super) minv_jn: [[f64; DOF]; MAX_CONTACTS],
+    pub(super) minv_jt: [[f64; DOF]; MAX_CONTACTS],
+    pub(super) kin: [ContactKinematics; MAX_CONTACTS],
+    pub(super) base_n: [f64; MAX_CONTACTS],
+    pub(super) base_t: [f64; MAX_CONTACTS],
+}
+
+impl Plant {
+    /// Accelerations and contact forces at `y` in the current modes.
+    pub(super) fn evaluate(&self, y: &[f64; NY]) -> Evaluation {
+        // The last evaluation is kept: the event functions at a step's end ask
+        // for the state the integrator's last stage has just evaluated (FSAL).
+        let mut modes = [ContactMode::Open; MAX_CONTACTS];
+        modes[..self.modes.len()].copy_from_slice(&self.modes);
+        if let Some((yc, mc, e)) = self.last_evaluation.borrow().as_ref() {
+            if yc == y && *mc == modes && self.winding == self.last_winding.get() {
+                return e.clone();
+            }
+        }
+        let e = self.evaluate_with_modes(y, &self.modes);
+        *self.last_evaluation.borrow_mut() = Some((*y, modes, e.clone()));
+        self.last_winding.set(self.winding);
+        e
+    }
+
+    /// Accelerations and contact forces at `y` with the contacts in `modes`.
+    pub(super) fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
+        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
+        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        let frame = self.frame(&q);
+
+        // Motors: shaft speed relative to the platform in the driven sense.
+        let mut tau = [0.0; 2];
+        let mut di = [0.0; 2];
+        for k in 0..2 {
+            let s = self.model.rotors[k].sense;
+            let omega_m = s * v[3 + k];
+            let i = y[2 * DOF + k];
+            tau[k] = s * self.motors[k].shaft_torque(i, omega_m);
+            di[k] = self.motors[k].current_rate(self.winding[k], i, omega_m);
+        }
+        let mut f = frame.forces(&self.model, &v, tau);
+        for (i, held) in self.holds.mask().iter().enumerate() {
+            if *held {
+                f[i] = 0.0;
+            }
+        }
+        let mut acc = frame.solve(&f);
+
+        // Closed contacts: forces from their mode's equations.
+        let mut lambda_n = [0.0; MAX_CONTACTS];
+        let mut lambda_t = [0.0; MAX_CONTACTS];
+        // The closed contacts, without allocating (this runs at every stage).
+        let mut closed_buf = [0usize; MAX_CONTACTS];
+        let mut n_closed = 0;
+        for (j, m) in modes.iter().enumerate() {
+            if m.closed() {
+                closed_buf[n_closed] = j;
+                n_closed += 1;
+            }
+        }
+        let closed = &closed_buf[..n_closed];
+        if !closed.is_empty() {
+            let sys = self.contact_system(&frame, &q, &v, closed, Some(&acc));
+            let mut active = [false; MAX_CONTACTS];
+            let mut mode = [SlipState::Stick; MAX_CONTACTS];
+            for (r, &j) in closed.iter().enumerate() {
+                active[r] = true;
+                mode[r] = modes[j].slip_state();
+            }
+            let zeros = [0.0; MAX_CONTACTS];
+            // No solution of the closed contacts' equations: no contact force (the
+            // mode is re-decided at the next event).
+            if let Some((_, d, how)) = solve_states(
+                &sys.problem,
+                &sys.base_n,
+                &sys.base_t,
+                &active,
+                &mode,
+                Some(&zeros),
+                None,
+            ) {
+                let (x, y) = self.share_within_cones(closed, modes, &sys, &d, how);
+                for (r, &j) in closed.iter().enumerate() {
+                    lambda_n[j] = x[r];
+                    lambda_t[j] = y[r];
+                    // The internal forces do no work: accelerations from either split.
+                    for i in 0..DOF {
+                        acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
+                    }
+                }
+            }
+        }
+        let mut ydot = [0.0; NY];
+        ydot[..DOF].copy_from_slice(&v);
+        ydot[DOF..2 * DOF].copy_from_slice(&acc);
+        ydot[2 * DOF] = di[0];
+        ydot[2 * DOF + 1] = di[1];
+        Evaluation {
+            ydot,
+            lambda_n,
+            lambda_t,
+        }
+    }
+
+    /// The closed contacts' forces with the internal forces chosen so that every
+    /// sticking contact is inside its cone, where the equations left them
+    /// undetermined ([`shared::impact::split`], the same split the mode decision's
+    /// stick check uses). Where no split holds every cone, the forces are left where
+    /// the largest violation is smallest, and the stick event function
+    /// (`mu lambda_n - |lambda_t|`) reports it.
+    pub(super) fn share_within_cones(
+        &self,
+        closed: &[usize],
+        modes: &[ContactMode],
+        sys: &ContactSystem,
+        d: &Direction<f64, MAX_CONTACTS>,
+        how: Solved,
+    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS]) {
+        let (mut x, mut y) = (d.x, d.y);
+        let mut active = [false; MAX_CONTACTS];
+        let mut mode = [SlipState::Stick; MAX_CONTACTS];
+        for (r, &j) in closed.iter().enumerate() {
+            active[r] = true;
+            mode[r] = modes[j].slip_state();
+        }
+        let inside = |x: &[f64; MAX_CONTACTS], y: &[f64; MAX_CONTACTS]| {
+            (0..closed.len()).all(|r| {
+                let tol = 1e-9 * (x[r].abs() + y[r].abs());
+                x[r] >= -tol
+                    && (mode[r] != SlipState::Stick
+                        || y[r].abs() <= sys.problem.contacts[r].friction * x[r] + tol)
+            })
+        };
+        if inside(&x, &y)
+            || how == Solved::Unique
+            || !mode[..closed.len()].contains(&SlipState::Stick)
+        {
+            return (x, y);
+        }
+        let scale =
+            (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
+        within_cones(
+            &sys.problem,
+            &active,
+            &mode,
+            true,
+            &mut x,
+            &mut y,
+            1e-9 * scale,
+        );
+        (x, y)
+    }
+
+    /// The contact problem of the contacts `set`: Delassus matrix
+    /// `W = J M^-1 J^T` (rotors free unless held), `M^-1 J^T`, and, given the
+    /// accelerations without contact forces, the contact accelerations they add to.
+    pub(super) fn contact_system(
+        &self,
+        frame: &Frame,
+        q: &[f64; DOF],
+        v: &[f64; DOF],
+        set: &[usize],
+        acc_free: Option<&[f64; DOF]>,
+    ) -> ContactSystem {
+        let mut sys = ContactSystem {
+            problem: ImpactProblem::new(self.model.law),
+            minv_jn: [[0.0; DOF]; MAX_CONTACTS],
+            minv_jt: [[0.0; DOF]; MAX_CONTACTS],
+            kin: [ContactKinematics::default(); MAX_CONTACTS],
+            base_n: [0.0; MAX_CONTACTS],
+            base_t: [0.0; MAX_CONTACTS],
+        };
+        sys.problem.len = set.len();
+        for (r, &j) in set.iter().enumerate() {
+            let k = frame.contact(&self.model, j, q, v);
+            sys.minv_jn[r] = frame.solve(&k.j_n);
+            sys.minv_jt[r] = frame.solve(&k.j_t);
+            sys.problem.u_n[r] = k.u_n;
+            sys.problem.u_t[r] = k.u_t;
+            sys.problem.contacts[r] = self.model.contacts[j].law;
+            if let Some(a) = acc_free {
+                let row = |jr: &[f64; DOF]| (0..DOF).map(|i| jr[i] * a[i]).sum::<f64>();
+                sys.base_n[r] = row(&k.j_n) + k.bias_n;
+                sys.base_t[r] = row(&k.j_t) + k.bias_t;
+            }
+            sys.kin[r] = k;
+        }
+        for r in 0..set.len() {
+            for c in 0..set.len() {
+                let (jn, jt) = (&sys.kin[r].j_n, &sys.kin[r].j_t);
+                let dotp =
+                    |a: &[f64; DOF], b: &[f64; DOF]| (0..DOF).map(|i| a[i] * b[i]).sum::<f64>();
+                sys.problem.w_nn[r][c] = dotp(jn, &sys.minv_jn[c]);
+                sys.problem.w_nt[r][c] = dotp(jn, &sys.minv_jt[c]);
+                sys.problem.w_tt[r][c] = dotp(jt, &sys.minv_jt[c]);
+            }
+        }
+        sys
+    }
+}

@@ -1,0 +1,220 @@
+//! Impacts: the `shared` solver on the whole mechanism's Delassus matrix, Zeno
+//! accumulations closed plastically, and Painleve configurations resolved by a
+//! tangential impact (Genot & Brogliato 1999).
+
+use shared::impact::{solve, ImpactLaw};
+
+use super::super::dynamics::DOF;
+use super::{ContactMode, Plant};
+use crate::trace::{EventKind, EventRow};
+
+impl Plant {
+    /// One impact of the contacts `set` (all within the together gap).
+    pub(super) fn impact(&mut self, set: &[usize]) {
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let outcome = match solve(&sys.problem) {
+            Ok(o) => o,
+            Err(e) => {
+                self.warn(format!("impact at t = {:.9} s not solved: {e:?}", self.t));
+                return;
+            }
+        };
+        let approach = (0..set.len())
+            .map(|r| -sys.problem.u_n[r])
+            .fold(0.0, f64::max);
+        let rebound = (0..set.len())
+            .filter(|r| outcome.contacts[*r].normal_impulse > 0.0)
+            .map(|r| outcome.contacts[r].normal_velocity_after)
+            .fold(0.0, f64::max);
+
+        // Zeno: a rebound slower than the threshold ends an accumulation; close it
+        // plastically and report the accumulation point.
+        let zeno = rebound > 0.0 && rebound < self.settings.zeno_velocity;
+        let outcome = if zeno {
+            let mut plastic = sys.problem.clone();
+            for r in 0..set.len() {
+                plastic.contacts[r].restitution = 0.0;
+            }
+            solve(&plastic).unwrap_or(outcome)
+        } else {
+            outcome
+        };
+
+        // Velocity jump: q'+ = q'- + M^-1 J^T P.
+        for (r, &j) in set.iter().enumerate() {
+            let c = &outcome.contacts[r];
+            for i in 0..DOF {
+                self.y[DOF + i] +=
+                    c.normal_impulse * sys.minv_jn[r][i] + c.tangential_impulse * sys.minv_jt[r][i];
+            }
+            if c.normal_impulse > 0.0 || sys.problem.u_n[r] < 0.0 {
+                self.events.push(EventRow {
+                    t: self.t,
+                    kind: EventKind::Impact,
+                    contact: self.model.contacts[j].name.clone(),
+                    normal_velocity_before: c.normal_velocity_before,
+                    normal_velocity_after: c.normal_velocity_after,
+                    normal_impulse: c.normal_impulse,
+                    tangential_impulse: c.tangential_impulse,
+                    case: Some(c.case.number()),
+                    detail: String::new(),
+                });
+            }
+        }
+        self.impacts += 1;
+        self.fsal = None;
+        if !outcome.warnings.is_empty() {
+            let w = outcome.warnings;
+            use shared::impact::Warnings as W;
+            if w.contains(W::ENERGY_GAINED) && self.model.law != ImpactLaw::Newton {
+                self.warn(
+                    "impacts: energy gained at an impact (unequal restitution at several contacts)"
+                        .into(),
+                );
+            }
+            if w.contains(W::PENETRATION_LEFT) {
+                self.warn("impacts: a contact still approached after an impact".into());
+            }
+            if w.contains(W::INCONSISTENT) {
+                self.warn("impacts: inconsistent contact states inside an impact".into());
+            }
+        }
+        if zeno {
+            // Remaining flight time of the accumulation: 2 v+ / (a (1 - e)).
+            let e = (rebound / approach).clamp(0.0, 0.999_999);
+            let acc = self.free_normal_acceleration(set);
+            let remaining = if acc < 0.0 {
+                2.0 * rebound / (-acc * (1.0 - e))
+            } else {
+                0.0
+            };
+            let at = self.t + remaining;
+            for &j in set {
+                self.events.push(EventRow {
+                    t: self.t,
+                    kind: EventKind::Zeno,
+                    contact: self.model.contacts[j].name.clone(),
+                    normal_velocity_before: 0.0,
+                    normal_velocity_after: 0.0,
+                    normal_impulse: 0.0,
+                    tangential_impulse: 0.0,
+                    case: None,
+                    detail: format!("accumulation_time={at:.12}"),
+                });
+            }
+        }
+    }
+
+    /// The largest (least negative) normal acceleration without contact forces
+    /// among `set`, m/s^2.
+    pub(super) fn free_normal_acceleration(&self, set: &[usize]) -> f64 {
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let open = vec![ContactMode::Open; self.modes.len()];
+        let e = self.evaluate_with_modes(&self.y, &open);
+        set.iter()
+            .map(|&j| {
+                let k = frame.contact(&self.model, j, &q, &v);
+                (0..DOF).map(|i| k.j_n[i] * e.ydot[DOF + i]).sum::<f64>() + k.bias_n
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// A Painleve configuration: the contact problem has no consistent solution
+    /// (or its only way out is unbounded). Reported, and resolved by a tangential
+    /// impact: the impulse-space problem of the touching contacts, which under
+    /// friction develops a normal impulse even from zero normal velocity until the
+    /// slip stops (Genot & Brogliato 1999).
+    pub(super) fn painleve(&mut self, set: &[usize]) {
+        for &j in set {
+            self.events.push(EventRow {
+                t: self.t,
+                kind: EventKind::Painleve,
+                contact: self.model.contacts[j].name.clone(),
+                normal_velocity_before: 0.0,
+                normal_velocity_after: 0.0,
+                normal_impulse: 0.0,
+                tangential_impulse: 0.0,
+                case: None,
+                detail: "no consistent contact force; tangential impact".into(),
+            });
+        }
+        self.warn(format!(
+            "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
+            self.t
+        ));
+        // Tangential impact (Genot & Brogliato 1999): the impulse-space problem of
+        // the touching contacts started at zero normal velocity (a tiny approach,
+        // 1e-6 of the slip speed, so that the solver runs its compression). Under
+        // the jam the normal impulse grows, with friction at the cone, until the
+        // slip stops; plastic (restitution 0): nothing was stored by an approach.
+        if self.resolving_painleve {
+            for &j in set {
+                self.modes[j] = ContactMode::Stick;
+            }
+            self.project();
+            self.fsal = None;
+            return;
+        }
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let mut problem = sys.problem.clone();
+        let slip = (0..set.len())
+            .map(|r| problem.u_t[r].abs())
+            .fold(0.0, f64::max);
+        for r in 0..set.len() {
+            problem.u_n[r] = problem.u_n[r].min(-1e-6 * slip.max(self.settings.velocity_tolerance));
+            problem.contacts[r].restitution = 0.0;
+        }
+        match solve(&problem) {
+            Ok(outcome) => {
+                for (r, &j) in set.iter().enumerate() {
+                    let c = &outcome.contacts[r];
+                    for i in 0..DOF {
+                        self.y[DOF + i] += c.normal_impulse * sys.minv_jn[r][i]
+                            + c.tangential_impulse * sys.minv_jt[r][i];
+                    }
+                    self.events.push(EventRow {
+                        t: self.t,
+                        kind: EventKind::Impact,
+                        contact: self.model.contacts[j].name.clone(),
+                        normal_velocity_before: sys.problem.u_n[r],
+                        normal_velocity_after: c.normal_velocity_after,
+                        normal_impulse: c.normal_impulse,
+                        tangential_impulse: c.tangential_impulse,
+                        case: Some(c.case.number()),
+                        detail: "tangential impact".into(),
+                    });
+                }
+                self.impacts += 1;
+            }
+            Err(e) => {
+                // The solver could not resolve it: hold the contacts stuck by the
+                // least velocity change (a plastic tangential impulse without the
+                // cone), and say so.
+                self.warn(format!(
+                    "contacts: tangential impact at t = {:.9} s not solved ({e:?}); contacts held",
+                    self.t
+                ));
+                let mut rows: Vec<([f64; DOF], [f64; DOF], f64)> = Vec::new();
+                for r in 0..set.len() {
+                    rows.push((sys.kin[r].j_n, sys.minv_jn[r], sys.kin[r].u_n.min(0.0)));
+                    rows.push((sys.kin[r].j_t, sys.minv_jt[r], sys.kin[r].u_t));
+                }
+                self.project_rows(&rows);
+            }
+        }
+        self.fsal = None;
+        // The modes from the velocities after the tangential impact; a second
+        // Painleve configuration at the same instant holds the contacts stuck.
+        self.resolving_painleve = true;
+        self.settle();
+        self.resolving_painleve = false;
+    }
+}
