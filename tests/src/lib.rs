@@ -1,6 +1,7 @@
 //! Integration tests live in `tests/tests/`; this library holds what several of
 //! them share.
 
+pub mod held;
 pub mod impact_oscillator;
 pub mod moreau_jean;
 pub mod rig;

@@ -55,17 +55,17 @@
 //! tuning table: they check directions and physics, and read the offset a travel
 //! command asks for from the controller's telemetry.
 
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
-use host_sim::plant::simulator::{Holds, Plant, Settings};
+use host_sim::plant::simulator::{Holds, Settings};
 use host_sim::simulation::{simulate, RunOptions, RunResult};
 use host_sim::trace::Summary;
 use shared::controller::{Command, Direction, State};
+use tests::held::{held_rotors, mean_velocity, reference_machine};
 
 /// The commanded rotor speed, rpm (the reference machine's `speed_rpm`).
 const SPEED_RPM: f64 = 3000.0;
@@ -201,28 +201,9 @@ fn assert_healthy(run: &ClosedLoop, what: &str) {
 /// The rotors start so that the offset `theta_1 - theta_2 = phi_1 + phi_2` (index
 /// angles 0, rotor 2 cw) is `offset_deg`.
 fn forced_rotors_velocity(offset_deg: f64, t0: f64, t1: f64) -> f64 {
-    let phi1 = -FRAC_PI_2;
-    let phi2 = offset_deg.to_radians() - phi1;
-    let sets = [
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    let m = Machine::load(&machine_path(), &sets).expect("the reference machine loads");
-    let w = SPEED_RPM * PI / 30.0;
-    let mut y = initial_state(&m);
-    // State layout (x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2).
-    y[8] = w;
-    y[9] = -w;
-    let holds = Holds {
-        platform: false,
-        rotors: true,
-        ..Holds::default()
-    };
-    let mut plant = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
-    plant.advance_to(t0, &mut |_| {});
-    let x0 = plant.q()[0];
-    plant.advance_to(t1, &mut |_| {});
-    (plant.q()[0] - x0) / (t1 - t0)
+    let m = reference_machine(offset_deg, &[]);
+    let mut plant = held_rotors(&m, SPEED_RPM, Settings::default());
+    mean_velocity(&mut plant, t0, t1)
 }
 
 /// `|a - b|` wrapped to [0, 180], degrees.

@@ -36,12 +36,10 @@
 //! mean velocity is `(x(4 s) - x(2 s)) / 2 s`.
 
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::Path;
 
-use host_sim::machine::Machine as MachineFile;
-use host_sim::plant::model::{initial_state, PlantModel};
-use host_sim::plant::simulator::{Holds, Plant, Settings};
+use host_sim::plant::simulator::Settings;
 use host_sim::trace::EventKind;
+use tests::held::{held_rotors, mean_velocity, reference_machine};
 use tests::moreau_jean::{Machine, Rotor, Stepper};
 
 /// End of a run, s; the mean velocity is taken over its second half.
@@ -50,30 +48,13 @@ const T_END: f64 = 4.0;
 /// The plant's mean velocity, m/s, and whether any impact of the second half
 /// reversed a slip (the paper's cases 5 and 6).
 fn plant(rpm: f64, offset_deg: f64) -> (f64, bool) {
-    let phi1 = -FRAC_PI_2;
-    let phi2 = offset_deg.to_radians() - phi1;
-    let sets = [
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
-    let m = MachineFile::load(&path, &sets).expect("the reference machine loads");
-    let w = rpm * PI / 30.0;
-    let mut y = initial_state(&m);
-    y[8] = w;
-    y[9] = -w;
-    let holds = Holds {
-        rotors: true,
-        ..Holds::default()
-    };
-    let mut p = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
-    p.advance_to(T_END / 2.0, &mut |_| {});
-    let x_half = p.q()[0];
-    p.advance_to(T_END, &mut |_| {});
+    let m = reference_machine(offset_deg, &[]);
+    let mut p = held_rotors(&m, rpm, Settings::default());
+    let v = mean_velocity(&mut p, T_END / 2.0, T_END);
     let reversals = p.events.iter().any(|e| {
         e.t > T_END / 2.0 && e.kind == EventKind::Impact && matches!(e.case, Some(5) | Some(6))
     });
-    ((p.q()[0] - x_half) / (T_END / 2.0), reversals)
+    (v, reversals)
 }
 
 /// The reference machine as the stepper describes it (`examples/vibro-driver.toml`:

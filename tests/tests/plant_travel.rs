@@ -13,39 +13,14 @@
 //! - The spec's convention for the direction: near 90 degrees the force pushes
 //!   up-and-right then down-and-left, and the platform travels right.
 
-use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::Path;
-
-use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
-use host_sim::plant::simulator::{Holds, Plant, Settings};
+use host_sim::plant::simulator::Settings;
+use tests::held::{held_rotors, mean_velocity as held_mean_velocity, reference_machine};
 
 /// Mean velocity `(x(T) - x(T/2)) / (T/2)` of the reference machine with the
 /// rotors forced at 3000 rpm and phase offset `offset_deg`, m/s.
 fn mean_velocity(offset_deg: f64, t_end: f64, settings: Settings) -> f64 {
-    // Offset = theta_1 - theta_2 = phi_1 + phi_2 (rotor 2 turns cw, index angles 0).
-    let phi1 = -FRAC_PI_2;
-    let phi2 = offset_deg.to_radians() - phi1;
-    let sets = [
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
-    let m = Machine::load(&path, &sets).expect("reference machine");
-    let w = 3000.0 * PI / 30.0;
-    let mut y = initial_state(&m);
-    y[8] = w;
-    y[9] = -w;
-    let holds = Holds {
-        platform: false,
-        rotors: true,
-        ..Holds::default()
-    };
-    let mut plant = Plant::new(PlantModel::new(&m), y, settings, holds);
-    plant.advance_to(t_end / 2.0, &mut |_| {});
-    let x_half = plant.q()[0];
-    plant.advance_to(t_end, &mut |_| {});
-    (plant.q()[0] - x_half) / (t_end / 2.0)
+    let mut plant = held_rotors(&reference_machine(offset_deg, &[]), 3000.0, settings);
+    held_mean_velocity(&mut plant, t_end / 2.0, t_end)
 }
 
 #[test]
@@ -95,26 +70,9 @@ fn travel_is_mirror_antisymmetric_in_the_offset() {
 /// both feet stick and for the others, and how many samples had both feet sticking.
 fn cone_violations(t_end: f64) -> (f64, f64, usize) {
     use host_sim::plant::simulator::ContactMode;
-    let phi1 = -FRAC_PI_2;
-    let phi2 = 90f64.to_radians() - phi1;
-    let sets = [
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
-    let m = Machine::load(&path, &sets).expect("reference machine");
     // The machine file's friction (both feet).
     let mu = 0.4;
-    let w = 3000.0 * PI / 30.0;
-    let mut y = initial_state(&m);
-    y[8] = w;
-    y[9] = -w;
-    let holds = Holds {
-        platform: false,
-        rotors: true,
-        ..Holds::default()
-    };
-    let mut plant = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
+    let mut plant = held_rotors(&reference_machine(90.0, &[]), 3000.0, Settings::default());
     let (mut worst_both, mut worst_other, mut both) = (0.0f64, 0.0f64, 0);
     let samples = (t_end / 1e-4).round() as usize;
     for k in 1..=samples {

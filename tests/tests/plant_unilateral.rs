@@ -27,18 +27,17 @@
 //!   from the state) never changes, through flights and impacts alike, and a
 //!   platform that stays on the floor follows the closed form of its centre of mass.
 
-use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::{Path, PathBuf};
+use std::f64::consts::PI;
 
 use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
 use host_sim::plant::simulator::{ContactMode, Holds, Output, Plant, Settings, NY};
 use host_sim::simulation::{simulate, RunOptions, RunResult};
 use host_sim::trace::{EventKind, TraceRow};
 use proptest::prelude::*;
 use proptest::test_runner::{FileFailurePersistence, RngSeed};
 use shared::controller::Command;
+use tests::held::{held_rotors, reference_machine, reference_path};
 use tests::impact_oscillator::{Flight, Kind, Oscillator};
 
 /// Gravity, m/s^2.
@@ -51,36 +50,16 @@ const ECC: f64 = 0.02;
 /// The lift-off margin `eps_F`: 1e-6 of the weight (Settings::force_tolerance).
 const EPS_F: f64 = 1e-6 * M_TOTAL * G;
 
-/// The reference machine file.
-fn machine_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
-}
-
-/// The reference machine with `sets`, its rotors started so that the offset
-/// `theta_1 - theta_2 = phi_1 + phi_2` is `offset_deg` with rotor 1 hanging down.
+/// The reference machine with `sets`, its rotors started at the offset
+/// `offset_deg` (rotor 1 hanging down).
 fn machine(offset_deg: f64, sets: &[String]) -> Machine {
-    let phi1 = -FRAC_PI_2;
-    let phi2 = offset_deg.to_radians() - phi1;
-    let mut all = vec![
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    all.extend_from_slice(sets);
-    Machine::load(&machine_path(), &all).expect("the reference machine loads")
+    reference_machine(offset_deg, sets)
 }
 
-/// The plant of `m` with its rotors held at `rpm` (rotor 1 ccw, rotor 2 cw) and the
-/// platform at rest on its feet.
-fn held_rotors(m: &Machine, rpm: f64) -> Plant {
-    let w = rpm * PI / 30.0;
-    let mut y = initial_state(m);
-    y[8] = w;
-    y[9] = -w;
-    let holds = Holds {
-        rotors: true,
-        ..Holds::default()
-    };
-    Plant::new(PlantModel::new(m), y, Settings::default(), holds)
+/// The plant of `m` with its rotors held at `rpm` and the platform at rest on its
+/// feet.
+fn held(m: &Machine, rpm: f64) -> Plant {
+    held_rotors(m, rpm, Settings::default())
 }
 
 /// What a sampled run of a plant saw.
@@ -182,7 +161,7 @@ fn oscillator_events(osc: &Oscillator, t_end: f64) -> Vec<(f64, Option<f64>)> {
 /// the plant's dense output sampled 400 times a revolution.
 fn plant_apexes(m: &Machine, rpm: f64, t_end: f64, from: f64) -> Vec<f64> {
     let period = 60.0 / rpm;
-    let mut plant = held_rotors(m, rpm);
+    let mut plant = held(m, rpm);
     let y_rest = m.platform.position[1];
     let revs = (t_end / period).round() as usize;
     let mut apex = vec![0.0f64; revs];
@@ -269,7 +248,7 @@ fn offset_180_hops_every_revolution_with_the_rotors_held() {
     let m = machine(180.0, &[]);
     let period = 0.02;
     let t_end = 2.0;
-    let mut plant = held_rotors(&m, 3000.0);
+    let mut plant = held(&m, 3000.0);
     let s = sample(&mut plant, t_end, 400 * 100);
     let both = longest(&s.rows, |r| r.0, |r| r.1, t_end / 2.0);
     assert!(both < period, "both feet closed for {both} s");
@@ -300,19 +279,11 @@ fn offset_180_hops_every_revolution_with_the_rotors_held() {
 /// events at foot K1 and the oscillator's, over the events before `t_end`, with the
 /// plant's relative tolerance `rtol`.
 fn event_differences(m: &Machine, osc: &Oscillator, rpm: f64, t_end: f64, rtol: f64) -> (f64, f64) {
-    let w = rpm * PI / 30.0;
-    let mut y = initial_state(m);
-    y[8] = w;
-    y[9] = -w;
     let settings = Settings {
         rtol,
         ..Settings::default()
     };
-    let holds = Holds {
-        rotors: true,
-        ..Holds::default()
-    };
-    let mut plant = Plant::new(PlantModel::new(m), y, settings, holds);
+    let mut plant = held_rotors(m, rpm, settings);
     plant.advance_to(t_end, &mut |_| {});
     let got = k1_events(&plant);
     let want = oscillator_events(osc, t_end);
@@ -376,7 +347,7 @@ fn hop_at_3000_rpm_follows_the_impact_oscillator() {
 /// The height of the feet above the floor at the sorted `times`, from the plant's
 /// dense output, m.
 fn heights_at(m: &Machine, rpm: f64, times: &[f64]) -> Vec<f64> {
-    let mut plant = held_rotors(m, rpm);
+    let mut plant = held(m, rpm);
     let y_rest = m.platform.position[1];
     let mut out = Vec::with_capacity(times.len());
     let t_end = times.last().copied().unwrap_or(0.0);
@@ -403,7 +374,7 @@ fn hop_at_2600_rpm_locks_to_the_orbit_from_rest() {
     let (rpm, t_end) = (2600.0, 2.0);
     let m = machine(180.0, &[]);
     let osc = oscillator(rpm);
-    let mut plant = held_rotors(&m, rpm);
+    let mut plant = held(&m, rpm);
     plant.advance_to(t_end, &mut |_| {});
     let got = k1_events(&plant);
     let want = oscillator_events(&osc, t_end);
@@ -466,7 +437,7 @@ fn hop_at_2600_rpm_locks_to_the_orbit_from_rest() {
 /// revolution with both feet on the floor, and no trace row with a pulling foot.
 #[test]
 fn offset_180_hops_every_revolution_in_closed_loop() {
-    let m = Machine::load(&machine_path(), &[]).expect("the reference machine loads");
+    let m = Machine::load(&reference_path(), &[]).expect("the reference machine loads");
     let run = closed_loop(
         &m,
         Command::HoldOffset {
@@ -517,7 +488,7 @@ fn frictionless_feet_hop_and_keep_the_horizontal_momentum() {
     ];
     for offset in [81.0, 180.0, 300.0] {
         let m = machine(offset, &sets);
-        let mut plant = held_rotors(&m, 3000.0);
+        let mut plant = held(&m, 3000.0);
         let p0 = horizontal_momentum(&m, &plant.y);
         let s = sample(&mut plant, 1.0, 4000);
         let impacts = plant
@@ -561,9 +532,9 @@ fn frictionless_platform_on_the_floor_follows_the_closed_form() {
         "rotors.0.angle=0".to_string(),
         "rotors.1.angle=0".to_string(),
     ];
-    let m = Machine::load(&machine_path(), &sets).expect("the machine loads");
+    let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
     let w = 3000.0 * PI / 30.0;
-    let mut plant = held_rotors(&m, 3000.0);
+    let mut plant = held(&m, 3000.0);
     let s = sample(&mut plant, 0.5, 2500);
     assert!(
         !plant
@@ -604,7 +575,7 @@ fn friction_at_the_extremes_hops_in_closed_loop() {
             format!("contacts.K1.friction={mu}"),
             format!("contacts.K2.friction={mu}"),
         ];
-        let m = Machine::load(&machine_path(), &sets).expect("the machine loads");
+        let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
         let run = closed_loop(
             &m,
             Command::Travel {
@@ -731,7 +702,7 @@ proptest! {
         ];
         let m = machine(offset, &sets);
         let eps_f = 1e-6 * total_mass(&m) * G;
-        let mut plant = held_rotors(&m, rpm);
+        let mut plant = held(&m, rpm);
         let period = 60.0 / rpm;
         let s = sample(&mut plant, 50.0 * period, 10000);
         prop_assert!(plant.warnings.is_empty(), "{:?}", plant.warnings);
@@ -784,7 +755,7 @@ fn advancing_in_steps_of_any_size_gives_the_same_trajectory() {
         let m = machine(offset, &[]);
         let t_end = revs as f64 * period;
         let run = |calls: usize| {
-            let mut plant = held_rotors(&m, 3000.0);
+            let mut plant = held(&m, 3000.0);
             for k in 1..=calls {
                 plant.advance_to(t_end * k as f64 / calls as f64, &mut |_| {});
             }
@@ -827,7 +798,7 @@ fn the_hop_at_180_degrees_does_not_depend_on_the_calls() {
     let (period, revs) = (0.02, 300);
     let m = machine(180.0, &[]);
     for per_rev in [0usize, 400, 40, 10] {
-        let mut plant = held_rotors(&m, 3000.0);
+        let mut plant = held(&m, 3000.0);
         let calls = (per_rev * revs).max(1);
         for k in 1..=calls {
             plant.advance_to(revs as f64 * period * k as f64 / calls as f64, &mut |_| {});

@@ -92,19 +92,25 @@ impl Plant {
                 0.0
             };
             let at = self.t + remaining;
-            for &j in set {
-                self.events.push(EventRow {
-                    t: self.t,
-                    kind: EventKind::Zeno,
-                    contact: self.model.contacts[j].name.clone(),
-                    normal_velocity_before: 0.0,
-                    normal_velocity_after: 0.0,
-                    normal_impulse: 0.0,
-                    tangential_impulse: 0.0,
-                    case: None,
-                    detail: format!("accumulation_time={at:.12}"),
-                });
-            }
+            self.mark(set, EventKind::Zeno, &format!("accumulation_time={at:.12}"));
+        }
+    }
+
+    /// An event row of `kind` at each contact of `set`, with `detail`, and no
+    /// velocities or impulses (a Zeno closure, a Painleve configuration).
+    fn mark(&mut self, set: &[usize], kind: EventKind, detail: &str) {
+        for &j in set {
+            self.events.push(EventRow {
+                t: self.t,
+                kind,
+                contact: self.model.contacts[j].name.clone(),
+                normal_velocity_before: 0.0,
+                normal_velocity_after: 0.0,
+                normal_impulse: 0.0,
+                tangential_impulse: 0.0,
+                case: None,
+                detail: detail.to_string(),
+            });
         }
     }
 
@@ -130,19 +136,11 @@ impl Plant {
     /// friction develops a normal impulse even from zero normal velocity until the
     /// slip stops (Genot & Brogliato 1999).
     pub(super) fn painleve(&mut self, set: &[usize]) {
-        for &j in set {
-            self.events.push(EventRow {
-                t: self.t,
-                kind: EventKind::Painleve,
-                contact: self.model.contacts[j].name.clone(),
-                normal_velocity_before: 0.0,
-                normal_velocity_after: 0.0,
-                normal_impulse: 0.0,
-                tangential_impulse: 0.0,
-                case: None,
-                detail: "no consistent contact force; tangential impact".into(),
-            });
-        }
+        self.mark(
+            set,
+            EventKind::Painleve,
+            "no consistent contact force; tangential impact",
+        );
         self.warn(format!(
             "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
             self.t

@@ -1,0 +1,56 @@
+//! The reference machine (`examples/vibro-driver.toml`) with its rotors held at a
+//! constant speed and phase offset: the plant alone, without controller or motors,
+//! the setting of the plant's travel references.
+//!
+//! The offset is the spec's `theta_1 - theta_2 = phi_1 + phi_2` (index angles 0,
+//! rotor 2 clockwise); rotor 1 starts hanging down (`phi_1 = -90` degrees) and rotor 2
+//! at `offset - phi_1`, the platform at rest on both feet.
+
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::{Path, PathBuf};
+
+use host_sim::machine::Machine;
+use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::simulator::{Holds, Plant, Settings};
+
+/// The reference machine file.
+pub fn reference_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
+}
+
+/// The reference machine with `sets` (`--set` overrides), its rotors started at
+/// the phase offset `offset_deg`.
+pub fn reference_machine(offset_deg: f64, sets: &[String]) -> Machine {
+    let phi1 = -FRAC_PI_2;
+    let phi2 = offset_deg.to_radians() - phi1;
+    let mut all = vec![
+        format!("rotors.0.angle={phi1}"),
+        format!("rotors.1.angle={phi2}"),
+    ];
+    all.extend_from_slice(sets);
+    Machine::load(&reference_path(), &all).expect("the reference machine loads")
+}
+
+/// The plant of `m` with its rotors held at `rpm` (rotor 1 counter-clockwise,
+/// rotor 2 clockwise) and the platform at rest, with `settings`.
+pub fn held_rotors(m: &Machine, rpm: f64, settings: Settings) -> Plant {
+    let w = rpm * PI / 30.0;
+    let mut y = initial_state(m);
+    // State layout (x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2).
+    y[8] = w;
+    y[9] = -w;
+    let holds = Holds {
+        rotors: true,
+        ..Holds::default()
+    };
+    Plant::new(PlantModel::new(m), y, settings, holds)
+}
+
+/// The mean velocity of the platform's centre of mass from `t0` to `t1`,
+/// `(x(t1) - x(t0)) / (t1 - t0)`, m/s, advancing `plant` to `t1`.
+pub fn mean_velocity(plant: &mut Plant, t0: f64, t1: f64) -> f64 {
+    plant.advance_to(t0, &mut |_| {});
+    let x0 = plant.q()[0];
+    plant.advance_to(t1, &mut |_| {});
+    (plant.q()[0] - x0) / (t1 - t0)
+}
