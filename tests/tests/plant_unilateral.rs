@@ -615,6 +615,58 @@ fn friction_at_the_extremes_hops_in_closed_loop() {
     }
 }
 
+/// Frictionless feet in open loop at 4 V (`--open-loop 4,4`; the symptom: the
+/// platform stayed put to 1e-21 m). The rotors reach about 1850 rpm, where the
+/// exciting force, `2 m e w^2 = 15 N`, is below the weight (19.8 N) and its moment
+/// below what the weight holds on the feet, so the platform cannot lift, but on a
+/// frictionless floor it must slide: nothing pushes the whole machine sideways, so
+/// its centre of mass stays where it was, and the platform's moves opposite to the
+/// eccentrics, `x_C(t) = x_C(0) - (m / M) e (cos psi_1 + cos psi_2 - cos psi_1(0) -
+/// cos psi_2(0))` (level, with `psi_k` the trace's own rotor angles). Checked on
+/// every trace row of 2 s, to 1e-8 m against an excursion of `2 m e / M = 0.2 mm`
+/// (measured: 1e-9 m after 1.1 s, the integrator's drift over its steps, each
+/// within 1e-11 m).
+#[test]
+fn frictionless_feet_slide_in_open_loop_below_lift_off() {
+    use host_sim::simulation::{OpenLoop, OpenLoopDriver};
+    let sets = [
+        "contacts.K1.friction=0".to_string(),
+        "contacts.K2.friction=0".to_string(),
+    ];
+    let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
+    let mut driver = OpenLoopDriver::new(OpenLoop::Voltages([4.0, 4.0]), 12.0);
+    let options = RunOptions {
+        t_end: 2.0,
+        settings: Settings::default(),
+        holds: Holds::default(),
+    };
+    let run = simulate(&m, &mut driver, &options);
+    assert!(
+        run.summary.warnings.is_empty(),
+        "{:?}",
+        run.summary.warnings
+    );
+    assert_eq!(run.summary.impacts, 0, "the platform lifted");
+    let first = run.rows[0];
+    let ecc = |r: &TraceRow| r.phi1.cos() + r.phi2.cos();
+    let mut excursion = 0.0f64;
+    for r in &run.rows {
+        let x = first.x - (M_ECC / M_TOTAL) * ECC * (ecc(r) - ecc(&first));
+        assert!((r.x - x).abs() < 1e-8, "t = {}: x = {} vs {x}", r.t, r.x);
+        assert!(
+            r.angle.abs() < 1e-12 && (r.y - 0.03).abs() < 1e-12,
+            "t = {}",
+            r.t
+        );
+        excursion = excursion.max((r.x - first.x).abs());
+    }
+    // It slides by the eccentrics' full swing.
+    assert!(
+        excursion > 0.9 * 2.0 * M_ECC * ECC / M_TOTAL,
+        "slid {excursion} m"
+    );
+}
+
 // ---------------------------------------------------------------------------------
 // Many machines: the mechanism as an invariant
 // ---------------------------------------------------------------------------------
