@@ -32,6 +32,7 @@
 //! | `current_limit_a` | the smaller `current_limit` of the two rotors' motors |
 //! | `rotors[k]` | rotor k's motor `resistance`, `torque_constant`; `inertia + eccentric_mass x eccentricity^2`; load torque `eccentric_mass x eccentricity x g + coulomb_friction` |
 //! | `resonance_band_rpm` | 0.7 to 1.18 x the lift-off speed `sqrt(M g / (2 m e))` (`M`: platform and both eccentric masses, `g = \|[fundament].gravity\|`, `m e` the rotors' mean), `[0, 0]` without eccentric masses |
+//! | `bridge` | `[drive].decay` (`"slow"` or `"fast"`, default `"slow"`) and `[drive].pwm_hz` (an integer in [1000, 200000], default 20000) |
 //!
 //! A rotor's motor is `[motor]` with any key its own `[rotors.motor]` gives in its
 //! place. Only the keys above are read and checked (types, finite, ranges); the rest
@@ -56,6 +57,10 @@ pub const TUNING_ENV: &str = "VIBRO_TUNING";
 /// The controller's default offsets, degrees (`shared::controller::TuningTable::
 /// default_offsets`): for a machine without a tuning table.
 pub const DEFAULT_ROWS: [(f32, f32, f32); 1] = [(0.0, 90.0, 270.0)];
+/// `[drive].pwm_hz` when absent, Hz (`shared::drive::BridgeConfig::DEFAULT`).
+pub const DEFAULT_PWM_HZ: u32 = 20_000;
+/// The range of `[drive].pwm_hz`, Hz (host-sim's `machine::PWM_HZ_RANGE`).
+pub const PWM_HZ_RANGE: [i64; 2] = [1_000, 200_000];
 /// Rows the controller's table holds (`shared::controller::MAX_TUNING_ROWS`).
 pub const MAX_TUNING_ROWS: usize = 32;
 /// Largest encoder resolution the controller accepts (`MAX_ENCODER_COUNTS`, 2^24).
@@ -172,6 +177,10 @@ pub struct MachineValues {
     pub rotors: [RotorValues; 2],
     /// Resonance band, rpm, as f32 (computed in f64 and rounded as host-sim does).
     pub resonance_band_rpm: [f32; 2],
+    /// `[drive].decay`: fast decay (`true`) or slow decay.
+    pub fast_decay: bool,
+    /// `[drive].pwm_hz`, Hz.
+    pub pwm_hz: u32,
     /// `[controller].tuning_table`, resolved against the machine file's folder.
     pub tuning_table: Option<PathBuf>,
 }
@@ -336,8 +345,42 @@ pub fn read_machine(path: &Path) -> Result<MachineValues, Vec<String>> {
     }
 
     // [drive]
-    let supply = section(&mut p, &root, "drive", false, &empty)
-        .and_then(|d| number(&mut p, d, "drive.", "supply_voltage", None, pos, "> 0 V"));
+    let mut supply = None;
+    let mut fast_decay = Some(false);
+    let mut pwm_hz = Some(DEFAULT_PWM_HZ);
+    if let Some(d) = section(&mut p, &root, "drive", false, &empty) {
+        supply = number(&mut p, d, "drive.", "supply_voltage", None, pos, "> 0 V");
+        fast_decay = match d.get("decay") {
+            None => Some(false),
+            Some(Value::String(s)) if s == "slow" => Some(false),
+            Some(Value::String(s)) if s == "fast" => Some(true),
+            Some(other) => {
+                p.at(
+                    "drive.decay",
+                    format!("must be one of slow, fast (got {})", shown(other)),
+                );
+                None
+            }
+        };
+        pwm_hz = match d.get("pwm_hz") {
+            None => Some(DEFAULT_PWM_HZ),
+            Some(Value::Integer(f)) if (PWM_HZ_RANGE[0]..=PWM_HZ_RANGE[1]).contains(f) => {
+                u32::try_from(*f).ok()
+            }
+            Some(other) => {
+                p.at(
+                    "drive.pwm_hz",
+                    format!(
+                        "must be an integer in [{}, {}] Hz (got {})",
+                        PWM_HZ_RANGE[0],
+                        PWM_HZ_RANGE[1],
+                        shown(other)
+                    ),
+                );
+                None
+            }
+        };
+    }
 
     // [platform], [fundament]: the mass that moves and gravity (resonance band).
     let mass = section(&mut p, &root, "platform", false, &empty)
@@ -495,6 +538,8 @@ pub fn read_machine(path: &Path) -> Result<MachineValues, Vec<String>> {
         Some(rate_hz),
         Some(encoder_counts),
         Some(supply_voltage_v),
+        Some(fast_decay),
+        Some(pwm_hz),
         Some(mass),
         Some(gravity),
         [r1, r2],
@@ -502,6 +547,8 @@ pub fn read_machine(path: &Path) -> Result<MachineValues, Vec<String>> {
         rate_hz,
         encoder_counts,
         supply,
+        fast_decay,
+        pwm_hz,
         mass,
         gravity,
         rotors.as_slice(),
@@ -534,6 +581,8 @@ pub fn read_machine(path: &Path) -> Result<MachineValues, Vec<String>> {
         current_limit_a: limits[0].min(limits[1]),
         rotors: [load(0, r1), load(1, r2)],
         resonance_band_rpm: band,
+        fast_decay,
+        pwm_hz,
         tuning_table,
     })
 }
@@ -573,8 +622,14 @@ pub fn machine_rs(m: &MachineValues, path: &Path) -> String {
     code.push_str(&rotor(&m.rotors[1]));
     code.push_str("    ],\n");
     code.push_str(&format!(
-        "    resonance_band_rpm: [{:?}, {:?}],\n}};\n",
+        "    resonance_band_rpm: [{:?}, {:?}],\n",
         m.resonance_band_rpm[0], m.resonance_band_rpm[1]
+    ));
+    code.push_str(&format!(
+        "    bridge: shared::drive::BridgeConfig {{\n        decay: shared::drive::Decay::{},\n        \
+         pwm_hz: {},\n    }},\n}};\n",
+        if m.fast_decay { "Fast" } else { "Slow" },
+        m.pwm_hz
     ));
     code
 }

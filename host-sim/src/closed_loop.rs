@@ -2,15 +2,16 @@
 //! stepped at the machine's control rate, seeing the simulated sensors and
 //! driving the simulated motors.
 //!
-//! Each control tick ([`ControllerDriver::windings`]):
+//! Each control tick ([`ControllerDriver::bridges`]):
 //! 1. sample the sensors from the plant's state: quadrature encoders (quantised,
 //!    wrapping 32-bit counters, index pulses, edge jitter) and the current
 //!    measurement (noise, offset), all from the machine's seed;
 //! 2. hand the controller the commands due, a heartbeat (the host is present),
 //!    the supply voltage and the E-stop input;
 //! 3. step the controller with `dt = 1 / rate_hz` (time is passed in);
-//! 4. put `duty x supply` on the windings (the H-bridge's averaged PWM), or open
-//!    them when the controller disables its outputs (motors off);
+//! 4. command the H-bridges with the duties (the plant's `bridge` makes them the
+//!    windings' voltages as the bridge is wired), or off when the controller
+//!    disables its outputs;
 //! 5. record the controller's state changes and faults as events.
 //!
 //! A self-test ([`shared::controller::self_test`]) starts at a set time
@@ -23,7 +24,7 @@ use shared::controller::{
 
 use crate::input::Problem;
 use crate::machine::Machine;
-use crate::plant::motor::Winding;
+use crate::plant::bridge::BridgeCommand;
 use crate::plant::sensors::{CurrentSensor, Encoder};
 use crate::plant::simulator::Plant;
 use crate::simulation::Driver;
@@ -114,6 +115,7 @@ pub fn machine_constants(m: &Machine) -> MachineConstants {
             .min(m.rotors[1].motor.current_limit) as f32,
         rotors: [rotor(0), rotor(1)],
         resonance_band_rpm: band,
+        bridge: m.drive.bridge(),
     }
 }
 
@@ -205,7 +207,12 @@ impl ControllerDriver {
 }
 
 impl Driver for ControllerDriver {
-    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+    /// The supply the bridges see: nominal, or the injected sag.
+    fn before_tick(&mut self, _t: f64, plant: &mut Plant) {
+        plant.set_supply(self.injected.supply_voltage.unwrap_or(self.supply));
+    }
+
+    fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
         // 1. Sensors.
         let q = plant.q();
         let v = plant.v();
@@ -290,9 +297,9 @@ impl Driver for ControllerDriver {
                     duty[k]
                 }
             });
-            (applied.map(|d| Winding::from_duty(d, supply)), duty)
+            (applied.map(BridgeCommand::Duty), duty)
         } else {
-            ([Winding::Open, Winding::Open], [0.0, 0.0])
+            ([BridgeCommand::Off, BridgeCommand::Off], [0.0, 0.0])
         }
     }
 

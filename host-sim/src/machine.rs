@@ -28,6 +28,7 @@ use crate::input::{
     Section,
 };
 use crate::machine_set;
+use shared::drive::{BridgeConfig, Decay};
 
 /// The obstacle line the platform strikes, and gravity.
 #[derive(Clone, Debug, PartialEq)]
@@ -131,12 +132,35 @@ pub struct Rotor {
     pub motor: MotorParams,
 }
 
-/// The motor driver.
+/// The motor drivers: the H-bridges as wired (`shared::drive`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Drive {
-    /// Supply voltage, V; duty d in [-1, 1] puts d x supply on the winding.
+    /// Supply voltage, V; in slow decay a duty d in [-1, 1] puts a mean d x supply
+    /// on the winding.
     pub supply_voltage: f64,
+    /// Decay mode of the bridges: `"slow"` (default: drive, then brake) or
+    /// `"fast"` (drive, then coast).
+    pub decay: Decay,
+    /// PWM frequency of the bridge inputs, Hz (default 20000).
+    pub pwm_hz: u32,
 }
+
+impl Drive {
+    /// The bridge as `shared::drive` describes it.
+    pub fn bridge(&self) -> BridgeConfig {
+        BridgeConfig {
+            decay: self.decay,
+            pwm_hz: self.pwm_hz,
+        }
+    }
+}
+
+/// The range of `[drive] pwm_hz`, Hz: a DRV8871-class bridge switches up to 200 kHz;
+/// below 1 kHz the PWM period would be as long as a control tick.
+pub const PWM_HZ_RANGE: [u32; 2] = [1_000, 200_000];
+
+/// The names of `[drive] decay`.
+pub const DECAYS: [&str; 2] = ["slow", "fast"];
 
 /// The sensors.
 #[derive(Clone, Debug, PartialEq)]
@@ -379,9 +403,21 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     };
     let drive = root.section("drive", Need::Required).and_then(|s| {
         let supply_voltage = s.number("supply_voltage", Need::Required, Limit::Positive);
+        let decay = s.choice("decay", Need::Default("slow"), &DECAYS);
+        let pwm_hz = s.integer(
+            "pwm_hz",
+            Need::Default(i64::from(BridgeConfig::DEFAULT.pwm_hz)),
+            Limit::Between(f64::from(PWM_HZ_RANGE[0]), f64::from(PWM_HZ_RANGE[1])),
+        );
         s.finish();
         Some(Drive {
             supply_voltage: supply_voltage?,
+            decay: if decay? == "fast" {
+                Decay::Fast
+            } else {
+                Decay::Slow
+            },
+            pwm_hz: u32::try_from(pwm_hz?).ok()?,
         })
     });
     let sensors = optional(&root, "sensors", &empty).and_then(|s| read_sensors(&s));

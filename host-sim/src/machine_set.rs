@@ -111,7 +111,14 @@ pub const SCHEMA: &[(&str, Node)] = &[
         },
     ),
     ("motor", Node::Table(MOTOR_KEYS)),
-    ("drive", Node::Table(&[("supply_voltage", Node::Value)])),
+    (
+        "drive",
+        Node::Table(&[
+            ("supply_voltage", Node::Value),
+            ("decay", Node::Value),
+            ("pwm_hz", Node::Value),
+        ]),
+    ),
     (
         "sensors",
         Node::Table(&[
@@ -613,6 +620,6 @@ mod tests {
         assert!(paths.contains(&"contacts.NAME.friction".to_string()));
         assert!(paths.contains(&"rotors.NAME.motor.current_limit".to_string()));
         assert!(paths.contains(&"simulation.seed".to_string()));
-        assert_eq!(paths.len(), 3 + 6 + 5 + 8 + 6 + 6 + 1 + 3 + 3 + 1 + 3);
+        assert_eq!(paths.len(), 3 + 6 + 5 + 8 + 6 + 6 + 3 + 3 + 3 + 1 + 3);
     }
 }

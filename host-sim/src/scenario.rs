@@ -52,7 +52,7 @@ use toml::{Table, Value};
 use crate::closed_loop::{self, ControllerDriver, Injected};
 use crate::input::{self, Limit, Location, Need, Problem, Problems, Section};
 use crate::machine::Machine;
-use crate::plant::motor::Winding;
+use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::{Holds, Plant, Settings};
 use crate::simulation::{simulate, Driver, RunOptions};
 use crate::text::{sig, signed};
@@ -1016,8 +1016,8 @@ impl Driver for ScenarioDriver<'_> {
         self.inner.before_tick(t, plant);
     }
 
-    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]) {
-        let w = self.inner.windings(t, plant);
+    fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
+        let w = self.inner.bridges(t, plant);
         if let Some(out) = self.inner.last() {
             self.ticks.push(Tick {
                 t,

@@ -13,8 +13,8 @@
 //! 4. summarize ([`crate::summary`]).
 
 use crate::machine::Machine;
+use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
-use crate::plant::motor::Winding;
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::summary::summarize;
 use crate::trace::{EventRow, Summary, TraceRow};
@@ -24,8 +24,9 @@ pub trait Driver {
     /// Acts on the plant before the tick's windings are asked for (fault
     /// injection: a jammed rotor). Nothing by default.
     fn before_tick(&mut self, _t: f64, _plant: &mut Plant) {}
-    /// The windings from `t` to the next tick, and the duties to record.
-    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]);
+    /// What the H-bridges are commanded from `t` to the next tick (a duty takes
+    /// effect at the next PWM period start, off at once), and the duties to record.
+    fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]);
     /// The controller's state name for the summary (`open-loop` without one).
     fn state(&self) -> String;
     /// The commanded phase offset, degrees, if one is commanded.
@@ -65,12 +66,13 @@ impl OpenLoopDriver {
 }
 
 impl Driver for OpenLoopDriver {
-    fn windings(&mut self, _t: f64, _plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+    fn bridges(&mut self, _t: f64, _plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
         match self.mode {
-            OpenLoop::Coast => ([Winding::Open, Winding::Open], [0.0, 0.0]),
+            OpenLoop::Coast => ([BridgeCommand::Off, BridgeCommand::Off], [0.0, 0.0]),
+            // The volts mean the duty V / V_s in either decay mode.
             OpenLoop::Voltages(v) => {
                 let duty = v.map(|u| (u / self.supply).clamp(-1.0, 1.0));
-                (duty.map(|d| Winding::from_duty(d, self.supply)), duty)
+                (duty.map(BridgeCommand::Duty), duty)
             }
         }
     }
@@ -164,8 +166,8 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
             break;
         }
         driver.before_tick(t, &mut plant);
-        let (windings, duty) = driver.windings(t, &plant);
-        plant.set_winding(windings);
+        let (commands, duty) = driver.bridges(t, &plant);
+        plant.set_bridges(commands);
         rec.duty = duty;
         if tick == 0 {
             let y = plant.y;

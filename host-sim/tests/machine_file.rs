@@ -196,6 +196,8 @@ fn omitted_sections_take_the_documented_defaults() {
     assert_eq!(m.platform.angular_velocity, 0.0);
     assert_eq!(m.contacts[1].weight, 1.0);
     assert_eq!((m.rotors[1].angle, m.rotors[1].index_angle), (0.0, 0.0));
+    assert_eq!(m.drive.decay, shared::drive::Decay::Slow);
+    assert_eq!(m.drive.pwm_hz, 20_000);
     assert_eq!(m.sensors.encoder_counts, 4096);
     assert_eq!(m.sensors.current_noise, 0.0);
     assert_eq!(m.sensors.encoder_jitter, 0.0);
@@ -438,6 +440,17 @@ const REFUSALS: &[(&str, &str, &str)] = &[
         "drive.supply_voltage",
         "must be > 0",
     ),
+    (
+        "drive.decay=medium",
+        "drive.decay",
+        "unknown value \"medium\" (allowed: slow, fast)",
+    ),
+    (
+        "drive.pwm_hz=500",
+        "drive.pwm_hz",
+        "must be in [1000, 200000] (got 500)",
+    ),
+    ("drive.pwm_hz=2e4", "drive.pwm_hz", "must be an integer"),
     (
         "sensors.encoder_counts=1023",
         "sensors.encoder_counts",

@@ -5,6 +5,8 @@
 //! - [`impact`]: the impact model of the reference paper (simultaneous impacts at
 //!   several points with restitution and Coulomb friction), integrated in impulse
 //!   space piecewise exactly;
+//! - [`drive`]: the H-bridge as wired (decay mode, PWM period) and its driver over
+//!   embedded-hal's PWM outputs: what a duty means, for the firmware and the plant;
 //! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
 //!   ramps, tuning table and latched faults, one `step(inputs, dt)` per tick in `f32`;
 //! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
@@ -19,6 +21,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod controller;
+pub mod drive;
 pub mod impact;
 pub mod protocol;
 pub mod real;

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use host_sim::closed_loop::machine_constants;
 use host_sim::machine::Machine;
 use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
+use shared::drive::{BridgeConfig, Decay};
 
 #[allow(dead_code)]
 #[path = "../../firmware/build.rs"]
@@ -51,6 +52,14 @@ fn constants(v: &MachineValues) -> MachineConstants {
         current_limit_a: v.current_limit_a as f32,
         rotors: [rotor(0), rotor(1)],
         resonance_band_rpm: v.resonance_band_rpm,
+        bridge: BridgeConfig {
+            decay: if v.fast_decay {
+                Decay::Fast
+            } else {
+                Decay::Slow
+            },
+            pwm_hz: v.pwm_hz,
+        },
     }
 }
 
@@ -94,6 +103,11 @@ fn build_script_constants_are_shareds_and_host_sims() {
         firmware_build::DEFAULT_GRAVITY,
         host_sim::machine::DEFAULT_GRAVITY
     );
+    assert_eq!(firmware_build::DEFAULT_PWM_HZ, BridgeConfig::DEFAULT.pwm_hz);
+    assert_eq!(
+        firmware_build::PWM_HZ_RANGE.map(|f| f as u32),
+        host_sim::machine::PWM_HZ_RANGE
+    );
 }
 
 #[test]
@@ -127,7 +141,15 @@ fn reference_machine_is_the_reference_constants() {
 
 #[test]
 fn variants_are_host_sims() {
-    let cases: [(&str, &[(&str, &str)]); 5] = [
+    let cases: [(&str, &[(&str, &str)]); 6] = [
+        (
+            "fast_decay",
+            // The bridge wired for fast decay at 10 kHz.
+            &[(
+                "supply_voltage = 12.0",
+                "supply_voltage = 12.0\ndecay = \"fast\"\npwm_hz = 10000",
+            )],
+        ),
         (
             "own_motor",
             // Rotor 2 with its own winding and a lower current limit.
@@ -227,14 +249,19 @@ fn mistakes_name_the_file_and_the_key() {
     let path = variant(
         "bad",
         &[
-            ("supply_voltage = 12.0", "supply_voltage = -12.0"),
             ("encoder_counts = 4096", "encoder_counts = 4098"),
             ("torque_constant = 0.02", "torque_constant = \"0.02\""),
+            (
+                "supply_voltage = 12.0",
+                "supply_voltage = -12.0\ndecay = \"medium\"\npwm_hz = 500",
+            ),
         ],
     );
     let problems = read_machine(&path).unwrap_err();
     let file = path.display().to_string();
     for key in [
+        "drive.decay",
+        "drive.pwm_hz",
         "drive.supply_voltage",
         "sensors.encoder_counts",
         "motor.torque_constant",

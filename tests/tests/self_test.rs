@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 
 use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
-use host_sim::plant::motor::Winding;
+use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use host_sim::trace::EventRow;
@@ -88,9 +88,9 @@ impl Driver for Probe {
         self.inner.before_tick(t, plant);
     }
 
-    fn windings(&mut self, t: f64, plant: &Plant) -> ([Winding; 2], [f64; 2]) {
+    fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
         let q = plant.q();
-        let w = self.inner.windings(t, plant);
+        let w = self.inner.bridges(t, plant);
         self.ticks.push(Tick {
             t,
             phi: [q[3], q[4]],
@@ -715,4 +715,33 @@ fn noisy_sensors_still_pass() {
             "rotor {k}: {res:?} vs {want}"
         );
     }
+}
+
+/// The bridge as wired decides whether the self-test can work. Its duty (0.049 on
+/// the reference machine: twice the load torque at rest with the mean voltage
+/// `d V_s`) means that voltage only in slow decay; a bridge driven in fast decay
+/// (drive, then coast: the firmware's drive before this was fixed) draws 2.9 mA
+/// instead of 0.29 A at standstill (`plant_bridge.rs`), so neither rotor turns and
+/// both fail: the current does not follow the duty, no counts, no index. With
+/// slow decay (the reference run) both pass.
+#[test]
+fn the_self_test_fails_on_a_fast_decay_bridge() {
+    let r = run(
+        Setup {
+            sets: vec!["drive.decay=fast".into()],
+            ..Setup::default()
+        },
+        5.0,
+    );
+    let last = r.last();
+    assert_eq!(last.report.status, SelfTestStatus::Done);
+    for (k, rotor) in last.report.result.rotors.iter().enumerate() {
+        assert!(
+            !rotor.motor_polarity_ok && !rotor.index_seen && rotor.counts_per_rev == 0,
+            "rotor {k}: {rotor:?}"
+        );
+        // Driven for the move timeout and not a turn further.
+        assert!((245..=252).contains(&r.driven(k).len()), "rotor {k}");
+    }
+    assert!(reference().last().report.result.passed());
 }

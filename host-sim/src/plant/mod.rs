@@ -8,6 +8,7 @@
 //! - [`sensors`]: encoders with index pulses, current measurement.
 // Numeric kernels index several parallel arrays with one loop variable.
 #![allow(clippy::needless_range_loop)]
+pub mod bridge;
 pub mod dynamics;
 pub mod integrator;
 pub mod model;

@@ -65,6 +65,8 @@ pub struct PlantModel {
     pub law: ImpactLaw,
     /// Supply voltage of the motor driver, V.
     pub supply_voltage: f64,
+    /// The H-bridges as wired (`[drive] decay`, `pwm_hz`).
+    pub bridge: shared::drive::BridgeConfig,
 }
 
 /// `R(-angle) v`: a world vector in the platform frame.
@@ -116,6 +118,7 @@ impl PlantModel {
             gravity: m.fundament.gravity,
             law: m.law,
             supply_voltage: m.drive.supply_voltage,
+            bridge: m.drive.bridge(),
         }
     }
 

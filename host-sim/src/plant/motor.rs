@@ -67,32 +67,20 @@ pub const FRICTION_SMOOTHING_SPEED: f64 = 0.01;
 /// What the H-bridge puts on a winding.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Winding {
-    /// A PWM-averaged voltage, V ([`winding_voltage`]). `Voltage(0.0)` shorts the
-    /// winding (both low-side switches on): the back-EMF drives a braking current.
+    /// A voltage, V: the bridge conducting (forward, reverse, or both low-side
+    /// switches on, `Voltage(0.0)`, which shorts the winding: the back-EMF drives a
+    /// braking current), or the exact mean of a slow-decay PWM period
+    /// ([`super::bridge`]).
     Voltage(f64),
-    /// All four switches off (coast): the winding carries no current.
+    /// Every switch off with a supply of this many volts (coast): a current
+    /// freewheels through the switches' body diodes against the supply, the
+    /// winding seeing `-V_s sign(i)`, until it dies; then no current flows, unless
+    /// the back-EMF exceeds the supply, which makes the diodes conduct again.
+    /// (Diode forward drops are not modelled: about 1 V against 12 V.)
+    Coast(f64),
+    /// An ideal open circuit: no current, ever (the current is set to 0). For
+    /// tests that want the motors out of the way; a bridge coasts instead.
     Open,
-}
-
-impl Winding {
-    /// The winding driven at `duty` (in `[-1, 1]`, clamped) from `supply` volts.
-    pub fn from_duty(duty: f64, supply: f64) -> Self {
-        Winding::Voltage(winding_voltage(duty, supply))
-    }
-}
-
-/// The PWM-averaged winding voltage `u = d V_s`, V, with the duty `d` clamped to
-/// `[-1, 1]` and `V_s` the supply voltage.
-///
-/// Averaging is valid because the PWM period (tens of microseconds) is short against
-/// the electrical time constant `L / R` (0.25 ms for the reference motor), so the
-/// current ripple is small. A NaN duty gives `0 V`, as the firmware's float-to-integer
-/// conversion of a NaN duty into a timer compare register gives 0.
-pub fn winding_voltage(duty: f64, supply: f64) -> f64 {
-    if duty.is_nan() {
-        return 0.0;
-    }
-    duty.clamp(-1.0, 1.0) * supply
 }
 
 /// A brushed DC motor: its constant parameters and the model's functions.
@@ -146,7 +134,7 @@ impl DcMotor {
     /// `i`). Never for an open winding.
     pub fn is_limiting(&self, winding: Winding, i: f64, omega_m: f64) -> bool {
         match winding {
-            Winding::Open => false,
+            Winding::Open | Winding::Coast(_) => false,
             Winding::Voltage(u) => {
                 let p = &self.params;
                 let drive = u - p.resistance * i - self.back_emf(omega_m);
@@ -161,7 +149,9 @@ impl DcMotor {
     /// - `Voltage(u)`, limiting: `R i + k omega`, the voltage that holds `di/dt = 0`
     ///   (the chopper's average over its on/off cycle);
     /// - `Open`: `R i + k omega`, which is the back-EMF `k omega` since an open winding
-    ///   carries no current.
+    ///   carries no current;
+    /// - `Coast(V_s)`: `-V_s sign(i)` while a current freewheels through the diodes;
+    ///   without current the back-EMF, clamped to `+-V_s` by the diodes.
     pub fn terminal_voltage(&self, winding: Winding, i: f64, omega_m: f64) -> f64 {
         let p = &self.params;
         let holding = p.resistance * i + self.back_emf(omega_m);
@@ -169,6 +159,15 @@ impl DcMotor {
             Winding::Voltage(_) if self.is_limiting(winding, i, omega_m) => holding,
             Winding::Voltage(u) => u,
             Winding::Open => holding,
+            Winding::Coast(supply) => {
+                if i > 0.0 {
+                    -supply
+                } else if i < 0.0 {
+                    supply
+                } else {
+                    self.back_emf(omega_m).clamp(-supply, supply)
+                }
+            }
         }
     }
 
@@ -192,9 +191,29 @@ impl DcMotor {
     ///   clamps the state with [`DcMotor::clamp_current`] after each step.
     /// - **Open winding.** `di/dt = 0`: the current is forced to 0 when the bridge
     ///   opens ([`DcMotor::project_current`]) and stays there.
+    /// - **Coasting bridge.** The body diodes put `-V_s sign(i)` on the winding
+    ///   while a current flows: `L di/dt = -V_s sign(i) - R i - k omega`, which
+    ///   drives it to zero (`L |i| / (V_s + k omega)` at most, some 80 us at 2 A);
+    ///   the plant stops it there (an event) and then `di/dt = 0`, unless the
+    ///   back-EMF exceeds the supply: then the diodes conduct,
+    ///   `L di/dt = V_s sign(k omega) - k omega`.
     pub fn current_rate(&self, winding: Winding, i: f64, omega_m: f64) -> f64 {
         match winding {
             Winding::Open => 0.0,
+            Winding::Coast(supply) => {
+                let p = &self.params;
+                let e = self.back_emf(omega_m);
+                // The diodes hold -V_s sign(i) while a current flows; without one
+                // they conduct only while the back-EMF exceeds the supply.
+                let u = if i > 0.0 || (i == 0.0 && e < -supply) {
+                    -supply
+                } else if i < 0.0 || e > supply {
+                    supply
+                } else {
+                    return 0.0;
+                };
+                (u - p.resistance * i - e) / p.inductance
+            }
             Winding::Voltage(u) => {
                 if self.is_limiting(winding, i, omega_m) {
                     return 0.0;
@@ -217,16 +236,12 @@ impl DcMotor {
     /// [`DcMotor::clamp_current`]. The integrator applies it after each step and
     /// whenever the winding changes.
     ///
-    /// Open bridge, diode-free assumption: a real MOSFET bridge that opens with
-    /// current flowing passes it through the switches' body diodes back to the supply
-    /// (fast decay), so it dies in about `L |i| / (V_s + k omega)`, some 80 us for the
-    /// reference motor at the 2 A limit, and the diodes conduct again only while the
-    /// back-EMF exceeds the supply, which the motor never reaches by itself (its
-    /// no-load speed is below `V_s / k`). Both effects are far below the 1 ms control
-    /// tick, so the model drops the diodes and sets the current to 0 at once.
+    /// A coasting winding's current is not clamped: it only decays (the driver's
+    /// limit does not act with the switches off).
     pub fn project_current(&self, winding: Winding, i: f64) -> f64 {
         match winding {
             Winding::Open => 0.0,
+            Winding::Coast(_) => i,
             Winding::Voltage(_) => self.clamp_current(i),
         }
     }
@@ -532,14 +547,27 @@ mod tests {
         assert_eq!(m.terminal_voltage(Winding::Open, 0.0, w0), m.back_emf(w0));
     }
 
+    /// A coasting winding: the body diodes put `-V_s sign(i)` on it while a current
+    /// flows (`L di/dt = -V_s sign(i) - R i - k omega`), nothing once it has died,
+    /// unless the back-EMF exceeds the supply, and no current limit acts.
     #[test]
-    fn duty_is_clamped_and_nan_gives_zero_volts() {
-        assert_eq!(winding_voltage(0.5, 12.0), 6.0);
-        assert_eq!(winding_voltage(-0.25, 12.0), -3.0);
-        assert_eq!(winding_voltage(1.7, 12.0), 12.0);
-        assert_eq!(winding_voltage(-3.0, 12.0), -12.0);
-        assert_eq!(winding_voltage(f64::NAN, 12.0), 0.0);
-        assert_eq!(Winding::from_duty(2.0, 24.0), Winding::Voltage(24.0));
+    fn a_coasting_current_freewheels_against_the_supply() {
+        let m = DcMotor::new(reference());
+        let coast = Winding::Coast(12.0);
+        let (r, l, k) = (2.0, 0.5e-3, 0.02);
+        for (i, w) in [(1.5, 0.0), (-1.5, 100.0), (0.3, -300.0)] {
+            let u = -12.0 * f64::signum(i);
+            let want = (u - r * i - k * w) / l;
+            assert!((m.current_rate(coast, i, w) - want).abs() < 1e-9 * want.abs());
+            assert_eq!(m.terminal_voltage(coast, i, w), u);
+        }
+        // No current and a back-EMF within the supply: nothing flows.
+        assert_eq!(m.current_rate(coast, 0.0, 300.0), 0.0);
+        assert_eq!(m.terminal_voltage(coast, 0.0, 300.0), 6.0);
+        // A back-EMF above the supply (900 rad/s: 18 V): the diodes conduct.
+        assert!((m.current_rate(coast, 0.0, 900.0) - (12.0 - 18.0) / l).abs() < 1e-6);
+        assert!(!m.is_limiting(coast, 5.0, 0.0));
+        assert_eq!(m.project_current(coast, 5.0), 5.0);
     }
 
     #[test]

@@ -50,6 +50,7 @@ mod modes;
 
 use shared::impact::{SlipState, MAX_CONTACTS};
 
+use super::bridge::{Bridge, BridgeCommand};
 use super::dynamics::{Frame, DOF};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::PlantModel;
@@ -176,8 +177,14 @@ pub struct Plant {
     pub y: [f64; NY],
     /// The contacts' modes.
     pub modes: Vec<ContactMode>,
-    /// What the H-bridges put on the windings.
+    /// What the H-bridges put on the windings now.
     pub winding: [Winding; 2],
+    /// The H-bridges, once a driver commands them ([`Plant::set_bridges`]); `None`
+    /// while the windings are set directly ([`Plant::set_winding`]).
+    bridges: Option<[Bridge; 2]>,
+    /// Sign of each coasting winding's current (0: none flowing): its event is the
+    /// current reaching zero.
+    coast_sign: [f64; 2],
     /// Events so far.
     pub events: Vec<EventRow>,
     /// Impact instants so far.
@@ -216,6 +223,8 @@ impl Plant {
             y,
             modes: vec![ContactMode::Open; n],
             winding: [Winding::Open, Winding::Open],
+            bridges: None,
+            coast_sign: [0.0; 2],
             events: Vec::new(),
             impacts: 0,
             warnings: Vec::new(),
@@ -232,14 +241,85 @@ impl Plant {
         plant
     }
 
-    /// Sets what the H-bridges put on the windings (held until changed).
+    /// Sets what is on the windings directly, held until changed (tests; a driver
+    /// commands the bridges with [`Plant::set_bridges`]).
     pub fn set_winding(&mut self, winding: [Winding; 2]) {
+        self.bridges = None;
+        self.use_winding(winding);
+    }
+
+    /// Commands the H-bridges as wired ([`super::bridge`]): a duty takes effect at
+    /// the next PWM period start, off at once.
+    pub fn set_bridges(&mut self, commands: [BridgeCommand; 2]) {
+        let (config, supply) = (self.model.bridge, self.model.supply_voltage);
+        let t = self.t;
+        let bridges = self
+            .bridges
+            .get_or_insert_with(|| [Bridge::new(config, supply), Bridge::new(config, supply)]);
+        for (b, c) in bridges.iter_mut().zip(commands) {
+            b.command(c, t);
+        }
+        let winding = [bridges[0].winding(), bridges[1].winding()];
+        self.use_winding(winding);
+    }
+
+    /// The bridges' supply voltage changes (a sag injected by a test): the
+    /// windings see it at once.
+    pub fn set_supply(&mut self, supply: f64) {
+        if let Some(bridges) = self.bridges.as_mut() {
+            bridges[0].set_supply(supply);
+            bridges[1].set_supply(supply);
+            let winding = [bridges[0].winding(), bridges[1].winding()];
+            self.use_winding(winding);
+        }
+        self.model.supply_voltage = supply;
+    }
+
+    /// Puts `winding` on the windings, restarting the integrator where it changes.
+    fn use_winding(&mut self, winding: [Winding; 2]) {
         if winding != self.winding {
+            for k in 0..2 {
+                if matches!(winding[k], Winding::Coast(_))
+                    && !matches!(self.winding[k], Winding::Coast(_))
+                {
+                    self.coast_sign[k] =
+                        self.y[2 * DOF + k].signum() * f64::from(self.y[2 * DOF + k] != 0.0);
+                }
+            }
             self.winding = winding;
             self.fsal = None;
             self.ev_cache = None;
             self.clamp_currents();
         }
+    }
+
+    /// The next time a bridge switches its winding, s (PWM edges, a duty taking
+    /// effect), if any.
+    fn next_switch(&self) -> Option<f64> {
+        let b = self.bridges.as_ref()?;
+        match (b[0].next_switch(), b[1].next_switch()) {
+            (Some(a), Some(c)) => Some(a.min(c)),
+            (a, c) => a.or(c),
+        }
+    }
+
+    /// At time `t_switch`: every bridge switching then moves on, and the windings
+    /// follow.
+    fn switch_bridges(&mut self, t_switch: f64) {
+        let Some(bridges) = self.bridges.as_mut() else {
+            return;
+        };
+        for b in bridges.iter_mut() {
+            // Every bridge whose switch falls at this instant (to rounding).
+            while b
+                .next_switch()
+                .is_some_and(|t| t <= t_switch + 1e-12 * t_switch.max(1.0))
+            {
+                b.switch();
+            }
+        }
+        let winding = [bridges[0].winding(), bridges[1].winding()];
+        self.use_winding(winding);
     }
 
     /// Jams rotor `k` (or frees it): a jammed rotor stops at once relative to the
@@ -295,6 +375,11 @@ impl Plant {
         };
         let mut stalled = 0u32;
         while self.t < t_target {
+            // A bridge switching now (a PWM edge, a duty taking effect).
+            if let Some(ts) = self.next_switch().filter(|ts| *ts <= self.t) {
+                self.switch_bridges(ts);
+                ev0 = self.event_values(&self.y);
+            }
             let f0 = match self.fsal {
                 Some(f) => f,
                 None => {
@@ -303,7 +388,10 @@ impl Plant {
                     f
                 }
             };
-            let remaining = t_target - self.t;
+            // Steps end at the target and at every switch of a bridge.
+            let t_switch = self.next_switch().filter(|ts| *ts < t_target);
+            let t_stop = t_switch.unwrap_or(t_target);
+            let remaining = t_stop - self.t;
             let h = self.h.min(self.settings.max_step).min(remaining);
             let (t, y) = (self.t, self.y);
             let outcome = {
@@ -325,10 +413,12 @@ impl Plant {
                 }
                 Attempt::Accepted(step, next) => {
                     self.steps += 1;
-                    // Keep the suggested size unless the step was cut by the target.
+                    // Keep the suggested size unless the step was cut by the target
+                    // or a switch.
                     if h < remaining || next < self.h {
                         self.h = next;
                     }
+                    let at_switch = h == remaining && t_switch.is_some();
                     let ev1 = self.event_values(&step.y1);
                     match self.first_crossing(&step, &ev0, &ev1) {
                         Some((te, ye)) if te > step.t0 || stalled < MAX_STALLED_EVENTS => {
@@ -372,6 +462,12 @@ impl Plant {
                             } else {
                                 ev0 = ev1;
                             }
+                            if at_switch {
+                                // Exactly at the switch, whatever the rounding of t.
+                                self.t = t_stop;
+                                self.switch_bridges(t_stop);
+                                ev0 = self.event_values(&self.y);
+                            }
                         }
                     }
                 }
@@ -398,9 +494,21 @@ impl Plant {
         Tolerance { rtol: r, atol }
     }
 
-    /// Clamps the winding currents to the drivers' limits.
+    /// Clamps the winding currents to the drivers' limits; a coasting current
+    /// that has reached zero (its event) stops there.
     fn clamp_currents(&mut self) {
         for k in 0..2 {
+            let i = self.y[2 * DOF + k];
+            if let Winding::Coast(_) = self.winding[k] {
+                if self.coast_sign[k] == 0.0 {
+                    // A current that starts flowing (the back-EMF above the supply).
+                    self.coast_sign[k] = i.signum() * f64::from(i != 0.0);
+                } else if self.coast_sign[k] * i <= 0.0 {
+                    // It died: the diodes block.
+                    self.y[2 * DOF + k] = 0.0;
+                    self.coast_sign[k] = 0.0;
+                }
+            }
             self.y[2 * DOF + k] =
                 self.motors[k].project_current(self.winding[k], self.y[2 * DOF + k]);
         }

@@ -45,6 +45,8 @@
 
 use core::fmt;
 
+use crate::drive::BridgeConfig;
+
 use super::angle::{rad_s_to_rpm, rpm_to_rad_s};
 use super::tuning::TuningTable;
 
@@ -93,6 +95,8 @@ pub struct MachineConstants {
     /// resonances, or for a rigid platform the chattering around lift-off) and the
     /// ramps hurry through; `[0, 0]` for none.
     pub resonance_band_rpm: [f32; 2],
+    /// The H-bridges as wired (`[drive] decay`, `pwm_hz`): what a duty means on them.
+    pub bridge: BridgeConfig,
 }
 
 impl MachineConstants {
@@ -115,6 +119,7 @@ impl MachineConstants {
             load_torque_nm: 2.962e-3,
         }; 2],
         resonance_band_rpm: [1500.0, 2500.0],
+        bridge: BridgeConfig::DEFAULT,
     };
 }
 

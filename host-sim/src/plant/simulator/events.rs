@@ -98,7 +98,11 @@ impl Plant {
                 Winding::Voltage(_) => {
                     self.model.rotors[k].motor.current_limit - y[2 * DOF + k].abs()
                 }
-                Winding::Open => f64::INFINITY,
+                // A coasting current: it dies where it reaches zero.
+                Winding::Coast(_) if self.coast_sign[k] != 0.0 => {
+                    self.coast_sign[k] * y[2 * DOF + k]
+                }
+                Winding::Coast(_) | Winding::Open => f64::INFINITY,
             });
         }
         values

@@ -1,0 +1,258 @@
+//! The H-bridge in the plant (`host_sim::plant::bridge`, the machine file's
+//! `[drive] decay` and `pwm_hz`) against closed forms of the armature circuit over
+//! a PWM period, with the rotor held at a constant speed (so the back-EMF
+//! `E = k omega` is constant) and the platform held.
+//!
+//! The circuit `L di/dt = u - R i - E`, `tau = L / R`, period `T`, duty `d`,
+//! supply `V_s`; `a = (V_s - E) / R` and `b = (V_s + E) / R`:
+//!
+//! - **Slow decay** (drive, then brake): the winding sees `V_s` then 0 V whatever
+//!   the current's sign, a linear circuit, so the periodic steady state has the
+//!   mean current `(d V_s - E) / R`.
+//! - **Fast decay** (drive, then coast through the body diodes, `-V_s` while a
+//!   positive current flows, nothing once it has died):
+//!   - *continuous conduction* (the current never reaches zero): the periodic
+//!     state starts each period at
+//!     `i0 = (a (1 - e1) e2 - b (1 - e2)) / (1 - e1 e2)`, `e1 = exp(-d T / tau)`,
+//!     `e2 = exp(-(1 - d) T / tau)`, and since the circuit is linear while it
+//!     conducts the mean current is `((2 d - 1) V_s - E) / R`;
+//!   - *discontinuous conduction* (`i0` above would be negative): each period
+//!     starts at 0, rises to `i1 = a (1 - e1)`, falls to zero at
+//!     `t_z = tau ln((i1 + b) / b)` and rests; the mean current is
+//!     `(a (d T - tau (1 - e1)) - b t_z + (i1 + b) tau (1 - exp(-t_z / tau))) / T`.
+//!
+//! For the reference motor (2 ohm, 0.5 mH, 12 V, 20 kHz) these give what the
+//! first board would have drawn with today's fast-decay drive against what the
+//! controller assumes (slow decay): at standstill and `d = 0.049` (the
+//! self-test's duty) 2.9 mA against 0.294 A; at `d = 0.5` 0.273 A against 3 A; at
+//! 3000 rpm and `d = 0.049` 0.9 mA against -2.85 A (braking). (The diodes' forward
+//! drops, not modelled, lower the fast-decay figures a little more.)
+//!
+//! The plant's mean current is measured from its dense output over whole periods
+//! once the transient has died (20 electrical time constants), 4000 samples a
+//! period, trapezoidal: its error is far below the tolerances, which are set by
+//! the integrator's (`rtol = 1e-8` on a current scale of the 10 A limit here).
+
+use std::f64::consts::PI;
+
+use host_sim::machine::Machine;
+use host_sim::plant::bridge::BridgeCommand;
+use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
+use tests::held::reference_machine;
+
+const R: f64 = 2.0;
+const L: f64 = 0.5e-3;
+const VS: f64 = 12.0;
+const K: f64 = 0.02;
+const T: f64 = 1.0 / 20_000.0;
+
+/// The reference machine with `decay`, a current limit high enough to stay out
+/// of the way (10 A), and its rotors and platform held, rotor speeds `rpm`.
+fn held(decay: &str, rpm: f64) -> (Machine, Plant) {
+    let sets = [
+        format!("drive.decay={decay}"),
+        "motor.current_limit=10".to_string(),
+    ];
+    let m = reference_machine(0.0, &sets);
+    let w = rpm * PI / 30.0;
+    let mut y = initial_state(&m);
+    y[8] = w;
+    y[9] = -w;
+    let holds = Holds {
+        platform: true,
+        rotors: true,
+        ..Holds::default()
+    };
+    let plant = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
+    (m, plant)
+}
+
+/// Mean current of rotor 1 over periods `[n0, n0 + count)` (in its driven sense,
+/// which is rotor 1's ccw), driven at `duty` from t = 0, A.
+fn mean_current(decay: &str, rpm: f64, duty: f64, n0: usize, count: usize) -> f64 {
+    let (_, mut plant) = held(decay, rpm);
+    plant.set_bridges([BridgeCommand::Duty(duty), BridgeCommand::Off]);
+    let per_period = 4000;
+    let t0 = n0 as f64 * T;
+    let t1 = (n0 + count) as f64 * T;
+    let dt = T / per_period as f64;
+    let mut next = 0usize;
+    let total = count * per_period;
+    let mut sum = 0.0;
+    let mut last: Option<f64> = None;
+    plant.advance_to(t1, &mut |out| {
+        if let Output::Dense(step, upto) = out {
+            while next <= total {
+                let t = t0 + next as f64 * dt;
+                if t > upto {
+                    break;
+                }
+                let i = step.at(t)[10];
+                if let Some(prev) = last {
+                    sum += 0.5 * (prev + i) * dt;
+                }
+                last = Some(i);
+                next += 1;
+            }
+        }
+    });
+    assert_eq!(next, total + 1, "sampled every point");
+    sum / (t1 - t0)
+}
+
+/// The closed forms of the module documentation: `(continuous, mean current)`.
+fn fast_decay_closed_form(d: f64, rpm: f64) -> (bool, f64) {
+    let tau = L / R;
+    let e = K * rpm * PI / 30.0;
+    let (a, b) = ((VS - e) / R, (VS + e) / R);
+    let e1 = (-d * T / tau).exp();
+    let e2 = (-(1.0 - d) * T / tau).exp();
+    let i0 = (a * (1.0 - e1) * e2 - b * (1.0 - e2)) / (1.0 - e1 * e2);
+    if i0 > 0.0 {
+        return (true, ((2.0 * d - 1.0) * VS - e) / R);
+    }
+    let i1 = a * (1.0 - e1);
+    let tz = tau * ((i1 + b) / b).ln();
+    let mean =
+        (a * (d * T - tau * (1.0 - e1)) - b * tz + (i1 + b) * tau * (1.0 - (-tz / tau).exp())) / T;
+    (false, mean)
+}
+
+/// The transient dies in 20 time constants (`exp(-20) = 2e-9`): 5 ms, 100
+/// periods; then 20 periods.
+const SETTLED: usize = 100;
+const PERIODS: usize = 20;
+
+#[test]
+fn slow_decay_mean_current_is_d_vs_minus_e_over_r() {
+    for (d, rpm) in [
+        (0.049, 0.0),
+        (0.5, 0.0),
+        (0.049, 3000.0),
+        (0.9, 3000.0),
+        (-0.3, 0.0),
+    ] {
+        let got = mean_current("slow", rpm, d, SETTLED, PERIODS);
+        let e = K * rpm * PI / 30.0;
+        let want = (d * VS - e) / R;
+        assert!(
+            (got - want).abs() < 1e-6,
+            "d {d}, {rpm} rpm: {got} A vs {want} A"
+        );
+    }
+}
+
+#[test]
+fn fast_decay_mean_current_follows_the_closed_forms() {
+    // Discontinuous at standstill and low duty, continuous at high duty.
+    for (d, rpm, continuous) in [
+        (0.049, 0.0, false),
+        (0.5, 0.0, false),
+        (0.049, 3000.0, false),
+        (0.7, 3000.0, false),
+        (0.9, 3000.0, true),
+        (0.95, 0.0, true),
+    ] {
+        let (cont, want) = fast_decay_closed_form(d, rpm);
+        assert_eq!(cont, continuous, "d {d}, {rpm} rpm: conduction mode");
+        let got = mean_current("fast", rpm, d, SETTLED, PERIODS);
+        assert!(
+            (got - want).abs() < 1e-6 + 1e-6 * want.abs(),
+            "d {d}, {rpm} rpm: {got} A vs {want} A"
+        );
+    }
+}
+
+/// What the first board would have done with the self-test's duty at standstill:
+/// the closed forms, the plant, and the ratio the issue reported (a hundred times
+/// less current than the controller expects).
+#[test]
+fn fast_decay_at_the_self_tests_duty_barely_drives() {
+    let slow = mean_current("slow", 0.0, 0.049, SETTLED, PERIODS);
+    let fast = mean_current("fast", 0.0, 0.049, SETTLED, PERIODS);
+    assert!((slow - 0.294).abs() < 1e-6, "{slow}");
+    assert!((fast - 0.00285).abs() < 1e-5, "{fast}");
+    // At 3000 rpm slow decay brakes with -2.85 A, fast decay does nothing.
+    let slow = mean_current("slow", 3000.0, 0.049, SETTLED, PERIODS);
+    let fast = mean_current("fast", 3000.0, 0.049, SETTLED, PERIODS);
+    assert!(slow < -2.8 && fast.abs() < 1e-3, "{slow} A, {fast} A");
+}
+
+/// A duty takes effect at the next PWM period start (the timer's preload), off
+/// at once (the main output enable), and a coasting current dies through the
+/// body diodes in `tau ln(1 + i R / (V_s + E))`, not at once.
+#[test]
+fn the_bridge_switches_as_the_timer_does() {
+    // Off at 3.02 periods: the current freewheels to zero, at rest, from the slow
+    // decay's 3 A... after 50 periods of d = 0.5 at standstill.
+    let (_, mut plant) = held("slow", 0.0);
+    plant.set_bridges([BridgeCommand::Duty(0.5), BridgeCommand::Off]);
+    plant.advance_to(50.0 * T, &mut |_| {});
+    let i_on = plant.currents()[0];
+    assert!(
+        (i_on - 3.0 * (1.0 - (-50.0 * T / (L / R)).exp())).abs() < 1e-6,
+        "{i_on}"
+    );
+    plant.advance_to(50.3 * T, &mut |_| {});
+    let t_off = plant.t;
+    plant.set_bridges([BridgeCommand::Off, BridgeCommand::Off]);
+    // It decays under -V_s - R i: zero at tau ln(1 + i R / V_s).
+    let i_cut = plant.currents()[0];
+    let t_zero = (L / R) * (1.0 + i_cut * R / VS).ln();
+    plant.advance_to(t_off + 0.99 * t_zero, &mut |_| {});
+    assert!(plant.currents()[0] > 0.0, "still flowing");
+    plant.advance_to(t_off + 1.01 * t_zero, &mut |_| {});
+    assert_eq!(plant.currents()[0], 0.0, "died at {t_zero} s");
+    plant.advance_to(t_off + 20.0 * T, &mut |_| {});
+    assert_eq!(plant.currents()[0], 0.0, "and stays dead");
+
+    // A duty commanded in the middle of a period waits for the next period start.
+    let (_, mut plant) = held("slow", 0.0);
+    plant.advance_to(2.4 * T, &mut |_| {});
+    plant.set_bridges([BridgeCommand::Duty(1.0), BridgeCommand::Off]);
+    plant.advance_to(2.99 * T, &mut |_| {});
+    assert_eq!(plant.currents()[0], 0.0, "nothing before the period start");
+    plant.advance_to(3.5 * T, &mut |_| {});
+    let i = plant.currents()[0];
+    let want = (VS / R) * (1.0 - (-0.5 * T / (L / R)).exp());
+    assert!((i - want).abs() < 1e-6, "{i} vs {want}");
+}
+
+/// The controller on a bridge wired for fast decay (`--command right`): the speed
+/// ramp starts at low duty, where fast decay draws almost no current (2.9 mA at
+/// the self-test's duty at standstill), so the rotors never start and the
+/// controller, driving without counts, latches its encoder fault within a second.
+/// The same machine in slow decay travels right at 3000 rpm.
+#[test]
+fn the_controller_cannot_start_the_rotors_on_a_fast_decay_bridge() {
+    use host_sim::closed_loop::ControllerDriver;
+    use host_sim::simulation::{simulate, RunOptions};
+    use shared::controller::{Command, Direction};
+    for decay in ["slow", "fast"] {
+        let m = reference_machine(0.0, &[format!("drive.decay={decay}")]);
+        let command = Command::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        };
+        let mut driver = ControllerDriver::new(&m, vec![(0.0, command)]).expect("starts");
+        let options = RunOptions {
+            t_end: 2.0,
+            settings: Settings::default(),
+            holds: Holds::default(),
+        };
+        let run = simulate(&m, &mut driver, &options);
+        let s = &run.summary;
+        if decay == "slow" {
+            assert_eq!(s.state, "running", "{s:?}");
+            assert!(
+                s.rotor_speed_rpm.iter().all(|w| (w - 3000.0).abs() < 5.0),
+                "{s:?}"
+            );
+        } else {
+            assert_eq!(s.state, "fault", "{s:?}");
+            assert!(s.faults.contains(&"encoder".to_string()), "{s:?}");
+            assert!(s.rotor_speed_rpm.iter().all(|w| w.abs() < 1.0), "{s:?}");
+        }
+    }
+}
