@@ -4,7 +4,7 @@
 //!
 //! | function | pins | peripheral |
 //! | --- | --- | --- |
-//! | H-bridge 1 IN1/IN2, H-bridge 2 IN1/IN2 | PC6, PC7, PC8, PC9 | TIM8 CH1..CH4 (AF3), 20 kHz |
+//! | H-bridge 1 IN1/IN2, H-bridge 2 IN1/IN2 | PC6, PC7, PC8, PC9 | TIM8 CH1..CH4 (AF3), `[drive] pwm_hz` (20 kHz), slow decay |
 //! | encoder 1 A/B | PA15, PB3 | TIM2 CH1/CH2 (AF1), encoder mode, 32 bit |
 //! | encoder 2 A/B | PA0, PA1 | TIM5 CH1/CH2 (AF2), encoder mode, 32 bit |
 //! | encoder 1 Z (index) | PC4 | EXTI4, rising edge |
@@ -54,10 +54,11 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 pub const PCLK1_HZ: u32 = 42_000_000;
 /// APB2 clock, Hz (its maximum; TIM1/TIM8 count at 168 MHz, ADC clock from it).
 pub const PCLK2_HZ: u32 = 84_000_000;
-/// PWM frequency of the H-bridge inputs, Hz: above hearing, and within what a
-/// DRV8871-class bridge switches (up to 200 kHz) with little switching loss.
-/// TIM8 at 168 MHz gives 8400 steps of duty.
-pub const PWM_HZ: u32 = 20_000;
+/// PWM frequency of the H-bridge inputs, Hz: the machine file's `[drive] pwm_hz`
+/// (default 20 kHz: above hearing, within what a DRV8871-class bridge switches,
+/// up to 200 kHz, with little switching loss; TIM8 at 168 MHz gives 8400 steps of
+/// duty), the frequency the simulator's bridge runs at.
+pub const PWM_HZ: u32 = crate::machine::MACHINE.bridge.pwm_hz;
 
 /// Independent watchdog timeout, ms. It must outlast the longest stall of the
 /// control loop that is not a fault: a 128 KiB flash sector erase (parameter

@@ -3,7 +3,10 @@
 //!
 //! The app below only moves data; the logic lives elsewhere:
 //! - `board`: pin map, clocks, peripheral setup, raw readings -> units;
-//! - `motor_out`: signed duties -> H-bridge PWM, and the register-level `cut`;
+//! - `drive`: signed duties -> the two H-bridges' inputs (`shared::drive`), in
+//!   both builds;
+//! - `motor_out`: the board's TIM8 under `drive`, its break input and main output
+//!   enable, and the register-level `cut`;
 //! - `link`: UART bytes -> protocol frames -> answers, telemetry;
 //! - `panic`: the panic and HardFault handlers (motors off first);
 //! - `shared::controller`: the control law, states and faults (host-tested).
@@ -38,6 +41,7 @@ use defmt_semihosting as _; // global defmt logger over semihosting (QEMU)
 
 #[cfg(not(feature = "qemu"))]
 mod board;
+mod drive;
 #[cfg(not(feature = "qemu"))]
 mod flash;
 #[cfg(not(feature = "qemu"))]
@@ -155,11 +159,15 @@ const TELEMETRY_LOG_MS: u32 = 1000;
 /// One control tick of the `qemu` builds on the rotor model, the same stages as
 /// the board's `control`: sample the model and take the command, step the
 /// controller with the nominal tick (timed in SysTick counts, returned with the
-/// outputs), drive the model for one tick with `injected`, publish.
+/// outputs), write the bridges' inputs through the board's driver (both coasting
+/// when the controller does not enable or the E-stop is open, as the board's
+/// E-stop handler and break cut them), run the model for one tick with
+/// `injected`, publish.
 #[cfg(feature = "qemu")]
 fn qemu_tick(
     controller: &mut Controller,
     plant: &mut qemu::plant::Plant,
+    drive: &mut drive::Drive<qemu::pwm::SimPwm>,
     injected: &qemu::plant::Injected,
     uptime_ms: u32,
     link: &mut impl rtic::Mutex<T = LinkState>,
@@ -183,8 +191,9 @@ fn qemu_tick(
     let out = controller.step(&inputs, dt);
     let counts = qemu::cycles::elapsed(before, qemu::cycles::now());
 
-    // Stage 3: drive the model for one tick.
-    plant.step(out.duty, out.enable, injected);
+    // Stage 3: the bridges' inputs, then the model for one tick.
+    drive.apply(out.duty, out.enable && !injected.estop_open);
+    plant.step(injected);
 
     // Stage 4: publish.
     publish(
@@ -404,7 +413,9 @@ mod qemu_app {
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
+    use crate::drive::Drive;
     use crate::qemu::plant::Plant;
+    use crate::qemu::pwm::SimPwm;
     use crate::qemu::script::{Io, Progress, Script};
     use crate::qemu::world::World;
     use crate::qemu::{self, checks, cycles, stack};
@@ -426,6 +437,8 @@ mod qemu_app {
     struct Local {
         controller: Controller,
         plant: Plant,
+        /// The bridges, through the board's driver over emulated compare registers.
+        drive: Drive<SimPwm>,
         uptime_ms: u32,
         last_state: State,
         flash: SimFlash,
@@ -463,6 +476,7 @@ mod qemu_app {
             Local {
                 controller,
                 plant: Plant::new(),
+                drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
                 last_state,
                 flash,
@@ -476,7 +490,7 @@ mod qemu_app {
     #[task(
         binds = SysTick,
         priority = 2,
-        local = [controller, plant, uptime_ms, last_state],
+        local = [controller, plant, drive, uptime_ms, last_state],
         shared = [link, world]
     )]
     fn control(mut cx: control::Context) {
@@ -491,6 +505,7 @@ mod qemu_app {
         let (out, counts) = crate::qemu_tick(
             cx.local.controller,
             cx.local.plant,
+            cx.local.drive,
             &injected,
             *cx.local.uptime_ms,
             &mut cx.shared.link,
@@ -603,7 +618,9 @@ mod qemu_uart_app {
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
+    use crate::drive::Drive;
     use crate::qemu::plant::{Injected, Plant};
+    use crate::qemu::pwm::SimPwm;
     use crate::qemu::uart::{self, RxRing, UartRx, UartTx};
     use crate::qemu::{self, cycles};
 
@@ -625,6 +642,8 @@ mod qemu_uart_app {
     struct Local {
         controller: Controller,
         plant: Plant,
+        /// The bridges, through the board's driver over emulated compare registers.
+        drive: Drive<SimPwm>,
         uptime_ms: u32,
         last_state: State,
         flash: SimFlash,
@@ -654,6 +673,7 @@ mod qemu_uart_app {
             Local {
                 controller,
                 plant: Plant::new(),
+                drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
                 last_state,
                 flash,
@@ -670,7 +690,7 @@ mod qemu_uart_app {
     #[task(
         binds = SysTick,
         priority = 2,
-        local = [controller, plant, uptime_ms, last_state],
+        local = [controller, plant, drive, uptime_ms, last_state],
         shared = [link]
     )]
     fn control(mut cx: control::Context) {
@@ -680,6 +700,7 @@ mod qemu_uart_app {
         crate::qemu_tick(
             cx.local.controller,
             cx.local.plant,
+            cx.local.drive,
             &Injected::default(),
             *cx.local.uptime_ms,
             &mut cx.shared.link,

@@ -1,14 +1,20 @@
-//! Motor outputs: a signed duty per motor onto the two PWM inputs of its H-bridge
-//! (TIM8 CH1/CH2 for motor 1, CH3/CH4 for motor 2, see `board.rs`), TIM8's hardware
-//! break on the E-stop, and [`cut`], which switches all four outputs off from any
-//! context, the panic handler included.
+//! Motor outputs on the board: the two H-bridges on TIM8 (CH1/CH2 motor 1 IN1/IN2,
+//! CH3/CH4 motor 2 IN1/IN2, see `board.rs`), driven by the shared driver
+//! ([`crate::drive::Drive`] over `shared::drive::HBridge`), TIM8's hardware break
+//! on the E-stop, and [`cut`], which switches all four outputs off from any
+//! context, the panic and fault handlers included.
 //!
-//! # Drive scheme (sign-magnitude, coasting in the off-time)
+//! # Drive scheme: slow decay (the machine file's `[drive] decay`)
 //!
-//! An H-bridge with two inputs IN1/IN2 (DRV8871-like): IN1 = PWM, IN2 = low drives
-//! forward with duty `d`; IN1 = low, IN2 = PWM drives in reverse; both low leaves the
-//! bridge in coast (outputs high-impedance; both high would brake). So `duty = d` in
-//! [-1, 1] maps to `(IN1, IN2) = (max(d, 0), max(-d, 0))` ([`bridge_duties`]).
+//! A DRV8871-class bridge: IN1/IN2 = 1/0 forward, 0/1 reverse, 1/1 brake (both
+//! low-side switches on), 0/0 coast. In slow decay (the default) forward holds IN1
+//! high and pulses IN2 with the high fraction `1 - d`: forward for `d` of each
+//! period, brake for the rest, so the winding's mean voltage is `d V_s` whichever
+//! way its current flows, the controller's model. Duty 0 with the outputs enabled
+//! brakes; the outputs off (MOE = 0) coast. (The former drive, IN1 = PWM `d` and
+//! IN2 low, was fast decay: forward then coast, far less current at low duty and
+//! no braking; `docs/plant-model.md`, "The H-bridge".) The mapping, and the order
+//! of the two writes of a reversal, are `shared::drive`'s, tested on the host.
 //!
 //! # Off state: MOE = 0, every input driven low
 //!
@@ -46,38 +52,7 @@ use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
 
-/// `(IN1, IN2)` duty fractions in [0, 1] for a signed duty: the positive part on
-/// IN1, the negative part on IN2, the other input low. Clamped to [-1, 1]; a NaN
-/// gives `(0, 0)` (coast).
-pub fn bridge_duties(duty: f32) -> (f32, f32) {
-    // NaN fails both comparisons and ends up as 0.
-    let d = if duty > 1.0 {
-        1.0
-    } else if duty < -1.0 {
-        -1.0
-    } else if duty.is_nan() {
-        0.0
-    } else {
-        duty
-    };
-    if d >= 0.0 {
-        (d, 0.0)
-    } else {
-        (0.0, -d)
-    }
-}
-
-/// Compare value for a duty fraction in [0, 1] of `max` (rounded to nearest).
-fn compare(fraction: f32, max: u16) -> u16 {
-    let c = fraction * f32::from(max) + 0.5;
-    if c <= 0.0 {
-        0
-    } else if c >= f32::from(max) {
-        max
-    } else {
-        c as u16
-    }
-}
+use crate::drive::Drive;
 
 /// TIM8's registers, without owning the peripheral.
 fn tim8() -> &'static pac::tim1::RegisterBlock {
@@ -86,17 +61,15 @@ fn tim8() -> &'static pac::tim1::RegisterBlock {
     unsafe { &*TIM8::ptr() }
 }
 
-/// The two H-bridges on TIM8: channels in the order CH1..CH4 (motor 1 IN1, IN2,
-/// motor 2 IN1, IN2), and the break input.
+/// The two H-bridges on TIM8: the shared driver over channels CH1..CH4 (motor 1
+/// IN1, IN2, motor 2 IN1, IN2), and the break input.
 pub struct MotorOut {
     /// Kept so the timer stays configured and running.
     _pwm: PwmHzManager<TIM8>,
-    /// TIM8 CH1..CH4.
-    channels: [ErasedChannel<TIM8>; 4],
+    /// The bridges over TIM8 CH1..CH4.
+    drive: Drive<ErasedChannel<TIM8>>,
     /// PA6 as TIM8_BKIN, held so nothing else can take the pin.
     _break_input: PA6<Alternate<3>>,
-    /// Compare value for 100 % duty (the auto-reload value + 1).
-    max_duty: u16,
 }
 
 impl MotorOut {
@@ -109,13 +82,12 @@ impl MotorOut {
         mut channels: [ErasedChannel<TIM8>; 4],
         break_input: PA6<Alternate<3>>,
     ) -> Self {
-        let max_duty = pwm.get_max_duty();
         cut();
         // One write of BDTR: break enabled, active high; no automatic output
         // enable; with MOE = 0 the enabled outputs driven to their idle level, low
         // (OSSI; OSSR = 1 likewise, which matters only for complementary outputs,
-        // unused here); no dead time (two-input bridges switch one input at a
-        // time); MOE = 0.
+        // unused here); no dead time (the bridge inserts its own between its
+        // switches; its two inputs never need one); MOE = 0.
         let tim = tim8();
         tim.bdtr().write(|w| {
             w.moe().clear_bit();
@@ -138,9 +110,8 @@ impl MotorOut {
         clear_break();
         MotorOut {
             _pwm: pwm,
-            channels,
+            drive: Drive::new(channels, crate::machine::MACHINE.bridge.decay),
             _break_input: break_input,
-            max_duty,
         }
     }
 
@@ -154,6 +125,9 @@ impl MotorOut {
     pub fn apply(&mut self, duty: [f32; 2], enable: bool) {
         if !enable {
             cut();
+            // The compare values through the driver too, so what it last wrote is
+            // what the timer holds (a cut from an interrupt zeroes them behind it).
+            self.drive.coast();
             // The controller has had the E-stop (the break flag is part of
             // `estop_open`) in this tick's inputs and is not driving: the flag has
             // done its job. Clears only once the input is inactive again.
@@ -163,15 +137,16 @@ impl MotorOut {
         if crate::board::estop_open() {
             // Leaves a break flag set: the next tick's inputs report it.
             cut();
+            self.drive.coast();
             return;
         }
-        // Compare values: IN1/IN2 of motor 1, then of motor 2 (preloaded: they act
-        // at the next update event).
-        let max = self.max_duty;
-        for (m, d) in duty.iter().enumerate() {
-            let (in1, in2) = bridge_duties(*d);
-            self.channels[2 * m].set_duty(compare(in1, max));
-            self.channels[2 * m + 1].set_duty(compare(in2, max));
+        // Compare values (preloaded: they act at the next update event), in the
+        // order the driver chooses; then MOE. TIM8's channels cannot fail (their
+        // error type is Infallible); for any other output, what failed coasts and
+        // the rest is cut too.
+        if !self.drive.apply(duty, true) {
+            cut();
+            return;
         }
         // MOE last, and only while the E-stop circuit is closed and no break has
         // occurred: checked with interrupts off, so the E-stop interrupt cannot cut

@@ -5,7 +5,8 @@
 //!
 //! - ticks the control task from SysTick ([`cycles`]) instead of TIM7;
 //! - reads and drives a model of the two rotors and encoders ([`plant`]) instead
-//!   of the encoder timers, ADC and H-bridges;
+//!   of the encoder timers, ADC and H-bridges, through the board's own bridge
+//!   driver (`Drive`) over emulated compare registers ([`pwm`]);
 //! - stores parameters in RAM ([`shared::storage::SimFlash`]);
 //! - runs a scripted host in `idle` ([`script`], over [`host`]) that talks to the
 //!   real `Link::poll` in bytes, and injects faults into the model ([`world`]);
@@ -26,6 +27,7 @@ pub mod cycles;
 pub mod host;
 #[cfg_attr(feature = "qemu-uart", allow(dead_code))]
 pub mod plant;
+pub mod pwm;
 #[cfg(not(feature = "qemu-uart"))]
 pub mod script;
 #[cfg(not(feature = "qemu-uart"))]

@@ -7,13 +7,22 @@
 //! (`examples/vibro-driver.toml`: Coulomb `T_c = 1e-3 N m`, viscous
 //! `b = 1e-6 N m s`). The winding's inductance (`L/R = 0.25 ms`) is left out, so the
 //! current follows the voltage at once; the platform and the eccentrics' weight are
-//! left out too. In the rotor's driven sense, with `d` the duty and `V` the supply:
+//! left out too. The windings are driven through the bridges as wired: the model
+//! reads the inputs the shared driver wrote ([`super::pwm`], the firmware's
+//! `Drive`, the board's code) and takes each part of the PWM period
+//! (`shared::drive::period`) with its voltage: forward `+V`, reverse `-V`, short
+//! 0 V; a coasting part carries no current (without inductance a current dies at
+//! once through the diodes). In the rotor's driven sense, with `V` the supply and
+//! `l_j`, `u_j` each part's length (a fraction of the period) and voltage:
 //!
 //! ```text
-//!   i = clamp((d V - k w) / R, -I_lim, I_lim)     driver enabled
-//!   i = 0                                          driver disabled (windings open)
-//!   J dw/dt = k i - T_c sign(w) - b w              (stuck while |k i| <= T_c at w = 0)
+//!   i = clamp(sum_j l_j (u_j - k w) / R, -I_lim, I_lim)   over the conducting parts
+//!   J dw/dt = k i - T_c sign(w) - b w                      (stuck while |k i| <= T_c at w = 0)
 //! ```
+//!
+//! The limit acts on the mean current, as the winding's inductance smooths the
+//! current over a 50 us period (`L / R = 0.25 ms`) and the driver's chopper sees
+//! it; in slow decay this is `i = clamp((d V - k w) / R)`.
 //!
 //! integrated with explicit Euler in [`SUBSTEPS`] steps a control tick. The
 //! encoders count `N = 4096` a turn (x4 decoded) from 0 at the index; the index
@@ -21,10 +30,12 @@
 //! supply sags by [`SUPPLY_RESISTANCE_OHM`] times the current drawn.
 //!
 //! Faults the script can set: the E-stop circuit open (the board's E-stop handler
-//! then cuts the bridges at once, so the model's windings open), and an encoder
-//! disconnected (its counter and its index stop; the rotor turns on).
+//! then cuts the bridges at once, so the driver writes both inputs low and the
+//! windings coast), and an encoder disconnected (its counter and its index stop;
+//! the rotor turns on).
 
 use shared::controller::{MachineConstants, CONTROL_RATE_HZ};
+use shared::drive::{period, Connection};
 
 /// Euler steps per control tick: 0.1 ms each, against the mechanical time
 /// constant `J R / k^2 = 50 ms`.
@@ -144,26 +155,36 @@ impl Plant {
         d * 360.0
     }
 
-    /// One control tick with `duty` on the windings (`enable` false: open), the
-    /// faults `injected`.
-    pub fn step(&mut self, duty: [f32; 2], enable: bool, injected: &Injected) {
+    /// One control tick with the bridges' inputs as the driver last wrote them
+    /// ([`super::pwm::inputs`]), the faults `injected`.
+    pub fn step(&mut self, injected: &Injected) {
         let h = 1.0 / (CONTROL_RATE_HZ * SUBSTEPS as f32);
         let n = self.m.encoder_counts;
-        // The board's E-stop handler cuts the bridges whatever the controller says.
-        let driven = enable && !injected.estop_open;
         let draw: f32 = self.rotors.iter().map(|r| abs(r.current)).sum();
         let supply = self.m.supply_voltage_v - SUPPLY_RESISTANCE_OHM * draw;
+        let limit = self.m.current_limit_a;
         for (k, rotor) in self.rotors.iter_mut().enumerate() {
             let c = &self.m.rotors[k];
             let cut = injected.encoder_cut[k];
+            let parts = period(super::pwm::inputs(k));
             for _ in 0..SUBSTEPS {
-                let i = if driven {
-                    let u = duty[k].clamp(-1.0, 1.0) * supply;
-                    let i = (u - c.torque_constant * rotor.speed) / c.resistance_ohm;
-                    i.clamp(-self.m.current_limit_a, self.m.current_limit_a)
-                } else {
-                    0.0
-                };
+                // The mean current over the period's conducting parts.
+                let back_emf = c.torque_constant * rotor.speed;
+                let mut i = 0.0;
+                let mut start = 0.0;
+                for p in &parts {
+                    let u = match p.connection {
+                        Connection::Forward => Some(supply),
+                        Connection::Reverse => Some(-supply),
+                        Connection::Short => Some(0.0),
+                        Connection::Open => None,
+                    };
+                    if let Some(u) = u {
+                        i += (p.end - start) * (u - back_emf) / c.resistance_ohm;
+                    }
+                    start = p.end;
+                }
+                let i = i.clamp(-limit, limit);
                 rotor.current = i;
                 let drive = c.torque_constant * i;
                 let w = rotor.speed;

@@ -1,0 +1,53 @@
+//! The two H-bridges, driven by the shared driver (`shared::drive::HBridge`) over
+//! any PWM outputs: the board's TIM8 channels (`motor_out`), or the `qemu` build's
+//! emulated compare registers (`qemu::pwm`). The same code decides what each
+//! bridge input does in both builds; what is specific to the board (the timer's
+//! main output enable, its break input) stays in `motor_out`.
+//!
+//! The decay mode is the machine file's (`[drive] decay`, compiled in as
+//! `MACHINE.bridge`): slow decay by default, the mean winding voltage `duty x V_s`
+//! that the controller assumes (`shared::drive`).
+
+use embedded_hal::pwm::SetDutyCycle;
+use shared::drive::{Decay, HBridge};
+
+/// Motor 1's and motor 2's bridges, inputs IN1/IN2 each.
+pub struct Drive<P: SetDutyCycle> {
+    bridges: [HBridge<P, P>; 2],
+}
+
+impl<P: SetDutyCycle> Drive<P> {
+    /// The bridges on the channels in the order motor 1 IN1, IN2, motor 2 IN1,
+    /// IN2, in `decay` mode; both written to coast.
+    pub fn new(channels: [P; 4], decay: Decay) -> Self {
+        let [a, b, c, d] = channels;
+        Drive {
+            bridges: [HBridge::new(a, b, decay), HBridge::new(c, d, decay)],
+        }
+    }
+
+    /// One tick's inputs: both bridges at their signed duties when `enable`, else
+    /// both coasting. An input that fails leaves its bridge coasting (the driver
+    /// writes both inputs low on an error); the other bridge is still driven.
+    /// Returns whether every input took its value.
+    pub fn apply(&mut self, duty: [f32; 2], enable: bool) -> bool {
+        let mut ok = true;
+        for (bridge, d) in self.bridges.iter_mut().zip(duty) {
+            let result = if enable {
+                bridge.drive(d)
+            } else {
+                bridge.coast()
+            };
+            ok &= result.is_ok();
+        }
+        ok
+    }
+
+    /// Both bridges coasting (both inputs low), through the driver, so that what
+    /// it last wrote is what the outputs hold (after a register-level cut).
+    pub fn coast(&mut self) {
+        for bridge in self.bridges.iter_mut() {
+            let _ = bridge.coast();
+        }
+    }
+}

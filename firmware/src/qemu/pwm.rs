@@ -1,0 +1,53 @@
+//! The `qemu` build's stand-in for TIM8's four compare registers (QEMU emulates no
+//! TIM8): PWM outputs for [`crate::drive::Drive`], the same driver the board runs,
+//! whose written values the rotor model ([`super::plant`]) reads as the bridges'
+//! inputs.
+
+use core::convert::Infallible;
+use core::sync::atomic::{AtomicU16, Ordering};
+
+use embedded_hal::pwm::{ErrorType, SetDutyCycle};
+
+/// The timer's count for always high: TIM8's clock (168 MHz on the board) over the
+/// machine's PWM frequency, as `board.rs` sets the timer up (8400 at 20 kHz).
+pub const MAX_DUTY: u16 = (168_000_000 / crate::machine::MACHINE.bridge.pwm_hz) as u16;
+
+/// The four compare values, CH1..CH4: motor 1 IN1, IN2, motor 2 IN1, IN2.
+static COMPARE: [AtomicU16; 4] = [
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+    AtomicU16::new(0),
+];
+
+/// One emulated channel.
+pub struct SimPwm(usize);
+
+impl SimPwm {
+    /// The four channels, CH1..CH4.
+    pub fn channels() -> [SimPwm; 4] {
+        [SimPwm(0), SimPwm(1), SimPwm(2), SimPwm(3)]
+    }
+}
+
+impl ErrorType for SimPwm {
+    type Error = Infallible;
+}
+
+impl SetDutyCycle for SimPwm {
+    fn max_duty_cycle(&self) -> u16 {
+        MAX_DUTY
+    }
+
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        COMPARE[self.0].store(duty.min(MAX_DUTY), Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+/// The high fractions `[IN1, IN2]` of motor `k`'s bridge inputs, as the driver
+/// last wrote them.
+pub fn inputs(k: usize) -> [f32; 2] {
+    let f = |ch: usize| f32::from(COMPARE[ch].load(Ordering::Relaxed)) / f32::from(MAX_DUTY);
+    [f(2 * k), f(2 * k + 1)]
+}
