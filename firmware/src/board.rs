@@ -5,11 +5,11 @@
 //! | function | pins | peripheral |
 //! | --- | --- | --- |
 //! | H-bridge 1 IN1/IN2, H-bridge 2 IN1/IN2 | PC6, PC7, PC8, PC9 | TIM8 CH1..CH4 (AF3), `[drive] pwm_hz` (20 kHz), slow decay |
-//! | encoder 1 A/B | PA15, PB3 | TIM2 CH1/CH2 (AF1), encoder mode, 32 bit |
-//! | encoder 2 A/B | PA0, PA1 | TIM5 CH1/CH2 (AF2), encoder mode, 32 bit |
-//! | encoder 1 Z (index) | PC4 | EXTI4, rising edge |
-//! | encoder 2 Z (index) | PC5 | EXTI9_5, rising edge |
-//! | current 1, current 2, supply voltage | PC0, PC1, PC2 | ADC1 IN10, IN11, IN12 |
+//! | encoder 1 A/B | PA15, PB3 | TIM2 CH1/CH2 (AF1), encoder mode, 32 bit, input filter |
+//! | encoder 2 A/B | PA0, PA1 | TIM5 CH1/CH2 (AF2), encoder mode, 32 bit, input filter |
+//! | encoder 1 Z (index) | PC4 | EXTI4, rising edge, held off until the next tick |
+//! | encoder 2 Z (index) | PC5 | EXTI9_5, rising edge, held off until the next tick |
+//! | current 1, current 2, supply voltage | PC0, PC1, PC2 | ADC1 IN10, IN11, IN12, at TIM8's update, DMA2 stream 0 (`sense`) |
 //! | host link TX/RX | PA2, PA3 | USART2 (AF7) |
 //! | E-stop (normally closed to GND), software path | PB0 | EXTI0, pull-up, rising edge = open |
 //! | E-stop, the same contact, hardware path | PA6 | TIM8_BKIN (AF3), pull-up, active high |
@@ -30,21 +30,22 @@
 //! TIM5 CH1/CH2 exist only on PA0/PA1 on this package, so TIM2 takes PA15/PB3
 //! (JTDI/SWO: SWD debugging still works, SWO trace does not).
 
+use core::sync::atomic::{AtomicBool, Ordering};
+
 use shared::controller::{ResetCause, CONTROL_RATE_HZ};
 use shared::protocol::BAUD_RATE;
-use stm32f4xx_hal::adc::config::{AdcConfig, Clock, SampleTime};
-use stm32f4xx_hal::adc::Adc;
-use stm32f4xx_hal::gpio::{Analog, Edge, Input, Pull, PB0, PC0, PC1, PC2, PC4, PC5};
-use stm32f4xx_hal::pac::{self, ADC1, TIM2, TIM5, TIM7, USART2};
+use stm32f4xx_hal::gpio::{Edge, Input, Pull, PB0, PC4, PC5};
+use stm32f4xx_hal::pac::{self, TIM2, TIM5, TIM7, USART2};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::qei::Qei;
 use stm32f4xx_hal::rcc::Config;
 use stm32f4xx_hal::serial::{self, Rx, Serial, Tx};
 use stm32f4xx_hal::timer::{CounterHz, Event};
-use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
 use crate::flash::ParamFlash;
 use crate::motor_out::MotorOut;
+use crate::sense::Sense;
+use crate::watchdog::{self, Watchdog};
 
 /// Frequency of the external crystal (HSE), Hz.
 pub const HSE_HZ: u32 = 8_000_000;
@@ -56,39 +57,21 @@ pub const PCLK1_HZ: u32 = 42_000_000;
 pub const PCLK2_HZ: u32 = 84_000_000;
 /// PWM frequency of the H-bridge inputs, Hz: the machine file's `[drive] pwm_hz`
 /// (default 20 kHz: above hearing, within what a DRV8871-class bridge switches,
-/// up to 200 kHz, with little switching loss; TIM8 at 168 MHz gives 8400 steps of
-/// duty), the frequency the simulator's bridge runs at.
+/// up to 200 kHz, with little switching loss; TIM8 centre-aligned at 168 MHz gives
+/// 4200 steps of duty), the frequency the simulator's bridge runs at.
 pub const PWM_HZ: u32 = crate::machine::MACHINE.bridge.pwm_hz;
+/// TIM7's clock, Hz: twice PCLK1.
+const TIM7_HZ: u32 = 2 * PCLK1_HZ;
 
-/// Independent watchdog timeout, ms. It must outlast the longest stall of the
-/// control loop that is not a fault: a 128 KiB flash sector erase (parameter
-/// store), at most 2 s (STM32F405 datasheet, t_ERASE128KB), during which the CPU
-/// may stall on flash reads. The IWDG counts the LSI, nominally 32 kHz but 17..47
-/// kHz over the chip's range: 4000 ms nominal is at least 4000 x 32 / 47 = 2.7 s.
-pub const WATCHDOG_TIMEOUT_MS: u32 = 4_000;
-
-/// ADC reference (VDDA = VREF+), V.
-const VREF_V: f32 = 3.3;
-/// ADC full scale, counts (12 bit).
-const ADC_FULL_SCALE: f32 = 4095.0;
-/// Current sense: output at zero current, V (a bidirectional amplifier biased at
-/// mid-supply, e.g. an INA240A1 with REF at VDDA/2).
-const CURRENT_ZERO_V: f32 = 1.65;
-/// Current sense gain, V/A (e.g. 5 mOhm shunt x gain 20 = 0.1 V/A: +-16 A span).
-const CURRENT_V_PER_A: f32 = 0.1;
-/// Sign of each current reading: +1 when a positive sense voltage means the
-/// motor is driven forward (its driven sense), -1 otherwise. Check on the bench.
-const CURRENT_SIGN: [f32; 2] = [1.0, 1.0];
-/// Supply divider ratio `V_bus / V_pin` (e.g. 100 kOhm over 10 kOhm: 11, so
-/// 3.3 V at the pin is 36.3 V on the bus).
-const SUPPLY_DIVIDER: f32 = 11.0;
 /// Encoders counting down when their rotor turns in its driven sense: their
 /// counts are negated so that the controller's counts increase (swapping A and B
 /// does the same in wiring).
 const ENCODER_INVERTED: [bool; 2] = [false, false];
-/// ADC sample time: 84 cycles at 21 MHz = 4 us, for source impedances up to
-/// tens of kOhm (the supply divider). Three conversions take about 14 us a tick.
-const SAMPLE_TIME: SampleTime = SampleTime::Cycles_84;
+/// Encoder input filter (TIMx_CCMR1 IC1F/IC2F = 0011: sampled at the timer's
+/// 84 MHz, an edge counts after 8 equal samples, 95 ns). An edge of the reference
+/// encoder (4096 counts a turn) at `encoder_max_speed_rpm` (6000) comes every
+/// 2.4 us, 25 times the filter; ringing and spikes shorter than 95 ns are gone.
+const ENCODER_FILTER: u8 = 0b0011;
 
 /// The two quadrature encoders (TIM2, TIM5: 32-bit counters, x4 decoding).
 pub struct Encoders {
@@ -131,8 +114,9 @@ pub fn raw_count(i: usize) -> u32 {
 /// Whether the E-stop circuit is open (pressed, or a wire broken): PB0 high or PA6
 /// (TIM8_BKIN) high (pulled up; the closed contact holds them at GND), or TIM8's
 /// break has cut the outputs since the last tick that did not drive (a break the
-/// pins no longer show: a short opening, or a fault on the PA6 side only). Register
-/// reads, callable from anywhere.
+/// pins no longer show: a short opening, or a fault on the PA6 side only), or the
+/// E-stop interrupt latched an opening no tick has taken yet ([`latch_estop`]).
+/// Register and flag reads, callable from anywhere.
 pub fn estop_open() -> bool {
     // SAFETY: read-only access to the input data registers of GPIOA and GPIOB.
     let (pb0, pa6) = unsafe {
@@ -141,45 +125,77 @@ pub fn estop_open() -> bool {
             (*pac::GPIOA::ptr()).idr().read().idr6().bit_is_set(),
         )
     };
-    pb0 || pa6 || crate::motor_out::break_tripped()
+    pb0 || pa6 || crate::motor_out::break_tripped() || ESTOP_LATCH.load(Ordering::SeqCst)
 }
 
-/// ADC1 and the three analog inputs.
-pub struct Sense {
-    adc: Adc<ADC1>,
-    current1: PC0<Analog>,
-    current2: PC1<Analog>,
-    supply: PC2<Analog>,
+/// The index inputs' EXTI lines: encoder 1 on line 4 (PC4), encoder 2 on line 5
+/// (PC5).
+const INDEX_LINES: [u32; 2] = [4, 5];
+
+/// Index debounce and storm guard: the index interrupt masks its own EXTI line
+/// after it has latched the count, and the next control tick unmasks it (with the
+/// pending edges of the hold-off cleared). So at most one index interrupt per
+/// line and tick reaches the processor whatever the input does (a bouncing edge,
+/// a broken wire picking up the PWM), and the count latched is the first edge's.
+/// A real index comes once a turn: ten times a tick's length apart at 6000 rpm.
+pub fn index_hold(i: usize) {
+    let line = INDEX_LINES[i % 2];
+    // SAFETY: clears one bit of the EXTI interrupt mask, from the index task
+    // (priority 3), which alone clears it; the control tick sets it again.
+    cortex_m::interrupt::free(|_| unsafe {
+        (*pac::EXTI::ptr())
+            .imr()
+            .modify(|r, w| w.bits(r.bits() & !(1 << line)))
+    });
 }
 
-/// One tick's analog readings in the controller's units.
-pub struct Analog3 {
-    /// Winding currents, A, positive driving forward.
-    pub current: [f32; 2],
-    /// Supply voltage, V.
-    pub supply_voltage: f32,
-}
-
-impl Sense {
-    /// Convert the three channels one after the other (blocking, about 14 us), at
-    /// whatever point of the PWM period the tick falls. Conversions triggered by
-    /// TIM8 at the middle of the on-time, read without waiting, are the next step:
-    /// `docs/hardware.md`, "ADC triggering", has the plan and why it waits for a
-    /// board.
-    pub fn read(&mut self) -> Analog3 {
-        let volts = |raw: u16| f32::from(raw) * (VREF_V / ADC_FULL_SCALE);
-        let c1 = volts(self.adc.convert(&self.current1, SAMPLE_TIME));
-        let c2 = volts(self.adc.convert(&self.current2, SAMPLE_TIME));
-        let vs = volts(self.adc.convert(&self.supply, SAMPLE_TIME));
-        // i = s (v - v0) / gain
-        Analog3 {
-            current: [
-                CURRENT_SIGN[0] * (c1 - CURRENT_ZERO_V) / CURRENT_V_PER_A,
-                CURRENT_SIGN[1] * (c2 - CURRENT_ZERO_V) / CURRENT_V_PER_A,
-            ],
-            supply_voltage: vs * SUPPLY_DIVIDER,
+/// Unmask the index lines held off since the last tick, their edges during the
+/// hold-off dropped (see [`index_hold`]); a line not held keeps its pending edge,
+/// which is a real index. Called by the control tick.
+pub fn index_rearm() {
+    let lines = (1 << INDEX_LINES[0]) | (1 << INDEX_LINES[1]);
+    // SAFETY: writes 1 to the held lines' pending bits (clears them), then sets
+    // their mask bits, with interrupts off so the index task cannot interleave.
+    cortex_m::interrupt::free(|_| unsafe {
+        let exti = &*pac::EXTI::ptr();
+        let held = !exti.imr().read().bits() & lines;
+        if held != 0 {
+            exti.pr().write(|w| w.bits(held));
+            exti.imr().modify(|r, w| w.bits(r.bits() | held));
         }
-    }
+    });
+}
+
+/// An E-stop opening seen by its interrupt and not yet taken by a control tick.
+static ESTOP_LATCH: AtomicBool = AtomicBool::new(false);
+
+/// The E-stop interrupt saw the circuit open: remembered until a control tick
+/// takes it, so an opening shorter than a tick (the pins closed again by the time
+/// the tick reads them) still reaches the controller.
+pub fn latch_estop() {
+    ESTOP_LATCH.store(true, Ordering::SeqCst);
+}
+
+/// Take the E-stop latch (the control tick, once per tick): whether an opening
+/// was seen since the last take.
+pub fn take_estop_latch() -> bool {
+    ESTOP_LATCH.swap(false, Ordering::SeqCst)
+}
+
+/// Cycles of the 168 MHz core clock since TIM7's update event, the nominal start
+/// of the control tick: TIM7 restarts from 0 at its update and counts at
+/// `TIM7_HZ / (PSC + 1)`. Read at the control task's entry, it is the task's
+/// latency (`shared::timing`).
+pub fn tick_latency_cycles() -> u32 {
+    // SAFETY: reads of TIM7's counter and prescaler.
+    let (cnt, psc) = unsafe {
+        let t = &*TIM7::ptr();
+        (
+            t.cnt().read().bits() & 0xffff,
+            t.psc().read().bits() & 0xffff,
+        )
+    };
+    cnt * (psc + 1) * (SYSCLK_HZ / TIM7_HZ)
 }
 
 /// Everything the app's tasks own, set up.
@@ -188,7 +204,7 @@ pub struct Board {
     pub motors: MotorOut,
     /// TIM2 and TIM5 in encoder mode.
     pub encoders: Encoders,
-    /// ADC1 with the current and supply inputs.
+    /// ADC1 converting the current and supply inputs at TIM8's update.
     pub sense: Sense,
     /// Index input of encoder 1 (EXTI4).
     pub index1: PC4<Input>,
@@ -202,19 +218,33 @@ pub struct Board {
     pub tx: Tx<USART2>,
     /// USART2 receiver, RX-not-empty interrupt on.
     pub rx: Rx<USART2>,
-    /// The independent watchdog, started with [`WATCHDOG_TIMEOUT_MS`].
-    pub watchdog: IndependentWatchdog,
+    /// The independent watchdog, started with `watchdog::Timeout::RUN`.
+    pub watchdog: Watchdog,
     /// The flash controller, for the parameter sectors.
     pub flash: ParamFlash,
     /// Why the processor started.
     pub reset_cause: ResetCause,
 }
 
-/// Why the processor started, from RCC CSR, then clear the flags (RMVF) so the
-/// next start reads its own cause. Only an independent-watchdog reset counts as
-/// [`ResetCause::Watchdog`]; the window watchdog is not used.
+/// Why the processor started, from RCC CSR: every flag logged, then cleared
+/// (RMVF) so the next start reads its own cause. Only an independent-watchdog
+/// reset counts as [`ResetCause::Watchdog`] for the controller (which then starts
+/// in `Fault`); the window watchdog is not used. Several flags are normal at once:
+/// a power-on sets POR and PIN (and BOR), a watchdog reset IWDG and PIN.
 fn take_reset_cause(rcc: &pac::RCC) -> ResetCause {
-    let watchdog = rcc.csr().read().wdgrstf().bit_is_set();
+    let csr = rcc.csr().read();
+    defmt::info!(
+        "reset flags (RCC_CSR {=u32:#010x}): low-power {=bool}, window watchdog {=bool}, independent watchdog {=bool}, software {=bool}, power-on {=bool}, pin {=bool}, brown-out {=bool}",
+        csr.bits(),
+        csr.lpwrrstf().bit_is_set(),
+        csr.wwdgrstf().bit_is_set(),
+        csr.wdgrstf().bit_is_set(),
+        csr.sftrstf().bit_is_set(),
+        csr.porrstf().bit_is_set(),
+        csr.padrstf().bit_is_set(),
+        csr.borrstf().bit_is_set()
+    );
+    let watchdog = csr.wdgrstf().bit_is_set();
     rcc.csr().modify(|_, w| w.rmvf().set_bit());
     if watchdog {
         ResetCause::Watchdog
@@ -223,8 +253,14 @@ fn take_reset_cause(rcc: &pac::RCC) -> ResetCause {
     }
 }
 
-/// Set up clocks and peripherals; the motors stay cut. The watchdog is started
-/// last, so init's own time does not count against it.
+/// Set up clocks and peripherals; the motors stay cut. The clock security system
+/// watches the crystal from the moment the PLL runs on it. The watchdog is
+/// started last, so init's own time does not count against it.
+///
+/// A crystal that never starts hangs the clock setup (the HAL waits for HSE
+/// ready without a limit) before TIM8 is set up: the bridge inputs are then
+/// undriven and the bridges' own pull-downs hold them low (coast), and nothing is
+/// logged after the reset flags.
 pub fn setup(mut dp: pac::Peripherals) -> Board {
     // Reset cause first: the RCC is consumed by the clock setup.
     let reset_cause = take_reset_cause(&dp.RCC);
@@ -236,6 +272,11 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
             .pclk1(PCLK1_HZ.Hz())
             .pclk2(PCLK2_HZ.Hz()),
     );
+    // Clock security system: if the HSE stops, the core falls back to the HSI,
+    // TIM8's break clears its outputs in hardware (a clock failure is a break
+    // source of TIM1 and TIM8) and the NMI handler cuts and waits for the
+    // watchdog (`exceptions`).
+    rcc.cr().modify(|_, w| w.csson().set_bit());
     let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
@@ -265,6 +306,16 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
             .qei((gpioa.pa15.into_input(), gpiob.pb3.into_input()), &mut rcc),
         enc2: dp.TIM5.qei((gpioa.pa0, gpioa.pa1), &mut rcc),
     };
+    // Their input filters (the HAL leaves IC1F/IC2F at 0, no filter).
+    // SAFETY: a 4-bit filter code in each input's field.
+    unsafe {
+        (*TIM2::ptr())
+            .ccmr1_input()
+            .modify(|_, w| w.ic1f().bits(ENCODER_FILTER).ic2f().bits(ENCODER_FILTER));
+        (*TIM5::ptr())
+            .ccmr1_input()
+            .modify(|_, w| w.ic1f().bits(ENCODER_FILTER).ic2f().bits(ENCODER_FILTER));
+    }
 
     // Index pulses: rising edge, each on its own EXTI line.
     let mut index1 = gpioc.pc4.into_pull_up_input();
@@ -282,19 +333,18 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
     estop.trigger_on_edge(&mut dp.EXTI, Edge::Rising);
     estop.enable_interrupt(&mut dp.EXTI);
 
-    // ADC1: 84 MHz / 4 = 21 MHz (the F405's ADC allows at most 36 MHz).
-    let adc = Adc::new(
+    // ADC1 and DMA2: conversions at TIM8's update (`sense`).
+    let sense = Sense::new(
         dp.ADC1,
-        true,
-        AdcConfig::default().clock(Clock::Pclk2_div_4),
+        &dp.ADC_COMMON,
+        dp.DMA2,
+        (
+            gpioc.pc0.into_analog(),
+            gpioc.pc1.into_analog(),
+            gpioc.pc2.into_analog(),
+        ),
         &mut rcc,
     );
-    let sense = Sense {
-        adc,
-        current1: gpioc.pc0.into_analog(),
-        current2: gpioc.pc1.into_analog(),
-        supply: gpioc.pc2.into_analog(),
-    };
 
     // Host link: USART2 8N1 at the protocol's baud rate, RX interrupt.
     let mut serial = Serial::new(
@@ -320,9 +370,7 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
         .modify(|_, w| w.dbg_tim8_stop().set_bit());
 
     // Watchdog: frozen while a debugger halts the core, then started.
-    let mut watchdog = IndependentWatchdog::new(dp.IWDG);
-    watchdog.stop_on_debug(&dp.DBGMCU, true);
-    watchdog.start(WATCHDOG_TIMEOUT_MS.millis());
+    let watchdog = watchdog::start(dp.IWDG, &dp.DBGMCU);
 
     Board {
         motors,

@@ -4,14 +4,25 @@
 //!
 //! Register level, not the HAL's `UnlockedFlash`: that one erases and programs
 //! with 8-bit parallelism, which makes a 128 KiB sector erase take up to 4 s
-//! (datasheet `t_ERASE128KB`, x8) and would race the 4 s watchdog; with the
-//! 32-bit parallelism of a 2.7-3.6 V supply it takes 1-2 s.
+//! (datasheet `t_ERASE128KB`, x8); with the 32-bit parallelism of a 2.7-3.6 V
+//! supply it takes 1-2 s.
+//!
+//! While a sector is erased, every read of the flash stalls, instruction fetches
+//! included (RM0090 3.5.4; the F405 has one bank): no task runs, the control
+//! task neither, so nothing feeds the 50 ms watchdog. [`ParamFlash::erase`]
+//! lengthens it to [`watchdog::Timeout::ERASE`] for the erase and restores
+//! [`watchdog::Timeout::RUN`] after. The link stores only with the motors
+//! stopped, and holds motion commands back until the store ends; the outputs
+//! stay cut (MOE = 0) and the hardware break still acts. A word program stalls
+//! reads for about 16 us, which the control loop rides through.
 //!
 //! Only the sectors of [`PARAM_SECTORS`] may be erased or programmed: any other
 //! address is refused, so a bad record address can never touch the program.
 
 use shared::storage::{Flash, Sector, PARAM_SECTORS};
 use stm32f4xx_hal::pac::FLASH;
+
+use crate::watchdog::{self, Timeout};
 
 /// First and second key of `FLASH_KEYR` (RM0090 3.5.1).
 const KEY1: u32 = 0x4567_0123;
@@ -29,6 +40,9 @@ pub enum FlashError {
     /// `FLASH_SR` error bits after the operation (PGSERR, PGPERR, PGAERR, WRPERR,
     /// OPERR), as read.
     Status(u32),
+    /// The watchdog could not be lengthened for an erase (nothing erased), or
+    /// not set back to its running timeout after one.
+    Watchdog,
 }
 
 /// `FLASH_SR` error bits: OPERR (1), WRPERR (4), PGAERR (5), PGPERR (6), PGSERR (7).
@@ -104,7 +118,9 @@ impl Flash for ParamFlash {
             return Err(FlashError::OutOfRange);
         }
         let snb = sector.number;
-        self.with_unlocked(|f| {
+        // The watchdog outlasts the stall (module documentation), or no erase.
+        watchdog::set(Timeout::ERASE).map_err(|_| FlashError::Watchdog)?;
+        let erased = self.with_unlocked(|f| {
             f.cr().modify(|_, w| unsafe {
                 w.pg().clear_bit();
                 w.ser().set_bit();
@@ -112,7 +128,13 @@ impl Flash for ParamFlash {
                 w.psize().bits(PSIZE_X32)
             });
             f.cr().modify(|_, w| w.strt().set_bit());
-        })
+        });
+        let restored = watchdog::set(Timeout::RUN);
+        if restored.is_err() {
+            defmt::error!("watchdog not set back to its running timeout after an erase");
+        }
+        erased?;
+        restored.map_err(|_| FlashError::Watchdog)
     }
 
     /// Word program (RM0090 3.6.4): PG with PSIZE x32, then one aligned word write.

@@ -7,8 +7,14 @@
 //!   both builds;
 //! - `motor_out`: the board's TIM8 under `drive`, its break input and main output
 //!   enable, and the register-level `cut`;
+//! - `sense`: the currents and the supply, converted at TIM8's update by ADC1
+//!   into a DMA buffer, read by the tick without waiting;
 //! - `link`: UART bytes -> protocol frames -> answers, telemetry;
-//! - `panic`: the panic and HardFault handlers (motors off first);
+//! - `log`: what the control task has to say, logged by idle;
+//! - `exceptions`: the panic handler and every fault, NMI and unexpected
+//!   interrupt handler (motors off first);
+//! - `watchdog`: the independent watchdog, at register level (its timeout, and
+//!   the longer one around a flash erase);
 //! - `shared::controller`: the control law, states and faults (host-tested).
 //!
 //! # Tasks, by urgency (higher number preempts lower)
@@ -42,15 +48,20 @@ use defmt_semihosting as _; // global defmt logger over semihosting (QEMU)
 #[cfg(not(feature = "qemu"))]
 mod board;
 mod drive;
+mod exceptions;
 #[cfg(not(feature = "qemu"))]
 mod flash;
 #[cfg(not(feature = "qemu"))]
 mod link;
+mod log;
 #[cfg(not(feature = "qemu"))]
 mod motor_out;
-mod panic;
 #[cfg(feature = "qemu")]
 mod qemu;
+#[cfg(not(feature = "qemu"))]
+mod sense;
+#[cfg(not(feature = "qemu"))]
+mod watchdog;
 
 /// The tuning table compiled in (build.rs): `VIBRO_TUNING`, else the machine
 /// file's `tuning_table`.
@@ -64,7 +75,7 @@ mod machine {
     include!(concat!(env!("OUT_DIR"), "/machine.rs"));
 }
 
-use shared::controller::{Command, Controller, Outputs, Params, ResetCause, State, TuningTable};
+use shared::controller::{Command, Controller, Outputs, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, LinkState};
 use shared::protocol::SelfTestReport;
 use shared::storage::{self, Flash};
@@ -103,63 +114,37 @@ fn start<F: Flash>(flash: &F, reset_cause: ResetCause) -> (Controller, LinkState
 }
 
 /// Control stage 1, the link's part: take the pending command, hand a newly
-/// stored tuning table to the controller, start a requested self-test.
+/// stored tuning table to the controller, start a requested self-test (a refusal
+/// is flagged for idle's log).
 fn take_link(
     controller: &mut Controller,
     link: &mut impl rtic::Mutex<T = LinkState>,
 ) -> Option<Command> {
     let taken = link.lock(|l| l.take_for_tick(controller));
     if taken.tuning_refused {
-        defmt::warn!("new tuning table not taken: motors running");
+        log::note(log::Event::TuningRefused);
     }
     if taken.self_test_refused {
-        defmt::warn!("self-test not started: not idle, a fault, or a rotor turning");
+        log::note(log::Event::SelfTestRefused);
     }
     taken.command
 }
 
-/// Control stage 4: publish the tick's status and the self-test's for the link;
-/// log a state change, and the telemetry once a second while driving.
+/// Control stage 4: publish the tick's status and the self-test's for the link
+/// (and for idle's log, `log`).
 fn publish(
     link: &mut impl rtic::Mutex<T = LinkState>,
     uptime_ms: u32,
     out: &Outputs,
     self_test: SelfTestReport,
-    last_state: &mut State,
 ) {
     link.lock(|l| l.publish(uptime_ms, out, self_test));
-    if out.state != *last_state {
-        defmt::info!("state {=str}, faults {}", out.state.name(), out.faults);
-        *last_state = out.state;
-    }
-    // The defmt side of the telemetry: once a second while the motors are driven
-    // (the full stream at any rate is the link's, `StreamTelemetry`).
-    if out.state.drives() && uptime_ms.is_multiple_of(TELEMETRY_LOG_MS) {
-        let t = &out.telemetry;
-        defmt::info!(
-            "speed {=f32} {=f32} rpm (ref {=f32} {=f32}), offset {=f32} deg (target {=f32}, loop closed {=bool}), current {=f32} {=f32} A, duty {=f32} {=f32}",
-            t.speed_rpm[0],
-            t.speed_rpm[1],
-            t.speed_ref_rpm[0],
-            t.speed_ref_rpm[1],
-            t.phase_offset_deg,
-            t.target_offset_deg,
-            t.phase_loop_closed,
-            t.current[0],
-            t.current[1],
-            t.duty[0],
-            t.duty[1]
-        );
-    }
 }
-
-/// Period of the telemetry line in the defmt log while the motors are driven, ms.
-const TELEMETRY_LOG_MS: u32 = 1000;
 
 /// One control tick of the `qemu` builds on the rotor model, the same stages as
 /// the board's `control`: sample the model and take the command, step the
-/// controller with the nominal tick (timed in SysTick counts, returned with the
-/// outputs), write the bridges' inputs through the board's driver (both coasting
+/// controller with the nominal tick and the tick's `timing` (the step timed in
+/// SysTick counts, returned with the outputs), write the bridges' inputs through the board's driver (both coasting
 /// when the controller does not enable or the E-stop is open, as the board's
 /// E-stop handler and break cut them), run the model for one tick with
 /// `injected`, publish.
@@ -169,9 +154,9 @@ fn qemu_tick(
     plant: &mut qemu::plant::Plant,
     drive: &mut drive::Drive<qemu::pwm::SimPwm>,
     injected: &qemu::plant::Injected,
+    timing: shared::controller::TickTiming,
     uptime_ms: u32,
     link: &mut impl rtic::Mutex<T = LinkState>,
-    last_state: &mut State,
 ) -> (Outputs, u32) {
     // Stage 1: sample the model and take the command.
     let sample = plant.sample();
@@ -183,6 +168,7 @@ fn qemu_tick(
         supply_voltage: sample.supply_voltage,
         estop: injected.estop_open,
         command,
+        timing,
     };
 
     // Stage 2: the controller, with the nominal tick, timed by SysTick.
@@ -196,36 +182,42 @@ fn qemu_tick(
     plant.step(injected);
 
     // Stage 4: publish.
-    publish(
-        link,
-        uptime_ms,
-        &out,
-        controller.self_test_report(),
-        last_state,
-    );
+    publish(link, uptime_ms, &out, controller.self_test_report());
     (out, counts)
 }
 
 #[cfg(not(feature = "qemu"))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use cortex_m::peripheral::DWT;
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, Inputs, State, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, Inputs, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
+    use shared::timing::TickClock;
     use stm32f4xx_hal::gpio::{Input, PB0, PC4, PC5};
     use stm32f4xx_hal::pac::{TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
     use stm32f4xx_hal::serial::{Rx, Tx};
     use stm32f4xx_hal::timer::{CounterHz, Flag};
-    use stm32f4xx_hal::watchdog::IndependentWatchdog;
 
-    use crate::board::{self, Encoders, Sense};
+    use crate::board::{self, Encoders};
     use crate::flash::ParamFlash;
-    use crate::link::RxRing;
+    use crate::link::{self, RxRing};
+    use crate::log::Logger;
     use crate::motor_out::{self, MotorOut};
+    use crate::sense::Sense;
+    use crate::watchdog::Watchdog;
 
     /// Milliseconds per control tick.
     const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
+    /// Core clock cycles per control tick.
+    const TICK_CYCLES: u32 = board::SYSCLK_HZ / CONTROL_RATE_HZ as u32;
+
+    /// Time since start, ms, counted by the control task: the defmt timestamp.
+    static UPTIME_MS: AtomicU32 = AtomicU32::new(0);
+    defmt::timestamp!("{=u32:tms}", UPTIME_MS.load(Ordering::Relaxed));
 
     #[shared]
     struct Shared {
@@ -242,7 +234,9 @@ mod app {
         encoders: Encoders,
         sense: Sense,
         tick: CounterHz<TIM7>,
-        watchdog: IndependentWatchdog,
+        watchdog: Watchdog,
+        /// The tick's lateness and duration, on the DWT cycle counter.
+        clock: TickClock,
         index1: PC4<Input>,
         index2: PC5<Input>,
         estop: PB0<Input>,
@@ -254,19 +248,22 @@ mod app {
         flash: ParamFlash,
         /// Time since start, ms, counted in control ticks.
         uptime_ms: u32,
-        /// The state of the previous tick, to log changes.
-        last_state: State,
     }
 
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
-    fn init(cx: init::Context) -> (Shared, Local) {
+    fn init(mut cx: init::Context) -> (Shared, Local) {
+        // Faults to their own handlers, which cut first (`exceptions`).
+        crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
+        // The cycle counter, for the tick's timing.
+        cx.core.DCB.enable_trace();
+        cx.core.DWT.enable_cycle_counter();
+
         let b = board::setup(cx.device);
 
         // Parameters: the reference machine with the table stored in flash, or
         // the compiled-in one when none is stored (first start).
         let (controller, link) = crate::start(&b.flash, b.reset_cause);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
-        let last_state = controller.state();
 
         (
             Shared {
@@ -280,6 +277,7 @@ mod app {
                 sense: b.sense,
                 tick: b.tick,
                 watchdog: b.watchdog,
+                clock: TickClock::new(board::SYSCLK_HZ, TICK_CYCLES),
                 index1: b.index1,
                 index2: b.index2,
                 estop: b.estop,
@@ -290,58 +288,74 @@ mod app {
                 link: Link::new(),
                 flash: b.flash,
                 uptime_ms: 0,
-                last_state,
             },
         )
     }
 
-    /// E-stop circuit opened: cut the PWM now; the control task sees the open
-    /// circuit at its next tick and the controller latches the fault.
+    /// E-stop circuit opened: cut the PWM now and latch the opening; the control
+    /// task takes the latch (and reads the pins) at its next tick and the
+    /// controller latches the fault.
     #[task(binds = EXTI0, priority = 4, local = [estop])]
     fn estop(cx: estop::Context) {
         cx.local.estop.clear_interrupt_pending_bit();
         motor_out::cut();
+        board::latch_estop();
     }
 
-    /// Index pulse of encoder 1: latch its count.
+    /// Index pulse of encoder 1: latch its count, then hold the line off until
+    /// the next tick (`board::index_hold`).
     #[task(binds = EXTI4, priority = 3, local = [index1], shared = [index])]
     fn index1(mut cx: index1::Context) {
         cx.local.index1.clear_interrupt_pending_bit();
         let count = board::driven_count(board::raw_count(0), 0);
         cx.shared.index.lock(|i| i[0] = Some(count));
+        board::index_hold(0);
     }
 
-    /// Index pulse of encoder 2: latch its count.
+    /// Index pulse of encoder 2: latch its count, then hold the line off until
+    /// the next tick.
     #[task(binds = EXTI9_5, priority = 3, local = [index2], shared = [index])]
     fn index2(mut cx: index2::Context) {
         cx.local.index2.clear_interrupt_pending_bit();
         let count = board::driven_count(board::raw_count(1), 1);
         cx.shared.index.lock(|i| i[1] = Some(count));
+        board::index_hold(1);
     }
 
-    /// The control tick at CONTROL_RATE_HZ: sample, step, write, feed the watchdog.
+    /// The control tick at CONTROL_RATE_HZ: time, sample, step, write, publish,
+    /// feed the watchdog. No log line is formatted here (`log`).
     #[task(
         binds = TIM7,
         priority = 2,
-        local = [controller, motors, encoders, sense, tick, watchdog, uptime_ms, last_state],
+        local = [controller, motors, encoders, sense, tick, watchdog, clock, uptime_ms],
         shared = [index, link]
     )]
     fn control(mut cx: control::Context) {
+        // Stage 0: the tick's timing, first (the latency from TIM7's update).
+        let timing = cx
+            .local
+            .clock
+            .begin(DWT::cycle_count(), board::tick_latency_cycles());
         cx.local.tick.clear_flags(Flag::Update);
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+        UPTIME_MS.store(*cx.local.uptime_ms, Ordering::Relaxed);
 
-        // Stage 1: sample the inputs and take the latched index counts and command.
+        // Stage 1: sample the inputs and take the latched index counts, the
+        // latched E-stop and the command; the index lines held off are re-armed.
         let encoder = cx.local.encoders.counts();
         let index = cx.shared.index.lock(core::mem::take);
+        board::index_rearm();
         let analog = cx.local.sense.read();
+        let estop = board::take_estop_latch() | board::estop_open();
         let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
         let inputs = Inputs {
             encoder,
             index,
             current: analog.current,
             supply_voltage: analog.supply_voltage,
-            estop: board::estop_open(),
+            estop,
             command,
+            timing,
         };
 
         // Stage 2: the controller, with the nominal tick.
@@ -357,40 +371,51 @@ mod app {
             *cx.local.uptime_ms,
             &out,
             cx.local.controller.self_test_report(),
-            cx.local.last_state,
         );
 
         // Stage 5: the tick completed: feed the watchdog. Also in Fault (a defined
         // safe state with the motors off): not feeding there would turn every
-        // fault into a reset loop.
+        // fault into a reset loop, and lose the fault's report with it.
         cx.local.watchdog.feed();
+        cx.local.clock.end(DWT::cycle_count());
     }
 
-    /// USART2: move received bytes into the ring (dropped when it is full; the
-    /// frame CRC then rejects the frame and the host sends it again).
+    /// USART2: move received bytes into the ring; a byte the ring cannot take,
+    /// or lost to an overrun, noise or a framing error, is counted and dropped
+    /// (the frame CRC then rejects the frame and the host sends it again).
     #[task(binds = USART2, priority = 1, local = [rx, rx_in])]
     fn uart_rx(cx: uart_rx::Context) {
         // Bounded: a byte time is 87 us, the loop never spins on a stuck flag.
         for _ in 0..16 {
             match cx.local.rx.read() {
                 Ok(byte) => {
-                    let _ = cx.local.rx_in.enqueue(byte);
+                    if cx.local.rx_in.enqueue(byte).is_err() {
+                        link::count_dropped();
+                    }
                 }
-                Err(_) => break,
+                Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
+                // The HAL has read the data register, which clears the error.
+                Err(stm32f4xx_hal::nb::Error::Other(_)) => link::count_dropped(),
             }
         }
     }
 
-    /// The link: decode, answer, stream telemetry; sleep when there is nothing.
-    #[idle(local = [link, rx_out, tx, flash], shared = [link])]
+    /// The link: decode, answer, stream telemetry; the log; sleep when there is
+    /// nothing to do.
+    #[idle(local = [link, rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let now_ms = cx.shared.link.lock(|l| l.status.uptime_ms);
+            let dropped = link::dropped();
+            let status = cx.shared.link.lock(|l| {
+                l.rx_dropped = dropped;
+                l.status
+            });
+            cx.local.logger.poll(&status);
             let tx = &mut *cx.local.tx;
             let rx = &mut *cx.local.rx_out;
             let busy = cx.local.link.poll(
                 || rx.dequeue(),
-                now_ms,
+                status.uptime_ms,
                 |f| cx.shared.link.lock(|l| f(l)),
                 cx.local.flash,
                 |bytes| {
@@ -409,14 +434,16 @@ mod app {
 #[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod qemu_app {
-    use shared::controller::{Controller, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use crate::drive::Drive;
+    use crate::log::Logger;
+    use crate::qemu::cycles::SysTickClock;
     use crate::qemu::plant::Plant;
     use crate::qemu::pwm::SimPwm;
-    use crate::qemu::script::{Io, Progress, Script};
+    use crate::qemu::script::{self, Io, Progress, Script};
     use crate::qemu::world::World;
     use crate::qemu::{self, checks, cycles, stack};
 
@@ -440,15 +467,17 @@ mod qemu_app {
         /// The bridges, through the board's driver over emulated compare registers.
         drive: Drive<SimPwm>,
         uptime_ms: u32,
-        last_state: State,
+        /// The control tick's timing, in SysTick counts.
+        clock: SysTickClock,
         flash: SimFlash,
         /// SysTick calibration: `(instructions, counts)` of a known loop.
         calibration: (u32, u32),
     }
 
     #[init]
-    fn init(cx: init::Context) -> (Shared, Local) {
+    fn init(mut cx: init::Context) -> (Shared, Local) {
         stack::paint();
+        crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
         let mut syst = cx.core.SYST;
 
         // Calibrate SysTick against a loop of known length (interrupts are off).
@@ -463,7 +492,6 @@ mod qemu_app {
         // QEMU's unwritten flash reads (0x00), so nothing is stored at start.
         let flash = SimFlash::filled(0x00);
         let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
-        let last_state = controller.state();
 
         // The control tick.
         cycles::start(&mut syst, RELOAD);
@@ -478,7 +506,7 @@ mod qemu_app {
                 plant: Plant::new(),
                 drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
-                last_state,
+                clock: SysTickClock::new(RELOAD),
                 flash,
                 calibration,
             },
@@ -490,7 +518,7 @@ mod qemu_app {
     #[task(
         binds = SysTick,
         priority = 2,
-        local = [controller, plant, drive, uptime_ms, last_state],
+        local = [controller, plant, drive, uptime_ms, clock],
         shared = [link, world]
     )]
     fn control(mut cx: control::Context) {
@@ -498,7 +526,9 @@ mod qemu_app {
         // at the end from idle's stack pointer (the exception frame included).
         let sp = cortex_m::register::msp::read() as usize;
         stack::paint_window(sp);
+        // The tick's timing from SysTick, as the board's from TIM7 and DWT.
         let tick = qemu::next_tick();
+        let timing = cx.local.clock.begin(tick);
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
 
         let injected = cx.shared.world.lock(|w| w.injected);
@@ -507,23 +537,31 @@ mod qemu_app {
             cx.local.plant,
             cx.local.drive,
             &injected,
+            timing,
             *cx.local.uptime_ms,
             &mut cx.shared.link,
-            cx.local.last_state,
         );
         let plant = &*cx.local.plant;
         cx.shared
             .world
             .lock(|w| w.observe(tick, &out, plant, counts));
         let used = stack::above_idle(stack::window_lowest(sp));
-        cx.shared
-            .world
-            .lock(|w| w.control_stack = w.control_stack.max(used));
+        let overrun_us = cx.shared.world.lock(|w| {
+            w.control_stack = w.control_stack.max(used);
+            core::mem::take(&mut w.injected.overrun_us)
+        });
+        if overrun_us > 0 {
+            cycles::spin(
+                overrun_us.saturating_mul(cycles::SYSTICK_HZ / 1_000_000),
+                RELOAD,
+            );
+        }
+        cx.local.clock.end();
     }
 
     /// The scripted host, once per control tick; then the measurements and the
     /// verdict.
-    #[idle(local = [flash, calibration, link: Link = Link::new(), script: Script = Script::new()], shared = [link, world])]
+    #[idle(local = [flash, calibration, link: Link = Link::new(), script: Script = Script::new(), logger: Logger = Logger::new()], shared = [link, world])]
     fn idle(mut cx: idle::Context) -> ! {
         // The stack init used; from here on, what the run uses.
         let init_stack = stack::used();
@@ -545,6 +583,8 @@ mod qemu_app {
                 continue;
             }
             seen = tick;
+            let status = cx.shared.link.lock(|l| l.status);
+            cx.local.logger.poll(&status);
             let mut io = Io {
                 tick,
                 link: cx.local.link,
@@ -563,6 +603,14 @@ mod qemu_app {
             *cx.local.calibration,
             &mut cx.shared.world,
         );
+        if cx.local.script.armed() {
+            // The last step: the default handler ends the run (`script`).
+            script::pend_unexpected();
+            for _ in 0..1000 {
+                cortex_m::asm::nop();
+            }
+            checks::check!(false, "the pended interrupt reached the default handler");
+        }
         checks::finish()
     }
 
@@ -614,11 +662,13 @@ mod qemu_uart_app {
     use core::sync::atomic::{AtomicU32, Ordering};
 
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, ResetCause, State, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use crate::drive::Drive;
+    use crate::log::Logger;
+    use crate::qemu::cycles::SysTickClock;
     use crate::qemu::plant::{Injected, Plant};
     use crate::qemu::pwm::SimPwm;
     use crate::qemu::uart::{self, RxRing, UartRx, UartTx};
@@ -645,7 +695,8 @@ mod qemu_uart_app {
         /// The bridges, through the board's driver over emulated compare registers.
         drive: Drive<SimPwm>,
         uptime_ms: u32,
-        last_state: State,
+        /// The control tick's timing, in SysTick counts.
+        clock: SysTickClock,
         flash: SimFlash,
         rx: UartRx,
         tx: UartTx,
@@ -654,7 +705,8 @@ mod qemu_uart_app {
     }
 
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
-    fn init(cx: init::Context) -> (Shared, Local) {
+    fn init(mut cx: init::Context) -> (Shared, Local) {
+        crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
         let mut syst = cx.core.SYST;
         // No RCC: the USART's registers only (QEMU needs no clock for it).
         let (rx, tx) = uart::split(cx.device.USART2);
@@ -663,7 +715,6 @@ mod qemu_uart_app {
         // Flash in RAM, erased as QEMU's unwritten flash reads (0x00).
         let flash = SimFlash::filled(0x00);
         let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
-        let last_state = controller.state();
         defmt::info!("qemu-uart: the link on USART2 at 115200 baud");
 
         cycles::start(&mut syst, RELOAD);
@@ -675,7 +726,7 @@ mod qemu_uart_app {
                 plant: Plant::new(),
                 drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
-                last_state,
+                clock: SysTickClock::new(RELOAD),
                 flash,
                 rx,
                 tx,
@@ -690,11 +741,12 @@ mod qemu_uart_app {
     #[task(
         binds = SysTick,
         priority = 2,
-        local = [controller, plant, drive, uptime_ms, last_state],
+        local = [controller, plant, drive, uptime_ms, clock],
         shared = [link]
     )]
     fn control(mut cx: control::Context) {
-        qemu::next_tick();
+        let tick = qemu::next_tick();
+        let timing = cx.local.clock.begin(tick);
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
         // Nothing injected: the model as it is.
         crate::qemu_tick(
@@ -702,10 +754,11 @@ mod qemu_uart_app {
             cx.local.plant,
             cx.local.drive,
             &Injected::default(),
+            timing,
             *cx.local.uptime_ms,
             &mut cx.shared.link,
-            cx.local.last_state,
         );
+        cx.local.clock.end();
     }
 
     /// USART2: move received bytes into the ring (counted and dropped when it is
@@ -726,11 +779,17 @@ mod qemu_uart_app {
 
     /// The link, as on the board: decode, answer, stream telemetry; sleep when
     /// there is nothing.
-    #[idle(local = [link: Link = Link::new(), rx_out, tx, flash], shared = [link])]
+    #[idle(local = [link: Link = Link::new(), rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         let mut dropped = 0;
         loop {
-            let now_ms = cx.shared.link.lock(|l| l.status.uptime_ms);
+            let now_dropped = DROPPED.load(Ordering::Relaxed);
+            let status = cx.shared.link.lock(|l| {
+                l.rx_dropped = now_dropped;
+                l.status
+            });
+            cx.local.logger.poll(&status);
+            let now_ms = status.uptime_ms;
             let tx = &mut *cx.local.tx;
             let rx = &mut *cx.local.rx_out;
             let busy = cx.local.link.poll(
@@ -740,7 +799,6 @@ mod qemu_uart_app {
                 cx.local.flash,
                 |bytes| tx.write_all(bytes),
             );
-            let now_dropped = DROPPED.load(Ordering::Relaxed);
             if now_dropped != dropped {
                 defmt::warn!(
                     "USART2: {=u32} received bytes dropped (ring full)",

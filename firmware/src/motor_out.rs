@@ -16,6 +16,18 @@
 //! no braking; `docs/plant-model.md`, "The H-bridge".) The mapping, and the order
 //! of the two writes of a reversal, are `shared::drive`'s, tested on the host.
 //!
+//! # The timer: centre-aligned, its update the ADC's trigger
+//!
+//! TIM8 counts up and down ([`CentreAligned`]: `ARR = 4200` at 20 kHz, 4200 steps
+//! of duty), PWM mode 1: each input is high around the counter's valley. So in
+//! slow decay both bridges brake around the valley and drive around the peak,
+//! and the update event (every period up to 50 kHz, `RCR`) falls on one of the two
+//! extremes, the middle of a part whatever the duty: TRGO = update starts the
+//! ADC's conversions there (`sense`). The HAL sets the timer up edge-aligned;
+//! [`MotorOut::new`] stops it, sets CMS, PSC, ARR, RCR and MMS, and starts it
+//! again. The HAL's channels take `ARR + 1` as their full scale (the true one is
+//! `ARR`): the duty is off by at most `0.5 / ARR`, 1.2e-4 of the supply.
+//!
 //! # Off state: MOE = 0, every input driven low
 //!
 //! The four channels stay enabled (CCxE = 1, active high, idle level OISx = 0) from
@@ -48,6 +60,7 @@
 //! cannot protect it: the HAL's PWM setup writes BDTR first (AOE), and the first
 //! write after reset freezes LOCK (RM0090, TIMx_BDTR), at "off".
 
+use shared::drive::CentreAligned;
 use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
@@ -99,6 +112,7 @@ impl MotorOut {
             w.lock().off();
             w.dtg().set(0)
         });
+        centre_aligned(tim);
         // Idle levels low (OIS1..OIS4 in CR2 = 0, the reset value, never written).
         // Compare values 0 (done by `cut`), then the channels on for good: with
         // MOE = 0 they drive the idle level.
@@ -158,6 +172,32 @@ impl MotorOut {
             }
         });
     }
+}
+
+/// TIM8's clock, Hz: twice PCLK2 (`board::PCLK2_HZ`, 84 MHz).
+pub const TIM8_HZ: u32 = 168_000_000;
+
+/// The timer for [`CentreAligned`] PWM at the machine's `[drive] pwm_hz`, its
+/// update event as the ADC's trigger (module documentation). CMS may change only
+/// with the counter stopped (RM0090, TIMx_CR1); the update generated at the end
+/// loads the prescaler, the auto-reload, the repetition counter and the compare
+/// values (all zero: [`cut`] has run).
+fn centre_aligned(tim: &pac::tim1::RegisterBlock) {
+    let t = CentreAligned::new(TIM8_HZ, crate::machine::MACHINE.bridge);
+    tim.cr1().modify(|_, w| w.cen().clear_bit());
+    // SAFETY: CMS 01 (centre-aligned mode 1), PSC, ARR and RCR take any value;
+    // MMS 010 is "update" as TRGO.
+    unsafe {
+        tim.cr1()
+            .modify(|_, w| w.cms().bits(0b01).dir().clear_bit().arpe().set_bit());
+        tim.psc().write(|w| w.psc().bits(t.psc));
+        tim.arr().write(|w| w.arr().bits(t.arr));
+        tim.rcr().write(|w| w.rep().bits(t.rcr));
+        tim.cnt().write(|w| w.bits(0));
+        tim.cr2().modify(|_, w| w.mms().bits(0b010));
+    }
+    tim.egr().write(|w| w.ug().set_bit());
+    tim.cr1().modify(|_, w| w.cen().set_bit());
 }
 
 /// Whether TIM8's break has occurred (BIF) since the flag was last cleared: the

@@ -20,6 +20,7 @@
 
 use shared::controller::{
     Command, Controller, Inputs, MachineConstants, Outputs, Params, ResetCause, RotorModel, State,
+    TickTiming,
 };
 
 use crate::input::Problem;
@@ -51,6 +52,9 @@ pub struct Injected {
     /// current sense): the winding gets `-duty x supply`; the current measured in
     /// the winding follows it.
     pub motor_reversed: [bool; 2],
+    /// How late the control ticks start, s (a starved loop on the board; the
+    /// simulation's ticks are otherwise on time).
+    pub tick_late_s: f64,
 }
 
 /// The controller in the loop.
@@ -267,6 +271,10 @@ impl Driver for ControllerDriver {
             supply_voltage: supply as f32,
             estop: self.injected.estop,
             command,
+            timing: TickTiming {
+                late_s: self.injected.tick_late_s as f32,
+                busy_s: 0.0,
+            },
         };
         let out = self.controller.step(&inputs, self.dt);
 

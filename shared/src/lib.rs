@@ -13,6 +13,8 @@
 //!   decoder that never trusts a length, the messages and the answer to every frame;
 //! - [`storage`]: the tuning table and self-test results in two flash sectors used in
 //!   turn, each record with a magic word, a version, a sequence number and a CRC-32;
+//! - [`timing`]: the control tick's lateness and duration from a cycle counter, for
+//!   the controller's deadline check;
 //! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
 #![no_std]
 #![warn(missing_docs)]
@@ -26,5 +28,6 @@ pub mod impact;
 pub mod protocol;
 pub mod real;
 pub mod storage;
+pub mod timing;
 
 pub use real::Real;

@@ -16,7 +16,7 @@
 use shared::controller::angle::{wrap_deg, wrap_deg_signed};
 use shared::controller::{
     Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, SpeedEstimator,
-    State, TableError, TuningTable,
+    State, TableError, TickTiming, TuningTable,
 };
 
 use std::f64::consts::TAU;
@@ -99,6 +99,8 @@ struct Rig {
     current_override: [Option<f32>; 2],
     supply: f32,
     estop: bool,
+    /// The loop's timing as the firmware would measure it.
+    timing: TickTiming,
     /// Send a heartbeat every 100 ticks when no command is queued.
     heartbeat: bool,
     /// Command for the next tick.
@@ -125,6 +127,7 @@ impl Rig {
             current_override: [None; 2],
             supply: 12.0,
             estop: false,
+            timing: TickTiming::default(),
             heartbeat: true,
             queued: None,
             pending_index: [None; 2],
@@ -168,6 +171,7 @@ impl Rig {
             supply_voltage: self.supply,
             estop: self.estop,
             command,
+            timing: self.timing,
         };
         let out = self.ctl.step(&inputs, DT);
         let h = DT as f64 / SUBSTEPS as f64;
@@ -619,6 +623,61 @@ fn estop_cuts_at_once_and_needs_release() {
     assert!(safe(&out));
     rig.estop = false;
     latched(&mut rig, Faults::ESTOP);
+}
+
+/// A starved loop: a tick that starts a quarter of a tick late, or a previous tick
+/// that worked half a tick, is a deadline fault at once while the motors are
+/// driven (latched, motors off in that tick); in any state it is counted and
+/// reported, the timing with it.
+#[test]
+fn a_missed_deadline_while_driving_is_a_fault_at_once() {
+    let p = Params::reference();
+    for timing in [
+        TickTiming {
+            late_s: 0.26e-3,
+            busy_s: 0.0,
+        },
+        TickTiming {
+            late_s: 0.0,
+            busy_s: 0.51e-3,
+        },
+        TickTiming {
+            late_s: f32::NAN,
+            busy_s: 0.0,
+        },
+    ] {
+        let mut rig = running();
+        // Within the budget: nothing.
+        rig.timing = TickTiming {
+            late_s: 0.24e-3,
+            busy_s: 0.49e-3,
+        };
+        let out = rig.step();
+        assert!(out.faults.is_empty(), "{timing:?}: {:?}", out.faults);
+        assert_eq!(out.telemetry.overruns, 0);
+        assert_eq!(
+            (out.telemetry.tick_late_us, out.telemetry.tick_busy_us),
+            (240, 490)
+        );
+        // Over it: the fault in that tick.
+        rig.timing = timing;
+        assert_eq!(detect(&mut rig, Faults::DEADLINE, 2), 1, "{timing:?}");
+        assert_eq!(rig.last.unwrap().telemetry.overruns, 1);
+        rig.timing = TickTiming::default();
+        latched(&mut rig, Faults::DEADLINE);
+        assert!(p.limits.tick_late_max_s == 0.25e-3 && p.limits.tick_busy_max_s == 0.5e-3);
+    }
+    // Idle: counted, not a fault (nothing to cut; a flash store stalls the loop
+    // for seconds with the motors stopped).
+    let mut rig = Rig::reference();
+    rig.timing = TickTiming {
+        late_s: 2.0,
+        busy_s: 0.0,
+    };
+    let out = rig.run(3);
+    assert!(out.faults.is_empty() && out.state == State::Idle);
+    assert_eq!(out.telemetry.overruns, 3);
+    assert_eq!(out.telemetry.tick_late_us, u16::MAX);
 }
 
 #[test]

@@ -1,12 +1,12 @@
 //! Properties of `shared::controller` on generated inputs: it never panics, whatever
-//! the counters, index latches, currents, supply, E-stop, commands and `dt` (NaN and
-//! infinities included), and its outputs keep their invariants: duties finite in
-//! [-1, 1], zero whenever the driver is disabled; a latched fault means the safe
+//! the counters, index latches, currents, supply, E-stop, commands, tick timing and
+//! `dt` (NaN and infinities included), and its outputs keep their invariants: duties
+//! finite in [-1, 1], zero whenever the driver is disabled; a latched fault means the safe
 //! state and stays until a reset command; telemetry angles in their ranges.
 
 use proptest::prelude::*;
 use shared::controller::{
-    Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, State,
+    Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, State, TickTiming,
 };
 
 /// Any `f32`, with the special values well represented.
@@ -54,9 +54,10 @@ fn wild_tick() -> impl Strategy<Value = (Inputs, f32)> {
         any::<bool>(),
         command(),
         any_f32(),
+        (any_f32(), any_f32()),
     )
         .prop_map(
-            |(encoder, index, current, supply_voltage, estop, command, dt)| {
+            |(encoder, index, current, supply_voltage, estop, command, dt, (late_s, busy_s))| {
                 (
                     Inputs {
                         encoder,
@@ -65,6 +66,7 @@ fn wild_tick() -> impl Strategy<Value = (Inputs, f32)> {
                         supply_voltage,
                         estop,
                         command,
+                        timing: TickTiming { late_s, busy_s },
                     },
                     dt,
                 )
@@ -85,9 +87,13 @@ fn sane_tick() -> impl Strategy<Value = ([i32; 2], [Option<u32>; 2], Inputs, f32
         prop_oneof![50 => Just(false), 1 => Just(true)],
         command(),
         prop_oneof![10 => Just(1.0e-3f32), 1 => 0.0f32..0.02, 1 => any_f32()],
+        prop_oneof![
+            1000 => (0.0f32..5.0e-5, 1.0e-4f32..3.0e-4),
+            1 => (0.0f32..2.0e-3, 0.0f32..2.0e-3),
+        ],
     )
         .prop_map(
-            |(delta, index, current, supply_voltage, estop, command, dt)| {
+            |(delta, index, current, supply_voltage, estop, command, dt, (late_s, busy_s))| {
                 (
                     delta,
                     index,
@@ -98,6 +104,7 @@ fn sane_tick() -> impl Strategy<Value = ([i32; 2], [Option<u32>; 2], Inputs, f32
                         supply_voltage,
                         estop,
                         command,
+                        timing: TickTiming { late_s, busy_s },
                     },
                     dt,
                 )

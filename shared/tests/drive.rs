@@ -8,7 +8,10 @@ use std::rc::Rc;
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use proptest::prelude::*;
-use shared::drive::{compare, input_duties, period, BridgeError, Connection, Decay, HBridge, Part};
+use shared::drive::{
+    compare, input_duties, period, BridgeConfig, BridgeError, CentreAligned, Connection, Decay,
+    HBridge, Part, MAX_UPDATE_HZ,
+};
 
 /// Every write to either input, in order: (input 1 or 2, compare value).
 type Log = Rc<RefCell<Vec<(u8, u16)>>>;
@@ -64,21 +67,21 @@ fn mean_voltage(parts: &[Part]) -> f32 {
 }
 
 #[test]
-fn slow_decay_drives_then_brakes_with_mean_voltage_d_vs() {
-    // Forward 0.3: IN1 held high, IN2 high 70 % of the period: brake for 0.7, then
-    // forward for 0.3 (the DRV8871's 1/1 then 1/0).
+fn slow_decay_brakes_around_the_valley_and_drives_around_the_peak() {
+    // Forward 0.3: IN1 held high, IN2 high 70 % of the period around the valley:
+    // brake for 0.35, forward for 0.3 around the peak, brake for 0.35 (the
+    // DRV8871's 1/1, 1/0, 1/1).
     assert_eq!(input_duties(0.3, Decay::Slow), [1.0, 0.7]);
     let parts = period(input_duties(0.3, Decay::Slow));
-    assert_eq!(parts[0].connection, Connection::Short);
-    assert!((parts[0].end - 0.7).abs() < 1e-6);
+    let ends: Vec<f32> = parts.iter().map(|p| p.end).collect();
+    let connections: Vec<Connection> = parts.iter().map(|p| p.connection).collect();
     assert_eq!(
-        parts[1],
-        Part {
-            end: 1.0,
-            connection: Connection::Forward
-        }
+        connections,
+        [Connection::Short, Connection::Forward, Connection::Short]
     );
-    assert_eq!(parts.len(), 2);
+    for (end, want) in ends.iter().zip([0.35, 0.65, 1.0]) {
+        assert!((end - want).abs() < 1e-6, "{ends:?}");
+    }
     // Reverse mirrored.
     assert_eq!(input_duties(-0.25, Decay::Slow), [0.75, 1.0]);
     // Duty 0 brakes the whole period; full duty drives it.
@@ -106,23 +109,19 @@ fn slow_decay_drives_then_brakes_with_mean_voltage_d_vs() {
 }
 
 #[test]
-fn fast_decay_drives_then_coasts() {
+fn fast_decay_drives_then_coasts_centred_on_the_valley() {
     assert_eq!(input_duties(0.3, Decay::Fast), [0.3, 0.0]);
     assert_eq!(input_duties(-0.3, Decay::Fast), [0.0, 0.3]);
+    // Forward around the valley (0.15 at each end of the period), coast across the
+    // middle.
     let parts = period(input_duties(0.3, Decay::Fast));
+    let connections: Vec<Connection> = parts.iter().map(|p| p.connection).collect();
     assert_eq!(
-        parts.as_slice(),
-        &[
-            Part {
-                end: 0.3,
-                connection: Connection::Forward
-            },
-            Part {
-                end: 1.0,
-                connection: Connection::Open
-            },
-        ]
+        connections,
+        [Connection::Forward, Connection::Open, Connection::Forward]
     );
+    assert!((parts[0].end - 0.15).abs() < 1e-6 && (parts[1].end - 0.85).abs() < 1e-6);
+    assert_eq!(parts[2].end, 1.0);
     // Duty 0 coasts.
     assert_eq!(
         period(input_duties(0.0, Decay::Fast)).as_slice(),
@@ -142,6 +141,40 @@ proptest! {
         prop_assert!(parts.iter().all(|p| p.connection != Connection::Open));
         prop_assert!((mean_voltage(&parts) - d).abs() < 1e-6);
         prop_assert_eq!(parts.last().unwrap().end, 1.0);
+    }
+
+    /// Whatever the inputs, each is high for its fraction of the period (IN1 in
+    /// short and forward, IN2 in short and reverse), centred on the valley: the
+    /// period reads the same backwards (mirrored about the peak at 0.5).
+    #[test]
+    fn each_input_is_high_for_its_fraction_centred_on_the_valley(a in 0.0f32..=1.0, b in 0.0f32..=1.0) {
+        let parts = period([a, b]);
+        prop_assert_eq!(parts.last().unwrap().end, 1.0);
+        let mut start = 0.0;
+        let (mut high1, mut high2) = (0.0, 0.0);
+        let mut spans = Vec::new();
+        for p in &parts {
+            let len = p.end - start;
+            prop_assert!(len > 0.0);
+            match p.connection {
+                Connection::Short => { high1 += len; high2 += len; }
+                Connection::Forward => high1 += len,
+                Connection::Reverse => high2 += len,
+                Connection::Open => {}
+            }
+            spans.push((start, p.end, p.connection));
+            start = p.end;
+        }
+        prop_assert!((high1 - a).abs() < 1e-6 && (high2 - b).abs() < 1e-6, "{parts:?}");
+        // Mirror: the connection at t is the one at 1 - t.
+        for k in 1..64 {
+            let t = k as f32 / 64.0 + 1e-4;
+            let at = |t: f32| spans.iter().find(|(s, e, _)| *s <= t && t < *e).map(|x| x.2);
+            let (u, v) = (at(t), at(1.0 - t));
+            let near_edge = spans.iter().any(|(s, e, _)| (s - t).abs() < 1e-3 || (e - t).abs() < 1e-3
+                || (s - (1.0 - t)).abs() < 1e-3 || (e - (1.0 - t)).abs() < 1e-3);
+            prop_assert!(near_edge || u == v, "t {t}: {u:?} vs {v:?} in {parts:?}");
+        }
     }
 
     /// In fast decay the driven part is the duty, the rest coasts, and the two
@@ -285,4 +318,56 @@ fn a_failing_input_is_reported_and_the_other_is_left_low() {
     );
     assert_eq!(b.written(), [0, 0]);
     assert_eq!(log.borrow().last(), Some(&(1, 0)));
+}
+
+/// The timer setup for centre-aligned PWM on TIM8's 168 MHz clock.
+#[test]
+fn centre_aligned_timer_setup() {
+    let at = |pwm_hz| {
+        CentreAligned::new(
+            168_000_000,
+            BridgeConfig {
+                decay: Decay::Slow,
+                pwm_hz,
+            },
+        )
+    };
+    assert_eq!(
+        at(20_000),
+        CentreAligned {
+            psc: 0,
+            arr: 4200,
+            rcr: 1
+        }
+    );
+    // 1 kHz needs the prescaler: 84 000 counts a half period do not fit 16 bits.
+    assert_eq!(
+        at(1_000),
+        CentreAligned {
+            psc: 1,
+            arr: 42_000,
+            rcr: 1
+        }
+    );
+    // 200 kHz: an update (and a current sample) every 4 periods, 50 kHz.
+    assert_eq!(at(200_000).rcr, 7);
+    assert_eq!(at(200_000).arr, 420);
+}
+
+proptest! {
+    /// Over the machine file's range of PWM frequencies the setup fits the
+    /// registers, gives the frequency to within one count of the half period, and
+    /// never updates faster than the ADC can sample.
+    #[test]
+    fn centre_aligned_setup_fits_and_is_accurate(pwm_hz in 1_000u32..=200_000) {
+        let config = BridgeConfig { decay: Decay::Slow, pwm_hz };
+        let t = CentreAligned::new(168_000_000, config);
+        prop_assert!(t.arr >= 400);
+        let f = t.pwm_hz(168_000_000);
+        prop_assert!(((f - f64::from(pwm_hz)) / f64::from(pwm_hz)).abs() < 1.0 / f64::from(t.arr), "{t:?}: {f} Hz");
+        let k = config.periods_per_update();
+        prop_assert_eq!(u32::from(t.rcr), 2 * k - 1);
+        prop_assert!(f64::from(pwm_hz) / f64::from(k) <= f64::from(MAX_UPDATE_HZ));
+        prop_assert!(k == 1 || f64::from(pwm_hz) / f64::from(k - 1) > f64::from(MAX_UPDATE_HZ));
+    }
 }

@@ -33,6 +33,7 @@ impl Device {
                     state: State::Idle,
                     faults: Faults::NONE,
                     telemetry: no_telemetry(),
+                    rx_dropped: 0,
                 },
                 TuningTable::default_offsets(),
                 None,
@@ -409,4 +410,110 @@ proptest! {
         }
         prop_assert_eq!(decoder.held(), 0);
     }
+}
+
+/// A flash that checks, at every erase and program, that the link holds no lock
+/// on its state (on the board the lock masks the control task, and an erase takes
+/// up to 2 s) and that the state says a store is under way.
+struct Watched<'a> {
+    flash: SimFlash,
+    locked: &'a std::cell::Cell<bool>,
+    state: &'a std::cell::RefCell<LinkState>,
+    operations: usize,
+}
+
+impl Watched<'_> {
+    fn check(&mut self) {
+        assert!(
+            !self.locked.get(),
+            "a flash operation under the state's lock"
+        );
+        assert!(
+            self.state.borrow().storing,
+            "storing not set during the store"
+        );
+        self.operations += 1;
+    }
+}
+
+impl storage::Flash for Watched<'_> {
+    type Error = <SimFlash as storage::Flash>::Error;
+    fn erase(&mut self, sector: &storage::Sector) -> Result<(), Self::Error> {
+        self.check();
+        self.flash.erase(sector)
+    }
+    fn program_word(&mut self, address: u32, word: u32) -> Result<(), Self::Error> {
+        self.check();
+        self.flash.program_word(address, word)
+    }
+    fn read(&self, address: u32, out: &mut [u8]) -> Result<(), Self::Error> {
+        self.flash.read(address, out)
+    }
+}
+
+/// A table write stores the flash outside the lock on the link's state (which on
+/// the board masks the control task for as long as it is held), with `storing`
+/// set while it runs; a motion command that came meanwhile waits for the control
+/// task until the store is done, a stop does not.
+#[test]
+fn a_flash_store_runs_outside_the_lock_and_holds_motion_commands_back() {
+    let dev = Device::new();
+    let state = std::cell::RefCell::new(dev.state);
+    let locked = std::cell::Cell::new(false);
+    let mut flash = Watched {
+        flash: dev.flash,
+        locked: &locked,
+        state: &state,
+        operations: 0,
+    };
+    let mut link = Link::new();
+    let write = Request::WriteTuningTable(table(&[(2500.0, 80.0, 280.0), (3000.0, 90.0, 270.0)]));
+    let bytes = frame(&write, 7);
+    let mut rx: VecDeque<u8> = bytes.into_iter().collect();
+    let mut out = Vec::new();
+    while link.poll(
+        || rx.pop_front(),
+        1,
+        |f| {
+            locked.set(true);
+            f(&mut state.borrow_mut());
+            locked.set(false);
+        },
+        &mut flash,
+        |frame| out.extend_from_slice(frame),
+    ) {}
+    assert!(
+        flash.operations > 10,
+        "{} flash operations",
+        flash.operations
+    );
+    let request = write.id() as u8;
+    assert_eq!(responses(&out), vec![(7, Response::Ack { request })]);
+    let mut state = state.into_inner();
+    assert!(!state.storing);
+    assert_eq!(state.tuning.rows().len(), 2);
+
+    // While storing, a travel command waits; a stop passes.
+    let mut c = shared::controller::Controller::new(
+        &shared::controller::Params::reference(),
+        shared::controller::ResetCause::PowerOn,
+    );
+    state.storing = true;
+    state.command = Some(shared::controller::Command::Travel {
+        direction: Direction::Right,
+        speed_rpm: 3000.0,
+    });
+    assert_eq!(state.take_for_tick(&mut c).command, None);
+    assert!(state.command.is_some(), "kept for later");
+    state.command = Some(shared::controller::Command::Stop);
+    assert_eq!(
+        state.take_for_tick(&mut c).command,
+        Some(shared::controller::Command::Stop)
+    );
+    state.storing = false;
+    state.command = Some(shared::controller::Command::Travel {
+        direction: Direction::Right,
+        speed_rpm: 3000.0,
+    });
+    assert!(state.take_for_tick(&mut c).command.is_some());
 }

@@ -80,6 +80,9 @@ fn sample_telemetry() -> Telemetry {
         supply_voltage: 12.1,
         duty: [0.5, -0.25],
         command_rejected: false,
+        tick_late_us: 7,
+        tick_busy_us: 12,
+        overruns: 1,
     }
 }
 
@@ -95,6 +98,7 @@ fn sample_status(state: State, speed: f32) -> StatusReport {
             Faults::NONE
         },
         telemetry,
+        rx_dropped: 2,
     }
 }
 

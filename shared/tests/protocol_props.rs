@@ -125,11 +125,12 @@ fn status() -> impl Strategy<Value = StatusReport> {
     (
         any::<u32>(),
         state(),
-        0u16..0x200,
+        0u16..0x400,
         prop::array::uniform13(finite()),
         any::<[bool; 3]>(),
+        any::<[u16; 4]>(),
     )
-        .prop_map(|(uptime_ms, state, bits, f, flags)| StatusReport {
+        .prop_map(|(uptime_ms, state, bits, f, flags, counts)| StatusReport {
             uptime_ms,
             state,
             faults: Faults::from_bits(bits),
@@ -146,7 +147,11 @@ fn status() -> impl Strategy<Value = StatusReport> {
                 supply_voltage: f[10],
                 duty: [f[11], f[12]],
                 command_rejected: flags[2],
+                tick_late_us: counts[0],
+                tick_busy_us: counts[1],
+                overruns: counts[2],
             },
+            rx_dropped: counts[3],
         })
 }
 

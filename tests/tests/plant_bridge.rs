@@ -11,6 +11,10 @@
 //!   mean current `(d V_s - E) / R`.
 //! - **Fast decay** (drive, then coast through the body diodes, `-V_s` while a
 //!   positive current flows, nothing once it has died):
+//!   the timer is centre-aligned, so a period drives for `d/2` at each end and
+//!   coasts in the middle; in the periodic steady state that is the same
+//!   waveform as drive-then-coast shifted by `d T / 2`, with the same mean, so the
+//!   closed forms below take the period from the start of the drive:
 //!   - *continuous conduction* (the current never reaches zero): the periodic
 //!     state starts each period at
 //!     `i0 = (a (1 - e1) e2 - b (1 - e2)) / (1 - e1 e2)`, `e1 = exp(-d T / tau)`,
@@ -22,7 +26,7 @@
 //!     `(a (d T - tau (1 - e1)) - b t_z + (i1 + b) tau (1 - exp(-t_z / tau))) / T`.
 //!
 //! For the reference motor (2 ohm, 0.5 mH, 12 V, 20 kHz) these give what the
-//! first board would have drawn with today's fast-decay drive against what the
+//! first board would have drawn with the former fast-decay drive against what the
 //! controller assumes (slow decay): at standstill and `d = 0.049` (the
 //! self-test's duty) 2.9 mA against 0.294 A; at `d = 0.5` 0.273 A against 3 A; at
 //! 3000 rpm and `d = 0.049` 0.9 mA against -2.85 A (braking). (The diodes' forward
@@ -216,6 +220,42 @@ fn the_bridge_switches_as_the_timer_does() {
     plant.advance_to(3.5 * T, &mut |_| {});
     let i = plant.currents()[0];
     let want = (VS / R) * (1.0 - (-0.5 * T / (L / R)).exp());
+    assert!((i - want).abs() < 1e-6, "{i} vs {want}");
+}
+
+/// Above 50 kHz of PWM the timer updates every few periods (the board's ADC
+/// samples at each update and needs about 10 us for its three conversions): at
+/// 200 kHz every 4 periods, so a duty commanded in period 1 waits for period 4.
+#[test]
+fn above_50_khz_a_duty_waits_for_the_update_every_few_periods() {
+    let t = 1.0 / 200_000.0;
+    let sets = [
+        "drive.pwm_hz=200000".to_string(),
+        "motor.current_limit=10".to_string(),
+    ];
+    let m = reference_machine(0.0, &sets);
+    let holds = Holds {
+        platform: true,
+        rotors: true,
+        ..Holds::default()
+    };
+    let mut plant = Plant::new(
+        PlantModel::new(&m),
+        initial_state(&m),
+        Settings::default(),
+        holds,
+    );
+    plant.advance_to(1.5 * t, &mut |_| {});
+    plant.set_bridges([BridgeCommand::Duty(1.0), BridgeCommand::Off]);
+    plant.advance_to(3.99 * t, &mut |_| {});
+    assert_eq!(
+        plant.currents()[0],
+        0.0,
+        "nothing before the update at period 4"
+    );
+    plant.advance_to(5.0 * t, &mut |_| {});
+    let i = plant.currents()[0];
+    let want = (VS / R) * (1.0 - (-t / (L / R)).exp());
     assert!((i - want).abs() < 1e-6, "{i} vs {want}");
 }
 

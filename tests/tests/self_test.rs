@@ -536,6 +536,7 @@ fn the_state_travels_on_the_wire_as_code_5() {
         state: out.state,
         faults: out.faults,
         telemetry: out.telemetry,
+        rx_dropped: 0,
     });
     let mut payload = [0u8; MAX_PAYLOAD];
     let n = status.write_payload(&mut payload).expect("fits");
@@ -613,6 +614,7 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
                 state: c.state(),
                 faults: c.faults(),
                 telemetry: no_telemetry(),
+                rx_dropped: 0,
             },
             c.params().tuning.clone(),
             None,
@@ -656,6 +658,7 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
                 supply_voltage: 12.0,
                 estop: false,
                 command,
+                timing: Default::default(),
             },
             0.001,
         );

@@ -11,6 +11,8 @@
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
+use shared::controller::TickTiming;
+use shared::timing::TickClock;
 
 /// SysTick's clock in QEMU's netduinoplus2, Hz.
 pub const SYSTICK_HZ: u32 = 168_000_000;
@@ -32,6 +34,79 @@ pub fn start(syst: &mut SYST, reload: u32) {
 #[inline(always)]
 pub fn now() -> u32 {
     SYST::get_current()
+}
+
+/// Counts since the counter last reloaded from `reload`: the latency of the
+/// control task from its timer event, when read at the task's start.
+#[inline(always)]
+pub fn since_reload(reload: u32) -> u32 {
+    reload.saturating_sub(now())
+}
+
+/// The control tick's timing in the `qemu` builds: [`TickClock`] on SysTick
+/// counts, standing in for the board's TIM7 counter and DWT cycle counter. The
+/// free-running count is the ticks' whole periods plus the counts since the
+/// latest reload; exact while no tick is skipped (a skipped tick shows in the
+/// next tick's lateness anyway).
+pub struct SysTickClock {
+    clock: TickClock,
+    reload: u32,
+    /// Periods before the current tick's.
+    laps: u32,
+    /// Counts from the reload to the current tick's start.
+    latency: u32,
+}
+
+impl SysTickClock {
+    /// For a tick every `reload + 1` counts.
+    pub const fn new(reload: u32) -> Self {
+        SysTickClock {
+            clock: TickClock::new(SYSTICK_HZ, reload + 1),
+            reload,
+            laps: 0,
+            latency: 0,
+        }
+    }
+
+    /// At the start of tick number `tick` (1 for the first): its timing.
+    pub fn begin(&mut self, tick: u32) -> TickTiming {
+        self.latency = since_reload(self.reload);
+        self.laps = tick.wrapping_sub(1);
+        let now = self.count(self.laps, self.latency);
+        self.clock.begin(now, self.latency)
+    }
+
+    /// At the end of the tick: a period later if the counter reloaded meanwhile
+    /// (at most once: a longer tick has missed the next, which its lateness shows).
+    pub fn end(&mut self) {
+        let since = since_reload(self.reload);
+        let laps = if since < self.latency {
+            self.laps.wrapping_add(1)
+        } else {
+            self.laps
+        };
+        self.clock.end(self.count(laps, since));
+    }
+
+    fn count(&self, laps: u32, since: u32) -> u32 {
+        laps.wrapping_mul(self.reload + 1).wrapping_add(since)
+    }
+}
+
+/// Spin for `counts` SysTick counts, across reloads from `reload` (the counter
+/// counts down): an injected overrun of the control task.
+pub fn spin(counts: u32, reload: u32) {
+    let mut last = now();
+    let mut spent = 0u32;
+    while spent < counts {
+        let t = now();
+        spent = spent.saturating_add(if t <= last {
+            last - t
+        } else {
+            last + (reload + 1 - t)
+        });
+        last = t;
+    }
 }
 
 /// Counts elapsed from `before` to `after` (no wrap in between).

@@ -31,8 +31,9 @@
 //!
 //! Faults the script can set: the E-stop circuit open (the board's E-stop handler
 //! then cuts the bridges at once, so the driver writes both inputs low and the
-//! windings coast), and an encoder disconnected (its counter and its index stop;
-//! the rotor turns on).
+//! windings coast), an encoder disconnected (its counter and its index stop;
+//! the rotor turns on), and an overrun of the control task (it busy-waits at the
+//! end of one tick).
 
 use shared::controller::{MachineConstants, CONTROL_RATE_HZ};
 use shared::drive::{period, Connection};
@@ -55,6 +56,10 @@ pub struct Injected {
     pub estop_open: bool,
     /// The encoder of rotor 1, rotor 2 is disconnected.
     pub encoder_cut: [bool; 2],
+    /// The control task works this much longer at the end of its next tick, us
+    /// (once; the task clears it): an overrun, as a stuck driver or a runaway
+    /// interrupt would cause on the board.
+    pub overrun_us: u32,
 }
 
 /// The readings of one tick, in the controller's units.

@@ -8,9 +8,11 @@ use core::sync::atomic::{AtomicU16, Ordering};
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 
-/// The timer's count for always high: TIM8's clock (168 MHz on the board) over the
-/// machine's PWM frequency, as `board.rs` sets the timer up (8400 at 20 kHz).
-pub const MAX_DUTY: u16 = (168_000_000 / crate::machine::MACHINE.bridge.pwm_hz) as u16;
+/// The channels' full scale as the board's report it: the HAL's `ARR + 1` of
+/// TIM8 set up centre-aligned at the machine's PWM frequency
+/// (`shared::drive::CentreAligned`; 4201 at 20 kHz).
+pub const MAX_DUTY: u16 =
+    shared::drive::CentreAligned::new(168_000_000, crate::machine::MACHINE.bridge).arr + 1;
 
 /// The four compare values, CH1..CH4: motor 1 IN1, IN2, motor 2 IN1, IN2.
 static COMPARE: [AtomicU16; 4] = [
@@ -50,4 +52,17 @@ impl SetDutyCycle for SimPwm {
 pub fn inputs(k: usize) -> [f32; 2] {
     let f = |ch: usize| f32::from(COMPARE[ch].load(Ordering::Relaxed)) / f32::from(MAX_DUTY);
     [f(2 * k), f(2 * k + 1)]
+}
+
+/// Every compare value to 0, both inputs of both bridges low (coast): the `qemu`
+/// build's `motor_out::cut`, callable from any context.
+pub fn cut() {
+    for c in &COMPARE {
+        c.store(0, Ordering::Relaxed);
+    }
+}
+
+/// Whether any bridge input is driven high for part of the period.
+pub fn driven() -> bool {
+    COMPARE.iter().any(|c| c.load(Ordering::Relaxed) != 0)
 }

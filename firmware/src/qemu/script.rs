@@ -24,11 +24,25 @@
 //! 7. fault: travel again, open the E-stop: `ESTOP` latched in the first tick that
 //!    sees it, the driver disabled and both duties 0 in that tick; a reset while
 //!    it is open keeps the fault, a reset after it closed goes idle;
-//! 8. fault: travel again, disconnect encoder 2: `ENCODER` (or `STALL`) latched
+//! 8. fault: travel again, make the control task work [`OVERRUN_US`] longer once
+//!    (over its 500 us budget): `DEADLINE` latched in the next tick, the outputs
+//!    safe, one overrun counted in the status; a reset goes idle;
+//! 9. fault: travel again, disconnect encoder 2: `ENCODER` (or `STALL`) latched
 //!    within the controller's bound, the outputs safe. It stays latched: the
 //!    counter lost counts, so the index is off a whole turn for good (a board
 //!    needs a restart);
-//! 9. the telemetry stream stopped and its frames checked.
+//! 10. the telemetry stream stopped and its frames checked;
+//! 11. the encoder back, the fault reset, a run started: once the bridges are
+//!     driven the script is done, the measurements are reported, and idle pends
+//!     an interrupt that nothing is bound to ([`pend_unexpected`]). The default
+//!     handler (`exceptions`) cuts the bridges and ends the run through
+//!     [`unexpected_interrupt`], which checks that it was that interrupt, that
+//!     the bridges had been driven, and that every input is now low.
+
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use cortex_m::peripheral::NVIC;
+use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{Direction, Faults, Params, State, TuningTable, CONTROL_RATE_HZ};
@@ -57,6 +71,9 @@ pub const TABLE_SHIFT_DEG: f32 = 5.0;
 pub const TELEMETRY_PERIOD_MS: u16 = 100;
 /// Largest speed error after settling, rpm.
 const SPEED_TOLERANCE_RPM: f32 = 30.0;
+/// The injected overrun of the control task, us: over its budget
+/// (`tick_busy_max_s`, 500 us), under a whole tick.
+pub const OVERRUN_US: u32 = 700;
 /// Largest phase error after settling, degrees.
 const PHASE_TOLERANCE_DEG: f32 = 5.0;
 /// Longest from `idle` after the stop to both rotors at rest, ticks.
@@ -122,6 +139,8 @@ pub struct Script {
     travel_nacked: bool,
     /// The self-test's final report.
     self_test: Option<SelfTestReport>,
+    /// The motors are driven and the unexpected interrupt may be pended.
+    armed: bool,
 }
 
 /// Circular distance of two angles, degrees in [0, 180].
@@ -158,6 +177,7 @@ impl Script {
             bound_ticks: 0,
             travel_nacked: false,
             self_test: None,
+            armed: false,
         }
     }
 
@@ -316,6 +336,26 @@ impl Script {
             w.first_fault = None;
         });
         self.injected_at = io.tick;
+    }
+
+    /// After a reset: the status idle without a fault; then the next part of the
+    /// script (`what`) starts with a travel command.
+    fn reset_done_then_travel<L, W>(&mut self, io: &mut Io<'_, L, W>, what: &str) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        check!(
+            s.state == State::Idle && s.faults.is_empty(),
+            "after the reset: {=str}, faults {}",
+            s.state.name(),
+            s.faults
+        );
+        defmt::info!("script: {=str}", what);
+        self.ack(io, &travel_right(), "Travel right");
+        Next::Advance
     }
 
     /// The script's steps, one per arm.
@@ -760,22 +800,73 @@ impl Script {
                 Next::Advance
             }
             16 => {
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                check!(
-                    s.state == State::Idle && s.faults.is_empty(),
-                    "after the reset: {=str}, faults {}",
-                    s.state.name(),
-                    s.faults
-                );
-                // 8. Encoder fault.
-                defmt::info!("script: encoder 2 disconnected while running");
-                self.ack(io, &travel_right(), "Travel right");
-                Next::Advance
+                // 8. Deadline.
+                self.reset_done_then_travel(io, "control tick overrun while running")
             }
             17 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
             18 => {
+                if waited < 100 {
+                    return Next::Wait;
+                }
+                let overruns = io.state.lock(|l| l.status.telemetry.overruns);
+                check!(
+                    overruns == 0,
+                    "no overrun so far: {=u16} ticks missed their deadline",
+                    overruns
+                );
+                defmt::info!("control task busy {=u32} us longer once", OVERRUN_US);
+                io.world.lock(|w| {
+                    w.injected.overrun_us = OVERRUN_US;
+                    w.first_fault = None;
+                });
+                self.injected_at = io.tick;
+                Next::Advance
+            }
+            19 => {
+                let Some(seen) = io.world.lock(|w| w.first_fault) else {
+                    if waited <= 3 {
+                        return Next::Wait;
+                    }
+                    check!(false, "DEADLINE latched after the overrun");
+                    return Next::Abort;
+                };
+                // The overrun ends tick n + 1 (the first after the injection);
+                // tick n + 2 reads its duration.
+                check!(
+                    seen.faults == Faults::DEADLINE
+                        && seen.tick.wrapping_sub(self.injected_at) == 2,
+                    "DEADLINE latched in the tick after the overrun (bound: that tick), faults {}, {=u32} ticks after the injection",
+                    seen.faults,
+                    seen.tick.wrapping_sub(self.injected_at)
+                );
+                check!(
+                    !seen.enable && seen.duty == [0.0; 2],
+                    "driver disabled and duties 0 in that tick"
+                );
+                let Some(s) = self.status(io) else {
+                    return Next::Abort;
+                };
+                let t = s.telemetry;
+                // The status of the tick that latched it: the overrun tick's
+                // duration, and the count.
+                check!(
+                    u32::from(t.tick_busy_us) >= OVERRUN_US
+                        && t.overruns == 1
+                        && s.state == State::Fault,
+                    "status: {=str}, {=u16} overrun counted, the overrun tick busy {=u16} us",
+                    s.state.name(),
+                    t.overruns,
+                    t.tick_busy_us
+                );
+                self.ack(io, &Request::ResetFaults, "ResetFaults after the overrun");
+                Next::Advance
+            }
+            20 => {
+                // 9. Encoder fault.
+                self.reset_done_then_travel(io, "encoder 2 disconnected while running")
+            }
+            21 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
+            22 => {
                 if waited < 100 {
                     return Next::Wait;
                 }
@@ -788,7 +879,7 @@ impl Script {
                 self.inject(io, false, [false, true]);
                 Next::Advance
             }
-            19 => {
+            23 => {
                 match io.world.lock(|w| w.first_fault) {
                     None if waited <= self.bound_ticks + 1 => Next::Wait,
                     None => {
@@ -817,7 +908,7 @@ impl Script {
                     }
                 }
             }
-            20 => {
+            24 => {
                 let Some(s) = self.status(io) else {
                     return Next::Abort;
                 };
@@ -849,7 +940,7 @@ impl Script {
                 );
                 Next::Advance
             }
-            21 => {
+            25 => {
                 // The stream is off: nothing more comes.
                 let frames = self.host.telemetry.frames;
                 if waited < 300 {
@@ -859,7 +950,35 @@ impl Script {
                     self.host.telemetry.frames == frames,
                     "no telemetry after the stream was stopped"
                 );
+                // 11. An unexpected interrupt while driving: the encoder back,
+                // the fault reset, a run started.
+                defmt::info!("script: an unexpected interrupt while the motors are driven");
+                self.inject(io, false, [false; 2]);
+                self.ack(io, &Request::ResetFaults, "ResetFaults");
                 Next::Advance
+            }
+            // One command a tick: the run command at the next.
+            26 => {
+                self.ack(io, &travel_right(), "Travel right");
+                self.keepalive = true;
+                Next::Advance
+            }
+            27 => {
+                let (enable, duty) = io.world.lock(|w| (w.enable, w.duty));
+                if enable && duty.iter().any(|d| *d != 0.0) {
+                    check!(
+                        true,
+                        "driving {=u32} ticks after the run command: the interrupt is pended after the checks' report",
+                        waited
+                    );
+                    self.armed = true;
+                    Next::Advance
+                } else if waited >= RUNNING_LIMIT_TICKS {
+                    check!(false, "driving within {=u32} ticks", RUNNING_LIMIT_TICKS);
+                    Next::Abort
+                } else {
+                    Next::Wait
+                }
             }
             _ => Next::Abort,
         }
@@ -872,7 +991,13 @@ impl Script {
 
     /// Whether every step ran.
     pub fn completed(&self) -> bool {
-        self.step >= 22
+        self.step >= 28
+    }
+
+    /// Whether the last step left the motors driven for the unexpected
+    /// interrupt ([`pend_unexpected`]).
+    pub fn armed(&self) -> bool {
+        self.armed
     }
 }
 
@@ -926,4 +1051,37 @@ pub fn encoder_bound_ticks(p: &Params, speed_rpm: f32) -> u32 {
     }
     let timers = (p.limits.stall_time_s + p.limits.encoder_time_s) / dt;
     fall + (timers + 0.5) as u32
+}
+
+/// The interrupt the script pends at the end: CAN1 TX, bound to no task.
+const UNEXPECTED_IRQ: Interrupt = Interrupt::CAN1_TX;
+/// Set when the script pends it.
+static PENDED: AtomicBool = AtomicBool::new(false);
+
+/// Pend [`UNEXPECTED_IRQ`] (unmasked first: a masked interrupt stays pending and
+/// never runs). The default handler takes it at once.
+pub fn pend_unexpected() {
+    defmt::info!("script: pending an interrupt nothing is bound to");
+    PENDED.store(true, Ordering::SeqCst);
+    // SAFETY: unmasking an interrupt without a task only reaches the default
+    // handler, which is what this step checks.
+    unsafe { NVIC::unmask(UNEXPECTED_IRQ) };
+    NVIC::pend(UNEXPECTED_IRQ);
+}
+
+/// The default handler's end of the run in the `qemu` build, after its cut:
+/// `irqn` the interrupt it took, `driven` whether a bridge input was high before
+/// the cut. Checks, then the verdict.
+pub fn unexpected_interrupt(irqn: i16, driven: bool) -> ! {
+    check!(
+        PENDED.load(Ordering::SeqCst) && irqn == UNEXPECTED_IRQ as i16,
+        "default handler: interrupt {=i16}, the one the script pended",
+        irqn
+    );
+    check!(driven, "the bridges were driven when it came");
+    check!(
+        !super::pwm::driven(),
+        "every bridge input low after the handler's cut"
+    );
+    super::checks::finish()
 }

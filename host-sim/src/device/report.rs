@@ -45,7 +45,9 @@ pub fn status_text(s: &StatusReport) -> String {
          current         {:.3} / {:.3} A\n\
          supply          {:.2} V\n\
          duty            {:.3} / {:.3}\n\
-         flags           {}\n",
+         flags           {}\n\
+         control tick    started {} us late, the previous worked {} us; {} deadlines missed\n\
+         link            {} received bytes lost\n",
         s.state.name(),
         faults_text(s.faults),
         f64::from(s.uptime_ms) / 1000.0,
@@ -64,6 +66,10 @@ pub fn status_text(s: &StatusReport) -> String {
         t.duty[0],
         t.duty[1],
         flags,
+        t.tick_late_us,
+        t.tick_busy_us,
+        t.overruns,
+        s.rx_dropped,
     )
 }
 
@@ -94,7 +100,8 @@ pub fn telemetry_line(s: &StatusReport) -> String {
 pub const CSV_HEADER: &str =
     "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,\
 phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,\
-phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected";
+phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,\
+tick_late_us,tick_busy_us,overruns,rx_dropped";
 
 /// A telemetry frame as a CSV row (faults by name, `|`-separated; `f32`s in their
 /// shortest exact form), without the newline.
@@ -103,7 +110,7 @@ pub fn csv_row(s: &StatusReport) -> String {
     let faults: Vec<&str> = s.faults.names().collect();
     let b = |v: bool| if v { "1" } else { "0" };
     format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
         s.uptime_ms,
         s.state.name(),
         faults.join("|"),
@@ -123,6 +130,10 @@ pub fn csv_row(s: &StatusReport) -> String {
         t.duty[0],
         t.duty[1],
         b(t.command_rejected),
+        t.tick_late_us,
+        t.tick_busy_us,
+        t.overruns,
+        s.rx_dropped,
     )
 }
 
@@ -169,11 +180,14 @@ mod tests {
             state: State::Fault,
             faults: Faults::STALL | Faults::LINK_LOST,
             telemetry: no_telemetry(),
+            rx_dropped: 3,
         };
         let row = csv_row(&s);
         assert_eq!(row.split(',').count(), CSV_HEADER.split(',').count());
         assert!(row.starts_with("1234,fault,stall|link_lost,0,"), "{row}");
         assert!(telemetry_line(&s).contains("faults stall link_lost"));
         assert!(status_text(&s).contains("state           fault\n"));
+        assert!(status_text(&s).contains("link            3 received bytes lost\n"));
+        assert!(row.ends_with(",0,0,0,3"), "{row}");
     }
 }

@@ -177,6 +177,7 @@ impl SimDevice {
             supply_voltage: self.rotors.supply(),
             estop: false,
             command,
+            timing: Default::default(),
         };
         let out = self.controller.step(&inputs, dt as f32);
         let report = self.controller.self_test_report();

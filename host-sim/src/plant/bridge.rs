@@ -5,8 +5,11 @@
 //!
 //! # The timer, as the board's
 //!
-//! - A **duty** takes effect at the next PWM period start: the firmware writes
-//!   preloaded compare values, which the timer loads at its update event.
+//! - A **duty** takes effect at the next update event of the timer: the firmware
+//!   writes preloaded compare values, which the timer loads there. The update
+//!   comes at a period start (the valley of the centre-aligned counter), every
+//!   period up to 50 kHz of PWM and every
+//!   [`BridgeConfig::periods_per_update`] periods above.
 //! - **Off** takes effect at once: the firmware clears the timer's main output
 //!   enable, asynchronously to the counter. Turning on again goes through a
 //!   coasting rest of the period: the outputs are enabled at once, but the compare
@@ -27,8 +30,8 @@
 //! the PWM is resolved: every edge is a switch of the winding at a known time.
 //!
 //! The duty is taken in `f32`, as the firmware computes it; the timer's
-//! quantisation of the high fractions (8400 steps at 20 kHz) is not modelled
-//! (at most 6e-5 of the supply).
+//! quantisation of the high fractions (4200 steps at 20 kHz) is not modelled
+//! (at most 1.2e-4 of the supply).
 
 use shared::drive::{input_duties, period, BridgeConfig, Connection, Decay, Part};
 
@@ -64,8 +67,10 @@ pub struct Bridge {
     /// The command in force, and its plan.
     active: BridgeCommand,
     plan: Plan,
-    /// A duty waiting for the next period start.
+    /// A duty waiting for the next update event.
     pending: Option<BridgeCommand>,
+    /// PWM periods per update event.
+    every: u64,
     /// The index of the current PWM period (its start is `n T`).
     n: u64,
     /// The part of the period in force (resolved plans).
@@ -82,6 +87,7 @@ impl Bridge {
             active: BridgeCommand::Off,
             plan: Plan::Constant(Winding::Coast(supply)),
             pending: None,
+            every: u64::from(config.periods_per_update()),
             n: 0,
             part: 0,
         }
@@ -138,10 +144,11 @@ impl Bridge {
         (n as u64, (x - n).abs() <= 1e-9)
     }
 
-    /// Command the bridge at time `t`: off at once; a duty from the next period
-    /// start (at once if `t` is one), coasting until then if the bridge was off.
+    /// Command the bridge at time `t`: off at once; a duty from the next update
+    /// event (at once if `t` is one), coasting until then if the bridge was off.
     pub fn command(&mut self, command: BridgeCommand, t: f64) {
         let (n, at_start) = self.period_at(t);
+        let at_start = at_start && n.is_multiple_of(self.every);
         match command {
             BridgeCommand::Off => {
                 self.active = command;
@@ -201,20 +208,23 @@ impl Bridge {
         }
     }
 
-    /// The time of the next switch, s: a part's end (resolved), or the next period
-    /// start for a pending duty; `None` if nothing changes.
+    /// The time of the next switch, s: a part's end (resolved), or the next update
+    /// event for a pending duty; `None` if nothing changes.
     pub fn next_switch(&self) -> Option<f64> {
         match &self.plan {
             Plan::Resolved(parts) => {
                 Some((self.n as f64 + f64::from(parts[self.part].end)) * self.period)
             }
-            Plan::Constant(_) => self.pending.map(|_| (self.n as f64 + 1.0) * self.period),
+            Plan::Constant(_) => self
+                .pending
+                .map(|_| ((self.n / self.every + 1) * self.every) as f64 * self.period),
         }
     }
 
     /// Move to the next part (at the time [`Bridge::next_switch`] gave): the next
     /// part of the period, or the first of the next period, with a pending duty
-    /// taking effect there.
+    /// taking effect there if an update event falls on it (a constant plan with a
+    /// duty pending moves straight to that update).
     pub fn switch(&mut self) {
         let last = match &self.plan {
             Plan::Resolved(parts) => self.part + 1 >= parts.len(),
@@ -224,10 +234,16 @@ impl Bridge {
             self.part += 1;
             return;
         }
-        self.n += 1;
-        match self.pending.take() {
-            Some(command) => self.start_period(command),
-            None => self.part = 0,
+        self.n = match (&self.plan, self.pending) {
+            (Plan::Constant(_), Some(_)) => (self.n / self.every + 1) * self.every,
+            _ => self.n + 1,
+        };
+        match self.pending {
+            Some(command) if self.n.is_multiple_of(self.every) => {
+                self.pending = None;
+                self.start_period(command);
+            }
+            _ => self.part = 0,
         }
     }
 

@@ -51,9 +51,12 @@ impl Faults {
     /// The parameters failed [`super::Params::validate`]; never clears (the
     /// controller runs on the reference parameters with the motors off).
     pub const PARAMS: Faults = Faults(1 << 8);
+    /// A control tick started late or worked too long (`tick_late_max_s`,
+    /// `tick_busy_max_s`) while the motors were driven: the loop was starved.
+    pub const DEADLINE: Faults = Faults(1 << 9);
 
     /// Every flag with its display name, in bit order.
-    pub const ALL: [(Faults, &'static str); 9] = [
+    pub const ALL: [(Faults, &'static str); 10] = [
         (Faults::STALL, "stall"),
         (Faults::OVER_CURRENT, "over_current"),
         (Faults::ENCODER, "encoder"),
@@ -63,6 +66,7 @@ impl Faults {
         (Faults::ESTOP, "estop"),
         (Faults::WATCHDOG_RESET, "watchdog_reset"),
         (Faults::PARAMS, "params"),
+        (Faults::DEADLINE, "deadline"),
     ];
 
     /// The raw bits.
@@ -72,7 +76,7 @@ impl Faults {
 
     /// From raw bits; bits without a name are dropped.
     pub const fn from_bits(bits: u16) -> Faults {
-        Faults(bits & 0x01ff)
+        Faults(bits & 0x03ff)
     }
 
     /// No flag set.
@@ -148,6 +152,7 @@ impl defmt::Format for Faults {
                 Faults::ESTOP => defmt::write!(f, "ESTOP"),
                 Faults::WATCHDOG_RESET => defmt::write!(f, "WATCHDOG_RESET"),
                 Faults::PARAMS => defmt::write!(f, "PARAMS"),
+                Faults::DEADLINE => defmt::write!(f, "DEADLINE"),
                 _ => defmt::write!(f, "{=u16:#x}", flag.0),
             }
         }
@@ -193,6 +198,8 @@ pub struct Observation {
     pub estop: bool,
     /// Time since the last command or heartbeat, s.
     pub link_age_s: f32,
+    /// The tick's timing as measured.
+    pub timing: super::TickTiming,
 }
 
 /// The timers of the checks that need a condition to persist.
@@ -248,6 +255,8 @@ impl FaultMonitor {
     ///   slow for `stall_time_s + encoder_time_s` is one of the two (by the current
     ///   of that tick), so a current hovering at the threshold cannot postpone it.
     /// - Link: `link_age_s >= link_timeout_s - dt/2` while starting or running.
+    /// - Deadline: a tick late or over its budget while the motors are driven, at
+    ///   once ([`FaultMonitor::missed_deadline`]).
     pub fn check(&mut self, obs: &Observation, limits: &FaultLimits, dt: f32) -> Faults {
         let mut found = Faults::NONE;
 
@@ -276,6 +285,11 @@ impl FaultMonitor {
             found |= Faults::PHASE_LOCK_LOST;
         }
 
+        // Deadline: a starved loop while the motors are driven, at once.
+        if obs.state.drives() && Self::missed_deadline(obs, limits) {
+            found |= Faults::DEADLINE;
+        }
+
         // Command link: while a run is being started or held.
         if matches!(obs.state, State::Starting | State::Running)
             && obs.link_age_s >= limits.link_timeout_s - 0.5 * dt
@@ -284,6 +298,14 @@ impl FaultMonitor {
         }
 
         found
+    }
+
+    /// Whether the tick started later than `tick_late_max_s` after its nominal
+    /// time, or the previous one worked longer than `tick_busy_max_s` (NaN counts
+    /// as missed).
+    pub fn missed_deadline(obs: &Observation, limits: &FaultLimits) -> bool {
+        let t = obs.timing;
+        !(t.late_s <= limits.tick_late_max_s && t.busy_s <= limits.tick_busy_max_s)
     }
 
     /// The checks of rotor `k` (see [`FaultMonitor::check`]).
@@ -391,7 +413,7 @@ mod tests {
         assert_eq!(names.next(), Some("estop"));
         assert_eq!(names.next(), None);
         assert!(Faults::NONE.names().next().is_none());
-        assert_eq!(Faults::from_bits(0xffff).bits(), 0x01ff);
+        assert_eq!(Faults::from_bits(0xffff).bits(), 0x03ff);
     }
 
     #[test]

@@ -83,6 +83,20 @@ pub struct Inputs {
     pub estop: bool,
     /// A command received since the previous tick.
     pub command: Option<Command>,
+    /// When this tick started and how long the previous one worked, as the
+    /// firmware measured them (zero in a lockstep simulation).
+    pub timing: TickTiming,
+}
+
+/// The timing of the control loop as the firmware measures it (its cycle
+/// counter): what the deadline check ([`super::Faults::DEADLINE`]) looks at.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickTiming {
+    /// How long after its nominal time this tick started, s (0 or more).
+    pub late_s: f32,
+    /// How long the previous tick's work took, from its start to its end, s.
+    pub busy_s: f32,
 }
 
 impl Default for Inputs {
@@ -95,6 +109,7 @@ impl Default for Inputs {
             supply_voltage: 0.0,
             estop: false,
             command: None,
+            timing: TickTiming::default(),
         }
     }
 }
@@ -179,6 +194,12 @@ pub struct Telemetry {
     /// The command of this tick was refused: out-of-range values, or a run command
     /// while a fault is latched or a self-test runs.
     pub command_rejected: bool,
+    /// How late this tick started, us (the input, saturating at 65535).
+    pub tick_late_us: u16,
+    /// How long the previous tick's work took, us (the input, saturating).
+    pub tick_busy_us: u16,
+    /// Ticks that missed their deadline since the start, in any state (saturating).
+    pub overruns: u16,
 }
 
 /// What the controller writes each tick. Built afresh every tick, so a value from an

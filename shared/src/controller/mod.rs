@@ -108,7 +108,7 @@ pub mod tuning;
 
 pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
-pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry};
+pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
 };
@@ -219,6 +219,8 @@ pub struct Controller {
     monitor: FaultMonitor,
     /// Time since the last command or heartbeat, s.
     link_age_s: f32,
+    /// Ticks that missed their deadline since the start (saturating).
+    overruns: u16,
     /// The run command in force (starting, running).
     target: Option<RunTarget>,
     /// The ramped speed reference, rpm.
@@ -281,6 +283,7 @@ impl Controller {
             current_filtered: [0.0; 2],
             monitor: FaultMonitor::new(),
             link_age_s: 0.0,
+            overruns: 0,
             target: None,
             ramp_rpm: 0.0,
             offset: OffsetRamp::new(ramp::VERTICAL_OFFSET_DEG),
@@ -462,8 +465,12 @@ impl Controller {
             supply_voltage: inputs.supply_voltage,
             estop: inputs.estop,
             link_age_s: self.link_age_s,
+            timing: inputs.timing,
         };
         let found = self.monitor.check(&obs, &self.params.limits, dt);
+        if FaultMonitor::missed_deadline(&obs, &self.params.limits) {
+            self.overruns = self.overruns.saturating_add(1);
+        }
         if !found.is_empty() {
             self.latch(found);
         }
@@ -603,6 +610,9 @@ impl Controller {
                 supply_voltage: inputs.supply_voltage,
                 duty,
                 command_rejected: rejected,
+                tick_late_us: saturating_us(inputs.timing.late_s),
+                tick_busy_us: saturating_us(inputs.timing.busy_s),
+                overruns: self.overruns,
             },
         }
     }
@@ -855,5 +865,18 @@ impl Controller {
             _ => {}
         }
         (accel, offset_rate)
+    }
+}
+
+/// `s` seconds in whole microseconds, saturating at `u16::MAX` (NaN and negative
+/// values give 0).
+fn saturating_us(s: f32) -> u16 {
+    let us = s * 1e6;
+    if us >= f32::from(u16::MAX) {
+        u16::MAX
+    } else if us > 0.0 {
+        us as u16
+    } else {
+        0
     }
 }

@@ -184,6 +184,13 @@ pub struct FaultLimits {
     /// Supply out of range this long is a fault, s [10 ms: rides through the ripple
     /// of a switching tick and an ADC glitch].
     pub supply_time_s: f32,
+    /// A tick that starts this much after its nominal time missed its deadline, s
+    /// [a quarter of the tick: 250 us at 1 kHz; the step takes about 10 us and the
+    /// interrupts above it a few, so this much means something starved the loop].
+    pub tick_late_max_s: f32,
+    /// A tick whose work took this long missed its deadline, s [half the tick: 500
+    /// us at 1 kHz, fifty times the step].
+    pub tick_busy_max_s: f32,
 }
 
 /// Everything the controller needs, fixed while it runs.
@@ -361,6 +368,8 @@ impl Params {
                 supply_min_v: 0.75 * v,
                 supply_max_v: supply_max,
                 supply_time_s: (2.0 * tick).max(0.01),
+                tick_late_max_s: 0.25 * tick,
+                tick_busy_max_s: 0.5 * tick,
             },
             tuning: TuningTable::default(),
         }
@@ -536,6 +545,8 @@ impl Params {
             "limits.supply_time_s",
             NONNEG,
         )?;
+        check(positive(l.tick_late_max_s), "limits.tick_late_max_s", POS)?;
+        check(positive(l.tick_busy_max_s), "limits.tick_busy_max_s", POS)?;
         Ok(())
     }
 

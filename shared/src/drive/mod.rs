@@ -42,10 +42,17 @@
 //!
 //! # The PWM period
 //!
-//! Both inputs come from one timer in edge-aligned PWM: each is high from the
-//! start of the period for its high fraction. So a period has at most three parts
-//! ([`period`]): both high (brake) up to the smaller fraction, the one with the
-//! larger fraction high alone up to it, both low (coast) for the rest.
+//! Both inputs come from one timer counting up and down (centre-aligned PWM):
+//! each input is high while the counter is below its compare value, so around
+//! the counter's valley, for half its high fraction at each end of the period (the
+//! period runs valley to valley). A period is symmetric about its middle, the
+//! counter's peak ([`period`]): both high (brake) for half the smaller fraction,
+//! the input with the larger fraction high alone up to half of it, both low
+//! (coast) across the middle, then the same mirrored. In slow decay that is brake
+//! around the valley and drive around the peak: the valley is the middle of the
+//! brake, the peak the middle of the drive, whatever the duty, and the current
+//! there is the period's mean (for a linear ripple) whichever of the two the
+//! firmware samples at.
 //!
 //! # Changing the inputs
 //!
@@ -97,12 +104,90 @@ pub struct BridgeConfig {
 
 impl BridgeConfig {
     /// The default: slow decay at 20 kHz (above hearing, and within what a
-    /// DRV8871-class bridge switches with little loss; 8400 steps of duty on a
-    /// 168 MHz timer).
+    /// DRV8871-class bridge switches with little loss; 4200 steps of duty on a
+    /// 168 MHz centre-aligned timer).
     pub const DEFAULT: BridgeConfig = BridgeConfig {
         decay: Decay::Slow,
         pwm_hz: 20_000,
     };
+
+    /// PWM periods per update event of the timer ([`MAX_UPDATE_HZ`]): the new
+    /// compare values load, and the currents are sampled, once every this many
+    /// periods (1 up to 50 kHz).
+    pub const fn periods_per_update(self) -> u32 {
+        let k = self.pwm_hz.div_ceil(MAX_UPDATE_HZ);
+        if k == 0 {
+            1
+        } else {
+            k
+        }
+    }
+}
+
+/// The fastest rate of the timer's update event, Hz: at each one the board's
+/// ADC converts both currents and the supply (three conversions, about 10 us), so
+/// two updates must be further apart than that; above 50 kHz of PWM the update
+/// comes every [`BridgeConfig::periods_per_update`] periods.
+pub const MAX_UPDATE_HZ: u32 = 50_000;
+
+/// The setup of a 16-bit timer for centre-aligned PWM: prescaler, auto-reload and
+/// repetition counter (the registers PSC, ARR, RCR of an STM32 advanced timer).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CentreAligned {
+    /// Prescaler: the counter runs at `timer_hz / (psc + 1)`.
+    pub psc: u16,
+    /// Auto-reload: the counter counts `0 -> arr -> 0`, a period of `2 arr` counts.
+    pub arr: u16,
+    /// Repetition counter: an update event every `rcr + 1` half periods, so
+    /// `2 k - 1` for one every `k` periods ([`BridgeConfig::periods_per_update`]).
+    pub rcr: u8,
+}
+
+impl CentreAligned {
+    /// For `config` on a timer clocked at `timer_hz`: the smallest prescaler that
+    /// fits the auto-reload in 16 bits, with
+    ///
+    /// ```text
+    ///   f_pwm = timer_hz / ((psc + 1) * 2 * arr)        (RM0090 17.3.2, centre-aligned)
+    /// ```
+    ///
+    /// rounded to the nearest `arr`. At 168 MHz and 20 kHz: `psc = 0`,
+    /// `arr = 4200`, exact.
+    pub const fn new(timer_hz: u32, config: BridgeConfig) -> CentreAligned {
+        let pwm_hz = if config.pwm_hz == 0 { 1 } else { config.pwm_hz };
+        // Counts of the undivided clock per half period.
+        let half = (timer_hz as u64 + pwm_hz as u64) / (2 * pwm_hz as u64);
+        let psc = (half.saturating_sub(1)) / 65_535;
+        // Rounded to the nearest: (2 half + div) / (2 div).
+        let div = psc + 1;
+        let arr = (2 * half + div) / (2 * div);
+        let k = config.periods_per_update();
+        let rcr = 2 * k - 1;
+        CentreAligned {
+            psc: if psc > u16::MAX as u64 {
+                u16::MAX
+            } else {
+                psc as u16
+            },
+            arr: if arr > u16::MAX as u64 {
+                u16::MAX
+            } else if arr == 0 {
+                1
+            } else {
+                arr as u16
+            },
+            rcr: if rcr > u8::MAX as u32 {
+                u8::MAX
+            } else {
+                rcr as u8
+            },
+        }
+    }
+
+    /// The PWM frequency this setup gives on a `timer_hz` clock, Hz.
+    pub fn pwm_hz(self, timer_hz: u32) -> f64 {
+        f64::from(timer_hz) / ((f64::from(self.psc) + 1.0) * 2.0 * f64::from(self.arr))
+    }
 }
 
 impl Default for BridgeConfig {
@@ -166,30 +251,44 @@ pub struct Part {
     pub connection: Connection,
 }
 
-/// The parts of a PWM period with the inputs at the high fractions `inputs` (edge
-/// aligned: each input high from the period's start): both high (short) up to the
-/// smaller fraction, the larger one's connection up to the larger, coast to the
-/// end. Parts of zero length are left out; the last part ends at 1.
-pub fn period(inputs: [f32; 2]) -> heapless::Vec<Part, 3> {
+/// The parts of a PWM period with the inputs at the high fractions `inputs`
+/// (centre-aligned, valley to valley; module documentation): both high (short)
+/// up to half the smaller fraction, the larger one's connection up to half the
+/// larger, coast across the middle, then mirrored. Parts of zero length are left
+/// out and equal neighbours merged; the last part ends at 1.
+///
+/// ```text
+///   0      lo/2      hi/2        1 - hi/2    1 - lo/2    1
+///   | short | alone   |   open     |  alone    | short  |
+/// ```
+pub fn period(inputs: [f32; 2]) -> heapless::Vec<Part, 5> {
     let [a, b] = inputs.map(|x| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) });
     let (low, high, alone) = if a >= b {
         (b, a, Connection::Forward)
     } else {
         (a, b, Connection::Reverse)
     };
-    let mut parts = heapless::Vec::new();
-    let mut push = |end: f32, connection| {
-        // At most three parts, each pushed once: the capacity cannot overflow.
-        let _ = parts.push(Part { end, connection });
-    };
-    if low > 0.0 {
-        push(low, Connection::Short);
-    }
-    if high > low {
-        push(high, alone);
-    }
-    if high < 1.0 {
-        push(1.0, Connection::Open);
+    let edges = [
+        (0.5 * low, Connection::Short),
+        (0.5 * high, alone),
+        (1.0 - 0.5 * high, Connection::Open),
+        (1.0 - 0.5 * low, alone),
+        (1.0, Connection::Short),
+    ];
+    let mut parts: heapless::Vec<Part, 5> = heapless::Vec::new();
+    let mut start = 0.0;
+    for (end, connection) in edges {
+        if end <= start {
+            continue;
+        }
+        match parts.last_mut() {
+            Some(last) if last.connection == connection => last.end = end,
+            // At most five parts, one per edge: the capacity cannot overflow.
+            _ => {
+                let _ = parts.push(Part { end, connection });
+            }
+        }
+        start = end;
     }
     parts
 }

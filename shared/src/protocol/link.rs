@@ -47,6 +47,13 @@ pub struct LinkState {
     pub finished_self_test: Option<SelfTest>,
     /// Telemetry period, ms (0: none).
     pub telemetry_period_ms: u16,
+    /// Received bytes lost since the start (the receive ring full, or the UART's
+    /// overrun), as the receiving side counts them; reported in every status.
+    pub rx_dropped: u32,
+    /// A flash store is under way (outside the lock): the control task holds
+    /// motion commands back until it ends, so the motors stay stopped while the
+    /// flash is written.
+    pub storing: bool,
 }
 
 /// Take the stored record's tuning table into `params` (a table written over the
@@ -73,6 +80,7 @@ impl LinkState {
                 state: controller.state(),
                 faults: controller.faults(),
                 telemetry: no_telemetry(),
+                rx_dropped: 0,
             },
             controller.params().tuning.clone(),
             self_test,
@@ -102,6 +110,8 @@ impl LinkState {
             self_test_requested: false,
             self_test_unsaved: false,
             telemetry_period_ms: 0,
+            rx_dropped: 0,
+            storing: false,
         }
     }
 
@@ -123,8 +133,17 @@ impl LinkState {
                 result: Default::default(),
             };
         }
+        // While the flash is written, a motion command waits (a stop or a
+        // heartbeat passes: they never start the motors).
+        let command = match self.command {
+            Some(Command::Stop | Command::Heartbeat | Command::ResetFaults) | None => {
+                self.command.take()
+            }
+            Some(_) if self.storing => None,
+            Some(_) => self.command.take(),
+        };
         ForTick {
-            command: self.command.take(),
+            command,
             tuning_refused,
             self_test_refused,
         }
@@ -136,6 +155,7 @@ impl LinkState {
     /// test that just finished is marked for storing with the table.
     pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, self_test: SelfTestReport) {
         self.status = StatusReport::from_outputs(uptime_ms, out);
+        self.status.rx_dropped = u16::try_from(self.rx_dropped).unwrap_or(u16::MAX);
         if self_test.status != SelfTestStatus::NotRun {
             if self.self_test.status == SelfTestStatus::Running
                 && self_test.status == SelfTestStatus::Done
@@ -182,65 +202,110 @@ pub fn no_telemetry() -> Telemetry {
         supply_voltage: 0.0,
         duty: [0.0; 2],
         command_rejected: false,
+        tick_late_us: 0,
+        tick_busy_us: 0,
+        overruns: 0,
     }
 }
 
-/// [`LinkState`] with the flash: the [`Device`] the handler answers on.
-struct Session<'a, F: Flash + ?Sized> {
-    state: &'a mut LinkState,
+/// The lock on [`LinkState`]: runs a closure on it (on the board, inside the RTIC
+/// lock that the control task shares).
+type WithState<'a> = &'a mut dyn FnMut(&mut dyn FnMut(&mut LinkState));
+
+/// The [`Device`] the handler answers on: [`LinkState`] through its lock, taken
+/// for each access and never across a flash operation, and the flash.
+struct Session<'a, 'b, F: Flash + ?Sized> {
+    with_state: core::cell::RefCell<WithState<'b>>,
     flash: &'a mut F,
 }
 
-impl<F: Flash + ?Sized> Device for Session<'_, F> {
+impl<F: Flash + ?Sized> Session<'_, '_, F> {
+    /// Run `f` on the state under the lock; `None` if the lock did not run it
+    /// (not the contract of `with_state`, but the type cannot promise it: each
+    /// access then falls back to a defined answer, a Nack or an idle status).
+    fn locked<R>(&self, f: impl FnOnce(&mut LinkState) -> R) -> Option<R> {
+        let mut f = Some(f);
+        let mut out = None;
+        (self.with_state.borrow_mut())(&mut |state| {
+            if let Some(f) = f.take() {
+                out = Some(f(state));
+            }
+        });
+        out
+    }
+}
+
+impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
     fn status(&self) -> StatusReport {
-        self.state.status
+        self.locked(|s| s.status).unwrap_or(StatusReport {
+            uptime_ms: 0,
+            state: crate::controller::State::Idle,
+            faults: crate::controller::Faults::NONE,
+            telemetry: no_telemetry(),
+            rx_dropped: 0,
+        })
     }
 
     fn command(&mut self, command: Command) -> Result<(), NackReason> {
-        // A self-test drives the motors itself: only stop (which aborts it) and
-        // heartbeats while it runs.
-        let testing = self.state.self_test.status == SelfTestStatus::Running
-            || self.state.self_test_requested;
-        if testing && !matches!(command, Command::Stop | Command::Heartbeat) {
-            return Err(NackReason::Busy);
-        }
-        // A heartbeat never replaces a motion command still waiting.
-        let waiting = matches!(self.state.command, Some(c) if c != Command::Heartbeat);
-        if !(command == Command::Heartbeat && waiting) {
-            self.state.command = Some(command);
-        }
-        Ok(())
+        self.locked(|state| {
+            // A self-test drives the motors itself: only stop (which aborts it)
+            // and heartbeats while it runs.
+            let testing =
+                state.self_test.status == SelfTestStatus::Running || state.self_test_requested;
+            if testing && !matches!(command, Command::Stop | Command::Heartbeat) {
+                return Err(NackReason::Busy);
+            }
+            // A heartbeat never replaces a motion command still waiting.
+            let waiting = matches!(state.command, Some(c) if c != Command::Heartbeat);
+            if !(command == Command::Heartbeat && waiting) {
+                state.command = Some(command);
+            }
+            Ok(())
+        })
+        .unwrap_or(Err(NackReason::Busy))
     }
 
     fn tuning_table(&self) -> TuningTable {
-        self.state.tuning.clone()
+        self.locked(|s| s.tuning.clone()).unwrap_or_default()
     }
 
+    /// The record under the lock, the flash written outside it (an erase takes up
+    /// to 2 s, during which the control task must not be masked), the result
+    /// under the lock again.
     fn store_tuning_table(&mut self, table: &TuningTable) -> Result<(), NackReason> {
-        let record = self.state.record(table);
-        match storage::store(self.flash, &record) {
-            Ok(_) => {
-                self.state.tuning = table.clone();
-                self.state.new_tuning = Some(table.clone());
+        let record = self
+            .locked(|state| {
+                state.storing = true;
+                state.record(table)
+            })
+            .ok_or(NackReason::StorageFailed)?;
+        let stored = storage::store(&mut *self.flash, &record);
+        self.locked(|state| {
+            state.storing = false;
+            if stored.is_ok() {
+                state.tuning = table.clone();
+                state.new_tuning = Some(table.clone());
                 // The self-test result went into this record too.
-                self.state.self_test_unsaved = false;
-                Ok(())
+                state.self_test_unsaved = false;
             }
-            Err(_) => Err(NackReason::StorageFailed),
-        }
+        });
+        stored.map(|_| ()).map_err(|_| NackReason::StorageFailed)
     }
 
     fn self_test(&self) -> SelfTestReport {
-        self.state.self_test
+        self.locked(|s| s.self_test).unwrap_or(SelfTestReport {
+            status: SelfTestStatus::NotRun,
+            result: Default::default(),
+        })
     }
 
     fn start_self_test(&mut self) -> Result<(), NackReason> {
-        self.state.self_test_requested = true;
-        Ok(())
+        self.locked(|s| s.self_test_requested = true)
+            .ok_or(NackReason::Busy)
     }
 
     fn set_telemetry_period(&mut self, period_ms: u16) {
-        self.state.telemetry_period_ms = period_ms;
+        self.locked(|s| s.telemetry_period_ms = period_ms);
     }
 }
 
@@ -281,7 +346,9 @@ impl Link {
     /// 1. take up to [`POLL_CHUNK`] bytes from `rx` (`None`: nothing more now);
     /// 2. give up on a frame after [`FRAME_GAP_TIMEOUT_MS`] of silence inside it;
     /// 3. decode and answer every frame on the state (reached through
-    ///    `with_state`, which takes the lock) and `flash`, and `send` the answers;
+    ///    `with_state`, which takes the lock and must run its closure once; the
+    ///    lock is taken for each access, and a flash write runs outside it) and
+    ///    `flash`, and `send` the answers;
     /// 4. store a finished self-test's result, when the motors allow a write;
     /// 5. send telemetry when due.
     ///
@@ -317,20 +384,17 @@ impl Link {
             self.last_byte_ms = now_ms;
         }
 
-        // 3. Every frame of the chunk, answered.
+        // 3. Every frame of the chunk, answered (the lock taken per access, never
+        // across a flash write).
         let mut input = chunk.get(..n).unwrap_or(&[]);
         while let Some(event) = self.decoder.decode(&mut input) {
-            let mut event = Some(event);
-            let mut answer = None;
-            with_state(&mut |state| {
-                if let Some(event) = event.take() {
-                    let mut session = Session {
-                        state,
-                        flash: &mut *flash,
-                    };
-                    answer = answer_event(&mut session, event);
-                }
-            });
+            let answer = {
+                let mut session = Session {
+                    with_state: core::cell::RefCell::new(&mut with_state),
+                    flash: &mut *flash,
+                };
+                answer_event(&mut session, event)
+            };
             if let Some((seq, response)) = answer {
                 if let Ok(len) = encode(&response, seq, &mut self.out) {
                     send(self.out.get(..len).unwrap_or(&[]));
@@ -338,18 +402,26 @@ impl Link {
             }
         }
 
-        // 4. A self-test result to keep.
+        // 4. A self-test result to keep: the record under the lock, the flash
+        // written outside it.
+        let mut record = None;
         with_state(&mut |state| {
             if state.self_test_unsaved
                 && storage::may_write(state.status.state, state.status.telemetry.speed_rpm)
             {
-                let record = state.record(&state.tuning);
-                // A failed write leaves the result reported but unsaved; the next
-                // table write stores it.
-                let _ = storage::store(&mut *flash, &record);
-                state.self_test_unsaved = false;
+                record = Some(state.record(&state.tuning));
+                state.storing = true;
             }
         });
+        if let Some(record) = record {
+            // A failed write leaves the result reported but unsaved; the next
+            // table write stores it.
+            let _ = storage::store(&mut *flash, &record);
+            with_state(&mut |state| {
+                state.storing = false;
+                state.self_test_unsaved = false;
+            });
+        }
 
         // 5. Telemetry when due.
         let mut report = None;

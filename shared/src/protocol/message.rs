@@ -268,19 +268,23 @@ pub struct StatusReport {
     pub faults: Faults,
     /// The tick's measurements and references.
     pub telemetry: Telemetry,
+    /// Received bytes the device lost since it started (its receive ring full, or
+    /// the UART overrun), saturating.
+    pub rx_dropped: u16,
 }
 
 impl StatusReport {
     /// Payload bytes: see `docs/protocol.md`.
-    pub const LEN: usize = 60;
+    pub const LEN: usize = 68;
 
-    /// The report of a controller tick's outputs at `uptime_ms`.
+    /// The report of a controller tick's outputs at `uptime_ms` (no byte lost).
     pub fn from_outputs(uptime_ms: u32, outputs: &Outputs) -> Self {
         StatusReport {
             uptime_ms,
             state: outputs.state,
             faults: outputs.faults,
             telemetry: outputs.telemetry,
+            rx_dropped: 0,
         }
     }
 }
@@ -436,6 +440,10 @@ fn write_status(w: &mut Writer<'_>, s: &StatusReport) {
     ] {
         w.f32(v);
     }
+    w.u16(t.tick_late_us);
+    w.u16(t.tick_busy_us);
+    w.u16(t.overruns);
+    w.u16(s.rx_dropped);
 }
 
 /// Read a status report that fills the payload exactly.
@@ -453,6 +461,11 @@ fn read_status(payload: &[u8]) -> Result<StatusReport, ParseError> {
     for v in f.iter_mut() {
         *v = r.f32().ok_or(ParseError::BadLength)?;
     }
+    let (Some(tick_late_us), Some(tick_busy_us), Some(overruns), Some(rx_dropped)) =
+        (r.u16(), r.u16(), r.u16(), r.u16())
+    else {
+        return Err(ParseError::BadLength);
+    };
     let state = state_from_code(state).ok_or(ParseError::BadValue)?;
     let faults = Faults::from_bits(bits);
     if faults.bits() != bits || flags & !(PHASE_VALID | PHASE_LOOP_CLOSED | COMMAND_REJECTED) != 0 {
@@ -476,7 +489,11 @@ fn read_status(payload: &[u8]) -> Result<StatusReport, ParseError> {
             supply_voltage: supply,
             duty: [d1, d2],
             command_rejected: flags & COMMAND_REJECTED != 0,
+            tick_late_us,
+            tick_busy_us,
+            overruns,
         },
+        rx_dropped,
     })
 }
 

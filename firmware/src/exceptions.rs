@@ -1,0 +1,160 @@
+//! The panic handler and every exception handler that means "something went
+//! wrong": each cuts the motors first, then logs, then stops.
+//!
+//! | entry | when |
+//! | --- | --- |
+//! | `panic` | a Rust panic (no input path panics; this is the last line) |
+//! | `HardFault` | a fault with its own handler disabled, or a fault in a handler |
+//! | `MemoryManagement`, `BusFault`, `UsageFault` | enabled at start ([`enable_fault_exceptions`]): a bad access, a bus error, an undefined instruction or a division by zero |
+//! | `NonMaskableInt` | the clock security system: the crystal (HSE) stopped ([`css_tripped`]) |
+//! | `DefaultHandler` | an interrupt nothing is bound to (cortex-m-rt's own default is `loop {}`, which would leave the bridges at their last duty) |
+//!
+//! On the board, cutting is `motor_out::cut` (TIM8's main output enable off, every
+//! bridge input low: coast), then the log, then a wait with interrupts off for the
+//! independent watchdog, which nothing feeds any more: it resets the chip within
+//! `watchdog::Timeout::RUN` (34-94 ms over the LSI's spread). The next start
+//! reads the watchdog flag and the controller starts in `Fault` with
+//! `WATCHDOG_RESET` latched: the motors never restart on their own after a crash.
+//! (A debugger halting the core freezes the watchdog, so the state can be read.)
+//!
+//! In the `qemu` builds (no motors, no watchdog): the emulated bridge inputs are
+//! zeroed ([`crate::qemu::pwm::cut`]), then the log, then QEMU exits with a failure
+//! status, so a panic or a fault (a stack overflow, with flip-link) fails the run
+//! instead of hanging it. An unexpected interrupt is the exception: the scripted
+//! host pends one on purpose as its last step, and the handler checks that the
+//! bridges it found driven are now cut, then ends the run with the verdict
+//! ([`crate::qemu::script`]).
+
+use core::panic::PanicInfo;
+
+use cortex_m::peripheral::scb::Exception;
+use cortex_m::peripheral::SCB;
+
+/// Every bridge input off, from any context.
+#[inline(always)]
+fn cut() {
+    #[cfg(not(feature = "qemu"))]
+    crate::motor_out::cut();
+    #[cfg(feature = "qemu")]
+    crate::qemu::pwm::cut();
+}
+
+/// Route memory-management, bus and usage faults to their own handlers (below)
+/// instead of escalating them to HardFault; a divide by zero traps (a usage
+/// fault) instead of returning 0. Call once at start.
+pub fn enable_fault_exceptions(scb: &mut SCB) {
+    scb.enable(Exception::MemoryManagement);
+    scb.enable(Exception::BusFault);
+    scb.enable(Exception::UsageFault);
+    // CCR.DIV_0_TRP (bit 4): the controller never divides integers by a value
+    // that can be 0, so a trap here is a bug worth stopping for.
+    // SAFETY: sets one trap bit of the configuration and control register.
+    unsafe { scb.ccr.modify(|r| r | (1 << 4)) };
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    // Motors off, with no task left to switch them on again: interrupts stay off.
+    cortex_m::interrupt::disable();
+    cut();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    halt()
+}
+
+#[cortex_m_rt::exception]
+unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    cortex_m::interrupt::disable();
+    cut();
+    defmt::error!("hard fault at pc {=u32:#010x}", frame.pc());
+    halt()
+}
+
+#[cortex_m_rt::exception]
+fn MemoryManagement() -> ! {
+    configurable_fault("memory management fault")
+}
+
+#[cortex_m_rt::exception]
+fn BusFault() -> ! {
+    configurable_fault("bus fault")
+}
+
+#[cortex_m_rt::exception]
+fn UsageFault() -> ! {
+    configurable_fault("usage fault")
+}
+
+/// The three configurable faults: cut, log the cause register, stop.
+fn configurable_fault(what: &str) -> ! {
+    cortex_m::interrupt::disable();
+    cut();
+    defmt::error!("{=str}, CFSR {=u32:#010x}", what, cfsr());
+    halt()
+}
+
+/// The NMI: on this board only the clock security system raises it. The core
+/// runs on the HSI by now and TIM8's break has already cleared its outputs in
+/// hardware (RM0090: a clock failure is a break source of TIM1 and TIM8); cut
+/// anyway, clear the flag (an uncleared CSSF re-enters the NMI at once), and wait
+/// for the watchdog: the control loop's timing assumed the crystal.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    cortex_m::interrupt::disable();
+    cut();
+    #[cfg(not(feature = "qemu"))]
+    let css = css_tripped();
+    #[cfg(feature = "qemu")]
+    let css = false;
+    defmt::error!("NMI (clock security system: {=bool}): motors cut", css);
+    halt()
+}
+
+/// An interrupt without a task: cut, then stop (board) or check and end the run
+/// (qemu).
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    cortex_m::interrupt::disable();
+    #[cfg(feature = "qemu")]
+    let driven = crate::qemu::pwm::driven();
+    cut();
+    defmt::error!("unexpected interrupt {=i16}: motors cut", irqn);
+    #[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
+    crate::qemu::script::unexpected_interrupt(irqn, driven);
+    #[cfg(not(all(feature = "qemu", not(feature = "qemu-uart"))))]
+    {
+        #[cfg(feature = "qemu")]
+        let _ = driven;
+        halt()
+    }
+}
+
+/// The configurable fault status register (its bits name the fault's cause).
+fn cfsr() -> u32 {
+    // SAFETY: a read of a status register.
+    unsafe { (*SCB::PTR).cfsr.read() }
+}
+
+/// Whether the clock security system found the HSE stopped (RCC_CIR.CSSF); clears
+/// the flag (CSSC), which the NMI needs to return or be left.
+#[cfg(not(feature = "qemu"))]
+fn css_tripped() -> bool {
+    // SAFETY: reads RCC_CIR and writes its clear bit for CSSF only.
+    let rcc = unsafe { &*stm32f4xx_hal::pac::RCC::ptr() };
+    let tripped = rcc.cir().read().cssf().bit_is_set();
+    rcc.cir().modify(|_, w| w.cssc().set_bit());
+    tripped
+}
+
+/// Board: wait with interrupts off for the watchdog reset.
+#[cfg(not(feature = "qemu"))]
+fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// QEMU: exit with a failure status.
+#[cfg(feature = "qemu")]
+fn halt() -> ! {
+    crate::qemu::checks::exit(false)
+}
