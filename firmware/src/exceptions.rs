@@ -4,7 +4,7 @@
 //! | entry | when |
 //! | --- | --- |
 //! | `panic` | a Rust panic (no input path panics; this is the last line) |
-//! | `HardFault` | a fault with its own handler disabled, or a fault in a handler |
+//! | `HardFault` | a fault with its own handler disabled, a fault in a handler, or a stack overflow ([`guard_stack`]) |
 //! | `MemoryManagement`, `BusFault`, `UsageFault` | enabled at start ([`enable_fault_exceptions`]): a bad access, a bus error, an undefined instruction or a division by zero |
 //! | `NonMaskableInt` | the clock security system: the crystal (HSE) stopped ([`css_tripped`]) |
 //! | `DefaultHandler` | an interrupt nothing is bound to (cortex-m-rt's own default is `loop {}`, which would leave the bridges at their last duty) |
@@ -37,6 +37,45 @@ fn cut() {
     crate::motor_out::cut();
     #[cfg(feature = "qemu")]
     crate::qemu::pwm::cut();
+}
+
+/// Bytes at the bottom of the stack that the MPU forbids ([`guard_stack`]).
+pub const STACK_GUARD_BYTES: usize = 1024;
+/// The stack's bottom: the start of RAM, where flip-link puts it (memory.x:
+/// `RAM : ORIGIN = 0x20000000`).
+const STACK_BOTTOM: u32 = 0x2000_0000;
+
+/// A stack overflow must still cut. flip-link puts the stack at the bottom of
+/// RAM, so an overflow runs below RAM and faults; but the fault's entry then
+/// pushes its frame on the same overflowed stack, fails again, and the core
+/// locks up without running any handler (the watchdog would reset it, the bridges
+/// meanwhile at their last duty).
+///
+/// The MPU's region 0 forbids the lowest [`STACK_GUARD_BYTES`] of the stack: an
+/// overflow faults there, with that much real RAM still below the stack pointer.
+/// The memory-management fault's own entry fails on the same region and
+/// escalates to HardFault, which runs with the MPU off (`MPU_CTRL.HFNMIENA = 0`),
+/// so its frame and its handler fit in the guard: it cuts, logs, stops. Every
+/// other address keeps the default memory map (`PRIVDEFENA`; all code runs
+/// privileged). ARMv7-M ARM, B3.5 (the PMSAv7 MPU).
+pub fn guard_stack(mpu: &mut cortex_m::peripheral::MPU) {
+    // RASR: XN (28), AP = 000 no access (26:24), TEX/S/C/B 0, SIZE = log2(bytes) - 1
+    // (5:1), ENABLE (0).
+    const SIZE: u32 = STACK_GUARD_BYTES.trailing_zeros() - 1;
+    const RASR: u32 = (1 << 28) | (SIZE << 1) | 1;
+    // SAFETY: region 0 set while the MPU is off, then the MPU on with the default
+    // map for privileged code; the barriers make it take effect before the next
+    // stack access.
+    unsafe {
+        mpu.ctrl.write(0);
+        mpu.rnr.write(0);
+        mpu.rbar.write(STACK_BOTTOM);
+        mpu.rasr.write(RASR);
+        // CTRL: ENABLE (0), HFNMIENA = 0 (1): off in HardFault and NMI, PRIVDEFENA (2).
+        mpu.ctrl.write((1 << 2) | 1);
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
 }
 
 /// Route memory-management, bus and usage faults to their own handlers (below)

@@ -43,6 +43,9 @@ pub enum FlashError {
     /// The watchdog could not be lengthened for an erase (nothing erased), or
     /// not set back to its running timeout after one.
     Watchdog,
+    /// The bridges' outputs were enabled: no erase, which would stall the control
+    /// task for seconds with the motors driven.
+    MotorsDriven,
 }
 
 /// `FLASH_SR` error bits: OPERR (1), WRPERR (4), PGAERR (5), PGPERR (6), PGSERR (7).
@@ -118,6 +121,11 @@ impl Flash for ParamFlash {
             return Err(FlashError::OutOfRange);
         }
         let snb = sector.number;
+        // Never with the bridges on (the link checks the motors stopped and holds
+        // run commands back while it stores; this is the last line).
+        if crate::motor_out::outputs_enabled() {
+            return Err(FlashError::MotorsDriven);
+        }
         // The watchdog outlasts the stall (module documentation), or no erase.
         watchdog::set(Timeout::ERASE).map_err(|_| FlashError::Watchdog)?;
         let erased = self.with_unlocked(|f| {

@@ -141,13 +141,25 @@ fn publish(
     link.lock(|l| l.publish(uptime_ms, out, self_test));
 }
 
+/// SysTick counts of one `qemu` control tick.
+#[cfg(feature = "qemu")]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TickCounts {
+    /// `Controller::step` alone.
+    pub step: u32,
+    /// The whole tick (sample, command, step, bridge driver, publish) without the
+    /// rotor model's integration, which stands in for the motors, not for code
+    /// the board runs.
+    pub tick: u32,
+}
+
 /// One control tick of the `qemu` builds on the rotor model, the same stages as
 /// the board's `control`: sample the model and take the command, step the
-/// controller with the nominal tick and the tick's `timing` (the step timed in
-/// SysTick counts, returned with the outputs), write the bridges' inputs through the board's driver (both coasting
-/// when the controller does not enable or the E-stop is open, as the board's
-/// E-stop handler and break cut them), run the model for one tick with
-/// `injected`, publish.
+/// controller with the nominal tick and the tick's `timing`, write the bridges'
+/// inputs through the board's driver (both coasting when the controller does not
+/// enable or the E-stop is open, as the board's E-stop handler and break cut
+/// them), run the model for one tick with `injected`, publish. Timed in SysTick
+/// counts ([`TickCounts`]).
 #[cfg(feature = "qemu")]
 fn qemu_tick(
     controller: &mut Controller,
@@ -157,7 +169,9 @@ fn qemu_tick(
     timing: shared::controller::TickTiming,
     uptime_ms: u32,
     link: &mut impl rtic::Mutex<T = LinkState>,
-) -> (Outputs, u32) {
+) -> (Outputs, TickCounts) {
+    use qemu::cycles::{elapsed, now};
+    let start = now();
     // Stage 1: sample the model and take the command.
     let sample = plant.sample();
     let command = take_link(controller, link);
@@ -171,19 +185,22 @@ fn qemu_tick(
         timing,
     };
 
-    // Stage 2: the controller, with the nominal tick, timed by SysTick.
+    // Stage 2: the controller, with the nominal tick.
     let dt = controller.params().tick_s();
-    let before = qemu::cycles::now();
+    let before = now();
     let out = controller.step(&inputs, dt);
-    let counts = qemu::cycles::elapsed(before, qemu::cycles::now());
+    let step = elapsed(before, now());
 
-    // Stage 3: the bridges' inputs, then the model for one tick.
+    // Stage 3: the bridges' inputs, then the model for one tick (not counted).
     drive.apply(out.duty, out.enable && !injected.estop_open);
+    let model_start = now();
     plant.step(injected);
+    let model = elapsed(model_start, now());
 
     // Stage 4: publish.
     publish(link, uptime_ms, &out, controller.self_test_report());
-    (out, counts)
+    let tick = elapsed(start, now()).saturating_sub(model);
+    (out, TickCounts { step, tick })
 }
 
 #[cfg(not(feature = "qemu"))]
@@ -199,7 +216,7 @@ mod app {
     use stm32f4xx_hal::gpio::{Input, PB0, PC4, PC5};
     use stm32f4xx_hal::pac::{TIM7, USART2};
     use stm32f4xx_hal::prelude::*;
-    use stm32f4xx_hal::serial::{Rx, Tx};
+    use stm32f4xx_hal::serial::{self, Rx, Tx};
     use stm32f4xx_hal::timer::{CounterHz, Flag};
 
     use crate::board::{self, Encoders};
@@ -252,8 +269,10 @@ mod app {
 
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
-        // Faults to their own handlers, which cut first (`exceptions`).
+        // Faults to their own handlers, which cut first, and a stack overflow
+        // caught while a handler can still run (`exceptions`).
         crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
+        crate::exceptions::guard_stack(&mut cx.core.MPU);
         // The cycle counter, for the tick's timing.
         cx.core.DCB.enable_trace();
         cx.core.DWT.enable_cycle_counter();
@@ -302,24 +321,32 @@ mod app {
         board::latch_estop();
     }
 
-    /// Index pulse of encoder 1: latch its count, then hold the line off until
-    /// the next tick (`board::index_hold`).
+    /// Index pulse of encoder 1: hold the line off until the next tick
+    /// (`board::index_hold`), latch its count.
     #[task(binds = EXTI4, priority = 3, local = [index1], shared = [index])]
     fn index1(mut cx: index1::Context) {
+        // Masked first: an edge after this cannot enter again before the tick.
+        board::index_hold(0);
         cx.local.index1.clear_interrupt_pending_bit();
         let count = board::driven_count(board::raw_count(0), 0);
-        cx.shared.index.lock(|i| i[0] = Some(count));
-        board::index_hold(0);
+        // The first edge since the tick counts.
+        cx.shared.index.lock(|i| {
+            i[0].get_or_insert(count);
+        });
     }
 
-    /// Index pulse of encoder 2: latch its count, then hold the line off until
-    /// the next tick.
+    /// Index pulse of encoder 2: hold the line off until the next tick, latch its
+    /// count.
     #[task(binds = EXTI9_5, priority = 3, local = [index2], shared = [index])]
     fn index2(mut cx: index2::Context) {
+        // Masked first: an edge after this cannot enter again before the tick.
+        board::index_hold(1);
         cx.local.index2.clear_interrupt_pending_bit();
         let count = board::driven_count(board::raw_count(1), 1);
-        cx.shared.index.lock(|i| i[1] = Some(count));
-        board::index_hold(1);
+        // The first edge since the tick counts.
+        cx.shared.index.lock(|i| {
+            i[1].get_or_insert(count);
+        });
     }
 
     /// The control tick at CONTROL_RATE_HZ: time, sample, step, write, publish,
@@ -394,7 +421,13 @@ mod app {
                     }
                 }
                 Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
-                // The HAL has read the data register, which clears the error.
+                // An overrun lost the byte that came in, and the HAL's read of the
+                // data register (which clears the error) drops the one before.
+                Err(stm32f4xx_hal::nb::Error::Other(serial::Error::Overrun)) => {
+                    link::count_dropped();
+                    link::count_dropped();
+                }
+                // Noise, framing, parity: the byte read is dropped.
                 Err(stm32f4xx_hal::nb::Error::Other(_)) => link::count_dropped(),
             }
         }
@@ -423,7 +456,14 @@ mod app {
                 },
             );
             if !busy {
-                cortex_m::asm::wfi();
+                // Sleep unless a byte came meanwhile (checked with interrupts off:
+                // one arriving between the check and the WFI still wakes it).
+                let rx = &*cx.local.rx_out;
+                cortex_m::interrupt::free(|_| {
+                    if !rx.ready() {
+                        cortex_m::asm::wfi();
+                    }
+                });
             }
         }
     }
@@ -476,8 +516,9 @@ mod qemu_app {
 
     #[init]
     fn init(mut cx: init::Context) -> (Shared, Local) {
-        stack::paint();
         crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
+        crate::exceptions::guard_stack(&mut cx.core.MPU);
+        stack::paint();
         let mut syst = cx.core.SYST;
 
         // Calibrate SysTick against a loop of known length (interrupts are off).
@@ -628,11 +669,26 @@ mod qemu_app {
             ins,
             counts
         );
-        let (off, driving, control_stack) =
-            world.lock(|w| (w.cost_off, w.cost_driving, w.control_stack));
-        for (what, cost) in [("motors off", off), ("driving", driving)] {
+        let (off, driving, tick_off, tick_driving, control_stack) = world.lock(|w| {
+            (
+                w.cost_off,
+                w.cost_driving,
+                w.tick_off,
+                w.tick_driving,
+                w.control_stack,
+            )
+        });
+        for (what, cost) in [
+            ("control step, motors off", off),
+            ("control step, driving", driving),
+            ("control tick without the rotor model, motors off", tick_off),
+            (
+                "control tick without the rotor model, driving",
+                tick_driving,
+            ),
+        ] {
             defmt::info!(
-                "measure: control step, {=str}: {=u32} steps, mean {=u32} / max {=u32} SysTick counts = mean {=u32} / max {=u32} instructions",
+                "measure: {=str}: {=u32} ticks, mean {=u32} / max {=u32} SysTick counts = mean {=u32} / max {=u32} instructions",
                 what,
                 cost.steps,
                 cost.mean(),
@@ -662,13 +718,12 @@ mod qemu_uart_app {
     use core::sync::atomic::{AtomicU32, Ordering};
 
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, ResetCause, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, TickTiming, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use crate::drive::Drive;
     use crate::log::Logger;
-    use crate::qemu::cycles::SysTickClock;
     use crate::qemu::plant::{Injected, Plant};
     use crate::qemu::pwm::SimPwm;
     use crate::qemu::uart::{self, RxRing, UartRx, UartTx};
@@ -695,8 +750,6 @@ mod qemu_uart_app {
         /// The bridges, through the board's driver over emulated compare registers.
         drive: Drive<SimPwm>,
         uptime_ms: u32,
-        /// The control tick's timing, in SysTick counts.
-        clock: SysTickClock,
         flash: SimFlash,
         rx: UartRx,
         tx: UartTx,
@@ -707,6 +760,7 @@ mod qemu_uart_app {
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         crate::exceptions::enable_fault_exceptions(&mut cx.core.SCB);
+        crate::exceptions::guard_stack(&mut cx.core.MPU);
         let mut syst = cx.core.SYST;
         // No RCC: the USART's registers only (QEMU needs no clock for it).
         let (rx, tx) = uart::split(cx.device.USART2);
@@ -726,7 +780,6 @@ mod qemu_uart_app {
                 plant: Plant::new(),
                 drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
-                clock: SysTickClock::new(RELOAD),
                 flash,
                 rx,
                 tx,
@@ -741,24 +794,26 @@ mod qemu_uart_app {
     #[task(
         binds = SysTick,
         priority = 2,
-        local = [controller, plant, drive, uptime_ms, clock],
+        local = [controller, plant, drive, uptime_ms],
         shared = [link]
     )]
     fn control(mut cx: control::Context) {
-        let tick = qemu::next_tick();
-        let timing = cx.local.clock.begin(tick);
+        qemu::next_tick();
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
-        // Nothing injected: the model as it is.
+        // Nothing injected: the model as it is. No timing: this build runs QEMU
+        // on the host's real-time clock (no -icount), where the tick's latency is
+        // the host's scheduling, not the firmware's (hundreds of microseconds
+        // under load): the deadline check is the `qemu` build's, on a
+        // deterministic clock.
         crate::qemu_tick(
             cx.local.controller,
             cx.local.plant,
             cx.local.drive,
             &Injected::default(),
-            timing,
+            TickTiming::default(),
             *cx.local.uptime_ms,
             &mut cx.shared.link,
         );
-        cx.local.clock.end();
     }
 
     /// USART2: move received bytes into the ring (counted and dropped when it is

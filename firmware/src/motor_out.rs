@@ -25,8 +25,9 @@
 //! extremes, the middle of a part whatever the duty: TRGO = update starts the
 //! ADC's conversions there (`sense`). The HAL sets the timer up edge-aligned;
 //! [`MotorOut::new`] stops it, sets CMS, PSC, ARR, RCR and MMS, and starts it
-//! again. The HAL's channels take `ARR + 1` as their full scale (the true one is
-//! `ARR`): the duty is off by at most `0.5 / ARR`, 1.2e-4 of the supply.
+//! again. The driver writes through [`CentreChannel`], whose full scale is `ARR`
+//! (the HAL's channel reports the edge-aligned `ARR + 1`): a fraction is then
+//! exact to the rounding of one count, `0.5 / ARR` (1.2e-4 of the supply).
 //!
 //! # Off state: MOE = 0, every input driven low
 //!
@@ -60,9 +61,12 @@
 //! cannot protect it: the HAL's PWM setup writes BDTR first (AOE), and the first
 //! write after reset freezes LOCK (RM0090, TIMx_BDTR), at "off".
 
+use core::convert::Infallible;
 use shared::drive::CentreAligned;
 use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
+
+use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
 
 use crate::drive::Drive;
@@ -80,7 +84,7 @@ pub struct MotorOut {
     /// Kept so the timer stays configured and running.
     _pwm: PwmHzManager<TIM8>,
     /// The bridges over TIM8 CH1..CH4.
-    drive: Drive<ErasedChannel<TIM8>>,
+    drive: Drive<CentreChannel>,
     /// PA6 as TIM8_BKIN, held so nothing else can take the pin.
     _break_input: PA6<Alternate<3>>,
 }
@@ -119,12 +123,21 @@ impl MotorOut {
         for ch in channels.iter_mut() {
             ch.enable();
         }
+        let [c1, c2, c3, c4] = channels;
         // A break latched while the timer was being set up is not an E-stop the
         // controller should see: clear it if the input is inactive now.
         clear_break();
         MotorOut {
             _pwm: pwm,
-            drive: Drive::new(channels, crate::machine::MACHINE.bridge.decay),
+            drive: Drive::new(
+                [
+                    CentreChannel(c1),
+                    CentreChannel(c2),
+                    CentreChannel(c3),
+                    CentreChannel(c4),
+                ],
+                crate::machine::MACHINE.bridge.decay,
+            ),
             _break_input: break_input,
         }
     }
@@ -174,6 +187,28 @@ impl MotorOut {
     }
 }
 
+/// A TIM8 channel with the full scale of the centre-aligned counter, `ARR`:
+/// an input is high for `CCR / ARR` of the period (PWM mode 1: while the counter
+/// is below `CCR` counting up and at or below it counting down, `2 CCR` of the
+/// `2 ARR` counts). The HAL's channel reports `ARR + 1`, the edge-aligned count,
+/// which would bias every fraction low by up to `1 / ARR` (2.4e-4 at 20 kHz).
+pub struct CentreChannel(ErasedChannel<TIM8>);
+
+impl ErrorType for CentreChannel {
+    type Error = Infallible;
+}
+
+impl SetDutyCycle for CentreChannel {
+    fn max_duty_cycle(&self) -> u16 {
+        // ARR is at most 16 bits on TIM8.
+        tim8().arr().read().bits() as u16
+    }
+
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        self.0.set_duty_cycle(duty)
+    }
+}
+
 /// TIM8's clock, Hz: twice PCLK2 (`board::PCLK2_HZ`, 84 MHz).
 pub const TIM8_HZ: u32 = 168_000_000;
 
@@ -198,6 +233,11 @@ fn centre_aligned(tim: &pac::tim1::RegisterBlock) {
     }
     tim.egr().write(|w| w.ug().set_bit());
     tim.cr1().modify(|_, w| w.cen().set_bit());
+}
+
+/// Whether the bridges' outputs are enabled (TIM8's MOE): a register read.
+pub fn outputs_enabled() -> bool {
+    tim8().bdtr().read().moe().bit_is_set()
 }
 
 /// Whether TIM8's break has occurred (BIF) since the flag was last cleared: the

@@ -9,7 +9,9 @@
 //! on an extreme of the counter: the valley, the middle of every bridge's brake
 //! part in slow decay, or the peak, the middle of its drive part (which of the
 //! two depends on when the repetition counter was loaded: RM0090, "repetition
-//! down-counter"; `docs/bring-up.md` measures it). For a ripple that is linear
+//! down-counter"; with an odd RCR loaded before the counter starts, as
+//! `motor_out` does, the reference manual's note puts it on the overflow, the
+//! peak; `docs/bring-up.md` confirms it on the scope). For a ripple that is linear
 //! over a period (the reference winding's `L/R` is 0.25 ms, five PWM periods)
 //! the current in the middle of either part is the period's mean: the controller
 //! gets the mean current, not a sample at a random point of the ripple.
@@ -160,11 +162,15 @@ impl Sense {
         sense
     }
 
-    /// (Re)start the chain: the DMA stream from the buffer's start, then the ADC
-    /// with DMA requests and the external trigger.
+    /// (Re)start the chain (RM0090 13.8.1: after an overrun both the DMA and the
+    /// ADC are re-initialised): the ADC off, which aborts a conversion and resets
+    /// the scan to its first channel; the DMA stream from the buffer's start; the
+    /// ADC on with DMA requests, its stabilisation time, and only then the
+    /// external trigger, so the first conversion is a scan's first and lands in
+    /// the buffer's first slot.
     fn start(&mut self) {
         let adc = &self.adc;
-        adc.cr2().modify(|_, w| w.dma().clear_bit());
+        adc.cr2().write(|w| w.adon().clear_bit());
         let st = self.dma.st(0);
         st.cr().modify(|_, w| w.en().clear_bit());
         let mut polls = 0;
@@ -190,12 +196,21 @@ impl Sense {
             w.dir().bits(0b00)
         });
         st.cr().modify(|_, w| w.en().set_bit());
-        // Clear a stale overrun and start flag, then the ADC on its trigger.
-        adc.sr().write(|w| unsafe { w.bits(0) });
-        adc.cr2().write(|w| unsafe {
+        // Clear a stale overrun and start flag (the PAC writes the others 1,
+        // which leaves them: the flags clear on 0).
+        adc.sr()
+            .write(|w| w.ovr().clear_bit().strt().clear_bit().eoc().clear_bit());
+        adc.cr2().write(|w| {
             w.adon().set_bit();
             w.dma().set_bit();
-            w.dds().set_bit();
+            w.dds().set_bit()
+        });
+        // t_STAB, the ADC's power-up time: 3 us at most (datasheet); 1000
+        // iterations are over 6 us at 168 MHz.
+        for _ in 0..1000 {
+            cortex_m::asm::nop();
+        }
+        adc.cr2().modify(|_, w| unsafe {
             w.extsel().bits(EXTSEL_TIM8_TRGO);
             w.exten().bits(0b01)
         });
@@ -220,14 +235,16 @@ impl Sense {
                 supply_voltage: f32::NAN,
             };
         }
-        // STRT is cleared by writing 0 (the other flags written 1 are kept).
-        self.adc.sr().write(|w| unsafe { w.bits(!(1 << 4)) });
+        // STRT is cleared by writing 0 (the PAC writes the other flags 1: kept).
+        self.adc.sr().write(|w| w.strt().clear_bit());
         let mut sum = [0u32; CHANNELS];
         let base = BUFFER.0.get() as *const u16;
-        for i in 0..LEN {
-            // SAFETY: inside the buffer; the DMA writes half-words (module docs).
-            let raw = unsafe { core::ptr::read_volatile(base.add(i)) };
-            sum[i % CHANNELS] += u32::from(raw);
+        for scan in 0..SCANS {
+            for (c, total) in sum.iter_mut().enumerate() {
+                // SAFETY: inside the buffer; the DMA writes half-words (module docs).
+                let raw = unsafe { core::ptr::read_volatile(base.add(scan * CHANNELS + c)) };
+                *total += u32::from(raw);
+            }
         }
         let volts = |s: u32| s as f32 / SCANS as f32 * (VREF_V / ADC_FULL_SCALE);
         // i = s (v - v0) / gain

@@ -106,12 +106,23 @@ impl Watchdog {
 /// still be in force).
 pub fn set(timeout: Timeout) -> Result<(), UpdateTimedOut> {
     let r = iwdg();
+    // A previous update still in progress (one that timed out) must end first
+    // (RM0090 19.4: PR and RLR may change only with PVU and RVU clear).
+    wait_updated(r)?;
     cortex_m::interrupt::free(|_| {
         r.kr().write(|w| w.key().unlock());
         // SAFETY: `pr` is a 3-bit prescaler code (0..=6), `rlr` a 12-bit value.
         r.pr().write(|w| unsafe { w.pr().bits(timeout.pr) });
         r.rlr().write(|w| unsafe { w.rl().bits(timeout.rlr) });
     });
+    wait_updated(r)?;
+    r.kr().write(|w| w.key().feed());
+    Ok(())
+}
+
+/// Wait, bounded, until the prescaler and reload updates have reached the
+/// watchdog's clock domain (SR.PVU and SR.RVU clear).
+fn wait_updated(r: &stm32f4xx_hal::pac::iwdg::RegisterBlock) -> Result<(), UpdateTimedOut> {
     let mut polls = 0;
     while r.sr().read().bits() & 0b11 != 0 {
         polls += 1;
@@ -119,6 +130,5 @@ pub fn set(timeout: Timeout) -> Result<(), UpdateTimedOut> {
             return Err(UpdateTimedOut);
         }
     }
-    r.kr().write(|w| w.key().feed());
     Ok(())
 }

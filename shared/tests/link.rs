@@ -517,3 +517,49 @@ fn a_flash_store_runs_outside_the_lock_and_holds_motion_commands_back() {
     });
     assert!(state.take_for_tick(&mut c).command.is_some());
 }
+
+/// A control tick can run between the handler's check that the motors are
+/// stopped and the store: if it took a waiting run command and published a
+/// driving state, the store is refused (`NotStopped`) under the same lock that
+/// would have marked it, and nothing is erased.
+#[test]
+fn a_tick_that_starts_the_motors_before_the_store_gets_it_refused() {
+    let dev = Device::new();
+    let state = std::cell::RefCell::new(dev.state);
+    let mut flash = dev.flash;
+    let before = flash.clone();
+    let mut link = Link::new();
+    let write = Request::WriteTuningTable(table(&[(2500.0, 80.0, 280.0), (3000.0, 90.0, 270.0)]));
+    let mut rx: VecDeque<u8> = frame(&write, 9).into_iter().collect();
+    let mut out = Vec::new();
+    let accesses = std::cell::Cell::new(0);
+    while link.poll(
+        || rx.pop_front(),
+        1,
+        |f| {
+            let mut s = state.borrow_mut();
+            accesses.set(accesses.get() + 1);
+            // The handler's own check reads the status first (idle: may
+            // write); then a control tick "runs" and publishes `starting`.
+            if accesses.get() >= 3 {
+                s.status.state = shared::controller::State::Starting;
+            }
+            f(&mut s);
+        },
+        &mut flash,
+        |frame| out.extend_from_slice(frame),
+    ) {}
+    let request = write.id() as u8;
+    assert_eq!(
+        responses(&out),
+        vec![(
+            9,
+            Response::Nack {
+                request,
+                reason: NackReason::NotStopped
+            }
+        )]
+    );
+    assert!(!state.borrow().storing);
+    assert!(flash == before, "nothing erased or written");
+}

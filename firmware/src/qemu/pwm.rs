@@ -8,11 +8,11 @@ use core::sync::atomic::{AtomicU16, Ordering};
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 
-/// The channels' full scale as the board's report it: the HAL's `ARR + 1` of
-/// TIM8 set up centre-aligned at the machine's PWM frequency
-/// (`shared::drive::CentreAligned`; 4201 at 20 kHz).
+/// The channels' full scale as the board's report it (`motor_out::CentreChannel`):
+/// `ARR` of TIM8 set up centre-aligned at the machine's PWM frequency
+/// (`shared::drive::CentreAligned`; 4200 at 20 kHz).
 pub const MAX_DUTY: u16 =
-    shared::drive::CentreAligned::new(168_000_000, crate::machine::MACHINE.bridge).arr + 1;
+    shared::drive::CentreAligned::new(168_000_000, crate::machine::MACHINE.bridge).arr;
 
 /// The four compare values, CH1..CH4: motor 1 IN1, IN2, motor 2 IN1, IN2.
 static COMPARE: [AtomicU16; 4] = [

@@ -34,6 +34,12 @@ pub fn region() -> (usize, usize) {
     );
     // flip-link puts the statics above the stack: then the stack starts at RAM.
     let bottom = if end < top { end } else { RAM_START };
+    // Its lowest bytes are the MPU's guard (never painted nor read).
+    let bottom = if bottom == RAM_START {
+        bottom + crate::exceptions::STACK_GUARD_BYTES
+    } else {
+        bottom
+    };
     (bottom, top)
 }
 

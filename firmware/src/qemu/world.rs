@@ -6,6 +6,7 @@
 use shared::controller::{Faults, Outputs, State};
 
 use super::plant::{Injected, Plant};
+use crate::TickCounts;
 
 /// The first tick in `Fault` after an injection, as the control task saw it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,7 +31,8 @@ pub struct DriveStart {
     pub angle_turns: f32,
 }
 
-/// SysTick counts of `Controller::step`, over the ticks in one state class.
+/// SysTick counts of `Controller::step` (or of a whole tick), over the ticks in
+/// one state class.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StepCost {
     /// Steps counted.
@@ -93,13 +95,23 @@ pub struct World {
     pub cost_driving: StepCost,
     /// Step cost in the self-test (kept apart: its steps are lighter than a run's).
     pub cost_self_test: StepCost,
+    /// The whole tick's cost without the rotor model, motors off.
+    pub tick_off: StepCost,
+    /// The whole tick's cost without the rotor model, driving (self-test included).
+    pub tick_driving: StepCost,
     /// Most stack the control task used below its stack pointer at entry, bytes.
     pub control_stack: usize,
 }
 
 impl World {
-    /// Record the tick `tick`: its outputs, the model after it, the step's counts.
-    pub fn observe(&mut self, tick: u32, out: &Outputs, plant: &Plant, step_counts: u32) {
+    /// Record the tick `tick`: its outputs, the model after it, its counts.
+    pub fn observe(&mut self, tick: u32, out: &Outputs, plant: &Plant, counts: TickCounts) {
+        let step_counts = counts.step;
+        if out.state.drives() {
+            self.tick_driving.add(counts.tick);
+        } else {
+            self.tick_off.add(counts.tick);
+        }
         self.enable = out.enable;
         self.duty = out.duty;
         self.true_speed_rpm = plant.speed_rpm();

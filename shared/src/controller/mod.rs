@@ -73,6 +73,7 @@
 //! | `LINK_LOST` | no command or heartbeat while starting or running (a stop heads for rest on its own; idle needs no link) | `link_timeout_s` after the last one [0.5 s] |
 //! | `WATCHDOG_RESET` | built with [`ResetCause::Watchdog`] | at construction |
 //! | `PARAMS` | [`Params::validate`] fails | at construction |
+//! | `DEADLINE` | while the motors are driven, the tick started later than `tick_late_max_s` or the previous one worked longer than `tick_busy_max_s` ([`Inputs::timing`]) | the same tick |
 //!
 //! `t_fall` is the time the filtered speed takes to fall from `w0` below the stall
 //! speed once the counts stop: `ceil(ln(w0 / w_stall) / ln(1 + dt / tau_f))` ticks,

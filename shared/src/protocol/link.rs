@@ -273,12 +273,18 @@ impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
     /// to 2 s, during which the control task must not be masked), the result
     /// under the lock again.
     fn store_tuning_table(&mut self, table: &TuningTable) -> Result<(), NackReason> {
+        // The motors checked stopped and the store marked under one lock: a
+        // control tick between a check and the mark could take a waiting run
+        // command and start the motors just before the erase stalls everything.
         let record = self
             .locked(|state| {
+                if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
+                    return Err(NackReason::NotStopped);
+                }
                 state.storing = true;
-                state.record(table)
+                Ok(state.record(table))
             })
-            .ok_or(NackReason::StorageFailed)?;
+            .ok_or(NackReason::StorageFailed)??;
         let stored = storage::store(&mut *self.flash, &record);
         self.locked(|state| {
             state.storing = false;
