@@ -61,13 +61,14 @@ use crate::trace::EventRow;
 /// The commands a scenario can send, as written in the file.
 pub const COMMANDS: [&str; 6] = ["right", "left", "stop", "hold", "reset", "heartbeat"];
 /// The faults a scenario can inject, as written in the file.
-pub const FAULT_KINDS: [&str; 6] = [
+pub const FAULT_KINDS: [&str; 7] = [
     "encoder_dropout",
     "jammed_rotor",
     "supply_sag",
     "current_offset",
     "lost_commands",
     "estop",
+    "late_ticks",
 ];
 /// The kinds of expectation, as written in the file.
 pub const EXPECT_KINDS: [&str; 7] = [
@@ -134,6 +135,12 @@ pub enum InjectedFault {
     LostCommands,
     /// The E-stop input is active.
     Estop,
+    /// The control ticks start `late_us` microseconds after their nominal time
+    /// (the tick timing the firmware measures: a starved loop on the board).
+    LateTicks {
+        /// Lateness, us, >= 0.
+        late_us: f64,
+    },
 }
 
 impl InjectedFault {
@@ -146,6 +153,7 @@ impl InjectedFault {
             InjectedFault::CurrentOffset { .. } => "current_offset",
             InjectedFault::LostCommands => "lost_commands",
             InjectedFault::Estop => "estop",
+            InjectedFault::LateTicks { .. } => "late_ticks",
         }
     }
 
@@ -160,6 +168,7 @@ impl InjectedFault {
                 format!("current_offset rotor {} {} A", rotor + 1, signed(*amps))
             }
             InjectedFault::LostCommands | InjectedFault::Estop => self.kind().to_string(),
+            InjectedFault::LateTicks { late_us } => format!("late_ticks {} us", sig(*late_us)),
         }
     }
 }
@@ -617,6 +626,9 @@ fn read_fault(s: &Section<'_>) -> Option<(f64, Option<f64>, InjectedFault)> {
                 .map(|(rotor, amps)| InjectedFault::CurrentOffset { rotor, amps })
         }
         "lost_commands" => Some(InjectedFault::LostCommands),
+        "late_ticks" => s
+            .number("late_us", Need::Required, Limit::NonNegative)
+            .map(|late_us| InjectedFault::LateTicks { late_us }),
         _ => Some(InjectedFault::Estop),
     };
     s.finish();
@@ -1007,6 +1019,9 @@ impl Driver for ScenarioDriver<'_> {
                 }
                 InjectedFault::LostCommands => injected.link_lost = true,
                 InjectedFault::Estop => injected.estop = true,
+                InjectedFault::LateTicks { late_us } => {
+                    injected.tick_late_s = injected.tick_late_s.max(late_us * 1e-6);
+                }
             }
         }
         self.inner.injected = injected;

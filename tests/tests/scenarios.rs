@@ -54,6 +54,7 @@ scenarios! {
     current_offset => "current-offset.toml",
     lost_commands => "lost-commands.toml",
     estop => "estop.toml",
+    starved_loop => "starved-loop.toml",
 }
 
 #[test]
