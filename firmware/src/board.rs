@@ -30,8 +30,6 @@
 //! TIM5 CH1/CH2 exist only on PA0/PA1 on this package, so TIM2 takes PA15/PB3
 //! (JTDI/SWO: SWD debugging still works, SWO trace does not).
 
-use core::sync::atomic::{AtomicBool, Ordering};
-
 use shared::controller::{ResetCause, CONTROL_RATE_HZ};
 use shared::protocol::BAUD_RATE;
 use stm32f4xx_hal::gpio::{Edge, Input, Pull, PB0, PC4, PC5};
@@ -111,23 +109,6 @@ pub fn raw_count(i: usize) -> u32 {
     }
 }
 
-/// Whether the E-stop circuit is open (pressed, or a wire broken): PB0 high or PA6
-/// (TIM8_BKIN) high (pulled up; the closed contact holds them at GND), or TIM8's
-/// break has cut the outputs since the last tick that did not drive (a break the
-/// pins no longer show: a short opening, or a fault on the PA6 side only), or the
-/// E-stop interrupt latched an opening no tick has taken yet ([`latch_estop`]).
-/// Register and flag reads, callable from anywhere.
-pub fn estop_open() -> bool {
-    // SAFETY: read-only access to the input data registers of GPIOA and GPIOB.
-    let (pb0, pa6) = unsafe {
-        (
-            (*pac::GPIOB::ptr()).idr().read().idr0().bit_is_set(),
-            (*pac::GPIOA::ptr()).idr().read().idr6().bit_is_set(),
-        )
-    };
-    pb0 || pa6 || crate::motor_out::break_tripped() || ESTOP_LATCH.load(Ordering::SeqCst)
-}
-
 /// The index inputs' EXTI lines: encoder 1 on line 4 (PC4), encoder 2 on line 5
 /// (PC5).
 const INDEX_LINES: [u32; 2] = [4, 5];
@@ -164,22 +145,6 @@ pub fn index_rearm() {
             exti.imr().modify(|r, w| w.bits(r.bits() | held));
         }
     });
-}
-
-/// An E-stop opening seen by its interrupt and not yet taken by a control tick.
-static ESTOP_LATCH: AtomicBool = AtomicBool::new(false);
-
-/// The E-stop interrupt saw the circuit open: remembered until a control tick
-/// takes it, so an opening shorter than a tick (the pins closed again by the time
-/// the tick reads them) still reaches the controller.
-pub fn latch_estop() {
-    ESTOP_LATCH.store(true, Ordering::SeqCst);
-}
-
-/// Take the E-stop latch (the control tick, once per tick): whether an opening
-/// was seen since the last take.
-pub fn take_estop_latch() -> bool {
-    ESTOP_LATCH.swap(false, Ordering::SeqCst)
 }
 
 /// Cycles of the 168 MHz core clock since TIM7's update event, the nominal start

@@ -3,6 +3,7 @@
 //!
 //! The app below only moves data; the logic lives elsewhere:
 //! - `board`: pin map, clocks, peripheral setup, raw readings -> units;
+//! - `estop`: the E-stop's pins, TIM8's break flag and the interrupt's latch;
 //! - `drive`: signed duties -> the two H-bridges' inputs (`shared::drive`), in
 //!   both builds;
 //! - `motor_out`: the board's TIM8 under `drive`, its break input and main output
@@ -48,6 +49,8 @@ use defmt_semihosting as _; // global defmt logger over semihosting (QEMU)
 #[cfg(not(feature = "qemu"))]
 mod board;
 mod drive;
+#[cfg(not(feature = "qemu"))]
+mod estop;
 mod exceptions;
 #[cfg(not(feature = "qemu"))]
 mod flash;
@@ -318,7 +321,7 @@ mod app {
     fn estop(cx: estop::Context) {
         cx.local.estop.clear_interrupt_pending_bit();
         motor_out::cut();
-        board::latch_estop();
+        crate::estop::latch();
     }
 
     /// Index pulse of encoder 1: hold the line off until the next tick
@@ -373,7 +376,7 @@ mod app {
         let index = cx.shared.index.lock(core::mem::take);
         board::index_rearm();
         let analog = cx.local.sense.read();
-        let estop = board::take_estop_latch() | board::estop_open();
+        let estop = crate::estop::take_latch() | crate::estop::open();
         let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
         let inputs = Inputs {
             encoder,

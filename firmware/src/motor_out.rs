@@ -52,7 +52,7 @@
 //! AOE = 0: MOE is never set again automatically (at an update event) after a break.
 //! Only [`MotorOut::apply`] sets it, when the controller enables *and* neither the
 //! E-stop pins nor the break flag say stop. A break the controller has not yet seen
-//! (BIF set) keeps the outputs off: [`crate::board::estop_open`] reports it, the
+//! (BIF set) keeps the outputs off: [`crate::estop::open`] reports it, the
 //! controller latches `ESTOP`, and the flag is cleared by the next tick that does
 //! not enable ([`MotorOut::apply`]), so `ResetFaults` then works as for any E-stop.
 //!
@@ -70,6 +70,7 @@ use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
 
 use crate::drive::Drive;
+use crate::estop;
 
 /// TIM8's registers, without owning the peripheral.
 fn tim8() -> &'static pac::tim1::RegisterBlock {
@@ -126,7 +127,7 @@ impl MotorOut {
         let [c1, c2, c3, c4] = channels;
         // A break latched while the timer was being set up is not an E-stop the
         // controller should see: clear it if the input is inactive now.
-        clear_break();
+        estop::clear_break();
         MotorOut {
             _pwm: pwm,
             drive: Drive::new(
@@ -148,7 +149,7 @@ impl MotorOut {
     /// Called every control tick with the controller's fresh outputs, so a stale
     /// duty never survives a tick. MOE is set only when the controller enables, the
     /// E-stop pins read closed and no break has occurred since the last tick that
-    /// did not enable ([`crate::board::estop_open`]).
+    /// did not enable ([`crate::estop::open`]).
     pub fn apply(&mut self, duty: [f32; 2], enable: bool) {
         if !enable {
             cut();
@@ -158,10 +159,10 @@ impl MotorOut {
             // The controller has had the E-stop (the break flag is part of
             // `estop_open`) in this tick's inputs and is not driving: the flag has
             // done its job. Clears only once the input is inactive again.
-            clear_break();
+            estop::clear_break();
             return;
         }
-        if crate::board::estop_open() {
+        if crate::estop::open() {
             // Leaves a break flag set: the next tick's inputs report it.
             cut();
             self.drive.coast();
@@ -180,7 +181,7 @@ impl MotorOut {
         // between the check and the write and then have its cut undone by this
         // write. (While the break input is active the hardware refuses MOE anyway.)
         cortex_m::interrupt::free(|_| {
-            if !crate::board::estop_open() {
+            if !crate::estop::open() {
                 tim8().bdtr().modify(|_, w| w.moe().set_bit());
             }
         });
@@ -238,18 +239,6 @@ fn centre_aligned(tim: &pac::tim1::RegisterBlock) {
 /// Whether the bridges' outputs are enabled (TIM8's MOE): a register read.
 pub fn outputs_enabled() -> bool {
     tim8().bdtr().read().moe().bit_is_set()
-}
-
-/// Whether TIM8's break has occurred (BIF) since the flag was last cleared: the
-/// break input went active and cleared MOE in hardware. A register read.
-pub fn break_tripped() -> bool {
-    tim8().sr().read().bif().bit_is_set()
-}
-
-/// Clear the break flag (BIF). The hardware keeps it set while the break input is
-/// still active, so this never hides a present E-stop.
-fn clear_break() {
-    tim8().sr().write(|w| w.bif().clear());
 }
 
 /// Switch all four H-bridge inputs off at once: clear MOE (and AOE), so the timer
