@@ -121,13 +121,9 @@ impl Flash for ParamFlash {
             return Err(FlashError::OutOfRange);
         }
         let snb = sector.number;
-        // Never with the bridges on (the link checks the motors stopped and holds
-        // run commands back while it stores; this is the last line).
-        if crate::motor_out::outputs_enabled() {
-            return Err(FlashError::MotorsDriven);
-        }
         // The watchdog outlasts the stall (module documentation), or no erase.
         watchdog::set(Timeout::ERASE).map_err(|_| FlashError::Watchdog)?;
+        let mut started = false;
         let erased = self.with_unlocked(|f| {
             f.cr().modify(|_, w| unsafe {
                 w.pg().clear_bit();
@@ -135,13 +131,25 @@ impl Flash for ParamFlash {
                 w.snb().bits(snb);
                 w.psize().bits(PSIZE_X32)
             });
-            f.cr().modify(|_, w| w.strt().set_bit());
+            // Never with the bridges on (the link checks the motors stopped and
+            // holds run commands and self-tests back while it stores; this is the
+            // last line): the check and the start with interrupts off, so the
+            // control task cannot set MOE in between.
+            cortex_m::interrupt::free(|_| {
+                if !crate::motor_out::outputs_enabled() {
+                    f.cr().modify(|_, w| w.strt().set_bit());
+                    started = true;
+                }
+            });
         });
         let restored = watchdog::set(Timeout::RUN);
         if restored.is_err() {
             defmt::error!("watchdog not set back to its running timeout after an erase");
         }
         erased?;
+        if !started {
+            return Err(FlashError::MotorsDriven);
+        }
         restored.map_err(|_| FlashError::Watchdog)
     }
 

@@ -172,9 +172,21 @@ impl MotorOut {
         // order the driver chooses; then MOE. TIM8's channels cannot fail (their
         // error type is Infallible); for any other output, what failed coasts and
         // the rest is cut too.
+        let switching_on = !outputs_enabled();
         if !self.drive.apply(duty, true) {
             cut();
             return;
+        }
+        // Switching on from coast (both inputs at 0), a bridge's two inputs both
+        // rise, and an update falling between the two writes would load one new
+        // value with the other old: in slow decay a period driven forward at up
+        // to 100 % before a reverse duty. The driver's write order guards the
+        // changes while running (a reversal brakes); here the outputs are still
+        // off, so force the update now (UG): both compare values load together
+        // before MOE is set. It restarts the period (and triggers one extra
+        // conversion), harmless with the outputs off.
+        if switching_on {
+            tim8().egr().write(|w| w.ug().set_bit());
         }
         // MOE last, and only while the E-stop circuit is closed and no break has
         // occurred: checked with interrupts off, so the E-stop interrupt cannot cut

@@ -119,7 +119,7 @@ pub fn machine_constants(m: &Machine) -> MachineConstants {
             .min(m.rotors[1].motor.current_limit) as f32,
         rotors: [rotor(0), rotor(1)],
         resonance_band_rpm: band,
-        bridge: m.drive.bridge(),
+        bridge: m.drive.bridge,
     }
 }
 

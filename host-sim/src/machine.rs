@@ -138,29 +138,18 @@ pub struct Drive {
     /// Supply voltage, V; in slow decay a duty d in [-1, 1] puts a mean d x supply
     /// on the winding.
     pub supply_voltage: f64,
-    /// Decay mode of the bridges: `"slow"` (default: drive, then brake) or
-    /// `"fast"` (drive, then coast).
-    pub decay: Decay,
-    /// PWM frequency of the bridge inputs, Hz (default 20000).
-    pub pwm_hz: u32,
-}
-
-impl Drive {
-    /// The bridge as `shared::drive` describes it.
-    pub fn bridge(&self) -> BridgeConfig {
-        BridgeConfig {
-            decay: self.decay,
-            pwm_hz: self.pwm_hz,
-        }
-    }
+    /// The H-bridges as wired (`shared::drive`): `decay` (`"slow"`, the default:
+    /// drive, then brake; or `"fast"`: drive, then coast) and `pwm_hz` (default
+    /// 20000).
+    pub bridge: BridgeConfig,
 }
 
 /// The range of `[drive] pwm_hz`, Hz: a DRV8871-class bridge switches up to 200 kHz;
 /// below 1 kHz the PWM period would be as long as a control tick.
 pub const PWM_HZ_RANGE: [u32; 2] = [1_000, 200_000];
 
-/// The names of `[drive] decay`.
-pub const DECAYS: [&str; 2] = ["slow", "fast"];
+/// The names of `[drive] decay` (`shared::drive::Decay::name`).
+pub const DECAYS: [&str; 2] = [Decay::ALL[0].name(), Decay::ALL[1].name()];
 
 /// The sensors.
 #[derive(Clone, Debug, PartialEq)]
@@ -403,7 +392,7 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     };
     let drive = root.section("drive", Need::Required).and_then(|s| {
         let supply_voltage = s.number("supply_voltage", Need::Required, Limit::Positive);
-        let decay = s.choice("decay", Need::Default("slow"), &DECAYS);
+        let decay = s.choice("decay", Need::Default(Decay::Slow.name()), &DECAYS);
         let pwm_hz = s.integer(
             "pwm_hz",
             Need::Default(i64::from(BridgeConfig::DEFAULT.pwm_hz)),
@@ -412,12 +401,10 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
         s.finish();
         Some(Drive {
             supply_voltage: supply_voltage?,
-            decay: if decay? == "fast" {
-                Decay::Fast
-            } else {
-                Decay::Slow
+            bridge: BridgeConfig {
+                decay: Decay::from_name(decay?)?,
+                pwm_hz: u32::try_from(pwm_hz?).ok()?,
             },
-            pwm_hz: u32::try_from(pwm_hz?).ok()?,
         })
     });
     let sensors = optional(&root, "sensors", &empty).and_then(|s| read_sensors(&s));
@@ -437,10 +424,13 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let contacts = contacts.and_then(|list| check_contacts(&root, list));
     let rotors = rotors.and_then(|list| check_rotors(&root, list));
 
-    // Stage 6: the geometry at t = 0.
+    // Stage 6: the geometry at t = 0; the bridges against the control rate.
     let fundament = fundament?;
     let contacts = contacts?;
     check_gaps(&root, &fundament, &contacts);
+    if let (Some(d), Some(c)) = (&drive, &controller) {
+        check_update_rate(&root, d.bridge, c.rate_hz);
+    }
 
     let machine = Machine {
         fundament,
@@ -454,6 +444,23 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
         simulation: simulation?,
     };
     problems.is_empty().then_some(machine)
+}
+
+/// The timer must take a new duty at least once per control tick: its update
+/// rate, `pwm_hz / periods_per_update` (`shared::drive`), at least the control
+/// rate (the firmware also samples the currents at each update).
+fn check_update_rate(root: &Section, bridge: BridgeConfig, rate_hz: f64) {
+    let updates_hz = f64::from(bridge.pwm_hz) / f64::from(bridge.periods_per_update());
+    if updates_hz < rate_hz {
+        root.problem(
+            "drive.pwm_hz",
+            format!(
+                "{} Hz gives {} duty updates a second, fewer than [controller] rate_hz = {} control ticks: \
+                 must give at least one update per tick (pwm_hz >= rate_hz up to 50 kHz)",
+                bridge.pwm_hz, updates_hz, rate_hz
+            ),
+        );
+    }
 }
 
 /// An optional section: the table when present, the empty table when omitted,

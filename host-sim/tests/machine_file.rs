@@ -196,8 +196,8 @@ fn omitted_sections_take_the_documented_defaults() {
     assert_eq!(m.platform.angular_velocity, 0.0);
     assert_eq!(m.contacts[1].weight, 1.0);
     assert_eq!((m.rotors[1].angle, m.rotors[1].index_angle), (0.0, 0.0));
-    assert_eq!(m.drive.decay, shared::drive::Decay::Slow);
-    assert_eq!(m.drive.pwm_hz, 20_000);
+    assert_eq!(m.drive.bridge.decay, shared::drive::Decay::Slow);
+    assert_eq!(m.drive.bridge.pwm_hz, 20_000);
     assert_eq!(m.sensors.encoder_counts, 4096);
     assert_eq!(m.sensors.current_noise, 0.0);
     assert_eq!(m.sensors.encoder_jitter, 0.0);
@@ -868,4 +868,26 @@ proptest! {
         let text = reference_text();
         let _ = Machine::from_text("m.toml", &text, Path::new(""), &[format!("{key}={value}")]);
     }
+}
+
+/// The bridges must take a new duty at least once per control tick: fewer timer
+/// updates a second than control ticks is refused at `drive.pwm_hz`; above
+/// 50 kHz the update comes every few periods, and 200 kHz (50 000 updates) still
+/// serves a 50 kHz control rate.
+#[test]
+fn fewer_duty_updates_than_control_ticks_are_refused() {
+    let e = refused(
+        &reference_text(),
+        &["drive.pwm_hz=2000", "controller.rate_hz=5000"],
+    );
+    assert_problem(
+        &e,
+        "drive.pwm_hz",
+        "2000 Hz gives 2000 duty updates a second, fewer than [controller] rate_hz = 5000",
+    );
+    let ok = load(
+        &reference_text(),
+        &["drive.pwm_hz=200000", "controller.rate_hz=50000"],
+    );
+    assert!(ok.is_ok(), "{:?}", ok.err());
 }

@@ -9,8 +9,8 @@ use std::rc::Rc;
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 use proptest::prelude::*;
 use shared::drive::{
-    compare, input_duties, period, BridgeConfig, BridgeError, CentreAligned, Connection, Decay,
-    HBridge, Part, MAX_UPDATE_HZ,
+    compare, input_duties, mean_fraction, period, BridgeConfig, BridgeError, CentreAligned,
+    Connection, Decay, HBridge, Part, MAX_UPDATE_HZ,
 };
 
 /// Every write to either input, in order: (input 1 or 2, compare value).
@@ -37,7 +37,7 @@ impl SetDutyCycle for Mock {
     }
 }
 
-/// A bridge over two mocks of 8400 steps (TIM8 at 168 MHz, 20 kHz), and its log.
+/// A bridge over two mocks of 8400 steps, and its log.
 fn bridge(decay: Decay) -> (HBridge<Mock, Mock>, Log) {
     let log: Log = Rc::new(RefCell::new(Vec::new()));
     let mock = |input| Mock {
@@ -46,24 +46,6 @@ fn bridge(decay: Decay) -> (HBridge<Mock, Mock>, Log) {
         log: log.clone(),
     };
     (HBridge::new(mock(1), mock(2), decay), log)
-}
-
-/// The mean winding voltage over a period, as a fraction of the supply, from the
-/// parts of the period when every part conducts (no coast).
-fn mean_voltage(parts: &[Part]) -> f32 {
-    let mut start = 0.0;
-    let mut v = 0.0;
-    for p in parts {
-        let u = match p.connection {
-            Connection::Forward => 1.0,
-            Connection::Reverse => -1.0,
-            Connection::Short => 0.0,
-            Connection::Open => f32::NAN,
-        };
-        v += (p.end - start) * u;
-        start = p.end;
-    }
-    v
 }
 
 #[test]
@@ -139,7 +121,7 @@ proptest! {
     fn slow_decay_mean_voltage_is_the_duty(d in -1.0f32..=1.0) {
         let parts = period(input_duties(d, Decay::Slow));
         prop_assert!(parts.iter().all(|p| p.connection != Connection::Open));
-        prop_assert!((mean_voltage(&parts) - d).abs() < 1e-6);
+        prop_assert!((mean_fraction(&parts).unwrap() - d).abs() < 1e-6);
         prop_assert_eq!(parts.last().unwrap().end, 1.0);
     }
 
@@ -224,46 +206,96 @@ fn duty_is_clamped_and_nan_coasts() {
     assert_eq!(compare(1.5, 8400), 8400);
 }
 
+/// The inputs' high fractions in the period between the two writes of a change,
+/// if the timer's update falls there: the first write's input new, the other as
+/// `old` (the compare values before the change), over the mocks' 8400 steps.
+fn between(old: [u16; 2], first: (u8, u16)) -> [f32; 2] {
+    let mut mid = old;
+    mid[usize::from(first.0 - 1)] = first.1;
+    mid.map(|c| f32::from(c) / 8400.0)
+}
+
 /// A reversal passes through the decay mode's own off-state if the timer's
 /// update event falls between the two writes. Fast decay, forward (IN1 PWM, IN2
-/// low) to reverse: the falling input first, so the period in between coasts and
-/// never brakes. Slow decay, forward (IN1 high, IN2 PWM) to reverse (IN1 PWM, IN2
-/// high): the rising input first, so the period in between brakes (both high)
-/// and never coasts or drives.
+/// low) to reverse and back: the falling input first, so the period in between
+/// coasts and never brakes. Slow decay, forward (IN1 high, IN2 PWM) to reverse
+/// (IN1 PWM, IN2 high) and back: the rising input first, so the period in
+/// between brakes (both high) and never coasts or drives.
 #[test]
 fn reversal_passes_through_the_decay_modes_off_state() {
-    let (mut b, log) = bridge(Decay::Fast);
-    b.drive(0.6).unwrap();
-    log.borrow_mut().clear();
-    b.drive(-0.4).unwrap();
-    assert_eq!(log.borrow().as_slice(), &[(1, 0), (2, 3360)]);
-    assert_eq!(
-        period([0.0, 0.0]).as_slice(),
-        &[Part {
-            end: 1.0,
-            connection: Connection::Open
-        }]
-    );
-    log.borrow_mut().clear();
-    b.drive(0.2).unwrap();
-    assert_eq!(log.borrow().as_slice(), &[(2, 0), (1, 1680)]);
+    type Change = (f32, [(u8, u16); 2]);
+    let cases: [(Decay, f32, [Change; 2], Connection); 2] = [
+        (
+            Decay::Fast,
+            0.6,
+            [(-0.4, [(1, 0), (2, 3360)]), (0.2, [(2, 0), (1, 1680)])],
+            Connection::Open,
+        ),
+        (
+            Decay::Slow,
+            0.6,
+            [
+                (-0.4, [(2, 8400), (1, 5040)]),
+                (0.3, [(1, 8400), (2, 5880)]),
+            ],
+            Connection::Short,
+        ),
+    ];
+    for (decay, start, changes, off) in cases {
+        let (mut b, log) = bridge(decay);
+        b.drive(start).unwrap();
+        for (d, writes) in changes {
+            let old = b.written();
+            log.borrow_mut().clear();
+            b.drive(d).unwrap();
+            assert_eq!(log.borrow().as_slice(), &writes, "{decay:?} to {d}");
+            assert_eq!(
+                period(between(old, writes[0])).as_slice(),
+                &[Part {
+                    end: 1.0,
+                    connection: off
+                }],
+                "{decay:?} to {d}: the period between the writes"
+            );
+        }
+    }
+}
 
-    let (mut b, log) = bridge(Decay::Slow);
-    b.drive(0.6).unwrap();
-    log.borrow_mut().clear();
-    b.drive(-0.4).unwrap();
-    assert_eq!(log.borrow().as_slice(), &[(2, 8400), (1, 5040)]);
-    // In between: IN1 still high, IN2 already high.
-    assert_eq!(
-        period([1.0, 1.0]).as_slice(),
-        &[Part {
-            end: 1.0,
-            connection: Connection::Short
-        }]
-    );
-    log.borrow_mut().clear();
-    b.drive(0.3).unwrap();
-    assert_eq!(log.borrow().as_slice(), &[(1, 8400), (2, 5880)]);
+proptest! {
+    /// Any change while driving: the period between the two writes connects the
+    /// winding only as the old period, the new one, or the decay mode's off-state
+    /// (brake in slow decay, coast in fast) does: never the other way round.
+    /// (Switching on from coast is not a change while driving: from both inputs
+    /// low the two writes of a slow-decay duty both rise, and no order avoids a
+    /// driven period in between; the firmware loads both at once there.)
+    #[test]
+    fn a_change_never_drives_the_way_neither_duty_does(
+        d0 in -1.0f32..=1.0,
+        d1 in -1.0f32..=1.0,
+        fast in any::<bool>(),
+    ) {
+        let decay = if fast { Decay::Fast } else { Decay::Slow };
+        let off = if fast { Connection::Open } else { Connection::Short };
+        let (mut b, log) = bridge(decay);
+        b.drive(d0).unwrap();
+        let old = b.written();
+        log.borrow_mut().clear();
+        b.drive(d1).unwrap();
+        let first = log.borrow()[0];
+        let to_fractions = |c: [u16; 2]| c.map(|v| f32::from(v) / 8400.0);
+        let allowed: Vec<Connection> = period(to_fractions(old))
+            .iter()
+            .chain(period(to_fractions(b.written())).iter())
+            .map(|p| p.connection)
+            .chain([off])
+            .collect();
+        for p in period(between(old, first)) {
+            prop_assert!(
+                allowed.contains(&p.connection),
+                "{decay:?} {d0} -> {d1}: {:?} in between", p.connection
+            );
+        }
+    }
 }
 
 #[test]

@@ -510,7 +510,17 @@ fn a_flash_store_runs_outside_the_lock_and_holds_motion_commands_back() {
         state.take_for_tick(&mut c).command,
         Some(shared::controller::Command::Stop)
     );
+    // A requested self-test (it drives the motors) waits too.
+    state.command = None;
+    state.self_test_requested = true;
+    let taken = state.take_for_tick(&mut c);
+    assert!(!taken.self_test_refused);
+    assert_eq!(c.state(), shared::controller::State::Idle, "not started");
+    assert!(state.self_test_requested, "kept for later");
     state.storing = false;
+    state.take_for_tick(&mut c);
+    assert_eq!(c.state(), shared::controller::State::SelfTest);
+    assert!(!state.self_test_requested);
     state.command = Some(shared::controller::Command::Travel {
         direction: Direction::Right,
         speed_rpm: 3000.0,
@@ -562,4 +572,33 @@ fn a_tick_that_starts_the_motors_before_the_store_gets_it_refused() {
     );
     assert!(!state.borrow().storing);
     assert!(flash == before, "nothing erased or written");
+}
+
+/// A self-test asked for and a table write in the same breath: the test would
+/// start at the next tick, in the middle of the erase, so the write is refused
+/// (`Busy`) and nothing is erased.
+#[test]
+fn a_store_waits_for_a_requested_self_test() {
+    let mut dev = Device::new();
+    let before = dev.flash.clone();
+    let mut bytes = frame(&Request::RunSelfTest, 1);
+    let write = Request::WriteTuningTable(table(&[(3000.0, 90.0, 270.0)]));
+    bytes.extend(frame(&write, 2));
+    let out = dev.exchange(&bytes, 1);
+    let answers = responses(&out);
+    assert!(
+        matches!(answers[0], (1, Response::Ack { .. })),
+        "{answers:?}"
+    );
+    assert_eq!(
+        answers[1],
+        (
+            2,
+            Response::Nack {
+                request: write.id() as u8,
+                reason: NackReason::Busy
+            }
+        )
+    );
+    assert!(dev.flash == before, "nothing erased or written");
 }

@@ -145,10 +145,10 @@ fn variants_are_host_sims() {
         (
             "fast_decay",
             // The bridge wired for fast decay at 10 kHz.
-            &[(
-                "supply_voltage = 12.0",
-                "supply_voltage = 12.0\ndecay = \"fast\"\npwm_hz = 10000",
-            )],
+            &[
+                ("decay = \"slow\"", "decay = \"fast\""),
+                ("pwm_hz = 20000", "pwm_hz = 10000"),
+            ],
         ),
         (
             "own_motor",
@@ -251,10 +251,9 @@ fn mistakes_name_the_file_and_the_key() {
         &[
             ("encoder_counts = 4096", "encoder_counts = 4098"),
             ("torque_constant = 0.02", "torque_constant = \"0.02\""),
-            (
-                "supply_voltage = 12.0",
-                "supply_voltage = -12.0\ndecay = \"medium\"\npwm_hz = 500",
-            ),
+            ("supply_voltage = 12.0", "supply_voltage = -12.0"),
+            ("decay = \"slow\"", "decay = \"medium\""),
+            ("pwm_hz = 20000", "pwm_hz = 500"),
         ],
     );
     let problems = read_machine(&path).unwrap_err();

@@ -9,7 +9,10 @@
 //!   writes preloaded compare values, which the timer loads there. The update
 //!   comes at a period start (the valley of the centre-aligned counter), every
 //!   period up to 50 kHz of PWM and every
-//!   [`BridgeConfig::periods_per_update`] periods above.
+//!   [`BridgeConfig::periods_per_update`] periods above. (The board's update
+//!   falls on the extreme its repetition counter selects, by the reference
+//!   manual's note the peak: half a period of phase against this, the same
+//!   means; `docs/plant-model.md`.)
 //! - **Off** takes effect at once: the firmware clears the timer's main output
 //!   enable, asynchronously to the counter. Turning on again goes through a
 //!   coasting rest of the period: the outputs are enabled at once, but the compare
@@ -33,7 +36,7 @@
 //! quantisation of the high fractions (4200 steps at 20 kHz) is not modelled
 //! (at most 1.2e-4 of the supply).
 
-use shared::drive::{input_duties, period, BridgeConfig, Connection, Decay, Part};
+use shared::drive::{input_duties, period, BridgeConfig, Period};
 
 use super::motor::Winding;
 
@@ -46,29 +49,30 @@ pub enum BridgeCommand {
     Off,
 }
 
-/// What the winding sees for a command, over whole periods.
+/// What the winding sees for a command, over whole periods, as fractions of the
+/// supply (the supply itself is the bridge's, read when the winding is asked for).
 #[derive(Clone, Debug, PartialEq)]
 enum Plan {
-    /// A constant winding for the whole period: a coast, or a linear period's
-    /// exact mean voltage.
-    Constant(Winding),
+    /// Every switch open for the whole period.
+    Coast,
+    /// A linear period (no part coasts): its exact mean voltage, a fraction of
+    /// the supply.
+    Mean(f64),
     /// The period's parts, resolved: a switch at every part's end.
-    Resolved(Vec<Part>),
+    Resolved(Period),
 }
 
-/// One motor's bridge: its configuration, the command in force and the one
-/// waiting for the next period, and where in the PWM period it stands.
+/// One motor's bridge: its configuration, the plan in force and the duty waiting
+/// for the next update event, and where in the PWM period it stands.
 #[derive(Clone, Debug)]
 pub struct Bridge {
     config: BridgeConfig,
     supply: f64,
     /// PWM period, s.
     period: f64,
-    /// The command in force, and its plan.
-    active: BridgeCommand,
     plan: Plan,
     /// A duty waiting for the next update event.
-    pending: Option<BridgeCommand>,
+    pending: Option<f64>,
     /// PWM periods per update event.
     every: u64,
     /// The index of the current PWM period (its start is `n T`).
@@ -84,8 +88,7 @@ impl Bridge {
             config,
             supply,
             period: 1.0 / f64::from(config.pwm_hz),
-            active: BridgeCommand::Off,
-            plan: Plan::Constant(Winding::Coast(supply)),
+            plan: Plan::Coast,
             pending: None,
             every: u64::from(config.periods_per_update()),
             n: 0,
@@ -93,47 +96,26 @@ impl Bridge {
         }
     }
 
-    /// The bridge's configuration.
-    pub fn config(&self) -> BridgeConfig {
-        self.config
-    }
-
-    /// The PWM period, s.
-    pub fn pwm_period(&self) -> f64 {
-        self.period
-    }
-
-    /// The plan of `command` over a whole period.
-    fn plan(&self, command: BridgeCommand) -> Plan {
-        let d = match command {
-            BridgeCommand::Off => return Plan::Constant(Winding::Coast(self.supply)),
-            BridgeCommand::Duty(d) => d as f32,
-        };
-        let parts = period(input_duties(d, self.config.decay));
-        if parts.iter().any(|p| p.connection == Connection::Open) {
-            if parts.len() == 1 {
-                return Plan::Constant(Winding::Coast(self.supply));
-            }
-            return Plan::Resolved(parts.to_vec());
-        }
-        // A linear period: its mean voltage.
+    /// The plan of duty `d` over a whole period.
+    fn plan(&self, d: f64) -> Plan {
+        let parts = period(input_duties(d as f32, self.config.decay));
+        // A linear period: its mean voltage, `sum_j l_j u_j` of the supply
+        // (`shared::drive::mean_fraction`, here in f64 from the parts' ends).
         let mut start = 0.0f64;
         let mut mean = 0.0f64;
         for p in &parts {
+            let Some(u) = p.connection.fraction() else {
+                return if parts.len() == 1 {
+                    Plan::Coast
+                } else {
+                    Plan::Resolved(parts)
+                };
+            };
             let end = f64::from(p.end);
-            mean += (end - start) * self.volts(p.connection);
+            mean += (end - start) * f64::from(u);
             start = end;
         }
-        Plan::Constant(Winding::Voltage(mean))
-    }
-
-    /// The voltage of a conducting connection, V.
-    fn volts(&self, c: Connection) -> f64 {
-        match c {
-            Connection::Forward => self.supply,
-            Connection::Reverse => -self.supply,
-            Connection::Short | Connection::Open => 0.0,
-        }
+        Plan::Mean(mean)
     }
 
     /// The PWM period index containing `t` and whether `t` is its start (to
@@ -144,111 +126,118 @@ impl Bridge {
         (n as u64, (x - n).abs() <= 1e-9)
     }
 
-    /// Command the bridge at time `t`: off at once; a duty from the next update
-    /// event (at once if `t` is one), coasting until then if the bridge was off.
+    /// Command the bridge at time `t`, every switch before or at `t` already
+    /// taken ([`Bridge::switch`]; the plant does that first): off at once; a duty
+    /// from the next update event (at once if `t` is one), the period running on
+    /// as it was until then (coasting if the bridge was off).
     pub fn command(&mut self, command: BridgeCommand, t: f64) {
         let (n, at_start) = self.period_at(t);
-        let at_start = at_start && n.is_multiple_of(self.every);
         match command {
             BridgeCommand::Off => {
-                self.active = command;
-                self.plan = Plan::Constant(Winding::Coast(self.supply));
+                self.plan = Plan::Coast;
                 self.pending = None;
             }
-            BridgeCommand::Duty(_) if at_start => {
+            BridgeCommand::Duty(d) if at_start && n.is_multiple_of(self.every) => {
                 self.n = n;
-                self.start_period(command);
+                self.start_period(d);
                 self.pending = None;
             }
-            BridgeCommand::Duty(_) => {
-                // The rest of this period as it was (resolved: from the part that
-                // contains `t`), then the new duty.
-                if let Plan::Resolved(parts) = &self.plan {
-                    let phase = t / self.period - n as f64;
+            BridgeCommand::Duty(d) => {
+                if !matches!(self.plan, Plan::Resolved(_)) {
+                    // A constant plan has no switches to keep its period count.
                     self.n = n;
-                    self.part = parts
-                        .iter()
-                        .position(|p| f64::from(p.end) > phase)
-                        .unwrap_or(parts.len() - 1);
                 }
-                self.n = n;
-                self.pending = Some(command);
+                self.pending = Some(d);
             }
         }
     }
 
-    /// Make `command`'s plan the one in force from the start of period `self.n`.
-    fn start_period(&mut self, command: BridgeCommand) {
-        self.active = command;
-        self.plan = self.plan(command);
+    /// Make duty `d`'s plan the one in force from the start of period `self.n`.
+    fn start_period(&mut self, d: f64) {
+        self.plan = self.plan(d);
         self.part = 0;
     }
 
-    /// The supply sags or recovers: the windings see the new voltage at once (the
-    /// same parts of the period).
+    /// The supply sags or recovers: the windings see the new voltage at once.
     pub fn set_supply(&mut self, supply: f64) {
-        if supply != self.supply {
-            self.supply = supply;
-            let part = self.part;
-            self.plan = self.plan(self.active);
-            if let Plan::Resolved(parts) = &self.plan {
-                self.part = part.min(parts.len() - 1);
-            }
-        }
+        self.supply = supply;
     }
 
     /// What the winding is connected to now.
     pub fn winding(&self) -> Winding {
-        match &self.plan {
-            Plan::Constant(w) => *w,
-            Plan::Resolved(parts) => match parts[self.part].connection {
-                Connection::Open => Winding::Coast(self.supply),
-                c => Winding::Voltage(self.volts(c)),
-            },
+        let fraction = match &self.plan {
+            Plan::Coast => None,
+            Plan::Mean(f) => Some(*f),
+            Plan::Resolved(parts) => parts[self.part].connection.fraction().map(f64::from),
+        };
+        match fraction {
+            Some(f) => Winding::Voltage(f * self.supply),
+            None => Winding::Coast(self.supply),
         }
     }
 
-    /// The time of the next switch, s: a part's end (resolved), or the next update
-    /// event for a pending duty; `None` if nothing changes.
+    /// Whether the next period start passes without a switch: the last part of
+    /// a resolved period goes on into the first of the next (the same
+    /// connection), and no duty takes effect there.
+    fn runs_through_period_start(&self) -> bool {
+        let Plan::Resolved(parts) = &self.plan else {
+            return false;
+        };
+        let update_due = self.pending.is_some() && (self.n + 1).is_multiple_of(self.every);
+        self.part + 1 == parts.len()
+            && parts.len() > 1
+            && parts[0].connection == parts[self.part].connection
+            && !update_due
+    }
+
+    /// The time of the next switch, s: a part's end (resolved; past a period
+    /// start that changes nothing), or the next update event for a pending duty;
+    /// `None` if nothing changes.
     pub fn next_switch(&self) -> Option<f64> {
         match &self.plan {
             Plan::Resolved(parts) => {
-                Some((self.n as f64 + f64::from(parts[self.part].end)) * self.period)
+                let end = if self.runs_through_period_start() {
+                    1.0 + f64::from(parts[0].end)
+                } else {
+                    f64::from(parts[self.part].end)
+                };
+                Some((self.n as f64 + end) * self.period)
             }
-            Plan::Constant(_) => self
+            Plan::Coast | Plan::Mean(_) => self
                 .pending
                 .map(|_| ((self.n / self.every + 1) * self.every) as f64 * self.period),
         }
     }
 
     /// Move to the next part (at the time [`Bridge::next_switch`] gave): the next
-    /// part of the period, or the first of the next period, with a pending duty
-    /// taking effect there if an update event falls on it (a constant plan with a
-    /// duty pending moves straight to that update).
+    /// part of the period, or the first of the next period (its second, if the
+    /// first only continued the last), with a pending duty taking effect there if
+    /// an update event falls on it (a constant plan with a duty pending moves
+    /// straight to that update).
     pub fn switch(&mut self) {
+        if self.runs_through_period_start() {
+            self.n += 1;
+            self.part = 1;
+            return;
+        }
         let last = match &self.plan {
             Plan::Resolved(parts) => self.part + 1 >= parts.len(),
-            Plan::Constant(_) => true,
+            Plan::Coast | Plan::Mean(_) => true,
         };
         if !last {
             self.part += 1;
             return;
         }
         self.n = match (&self.plan, self.pending) {
-            (Plan::Constant(_), Some(_)) => (self.n / self.every + 1) * self.every,
-            _ => self.n + 1,
+            (Plan::Resolved(_), _) | (_, None) => self.n + 1,
+            _ => (self.n / self.every + 1) * self.every,
         };
         match self.pending {
-            Some(command) if self.n.is_multiple_of(self.every) => {
+            Some(d) if self.n.is_multiple_of(self.every) => {
                 self.pending = None;
-                self.start_period(command);
+                self.start_period(d);
             }
             _ => self.part = 0,
         }
-    }
-
-    /// The decay mode.
-    pub fn decay(&self) -> Decay {
-        self.config.decay
     }
 }

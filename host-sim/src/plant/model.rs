@@ -118,7 +118,7 @@ impl PlantModel {
             gravity: m.fundament.gravity,
             law: m.law,
             supply_voltage: m.drive.supply_voltage,
-            bridge: m.drive.bridge(),
+            bridge: m.drive.bridge,
         }
     }
 

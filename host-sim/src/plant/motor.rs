@@ -200,19 +200,13 @@ impl DcMotor {
     pub fn current_rate(&self, winding: Winding, i: f64, omega_m: f64) -> f64 {
         match winding {
             Winding::Open => 0.0,
-            Winding::Coast(supply) => {
+            Winding::Coast(_) => {
+                // The diodes' voltage (`terminal_voltage`): `-V_s sign(i)` while a
+                // current flows; without one the back-EMF clamped to the supply,
+                // which holds the current at zero until the back-EMF exceeds it.
                 let p = &self.params;
-                let e = self.back_emf(omega_m);
-                // The diodes hold -V_s sign(i) while a current flows; without one
-                // they conduct only while the back-EMF exceeds the supply.
-                let u = if i > 0.0 || (i == 0.0 && e < -supply) {
-                    -supply
-                } else if i < 0.0 || e > supply {
-                    supply
-                } else {
-                    return 0.0;
-                };
-                (u - p.resistance * i - e) / p.inductance
+                let u = self.terminal_voltage(winding, i, omega_m);
+                (u - p.resistance * i - self.back_emf(omega_m)) / p.inductance
             }
             Winding::Voltage(u) => {
                 if self.is_limiting(winding, i, omega_m) {

@@ -251,6 +251,10 @@ impl Plant {
     /// Commands the H-bridges as wired ([`super::bridge`]): a duty takes effect at
     /// the next PWM period start, off at once.
     pub fn set_bridges(&mut self, commands: [BridgeCommand; 2]) {
+        // A switch due now (an integration that ended exactly on it) first.
+        if let Some(ts) = self.next_switch().filter(|ts| *ts <= self.t) {
+            self.switch_bridges(ts);
+        }
         let (config, supply) = (self.model.bridge, self.model.supply_voltage);
         let t = self.t;
         let bridges = self
@@ -275,9 +279,11 @@ impl Plant {
         self.model.supply_voltage = supply;
     }
 
-    /// Puts `winding` on the windings, restarting the integrator where it changes.
-    fn use_winding(&mut self, winding: [Winding; 2]) {
-        if winding != self.winding {
+    /// Puts `winding` on the windings, restarting the integrator where it changes;
+    /// whether it changed.
+    fn use_winding(&mut self, winding: [Winding; 2]) -> bool {
+        let changed = winding != self.winding;
+        if changed {
             for k in 0..2 {
                 if matches!(winding[k], Winding::Coast(_))
                     && !matches!(self.winding[k], Winding::Coast(_))
@@ -291,6 +297,7 @@ impl Plant {
             self.ev_cache = None;
             self.clamp_currents();
         }
+        changed
     }
 
     /// The next time a bridge switches its winding, s (PWM edges, a duty taking
@@ -304,10 +311,10 @@ impl Plant {
     }
 
     /// At time `t_switch`: every bridge switching then moves on, and the windings
-    /// follow.
-    fn switch_bridges(&mut self, t_switch: f64) {
+    /// follow; whether they changed.
+    fn switch_bridges(&mut self, t_switch: f64) -> bool {
         let Some(bridges) = self.bridges.as_mut() else {
-            return;
+            return false;
         };
         for b in bridges.iter_mut() {
             // Every bridge whose switch falls at this instant (to rounding).
@@ -319,7 +326,7 @@ impl Plant {
             }
         }
         let winding = [bridges[0].winding(), bridges[1].winding()];
-        self.use_winding(winding);
+        self.use_winding(winding)
     }
 
     /// Jams rotor `k` (or frees it): a jammed rotor stops at once relative to the
@@ -377,8 +384,9 @@ impl Plant {
         while self.t < t_target {
             // A bridge switching now (a PWM edge, a duty taking effect).
             if let Some(ts) = self.next_switch().filter(|ts| *ts <= self.t) {
-                self.switch_bridges(ts);
-                ev0 = self.event_values(&self.y);
+                if self.switch_bridges(ts) {
+                    ev0 = self.event_values(&self.y);
+                }
             }
             let f0 = match self.fsal {
                 Some(f) => f,
@@ -455,19 +463,23 @@ impl Plant {
                             self.y = step.y1;
                             self.fsal = Some(step.f1);
                             self.clamp_currents();
-                            if self.modes.iter().any(|m| m.closed()) {
+                            let projected = self.modes.iter().any(|m| m.closed());
+                            if projected {
                                 self.project();
                                 self.fsal = None;
-                                ev0 = self.event_values(&self.y);
-                            } else {
-                                ev0 = ev1;
                             }
-                            if at_switch {
-                                // Exactly at the switch, whatever the rounding of t.
+                            // Exactly at the switch, whatever the rounding of t.
+                            let switched = at_switch && {
                                 self.t = t_stop;
-                                self.switch_bridges(t_stop);
-                                ev0 = self.event_values(&self.y);
-                            }
+                                self.switch_bridges(t_stop)
+                            };
+                            // The event functions at the new start: the step's end
+                            // unless the state or the windings moved since.
+                            ev0 = if projected || switched {
+                                self.event_values(&self.y)
+                            } else {
+                                ev1
+                            };
                         }
                     }
                 }

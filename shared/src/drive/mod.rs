@@ -63,7 +63,14 @@
 //! period in between has both inputs at the higher of their old and new fractions:
 //! a reversal brakes, both high, which slow decay does every period anyway); in
 //! fast decay the falling input first (both at the lower: a reversal coasts, both
-//! low, and never brakes, which fast decay must not).
+//! low, and never brakes, which fast decay must not). So a change while driving
+//! never connects the winding in a way neither the old nor the new duty does.
+//!
+//! Switching on from coast is different: both inputs start low, a slow-decay duty
+//! raises both, and whichever goes first, the period in between drives (forward
+//! with IN1 alone high, reverse with IN2). No write order helps; the firmware
+//! writes both with the outputs still off and forces the timer's update before
+//! it enables them (`firmware/src/motor_out.rs`).
 
 use embedded_hal::pwm::SetDutyCycle;
 
@@ -81,12 +88,20 @@ pub enum Decay {
 }
 
 impl Decay {
+    /// Both modes, the default first.
+    pub const ALL: [Decay; 2] = [Decay::Slow, Decay::Fast];
+
     /// The machine file's name: `"slow"` or `"fast"`.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Decay::Slow => "slow",
             Decay::Fast => "fast",
         }
+    }
+
+    /// The mode of a machine file's name ([`Decay::name`]).
+    pub fn from_name(name: &str) -> Option<Decay> {
+        Decay::ALL.into_iter().find(|d| d.name() == name)
     }
 }
 
@@ -241,6 +256,39 @@ pub enum Connection {
     Open,
 }
 
+impl Connection {
+    /// The winding's voltage as a fraction of the supply: `+1` forward, `-1`
+    /// reverse, `0` shorted; `None` open (the body diodes decide, by the current).
+    pub fn fraction(self) -> Option<f32> {
+        match self {
+            Connection::Forward => Some(1.0),
+            Connection::Reverse => Some(-1.0),
+            Connection::Short => Some(0.0),
+            Connection::Open => None,
+        }
+    }
+}
+
+/// The parts of a period as `(length, connection)`, lengths fractions of the
+/// period.
+pub fn lengths(parts: &[Part]) -> impl Iterator<Item = (f32, Connection)> + '_ {
+    parts.iter().scan(0.0f32, |start, p| {
+        let len = p.end - *start;
+        *start = p.end;
+        Some((len, p.connection))
+    })
+}
+
+/// The winding's mean voltage over a period, a fraction of the supply: `sum_j
+/// l_j u_j` over its parts; `None` if a part coasts (then the current decides,
+/// and no mean voltage is exact). In slow decay it is the duty.
+pub fn mean_fraction(parts: &[Part]) -> Option<f32> {
+    lengths(parts).try_fold(0.0f32, |sum, (len, c)| Some(sum + len * c.fraction()?))
+}
+
+/// The parts of one PWM period, in order ([`period`]): at most five.
+pub type Period = heapless::Vec<Part, 5>;
+
 /// One part of a PWM period: the connection, up to `end` (a fraction of the
 /// period, from its start).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -261,7 +309,7 @@ pub struct Part {
 ///   0      lo/2      hi/2        1 - hi/2    1 - lo/2    1
 ///   | short | alone   |   open     |  alone    | short  |
 /// ```
-pub fn period(inputs: [f32; 2]) -> heapless::Vec<Part, 5> {
+pub fn period(inputs: [f32; 2]) -> Period {
     let [a, b] = inputs.map(|x| if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) });
     let (low, high, alone) = if a >= b {
         (b, a, Connection::Forward)
@@ -275,7 +323,7 @@ pub fn period(inputs: [f32; 2]) -> heapless::Vec<Part, 5> {
         (1.0 - 0.5 * low, alone),
         (1.0, Connection::Short),
     ];
-    let mut parts: heapless::Vec<Part, 5> = heapless::Vec::new();
+    let mut parts = Period::new();
     let mut start = 0.0;
     for (end, connection) in edges {
         if end <= start {

@@ -51,8 +51,8 @@ pub struct LinkState {
     /// overrun), as the receiving side counts them; reported in every status.
     pub rx_dropped: u32,
     /// A flash store is under way (outside the lock): the control task holds
-    /// motion commands back until it ends, so the motors stay stopped while the
-    /// flash is written.
+    /// motion commands and a requested self-test back until it ends, so the
+    /// motors stay stopped while the flash is written.
     pub storing: bool,
 }
 
@@ -125,8 +125,11 @@ impl LinkState {
             Some(table) => !controller.set_tuning(table),
             None => false,
         };
-        let self_test_refused =
-            core::mem::take(&mut self.self_test_requested) && !controller.start_self_test();
+        // A self-test drives the motors: like a motion command, it waits while the
+        // flash is written.
+        let self_test_refused = !self.storing
+            && core::mem::take(&mut self.self_test_requested)
+            && !controller.start_self_test();
         if self_test_refused {
             self.self_test = SelfTestReport {
                 status: SelfTestStatus::Aborted,
@@ -278,6 +281,10 @@ impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
         // command and start the motors just before the erase stalls everything.
         let record = self
             .locked(|state| {
+                // A self-test asked for but not yet started would start meanwhile.
+                if state.self_test_requested {
+                    return Err(NackReason::Busy);
+                }
                 if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
                     return Err(NackReason::NotStopped);
                 }

@@ -25,8 +25,9 @@ pub(super) enum Watch {
     Cone(usize),
     /// Slipping contact `j`: `s u_t + eps_v`, m/s (the slip ends).
     SlipEnds(usize),
-    /// Motor `k`'s driver: `I_lim - |i|`, A (the current limit is reached).
-    CurrentLimit(usize),
+    /// Motor `k`'s current, A: driven, `I_lim - |i|` (the current limit is
+    /// reached); coasting with a current, `s i` (it dies through the diodes).
+    Current(usize),
     /// An unused slot (the second slot of an open contact).
     Nothing,
 }
@@ -37,7 +38,7 @@ impl Plant {
     pub(super) fn watch(&self, i: usize) -> Watch {
         let n = self.modes.len();
         if i >= 2 * n {
-            return Watch::CurrentLimit(i - 2 * n);
+            return Watch::Current(i - 2 * n);
         }
         let j = i / 2;
         match (self.modes[j], i % 2) {
@@ -68,44 +69,60 @@ impl Plant {
     /// a thousandth of it), so a crossing is a change of sign, never a value that
     /// was already zero.
     pub(super) fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
-        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
-        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
-        let cs = q[2].sin_cos();
+        (0..2 * self.modes.len() + 2)
+            .map(|i| self.event_value(self.watch(i), y, ev.as_ref()))
+            .collect()
+    }
+
+    /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `ev`
+    /// the evaluation at `y` where the caller has it, else the contact forces are
+    /// computed here, and only for the functions that need them (a normal force,
+    /// a cone): locating a gap's or a slip's zero solves no contact problem.
+    pub(super) fn event_value(
+        &self,
+        watch: Watch,
+        y: &[f64; NY],
+        ev: Option<&super::forces::Evaluation>,
+    ) -> f64 {
+        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
+        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        let kinematics = |j| contact_kinematics(&self.model, q[2].sin_cos(), j, &q, &v);
+        let forces = |j: usize| match ev {
+            Some(e) => (e.lambda_n[j], e.lambda_t[j]),
+            None => {
+                let e = self.evaluate(y);
+                (e.lambda_n[j], e.lambda_t[j])
+            }
+        };
         let eps_f = self.force_tolerance();
-        let eps_v = self.settings.velocity_tolerance;
-        let mut values = Vec::with_capacity(2 * self.modes.len() + 2);
-        for j in 0..self.modes.len() {
-            let k = contact_kinematics(&self.model, cs, j, &q, &v);
-            let mu = self.model.contacts[j].law.friction;
-            let (ln, lt) = ev
-                .as_ref()
-                .map_or((0.0, 0.0), |e| (e.lambda_n[j], e.lambda_t[j]));
-            let (normal, tangential) = match self.modes[j] {
-                ContactMode::Open => (k.gap, f64::INFINITY),
-                ContactMode::Stick => (ln + eps_f, mu * ln - lt.abs() + eps_f),
-                // Without friction the slip's direction changes no force.
-                _ if mu == 0.0 => (ln + eps_f, f64::INFINITY),
-                ContactMode::SlipPositive => (ln + eps_f, k.u_t + eps_v),
-                ContactMode::SlipNegative => (ln + eps_f, -k.u_t + eps_v),
-            };
-            values.push(normal);
-            values.push(tangential);
-        }
-        for k in 0..2 {
-            values.push(match self.winding[k] {
+        match watch {
+            Watch::Gap(j) => kinematics(j).gap,
+            Watch::NormalForce(j) => forces(j).0 + eps_f,
+            Watch::Cone(j) => {
+                let (ln, lt) = forces(j);
+                self.model.contacts[j].law.friction * ln - lt.abs() + eps_f
+            }
+            Watch::SlipEnds(j) => {
+                let s = if self.modes[j] == ContactMode::SlipNegative {
+                    -1.0
+                } else {
+                    1.0
+                };
+                s * kinematics(j).u_t + self.settings.velocity_tolerance
+            }
+            Watch::Current(k) => match self.winding[k] {
                 Winding::Voltage(_) => {
                     self.model.rotors[k].motor.current_limit - y[2 * DOF + k].abs()
                 }
-                // A coasting current: it dies where it reaches zero.
                 Winding::Coast(_) if self.coast_sign[k] != 0.0 => {
                     self.coast_sign[k] * y[2 * DOF + k]
                 }
                 Winding::Coast(_) | Winding::Open => f64::INFINITY,
-            });
+            },
+            Watch::Nothing => f64::INFINITY,
         }
-        values
     }
 
     /// The earliest event in `step`, located on its dense output.
@@ -139,8 +156,8 @@ impl Plant {
         let t_mid = step.t0 + 0.5 * step.h;
         let mut mid: Option<Vec<f64>> = None;
         for i in 0..ev0.len() {
-            let f = |y: &[f64; NY]| self.event_values(y)[i];
             let watch = self.watch(i);
+            let f = |y: &[f64; NY]| self.event_value(watch, y, None);
             if ev0[i] > 0.0 && ev1[i] <= 0.0 {
                 consider(self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]));
                 continue;
@@ -161,7 +178,7 @@ impl Plant {
                         consider(step.t0);
                     }
                 }
-                Watch::CurrentLimit(_) | Watch::Nothing => {}
+                Watch::Current(_) | Watch::Nothing => {}
             }
         }
         best.map(|te| {
