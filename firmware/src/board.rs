@@ -53,11 +53,8 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 pub const PCLK1_HZ: u32 = 42_000_000;
 /// APB2 clock, Hz (its maximum; TIM1/TIM8 count at 168 MHz, ADC clock from it).
 pub const PCLK2_HZ: u32 = 84_000_000;
-/// PWM frequency of the H-bridge inputs, Hz: the machine file's `[drive] pwm_hz`
-/// (default 20 kHz: above hearing, within what a DRV8871-class bridge switches,
-/// up to 200 kHz, with little switching loss; TIM8 centre-aligned at 168 MHz gives
-/// 4200 steps of duty), the frequency the simulator's bridge runs at.
-pub const PWM_HZ: u32 = crate::machine::MACHINE.bridge.pwm_hz;
+// TIM8 counts at twice PCLK2, the clock `drive::PWM_TIMER` is set up for.
+const _: () = assert!(crate::drive::TIMER_HZ == 2 * PCLK2_HZ);
 /// TIM7's clock, Hz: twice PCLK1.
 const TIM7_HZ: u32 = 2 * PCLK1_HZ;
 
@@ -247,11 +244,14 @@ pub fn setup(mut dp: pac::Peripherals) -> Board {
     let gpiob = dp.GPIOB.split(&mut rcc);
     let gpioc = dp.GPIOC.split(&mut rcc);
 
-    // H-bridges: TIM8 CH1..CH4 at PWM_HZ; the break input PA6 (AF3, pulled up,
+    // H-bridges: TIM8 CH1..CH4 (the HAL's edge-aligned setup, made centre-aligned
+    // at the machine's `pwm_hz` by `MotorOut::new`); the break input PA6 (AF3, pulled up,
     // the E-stop contact holds it low) set up before `MotorOut::new` arms the break.
     // Outputs off (MOE = 0) until the first tick that enables.
     let break_input = gpioa.pa6.into_alternate::<3>().internal_resistor(Pull::Up);
-    let (pwm, (c1, c2, c3, c4)) = dp.TIM8.pwm_hz(PWM_HZ.Hz(), &mut rcc);
+    let (pwm, (c1, c2, c3, c4)) = dp
+        .TIM8
+        .pwm_hz(crate::machine::MACHINE.bridge.pwm_hz.Hz(), &mut rcc);
     let motors = MotorOut::new(
         pwm,
         [

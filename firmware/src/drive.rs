@@ -9,7 +9,16 @@
 //! that the controller assumes (`shared::drive`).
 
 use embedded_hal::pwm::SetDutyCycle;
-use shared::drive::{Decay, HBridge};
+use shared::drive::{CentreAligned, Decay, HBridge};
+
+/// TIM8's clock, Hz: twice PCLK2 (84 MHz, `board::PCLK2_HZ`).
+pub const TIMER_HZ: u32 = 168_000_000;
+
+/// TIM8's setup for the machine's `[drive]`: centre-aligned at `pwm_hz`
+/// (`ARR = 4200` at 20 kHz), an update every `periods_per_update` periods. The
+/// board's timer (`motor_out`) and the `qemu` build's emulated compare registers
+/// (`qemu::pwm`) both take their full scale, `ARR`, from here.
+pub const PWM_TIMER: CentreAligned = CentreAligned::new(TIMER_HZ, crate::machine::MACHINE.bridge);
 
 /// Motor 1's and motor 2's bridges, inputs IN1/IN2 each.
 pub struct Drive<P: SetDutyCycle> {

@@ -18,12 +18,12 @@
 //! (A debugger halting the core freezes the watchdog, so the state can be read.)
 //!
 //! In the `qemu` builds (no motors, no watchdog): the emulated bridge inputs are
-//! zeroed ([`crate::qemu::pwm::cut`]), then the log, then QEMU exits with a failure
+//! zeroed (`qemu::pwm::cut`), then the log, then QEMU exits with a failure
 //! status, so a panic or a fault (a stack overflow, with flip-link) fails the run
 //! instead of hanging it. An unexpected interrupt is the exception: the scripted
 //! host pends one on purpose as its last step, and the handler checks that the
 //! bridges it found driven are now cut, then ends the run with the verdict
-//! ([`crate::qemu::script`]).
+//! (`qemu::script`).
 
 use core::panic::PanicInfo;
 
@@ -153,18 +153,34 @@ unsafe fn NonMaskableInt() {
 #[cortex_m_rt::exception]
 unsafe fn DefaultHandler(irqn: i16) {
     cortex_m::interrupt::disable();
-    #[cfg(feature = "qemu")]
-    let driven = crate::qemu::pwm::driven();
+    let driven = driven();
     cut();
-    defmt::error!("unexpected interrupt {=i16}: motors cut", irqn);
-    #[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
-    crate::qemu::script::unexpected_interrupt(irqn, driven);
-    #[cfg(not(all(feature = "qemu", not(feature = "qemu-uart"))))]
-    {
-        #[cfg(feature = "qemu")]
-        let _ = driven;
-        halt()
-    }
+    defmt::error!(
+        "unexpected interrupt {=i16}: motors cut (driven before: {=bool})",
+        irqn,
+        driven
+    );
+    end_unexpected(irqn, driven)
+}
+
+/// Whether any bridge was driven.
+fn driven() -> bool {
+    #[cfg(not(feature = "qemu"))]
+    return crate::motor_out::outputs_enabled();
+    #[cfg(feature = "qemu")]
+    return crate::qemu::pwm::driven();
+}
+
+/// After an unexpected interrupt's cut: the scripted `qemu` run checks and ends.
+#[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
+fn end_unexpected(irqn: i16, driven: bool) -> ! {
+    crate::qemu::script::unexpected_interrupt(irqn, driven)
+}
+
+/// After an unexpected interrupt's cut: stop ([`halt`]).
+#[cfg(not(all(feature = "qemu", not(feature = "qemu-uart"))))]
+fn end_unexpected(_irqn: i16, _driven: bool) -> ! {
+    halt()
 }
 
 /// The configurable fault status register (its bits name the fault's cause).

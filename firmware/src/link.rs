@@ -1,7 +1,7 @@
-//! The UART side of the host link on the board. The protocol logic (decode,
-//! answer, telemetry, flash writes) is `shared::protocol::link`, tested on the
-//! host; this module holds only the byte ring between the RX interrupt and it,
-//! and the count of bytes lost on the way.
+//! The UART side of the host link, on the board and in the `qemu-uart` build.
+//! The protocol logic (decode, answer, telemetry, flash writes) is
+//! `shared::protocol::link`, tested on the host; this module holds only the byte
+//! ring between the RX interrupt and it, and the count of bytes lost on the way.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 

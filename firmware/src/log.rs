@@ -13,7 +13,8 @@
 //! - every state change, with the faults;
 //! - the telemetry once a second while the motors are driven;
 //! - the events flagged by the control task (a tuning table or a self-test
-//!   refused).
+//!   refused);
+//! - received bytes lost, when their count grows.
 //!
 //! A state that lasts less than one idle pass (the control task publishes every
 //! tick, idle may be busy for longer) is not logged; the link's status and the
@@ -49,6 +50,7 @@ pub const TELEMETRY_LOG_MS: u32 = 1000;
 pub struct Logger {
     last_state: Option<State>,
     last_telemetry_ms: u32,
+    last_rx_dropped: u16,
 }
 
 impl Logger {
@@ -57,6 +59,7 @@ impl Logger {
         Logger {
             last_state: None,
             last_telemetry_ms: 0,
+            last_rx_dropped: 0,
         }
     }
 
@@ -69,6 +72,13 @@ impl Logger {
         }
         if events & Event::SelfTestRefused as u8 != 0 {
             defmt::warn!("self-test not started: not idle, a fault, or a rotor turning");
+        }
+        if status.rx_dropped != self.last_rx_dropped {
+            defmt::warn!(
+                "link: {=u16} received bytes lost since start (ring full or UART error)",
+                status.rx_dropped
+            );
+            self.last_rx_dropped = status.rx_dropped;
         }
         if self.last_state != Some(status.state) {
             // The first status is the one at start, which `start` has logged.

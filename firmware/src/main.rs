@@ -54,7 +54,7 @@ mod estop;
 mod exceptions;
 #[cfg(not(feature = "qemu"))]
 mod flash;
-#[cfg(not(feature = "qemu"))]
+#[cfg(any(not(feature = "qemu"), feature = "qemu-uart"))]
 mod link;
 mod log;
 #[cfg(not(feature = "qemu"))]
@@ -65,6 +65,19 @@ mod qemu;
 mod sense;
 #[cfg(not(feature = "qemu"))]
 mod watchdog;
+
+/// RTIC's lock on the link's state (shared with the control task), as the lock
+/// `shared::protocol::link::Link::poll` takes for each access.
+pub struct Locked<'a, M>(pub &'a mut M);
+
+impl<M: rtic::Mutex<T = LinkState>> shared::protocol::link::StateLock for Locked<'_, M> {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LinkState) -> R) -> R {
+        self.0.lock(f)
+    }
+}
+
+/// Milliseconds per control tick.
+const TICK_MS: u32 = 1000 / shared::controller::CONTROL_RATE_HZ as u32;
 
 /// The tuning table compiled in (build.rs): `VIBRO_TUNING`, else the machine
 /// file's `tuning_table`.
@@ -230,8 +243,6 @@ mod app {
     use crate::sense::Sense;
     use crate::watchdog::Watchdog;
 
-    /// Milliseconds per control tick.
-    const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
     /// Core clock cycles per control tick.
     const TICK_CYCLES: u32 = board::SYSCLK_HZ / CONTROL_RATE_HZ as u32;
 
@@ -331,11 +342,7 @@ mod app {
         // Masked first: an edge after this cannot enter again before the tick.
         board::index_hold(0);
         cx.local.index1.clear_interrupt_pending_bit();
-        let count = board::driven_count(board::raw_count(0), 0);
-        // The first edge since the tick counts.
-        cx.shared.index.lock(|i| {
-            i[0].get_or_insert(count);
-        });
+        latch_index(0, &mut cx.shared.index);
     }
 
     /// Index pulse of encoder 2: hold the line off until the next tick, latch its
@@ -345,10 +352,15 @@ mod app {
         // Masked first: an edge after this cannot enter again before the tick.
         board::index_hold(1);
         cx.local.index2.clear_interrupt_pending_bit();
-        let count = board::driven_count(board::raw_count(1), 1);
-        // The first edge since the tick counts.
-        cx.shared.index.lock(|i| {
-            i[1].get_or_insert(count);
+        latch_index(1, &mut cx.shared.index);
+    }
+
+    /// Latch encoder `k`'s counter for the next tick: the first index edge since
+    /// the tick counts (a later one, before the hold-off, does not overwrite it).
+    fn latch_index(k: usize, index: &mut impl rtic::Mutex<T = [Option<u32>; 2]>) {
+        let count = board::driven_count(board::raw_count(k), k);
+        index.lock(|i| {
+            i[k].get_or_insert(count);
         });
     }
 
@@ -367,7 +379,7 @@ mod app {
             .clock
             .begin(DWT::cycle_count(), board::tick_latency_cycles());
         cx.local.tick.clear_flags(Flag::Update);
-        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(crate::TICK_MS);
         UPTIME_MS.store(*cx.local.uptime_ms, Ordering::Relaxed);
 
         // Stage 1: sample the inputs and take the latched index counts, the
@@ -452,7 +464,7 @@ mod app {
             let busy = cx.local.link.poll(
                 || rx.dequeue(),
                 status.uptime_ms,
-                |f| cx.shared.link.lock(|l| f(l)),
+                crate::Locked(&mut cx.shared.link),
                 cx.local.flash,
                 |bytes| {
                     let _ = tx.bwrite_all(bytes);
@@ -477,7 +489,7 @@ mod app {
 #[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod qemu_app {
-    use shared::controller::{Controller, ResetCause, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
@@ -489,11 +501,6 @@ mod qemu_app {
     use crate::qemu::script::{self, Io, Progress, Script};
     use crate::qemu::world::World;
     use crate::qemu::{self, checks, cycles, stack};
-
-    /// Milliseconds per control tick.
-    const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
-    /// SysTick reload for one control tick.
-    const RELOAD: u32 = cycles::SYSTICK_HZ / CONTROL_RATE_HZ as u32 - 1;
 
     #[shared]
     struct Shared {
@@ -538,7 +545,7 @@ mod qemu_app {
         let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
 
         // The control tick.
-        cycles::start(&mut syst, RELOAD);
+        cycles::start(&mut syst, cycles::RELOAD);
 
         (
             Shared {
@@ -550,7 +557,7 @@ mod qemu_app {
                 plant: Plant::new(),
                 drive: Drive::new(SimPwm::channels(), crate::machine::MACHINE.bridge.decay),
                 uptime_ms: 0,
-                clock: SysTickClock::new(RELOAD),
+                clock: SysTickClock::new(cycles::RELOAD),
                 flash,
                 calibration,
             },
@@ -573,7 +580,7 @@ mod qemu_app {
         // The tick's timing from SysTick, as the board's from TIM7 and DWT.
         let tick = qemu::next_tick();
         let timing = cx.local.clock.begin(tick);
-        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(crate::TICK_MS);
 
         let injected = cx.shared.world.lock(|w| w.injected);
         let (out, counts) = crate::qemu_tick(
@@ -597,7 +604,7 @@ mod qemu_app {
         if overrun_us > 0 {
             cycles::spin(
                 overrun_us.saturating_mul(cycles::SYSTICK_HZ / 1_000_000),
-                RELOAD,
+                cycles::RELOAD,
             );
         }
         cx.local.clock.end();
@@ -718,27 +725,19 @@ mod qemu_app {
 #[cfg(feature = "qemu-uart")]
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod qemu_uart_app {
-    use core::sync::atomic::{AtomicU32, Ordering};
-
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, ResetCause, TickTiming, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, ResetCause, TickTiming};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use crate::drive::Drive;
+    use crate::link;
+    use crate::link::RxRing;
     use crate::log::Logger;
     use crate::qemu::plant::{Injected, Plant};
     use crate::qemu::pwm::SimPwm;
-    use crate::qemu::uart::{self, RxRing, UartRx, UartTx};
+    use crate::qemu::uart::{self, UartRx, UartTx};
     use crate::qemu::{self, cycles};
-
-    /// Milliseconds per control tick.
-    const TICK_MS: u32 = 1000 / CONTROL_RATE_HZ as u32;
-    /// SysTick reload for one control tick.
-    const RELOAD: u32 = cycles::SYSTICK_HZ / CONTROL_RATE_HZ as u32 - 1;
-
-    /// Bytes received but dropped because the ring was full.
-    static DROPPED: AtomicU32 = AtomicU32::new(0);
 
     #[shared]
     struct Shared {
@@ -774,7 +773,7 @@ mod qemu_uart_app {
         let (controller, link) = crate::start(&flash, ResetCause::PowerOn);
         defmt::info!("qemu-uart: the link on USART2 at 115200 baud");
 
-        cycles::start(&mut syst, RELOAD);
+        cycles::start(&mut syst, cycles::RELOAD);
 
         (
             Shared { link },
@@ -802,7 +801,7 @@ mod qemu_uart_app {
     )]
     fn control(mut cx: control::Context) {
         qemu::next_tick();
-        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(TICK_MS);
+        *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(crate::TICK_MS);
         // Nothing injected: the model as it is. No timing: this build runs QEMU
         // on the host's real-time clock (no -icount), where the tick's latency is
         // the host's scheduling, not the firmware's (hundreds of microseconds
@@ -827,7 +826,7 @@ mod qemu_uart_app {
             match cx.local.rx.read() {
                 Some(byte) => {
                     if cx.local.rx_in.enqueue(byte).is_err() {
-                        DROPPED.fetch_add(1, Ordering::Relaxed);
+                        link::count_dropped();
                     }
                 }
                 None => break,
@@ -839,11 +838,10 @@ mod qemu_uart_app {
     /// there is nothing.
     #[idle(local = [link: Link = Link::new(), rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
-        let mut dropped = 0;
         loop {
-            let now_dropped = DROPPED.load(Ordering::Relaxed);
+            let dropped = link::dropped();
             let status = cx.shared.link.lock(|l| {
-                l.rx_dropped = now_dropped;
+                l.rx_dropped = dropped;
                 l.status
             });
             cx.local.logger.poll(&status);
@@ -853,17 +851,10 @@ mod qemu_uart_app {
             let busy = cx.local.link.poll(
                 || rx.dequeue(),
                 now_ms,
-                |f| cx.shared.link.lock(|l| f(l)),
+                crate::Locked(&mut cx.shared.link),
                 cx.local.flash,
                 |bytes| tx.write_all(bytes),
             );
-            if now_dropped != dropped {
-                defmt::warn!(
-                    "USART2: {=u32} received bytes dropped (ring full)",
-                    now_dropped
-                );
-                dropped = now_dropped;
-            }
             if !busy {
                 cortex_m::asm::wfi();
             }

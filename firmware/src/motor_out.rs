@@ -18,7 +18,7 @@
 //!
 //! # The timer: centre-aligned, its update the ADC's trigger
 //!
-//! TIM8 counts up and down ([`CentreAligned`]: `ARR = 4200` at 20 kHz, 4200 steps
+//! TIM8 counts up and down (`shared::drive::CentreAligned`: `ARR = 4200` at 20 kHz, 4200 steps
 //! of duty), PWM mode 1: each input is high around the counter's valley. So in
 //! slow decay both bridges brake around the valley and drive around the peak,
 //! and the update event (every period up to 50 kHz, `RCR`) falls on one of the two
@@ -62,7 +62,6 @@
 //! write after reset freezes LOCK (RM0090, TIMx_BDTR), at "off".
 
 use core::convert::Infallible;
-use shared::drive::CentreAligned;
 use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
 
@@ -213,8 +212,7 @@ impl ErrorType for CentreChannel {
 
 impl SetDutyCycle for CentreChannel {
     fn max_duty_cycle(&self) -> u16 {
-        // ARR is at most 16 bits on TIM8.
-        tim8().arr().read().bits() as u16
+        crate::drive::PWM_TIMER.arr
     }
 
     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
@@ -222,16 +220,13 @@ impl SetDutyCycle for CentreChannel {
     }
 }
 
-/// TIM8's clock, Hz: twice PCLK2 (`board::PCLK2_HZ`, 84 MHz).
-pub const TIM8_HZ: u32 = 168_000_000;
-
-/// The timer for [`CentreAligned`] PWM at the machine's `[drive] pwm_hz`, its
+/// The timer for `shared::drive::CentreAligned` PWM at the machine's `[drive] pwm_hz`, its
 /// update event as the ADC's trigger (module documentation). CMS may change only
 /// with the counter stopped (RM0090, TIMx_CR1); the update generated at the end
 /// loads the prescaler, the auto-reload, the repetition counter and the compare
 /// values (all zero: [`cut`] has run).
 fn centre_aligned(tim: &pac::tim1::RegisterBlock) {
-    let t = CentreAligned::new(TIM8_HZ, crate::machine::MACHINE.bridge);
+    let t = crate::drive::PWM_TIMER;
     tim.cr1().modify(|_, w| w.cen().clear_bit());
     // SAFETY: CMS 01 (centre-aligned mode 1), PSC, ARR and RCR take any value;
     // MMS 010 is "update" as TRGO.

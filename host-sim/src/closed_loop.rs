@@ -220,7 +220,9 @@ impl Driver for ControllerDriver {
         // 1. Sensors.
         let q = plant.q();
         let v = plant.v();
-        let i = plant.currents();
+        // The currents averaged over the tick just ended, as the firmware's ADC
+        // buffer gives them (`Inputs::current`).
+        let i = plant.mean_currents();
         let mut encoder = [0u32; 2];
         let mut index = [None; 2];
         for k in 0..2 {

@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 
 use proptest::prelude::*;
 use shared::controller::{Direction, Faults, Outputs, State, TuningTable};
-use shared::protocol::link::{no_telemetry, Link, LinkState};
+use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{
     encode, Decoder, Message, NackReason, Request, Response, SelfTestReport, SelfTestStatus,
     StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
@@ -58,7 +58,7 @@ impl Device {
             let busy = link.poll(
                 || rx.pop_front(),
                 now_ms,
-                |f| f(state),
+                &mut *state,
                 flash,
                 |frame| out.extend_from_slice(frame),
             );
@@ -451,6 +451,48 @@ impl storage::Flash for Watched<'_> {
     }
 }
 
+/// A lock on a shared state that tells the test how the link uses it: whether a
+/// closure is running under it (`locked`), how many accesses it has seen, the
+/// access that first set `storing`, and, at access `tick_at`, a control tick
+/// "running" just before the closure and publishing `starting`.
+struct TestLock<'a> {
+    state: &'a std::cell::RefCell<LinkState>,
+    locked: &'a std::cell::Cell<bool>,
+    accesses: usize,
+    marked_at: Option<usize>,
+    tick_at: Option<usize>,
+}
+
+impl<'a> TestLock<'a> {
+    fn new(state: &'a std::cell::RefCell<LinkState>, locked: &'a std::cell::Cell<bool>) -> Self {
+        TestLock {
+            state,
+            locked,
+            accesses: 0,
+            marked_at: None,
+            tick_at: None,
+        }
+    }
+}
+
+impl StateLock for TestLock<'_> {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LinkState) -> R) -> R {
+        self.accesses += 1;
+        let mut s = self.state.borrow_mut();
+        if self.tick_at == Some(self.accesses) {
+            s.status.state = shared::controller::State::Starting;
+        }
+        let storing = s.storing;
+        self.locked.set(true);
+        let r = f(&mut s);
+        self.locked.set(false);
+        if !storing && s.storing && self.marked_at.is_none() {
+            self.marked_at = Some(self.accesses);
+        }
+        r
+    }
+}
+
 /// A table write stores the flash outside the lock on the link's state (which on
 /// the board masks the control task for as long as it is held), with `storing`
 /// set while it runs; a motion command that came meanwhile waits for the control
@@ -471,14 +513,11 @@ fn a_flash_store_runs_outside_the_lock_and_holds_motion_commands_back() {
     let bytes = frame(&write, 7);
     let mut rx: VecDeque<u8> = bytes.into_iter().collect();
     let mut out = Vec::new();
+    let mut lock = TestLock::new(&state, &locked);
     while link.poll(
         || rx.pop_front(),
         1,
-        |f| {
-            locked.set(true);
-            f(&mut state.borrow_mut());
-            locked.set(false);
-        },
+        &mut lock,
         &mut flash,
         |frame| out.extend_from_slice(frame),
     ) {}
@@ -534,31 +573,34 @@ fn a_flash_store_runs_outside_the_lock_and_holds_motion_commands_back() {
 /// would have marked it, and nothing is erased.
 #[test]
 fn a_tick_that_starts_the_motors_before_the_store_gets_it_refused() {
-    let dev = Device::new();
-    let state = std::cell::RefCell::new(dev.state);
-    let mut flash = dev.flash;
-    let before = flash.clone();
-    let mut link = Link::new();
     let write = Request::WriteTuningTable(table(&[(2500.0, 80.0, 280.0), (3000.0, 90.0, 270.0)]));
-    let mut rx: VecDeque<u8> = frame(&write, 9).into_iter().collect();
-    let mut out = Vec::new();
-    let accesses = std::cell::Cell::new(0);
-    while link.poll(
-        || rx.pop_front(),
-        1,
-        |f| {
-            let mut s = state.borrow_mut();
-            accesses.set(accesses.get() + 1);
-            // The handler's own check reads the status first (idle: may
-            // write); then a control tick "runs" and publishes `starting`.
-            if accesses.get() >= 3 {
-                s.status.state = shared::controller::State::Starting;
-            }
-            f(&mut s);
-        },
-        &mut flash,
-        |frame| out.extend_from_slice(frame),
-    ) {}
+    // A run without the tick: the access of the lock that marks the store.
+    let run = |tick_at: Option<usize>| {
+        let dev = Device::new();
+        let state = std::cell::RefCell::new(dev.state);
+        let locked = std::cell::Cell::new(false);
+        let mut flash = dev.flash;
+        let mut lock = TestLock::new(&state, &locked);
+        lock.tick_at = tick_at;
+        let mut link = Link::new();
+        let mut rx: VecDeque<u8> = frame(&write, 9).into_iter().collect();
+        let mut out = Vec::new();
+        while link.poll(
+            || rx.pop_front(),
+            1,
+            &mut lock,
+            &mut flash,
+            |frame| out.extend_from_slice(frame),
+        ) {}
+        let marked_at = lock.marked_at;
+        (out, state.into_inner(), flash, marked_at)
+    };
+    let (_, _, _, marked_at) = run(None);
+    let store_access = marked_at.expect("the store was marked");
+    assert!(store_access > 1, "the handler's own check came first");
+    // The tick runs just before the store's own lock.
+    let before = Device::new().flash;
+    let (out, state, flash, _) = run(Some(store_access));
     let request = write.id() as u8;
     assert_eq!(
         responses(&out),
@@ -570,7 +612,7 @@ fn a_tick_that_starts_the_motors_before_the_store_gets_it_refused() {
             }
         )]
     );
-    assert!(!state.borrow().storing);
+    assert!(!state.storing);
     assert!(flash == before, "nothing erased or written");
 }
 

@@ -581,7 +581,7 @@ impl Device {
         while link.poll(
             || rx.pop_front(),
             now_ms,
-            |f| f(state),
+            &mut *state,
             flash,
             |frame| out.push(frame.to_vec()),
         ) {}

@@ -16,6 +16,8 @@ use shared::timing::TickClock;
 
 /// SysTick's clock in QEMU's netduinoplus2, Hz.
 pub const SYSTICK_HZ: u32 = 168_000_000;
+/// SysTick reload for one control tick.
+pub const RELOAD: u32 = SYSTICK_HZ / shared::controller::CONTROL_RATE_HZ as u32 - 1;
 
 /// Iterations of the calibration loop; 2 instructions each (`subs`, `bne`).
 const CAL_ITERATIONS: u32 = 20_000;

@@ -117,7 +117,7 @@ impl Host {
             let busy = device.link.poll(
                 || input.next().copied(),
                 device.now_ms,
-                |f| state.lock(|l| f(l)),
+                crate::Locked(state),
                 &mut *device.flash,
                 |frame_bytes| receive(decoder, answers, telemetry, bad, frame_bytes),
             );

@@ -36,7 +36,7 @@
 //! end of one tick).
 
 use shared::controller::{MachineConstants, CONTROL_RATE_HZ};
-use shared::drive::{period, Connection};
+use shared::drive::{lengths, period};
 
 /// Euler steps per control tick: 0.1 ms each, against the mechanical time
 /// constant `J R / k^2 = 50 ms`.
@@ -84,7 +84,7 @@ struct Rotor {
     fraction: f32,
     /// Speed, rad/s, driven sense.
     speed: f32,
-    /// Winding current, A.
+    /// Winding current, A: the mean over the last tick.
     current: f32,
     /// The encoder counter (stops while the encoder is disconnected).
     counter: u32,
@@ -172,25 +172,18 @@ impl Plant {
             let c = &self.m.rotors[k];
             let cut = injected.encoder_cut[k];
             let parts = period(super::pwm::inputs(k));
+            let mut current_sum = 0.0;
             for _ in 0..SUBSTEPS {
                 // The mean current over the period's conducting parts.
                 let back_emf = c.torque_constant * rotor.speed;
-                let mut i = 0.0;
-                let mut start = 0.0;
-                for p in &parts {
-                    let u = match p.connection {
-                        Connection::Forward => Some(supply),
-                        Connection::Reverse => Some(-supply),
-                        Connection::Short => Some(0.0),
-                        Connection::Open => None,
-                    };
-                    if let Some(u) = u {
-                        i += (p.end - start) * (u - back_emf) / c.resistance_ohm;
-                    }
-                    start = p.end;
-                }
+                let i: f32 = lengths(&parts)
+                    .filter_map(|(len, conn)| {
+                        conn.fraction()
+                            .map(|u| len * (u * supply - back_emf) / c.resistance_ohm)
+                    })
+                    .sum();
                 let i = i.clamp(-limit, limit);
-                rotor.current = i;
+                current_sum += i;
                 let drive = c.torque_constant * i;
                 let w = rotor.speed;
                 let w_new = if w == 0.0 && abs(drive) <= COULOMB_NM {
@@ -236,6 +229,9 @@ impl Plant {
                     }
                 }
             }
+            // What the board's current sensing gives the next tick: the mean over
+            // this one (`shared::controller::Inputs::current`).
+            rotor.current = current_sum / SUBSTEPS as f32;
         }
     }
 }

@@ -9,10 +9,9 @@ use core::sync::atomic::{AtomicU16, Ordering};
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 
 /// The channels' full scale as the board's report it (`motor_out::CentreChannel`):
-/// `ARR` of TIM8 set up centre-aligned at the machine's PWM frequency
-/// (`shared::drive::CentreAligned`; 4200 at 20 kHz).
-pub const MAX_DUTY: u16 =
-    shared::drive::CentreAligned::new(168_000_000, crate::machine::MACHINE.bridge).arr;
+/// `ARR` of TIM8 set up for the machine's `[drive]` (`crate::drive::PWM_TIMER`;
+/// 4200 at 20 kHz).
+pub const MAX_DUTY: u16 = crate::drive::PWM_TIMER.arr;
 
 /// The four compare values, CH1..CH4: motor 1 IN1, IN2, motor 2 IN1, IN2.
 static COMPARE: [AtomicU16; 4] = [

@@ -24,7 +24,7 @@
 //! 7. fault: travel again, open the E-stop: `ESTOP` latched in the first tick that
 //!    sees it, the driver disabled and both duties 0 in that tick; a reset while
 //!    it is open keeps the fault, a reset after it closed goes idle;
-//! 8. fault: travel again, make the control task work [`OVERRUN_US`] longer once
+//! 8. fault: travel again, make the control task work [`overrun_us`] longer once
 //!    (over its 500 us budget): `DEADLINE` latched in the next tick, the outputs
 //!    safe, one overrun counted in the status; a reset goes idle;
 //! 9. fault: travel again, disconnect encoder 2: `ENCODER` (or `STALL`) latched
@@ -71,9 +71,11 @@ pub const TABLE_SHIFT_DEG: f32 = 5.0;
 pub const TELEMETRY_PERIOD_MS: u16 = 100;
 /// Largest speed error after settling, rpm.
 const SPEED_TOLERANCE_RPM: f32 = 30.0;
-/// The injected overrun of the control task, us: over its budget
-/// (`tick_busy_max_s`, 500 us), under a whole tick.
-pub const OVERRUN_US: u32 = 700;
+/// The injected overrun of the control task, us: 200 us over its budget
+/// (`limits.tick_busy_max_s`: 500 us at 1 kHz), under a whole tick.
+pub fn overrun_us() -> u32 {
+    (Params::reference().limits.tick_busy_max_s * 1e6) as u32 + 200
+}
 /// Largest phase error after settling, degrees.
 const PHASE_TOLERANCE_DEG: f32 = 5.0;
 /// Longest from `idle` after the stop to both rotors at rest, ticks.
@@ -814,9 +816,10 @@ impl Script {
                     "no overrun so far: {=u16} ticks missed their deadline",
                     overruns
                 );
-                defmt::info!("control task busy {=u32} us longer once", OVERRUN_US);
+                let overrun = overrun_us();
+                defmt::info!("control task busy {=u32} us longer once", overrun);
                 io.world.lock(|w| {
-                    w.injected.overrun_us = OVERRUN_US;
+                    w.injected.overrun_us = overrun;
                     w.first_fault = None;
                 });
                 self.injected_at = io.tick;
@@ -850,7 +853,7 @@ impl Script {
                 // The status of the tick that latched it: the overrun tick's
                 // duration, and the count.
                 check!(
-                    u32::from(t.tick_busy_us) >= OVERRUN_US
+                    u32::from(t.tick_busy_us) >= overrun_us()
                         && t.overruns == 1
                         && s.state == State::Fault,
                     "status: {=str}, {=u16} overrun counted, the overrun tick busy {=u16} us",

@@ -12,15 +12,7 @@
 //! Split in two halves like the HAL's `Rx`/`Tx`: the receiver for the interrupt
 //! task (SR and DR read), the transmitter for the link task (SR read, DR written).
 
-use heapless::spsc::Queue;
 use stm32f4xx_hal::pac::{usart1::RegisterBlock, USART2};
-
-/// Bytes the RX ring holds: more than one largest frame (414 bytes), as the
-/// board's `link::RX_RING_LEN`.
-pub const RX_RING_LEN: usize = 1024;
-
-/// The ring of received bytes, from the RX interrupt to the link task.
-pub type RxRing = Queue<u8, RX_RING_LEN>;
 
 /// BRR for 115200 baud from APB1 at the 16 MHz of HSI (QEMU ignores it; set as
 /// the board would without the PLL).

@@ -46,7 +46,7 @@ pub fn status_text(s: &StatusReport) -> String {
          supply          {:.2} V\n\
          duty            {:.3} / {:.3}\n\
          flags           {}\n\
-         control tick    started {} us late, the previous worked {} us; {} deadlines missed\n\
+         control tick    started {} late, the previous worked {}; {} overruns (ticks past their deadline)\n\
          link            {} received bytes lost\n",
         s.state.name(),
         faults_text(s.faults),
@@ -66,11 +66,20 @@ pub fn status_text(s: &StatusReport) -> String {
         t.duty[0],
         t.duty[1],
         flags,
-        t.tick_late_us,
-        t.tick_busy_us,
-        t.overruns,
-        s.rx_dropped,
+        saturated(t.tick_late_us, " us"),
+        saturated(t.tick_busy_us, " us"),
+        saturated(t.overruns, ""),
+        saturated(s.rx_dropped, ""),
     )
+}
+
+/// A saturating counter of the status report: `65535` means that much or more.
+fn saturated(value: u16, unit: &str) -> String {
+    if value == u16::MAX {
+        format!(">= {value}{unit}")
+    } else {
+        format!("{value}{unit}")
+    }
 }
 
 /// A telemetry frame as one line.
@@ -189,5 +198,33 @@ mod tests {
         assert!(status_text(&s).contains("state           fault\n"));
         assert!(status_text(&s).contains("link            3 received bytes lost\n"));
         assert!(row.ends_with(",0,0,0,3"), "{row}");
+    }
+
+    #[test]
+    fn a_saturated_counter_reads_as_at_least() {
+        let mut telemetry = no_telemetry();
+        telemetry.tick_late_us = u16::MAX;
+        telemetry.tick_busy_us = 17;
+        telemetry.overruns = 2;
+        let s = StatusReport {
+            uptime_ms: 1,
+            state: State::Idle,
+            faults: Faults::NONE,
+            telemetry,
+            rx_dropped: u16::MAX,
+        };
+        let text = status_text(&s);
+        assert!(
+            text.contains(
+                "control tick    started >= 65535 us late, the previous worked 17 us; 2 overruns"
+            ),
+            "{text}"
+        );
+        assert!(
+            text.contains("link            >= 65535 received bytes lost\n"),
+            "{text}"
+        );
+        // The CSV keeps the numbers as sent.
+        assert!(csv_row(&s).ends_with(",65535,17,2,65535"));
     }
 }

@@ -206,7 +206,7 @@ impl SimDevice {
             let busy = self.link.poll(
                 || rx.pop_front(),
                 now,
-                |f| f(state),
+                &mut *state,
                 &mut self.flash,
                 |frame| {
                     out.extend(noise.garbage());

@@ -204,6 +204,9 @@ pub struct Plant {
     last_evaluation: std::cell::RefCell<Option<CachedEvaluation>>,
     /// The windings of the last evaluation.
     last_winding: std::cell::Cell<[Winding; 2]>,
+    /// `(integral i dt, duration)` of the winding currents over the current (or
+    /// last) `advance_to`, A s and s.
+    current_integral: ([f64; 2], f64),
 }
 
 impl Plant {
@@ -236,6 +239,7 @@ impl Plant {
             ev_cache: None,
             last_evaluation: std::cell::RefCell::new(None),
             last_winding: std::cell::Cell::new([Winding::Open, Winding::Open]),
+            current_integral: ([0.0; 2], 0.0),
         };
         plant.settle();
         plant
@@ -358,6 +362,41 @@ impl Plant {
         [self.y[2 * DOF], self.y[2 * DOF + 1]]
     }
 
+    /// The winding currents' means over the last [`Plant::advance_to`], A (the
+    /// instantaneous currents before the first): what the firmware's current
+    /// sensing gives a control tick, its ADC buffer averaged over the tick
+    /// (`shared::controller::Inputs::current`).
+    pub fn mean_currents(&self) -> [f64; 2] {
+        let (integral, span) = self.current_integral;
+        if span > 0.0 {
+            integral.map(|x| x / span)
+        } else {
+            self.currents()
+        }
+    }
+
+    /// Adds `integral i dt` over `[step.t0, t_end]` of `step`'s dense output
+    /// (Simpson's rule on the 4th-order interpolant: its error is far below the
+    /// integrator's tolerance at these step sizes).
+    fn integrate_currents(&mut self, step: &Step<NY>, t_end: f64) {
+        let h = t_end - step.t0;
+        if h <= 0.0 {
+            return;
+        }
+        let mid = step.at(step.t0 + 0.5 * h);
+        let end = if t_end >= step.t1() {
+            step.y1
+        } else {
+            step.at(t_end)
+        };
+        let (integral, span) = &mut self.current_integral;
+        for k in 0..2 {
+            let c = 2 * DOF + k;
+            integral[k] += h / 6.0 * (step.y0[c] + 4.0 * mid[c] + end[c]);
+        }
+        *span += h;
+    }
+
     /// The configuration terms at `q` with the holds applied.
     fn frame(&self, q: &[f64; DOF]) -> Frame {
         Frame::locked(&self.model, q, &self.holds.mask())
@@ -381,6 +420,7 @@ impl Plant {
             _ => self.event_values(&self.y),
         };
         let mut stalled = 0u32;
+        self.current_integral = ([0.0; 2], 0.0);
         while self.t < t_target {
             // A bridge switching now (a PWM edge, a duty taking effect).
             if let Some(ts) = self.next_switch().filter(|ts| *ts <= self.t) {
@@ -431,6 +471,7 @@ impl Plant {
                     match self.first_crossing(&step, &ev0, &ev1) {
                         Some((te, ye)) if te > step.t0 || stalled < MAX_STALLED_EVENTS => {
                             stalled = if te > step.t0 { 0 } else { stalled + 1 };
+                            self.integrate_currents(&step, te);
                             record(Output::Dense(self.dense(&step), te));
                             self.t = te;
                             self.y = ye;
@@ -458,6 +499,7 @@ impl Plant {
                                 ));
                                 stalled = 0;
                             }
+                            self.integrate_currents(&step, step.t1());
                             record(Output::Dense(self.dense(&step), step.t1()));
                             self.t = step.t1();
                             self.y = step.y1;

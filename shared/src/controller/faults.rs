@@ -76,7 +76,8 @@ impl Faults {
 
     /// From raw bits; bits without a name are dropped.
     pub const fn from_bits(bits: u16) -> Faults {
-        Faults(bits & 0x03ff)
+        // The named flags are the bits 0 .. ALL.len().
+        Faults(bits & ((1 << Faults::ALL.len()) - 1))
     }
 
     /// No flag set.
@@ -198,8 +199,9 @@ pub struct Observation {
     pub estop: bool,
     /// Time since the last command or heartbeat, s.
     pub link_age_s: f32,
-    /// The tick's timing as measured.
-    pub timing: super::TickTiming,
+    /// The tick missed its deadline ([`FaultMonitor::missed_deadline`] on the
+    /// measured timing).
+    pub deadline_missed: bool,
 }
 
 /// The timers of the checks that need a condition to persist.
@@ -286,7 +288,7 @@ impl FaultMonitor {
         }
 
         // Deadline: a starved loop while the motors are driven, at once.
-        if obs.state.drives() && Self::missed_deadline(obs, limits) {
+        if obs.state.drives() && obs.deadline_missed {
             found |= Faults::DEADLINE;
         }
 
@@ -303,8 +305,7 @@ impl FaultMonitor {
     /// Whether the tick started later than `tick_late_max_s` after its nominal
     /// time, or the previous one worked longer than `tick_busy_max_s` (NaN counts
     /// as missed).
-    pub fn missed_deadline(obs: &Observation, limits: &FaultLimits) -> bool {
-        let t = obs.timing;
+    pub fn missed_deadline(t: super::TickTiming, limits: &FaultLimits) -> bool {
         !(t.late_s <= limits.tick_late_max_s && t.busy_s <= limits.tick_busy_max_s)
     }
 

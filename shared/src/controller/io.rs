@@ -75,7 +75,10 @@ pub struct Inputs {
     /// index_angle)`), so the controller's angle is `theta = 2 pi (count -
     /// index_count) / N`.
     pub index: [Option<u32>; 2],
-    /// Winding currents, A, measured, positive when driving the rotor forward.
+    /// Winding currents, A, measured, positive when driving the rotor forward:
+    /// each the mean over the tick just ended (the firmware averages its ADC
+    /// conversions, one per PWM update, over the tick; host-sim integrates the
+    /// plant's current over the tick), not a sample at some point of the ripple.
     pub current: [f32; 2],
     /// Motor supply (DC bus) voltage, V, measured.
     pub supply_voltage: f32,
@@ -84,7 +87,8 @@ pub struct Inputs {
     /// A command received since the previous tick.
     pub command: Option<Command>,
     /// When this tick started and how long the previous one worked, as the
-    /// firmware measured them (zero in a lockstep simulation).
+    /// firmware measured them (a lockstep simulation's ticks are on time: zero,
+    /// unless a scenario injects lateness).
     pub timing: TickTiming,
 }
 

@@ -466,10 +466,10 @@ impl Controller {
             supply_voltage: inputs.supply_voltage,
             estop: inputs.estop,
             link_age_s: self.link_age_s,
-            timing: inputs.timing,
+            deadline_missed: FaultMonitor::missed_deadline(inputs.timing, &self.params.limits),
         };
         let found = self.monitor.check(&obs, &self.params.limits, dt);
-        if FaultMonitor::missed_deadline(&obs, &self.params.limits) {
+        if obs.deadline_missed {
             self.overruns = self.overruns.saturating_add(1);
         }
         if !found.is_empty() {
@@ -872,12 +872,6 @@ impl Controller {
 /// `s` seconds in whole microseconds, saturating at `u16::MAX` (NaN and negative
 /// values give 0).
 fn saturating_us(s: f32) -> u16 {
-    let us = s * 1e6;
-    if us >= f32::from(u16::MAX) {
-        u16::MAX
-    } else if us > 0.0 {
-        us as u16
-    } else {
-        0
-    }
+    // A float-to-integer `as` saturates, and takes NaN to 0.
+    (s * 1e6) as u16
 }

@@ -185,11 +185,12 @@ pub struct FaultLimits {
     /// of a switching tick and an ADC glitch].
     pub supply_time_s: f32,
     /// A tick that starts this much after its nominal time missed its deadline, s
-    /// [a quarter of the tick: 250 us at 1 kHz; the step takes about 10 us and the
-    /// interrupts above it a few, so this much means something starved the loop].
+    /// [a quarter of the tick: 250 us at 1 kHz; a whole tick is at most about 1 600
+    /// instructions (10 us at 168 MHz, `benchmarks/firmware.md`) and the
+    /// interrupts above it a few us, so this much means something starved the loop].
     pub tick_late_max_s: f32,
     /// A tick whose work took this long missed its deadline, s [half the tick: 500
-    /// us at 1 kHz, fifty times the step].
+    /// us at 1 kHz, fifty times a whole tick's work].
     pub tick_busy_max_s: f32,
 }
 

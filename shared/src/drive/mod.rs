@@ -344,15 +344,8 @@ pub fn period(inputs: [f32; 2]) -> Period {
 /// The compare value for a high fraction in `[0, 1]` of `max` (the timer's count
 /// for always high), rounded to the nearest.
 pub fn compare(fraction: f32, max: u16) -> u16 {
-    let c = fraction * f32::from(max) + 0.5;
-    if c >= f32::from(max) {
-        max
-    } else if c > 0.0 {
-        c as u16
-    } else {
-        // Also NaN.
-        0
-    }
+    // A float-to-integer `as` saturates at 0 and 65535, and takes NaN to 0.
+    ((fraction * f32::from(max) + 0.5) as u16).min(max)
 }
 
 /// A bridge input that failed to take its value.

@@ -211,42 +211,45 @@ pub fn no_telemetry() -> Telemetry {
     }
 }
 
-/// The lock on [`LinkState`]: runs a closure on it (on the board, inside the RTIC
-/// lock that the control task shares).
-type WithState<'a> = &'a mut dyn FnMut(&mut dyn FnMut(&mut LinkState));
-
-/// The [`Device`] the handler answers on: [`LinkState`] through its lock, taken
-/// for each access and never across a flash operation, and the flash.
-struct Session<'a, 'b, F: Flash + ?Sized> {
-    with_state: core::cell::RefCell<WithState<'b>>,
-    flash: &'a mut F,
+/// The lock on [`LinkState`] the link works through, taken for each access (on
+/// the board, RTIC's lock that the control task shares; in a test or a simulated
+/// device, the state itself).
+pub trait StateLock {
+    /// Run `f` on the state under the lock.
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LinkState) -> R) -> R;
 }
 
-impl<F: Flash + ?Sized> Session<'_, '_, F> {
-    /// Run `f` on the state under the lock; `None` if the lock did not run it
-    /// (not the contract of `with_state`, but the type cannot promise it: each
-    /// access then falls back to a defined answer, a Nack or an idle status).
-    fn locked<R>(&self, f: impl FnOnce(&mut LinkState) -> R) -> Option<R> {
-        let mut f = Some(f);
-        let mut out = None;
-        (self.with_state.borrow_mut())(&mut |state| {
-            if let Some(f) = f.take() {
-                out = Some(f(state));
-            }
-        });
-        out
+impl StateLock for LinkState {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LinkState) -> R) -> R {
+        f(self)
     }
 }
 
-impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
+impl<L: StateLock + ?Sized> StateLock for &mut L {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut LinkState) -> R) -> R {
+        (**self).lock(f)
+    }
+}
+
+/// The [`Device`] the handler answers on: [`LinkState`] through its lock, taken
+/// for each access and never across a flash operation, and the flash. (The
+/// handler asks the device through `&self` for what it only reads; the lock needs
+/// `&mut`, hence the cell, borrowed for one access at a time.)
+struct Session<'a, L: StateLock, F: Flash + ?Sized> {
+    state: core::cell::RefCell<&'a mut L>,
+    flash: &'a mut F,
+}
+
+impl<L: StateLock, F: Flash + ?Sized> Session<'_, L, F> {
+    /// Run `f` on the state under the lock.
+    fn locked<R>(&self, f: impl FnOnce(&mut LinkState) -> R) -> R {
+        self.state.borrow_mut().lock(f)
+    }
+}
+
+impl<L: StateLock, F: Flash + ?Sized> Device for Session<'_, L, F> {
     fn status(&self) -> StatusReport {
-        self.locked(|s| s.status).unwrap_or(StatusReport {
-            uptime_ms: 0,
-            state: crate::controller::State::Idle,
-            faults: crate::controller::Faults::NONE,
-            telemetry: no_telemetry(),
-            rx_dropped: 0,
-        })
+        self.locked(|s| s.status)
     }
 
     fn command(&mut self, command: Command) -> Result<(), NackReason> {
@@ -265,11 +268,10 @@ impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
             }
             Ok(())
         })
-        .unwrap_or(Err(NackReason::Busy))
     }
 
     fn tuning_table(&self) -> TuningTable {
-        self.locked(|s| s.tuning.clone()).unwrap_or_default()
+        self.locked(|s| s.tuning.clone())
     }
 
     /// The record under the lock, the flash written outside it (an erase takes up
@@ -279,19 +281,17 @@ impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
         // The motors checked stopped and the store marked under one lock: a
         // control tick between a check and the mark could take a waiting run
         // command and start the motors just before the erase stalls everything.
-        let record = self
-            .locked(|state| {
-                // A self-test asked for but not yet started would start meanwhile.
-                if state.self_test_requested {
-                    return Err(NackReason::Busy);
-                }
-                if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
-                    return Err(NackReason::NotStopped);
-                }
-                state.storing = true;
-                Ok(state.record(table))
-            })
-            .ok_or(NackReason::StorageFailed)??;
+        let record = self.locked(|state| {
+            // A self-test asked for but not yet started would start meanwhile.
+            if state.self_test_requested {
+                return Err(NackReason::Busy);
+            }
+            if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
+                return Err(NackReason::NotStopped);
+            }
+            state.storing = true;
+            Ok(state.record(table))
+        })?;
         let stored = storage::store(&mut *self.flash, &record);
         self.locked(|state| {
             state.storing = false;
@@ -306,15 +306,12 @@ impl<F: Flash + ?Sized> Device for Session<'_, '_, F> {
     }
 
     fn self_test(&self) -> SelfTestReport {
-        self.locked(|s| s.self_test).unwrap_or(SelfTestReport {
-            status: SelfTestStatus::NotRun,
-            result: Default::default(),
-        })
+        self.locked(|s| s.self_test)
     }
 
     fn start_self_test(&mut self) -> Result<(), NackReason> {
-        self.locked(|s| s.self_test_requested = true)
-            .ok_or(NackReason::Busy)
+        self.locked(|s| s.self_test_requested = true);
+        Ok(())
     }
 
     fn set_telemetry_period(&mut self, period_ms: u16) {
@@ -358,9 +355,8 @@ impl Link {
     ///
     /// 1. take up to [`POLL_CHUNK`] bytes from `rx` (`None`: nothing more now);
     /// 2. give up on a frame after [`FRAME_GAP_TIMEOUT_MS`] of silence inside it;
-    /// 3. decode and answer every frame on the state (reached through
-    ///    `with_state`, which takes the lock and must run its closure once; the
-    ///    lock is taken for each access, and a flash write runs outside it) and
+    /// 3. decode and answer every frame on the state (reached through `state`,
+    ///    its lock taken for each access; a flash write runs outside it) and
     ///    `flash`, and `send` the answers;
     /// 4. store a finished self-test's result, when the motors allow a write;
     /// 5. send telemetry when due.
@@ -370,7 +366,7 @@ impl Link {
         &mut self,
         mut rx: impl FnMut() -> Option<u8>,
         now_ms: u32,
-        mut with_state: impl FnMut(&mut dyn FnMut(&mut LinkState)),
+        mut state: impl StateLock,
         flash: &mut F,
         mut send: impl FnMut(&[u8]),
     ) -> bool {
@@ -403,7 +399,7 @@ impl Link {
         while let Some(event) = self.decoder.decode(&mut input) {
             let answer = {
                 let mut session = Session {
-                    with_state: core::cell::RefCell::new(&mut with_state),
+                    state: core::cell::RefCell::new(&mut state),
                     flash: &mut *flash,
                 };
                 answer_event(&mut session, event)
@@ -417,32 +413,27 @@ impl Link {
 
         // 4. A self-test result to keep: the record under the lock, the flash
         // written outside it.
-        let mut record = None;
-        with_state(&mut |state| {
-            if state.self_test_unsaved
-                && storage::may_write(state.status.state, state.status.telemetry.speed_rpm)
-            {
-                record = Some(state.record(&state.tuning));
-                state.storing = true;
-            }
+        let record = state.lock(|s| {
+            let due = s.self_test_unsaved
+                && storage::may_write(s.status.state, s.status.telemetry.speed_rpm);
+            s.storing |= due;
+            due.then(|| s.record(&s.tuning))
         });
         if let Some(record) = record {
             // A failed write leaves the result reported but unsaved; the next
             // table write stores it.
             let _ = storage::store(&mut *flash, &record);
-            with_state(&mut |state| {
-                state.storing = false;
-                state.self_test_unsaved = false;
+            state.lock(|s| {
+                s.storing = false;
+                s.self_test_unsaved = false;
             });
         }
 
         // 5. Telemetry when due.
-        let mut report = None;
-        with_state(&mut |state| {
-            let period = u32::from(state.telemetry_period_ms);
-            if period > 0 && now_ms.wrapping_sub(self.last_telemetry_ms) >= period {
-                report = Some(state.status);
-            }
+        let last = self.last_telemetry_ms;
+        let report = state.lock(|s| {
+            let period = u32::from(s.telemetry_period_ms);
+            (period > 0 && now_ms.wrapping_sub(last) >= period).then_some(s.status)
         });
         if let Some(status) = report {
             self.last_telemetry_ms = now_ms;

@@ -160,8 +160,8 @@ impl From<ParseError> for NackReason {
 }
 
 /// Shortest telemetry stream period, ms: a [`Response::Telemetry`] frame is
-/// `14 + 60 = 74` bytes, 6.4 ms at 115200 baud; every 20 ms that is a third of the
-/// link, which leaves room for the answers.
+/// `14 + StatusReport::LEN = 82` bytes, 7.1 ms at 115200 baud; every 20 ms that is
+/// a third of the link, which leaves room for the answers.
 pub const MIN_TELEMETRY_PERIOD_MS: u16 = 20;
 
 /// A message from the host.

@@ -44,8 +44,9 @@ pub use message::{
     StatusReport, MIN_TELEMETRY_PERIOD_MS, TUNING_ROW_LEN,
 };
 
-/// Protocol version, byte 2 of every frame. Version 1 is this one.
-pub const PROTOCOL_VERSION: u8 = 1;
+/// Protocol version, byte 2 of every frame: 2 since the status report grew to 68
+/// bytes (the tick's timing, the overruns, the bytes lost) and fault bit 9.
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// UART speed, baud (8N1). 115200 is the rate every USB-serial adapter and every
 /// terminal program supports; it carries 11520 bytes/s, so the largest frame
