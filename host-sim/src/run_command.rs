@@ -15,7 +15,6 @@ use crate::cli::{CommandArg, Format, Output, RunArgs, EXIT_OK, EXIT_USAGE};
 use crate::closed_loop::ControllerDriver;
 use crate::input;
 use crate::machine::Machine;
-use crate::plant::simulator::{Holds, Settings};
 use crate::run_output::{events_csv, summary_json, summary_table, trace_csv, write_whole};
 use crate::simulation::{simulate, OpenLoop, OpenLoopDriver, RunOptions};
 
@@ -91,11 +90,7 @@ pub fn run(args: &RunArgs) -> Output {
     // 2. Simulate.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
-    let options = RunOptions {
-        t_end,
-        settings: Settings::default(),
-        holds: Holds::default(),
-    };
+    let options = RunOptions::new(t_end);
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
             if let OpenLoop::Voltages(v) = open_loop {

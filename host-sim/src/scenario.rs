@@ -53,7 +53,7 @@ use crate::closed_loop::{self, ControllerDriver, Injected};
 use crate::input::{self, Limit, Location, Need, Problem, Problems, Section};
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
-use crate::plant::simulator::{Holds, Plant, Settings};
+use crate::plant::simulator::Plant;
 use crate::simulation::{simulate, Driver, RunOptions};
 use crate::text::{sig, signed};
 use crate::trace::EventRow;
@@ -1118,11 +1118,7 @@ impl Report {
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
     // 1.-3. Simulate with the scenario's driver.
     let mut driver = ScenarioDriver::new(scenario)?;
-    let options = RunOptions {
-        t_end: scenario.t_end,
-        settings: Settings::default(),
-        holds: Holds::default(),
-    };
+    let options = RunOptions::new(scenario.t_end);
     let result = simulate(&scenario.machine, &mut driver, &options);
     let mut samples: Vec<(f64, f64)> = driver.ticks.iter().map(|k| (k.t, k.x)).collect();
     if let Some(row) = result.rows.last() {

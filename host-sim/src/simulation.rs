@@ -93,6 +93,17 @@ pub struct RunOptions {
     pub holds: Holds,
 }
 
+impl RunOptions {
+    /// A run to `t_end` with the default settings, nothing held.
+    pub fn new(t_end: f64) -> Self {
+        RunOptions {
+            t_end,
+            settings: Settings::default(),
+            holds: Holds::default(),
+        }
+    }
+}
+
 /// What a run produced.
 #[derive(Clone, Debug)]
 pub struct RunResult {

@@ -32,7 +32,6 @@ use crate::cli::{Format, Output, TuneArgs, EXIT_FAILURE, EXIT_OK, EXIT_USAGE};
 use crate::closed_loop::{self, ControllerDriver};
 use crate::input;
 use crate::machine::Machine;
-use crate::plant::simulator::{Holds, Settings};
 use crate::run_output::write_whole;
 use crate::simulation::{simulate, RunOptions};
 use crate::summary::{wrap_deg_180, wrap_deg_360};
@@ -453,11 +452,7 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         }
     };
     driver.record_history(true);
-    let options = RunOptions {
-        t_end,
-        settings: Settings::default(),
-        holds: Holds::default(),
-    };
+    let options = RunOptions::new(t_end);
     let result = simulate(machine, &mut driver, &options);
     let s = &result.summary;
     outcome.mean_velocity = s.mean_velocity;

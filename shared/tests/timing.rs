@@ -57,7 +57,8 @@ fn the_counter_wraps() {
 
 #[test]
 fn a_long_tick_shows_in_the_next_ones_busy() {
-    // 600 us of work: over the default budget of half a tick.
+    // 600 us of work (over the controller's budget of half a tick, 500 us) is
+    // what the next tick reports.
     let mut c = TickClock::new(HZ, PERIOD);
     c.begin(0, 0);
     c.end(100_800);

@@ -34,15 +34,21 @@ pub fn reference_machine(offset_deg: f64, sets: &[String]) -> Machine {
 /// The plant of `m` with its rotors held at `rpm` (rotor 1 counter-clockwise,
 /// rotor 2 clockwise) and the platform at rest, with `settings`.
 pub fn held_rotors(m: &Machine, rpm: f64, settings: Settings) -> Plant {
+    let holds = Holds {
+        rotors: true,
+        ..Holds::default()
+    };
+    held_plant(m, rpm, settings, holds)
+}
+
+/// The plant of `m` with its rotors turning at `rpm` (rotor 1 counter-clockwise,
+/// rotor 2 clockwise) and the platform at rest, with `settings` and `holds`.
+pub fn held_plant(m: &Machine, rpm: f64, settings: Settings, holds: Holds) -> Plant {
     let w = rpm * PI / 30.0;
     let mut y = initial_state(m);
     // State layout (x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2).
     y[8] = w;
     y[9] = -w;
-    let holds = Holds {
-        rotors: true,
-        ..Holds::default()
-    };
     Plant::new(PlantModel::new(m), y, settings, holds)
 }
 

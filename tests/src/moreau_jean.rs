@@ -96,12 +96,6 @@ pub struct Stepper {
     pub v: [f64; 3],
 }
 
-/// `R(theta) a`.
-fn rotate(theta: f64, a: [f64; 2]) -> [f64; 2] {
-    let (s, c) = theta.sin_cos();
-    [c * a[0] - s * a[1], s * a[0] + c * a[1]]
-}
-
 /// Solves the 3 x 3 system `m x = b` (Gaussian elimination with partial
 /// pivoting; `m` is symmetric positive definite here).
 fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> [f64; 3] {
@@ -155,7 +149,7 @@ impl Stepper {
         let mut f = [0.0, -m.mass * g, 0.0];
         let w = v[2];
         for r in &m.rotors {
-            let rho = rotate(q[2], r.axis);
+            let rho = crate::rig::rot(q[2], r.axis);
             let psi = q[2] + r.angle + r.speed * t;
             let eps = [r.eccentricity * psi.cos(), r.eccentricity * psi.sin()];
             let p = [rho[0] + eps[0], rho[1] + eps[1]];
@@ -191,7 +185,7 @@ impl Stepper {
         // The feet in contact at the middle of the step: their rows.
         let mut rows: Vec<([f64; 3], [f64; 3])> = Vec::new();
         for c in &self.machine.feet {
-            let p = rotate(q_m[2], *c);
+            let p = crate::rig::rot(q_m[2], *c);
             if q_m[1] + p[1] <= 0.0 {
                 rows.push(([0.0, 1.0, p[0]], [-1.0, 0.0, p[1]]));
             }

@@ -56,12 +56,11 @@
 //! command asks for from the controller's telemetry.
 
 use std::f64::consts::FRAC_PI_2;
-use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
-use host_sim::plant::simulator::{Holds, Settings};
+use host_sim::plant::simulator::Settings;
 use host_sim::simulation::{simulate, RunOptions, RunResult};
 use host_sim::trace::Summary;
 use shared::controller::{Command, Direction, State};
@@ -73,11 +72,6 @@ const SPEED_RPM: f64 = 3000.0;
 /// The smallest travel speed that counts as travelling, m/s: a sixth of the
 /// 26 to 30 mm/s the plant alone travels at 60 to 90 degrees (forced rotors).
 const TRAVELS: f64 = 5e-3;
-
-/// The reference machine file.
-fn machine_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
-}
 
 /// Where the eccentrics are at `t = 0`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -125,15 +119,12 @@ impl ClosedLoop {
 fn closed_loop(command: Command, start: Start, sets: &[String], t_end: f64) -> ClosedLoop {
     let mut all = start.sets();
     all.extend_from_slice(sets);
-    let machine = Machine::load(&machine_path(), &all).expect("the reference machine loads");
+    let machine =
+        Machine::load(&tests::held::reference_path(), &all).expect("the reference machine loads");
     let mut driver =
         ControllerDriver::new(&machine, vec![(0.0, command)]).expect("the controller starts");
     driver.record_history(true);
-    let options = RunOptions {
-        t_end,
-        settings: Settings::default(),
-        holds: Holds::default(),
-    };
+    let options = RunOptions::new(t_end);
     let result = simulate(&machine, &mut driver, &options);
     let last = driver.last().expect("the controller ran");
     ClosedLoop {

@@ -43,7 +43,7 @@ use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::model::{initial_state, PlantModel};
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
-use tests::held::reference_machine;
+use tests::held::{held_plant, reference_machine};
 
 const R: f64 = 2.0;
 const L: f64 = 0.5e-3;
@@ -59,42 +59,49 @@ fn held(decay: &str, rpm: f64) -> (Machine, Plant) {
         "motor.current_limit=10".to_string(),
     ];
     let m = reference_machine(0.0, &sets);
-    let w = rpm * PI / 30.0;
-    let mut y = initial_state(&m);
-    y[8] = w;
-    y[9] = -w;
     let holds = Holds {
         platform: true,
         rotors: true,
         ..Holds::default()
     };
-    let plant = Plant::new(PlantModel::new(&m), y, Settings::default(), holds);
+    let plant = held_plant(&m, rpm, Settings::default(), holds);
     (m, plant)
 }
 
-/// Mean current of rotor 1 over periods `[n0, n0 + count)` (in its driven sense,
-/// which is rotor 1's ccw), driven at `duty` from t = 0, A.
-fn mean_current(decay: &str, rpm: f64, duty: f64, n0: usize, count: usize) -> f64 {
+/// The circuit's constants above are the reference machine file's.
+#[test]
+fn the_constants_are_the_reference_machines() {
+    let (m, _) = held("slow", 0.0);
+    let motor = &m.rotors[0].motor;
+    assert_eq!(
+        (motor.resistance, motor.inductance, motor.torque_constant),
+        (R, L, K)
+    );
+    assert_eq!(m.drive.supply_voltage, VS);
+    assert_eq!(1.0 / f64::from(m.drive.bridge.pwm_hz), T);
+}
+
+/// Mean current of rotor 1 over each of the periods `[0, count)` (in its driven
+/// sense, which is rotor 1's ccw), driven at `duty` from t = 0, A.
+fn period_means(decay: &str, rpm: f64, duty: f64, count: usize) -> Vec<f64> {
     let (_, mut plant) = held(decay, rpm);
     plant.set_bridges([BridgeCommand::Duty(duty), BridgeCommand::Off]);
     let per_period = 4000;
-    let t0 = n0 as f64 * T;
-    let t1 = (n0 + count) as f64 * T;
     let dt = T / per_period as f64;
-    let mut next = 0usize;
     let total = count * per_period;
-    let mut sum = 0.0;
+    let mut next = 0usize;
+    let mut sums = vec![0.0; count];
     let mut last: Option<f64> = None;
-    plant.advance_to(t1, &mut |out| {
+    plant.advance_to(count as f64 * T, &mut |out| {
         if let Output::Dense(step, upto) = out {
             while next <= total {
-                let t = t0 + next as f64 * dt;
+                let t = next as f64 * dt;
                 if t > upto {
                     break;
                 }
                 let i = step.at(t)[10];
                 if let Some(prev) = last {
-                    sum += 0.5 * (prev + i) * dt;
+                    sums[(next - 1) / per_period] += 0.5 * (prev + i) * dt;
                 }
                 last = Some(i);
                 next += 1;
@@ -102,7 +109,13 @@ fn mean_current(decay: &str, rpm: f64, duty: f64, n0: usize, count: usize) -> f6
         }
     });
     assert_eq!(next, total + 1, "sampled every point");
-    sum / (t1 - t0)
+    sums.iter().map(|s| s / T).collect()
+}
+
+/// Mean current of rotor 1 over periods `[n0, n0 + count)`, A.
+fn mean_current(decay: &str, rpm: f64, duty: f64, n0: usize, count: usize) -> f64 {
+    let means = period_means(decay, rpm, duty, n0 + count);
+    means[n0..].iter().sum::<f64>() / count as f64
 }
 
 /// The closed forms of the module documentation: `(continuous, mean current)`.
@@ -147,6 +160,80 @@ fn slow_decay_mean_current_is_d_vs_minus_e_over_r() {
     }
 }
 
+/// Slow decay, from the switch-on on, period by period: the plant (the period's
+/// mean voltage on the winding) against the switched circuit, solved exactly part
+/// by part (`L di/dt = u - R i - E`, `u` = 0 in the brake around the valley,
+/// `V_s` in the drive around the peak; here, not through the plant or
+/// `shared::drive`).
+///
+/// Why they differ, and by how much at most: both are linear with the same decay
+/// over a period, `r = exp(-T / tau)`, so the currents at the period starts obey
+/// `i_{n+1} = r i_n + K` with their own `K`, and their difference is
+/// `delta_n = c (1 - r^n)`, `c` the switched current's steady offset at the period
+/// start (the middle of the brake) from the mean. The period means obey
+/// `L (i_{n+1} - i_n) / T = d V_s - R mean_n - E` exactly in both, so
+/// `mean_sw - mean_avg = -(tau / T)(delta_{n+1} - delta_n) = -(tau / T)(1 - r) c r^n`:
+/// at most `(tau / T)(1 - r) |c|` (3.4 mA at d = 0.5), and zero once settled.
+#[test]
+fn slow_decay_period_means_follow_the_switched_circuit() {
+    let tau = L / R;
+    let r = (-T / tau).exp();
+    for (d, rpm) in [
+        (0.5, 0.0),
+        (0.049, 0.0),
+        (0.6, 3000.0),
+        (0.9, 3000.0),
+        (-0.3, 0.0),
+    ] {
+        let e = K * rpm * PI / 30.0;
+        // Forward: brake (1 - d)/2, drive d at +V_s, brake (1 - d)/2; reverse at -V_s.
+        let a: f64 = d;
+        let drive = VS * a.signum();
+        let parts = [
+            (0.5 * (1.0 - a.abs()), 0.0),
+            (a.abs(), drive),
+            (0.5 * (1.0 - a.abs()), 0.0),
+        ];
+        let n = 120;
+        let mut i = 0.0;
+        let mut switched = Vec::new();
+        for _ in 0..n {
+            let mut integral = 0.0;
+            for (len, u) in parts {
+                let h = len * T;
+                let target = (u - e) / R;
+                integral += target * h + (i - target) * tau * (1.0 - (-h / tau).exp());
+                i = target + (i - target) * (-h / tau).exp();
+            }
+            switched.push(integral / T);
+        }
+        // The switched steady state at the period start, and its offset c.
+        let mut i_ss = 0.0;
+        for _ in 0..2000 {
+            for (len, u) in parts {
+                let target = (u - e) / R;
+                i_ss = target + (i_ss - target) * (-len * T / tau).exp();
+            }
+        }
+        let c = i_ss - (d * VS - e) / R;
+        let bound = (tau / T) * (1.0 - r) * c.abs();
+        let plant = period_means("slow", rpm, d, n);
+        for (k, (p, s)) in plant.iter().zip(&switched).enumerate() {
+            let diff = (p - s).abs();
+            let settled = k >= 100;
+            let allowed = if settled {
+                1e-6
+            } else {
+                bound * r.powi(k as i32) + 1e-6
+            };
+            assert!(
+                diff <= allowed,
+                "d {d}, {rpm} rpm, period {k}: plant {p} A, switched {s} A, |diff| {diff:.3e} > {allowed:.3e}"
+            );
+        }
+    }
+}
+
 #[test]
 fn fast_decay_mean_current_follows_the_closed_forms() {
     // Discontinuous at standstill and low duty, continuous at high duty.
@@ -188,7 +275,7 @@ fn fast_decay_at_the_self_tests_duty_barely_drives() {
 /// body diodes in `tau ln(1 + i R / (V_s + E))`, not at once.
 #[test]
 fn the_bridge_switches_as_the_timer_does() {
-    // Off at 3.02 periods: the current freewheels to zero, at rest, from the slow
+    // Off at 50.3 periods: the current freewheels to zero, at rest, from the slow
     // decay's 3 A... after 50 periods of d = 0.5 at standstill.
     let (_, mut plant) = held("slow", 0.0);
     plant.set_bridges([BridgeCommand::Duty(0.5), BridgeCommand::Off]);
@@ -276,11 +363,7 @@ fn the_controller_cannot_start_the_rotors_on_a_fast_decay_bridge() {
             speed_rpm: 3000.0,
         };
         let mut driver = ControllerDriver::new(&m, vec![(0.0, command)]).expect("starts");
-        let options = RunOptions {
-            t_end: 2.0,
-            settings: Settings::default(),
-            holds: Holds::default(),
-        };
+        let options = RunOptions::new(2.0);
         let run = simulate(&m, &mut driver, &options);
         let s = &run.summary;
         if decay == "slow" {

@@ -28,8 +28,16 @@
 //! | 90 | +21.218 / +21.220 | +33.300 / +33.300 |
 //! | 120 | +16.160 / +16.160 | +25.560 / +25.614 (reversals) |
 //! | 150 | +8.358 / +8.371 (reversals) | +13.229 / +13.404 (reversals) |
-//! | 180 | 0.000 / 0.000 | 0.000 / 0.000 |
-//! | 210 to 330 | mirror images | mirror images |
+//! | 180 | 0.000 / 0.000 (a mirror-symmetric start: no test of either) | 0.000 / 0.000 (idem) |
+//! | 210 | -8.336 / -8.349 (reversals) | -13.229 / -13.403 (reversals) |
+//! | 240 | -16.078 / -16.078 | -25.560 / -25.616 (reversals) |
+//! | 270 | -21.068 / -21.070 | -33.300 / -33.300 |
+//! | 300 | -18.922 / -18.926 | -26.571 / -26.556 |
+//! | 330 | -10.304 / -10.302 | -13.424 / -13.445 |
+//!
+//! (210 to 330 are not mirror images of 150 to 30 at 2500 rpm: rotor 1 starts
+//! hanging down in both, so the starts are not mirrors, and the lower speed keeps
+//! a trace of its start over the 4 s.)
 //!
 //! The runs: the platform at rest on both feet at t = 0, rotor 1 hanging down
 //! (`phi_1 = -90` degrees), rotor 2 at `offset - phi_1`, both turning at once; the
@@ -157,9 +165,15 @@ fn travel_speed_curve_agrees_with_moreau_jean() {
             );
         }
     }
-    // The comparison covers both kinds: points without reversals at both speeds.
+    // The comparison covers both kinds: points without reversals at both speeds,
+    // 16 of them besides the two at 180 degrees, whose mirror-symmetric start
+    // gives zero travel in both methods whatever they compute.
     assert!(
-        points.iter().filter(|p| !p.reversals).count() >= 16,
+        points
+            .iter()
+            .filter(|p| !p.reversals && p.offset != 180.0)
+            .count()
+            >= 16,
         "{report}"
     );
     println!("{report}");

@@ -23,12 +23,11 @@
 //! Measured (this commit, test profile): see the `eprintln!` of each test.
 
 use std::f64::consts::{PI, TAU};
-use std::path::{Path, PathBuf};
 
 use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
-use host_sim::plant::simulator::{Holds, Plant, Settings};
+use host_sim::plant::simulator::Plant;
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use host_sim::trace::EventRow;
 use shared::controller::{
@@ -39,11 +38,6 @@ use shared::protocol::{SelfTestReport, SelfTestStatus};
 /// When the tests start the self-test, s: the reference machine starts with both
 /// eccentrics horizontal; they swing down and come to rest well before.
 const T_START: f64 = 1.5;
-
-/// The reference machine file.
-fn machine_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
-}
 
 /// One control tick as the probe saw it.
 #[derive(Clone, Copy, Debug)]
@@ -142,7 +136,8 @@ impl Run {
 
 /// Runs the reference machine to `t_end` with a self-test started at [`T_START`].
 fn run(setup: Setup, t_end: f64) -> Run {
-    let machine = Machine::load(&machine_path(), &setup.sets).expect("the machine loads");
+    let machine =
+        Machine::load(&tests::held::reference_path(), &setup.sets).expect("the machine loads");
     let mut inner =
         ControllerDriver::new(&machine, setup.commands.clone()).expect("the controller starts");
     inner.start_self_test_at(T_START);
@@ -153,11 +148,7 @@ fn run(setup: Setup, t_end: f64) -> Run {
         setup,
         ticks: Vec::new(),
     };
-    let options = RunOptions {
-        t_end,
-        settings: Settings::default(),
-        holds: Holds::default(),
-    };
+    let options = RunOptions::new(t_end);
     simulate(&machine, &mut probe, &options);
     Run {
         started: probe.inner.self_test_started(),
