@@ -1,9 +1,10 @@
 //! The case reader never panics, whatever the file holds (spec `impact-case.md`:
 //! "no panic"), and what it accepts the solver and the report take without panic.
 
-use host_sim::cli::{Format, ImpactArgs};
-use host_sim::impact_case::parse_case;
-use host_sim::{impact_command, impact_report};
+use clap::Parser;
+use host_sim::cli::{self, Cli};
+use host_sim::impact::case::parse_case;
+use host_sim::impact::report;
 use proptest::prelude::*;
 use shared::impact::{solve_body, MAX_CONTACTS};
 
@@ -78,8 +79,8 @@ proptest! {
             if let Ok(r) = solve_body::<f64, MAX_CONTACTS>(
                 &case.body, case.pivot, &case.body_contacts(), case.law,
             ) {
-                let _ = impact_report::json_text(&case, &r);
-                let _ = impact_report::table(&case, &r);
+                let _ = report::json_text(&case, &r);
+                let _ = report::table(&case, &r);
             }
         }
     }
@@ -88,11 +89,16 @@ proptest! {
 /// The command itself on a file that does not exist: a refusal, not a panic.
 #[test]
 fn the_command_refuses_a_missing_file() {
-    let out = impact_command::run(&ImpactArgs {
-        case: "does/not/exist.toml".into(),
-        law: None,
-        format: Format::Json,
-    });
+    let out = cli::run(
+        Cli::try_parse_from([
+            "host-sim",
+            "impact",
+            "does/not/exist.toml",
+            "--format",
+            "json",
+        ])
+        .unwrap(),
+    );
     assert_eq!(out.status, 2);
     assert!(out.stdout.is_empty());
 }
@@ -156,9 +162,9 @@ proptest! {
         if let Ok(r) = solve_body::<f64, MAX_CONTACTS>(
             &case.body, case.pivot, &case.body_contacts(), case.law,
         ) {
-            let json = impact_report::json_text(&case, &r);
+            let json = report::json_text(&case, &r);
             prop_assert!(serde_json::from_str::<serde_json::Value>(&json).is_ok());
-            let _ = impact_report::table(&case, &r);
+            let _ = report::table(&case, &r);
         }
     }
 }

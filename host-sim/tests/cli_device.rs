@@ -20,7 +20,7 @@ use host_sim::device::commands::TABLE_HEADER;
 use host_sim::device::report::CSV_HEADER;
 use host_sim::device::serve::{serve, Endpoint};
 use host_sim::device::sim::{Noise, SimDevice};
-use host_sim::tuning_file;
+use host_sim::machine::tuning_file;
 use shared::storage;
 
 /// A simulated device served over TCP on this machine until dropped.

@@ -192,7 +192,7 @@ fn bad_options_are_refused_with_exit_2() {
     let r = run(&["run", m, "--open-loop", "12"]);
     assert_eq!(r.status, 2);
     assert!(
-        r.stderr.contains("--open-loop 12") && r.stderr.contains("coast"),
+        r.stderr.contains("'12' for '--open-loop") && r.stderr.contains("coast"),
         "{}",
         r.stderr
     );
@@ -243,4 +243,86 @@ fn unwritable_output_is_refused_and_nothing_is_left() {
     assert_eq!(r.status, 2);
     assert!(r.stderr.contains("t.csv"), "{}", r.stderr);
     assert!(!target.exists());
+}
+
+/// Defect: with one output unwritable, the others were written before the refusal.
+/// Now every path is checked and staged first: exit 2, nothing left behind.
+#[test]
+fn one_unwritable_output_leaves_none_of_the_others() {
+    let m = machine();
+    let dir = scratch("set");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (out, events) = (dir.join("ok.csv"), dir.join("ev.csv"));
+    let plot = dir.join("UNWRITABLE").join("p.svg");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "coast",
+        "--t-end",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+        "--events",
+        events.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 2, "{}", r.stderr);
+    assert!(r.stderr.contains("p.svg"), "{}", r.stderr);
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// Defect: a symbolic link was replaced by a regular file (its target untouched),
+/// and `/dev/null` could not be written by a user (the rename needs /dev).
+#[test]
+fn outputs_follow_links_and_write_through_special_files() {
+    let m = machine();
+    let dir = scratch("links");
+    std::fs::create_dir_all(&dir).unwrap();
+    let real = dir.join("real.csv");
+    std::fs::write(&real, "old").unwrap();
+    let link = dir.join("link.csv");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let base = [
+        "run",
+        m.to_str().unwrap(),
+        "--open-loop",
+        "coast",
+        "--t-end",
+        "0.05",
+    ];
+    let mut args = base.to_vec();
+    args.extend(["--out", link.to_str().unwrap(), "--events", "/dev/null"]);
+    let r = run(&args);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let meta = std::fs::symlink_metadata(&link).unwrap();
+    assert!(meta.file_type().is_symlink(), "the link was replaced");
+    assert!(std::fs::read_to_string(&real).unwrap().starts_with("t,x,y"));
+    // `-`: the trace on stdout, then the summary.
+    let mut args = base.to_vec();
+    args.extend(["--out", "-", "--format", "json"]);
+    let r = run(&args);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    assert!(r.stdout.starts_with("t,x,y"), "{}", &r.stdout[..80]);
+    assert!(r.stdout.contains("\"mean_velocity\""));
+}
+
+/// Defect: `--speed -3000` was taken for an option `-3` and the message did not
+/// name `--speed`.
+#[test]
+fn a_negative_speed_is_refused_naming_the_option() {
+    let m = machine();
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--speed",
+        "-3000",
+    ]);
+    assert_eq!(r.status, 2);
+    assert!(r.stderr.contains("--speed -3000"), "{}", r.stderr);
 }

@@ -5,9 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use host_sim::closed_loop;
+use host_sim::machine::tuning_file;
 use host_sim::machine::Machine;
-use host_sim::tuning_file;
+use host_sim::simulation::closed_loop;
 use serde_json::Value;
 
 mod common;

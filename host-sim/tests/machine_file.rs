@@ -6,9 +6,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use host_sim::input::{render, Location, Problem};
+use host_sim::machine::input::{render, Location, Problem};
+use host_sim::machine::set;
 use host_sim::machine::{Machine, Sense};
-use host_sim::machine_set;
 use proptest::prelude::*;
 use shared::impact::ImpactLaw;
 
@@ -121,7 +121,7 @@ fn assert_problem(problems: &[Problem], key: &str, fragment: &str) {
 /// The reference text with `set` written into the file (not on the command line).
 fn reference_edited(set: &str) -> String {
     let mut table: toml::Table = toml::from_str(&reference_text()).unwrap();
-    let (applied, problems) = machine_set::apply(&mut table, &sets(&[set]));
+    let (applied, problems) = set::apply(&mut table, &sets(&[set]));
     assert!(problems.is_empty() && applied.len() == 1, "{problems:?}");
     toml::to_string(&table).unwrap()
 }
@@ -861,7 +861,7 @@ proptest! {
     /// Any known key set to any short value: no panic either.
     #[test]
     fn arbitrary_values_of_known_keys_never_panic(
-        key in proptest::sample::select(machine_set::key_paths()),
+        key in proptest::sample::select(set::key_paths()),
         value in "[a-z0-9.\\-\\[\\], \"]{0,12}",
     ) {
         let key = key.replace("contacts.NAME", "contacts.K1").replace("rotors.NAME", "rotors.right");

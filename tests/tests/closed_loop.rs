@@ -58,11 +58,11 @@
 use std::f64::consts::FRAC_PI_2;
 use std::sync::OnceLock;
 
-use host_sim::closed_loop::ControllerDriver;
 use host_sim::machine::Machine;
 use host_sim::plant::simulator::Settings;
+use host_sim::simulation::closed_loop::ControllerDriver;
+use host_sim::simulation::trace::Summary;
 use host_sim::simulation::{simulate, RunOptions, RunResult};
-use host_sim::trace::Summary;
 use shared::controller::{Command, Direction, State};
 use tests::held::{held_rotors, mean_velocity, reference_machine};
 

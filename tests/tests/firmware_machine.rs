@@ -15,8 +15,8 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use host_sim::closed_loop::machine_constants;
 use host_sim::machine::Machine;
+use host_sim::simulation::closed_loop::machine_constants;
 use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
 use shared::drive::{BridgeConfig, Decay};
 
@@ -223,7 +223,7 @@ fn generated_code_holds_the_values() {
 fn tuning_table_is_host_sims() {
     let path = root().join("examples/vibro-driver.tuning.toml");
     let firmware = parse_tuning(&path).unwrap();
-    let host: Vec<(f32, f32, f32)> = host_sim::tuning_file::read(&path)
+    let host: Vec<(f32, f32, f32)> = host_sim::machine::tuning_file::read(&path)
         .unwrap()
         .iter()
         .map(|&(s, r, l)| (s as f32, r as f32, l as f32))

@@ -353,7 +353,7 @@ fn above_50_khz_a_duty_waits_for_the_update_every_few_periods() {
 /// The same machine in slow decay travels right at 3000 rpm.
 #[test]
 fn the_controller_cannot_start_the_rotors_on_a_fast_decay_bridge() {
-    use host_sim::closed_loop::ControllerDriver;
+    use host_sim::simulation::closed_loop::ControllerDriver;
     use host_sim::simulation::{simulate, RunOptions};
     use shared::controller::{Command, Direction};
     for decay in ["slow", "fast"] {

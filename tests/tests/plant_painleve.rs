@@ -10,7 +10,7 @@ use host_sim::machine::Machine;
 use host_sim::plant::model::{initial_state, PlantModel};
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
-use host_sim::trace::EventKind;
+use host_sim::simulation::trace::EventKind;
 
 const G: f64 = 9.81;
 const MASS: f64 = 2.0;

@@ -25,7 +25,7 @@ use std::f64::consts::PI;
 
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{ContactMode, Holds, Output, Plant, Settings, NY};
-use host_sim::trace::{EventKind, EventRow};
+use host_sim::simulation::trace::{EventKind, EventRow};
 use shared::impact::{solve_body, BodyContact, ContactLaw, ImpactLaw, PlanarBody};
 use tests::rig::*;
 

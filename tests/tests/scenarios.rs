@@ -8,7 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
-use host_sim::{input, scenario, scenario_command};
+use host_sim::machine::input;
+use host_sim::scenario::{file, judge, report};
 
 /// The directory of the scenario files.
 fn dir() -> PathBuf {
@@ -18,14 +19,14 @@ fn dir() -> PathBuf {
 /// Loads and runs one scenario file; panics with the report unless all pass.
 fn check(name: &str) {
     let path = dir().join(name);
-    let s = scenario::load(&path)
-        .unwrap_or_else(|p| panic!("{name} is refused:\n{}", input::render(&p)));
+    let s =
+        file::load(&path).unwrap_or_else(|p| panic!("{name} is refused:\n{}", input::render(&p)));
     let report =
-        scenario::run(&s).unwrap_or_else(|p| panic!("{name} cannot run:\n{}", input::render(&p)));
+        judge::run(&s).unwrap_or_else(|p| panic!("{name} cannot run:\n{}", input::render(&p)));
     assert!(
         report.passed(),
         "{name}: some expectations fail\n{}",
-        scenario_command::table(&report)
+        report::table(&report)
     );
 }
 

@@ -23,9 +23,9 @@ use super::client::{nack_text, request_name, Client, LinkError};
 use super::interrupt;
 use super::port::PortSpec;
 use super::report;
-use crate::cli::{Output, EXIT_FAILURE, EXIT_OK, EXIT_USAGE};
-use crate::input;
-use crate::tuning_file;
+use crate::failure::{Console, Failure};
+use crate::machine::input;
+use crate::machine::tuning_file;
 
 /// How often the streaming commands send a heartbeat: twice per
 /// [`HEARTBEAT_PERIOD_MS`].
@@ -39,45 +39,18 @@ pub const TABLE_HEADER: &str =
     "Tuning table read from the device by `host-sim device table read`.\n\
 Rows: speed_rpm ascending; offsets in degrees for rightward and leftward travel.";
 
-/// Why a command failed: a user mistake (exit 2) or the device/link (exit 1).
-enum Failure {
-    Usage(String),
-    Device(String),
-}
-
 impl From<LinkError> for Failure {
     fn from(e: LinkError) -> Self {
         Failure::Device(format!("error: {e}"))
     }
 }
 
-/// Runs `host-sim device`.
-pub fn run(args: &DeviceArgs) -> Output {
+/// Runs `host-sim device`. What was printed before a failure stays printed.
+pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let mut stdout = String::new();
-    match run_inner(args, &mut stdout) {
-        Ok(()) => Output {
-            stdout,
-            stderr: String::new(),
-            status: EXIT_OK,
-        },
-        Err(Failure::Usage(msg)) => Output {
-            stdout,
-            stderr: line(msg),
-            status: EXIT_USAGE,
-        },
-        Err(Failure::Device(msg)) => Output {
-            stdout,
-            stderr: line(msg),
-            status: EXIT_FAILURE,
-        },
-    }
-}
-
-fn line(mut s: String) -> String {
-    if !s.ends_with('\n') {
-        s.push('\n');
-    }
-    s
+    let result = run_inner(args, &mut stdout);
+    console.print(&stdout);
+    result
 }
 
 /// Everything checked before the port is opened, so that a mistake in an

@@ -7,7 +7,7 @@
 //! device takes one connection at a time and keeps its state across connections,
 //! as a powered board keeps its state while hosts come and go.
 
-use std::io::{self, Write};
+use std::io;
 use std::net::TcpListener;
 use std::time::{Duration, Instant};
 
@@ -15,8 +15,8 @@ use super::args::DeviceSimArgs;
 use super::interrupt;
 use super::port::{Port, PortSpec, TcpPort};
 use super::sim::{Noise, SimDevice};
-use crate::cli::{Output, EXIT_FAILURE, EXIT_OK, EXIT_USAGE};
-use crate::{input, tuning_file};
+use crate::failure::{Console, Failure};
+use crate::machine::tuning_file;
 
 /// Ticks the simulator runs at most in one go when it fell behind the clock
 /// (a suspended process); beyond that it drops the time.
@@ -140,29 +140,18 @@ pub fn serve(endpoint: &mut Endpoint, device: &mut SimDevice, mut go: impl FnMut
 }
 
 /// Runs `host-sim device-sim`.
-pub fn run(args: &DeviceSimArgs) -> Output {
-    let usage = |msg: String| Output {
-        stderr: format!("{msg}\n"),
-        status: EXIT_USAGE,
-        ..Output::default()
-    };
+pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let table = match &args.table {
         None => None,
         Some(path) => match tuning_file::read(path) {
-            Err(problems) => {
-                return Output {
-                    stderr: input::render(&problems),
-                    status: EXIT_USAGE,
-                    ..Output::default()
-                }
-            }
+            Err(problems) => return Err(problems.into()),
             Ok(rows) => match tuning_file::table(&rows) {
                 Some(t) => Some(t),
                 None => {
-                    return usage(format!(
+                    return Err(Failure::Usage(format!(
                         "error: {}: rows: the controller refuses the table",
                         path.display()
-                    ))
+                    )))
                 }
             },
         },
@@ -172,14 +161,16 @@ pub fn run(args: &DeviceSimArgs) -> Output {
         ("--garbage-every", args.garbage_every),
     ] {
         if v == Some(0) {
-            return usage(format!("error: {flag}: must be at least 1 (got 0)"));
+            return Err(Failure::Usage(format!(
+                "error: {flag}: must be at least 1 (got 0)"
+            )));
         }
     }
     if let Some(d) = args.duration {
         if !(d.is_finite() && d > 0.0) {
-            return usage(format!(
+            return Err(Failure::Usage(format!(
                 "error: --duration: must be a number of seconds above 0 (got {d})"
-            ));
+            )));
         }
     }
     let endpoint = match &args.listen {
@@ -188,40 +179,27 @@ pub fn run(args: &DeviceSimArgs) -> Output {
             Ok(PortSpec::Tcp(addr)) => Endpoint::tcp(&addr)
                 .map_err(|e| format!("error: --listen: cannot listen on {addr}: {e}")),
             _ => {
-                return usage(format!(
+                return Err(Failure::Usage(format!(
                     "error: --listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
-                ))
+                )))
             }
         },
     };
-    let mut endpoint = match endpoint {
-        Ok(e) => e,
-        Err(msg) => {
-            return Output {
-                stderr: format!("{msg}\n"),
-                status: EXIT_FAILURE,
-                ..Output::default()
-            }
-        }
-    };
+    // A port in use or not ours to take is the user's to change.
+    let mut endpoint = endpoint.map_err(Failure::Usage)?;
     let noise = Noise {
         flip_every: args.flip_every,
         garbage_every: args.garbage_every,
     };
     let mut device = SimDevice::new(table, noise);
     let port = endpoint.port_name();
-    {
-        // The port first, alone on its line, at once: scripts read it.
-        let mut out = io::stdout().lock();
-        let _ = writeln!(out, "port: {port}");
-        let _ = out.flush();
-    }
-    let _ = writeln!(
-        io::stderr(),
+    // The port first, alone on its line, at once: scripts read it.
+    console.print(&format!("port: {port}\n"));
+    console.note(&format!(
         "device-sim: the reference controller at {} Hz on simulated rotors, a simulated flash; \
-         try `host-sim device --port {port} status`; Ctrl-C ends it",
+         try `host-sim device --port {port} status`; Ctrl-C ends it\n",
         1000 / device.tick_ms()
-    );
+    ));
     interrupt::catch();
     let end = args
         .duration
@@ -229,14 +207,11 @@ pub fn run(args: &DeviceSimArgs) -> Output {
     serve(&mut endpoint, &mut device, || {
         !interrupt::interrupted() && end.is_none_or(|e| Instant::now() < e)
     });
-    Output {
-        stderr: format!(
-            "device-sim: stopped after {:.1} s of device time\n",
-            f64::from(device.uptime_ms()) / 1000.0
-        ),
-        status: EXIT_OK,
-        ..Output::default()
-    }
+    console.note(&format!(
+        "device-sim: stopped after {:.1} s of device time\n",
+        f64::from(device.uptime_ms()) / 1000.0
+    ));
+    Ok(())
 }
 
 #[cfg(unix)]

@@ -48,6 +48,7 @@ mod forces;
 mod impacts;
 mod modes;
 
+use forces::CachedEvaluation;
 use shared::impact::{SlipState, MAX_CONTACTS};
 
 use super::bridge::{Bridge, BridgeCommand};
@@ -55,8 +56,7 @@ use super::dynamics::{Frame, DOF};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::PlantModel;
 use super::motor::{DcMotor, Winding};
-use crate::trace::{EventRow, TraceRow};
-use forces::CachedEvaluation;
+use crate::simulation::trace::{EventRow, TraceRow};
 
 /// Events handled at one instant without progress before the step is taken anyway.
 const MAX_STALLED_EVENTS: u32 = 16;

@@ -6,7 +6,7 @@ use shared::impact::{solve, ImpactLaw};
 
 use super::super::dynamics::DOF;
 use super::{ContactMode, Plant};
-use crate::trace::{EventKind, EventRow};
+use crate::simulation::trace::{EventKind, EventRow};
 
 impl Plant {
     /// One impact of the contacts `set` (all within the together gap).

@@ -8,7 +8,7 @@ use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{ContactKinematics, Frame, DOF};
 use super::{ContactMode, Plant};
-use crate::trace::{EventKind, EventRow};
+use crate::simulation::trace::{EventKind, EventRow};
 
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).

@@ -4,9 +4,9 @@
 //! message.
 //!
 //! Reading a machine file (see [`Machine::load`]):
-//! 1. read and parse the TOML ([`crate::input`]);
+//! 1. read and parse the TOML ([`crate::machine::input`]);
 //! 2. apply the `--set KEY=VALUE` overrides to the parsed table
-//!    ([`crate::machine_set`]), so overridden values meet the same checks;
+//!    ([`crate::machine::set`]), so overridden values meet the same checks;
 //! 3. every key on its own: types, NaN and infinities, ranges, unknown keys with a
 //!    "did you mean"; the optional sections take their defaults;
 //! 4. each rotor's motor: the machine's `[motor]`, with any key the rotor's own
@@ -17,18 +17,21 @@
 //!    `gap = n . (K - P) >= 0`;
 //! 7. every problem at once; a problem in a value a `--set` gave names that `--set`.
 
+pub mod input;
+pub mod set;
+pub mod tuning_file;
+
 use std::path::{Path, PathBuf};
 
+use shared::drive::{BridgeConfig, Decay};
 use shared::impact::{ImpactLaw, MAX_CONTACTS};
 use toml::Table;
 
-use crate::impact_case::LAWS;
-use crate::input::{
-    self, check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
+use crate::impact::case::LAWS;
+use input::{
+    check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
     Section,
 };
-use crate::machine_set;
-use shared::drive::{BridgeConfig, Decay};
 
 /// The obstacle line the platform strikes, and gravity.
 #[derive(Clone, Debug, PartialEq)]
@@ -242,14 +245,14 @@ impl Machine {
         let mut table = match input::parse(file, text) {
             Ok(t) => t,
             Err(p) => {
-                let (_, mut problems) = machine_set::apply(&mut Table::new(), sets);
+                let (_, mut problems) = set::apply(&mut Table::new(), sets);
                 problems.retain(|p| p.message.starts_with("expected KEY=VALUE"));
                 problems.push(p);
                 return Err(problems);
             }
         };
         // Stage 2: the overrides.
-        let (applied, set_problems) = machine_set::apply(&mut table, sets);
+        let (applied, set_problems) = set::apply(&mut table, sets);
         // Stages 3 to 6.
         let problems = Problems::new(file);
         let machine = check(&table, &problems, dir);
@@ -273,7 +276,7 @@ impl Machine {
 
 /// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that
 /// the last `--set` of that key gave.
-fn blame_set(mut problem: Problem, applied: &[machine_set::Applied]) -> Problem {
+fn blame_set(mut problem: Problem, applied: &[set::Applied]) -> Problem {
     if let Location::Key(key) = &problem.location {
         let from = applied.iter().rev().find(|a| {
             key == &a.key_path
@@ -880,9 +883,9 @@ fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine_set::{Node, SCHEMA};
+    use crate::machine::set::{Node, SCHEMA};
 
-    const REFERENCE: &str = include_str!("../../examples/vibro-driver.toml");
+    const REFERENCE: &str = include_str!("../../../examples/vibro-driver.toml");
 
     /// A table of the schema: how to reach it in the TOML (keys, and `0` for the
     /// first element of an array), the reader's key path, and its keys.

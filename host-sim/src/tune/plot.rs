@@ -2,17 +2,17 @@
 //!
 //! One panel: mean velocity (mm/s) against phase offset (degrees, 0 to 360, ticks
 //! every 45), one line per speed, in the style of `host-sim run --plot`
-//! ([`crate::plot`]): sans-serif text, ticks at "nice" values, a darker zero line,
+//! ([`crate::run::plot`]): sans-serif text, ticks at "nice" values, a darker zero line,
 //! a legend. When the offsets go round the turn, each line is closed at 360 with
 //! its value at 0. The best offsets are marked on their line's colour: a filled
 //! triangle pointing up for rightward travel, an open one pointing down for
 //! leftward travel; a run that did not hold its offset is drawn as a grey ring.
 //! Values that are not finite break the line and are never written.
 
-use crate::svg::{escape, nice_step, open_document, tick_label, ticks};
 use std::fmt::Write as _;
 
-use crate::tune_command::{Best, Tuning};
+use super::best::{Best, Tuning};
+use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks};
 
 /// Figure width, px.
 const WIDTH: f64 = 960.0;
@@ -92,7 +92,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
     let subtitle = format!(
         "{} runs of {} s, each holding its offset from t = 0; mean velocity over the second half; positive = right",
         t.run_count,
-        crate::text::sig(g.t_end)
+        crate::output::text::sig(g.t_end)
     );
     let _ = writeln!(
         svg,
@@ -234,7 +234,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
             lx + 20.0,
             ly - 4.0,
             lx + 26.0,
-            crate::text::sig(*speed)
+            crate::output::text::sig(*speed)
         );
         ly += 18.0;
     }
@@ -265,7 +265,8 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tune_command::{Grid, Refinement, RunOutcome};
+    use crate::tune::best::Refinement;
+    use crate::tune::sweep::{Grid, RunOutcome};
 
     fn tuning(v: impl Fn(f64, f64) -> f64) -> Tuning {
         let grid = Grid {

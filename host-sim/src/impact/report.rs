@@ -9,8 +9,8 @@
 use serde_json::{Map, Value};
 use shared::impact::{BodyImpact, ContactOutcome, ImpactLaw, SlipState, Warnings, MAX_CONTACTS};
 
-use crate::impact_case::ImpactCase;
-use crate::text::{self, Align, Table};
+use crate::impact::case::ImpactCase;
+use crate::output::text::{self, Align, Table};
 
 /// A body's impact result, as `solve_body` returns it for up to [`MAX_CONTACTS`].
 pub type Solved = BodyImpact<f64, MAX_CONTACTS>;
@@ -328,7 +328,7 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::impact_case::parse_case;
+    use crate::impact::case::parse_case;
     use shared::impact::{ImpactOutcome, InteractionCase, Phase, PivotImpulse, Segment, Warnings};
 
     const CASE: &str = r#"

@@ -14,7 +14,7 @@
 use std::f64::consts::PI;
 
 use crate::machine::{Machine, Rotor};
-use crate::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
+use crate::simulation::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
 const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * PI);
@@ -283,7 +283,7 @@ supply_voltage = 12.0
             index[0], index[1]
         );
         Machine::from_text("test.toml", &text, std::path::Path::new(""), &[])
-            .unwrap_or_else(|p| panic!("{}", crate::input::render(&p)))
+            .unwrap_or_else(|p| panic!("{}", crate::machine::input::render(&p)))
     }
 
     /// An impact event at `t`.

@@ -1,64 +1,13 @@
-//! `host-sim scenario FILE [--format table|json]`: runs one scenario file
-//! (`docs/scenarios.md`) and reports every expectation, PASS or FAIL, with what was
-//! expected and what was measured.
-//!
-//! Stages:
-//! 1. read and check the scenario and its machine ([`scenario::load`]): every
-//!    problem at once with its key path, exit 2;
-//! 2. run it ([`scenario::run`]);
-//! 3. write the report as a table or JSON; exit 0 when every expectation holds, 1
-//!    when any fails.
+//! A scenario's [`Report`] as a table for people or as JSON (docs/scenarios.md).
 
 use serde_json::{Map, Value};
 
-use crate::cli::{Format, Output, ScenarioArgs, EXIT_OK, EXIT_USAGE};
-use crate::input;
-use crate::scenario::{self, Report};
-use crate::text::{sig, Align, Table};
-
-/// Exit status of a scenario whose expectations do not all hold.
-pub const EXIT_EXPECTATION_FAILED: u8 = 1;
-
-/// Runs the command (stages of the module doc).
-pub fn run(args: &ScenarioArgs) -> Output {
-    // 1. Read and check.
-    let scenario = match scenario::load(&args.scenario) {
-        Ok(s) => s,
-        Err(problems) => return usage(input::render(&problems)),
-    };
-
-    // 2. Run.
-    let report = match scenario::run(&scenario) {
-        Ok(r) => r,
-        Err(problems) => return usage(input::render(&problems)),
-    };
-
-    // 3. Report.
-    Output {
-        stdout: match args.format {
-            Format::Table => table(&report),
-            Format::Json => json(&report),
-        },
-        stderr: String::new(),
-        status: if report.passed() {
-            EXIT_OK
-        } else {
-            EXIT_EXPECTATION_FAILED
-        },
-    }
-}
-
-/// A user mistake: the problems, exit 2.
-fn usage(stderr: String) -> Output {
-    Output {
-        stderr,
-        status: EXIT_USAGE,
-        ..Output::default()
-    }
-}
+use super::judge::Detection;
+use super::judge::Report;
+use crate::output::text::{sig, Align, Table};
 
 /// `encoder at 2.068 s (+68 ms)`, or `none to the end`.
-fn detection_text(d: &scenario::Detection) -> String {
+fn detection_text(d: &Detection) -> String {
     match &d.latched {
         Some((names, t)) => format!(
             "{} at {} s (+{} ms)",

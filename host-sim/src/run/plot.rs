@@ -18,12 +18,12 @@
 //! each pixel column, so peaks stay. Values that are not finite break the line and
 //! are never written. Text uses the generic `sans-serif` family: nothing to load.
 
-use crate::svg::{escape, nice_step, open_document, tick_label, ticks};
 use std::fmt::Write as _;
 
 use crate::machine::Machine;
-use crate::summary::{impact_times, phase_offset_deg};
-use crate::trace::{EventRow, TraceRow};
+use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks};
+use crate::simulation::summary::{impact_times, phase_offset_deg};
+use crate::simulation::trace::{EventRow, TraceRow};
 
 /// Most points drawn for one line before it is thinned.
 pub const MAX_POINTS: usize = 4000;
@@ -490,8 +490,8 @@ pub fn plot_svg(rows: &[TraceRow], events: &[EventRow], machine: &Machine, title
     let subtitle = format!(
         "{} rows from t = {} s to {} s; rotor 1 \"{}\", rotor 2 \"{}\"; phase offset theta_k = s_k (phi_k - index_angle_k)",
         rows.len(),
-        crate::text::sig(t0),
-        crate::text::sig(t1),
+        crate::output::text::sig(t0),
+        crate::output::text::sig(t1),
         machine.rotors[0].name,
         machine.rotors[1].name,
     );
@@ -514,7 +514,7 @@ pub fn plot_svg(rows: &[TraceRow], events: &[EventRow], machine: &Machine, title
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::summary::tests::{impact, machine};
+    use crate::simulation::summary::tests::{impact, machine};
     use std::f64::consts::PI;
 
     /// A platform hopping right: 50 hops a second (one per revolution of rotors at

@@ -9,16 +9,79 @@
 //! 3. write the files asked for, each whole or not at all, then the summary on
 //!    stdout as a table or JSON.
 
+pub mod plot;
+pub mod report;
+
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
 use shared::controller::{Command, Direction};
 
-use crate::cli::{CommandArg, Format, Output, RunArgs, EXIT_OK, EXIT_USAGE};
-use crate::closed_loop::ControllerDriver;
-use crate::input;
+use crate::args::Format;
+use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
+use crate::failure::{Console, Failure};
 use crate::machine::Machine;
-use crate::run_output::{events_csv, summary_json, summary_table, trace_csv, write_whole};
+use crate::output::csv::{events_csv, trace_csv};
+use crate::output::file::write_files;
+use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::{simulate, OpenLoop, OpenLoopDriver, RunOptions};
+use report::{summary_json, summary_table};
 
-/// Parses `--open-loop`: `coast`, or two voltages `V1,V2`.
+/// Arguments of `host-sim run`.
+#[derive(Debug, Args)]
+#[command(mut_arg("t_end", |a| a.help("End time, s (default: the file's `simulation.t_end`)")))]
+#[command(mut_arg("plot", |a| a.help("Write a plot of the run as SVG")))]
+#[command(mut_arg("format", |a| a.help("Output format of the summary")))]
+pub struct RunArgs {
+    /// The machine file.
+    #[command(flatten)]
+    pub machine: MachineArg,
+    /// Command the controller (the firmware's, in the loop at `rate_hz`): travel
+    /// right or left at `--speed`, or stop.
+    #[arg(long, value_enum, value_name = "right|left|stop")]
+    pub command: Option<CommandArg>,
+    /// Rotor speed for `--command`, rpm (default: `[controller].speed_rpm`).
+    #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
+    pub speed: Option<f64>,
+    /// Hold this phase offset, degrees, instead of the tuning table's.
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub offset: Option<f64>,
+    /// Drive the windings open loop: constant voltages `V1,V2` (V, signed; `0,0`
+    /// shorts the windings), or `coast` (windings open).
+    #[arg(long, value_name = "V1,V2|coast", allow_hyphen_values = true, value_parser = parse_open_loop)]
+    pub open_loop: Option<OpenLoop>,
+    /// End time.
+    #[command(flatten)]
+    pub t_end: TEndArg,
+    /// Write the trace as CSV (one row per `output_step`, and around each event).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: Option<PathBuf>,
+    /// Write the events as CSV (one row per contact per event).
+    #[arg(long, value_name = "FILE.csv")]
+    pub events: Option<PathBuf>,
+    /// The plot.
+    #[command(flatten)]
+    pub plot: PlotArg,
+    /// Output format.
+    #[command(flatten)]
+    pub format: FormatArg,
+    /// Overrides.
+    #[command(flatten)]
+    pub set: SetArgs,
+}
+
+/// What `--command` asks of the controller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum CommandArg {
+    /// Travel right.
+    Right,
+    /// Travel left.
+    Left,
+    /// Stay stopped.
+    Stop,
+}
+
+/// Parses `--open-loop` (a clap value parser): `coast`, or two voltages `V1,V2`.
 pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
     if text.trim() == "coast" {
         return Ok(OpenLoop::Coast);
@@ -30,21 +93,19 @@ pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
         .collect();
     match volts.as_slice() {
         [Some(a), Some(b)] => Ok(OpenLoop::Voltages([*a, *b])),
-        _ => Err(format!(
-            "error: --open-loop {text}: expected two winding voltages in V, `V1,V2` (e.g. `12,12`; `0,0` shorts the windings), or `coast` (windings open)"
-        )),
+        _ => Err(
+            "expected two winding voltages in V, `V1,V2` (e.g. `12,12`; `0,0` shorts the windings), or `coast` (windings open)"
+                .to_string(),
+        ),
     }
 }
 
 /// Runs the command (stages of the module doc).
-pub fn run(args: &RunArgs) -> Output {
+pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the options.
-    let machine = match Machine::load(&args.machine, &args.set) {
-        Ok(m) => m,
-        Err(problems) => return usage(input::render(&problems)),
-    };
+    let machine = Machine::load(&args.machine.path, &args.set.keys)?;
     let mut problems = Vec::new();
-    let drive = match (args.command, args.open_loop.as_deref()) {
+    let drive = match (args.command, args.open_loop) {
         (Some(_), Some(_)) => {
             problems.push(
                 "error: run: give either --command (the controller drives) or --open-loop, not both"
@@ -59,13 +120,7 @@ pub fn run(args: &RunArgs) -> Output {
                 None
             }
         },
-        (None, Some(text)) => match parse_open_loop(text) {
-            Ok(o) => Some(Drive::OpenLoop(o)),
-            Err(e) => {
-                problems.push(e);
-                None
-            }
-        },
+        (None, Some(o)) => Some(Drive::OpenLoop(o)),
         (None, None) => {
             problems.push(
                 "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V) or --open-loop coast"
@@ -77,14 +132,14 @@ pub fn run(args: &RunArgs) -> Output {
     if args.command.is_none() && (args.speed.is_some() || args.offset.is_some()) {
         problems.push("error: --speed and --offset go with --command".to_string());
     }
-    let t_end = args.t_end.unwrap_or(machine.simulation.t_end);
+    let t_end = args.t_end.seconds.unwrap_or(machine.simulation.t_end);
     if !(t_end.is_finite() && t_end > 0.0) {
         problems.push(format!(
             "error: --t-end {t_end}: must be a positive number of seconds"
         ));
     }
     let Some(drive) = drive.filter(|_| problems.is_empty()) else {
-        return usage(problems.join("\n") + "\n");
+        return Err(Failure::Usage(problems.join("\n")));
     };
 
     // 2. Simulate.
@@ -109,10 +164,7 @@ pub fn run(args: &RunArgs) -> Output {
             (simulate(&machine, &mut driver, &options), how)
         }
         Drive::Controller(schedule) => {
-            let mut driver = match ControllerDriver::new(&machine, schedule.clone()) {
-                Ok(d) => d,
-                Err(problems) => return usage(input::render(&problems)),
-            };
+            let mut driver = ControllerDriver::new(&machine, schedule.clone())?;
             let how = describe_command(args, &machine);
             (simulate(&machine, &mut driver, &options), how)
         }
@@ -120,12 +172,13 @@ pub fn run(args: &RunArgs) -> Output {
     result.summary.warnings.extend(warnings);
 
     // 3. Files, then the summary.
-    let title = format!("host-sim run {} ({how})", args.machine.display());
+    let title = format!("host-sim run {} ({how})", args.machine.path.display());
     let outputs = [
         (&args.out, OutputFile::Trace),
         (&args.events, OutputFile::Events),
-        (&args.plot, OutputFile::Plot),
+        (&args.plot.file, OutputFile::Plot),
     ];
+    let mut files = Vec::new();
     for (path, what) in outputs {
         let Some(path) = path else { continue };
         let contents = match what {
@@ -135,22 +188,17 @@ pub fn run(args: &RunArgs) -> Output {
             }
             OutputFile::Events => events_csv(&result.events),
             OutputFile::Plot => {
-                crate::plot::plot_svg(&result.rows, &result.events, &machine, &title)
+                crate::run::plot::plot_svg(&result.rows, &result.events, &machine, &title)
             }
         };
-        if let Err(e) = write_whole(path, &contents) {
-            // An output path that cannot be written is the user's to fix.
-            return usage(format!("error: {e}\n"));
-        }
+        files.push((path.as_path(), contents));
     }
-    Output {
-        stdout: match args.format {
-            Format::Json => summary_json(&result.summary),
-            Format::Table => summary_table(&result.summary),
-        },
-        status: EXIT_OK,
-        ..Output::default()
-    }
+    write_files(&files)?;
+    console.print(&match args.format.format {
+        Format::Json => summary_json(&result.summary),
+        Format::Table => summary_table(&result.summary),
+    });
+    Ok(())
 }
 
 /// The files `run` can write.
@@ -178,7 +226,7 @@ fn controller_schedule(
     let speed = args.speed.unwrap_or(machine.controller.speed_rpm);
     // The controller refuses speeds outside its range (and would stay idle):
     // say so here instead. Stop needs no speed.
-    let limits = crate::closed_loop::params(machine)
+    let limits = crate::simulation::closed_loop::params(machine)
         .map(|p| (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm)))
         .unwrap_or((0.0, f64::INFINITY));
     let in_range = speed.is_finite() && speed >= limits.0 && speed <= limits.1;
@@ -229,14 +277,5 @@ fn describe_command(args: &RunArgs, machine: &Machine) -> String {
         (_, Some(o)) => format!("controller, offset {o} deg at {speed} rpm"),
         (Some(CommandArg::Left), None) => format!("controller, travel left at {speed} rpm"),
         _ => format!("controller, travel right at {speed} rpm"),
-    }
-}
-
-/// A user mistake: the problems, exit 2.
-fn usage(stderr: String) -> Output {
-    Output {
-        stderr,
-        status: EXIT_USAGE,
-        ..Output::default()
     }
 }

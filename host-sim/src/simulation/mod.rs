@@ -10,14 +10,18 @@
 //!    between them;
 //! 3. record a trace row every `output_step` (from the integrator's dense output)
 //!    and just before and after each event;
-//! 4. summarize ([`crate::summary`]).
+//! 4. summarize ([`crate::simulation::summary`]).
+
+pub mod closed_loop;
+pub mod summary;
+pub mod trace;
 
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
-use crate::summary::summarize;
-use crate::trace::{EventRow, Summary, TraceRow};
+use crate::simulation::summary::summarize;
+use crate::simulation::trace::{EventRow, Summary, TraceRow};
 
 /// What drives the windings, asked at every control tick.
 pub trait Driver {

@@ -23,14 +23,14 @@ use shared::controller::{
     TickTiming,
 };
 
-use crate::input::Problem;
+use crate::machine::input::Problem;
+use crate::machine::tuning_file;
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::sensors::{CurrentSensor, Encoder};
 use crate::plant::simulator::Plant;
+use crate::simulation::trace::{EventKind, EventRow};
 use crate::simulation::Driver;
-use crate::trace::{EventKind, EventRow};
-use crate::tuning_file;
 
 /// Faults injected from outside the controller (scenarios).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -134,7 +134,7 @@ pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
             None => {
                 return Err(vec![Problem {
                     file: path.display().to_string(),
-                    location: crate::input::Location::Key("rows".into()),
+                    location: crate::machine::input::Location::Key("rows".into()),
                     message: "the controller refused the table (check speeds and offsets)".into(),
                 }])
             }

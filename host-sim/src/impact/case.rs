@@ -2,7 +2,7 @@
 //! contact points touch their obstacles, optionally pinned to the ground.
 //!
 //! Reading a case (see [`parse_case`]):
-//! 1. keys and values, each checked on its own ([`crate::input`]): types, NaN and
+//! 1. keys and values, each checked on its own ([`crate::machine::input`]): types, NaN and
 //!    infinities, ranges (mass and inertia > 0, restitution in [0, 1], friction >= 0,
 //!    weight > 0), unknown keys with a "did you mean";
 //! 2. the contacts as a whole: 1 to [`MAX_CONTACTS`], unique names, non-zero normals;
@@ -15,7 +15,7 @@ use std::path::Path;
 
 use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody, MAX_CONTACTS};
 
-use crate::input::{
+use crate::machine::input::{
     self, check_names, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
 };
 

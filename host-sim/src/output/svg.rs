@@ -1,5 +1,5 @@
-//! Small pieces shared by the hand-written SVG figures ([`crate::plot`],
-//! [`crate::tune_plot`]): the document's opening, text escaping and "nice" axis
+//! Small pieces shared by the hand-written SVG figures ([`crate::run::plot`],
+//! [`crate::tune::plot`]): the document's opening, text escaping and "nice" axis
 //! ticks.
 
 /// Text with `&`, `<`, `>`, `"`, `'` escaped for XML.
@@ -51,7 +51,7 @@ pub fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
 /// A tick label: as many decimals as the step needs, never `-0`.
 pub fn tick_label(v: f64, step: f64) -> String {
     if v.abs() >= 1e6 || step < 1e-6 {
-        return crate::text::sig(v);
+        return crate::output::text::sig(v);
     }
     let decimals = (0..=6usize)
         .find(|d| {

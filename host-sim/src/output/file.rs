@@ -1,0 +1,361 @@
+//! Output files written whole or not at all, and a command's several outputs as one
+//! set: either every regular file is replaced, or none is.
+//!
+//! What a path names decides how it is written ([`Target::of`]):
+//! - `-`: the process's stdout, written through;
+//! - a regular file, or a name not yet taken: a temporary file beside it (same
+//!   directory, so the rename cannot cross file systems), flushed to disk, then
+//!   renamed over it. A symbolic link is followed: the file it points to is
+//!   replaced, the link stays a link. An existing file keeps its permissions;
+//! - anything else that exists and is not a directory (`/dev/null`, `/dev/full`, a
+//!   FIFO, a terminal): opened for writing and written through, never replaced;
+//! - a directory: refused.
+//!
+//! [`Staged`] holds a set of outputs while a run writes them (a trace streamed row
+//! by row, say): every target is checked and every temporary file created before the
+//! run starts, so an unwritable path is reported at once and nothing is left
+//! behind; [`Staged::commit`] renames them all at the end; dropping a set that was
+//! not committed removes its temporary files.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use crate::failure::Failure;
+
+/// Where an output path's bytes go.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Target {
+    /// `-`: the process's stdout.
+    Stdout,
+    /// A regular file (the symbolic links resolved): replaced whole.
+    Regular(PathBuf),
+    /// A device, FIFO or socket: written through.
+    Special(PathBuf),
+}
+
+impl Target {
+    /// What `path` names, following symbolic links. A directory is refused.
+    pub fn of(path: &Path) -> Result<Target, String> {
+        if path.as_os_str() == "-" {
+            return Ok(Target::Stdout);
+        }
+        match fs::metadata(path) {
+            Ok(m) if m.is_dir() => Err("is a directory".to_string()),
+            Ok(m) if m.is_file() => Ok(Target::Regular(resolve_links(path))),
+            Ok(_) => Ok(Target::Special(path.to_path_buf())),
+            // Not there (or a link to nothing): a new regular file where the
+            // links lead.
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {
+                Ok(Target::Regular(resolve_links(path)))
+            }
+            Err(e) => Err(e.to_string()),
+        }
+    }
+}
+
+/// `path` with its symbolic links followed as far as they lead (at most 40, as
+/// the kernel does), even to a name that does not exist yet.
+fn resolve_links(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match fs::read_link(&p) {
+            Ok(next) => {
+                p = match p.parent() {
+                    Some(dir) if next.is_relative() => dir.join(next),
+                    _ => next,
+                };
+            }
+            Err(_) => break,
+        }
+    }
+    p
+}
+
+/// The temporary file beside `path`: the same directory, a hidden name with the
+/// process id.
+fn temporary_beside(path: &Path) -> Option<PathBuf> {
+    let name = path.file_name()?.to_string_lossy();
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    Some(dir.join(format!(".{name}.{}.tmp", std::process::id())))
+}
+
+/// One output being written.
+struct Pending {
+    /// The path as the user named it (for messages).
+    named: PathBuf,
+    target: Target,
+    /// The temporary file of a regular target.
+    temporary: Option<PathBuf>,
+    writer: BufWriter<Box<dyn Write>>,
+}
+
+/// A set of outputs written together ([module doc](self)).
+#[derive(Default)]
+pub struct Staged {
+    pending: Vec<Pending>,
+    committed: bool,
+}
+
+/// "cannot write PATH: why", a user mistake (the path is the user's to fix).
+fn cannot_write(path: &Path, why: impl std::fmt::Display) -> Failure {
+    Failure::Usage(format!("error: cannot write {}: {why}", path.display()))
+}
+
+impl Staged {
+    /// An empty set.
+    pub fn new() -> Self {
+        Staged::default()
+    }
+
+    /// Adds `path` to the set: checks it and opens its temporary file (or the
+    /// special file). Returns its index for [`Staged::writer`].
+    pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
+        let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
+        let (temporary, sink): (Option<PathBuf>, Box<dyn Write>) = match &target {
+            Target::Stdout => (None, Box::new(io::stdout())),
+            Target::Special(p) => {
+                let f = OpenOptions::new()
+                    .write(true)
+                    .open(p)
+                    .map_err(|e| cannot_write(path, e))?;
+                (None, Box::new(f))
+            }
+            Target::Regular(p) => {
+                let tmp =
+                    temporary_beside(p).ok_or_else(|| cannot_write(path, "not a file name"))?;
+                let f = OpenOptions::new()
+                    .write(true)
+                    .create(true)
+                    .truncate(true)
+                    .open(&tmp)
+                    .map_err(|e| cannot_write(path, e))?;
+                // An existing file keeps its permissions.
+                if let Ok(m) = fs::metadata(p) {
+                    let _ = fs::set_permissions(&tmp, m.permissions());
+                }
+                (Some(tmp), Box::new(f))
+            }
+        };
+        self.pending.push(Pending {
+            named: path.to_path_buf(),
+            target,
+            temporary,
+            writer: BufWriter::with_capacity(1 << 16, sink),
+        });
+        Ok(self.pending.len() - 1)
+    }
+
+    /// The writer of output `index`.
+    pub fn writer(&mut self, index: usize) -> &mut dyn Write {
+        &mut self.pending[index].writer
+    }
+
+    /// Writes `contents` to output `index`.
+    pub fn write(&mut self, index: usize, contents: &str) -> Result<(), Failure> {
+        let p = &mut self.pending[index];
+        p.writer
+            .write_all(contents.as_bytes())
+            .map_err(|e| cannot_write(&p.named, e))
+    }
+
+    /// Flushes every output, then renames every temporary file over its target.
+    /// On an error before the first rename nothing is replaced.
+    pub fn commit(mut self) -> Result<(), Failure> {
+        for p in &mut self.pending {
+            p.writer.flush().map_err(|e| cannot_write(&p.named, e))?;
+        }
+        // Durable before the renames: reopen each temporary file and sync it.
+        for p in &self.pending {
+            if let Some(tmp) = &p.temporary {
+                File::open(tmp)
+                    .and_then(|f| f.sync_all())
+                    .map_err(|e| cannot_write(&p.named, e))?;
+            }
+        }
+        for p in &mut self.pending {
+            if let (Some(tmp), Target::Regular(target)) = (&p.temporary, &p.target) {
+                fs::rename(tmp, target).map_err(|e| cannot_write(&p.named, e))?;
+                p.temporary = None;
+                // Make the rename durable where directories can be synced (best
+                // effort: the file is complete either way).
+                if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
+                    if let Ok(d) = File::open(dir) {
+                        let _ = d.sync_all();
+                    }
+                }
+            }
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    /// A set not committed leaves no temporary file behind.
+    fn drop(&mut self) {
+        if !self.committed {
+            for p in &self.pending {
+                if let Some(tmp) = &p.temporary {
+                    let _ = fs::remove_file(tmp);
+                }
+            }
+        }
+    }
+}
+
+/// Writes every `(path, contents)` as one set ([`Staged`]): all regular files
+/// replaced, or none.
+pub fn write_files(files: &[(&Path, String)]) -> Result<(), Failure> {
+    let mut staged = Staged::new();
+    let indices = files
+        .iter()
+        .map(|(path, _)| staged.add(path))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (i, (_, contents)) in indices.into_iter().zip(files) {
+        staged.write(i, contents)?;
+    }
+    staged.commit()
+}
+
+/// Writes `contents` to `path` whole or not at all ([`write_files`] with one file);
+/// the message names `path` and the reason.
+pub fn write_whole(path: &Path, contents: &str) -> Result<(), String> {
+    write_files(&[(path, contents.to_string())]).map_err(|f| {
+        f.message()
+            .trim_end()
+            .trim_start_matches("error: ")
+            .to_string()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh directory for one test.
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!(
+            "host-sim-output-file-{name}-{}",
+            std::process::id()
+        ));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut n: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        n.sort();
+        n
+    }
+
+    #[test]
+    fn write_whole_replaces_the_file_and_leaves_no_temporary() {
+        let dir = scratch("replace");
+        let path = dir.join("out.csv");
+        fs::write(&path, "old contents, longer than the new").unwrap();
+        write_whole(&path, "new\n").unwrap();
+        assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
+        assert_eq!(names(&dir), ["out.csv"]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn write_whole_failure_names_the_path_and_keeps_the_old_file() {
+        let dir = scratch("fail");
+        // A missing directory: the temporary file cannot be created.
+        let missing = dir.join("no-such-dir").join("out.csv");
+        let e = write_whole(&missing, "x").unwrap_err();
+        assert!(e.starts_with("cannot write "), "{e}");
+        assert!(e.contains("out.csv"), "{e}");
+        // The target is a directory: refused, the directory untouched.
+        let target = dir.join("taken");
+        fs::create_dir(&target).unwrap();
+        fs::write(target.join("keep"), "k").unwrap();
+        let e = write_whole(&target, "x").unwrap_err();
+        assert!(e.contains("taken") && e.contains("is a directory"), "{e}");
+        assert_eq!(names(&dir), ["taken"]);
+        assert_eq!(fs::read_to_string(target.join("keep")).unwrap(), "k");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_symbolic_link_is_followed_and_stays_a_link() {
+        let dir = scratch("symlink");
+        let real = dir.join("real.csv");
+        fs::write(&real, "old").unwrap();
+        let link = dir.join("link.csv");
+        std::os::unix::fs::symlink("real.csv", &link).unwrap();
+        write_whole(&link, "new").unwrap();
+        assert!(fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(fs::read_to_string(&real).unwrap(), "new");
+        // A link to a name not yet taken creates that file.
+        let dangling = dir.join("dangling.csv");
+        std::os::unix::fs::symlink("later.csv", &dangling).unwrap();
+        write_whole(&dangling, "made").unwrap();
+        assert!(fs::symlink_metadata(&dangling)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(fs::read_to_string(dir.join("later.csv")).unwrap(), "made");
+        assert_eq!(
+            names(&dir),
+            ["dangling.csv", "later.csv", "link.csv", "real.csv"]
+        );
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn special_files_are_written_through_not_replaced() {
+        write_whole(Path::new("/dev/null"), "discarded").unwrap();
+        assert!(!fs::metadata("/dev/null").unwrap().is_file());
+        if Path::new("/dev/full").exists() {
+            let e = write_whole(Path::new("/dev/full"), &"x".repeat(1 << 17)).unwrap_err();
+            assert!(e.contains("/dev/full"), "{e}");
+            assert!(!fs::metadata("/dev/full").unwrap().is_file());
+        }
+    }
+
+    #[test]
+    fn a_set_with_one_bad_path_writes_none() {
+        let dir = scratch("set");
+        let a = dir.join("a.csv");
+        fs::write(&a, "old a").unwrap();
+        let b = dir.join("b.csv");
+        let bad = dir.join("missing").join("p.svg");
+        let e = write_files(&[
+            (a.as_path(), "new a".into()),
+            (b.as_path(), "new b".into()),
+            (bad.as_path(), "svg".into()),
+        ])
+        .unwrap_err();
+        assert_eq!(e.status(), crate::failure::EXIT_USAGE);
+        assert!(e.message().contains("p.svg"), "{e:?}");
+        assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(names(&dir), ["a.csv"]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn permissions_of_a_replaced_file_are_kept() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = scratch("perm");
+        let path = dir.join("out.csv");
+        fs::write(&path, "old").unwrap();
+        fs::set_permissions(&path, fs::Permissions::from_mode(0o640)).unwrap();
+        write_whole(&path, "new").unwrap();
+        let mode = fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o640);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,11 @@
+//! What commands write: whole files, CSV, SVG pieces, text for people.
+//!
+//! - [`file`](mod@file): a file written whole or not at all;
+//! - [`csv`]: the trace and the events as CSV;
+//! - [`svg`]: the SVG figures' common pieces;
+//! - [`text`]: numbers and aligned tables for people.
+
+pub mod csv;
+pub mod file;
+pub mod svg;
+pub mod text;

@@ -1,0 +1,235 @@
+//! The summary of `host-sim run` as the spec's JSON document or as a table for
+//! people (spec `machine.md`): keys and their order are the contract (`t_end`,
+//! `mean_velocity`, `distance`, `impacts`, `rotor_speed_rpm`, `phase_offset_deg`,
+//! `phase_error_deg_rms`, `state`, `faults`, `final`, `warnings`); a number that is
+//! not finite is written `null`, so the document always parses.
+
+use serde_json::{Map, Value};
+
+use crate::output::text::{self, Align, Table};
+use crate::simulation::trace::Summary;
+
+/// A JSON number, or `null` when `x` is not finite (JSON has no NaN or infinity).
+fn number(x: f64) -> Value {
+    // serde_json gives Null for a non-finite f64.
+    Value::from(x)
+}
+
+/// `[x, y]` as a JSON array.
+fn pair(v: [f64; 2]) -> Value {
+    Value::Array(vec![number(v[0]), number(v[1])])
+}
+
+/// A list of strings as a JSON array.
+fn strings(list: &[String]) -> Value {
+    Value::Array(list.iter().map(|s| Value::from(s.as_str())).collect())
+}
+
+/// The spec's JSON document of a run's summary, keys in the spec's order.
+pub fn summary_value(s: &Summary) -> Value {
+    let mut doc = Map::new();
+    doc.insert("t_end".into(), number(s.t_end));
+    doc.insert("mean_velocity".into(), number(s.mean_velocity));
+    doc.insert("distance".into(), number(s.distance));
+    doc.insert("impacts".into(), Value::from(s.impacts));
+    doc.insert("rotor_speed_rpm".into(), pair(s.rotor_speed_rpm));
+    doc.insert("phase_offset_deg".into(), number(s.phase_offset_deg));
+    doc.insert("phase_error_deg_rms".into(), number(s.phase_error_deg_rms));
+    doc.insert("state".into(), Value::from(s.state.as_str()));
+    doc.insert("faults".into(), strings(&s.faults));
+    let f = &s.final_state;
+    let mut fin = Map::new();
+    fin.insert("position".into(), pair(f.position));
+    fin.insert("angle".into(), number(f.angle));
+    fin.insert("velocity".into(), pair(f.velocity));
+    fin.insert("angular_velocity".into(), number(f.angular_velocity));
+    doc.insert("final".into(), Value::Object(fin));
+    doc.insert("warnings".into(), strings(&s.warnings));
+    Value::Object(doc)
+}
+
+/// [`summary_value`] as text: pretty-printed, ending with a newline.
+pub fn summary_json(s: &Summary) -> String {
+    let mut text = serde_json::to_string_pretty(&summary_value(s))
+        .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
+    text.push('\n');
+    text
+}
+
+/// The summary for people: one quantity a line with its unit, then the faults and
+/// the warnings.
+pub fn summary_table(s: &Summary) -> String {
+    let mut out = format!(
+        "run to t = {} s, controller state: {}\n\n",
+        text::sig(s.t_end),
+        s.state
+    );
+    let mut t = Table::new(&[
+        ("quantity", Align::Left),
+        ("value", Align::Right),
+        ("unit", Align::Left),
+    ]);
+    let mut row = |name: &str, value: String, unit: &str| {
+        t.row(vec![name.to_string(), value, unit.to_string()]);
+    };
+    row(
+        "mean velocity (second half)",
+        text::signed(s.mean_velocity),
+        "m/s",
+    );
+    row("distance", text::signed(s.distance), "m");
+    row("impacts", s.impacts.to_string(), "");
+    row(
+        "rotor 1 speed (second half)",
+        text::sig(s.rotor_speed_rpm[0]),
+        "rpm",
+    );
+    row(
+        "rotor 2 speed (second half)",
+        text::sig(s.rotor_speed_rpm[1]),
+        "rpm",
+    );
+    row(
+        "phase offset (circular mean)",
+        text::sig(s.phase_offset_deg),
+        "deg",
+    );
+    row("phase error (RMS)", text::sig(s.phase_error_deg_rms), "deg");
+    let f = &s.final_state;
+    row("final position", text::vec2(f.position), "m");
+    row(
+        "final angle",
+        format!(
+            "{} ({} deg)",
+            text::sig(f.angle),
+            text::sig(f.angle.to_degrees())
+        ),
+        "rad",
+    );
+    row("final velocity", text::vec2(f.velocity), "m/s");
+    row(
+        "final angular velocity",
+        text::sig(f.angular_velocity),
+        "rad/s",
+    );
+    out.push_str(&t.render());
+    out.push('\n');
+
+    // Faults and warnings, one a line.
+    for (title, list) in [("faults", &s.faults), ("warnings", &s.warnings)] {
+        if list.is_empty() {
+            out.push_str(&format!("{title}: none\n"));
+        } else {
+            out.push_str(&format!("{title}:\n"));
+            for item in list {
+                out.push_str(&format!("  - {item}\n"));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulation::trace::FinalState;
+
+    fn summary() -> Summary {
+        Summary {
+            t_end: 10.0,
+            mean_velocity: 0.0125,
+            distance: 0.1,
+            impacts: 42,
+            rotor_speed_rpm: [3000.5, 2999.5],
+            phase_offset_deg: 90.25,
+            phase_error_deg_rms: 1.5,
+            state: "running".to_string(),
+            faults: vec![],
+            final_state: FinalState {
+                position: [0.25, 0.03],
+                angle: 0.01,
+                velocity: [0.05, -0.5],
+                angular_velocity: 2.0,
+            },
+            warnings: vec!["w1".to_string()],
+        }
+    }
+
+    fn keys(v: &Value) -> Vec<&str> {
+        v.as_object().unwrap().keys().map(String::as_str).collect()
+    }
+
+    #[test]
+    fn json_has_exactly_the_spec_keys_in_order() {
+        let text = summary_json(&summary());
+        let doc: Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(
+            keys(&doc),
+            [
+                "t_end",
+                "mean_velocity",
+                "distance",
+                "impacts",
+                "rotor_speed_rpm",
+                "phase_offset_deg",
+                "phase_error_deg_rms",
+                "state",
+                "faults",
+                "final",
+                "warnings"
+            ]
+        );
+        assert_eq!(
+            keys(&doc["final"]),
+            ["position", "angle", "velocity", "angular_velocity"]
+        );
+        assert_eq!(doc["impacts"], 42);
+        assert_eq!(doc["rotor_speed_rpm"][1], 2999.5);
+        assert_eq!(doc["final"]["velocity"][1], -0.5);
+        assert_eq!(doc["state"], "running");
+        assert_eq!(doc["faults"], Value::Array(vec![]));
+        assert_eq!(doc["warnings"][0], "w1");
+        assert!(text.ends_with("}\n"));
+    }
+
+    #[test]
+    fn non_finite_numbers_are_null() {
+        let mut s = summary();
+        s.mean_velocity = f64::NAN;
+        s.rotor_speed_rpm[0] = f64::INFINITY;
+        s.final_state.angle = f64::NEG_INFINITY;
+        let text = summary_json(&s);
+        let doc: Value = serde_json::from_str(&text).expect("valid JSON");
+        assert!(doc["mean_velocity"].is_null());
+        assert!(doc["rotor_speed_rpm"][0].is_null());
+        assert_eq!(doc["rotor_speed_rpm"][1], 2999.5);
+        assert!(doc["final"]["angle"].is_null());
+        // Nothing else is added.
+        assert_eq!(doc.as_object().unwrap().len(), 11);
+        assert_eq!(doc["warnings"].as_array().unwrap().len(), 1);
+    }
+
+    #[test]
+    fn table_states_units() {
+        let mut s = summary();
+        s.faults = vec!["overcurrent".to_string()];
+        let t = summary_table(&s);
+        assert!(
+            t.starts_with("run to t = 10 s, controller state: running"),
+            "{t}"
+        );
+        let line = |start: &str| {
+            t.lines()
+                .find(|l| l.starts_with(start))
+                .unwrap_or_else(|| panic!("no {start} line in\n{t}"))
+                .to_string()
+        };
+        assert!(line("mean velocity").ends_with("+0.0125  m/s"), "{t}");
+        assert!(line("rotor 1 speed").ends_with("3000.5  rpm"), "{t}");
+        assert!(line("phase offset").ends_with("90.25  deg"), "{t}");
+        assert!(line("final velocity").ends_with("[0.05, -0.5]  m/s"), "{t}");
+        assert!(line("impacts").contains("42"), "{t}");
+        assert!(t.contains("faults:\n  - overcurrent\n"), "{t}");
+        assert!(t.contains("warnings:\n  - w1\n"), "{t}");
+    }
+}

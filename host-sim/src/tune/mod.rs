@@ -1,0 +1,319 @@
+//! `host-sim tune MACHINE [--speeds A:B:STEP] [--offsets A:B:STEP] [--t-end T]
+//! [--write FILE] [--plot FILE.svg] [--format table|json] [--set KEY=VALUE]...`
+//!
+//! Sweeps rotor speed and phase offset in closed loop and finds, at every speed,
+//! the offset that travels right fastest and the one that travels left fastest
+//! (spec `machine.md`, `host-sim tune`; docs/tuning.md).
+//!
+//! Stages of [`run`]:
+//! 1. read and check the machine file with the `--set` overrides, and the options
+//!    into a [`sweep::Grid`]: every problem at once, exit 2, before any run;
+//! 2. sweep: one closed-loop run per grid point ([`sweep::run_point`]: the `shared`
+//!    controller holding the point's offset, `Command::HoldOffset` from `t = 0`),
+//!    in parallel on all cores; results are collected by grid index, so the output
+//!    is the same whatever the number of threads;
+//! 3. best offsets per speed and direction ([`best::best_offsets`]): the grid's extreme,
+//!    refined by a parabola through it and its two neighbours in offset, the
+//!    refined offset checked by one more run (also in parallel);
+//! 4. warnings: runs whose offset was not held, speeds with no travel one way;
+//! 5. outputs: `--write` and `--plot` files, each whole or not at all, then the
+//!    result on stdout as a table or JSON; one summary line on stderr.
+
+pub mod best;
+pub mod plot;
+pub mod report;
+pub mod sweep;
+
+use std::path::Path;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::args::Format;
+use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
+use crate::failure::{Console, Failure};
+use crate::machine::input;
+use crate::machine::tuning_file;
+use crate::machine::Machine;
+use crate::output::file::write_files;
+use crate::output::text;
+use crate::simulation::closed_loop;
+use best::Tuning;
+use best::{best_offsets, warnings};
+use report::count;
+use report::table_file;
+use report::tuning_json;
+use report::tuning_table;
+use sweep::default_speeds;
+use sweep::run_points;
+use sweep::wrap_offsets;
+use sweep::Grid;
+use sweep::{parse_offsets, parse_speeds, Range};
+
+/// Arguments of `host-sim tune`.
+#[derive(Debug, Args)]
+#[command(mut_arg("t_end", |a| a.help("End time of each run, s; the mean velocity is over the second half [default: 5]")))]
+#[command(mut_arg("plot", |a| a.help("Write a plot of mean velocity against offset, one line per speed, as SVG")))]
+#[command(mut_arg("format", |a| a.help("Output format of the result")))]
+pub struct TuneArgs {
+    /// The machine file.
+    #[command(flatten)]
+    pub machine: MachineArg,
+    /// Rotor speeds, rpm: `A:B:STEP` from A to B, both included, or one value
+    /// (default: `[controller].speed_rpm` -500 to +500 in steps of 250).
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true, value_parser = parse_speeds)]
+    pub speeds: Option<Range>,
+    /// Phase offsets, degrees: `A:B:STEP` from A to B, both included (360 is 0
+    /// and runs once), or one value [default: 0:360:15].
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true, value_parser = parse_offsets)]
+    pub offsets: Option<Range>,
+    /// End time.
+    #[command(flatten)]
+    pub t_end: TEndArg,
+    /// Write the tuning table (best offsets per speed) that
+    /// `[controller].tuning_table` names.
+    #[arg(long, value_name = "FILE.toml")]
+    pub write: Option<PathBuf>,
+    /// The plot.
+    #[command(flatten)]
+    pub plot: PlotArg,
+    /// Output format.
+    #[command(flatten)]
+    pub format: FormatArg,
+    /// Overrides.
+    #[command(flatten)]
+    pub set: SetArgs,
+}
+
+/// Default `--t-end`, s: every offset held over the whole second half, over
+/// which `mean_velocity` is measured. On the reference machine the phase loop
+/// closes about 0.2 s after the start with its reference at the measured offset
+/// (near 0: both eccentrics start along +x), which then ramps at 180 deg/s, via
+/// 180 deg for offsets in (180, 360) (a change of side): up to 360 deg, so the
+/// reference reaches the held offset by 2.2 s at the latest; the controller is
+/// `running` (speed reached) from 0.55 s at 2500 rpm to 1.05 s at 4000 rpm.
+/// `T = 5 s` puts `T/2` 0.3 s after the latest, and averages the second half
+/// over 125 revolutions at 3000 rpm. (4 s would leave the offsets above about
+/// 325 deg still ramping at `T/2`.)
+pub const DEFAULT_T_END: f64 = 5.0;
+
+/// Default `--offsets`: every 15 degrees around the turn (24 runs a speed; 360
+/// is 0 and runs once). Fine enough for the parabola through the best three.
+pub const DEFAULT_OFFSETS: &str = "0:360:15";
+
+/// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
+pub const DEFAULT_SPEED_SPAN_RPM: f64 = 500.0;
+
+/// ...in steps of this many rpm (5 speeds: 2500 to 3500 rpm for the reference
+/// machine, all above its lift-off at 2125 rpm), dropping those outside the
+/// controller's speed range.
+pub const DEFAULT_SPEED_STEP_RPM: f64 = 250.0;
+
+/// Most points one range, or the whole grid, may have (10 000 runs of 5 s are
+/// about 20 minutes of two cores: a run costs 0.22 s of one).
+pub const MAX_POINTS: usize = 10_000;
+
+/// A run whose phase error over the second half exceeds this RMS, degrees, did
+/// not hold its offset (a held offset stays within a degree).
+pub const HELD_ERROR_DEG_RMS: f64 = 5.0;
+
+/// Rounding of a refined offset, degrees: the tuning file's resolution
+/// ([`tuning_file::write`] writes one decimal), so that the offset checked, the
+/// one reported and the one written are the same number.
+pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
+
+/// Stage 1: the machine (its tuning table dropped: the sweep holds explicit
+/// offsets, so a missing or stale table must not stop its own regeneration) and
+/// the grid, with the range texts used (for the table file's header).
+fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), String> {
+    let mut machine = match Machine::load(&args.machine.path, &args.set.keys) {
+        Ok(m) => m,
+        Err(problems) => return Err(input::render(&problems)),
+    };
+    machine.controller.tuning_table = None;
+    let params = match closed_loop::params(&machine) {
+        Ok(p) => p,
+        Err(problems) => return Err(input::render(&problems)),
+    };
+    let (lo, hi) = (
+        f64::from(params.min_speed_rpm),
+        f64::from(params.max_speed_rpm),
+    );
+    let mut problems = Vec::new();
+
+    // Speeds: given, or around the nominal speed; all within the controller's range.
+    let (speeds, speeds_text) = match &args.speeds {
+        Some(r) => (Some(r.points.clone()), r.text.clone()),
+        None => {
+            let (s, t) = default_speeds(machine.controller.speed_rpm, lo, hi);
+            if s.is_empty() {
+                problems.push(format!(
+                    "error: tune: [controller].speed_rpm = {} is outside the controller's speed range [{}, {}] rpm; give --speeds",
+                    text::sig(machine.controller.speed_rpm),
+                    text::sig(lo),
+                    text::sig(hi)
+                ));
+                (None, t)
+            } else {
+                (Some(s), t)
+            }
+        }
+    };
+    let speeds = speeds.filter(|s| {
+        let outside: Vec<String> = s
+            .iter()
+            .filter(|v| !(**v >= lo && **v <= hi))
+            .map(|v| text::sig(*v))
+            .collect();
+        if !outside.is_empty() {
+            problems.push(format!(
+                "error: --speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
+                outside.join(", "),
+                text::sig(lo),
+                text::sig(hi)
+            ));
+        }
+        outside.is_empty()
+    });
+
+    // Offsets: at most one turn (checked by the parser), wrapped to [0, 360).
+    let default_offsets;
+    let offsets_range = match &args.offsets {
+        Some(r) => r,
+        None => {
+            default_offsets = parse_offsets(DEFAULT_OFFSETS).expect("the default range is valid");
+            &default_offsets
+        }
+    };
+    let offsets_text = offsets_range.text.clone();
+    let offsets = Some(wrap_offsets(&offsets_range.points));
+
+    // The end time.
+    let t_end = args.t_end.seconds.unwrap_or(DEFAULT_T_END);
+    if !(t_end.is_finite() && t_end > 0.0) {
+        problems.push(format!(
+            "error: --t-end {t_end}: must be a positive number of seconds"
+        ));
+    }
+
+    // The whole grid, and what the table file can hold.
+    if let (Some(s), Some(o)) = (&speeds, &offsets) {
+        let n = s.len() * o.len();
+        if n > MAX_POINTS {
+            problems.push(format!(
+                "error: --speeds {speeds_text} --offsets {offsets_text}: {} speeds x {} offsets = {n} runs, at most {MAX_POINTS}",
+                s.len(),
+                o.len()
+            ));
+        }
+        if args.write.is_some() {
+            if s.len() > shared::controller::MAX_TUNING_ROWS {
+                problems.push(format!(
+                    "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
+                    shared::controller::MAX_TUNING_ROWS,
+                    s.len()
+                ));
+            }
+            let written: Vec<String> = s.iter().map(|v| format!("{v:.1}")).collect();
+            if written.windows(2).any(|w| w[0] == w[1]) {
+                problems.push(format!(
+                    "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
+                ));
+            }
+        }
+    }
+    match (speeds, offsets) {
+        (Some(speeds_rpm), Some(offsets_deg)) if problems.is_empty() => Ok((
+            machine,
+            Grid {
+                speeds_rpm,
+                offsets_deg,
+                t_end,
+            },
+            speeds_text,
+            offsets_text,
+        )),
+        _ => Err(problems.join("\n") + "\n"),
+    }
+}
+
+/// Runs the command (stages of the module doc).
+pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
+    // 1. The machine and the grid.
+    let (machine, grid, speeds_text, offsets_text) = read_options(args).map_err(Failure::Usage)?;
+
+    // 2.-4. The sweep, with a progress bar on stderr (drawn only on a terminal).
+    let started = Instant::now();
+    let total = grid.speeds_rpm.len() * grid.offsets_deg.len();
+    let progress = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(
+        "tune {bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
+    ) {
+        progress.set_style(style);
+    }
+    let tuning = tune(&machine, grid, &progress);
+    progress.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+
+    // 5. Files, then the result.
+    let mut files: Vec<(&Path, String)> = Vec::new();
+    if let Some(path) = &args.write {
+        if tuning.right.is_empty() || tuning.left.is_empty() {
+            return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
+        }
+        let text = table_file(&tuning, args, &speeds_text, &offsets_text);
+        // What is written must read back as a table the controller takes.
+        let readable = tuning_file::parse(&path.display().to_string(), &text)
+            .ok()
+            .and_then(|rows| tuning_file::table(&rows));
+        if readable.is_none() {
+            return Err(Failure::Run(format!(
+                "error: --write {}: the table does not read back (an internal error)",
+                path.display()
+            )));
+        }
+        files.push((path, text));
+    }
+    if let Some(path) = &args.plot.file {
+        let title = format!("host-sim tune {}", args.machine.path.display());
+        files.push((path, plot::plot_svg(&tuning, &title)));
+    }
+    write_files(&files)?;
+    console.print(&match args.format.format {
+        Format::Json => tuning_json(&tuning),
+        Format::Table => tuning_table(&tuning, &args.machine.path),
+    });
+    console.note(&format!(
+        "tune: {} runs in {:.1} s on {}{}\n",
+        tuning.run_count,
+        seconds,
+        count(rayon::current_num_threads(), "thread"),
+        if tuning.warnings.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", count(tuning.warnings.len(), "warning"))
+        }
+    ));
+    Ok(())
+}
+
+/// Stages 2 to 4 on a checked machine and grid.
+pub fn tune(machine: &Machine, grid: Grid, progress: &ProgressBar) -> Tuning {
+    let points = grid.points();
+    let runs = run_points(machine, &points, grid.t_end, progress);
+    let (right, left, checks) = best_offsets(machine, &grid, &runs, progress);
+    let warnings = warnings(&grid, &runs, &right, &left);
+    Tuning {
+        run_count: runs.len() + checks,
+        grid,
+        runs,
+        right,
+        left,
+        warnings,
+    }
+}
+
+#[cfg(test)]
+mod tests;

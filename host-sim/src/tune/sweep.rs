@@ -1,0 +1,292 @@
+//! The sweep of `host-sim tune`: the grid of speeds and offsets ([`Grid`], from the
+//! `A:B:STEP` ranges), one closed-loop run per point ([`run_point`]), all of them in
+//! parallel ([`run_points`]), and the whole tuning ([`super::tune`]).
+
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+use shared::controller::{Command, Outputs, State};
+
+use super::DEFAULT_SPEED_SPAN_RPM;
+use super::DEFAULT_SPEED_STEP_RPM;
+use super::HELD_ERROR_DEG_RMS;
+use super::MAX_POINTS;
+use crate::machine::input;
+use crate::machine::Machine;
+use crate::output::text;
+use crate::simulation::closed_loop::ControllerDriver;
+use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
+use crate::simulation::{simulate, RunOptions};
+
+/// What the sweep covers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// Rotor speeds, rpm, ascending.
+    pub speeds_rpm: Vec<f64>,
+    /// Phase offsets, degrees in [0, 360), ascending, each once.
+    pub offsets_deg: Vec<f64>,
+    /// End time of each run, s.
+    pub t_end: f64,
+}
+
+impl Grid {
+    /// The grid points in their order: speed by speed, offsets ascending within.
+    pub fn points(&self) -> Vec<(f64, f64)> {
+        self.speeds_rpm
+            .iter()
+            .flat_map(|&s| self.offsets_deg.iter().map(move |&o| (s, o)))
+            .collect()
+    }
+
+    /// Whether the offsets go round the whole turn: the gap from the last one
+    /// back to the first (through 360) is no wider than the widest gap between
+    /// neighbours. Then the neighbours of the first offset include the last.
+    pub fn circular(&self) -> bool {
+        let o = &self.offsets_deg;
+        let (Some(first), Some(last)) = (o.first(), o.last()) else {
+            return false;
+        };
+        let widest = o.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        o.len() >= 3 && first + 360.0 - last <= widest * (1.0 + 1e-9)
+    }
+}
+
+/// What one closed-loop run gave.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunOutcome {
+    /// Rotor speed, rpm.
+    pub speed_rpm: f64,
+    /// Phase offset held, degrees in [0, 360).
+    pub offset_deg: f64,
+    /// `(x_C(T) - x_C(T/2)) / (T/2)`, m/s (the run's summary).
+    pub mean_velocity: f64,
+    /// Why the offset was not held over the second half, if it was not: the
+    /// controller faulted or never reached `running` in time, or the phase error
+    /// was large.
+    pub not_held: Option<String>,
+    /// Warnings of the plant (e.g. a Painleve configuration).
+    pub plant_warnings: Vec<String>,
+}
+
+/// Parses a range `A:B:STEP` (or a single value `A`) of option `option` into its
+/// points: `A, A + STEP, ...` up to `B`, both ends included (`B` is appended when
+/// the steps do not land on it). Refused: a malformed text, a value that is not
+/// finite, `STEP <= 0`, `B < A`, more than [`MAX_POINTS`] points.
+pub fn parse_range(text: &str) -> Result<Vec<f64>, String> {
+    let bad = |why: String| why;
+    let parts: Vec<Option<f64>> = text
+        .split(':')
+        .map(|p| p.trim().parse::<f64>().ok())
+        .collect();
+    let (a, b, step) = match parts.as_slice() {
+        [Some(a)] => (*a, *a, 1.0),
+        [Some(a), Some(b), Some(step)] => (*a, *b, *step),
+        _ => {
+            return Err(bad(
+                "expected A:B:STEP, from A to B (both included) in steps of STEP, e.g. 0:360:15, or a single value"
+                    .into(),
+            ))
+        }
+    };
+    if !(a.is_finite() && b.is_finite() && step.is_finite()) {
+        return Err(bad("A, B and STEP must be finite numbers".into()));
+    }
+    if step <= 0.0 {
+        return Err(bad(format!("STEP must be > 0 (got {})", text::sig(step))));
+    }
+    if b < a {
+        return Err(bad(format!(
+            "B must be >= A: the range runs up from A = {} to B = {}",
+            text::sig(a),
+            text::sig(b)
+        )));
+    }
+    // Whole steps from A towards B; rounding within 1e-9 of a step lands on B.
+    let steps = (b - a) / step;
+    if steps + 1.0 > MAX_POINTS as f64 {
+        let count = (steps + 1.0).floor();
+        let count = if count < 1e12 {
+            format!("{count:.0}")
+        } else {
+            text::sig(count)
+        };
+        return Err(bad(format!(
+            "{count} points, at most {MAX_POINTS} (use a larger STEP)"
+        )));
+    }
+    let whole = (steps + 1e-9).floor();
+    let mut points: Vec<f64> = (0..=whole as usize).map(|i| a + i as f64 * step).collect();
+    if steps - whole <= 1e-9 {
+        if let Some(last) = points.last_mut() {
+            *last = b;
+        }
+    } else {
+        points.push(b);
+    }
+    if points.len() > MAX_POINTS {
+        return Err(bad(format!(
+            "{} points, at most {MAX_POINTS} (use a larger STEP)",
+            points.len()
+        )));
+    }
+    Ok(points)
+}
+
+/// A range option as given (`A:B:STEP`, kept for the table file's header) and its
+/// points.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Range {
+    /// The text on the command line.
+    pub text: String,
+    /// Its points, ascending.
+    pub points: Vec<f64>,
+}
+
+/// `--speeds`: a range of rotor speeds, rpm ([`parse_range`]).
+pub fn parse_speeds(text: &str) -> Result<Range, String> {
+    Ok(Range {
+        text: text.to_string(),
+        points: parse_range(text)?,
+    })
+}
+
+/// `--offsets`: a range of phase offsets, degrees, at most one turn
+/// ([`parse_range`]).
+pub fn parse_offsets(text: &str) -> Result<Range, String> {
+    let points = parse_range(text)?;
+    if points
+        .last()
+        .zip(points.first())
+        .is_some_and(|(b, a)| b - a > 360.0)
+    {
+        return Err("spans more than one turn (B - A must be <= 360 degrees)".to_string());
+    }
+    Ok(Range {
+        text: text.to_string(),
+        points,
+    })
+}
+
+/// Offsets wrapped to [0, 360), ascending, each once (360 is 0; offsets within
+/// 1e-9 degrees are the same).
+pub fn wrap_offsets(offsets: &[f64]) -> Vec<f64> {
+    let mut out: Vec<f64> = offsets.iter().map(|&o| wrap_deg_360(o) + 0.0).collect();
+    out.sort_by(f64::total_cmp);
+    out.dedup_by(|b, a| (*b - *a).abs() <= 1e-9);
+    if out.len() > 1 && out[out.len() - 1] >= 360.0 - 1e-9 && out[0] <= 1e-9 {
+        out.pop();
+    }
+    out
+}
+
+/// The default speeds for a machine: `[controller].speed_rpm` +- 0, 250 and 500
+/// rpm within `[lo, hi]` rpm, as a range text for messages (`2500:3500:250`).
+pub(crate) fn default_speeds(nominal: f64, lo: f64, hi: f64) -> (Vec<f64>, String) {
+    let k = (DEFAULT_SPEED_SPAN_RPM / DEFAULT_SPEED_STEP_RPM).round() as i32;
+    let speeds: Vec<f64> = (-k..=k)
+        .map(|i| nominal + f64::from(i) * DEFAULT_SPEED_STEP_RPM)
+        .filter(|s| *s >= lo && *s <= hi)
+        .collect();
+    let text = match (speeds.first(), speeds.last()) {
+        (Some(a), Some(b)) => format!(
+            "{}:{}:{}",
+            text::sig(*a),
+            text::sig(*b),
+            text::sig(DEFAULT_SPEED_STEP_RPM)
+        ),
+        _ => String::new(),
+    };
+    (speeds, text)
+}
+
+/// One closed-loop run of `machine` to `t_end` with the controller holding
+/// `offset_deg` at `speed_rpm` from `t = 0`. The offset counts as held when the
+/// controller ends `running`, got there by `T/2`, and its phase error over the
+/// second half is within [`HELD_ERROR_DEG_RMS`].
+pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64) -> RunOutcome {
+    let command = Command::HoldOffset {
+        speed_rpm: speed_rpm as f32,
+        offset_deg: offset_deg as f32,
+    };
+    let mut outcome = RunOutcome {
+        speed_rpm,
+        offset_deg,
+        mean_velocity: f64::NAN,
+        not_held: None,
+        plant_warnings: Vec::new(),
+    };
+    let mut driver = match ControllerDriver::new(machine, vec![(0.0, command)]) {
+        Ok(d) => d,
+        Err(problems) => {
+            outcome.not_held = Some(input::render(&problems).trim_end().to_string());
+            return outcome;
+        }
+    };
+    driver.record_history(true);
+    let options = RunOptions::new(t_end);
+    let result = simulate(machine, &mut driver, &options);
+    let s = &result.summary;
+    outcome.mean_velocity = s.mean_velocity;
+    outcome.plant_warnings = s.warnings.clone();
+
+    // Was the offset held over the second half? Settled: running, the phase loop
+    // closed, the ramped offset reference at the held offset, from then on.
+    let settled = |o: &Outputs| {
+        let t = &o.telemetry;
+        o.state == State::Running
+            && t.phase_loop_closed
+            && wrap_deg_180(f64::from(t.commanded_offset_deg - t.target_offset_deg)).abs() < 1e-3
+    };
+    let history = &driver.history;
+    let settled_at = match history.iter().rposition(|(_, o)| !settled(o)) {
+        None => history.first().map(|(t, _)| *t),
+        Some(i) => history.get(i + 1).map(|(t, _)| *t),
+    };
+    outcome.not_held = if s.state == "starting" {
+        Some(
+            "the controller was still `starting` at the end (speed ramp or phase lock unfinished): raise --t-end"
+                .to_string(),
+        )
+    } else if s.state != "running" {
+        let faults = if s.faults.is_empty() {
+            String::new()
+        } else {
+            format!(", faults {}", s.faults.join(", "))
+        };
+        Some(format!("the controller ended `{}`{faults}", s.state))
+    } else if settled_at.is_none_or(|t| t > 0.5 * t_end) {
+        Some(format!(
+            "the offset reference reached the held offset only at t = {} s, after T/2 = {} s (raise --t-end)",
+            settled_at.map_or("-".to_string(), text::sig),
+            text::sig(0.5 * t_end)
+        ))
+    } else if s.phase_error_deg_rms.is_nan() || s.phase_error_deg_rms > HELD_ERROR_DEG_RMS {
+        Some(format!(
+            "phase error {} deg RMS over the second half (held offsets stay within {} deg)",
+            text::sig(s.phase_error_deg_rms),
+            text::sig(HELD_ERROR_DEG_RMS)
+        ))
+    } else if !s.mean_velocity.is_finite() {
+        Some("the mean velocity is not a number".to_string())
+    } else {
+        None
+    };
+    outcome
+}
+
+/// Runs `points` (speed, offset) in parallel on rayon's pool (all cores, or
+/// `RAYON_NUM_THREADS`), outcomes in the order of `points`, ticking `progress`.
+pub fn run_points(
+    machine: &Machine,
+    points: &[(f64, f64)],
+    t_end: f64,
+    progress: &ProgressBar,
+) -> Vec<RunOutcome> {
+    points
+        .par_iter()
+        .map(|&(speed, offset)| {
+            let outcome = run_point(machine, speed, offset, t_end);
+            progress.inc(1);
+            outcome
+        })
+        .collect()
+}
