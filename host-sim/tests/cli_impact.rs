@@ -459,3 +459,26 @@ fn rocking_block_example_conserves_angular_momentum_about_the_corner() {
     close(&a["tangential_velocity_after"], 0.0);
     assert_eq!(a["case"], 7);
 }
+
+/// Defect: velocities near 1e300 gave a kinetic energy of `inf` (`null` in JSON)
+/// without a word. Now a warning says the energy overflowed.
+#[test]
+fn an_overflowing_kinetic_energy_is_warned_about() {
+    // Pinned: the centre's velocity follows omega x (C - O).
+    let text = GOOD
+        .replace("velocity = [-0.5, 1.5]", "velocity = [-5e300, 1.5e301]")
+        .replace("angular_velocity = 5.0", "angular_velocity = 5e301");
+    let file = case_file(&text);
+    let r = host_sim(&["impact", &file, "--format", "json"]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert!(v["kinetic_energy_before"].is_null(), "{v}");
+    let warnings = v["warnings"].as_array().unwrap();
+    assert!(
+        warnings.iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .starts_with("kinetic energy out of range")),
+        "{warnings:?}"
+    );
+}

@@ -133,3 +133,23 @@ fn a_bad_file_exits_2_with_every_key_path() {
     assert_eq!(r.status, 2);
     assert!(r.stderr.contains("machine: no such file"), "{}", r.stderr);
 }
+
+/// Defect: a scenario whose `machine` names a directory was told "no such file".
+#[test]
+fn a_machine_that_is_a_directory_is_named_as_such() {
+    let s = scratch(
+        "dir-machine.toml",
+        &format!(
+            "machine = '{}'\n[[expect]]\nkind = \"no_fault\"\n",
+            root().join("examples").display()
+        ),
+    );
+    let r = run(&["scenario", s.to_str().unwrap()]);
+    assert_eq!(r.status, 2);
+    assert!(
+        r.stderr
+            .contains("machine: is a directory, not a machine file"),
+        "{}",
+        r.stderr
+    );
+}

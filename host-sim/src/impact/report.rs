@@ -191,6 +191,13 @@ pub fn warnings(case: &ImpactCase, result: &Solved) -> Vec<String> {
             "jamming (self-locking): {who} where slip would not separate it (the paper's h < f d case; its eq. (5) does not apply)"
         ));
     }
+    let energies = [result.kinetic_energy_before, result.kinetic_energy_after];
+    if energies.iter().any(|e| !e.is_finite()) {
+        out.push(
+            "kinetic energy out of range: (1/2) m v^2 overflows a double (velocities near 1e154 m/s or more); it is reported as inf in the table and null in JSON, the impulses and velocities are still the solver's"
+                .to_string(),
+        );
+    }
     if flags.contains(Warnings::INCONSISTENT) {
         out.push(
             "inconsistent configuration: at some event no consistent set of contact states (slip, stick, released) exists; the solver took the closest one, so the result is approximate"

@@ -61,27 +61,35 @@ pub fn csv_text(s: &str) -> String {
 }
 
 /// The `--out` trace of a machine whose contacts are named `contacts`:
-/// [`trace_header`], then one line per row.
+/// [`trace_header`], then one line per row ([`trace_line`]).
 pub fn trace_csv(rows: &[TraceRow], contacts: &[String]) -> String {
     let n = contacts.len().min(MAX_CONTACTS);
     let mut out = String::with_capacity(32 + rows.len() * (15 + 2 * n) * 12);
     out.push_str(&trace_header(&contacts[..n]));
     out.push('\n');
     for r in rows {
-        let fields = [
-            r.t, r.x, r.y, r.angle, r.vx, r.vy, r.omega, r.phi1, r.phi2, r.omega1, r.omega2, r.i1,
-            r.i2, r.duty1, r.duty2,
-        ];
-        let forces = (0..n).flat_map(|j| [r.normal_force[j], r.tangential_force[j]]);
-        for (i, v) in fields.into_iter().chain(forces).enumerate() {
-            if i > 0 {
-                out.push(',');
-            }
-            out.push_str(&csv_number(v));
-        }
-        out.push('\n');
+        trace_line(r, n, &mut out);
     }
     out
+}
+
+/// One trace row as a CSV line (with its line break) appended to `out`: the
+/// fifteen columns every machine has, then normal and tangential force of the
+/// first `contacts` contacts.
+pub fn trace_line(r: &TraceRow, contacts: usize, out: &mut String) {
+    let n = contacts.min(MAX_CONTACTS);
+    let fields = [
+        r.t, r.x, r.y, r.angle, r.vx, r.vy, r.omega, r.phi1, r.phi2, r.omega1, r.omega2, r.i1,
+        r.i2, r.duty1, r.duty2,
+    ];
+    let forces = (0..n).flat_map(|j| [r.normal_force[j], r.tangential_force[j]]);
+    for (i, v) in fields.into_iter().chain(forces).enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        out.push_str(&csv_number(v));
+    }
+    out.push('\n');
 }
 
 /// The `--events` CSV: [`EVENTS_HEADER`], then one line per row; `case` empty when

@@ -15,16 +15,25 @@ pub mod report;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use shared::impact::MAX_CONTACTS;
+
+use crate::device::interrupt;
+use crate::output::text::sig;
+use plot::plot_svg;
 use shared::controller::{Command, Direction};
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::machine::Machine;
-use crate::output::csv::{events_csv, trace_csv};
-use crate::output::file::write_files;
+use crate::output::csv::{events_csv, trace_header, trace_line};
+use crate::output::file::Staged;
 use crate::simulation::closed_loop::ControllerDriver;
-use crate::simulation::{simulate, OpenLoop, OpenLoopDriver, RunOptions};
+use crate::simulation::trace::TraceRow;
+use crate::simulation::{
+    limits, simulate_observed, Observer, OpenLoop, OpenLoopDriver, RunOptions,
+};
 use report::{summary_json, summary_table};
 
 /// Arguments of `host-sim run`.
@@ -142,10 +151,45 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         return Err(Failure::Usage(problems.join("\n")));
     };
 
-    // 2. Simulate.
+    problems.extend(limits::check(
+        &machine,
+        t_end,
+        if args.t_end.seconds.is_some() {
+            "--t-end"
+        } else {
+            "simulation.t_end"
+        },
+    ));
+    if !problems.is_empty() {
+        return Err(Failure::Usage(problems.join("\n")));
+    }
+
+    // The output files, checked and opened before the run: a path that cannot be
+    // written is refused at once and nothing is left behind.
+    let mut staged = Staged::new();
+    let trace = args.out.as_deref().map(|p| staged.add(p)).transpose()?;
+    let events = args.events.as_deref().map(|p| staged.add(p)).transpose()?;
+    let plot = args
+        .plot
+        .file
+        .as_deref()
+        .map(|p| staged.add(p))
+        .transpose()?;
+    let contacts = machine.contacts.len();
+    if let Some(i) = trace {
+        let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
+        staged.write(
+            i,
+            &format!("{}\n", trace_header(&names[..contacts.min(MAX_CONTACTS)])),
+        )?;
+    }
+
+    // 2. Simulate, the trace streamed to its file.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
-    let options = RunOptions::new(t_end);
+    let mut options = RunOptions::new(t_end);
+    options.keep_rows = plot.is_some();
+    let mut watch = Watch::new(t_end, trace.map(|i| (&mut staged, i)), contacts);
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
             if let OpenLoop::Voltages(v) = open_loop {
@@ -161,39 +205,41 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                 OpenLoop::Coast => "open loop, coast".to_string(),
                 OpenLoop::Voltages(v) => format!("open loop, {} V, {} V", v[0], v[1]),
             };
-            (simulate(&machine, &mut driver, &options), how)
+            (
+                simulate_observed(&machine, &mut driver, &options, &mut watch),
+                how,
+            )
         }
         Drive::Controller(schedule) => {
             let mut driver = ControllerDriver::new(&machine, schedule.clone())?;
             let how = describe_command(args, &machine);
-            (simulate(&machine, &mut driver, &options), how)
+            (
+                simulate_observed(&machine, &mut driver, &options, &mut watch),
+                how,
+            )
         }
     };
+    watch.finish()?;
     result.summary.warnings.extend(warnings);
 
     // 3. Files, then the summary.
-    let title = format!("host-sim run {} ({how})", args.machine.path.display());
-    let outputs = [
-        (&args.out, OutputFile::Trace),
-        (&args.events, OutputFile::Events),
-        (&args.plot.file, OutputFile::Plot),
-    ];
-    let mut files = Vec::new();
-    for (path, what) in outputs {
-        let Some(path) = path else { continue };
-        let contents = match what {
-            OutputFile::Trace => {
-                let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
-                trace_csv(&result.rows, &names)
-            }
-            OutputFile::Events => events_csv(&result.events),
-            OutputFile::Plot => {
-                crate::run::plot::plot_svg(&result.rows, &result.events, &machine, &title)
-            }
-        };
-        files.push((path.as_path(), contents));
+    if let Some(i) = events {
+        staged.write(i, &events_csv(&result.events))?;
     }
-    write_files(&files)?;
+    if let Some(i) = plot {
+        let title = format!("host-sim run {} ({how})", args.machine.path.display());
+        staged.write(i, &plot_svg(&result.rows, &result.events, &machine, &title))?;
+    }
+    if let Some(t) = result.stopped_at {
+        // Ctrl-C: what was simulated is written whole; no summary of half a run.
+        staged.commit()?;
+        return Err(Failure::Run(format!(
+            "error: run: interrupted at t = {} s of {} s (Ctrl-C); the files asked for hold the run up to there, no summary",
+            sig(t),
+            sig(t_end)
+        )));
+    }
+    staged.commit()?;
     console.print(&match args.format.format {
         Format::Json => summary_json(&result.summary),
         Format::Table => summary_table(&result.summary),
@@ -201,11 +247,61 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     Ok(())
 }
 
-/// The files `run` can write.
-enum OutputFile {
-    Trace,
-    Events,
-    Plot,
+/// Watches a run: streams its trace rows to the trace file, shows progress on a
+/// terminal, and ends the run on Ctrl-C.
+struct Watch<'s> {
+    trace: Option<(&'s mut Staged, usize)>,
+    contacts: usize,
+    line: String,
+    /// The first write error: the run stops there.
+    error: Option<Failure>,
+    progress: ProgressBar,
+}
+
+impl<'s> Watch<'s> {
+    fn new(t_end: f64, trace: Option<(&'s mut Staged, usize)>, contacts: usize) -> Self {
+        interrupt::catch();
+        // Progress in ms of simulated time, drawn only when stderr is a terminal.
+        let progress = ProgressBar::with_draw_target(
+            Some((t_end * 1e3).ceil() as u64),
+            ProgressDrawTarget::stderr(),
+        );
+        if let Ok(style) =
+            ProgressStyle::with_template("run {bar:40} {pos}/{len} ms simulated, ~{eta} left")
+        {
+            progress.set_style(style);
+        }
+        Watch {
+            trace,
+            contacts,
+            line: String::new(),
+            error: None,
+            progress,
+        }
+    }
+
+    /// The write error, if one stopped the run.
+    fn finish(self) -> Result<(), Failure> {
+        self.progress.finish_and_clear();
+        self.error.map_or(Ok(()), Err)
+    }
+}
+
+impl Observer for Watch<'_> {
+    fn row(&mut self, row: &TraceRow) {
+        if let (Some((staged, i)), None) = (&mut self.trace, &self.error) {
+            self.line.clear();
+            trace_line(row, self.contacts, &mut self.line);
+            if let Err(e) = staged.write(*i, &self.line) {
+                self.error = Some(e);
+            }
+        }
+    }
+
+    fn go_on(&mut self, t: f64) -> bool {
+        self.progress.set_position((t * 1e3) as u64);
+        self.error.is_none() && !interrupt::interrupted()
+    }
 }
 
 /// What drives the motors in a run.

@@ -322,10 +322,17 @@ pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Pro
         (Some(rel), Some(sets)) => {
             let path = dir.join(rel);
             if !path.is_file() {
+                let what = if path.is_dir() {
+                    "is a directory, not a machine file"
+                } else if path.exists() {
+                    "is not a regular file"
+                } else {
+                    "no such file"
+                };
                 problems.at(
                     "machine",
                     format!(
-                        "no such file: {} (the path is relative to the scenario file)",
+                        "{what}: {} (the path is relative to the scenario file)",
                         path.display()
                     ),
                 );

@@ -13,7 +13,7 @@ use super::file::When;
 use super::file::TIME_EPS;
 use crate::machine::input::Problem;
 use crate::output::text::sig;
-use crate::simulation::{simulate, Driver, RunOptions};
+use crate::simulation::{simulate_observed, Driver, Interruptible, RunOptions};
 
 /// How one expectation came out.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,6 +59,8 @@ pub struct Report {
     pub detections: Vec<Detection>,
     /// The controller's state at the end.
     pub final_state: String,
+    /// The run was ended early by Ctrl-C at this time, s (nothing judged).
+    pub stopped_at: Option<f64>,
 }
 
 impl Report {
@@ -73,10 +75,16 @@ impl Report {
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
     // 1.-3. Simulate with the scenario's driver.
     let mut driver = ScenarioDriver::new(scenario)?;
-    let options = RunOptions::new(scenario.t_end);
-    let result = simulate(&scenario.machine, &mut driver, &options);
+    let mut options = RunOptions::new(scenario.t_end);
+    options.keep_rows = false;
+    let result = simulate_observed(
+        &scenario.machine,
+        &mut driver,
+        &options,
+        &mut Interruptible::new(),
+    );
     let mut samples: Vec<(f64, f64)> = driver.ticks.iter().map(|k| (k.t, k.x)).collect();
-    if let Some(row) = result.rows.last() {
+    if let Some(row) = result.last_row {
         if samples.last().is_none_or(|s| s.0 < row.t) {
             samples.push((row.t, row.x));
         }
@@ -115,6 +123,7 @@ pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
         outcomes,
         detections,
         final_state: driver.state(),
+        stopped_at: result.stopped_at,
     })
 }
 

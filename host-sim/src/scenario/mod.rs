@@ -21,6 +21,7 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::FormatArg;
 use crate::failure::{Console, Failure};
+use crate::simulation::limits;
 
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
@@ -40,8 +41,24 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     // 1. Read and check.
     let scenario = file::load(&args.scenario)?;
 
+    let problems = limits::check(&scenario.machine, scenario.t_end, "t_end");
+    if !problems.is_empty() {
+        let file = args.scenario.display();
+        let lines: Vec<String> = problems
+            .iter()
+            .map(|p| p.replacen("error: ", &format!("error: {file}: "), 1))
+            .collect();
+        return Err(Failure::Usage(lines.join("\n")));
+    }
+
     // 2. Run.
     let report = judge::run(&scenario)?;
+    if let Some(t) = report.stopped_at {
+        return Err(Failure::Run(format!(
+            "error: scenario: interrupted at t = {} s (Ctrl-C): nothing judged",
+            crate::output::text::sig(t)
+        )));
+    }
 
     // 3. Report.
     console.print(&match args.format.format {

@@ -13,6 +13,7 @@
 //! 4. summarize ([`crate::simulation::summary`]).
 
 pub mod closed_loop;
+pub mod limits;
 pub mod summary;
 pub mod trace;
 
@@ -20,7 +21,7 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
-use crate::simulation::summary::summarize;
+use crate::simulation::summary::SummaryBuilder;
 use crate::simulation::trace::{EventRow, Summary, TraceRow};
 
 /// What drives the windings, asked at every control tick.
@@ -95,6 +96,10 @@ pub struct RunOptions {
     pub settings: Settings,
     /// Coordinates held still (tests only; the command holds nothing).
     pub holds: Holds,
+    /// Keep every trace row in [`RunResult::rows`] (for a plot, for tests). Off,
+    /// the rows go only to the [`Observer`] and memory stays bounded however long
+    /// the run.
+    pub keep_rows: bool,
 }
 
 impl RunOptions {
@@ -104,15 +109,61 @@ impl RunOptions {
             t_end,
             settings: Settings::default(),
             holds: Holds::default(),
+            keep_rows: true,
         }
+    }
+}
+
+/// Watches a run as it goes: every trace row as it is recorded, and after every
+/// control tick whether to go on.
+pub trait Observer {
+    /// A trace row, times ascending.
+    fn row(&mut self, _row: &TraceRow) {}
+    /// After the control tick that ended at `t`, s: `false` ends the run there
+    /// (Ctrl-C, say). Goes on by default.
+    fn go_on(&mut self, _t: f64) -> bool {
+        true
+    }
+}
+
+/// An observer that watches nothing.
+pub struct Unobserved;
+
+impl Observer for Unobserved {}
+
+/// An observer that ends the run on Ctrl-C (and watches nothing else).
+pub struct Interruptible;
+
+impl Interruptible {
+    /// Catches Ctrl-C from now on ([`crate::device::interrupt`]).
+    pub fn new() -> Self {
+        crate::device::interrupt::catch();
+        Interruptible
+    }
+}
+
+impl Default for Interruptible {
+    fn default() -> Self {
+        Interruptible::new()
+    }
+}
+
+impl Observer for Interruptible {
+    fn go_on(&mut self, _t: f64) -> bool {
+        !crate::device::interrupt::interrupted()
     }
 }
 
 /// What a run produced.
 #[derive(Clone, Debug)]
 pub struct RunResult {
-    /// Trace rows: every `output_step`, and just before and after every event.
+    /// Trace rows: every `output_step`, and just before and after every event
+    /// (empty unless [`RunOptions::keep_rows`]).
     pub rows: Vec<TraceRow>,
+    /// The last trace row.
+    pub last_row: Option<TraceRow>,
+    /// The run ended before `t_end` because the observer said so.
+    pub stopped_at: Option<f64>,
     /// Events, in time order.
     pub events: Vec<EventRow>,
     /// The summary.
@@ -121,16 +172,21 @@ pub struct RunResult {
     pub steps: u64,
 }
 
-/// Collects trace rows from the plant's outputs.
-struct Recorder {
+/// Collects trace rows from the plant's outputs: into the summary, to the
+/// observer, and kept if asked.
+struct Recorder<'r, 'm> {
     rows: Vec<TraceRow>,
+    keep_rows: bool,
+    last: Option<TraceRow>,
+    summary: SummaryBuilder<'m>,
+    observer: &'r mut dyn Observer,
     output_step: f64,
     /// Index of the next regular output time `k * output_step`.
     next: u64,
     duty: [f64; 2],
 }
 
-impl Recorder {
+impl Recorder<'_, '_> {
     fn regular_time(&self) -> f64 {
         self.next as f64 * self.output_step
     }
@@ -150,13 +206,29 @@ impl Recorder {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        self.rows.push(Plant::row(t, y, self.duty, forces));
+        let row = Plant::row(t, y, self.duty, forces);
+        self.summary.push(&row);
+        self.observer.row(&row);
+        if self.keep_rows {
+            self.rows.push(row);
+        }
+        self.last = Some(row);
     }
 }
 
 /// Simulates `machine` from `t = 0` to `options.t_end` with `driver` at the
 /// machine's control rate.
 pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions) -> RunResult {
+    simulate_observed(machine, driver, options, &mut Unobserved)
+}
+
+/// [`simulate`] with an [`Observer`] that sees every row and may end the run early.
+pub fn simulate_observed(
+    machine: &Machine,
+    driver: &mut dyn Driver,
+    options: &RunOptions,
+    observer: &mut dyn Observer,
+) -> RunResult {
     // 1. The plant.
     let model = PlantModel::new(machine);
     let mut plant = Plant::new(
@@ -170,11 +242,16 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
     let rate = machine.controller.rate_hz;
     let mut rec = Recorder {
         rows: Vec::new(),
+        keep_rows: options.keep_rows,
+        last: None,
+        summary: SummaryBuilder::new(machine, 0.0, options.t_end),
+        observer,
         output_step: machine.simulation.output_step,
         next: 0,
         duty: [0.0; 2],
     };
     let mut tick: u64 = 0;
+    let mut stopped_at = None;
     loop {
         let t = tick as f64 / rate;
         if t >= options.t_end {
@@ -192,8 +269,12 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
         tick += 1;
         let t_next = (tick as f64 / rate).min(options.t_end);
         plant.advance_to(t_next, &mut |out| rec.take(out));
+        if t_next < options.t_end && !rec.observer.go_on(t_next) {
+            stopped_at = Some(t_next);
+            break;
+        }
     }
-    if rec.rows.last().is_none_or(|r| r.t < plant.t) {
+    if rec.last.is_none_or(|r| r.t < plant.t) {
         let y = plant.y;
         rec.push(plant.t, &y, &plant.forces_at(&y));
     }
@@ -202,10 +283,8 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
     let mut events = plant.events;
     events.extend(driver.events());
     events.sort_by(|a, b| a.t.total_cmp(&b.t));
-    let summary = summarize(
-        &rec.rows,
+    let summary = rec.summary.finish(
         &events,
-        machine,
         driver.commanded_offset_deg(),
         &driver.state(),
         driver.faults(),
@@ -213,6 +292,8 @@ pub fn simulate(machine: &Machine, driver: &mut dyn Driver, options: &RunOptions
     );
     RunResult {
         rows: rec.rows,
+        last_row: rec.last,
+        stopped_at,
         events,
         summary,
         steps: plant.steps,

@@ -63,57 +63,45 @@ pub fn impact_times(events: &[EventRow]) -> Vec<f64> {
     times
 }
 
-/// The platform position and rotor angles at time `t`, interpolated linearly
-/// between the last row with `row.t <= t` and the first row after it (so of two
-/// rows at one event time, the later, "after", one is used). Before the first row
-/// or after the last, that row's values. `rows` must not be empty.
-///
-/// Returns `(x, phi1, phi2)`.
-fn at_time(rows: &[TraceRow], t: f64) -> (f64, f64, f64) {
-    let values = |r: &TraceRow| (r.x, r.phi1, r.phi2);
-    // Index of the first row strictly after t.
-    let i = rows.partition_point(|r| r.t <= t);
-    if i == 0 {
-        return values(&rows[0]);
-    }
-    if i == rows.len() {
-        return values(&rows[i - 1]);
-    }
-    let (a, b) = (&rows[i - 1], &rows[i]);
-    // b.t > t >= a.t, so the denominator is positive.
-    let f = (t - a.t) / (b.t - a.t);
-    let lerp = |p: f64, q: f64| p + (q - p) * f;
-    (lerp(a.x, b.x), lerp(a.phi1, b.phi1), lerp(a.phi2, b.phi2))
+/// The second half's phase offset samples `(t, offset_deg)`: the interpolated value
+/// at `half`, then every row after it (16 bytes a row, not the whole trace row).
+#[derive(Clone, Debug, Default)]
+struct SecondHalf {
+    samples: Vec<(f64, f64)>,
 }
 
-/// The phase offset samples of the second half with their trapezoidal time weights:
-/// the interpolated value at `half`, then every row after it. Weights
-/// `w_i = (t_{i+1} - t_{i-1}) / 2` (one-sided at the ends) make the mean a time
-/// average however the rows are spaced; rows repeated at an event time get no
-/// weight of their own. When the half has no duration, equal weights.
-fn second_half_offsets(rows: &[TraceRow], half: f64, machine: &Machine) -> Vec<(f64, f64)> {
-    let (_, phi1, phi2) = at_time(rows, half);
-    let mut samples = vec![(half, phase_offset_deg(phi1, phi2, machine))];
-    samples.extend(
-        rows.iter()
-            .filter(|r| r.t > half)
-            .map(|r| (r.t, phase_offset_deg(r.phi1, r.phi2, machine))),
-    );
-    let n = samples.len();
-    let mut weighted: Vec<(f64, f64)> = (0..n)
-        .map(|i| {
-            let before = samples[i.saturating_sub(1)].0;
-            let after = samples[(i + 1).min(n - 1)].0;
-            ((after - before) / 2.0, samples[i].1)
-        })
-        .collect();
-    let total: f64 = weighted.iter().map(|(w, _)| w).sum();
-    if !(total > 0.0 && total.is_finite()) {
-        for (w, _) in &mut weighted {
-            *w = 1.0;
-        }
+impl SecondHalf {
+    fn push(&mut self, t: f64, offset_deg: f64) {
+        self.samples.push((t, offset_deg));
     }
-    weighted
+
+    /// `(phase_offset_deg, phase_error_deg_rms)` with trapezoidal time weights
+    /// `w_i = (t_{i+1} - t_{i-1}) / 2` (one-sided at the ends), which make the mean
+    /// a time average however the rows are spaced; rows repeated at an event time
+    /// get no weight of their own. When the half has no duration, equal weights.
+    /// The RMS error is 0 without a commanded offset.
+    fn finish(self, commanded_offset_deg: Option<f64>) -> (f64, f64) {
+        let samples = self.samples;
+        let n = samples.len();
+        let mut weighted: Vec<(f64, f64)> = (0..n)
+            .map(|i| {
+                let before = samples[i.saturating_sub(1)].0;
+                let after = samples[(i + 1).min(n - 1)].0;
+                ((after - before) / 2.0, samples[i].1)
+            })
+            .collect();
+        let total: f64 = weighted.iter().map(|(w, _)| w).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            for (w, _) in &mut weighted {
+                *w = 1.0;
+            }
+        }
+        let rms = match commanded_offset_deg {
+            Some(c) => rms_error_deg(&weighted, c),
+            None => 0.0,
+        };
+        (circular_mean_deg(&weighted), rms)
+    }
 }
 
 /// The circular mean of weighted angles in degrees, wrapped to [0, 360):
@@ -139,6 +127,169 @@ fn rms_error_deg(samples: &[(f64, f64)], commanded: f64) -> f64 {
     (sum / total).sqrt()
 }
 
+/// What the summary keeps of a trace row.
+#[derive(Clone, Copy, Debug)]
+struct Point {
+    t: f64,
+    x: f64,
+    phi1: f64,
+    phi2: f64,
+}
+
+impl Point {
+    fn of(r: &TraceRow) -> Self {
+        Point {
+            t: r.t,
+            x: r.x,
+            phi1: r.phi1,
+            phi2: r.phi2,
+        }
+    }
+}
+
+/// The summary built row by row, without keeping the trace: for a run whose first
+/// and last times are known before it starts (`0` and `t_end`). [`summarize`] is
+/// this over stored rows.
+#[derive(Clone, Debug)]
+pub struct SummaryBuilder<'m> {
+    machine: &'m Machine,
+    half: f64,
+    first: Option<Point>,
+    /// The last row with `t <= half`.
+    at_or_before_half: Option<Point>,
+    /// `(x, phi1, phi2)` at `half`, once the first row after it came.
+    at_half: Option<(f64, f64, f64)>,
+    last: Option<TraceRow>,
+    offsets: SecondHalf,
+}
+
+impl<'m> SummaryBuilder<'m> {
+    /// A builder for rows from `t0` to `t_end`, s.
+    pub fn new(machine: &'m Machine, t0: f64, t_end: f64) -> Self {
+        SummaryBuilder {
+            machine,
+            half: 0.5 * (t0 + t_end),
+            first: None,
+            at_or_before_half: None,
+            at_half: None,
+            last: None,
+            offsets: SecondHalf::default(),
+        }
+    }
+
+    /// Takes the next row (times ascending).
+    pub fn push(&mut self, row: &TraceRow) {
+        let p = Point::of(row);
+        self.first.get_or_insert(p);
+        if p.t <= self.half {
+            self.at_or_before_half = Some(p);
+        } else {
+            if self.at_half.is_none() {
+                // The first row strictly after the half: interpolate there
+                // (b.t > half >= a.t, so the denominator is positive).
+                let v = match self.at_or_before_half {
+                    None => (p.x, p.phi1, p.phi2),
+                    Some(a) => {
+                        let f = (self.half - a.t) / (p.t - a.t);
+                        let lerp = |u: f64, v: f64| u + (v - u) * f;
+                        (lerp(a.x, p.x), lerp(a.phi1, p.phi1), lerp(a.phi2, p.phi2))
+                    }
+                };
+                self.at_half = Some(v);
+                self.offsets
+                    .push(self.half, phase_offset_deg(v.1, v.2, self.machine));
+            }
+            self.offsets
+                .push(p.t, phase_offset_deg(p.phi1, p.phi2, self.machine));
+        }
+        self.last = Some(*row);
+    }
+
+    /// The summary (see [`summarize`]).
+    pub fn finish(
+        mut self,
+        events: &[EventRow],
+        commanded_offset_deg: Option<f64>,
+        state: &str,
+        faults: Vec<String>,
+        mut warnings: Vec<String>,
+    ) -> Summary {
+        let machine = self.machine;
+        let impacts = impact_times(events).len();
+        let (Some(first), Some(last)) = (self.first, self.last) else {
+            let p = &machine.platform;
+            warnings.push("the run recorded no trace rows: the summary is empty".to_string());
+            return Summary {
+                impacts,
+                state: state.to_string(),
+                faults,
+                final_state: FinalState {
+                    position: p.position,
+                    angle: p.angle,
+                    velocity: p.velocity,
+                    angular_velocity: p.angular_velocity,
+                },
+                warnings,
+                ..Summary::default()
+            };
+        };
+        // No row after the half: the values of the last row at or before it.
+        let (x_half, phi1_half, phi2_half) = match self.at_half {
+            Some(v) => v,
+            None => {
+                let a = self.at_or_before_half.unwrap_or(first);
+                self.offsets
+                    .push(self.half, phase_offset_deg(a.phi1, a.phi2, machine));
+                (a.x, a.phi1, a.phi2)
+            }
+        };
+
+        // The second half: from the midpoint to the end.
+        let t_end = last.t;
+        let duration = t_end - self.half;
+        let rate = |end: f64, mid: f64| {
+            if duration > 0.0 {
+                (end - mid) / duration
+            } else {
+                0.0
+            }
+        };
+
+        // Travel.
+        let mean_velocity = rate(last.x, x_half);
+        let distance = last.x - first.x;
+
+        // Rotor speeds in the driven sense: s_k dphi_k/dt, in rpm.
+        let [r1, r2] = &machine.rotors;
+        let rotor_speed_rpm = [
+            r1.sense.sign() * rate(last.phi1, phi1_half) * RPM_PER_RAD_S,
+            r2.sense.sign() * rate(last.phi2, phi2_half) * RPM_PER_RAD_S,
+        ];
+
+        // Phase offset and its error over the second half.
+        let (phase_offset_deg, phase_error_deg_rms) = self.offsets.finish(commanded_offset_deg);
+
+        Summary {
+            t_end,
+            mean_velocity,
+            distance,
+            impacts,
+            rotor_speed_rpm,
+            phase_offset_deg,
+            phase_error_deg_rms,
+            state: state.to_string(),
+            faults,
+            final_state: FinalState {
+                position: [last.x, last.y],
+                angle: last.angle,
+                velocity: [last.vx, last.vy],
+                angular_velocity: last.omega,
+            },
+            warnings,
+        }
+    }
+}
+
 /// The spec's summary of a run from its trace rows (times ascending, possibly two
 /// rows at an event time) and its events.
 ///
@@ -151,6 +302,10 @@ fn rms_error_deg(samples: &[(f64, f64)], commanded: f64) -> f64 {
 ///   (-180, 180], over the second half when `commanded_offset_deg` is given, else 0;
 /// - `final_state`: the last row.
 ///
+/// Values at `T/2` are interpolated linearly between the last row with
+/// `row.t <= T/2` and the first row after it (so of two rows at one event time, the
+/// later, "after", one is used).
+///
 /// An empty trace gives zeros, the machine's initial state as the final state and a
 /// warning. A trace of no duration gives zero velocities and speeds.
 pub fn summarize(
@@ -160,77 +315,17 @@ pub fn summarize(
     commanded_offset_deg: Option<f64>,
     state: &str,
     faults: Vec<String>,
-    mut warnings: Vec<String>,
+    warnings: Vec<String>,
 ) -> Summary {
-    let impacts = impact_times(events).len();
-    let (Some(first), Some(last)) = (rows.first(), rows.last()) else {
-        let p = &machine.platform;
-        warnings.push("the run recorded no trace rows: the summary is empty".to_string());
-        return Summary {
-            impacts,
-            state: state.to_string(),
-            faults,
-            final_state: FinalState {
-                position: p.position,
-                angle: p.angle,
-                velocity: p.velocity,
-                angular_velocity: p.angular_velocity,
-            },
-            warnings,
-            ..Summary::default()
-        };
+    let (t0, t_end) = match (rows.first(), rows.last()) {
+        (Some(a), Some(b)) => (a.t, b.t),
+        _ => (0.0, 0.0),
     };
-
-    // The second half: from the midpoint to the end.
-    let t_end = last.t;
-    let half = 0.5 * (first.t + t_end);
-    let duration = t_end - half;
-    let (x_half, phi1_half, phi2_half) = at_time(rows, half);
-    let rate = |end: f64, mid: f64| {
-        if duration > 0.0 {
-            (end - mid) / duration
-        } else {
-            0.0
-        }
-    };
-
-    // Travel.
-    let mean_velocity = rate(last.x, x_half);
-    let distance = last.x - first.x;
-
-    // Rotor speeds in the driven sense: s_k dphi_k/dt, in rpm.
-    let [r1, r2] = &machine.rotors;
-    let rotor_speed_rpm = [
-        r1.sense.sign() * rate(last.phi1, phi1_half) * RPM_PER_RAD_S,
-        r2.sense.sign() * rate(last.phi2, phi2_half) * RPM_PER_RAD_S,
-    ];
-
-    // Phase offset and its error over the second half.
-    let offsets = second_half_offsets(rows, half, machine);
-    let phase_offset_deg = circular_mean_deg(&offsets);
-    let phase_error_deg_rms = match commanded_offset_deg {
-        Some(c) => rms_error_deg(&offsets, c),
-        None => 0.0,
-    };
-
-    Summary {
-        t_end,
-        mean_velocity,
-        distance,
-        impacts,
-        rotor_speed_rpm,
-        phase_offset_deg,
-        phase_error_deg_rms,
-        state: state.to_string(),
-        faults,
-        final_state: FinalState {
-            position: [last.x, last.y],
-            angle: last.angle,
-            velocity: [last.vx, last.vy],
-            angular_velocity: last.omega,
-        },
-        warnings,
+    let mut builder = SummaryBuilder::new(machine, t0, t_end);
+    for r in rows {
+        builder.push(r);
     }
+    builder.finish(events, commanded_offset_deg, state, faults, warnings)
 }
 
 #[cfg(test)]
@@ -536,10 +631,14 @@ supply_voltage = 12.0
     #[test]
     fn circular_mean_of_a_spread_near_the_wrap() {
         // Offsets 355 and 15 with equal time weight: the mean is 5 deg.
-        let samples = [(1.0, 355.0), (1.0, 15.0)];
-        assert!(close(circular_mean_deg(&samples), 5.0, 1e-9));
-        let samples = [(1.0, 340.0), (1.0, 350.0)];
-        assert!(close(circular_mean_deg(&samples), 345.0, 1e-9));
+        let mean = |a: f64, b: f64| {
+            let mut h = SecondHalf::default();
+            h.push(0.0, a);
+            h.push(1.0, b);
+            h.finish(None).0
+        };
+        assert!(close(mean(355.0, 15.0), 5.0, 1e-9));
+        assert!(close(mean(340.0, 350.0), 345.0, 1e-9));
     }
 
     #[test]

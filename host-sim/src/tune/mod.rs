@@ -40,6 +40,7 @@ use crate::machine::Machine;
 use crate::output::file::write_files;
 use crate::output::text;
 use crate::simulation::closed_loop;
+use crate::simulation::limits;
 use best::Tuning;
 use best::{best_offsets, warnings};
 use report::count;
@@ -198,6 +199,8 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
         ));
     }
 
+    problems.extend(limits::check(&machine, t_end, "--t-end"));
+
     // The whole grid, and what the table file can hold.
     if let (Some(s), Some(o)) = (&speeds, &offsets) {
         let n = s.len() * o.len();
@@ -255,6 +258,11 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
+    if crate::device::interrupt::interrupted() {
+        return Err(Failure::Run(
+            "error: tune: interrupted (Ctrl-C): the sweep is incomplete, nothing written".into(),
+        ));
+    }
     let seconds = started.elapsed().as_secs_f64();
 
     // 5. Files, then the result.

@@ -15,7 +15,7 @@ use crate::machine::Machine;
 use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
-use crate::simulation::{simulate, RunOptions};
+use crate::simulation::{simulate_observed, Interruptible, RunOptions};
 
 /// What the sweep covers.
 #[derive(Clone, Debug, PartialEq)]
@@ -222,8 +222,9 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         }
     };
     driver.record_history(true);
-    let options = RunOptions::new(t_end);
-    let result = simulate(machine, &mut driver, &options);
+    let mut options = RunOptions::new(t_end);
+    options.keep_rows = false;
+    let result = simulate_observed(machine, &mut driver, &options, &mut Interruptible::new());
     let s = &result.summary;
     outcome.mean_velocity = s.mean_velocity;
     outcome.plant_warnings = s.warnings.clone();

@@ -60,6 +60,55 @@ pub fn finish(mut cmd: Command) -> Run {
     run
 }
 
+/// Run `cmd` and wait at most `limit` for it to end; a run still going then is
+/// killed and the test fails (a defect that runs forever fails instead of hanging
+/// the suite).
+pub fn finish_within(cmd: Command, limit: Duration) -> Run {
+    finish_within_with(cmd, limit, |_| {})
+}
+
+/// [`finish_within`], telling `started` the child's process id once it runs.
+pub fn finish_within_with(mut cmd: Command, limit: Duration, started: impl FnOnce(u32)) -> Run {
+    use std::io::Read;
+    use std::process::Stdio;
+    let start = Instant::now();
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    started(child.id());
+    // Drain both pipes on threads so a chatty run cannot block on a full pipe.
+    let drain = |mut r: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = r.read_to_string(&mut s);
+            s
+        })
+    };
+    let out = drain(Box::new(child.stdout.take().expect("piped")));
+    let err = drain(Box::new(child.stderr.take().expect("piped")));
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            break s;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("host-sim did not end within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let run = Run {
+        status: status.code().unwrap_or(-1),
+        stdout: out.join().expect("stdout"),
+        stderr: err.join().expect("stderr"),
+        took: start.elapsed(),
+    };
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    run
+}
+
 /// Run `host-sim` with `args` from the repository root.
 pub fn run(args: &[&str]) -> Run {
     let mut cmd = host_sim();

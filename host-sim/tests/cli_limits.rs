@@ -1,0 +1,157 @@
+//! Runs that ask for too much are refused with the key and the limit (they used to
+//! run forever or fill the memory), and a long run stops cleanly on Ctrl-C with
+//! its files whole.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+mod common;
+use common::{finish_within, host_sim, machine, root, scratch};
+
+/// Long enough for a refusal (milliseconds) on a loaded machine; the defects these
+/// tests guard against never end.
+const LIMIT: Duration = Duration::from_secs(60);
+
+fn refused(args: &[&str], key: &str, limit: &str) {
+    let mut cmd = host_sim();
+    cmd.args(args).current_dir(root());
+    let r = finish_within(cmd, LIMIT);
+    assert_eq!(r.status, 2, "{args:?}: {}", r.stderr);
+    assert!(
+        r.stderr.contains(key) && r.stderr.contains(limit),
+        "{args:?}: {}",
+        r.stderr
+    );
+}
+
+#[test]
+fn an_endless_run_is_refused_naming_the_key_and_the_limit() {
+    let m = machine();
+    let m = m.to_str().unwrap();
+    refused(
+        &["run", m, "--command", "right", "--t-end", "1e300"],
+        "--t-end 1e300",
+        "at most 3600 s",
+    );
+    refused(
+        &[
+            "run",
+            m,
+            "--command",
+            "right",
+            "--set",
+            "simulation.t_end=1e300",
+        ],
+        "simulation.t_end",
+        "at most 3600 s",
+    );
+    refused(
+        &[
+            "tune",
+            m,
+            "--speeds",
+            "3000",
+            "--offsets",
+            "90",
+            "--t-end",
+            "1e300",
+        ],
+        "--t-end",
+        "at most 3600 s",
+    );
+}
+
+#[test]
+fn a_trace_step_that_would_fill_the_memory_is_refused() {
+    let m = machine();
+    refused(
+        &[
+            "run",
+            m.to_str().unwrap(),
+            "--command",
+            "right",
+            "--set",
+            "simulation.output_step=1e-300",
+        ],
+        "simulation.output_step 1e-300",
+        "at most 1e7",
+    );
+}
+
+#[test]
+fn an_endless_scenario_is_refused() {
+    let file = scratch("cli-limits", "long.toml");
+    let machine = machine();
+    std::fs::write(
+        &file,
+        format!(
+            "machine = {:?}\nt_end = 1e300\n[[commands]]\nt = 0.0\ncommand = \"right\"\n[[expect]]\nkind = \"no_fault\"\n",
+            machine.to_str().unwrap()
+        ),
+    )
+    .unwrap();
+    refused(
+        &["scenario", file.to_str().unwrap()],
+        "long.toml: t_end",
+        "at most 3600 s",
+    );
+}
+
+/// Ctrl-C (SIGINT) in a long run: it ends within seconds, exit 1, saying where it
+/// stopped, and the trace file holds whole rows up to there.
+#[test]
+fn ctrl_c_ends_a_long_run_with_its_files_whole() {
+    let out = scratch("cli-limits", "partial.csv");
+    let _ = std::fs::remove_file(&out);
+    let mut cmd = host_sim();
+    cmd.args([
+        "run",
+        machine().to_str().unwrap(),
+        "--command",
+        "right",
+        "--t-end",
+        "3600",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+    .current_dir(root());
+    let started = Instant::now();
+    let child_cmd = std::sync::Arc::new(std::sync::Mutex::new(None::<u32>));
+    // Interrupt it once it has simulated a while: SIGINT through `kill`, as a
+    // terminal's Ctrl-C sends it.
+    let pid_slot = child_cmd.clone();
+    let interrupter = std::thread::spawn(move || loop {
+        std::thread::sleep(Duration::from_millis(100));
+        if let Some(pid) = *pid_slot.lock().unwrap() {
+            std::thread::sleep(Duration::from_millis(1500));
+            let ok = Command::new("kill")
+                .args(["-INT", &pid.to_string()])
+                .status()
+                .is_ok_and(|s| s.success());
+            assert!(ok, "kill -INT {pid}");
+            return;
+        }
+    });
+    let r = common::finish_within_with(cmd, LIMIT, |pid| {
+        *child_cmd.lock().unwrap() = Some(pid);
+    });
+    interrupter.join().unwrap();
+    assert_eq!(r.status, 1, "{}", r.stderr);
+    assert!(r.stderr.contains("interrupted at t = "), "{}", r.stderr);
+    assert!(
+        r.stdout.is_empty(),
+        "no summary of half a run: {}",
+        r.stdout
+    );
+    assert!(started.elapsed() < LIMIT);
+    let text = std::fs::read_to_string(&out).expect("the trace was written");
+    assert!(text.ends_with('\n'));
+    let mut lines = text.lines();
+    let columns = lines.next().unwrap().split(',').count();
+    let mut n = 0;
+    for line in lines {
+        assert_eq!(line.split(',').count(), columns, "a cut row: {line}");
+        n += 1;
+    }
+    assert!(n > 10, "{n} rows");
+}
