@@ -19,6 +19,7 @@ use shared::impact::{
     solve, solve_body, BodyContact, BodyImpact, ContactLaw, ImpactLaw, ImpactProblem,
     InteractionCase, PlanarBody, SlipState, Warnings,
 };
+use tests::rig::cross;
 
 use tests::Rng;
 
@@ -31,10 +32,6 @@ fn check(what: &str, got: f64, expected: f64, tol: f64, context: &dyn core::fmt:
         "{what}: got {got:.15e}, expected {expected:.15e}, |diff| {:.3e} > tol {tol:.3e}\n  case: {context:?}",
         (got - expected).abs()
     );
-}
-
-fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
 }
 
 fn contact(point: [f64; 2], normal: [f64; 2], restitution: f64, friction: f64) -> BodyContact<f64> {

@@ -14,21 +14,10 @@ use shared::impact::{
     PlanarBody, Warnings,
 };
 use shared::Real;
+use tests::rig::{cross, norm, sub};
 
 /// Relative tolerance of the f64 checks: the spec's f64 accuracy.
 const REL: f64 = 1e-9;
-
-fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
-}
-
-fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
-}
-
-fn norm(a: [f64; 2]) -> f64 {
-    a[0].hypot(a[1])
-}
 
 /// One contact of a generated case.
 #[derive(Clone, Copy, Debug)]
