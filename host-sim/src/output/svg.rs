@@ -2,6 +2,13 @@
 //! [`crate::tune::plot`]): the document's opening, text escaping and "nice" axis
 //! ticks.
 
+/// The common categorical palette (matplotlib's "tab10"), in its order: one colour
+/// per line in turn.
+pub const PALETTE: [&str; 10] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf",
+];
+
 /// Text with `&`, `<`, `>`, `"`, `'` escaped for XML.
 pub fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());

@@ -21,7 +21,7 @@
 use std::fmt::Write as _;
 
 use crate::machine::Machine;
-use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks};
+use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks, PALETTE};
 use crate::simulation::summary::{impact_times, phase_offset_deg};
 use crate::simulation::trace::{EventRow, TraceRow};
 
@@ -45,13 +45,12 @@ const GAP: f64 = 14.0;
 /// Bottom margin: time tick labels and the time axis label.
 const BOTTOM: f64 = 50.0;
 
-/// Colours (the common categorical palette): first line, second line, single
-/// line, phase, impacts.
-const BLUE: &str = "#1f77b4";
-const ORANGE: &str = "#ff7f0e";
-const GREEN: &str = "#2ca02c";
-const PURPLE: &str = "#9467bd";
-const RED: &str = "#d62728";
+/// Colours from the palette: first line, second line, single line, phase, impacts.
+const BLUE: &str = PALETTE[0];
+const ORANGE: &str = PALETTE[1];
+const GREEN: &str = PALETTE[2];
+const PURPLE: &str = PALETTE[4];
+const RED: &str = PALETTE[3];
 
 /// rad/s to rpm.
 const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * std::f64::consts::PI);

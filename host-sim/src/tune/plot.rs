@@ -12,7 +12,7 @@
 use std::fmt::Write as _;
 
 use super::best::{Best, Tuning};
-use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks};
+use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks, PALETTE};
 
 /// Figure width, px.
 const WIDTH: f64 = 960.0;
@@ -27,11 +27,8 @@ const TOP: f64 = 66.0;
 /// Bottom margin: offset tick labels and the axis label.
 const BOTTOM: f64 = 56.0;
 
-/// Line colours, one per speed, in turn (the common categorical palette).
-const COLORS: [&str; 10] = [
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-    "#bcbd22", "#17becf",
-];
+/// Line colours, one per speed, in turn.
+const COLORS: [&str; 10] = PALETTE;
 
 /// The value axis for the finite values: bounds on whole ticks, always
 /// including 0 (the sign of travel is the point), and the step.
