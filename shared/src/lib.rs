@@ -9,6 +9,8 @@
 //!   embedded-hal's PWM outputs: what a duty means, for the firmware and the plant;
 //! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
 //!   ramps, tuning table and latched faults, one `step(inputs, dt)` per tick in `f32`;
+//! - [`codec`]: the bytes under the protocol and the storage: CRC-16/CCITT-FALSE and
+//!   CRC-32/ISO-HDLC, little-endian fields read and written with bounds checks;
 //! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
 //!   decoder that never trusts a length, the messages and the answer to every frame;
 //! - [`storage`]: the tuning table and self-test results in two flash sectors used in
@@ -22,6 +24,7 @@
 // chains would hide the formulas they implement.
 #![allow(clippy::needless_range_loop)]
 
+pub mod codec;
 pub mod controller;
 pub mod drive;
 pub mod impact;

@@ -4,7 +4,7 @@
 //! cases, and the answer rule on a mock device.
 
 use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
-use shared::protocol::crc::{crc16_ccitt_false, crc32};
+use shared::codec::crc::{crc16_ccitt_false, crc32};
 use shared::protocol::{
     answer_error, answer_event, answer_request, encode, encode_frame, Decoder, Device, EncodeError,
     Frame, FrameError, Message, MessageId, NackReason, ParseError, Request, Response,

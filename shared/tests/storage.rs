@@ -6,7 +6,7 @@
 //! existed.
 
 use shared::controller::{State, TuningTable};
-use shared::protocol::crc::crc32;
+use shared::codec::crc::crc32;
 use shared::storage::record::{
     encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
 };

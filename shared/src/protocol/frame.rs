@@ -38,7 +38,7 @@
 //! still found. Each call returns at most one event; a byte can complete an error and,
 //! on the rescan, a frame, so callers loop until [`Decoder::decode`] returns `None`.
 
-use super::crc::{crc16_ccitt_false, Crc32};
+use crate::codec::crc::{crc16_ccitt_false, Crc32};
 use super::{MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION};
 
 /// The two bytes that open every frame.

@@ -8,7 +8,7 @@ use crate::controller::{
 use crate::storage::SelfTest;
 
 use super::frame::Frame;
-use super::wire::{Reader, Writer};
+use crate::codec::wire::{Reader, Writer};
 
 /// Message ids: requests (host to device) below `0x80`, responses (device to host)
 /// from `0x80`.

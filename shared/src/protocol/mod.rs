@@ -2,8 +2,8 @@
 //! length and two CRCs, a decoder that never trusts a length it has not checked, an
 //! answer to every frame, and a heartbeat. `docs/protocol.md` is the byte-by-byte
 //! reference; this crate is its implementation, used by the firmware and by host-sim.
+//! Its CRCs and little-endian fields are [`crate::codec`]'s.
 //!
-//! - [`crc`]: CRC-16/CCITT-FALSE (header) and CRC-32/ISO-HDLC (frame, flash record);
 //! - [`frame`]: the frame layout, [`encode_frame`], the streaming [`Decoder`];
 //! - [`message`]: message ids, [`Request`], [`Response`] and their payloads;
 //! - [`handler`]: the answer rule, on a [`Device`];
@@ -28,12 +28,10 @@
 //! the decoder's buffer never holds more than one frame. `tests/protocol_props.rs`
 //! feeds arbitrary bytes.
 
-pub mod crc;
 pub mod frame;
 pub mod handler;
 pub mod link;
 pub mod message;
-pub(crate) mod wire;
 
 pub use frame::{
     encode_frame, Decoder, DecoderStats, EncodeError, Frame, FrameError, CRC_LEN, HEADER_LEN, SYNC,

@@ -32,8 +32,8 @@
 //! `tests/storage.rs` checks both, for every length.
 
 use crate::controller::{TuningTable, MAX_TUNING_ROWS};
-use crate::protocol::crc::Crc32;
-use crate::protocol::wire::{Reader, Writer};
+use crate::codec::crc::Crc32;
+use crate::codec::wire::{Reader, Writer};
 use crate::protocol::TUNING_ROW_LEN;
 
 use super::self_test::SelfTest;

@@ -13,7 +13,7 @@
 //! not measurable (a motor swapped at its own terminals and a swapped encoder read
 //! as all good): the mechanical sense must be checked by eye during the test.
 
-use crate::protocol::wire::{Reader, Writer};
+use crate::codec::wire::{Reader, Writer};
 
 /// One rotor's self-test result.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

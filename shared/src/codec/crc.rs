@@ -11,7 +11,7 @@
 //! host script can check a frame or a flash record without this crate.
 //!
 //! - CRC-16/CCITT-FALSE guards the 8-byte frame header, so that a frame's length is
-//!   never used before it is known to be right (see [`super::frame`]).
+//!   never used before it is known to be right (see [`crate::protocol::frame`]).
 //! - CRC-32/ISO-HDLC guards whole frames and flash records. Its non-zero init and
 //!   xor-out make the CRC of a run of `0x00` bytes non-zero for every length but 0,
 //!   and the CRC of a run of `0xFF` bytes differ from `0xFFFFFFFF` for every length
