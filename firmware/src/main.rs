@@ -91,9 +91,10 @@ mod machine {
     include!(concat!(env!("OUT_DIR"), "/machine.rs"));
 }
 
-use shared::controller::{Command, Controller, Outputs, Params, ResetCause, TuningTable};
+use shared::controller::{
+    Command, Controller, Outputs, Params, ResetCause, SelfTestReport, TuningTable,
+};
 use shared::protocol::link::{use_stored, LinkState};
-use shared::protocol::SelfTestReport;
 use shared::storage::{self, Flash};
 
 /// The controller and the link's state at start: the compiled-in machine with the

@@ -7,13 +7,16 @@
 use std::collections::VecDeque;
 
 use proptest::prelude::*;
-use shared::controller::{Direction, Faults, Outputs, State, TuningTable};
+use shared::controller::{
+    Direction, Faults, Outputs, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State,
+    TuningTable,
+};
 use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{
-    encode, Decoder, Message, NackReason, Request, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+    encode, Decoder, Message, NackReason, Request, Response, StatusReport, FRAME_GAP_TIMEOUT_MS,
+    MAX_FRAME,
 };
-use shared::storage::{self, RotorSelfTest, SelfTest, SimFlash};
+use shared::storage::{self, SimFlash};
 
 /// A link with its state and flash, as the firmware holds them.
 struct Device {

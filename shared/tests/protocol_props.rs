@@ -5,12 +5,14 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{Direction, Faults, State, Telemetry, TuningTable};
+use shared::controller::{
+    Direction, Faults, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State, Telemetry,
+    TuningTable,
+};
 use shared::protocol::{
     encode, encode_frame, Decoder, Frame, FrameError, Message, NackReason, Request, Response,
-    SelfTestReport, SelfTestStatus, StatusReport, MAX_FRAME, MAX_PAYLOAD,
+    StatusReport, MAX_FRAME, MAX_PAYLOAD,
 };
-use shared::storage::{RotorSelfTest, SelfTest};
 
 /// An event with the frame copied out.
 type Event = Result<(u8, u16, Vec<u8>), FrameError>;

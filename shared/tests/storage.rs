@@ -5,15 +5,15 @@
 //! one once the store has completed), never garbage, never nothing when a record
 //! existed.
 
-use shared::controller::{State, TuningTable};
 use shared::codec::crc::crc32;
+use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
 use shared::storage::record::{
     encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
 };
 use shared::storage::sim::SIM_SECTOR_BYTES;
 use shared::storage::{
-    is_newer, load, may_write, store, Flash, Record, RotorSelfTest, SelfTest, SimError, SimFlash,
-    StoreError, Stored, MAGIC, PARAM_SECTORS,
+    is_newer, load, store, Flash, Record, SimError, SimFlash, StoreError, Stored, MAGIC,
+    PARAM_SECTORS,
 };
 
 fn record(k: u32) -> Record {
@@ -326,16 +326,5 @@ fn a_cut_during_the_commit_word_never_validates_the_new_record() {
             &encode_record(&record(6), old.sequence + 1)[4..]
         );
         assert_eq!(load(&flash), Some(old.clone()));
-    }
-}
-
-#[test]
-fn writes_only_with_the_driver_off_and_the_rotors_at_rest() {
-    assert!(may_write(State::Idle, [0.0, 0.0]));
-    assert!(may_write(State::Fault, [-10.0, 10.0]));
-    assert!(!may_write(State::Idle, [10.5, 0.0]));
-    assert!(!may_write(State::Idle, [0.0, f32::NAN]));
-    for state in [State::Starting, State::Running, State::Stopping] {
-        assert!(!may_write(state, [0.0, 0.0]));
     }
 }

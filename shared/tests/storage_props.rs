@@ -5,10 +5,10 @@
 
 use proptest::prelude::*;
 
-use shared::controller::TuningTable;
+use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
 use shared::storage::record::RECORD_LEN;
 use shared::storage::sim::SIM_SECTOR_BYTES;
-use shared::storage::{load, store, Record, RotorSelfTest, SelfTest, SimFlash};
+use shared::storage::{load, store, Record, SimFlash};
 
 fn record() -> impl Strategy<Value = Record> {
     (

@@ -12,11 +12,14 @@
 //! [`LinkState::self_test_requested`].
 
 use super::{
-    answer_event, encode, Decoder, Device, NackReason, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+    answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
+    FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use crate::controller::{Command, Controller, Outputs, Params, Telemetry, TuningTable};
-use crate::storage::{self, Flash, Record, SelfTest, Stored};
+use crate::controller::{
+    may_write_table, Command, Controller, Outputs, Params, SelfTest, SelfTestReport,
+    SelfTestStatus, Telemetry, TuningTable,
+};
+use crate::storage::{self, Flash, Record, Stored};
 
 /// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
 /// pass, so the caller gets to sleep and to check its clock.
@@ -286,7 +289,7 @@ impl<L: StateLock, F: Flash + ?Sized> Device for Session<'_, L, F> {
             if state.self_test_requested {
                 return Err(NackReason::Busy);
             }
-            if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
+            if !may_write_table(state.status.state, state.status.telemetry.speed_rpm) {
                 return Err(NackReason::NotStopped);
             }
             state.storing = true;
@@ -415,7 +418,7 @@ impl Link {
         // written outside it.
         let record = state.lock(|s| {
             let due = s.self_test_unsaved
-                && storage::may_write(s.status.state, s.status.telemetry.speed_rpm);
+                && may_write_table(s.status.state, s.status.telemetry.speed_rpm);
             s.storing |= due;
             due.then(|| s.record(&s.tuning))
         });

@@ -38,8 +38,8 @@ pub use frame::{
 };
 pub use handler::{answer_error, answer_event, answer_request, is_answer, Device};
 pub use message::{
-    Message, MessageId, NackReason, ParseError, Request, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, MIN_TELEMETRY_PERIOD_MS, TUNING_ROW_LEN,
+    Message, MessageId, NackReason, ParseError, Request, Response, StatusReport,
+    MIN_TELEMETRY_PERIOD_MS,
 };
 
 /// Protocol version, byte 2 of every frame: 2 since the status report grew to 68

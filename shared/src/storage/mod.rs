@@ -6,7 +6,6 @@
 //!   with the STM32F4's rules;
 //! - [`record`]: the record layout (magic, version, length, sequence, payload,
 //!   CRC-32) and its checks;
-//! - [`self_test`]: the self-test results stored with the table;
 //! - [`sim`]: [`SimFlash`], a simulated flash that can lose power at any byte.
 //!
 //! # Two sectors in turn
@@ -42,19 +41,15 @@
 //! Erasing a 128 KiB sector takes about 1 s (2 s at most, STM32F405 datasheet,
 //! `t_ERASE128KB` at 32-bit parallelism), and while the flash is busy the CPU stalls
 //! on every fetch from flash: the control loop does not run. So the firmware writes
-//! only when [`may_write`] says the driver is off and the rotors at rest, it feeds
-//! or times its watchdog to outlast the erase, and it restarts its control tick
-//! timing afterwards.
+//! only when [`crate::controller::may_write_table`] says the driver is off and the
+//! rotors at rest, it feeds or times its watchdog to outlast the erase, and it
+//! restarts its control tick timing afterwards.
 
 pub mod record;
-pub mod self_test;
 pub mod sim;
 
 pub use record::{encode_record, parse_record, Record, MAGIC, RECORD_LEN};
-pub use self_test::{RotorSelfTest, SelfTest};
 pub use sim::{SimError, SimFlash};
-
-use crate::controller::State;
 
 /// A flash sector.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,22 +123,6 @@ pub enum StoreError<E> {
     Verify,
 }
 
-/// Highest rotor speed, rpm, at which [`may_write`] allows a flash write: a rotor
-/// at rest rocks by a few rpm; at 10 rpm it turns a third of a turn during a 2 s
-/// erase, and the controller sees that as one jump when its loop resumes.
-pub const WRITE_MAX_SPEED_RPM: f32 = 10.0;
-
-/// Whether the firmware may write the flash now: the driver is off (state idle or
-/// fault) and both rotors are at rest (`|speed| <= WRITE_MAX_SPEED_RPM`, NaN is
-/// not). A write stalls the CPU for the whole erase (see the module documentation).
-pub fn may_write(state: State, speed_rpm: [f32; 2]) -> bool {
-    let off = matches!(state, State::Idle | State::Fault);
-    let at_rest = speed_rpm
-        .iter()
-        .all(|s| libm::fabsf(*s) <= WRITE_MAX_SPEED_RPM);
-    off && at_rest
-}
-
 /// Whether sequence number `a` is newer than `b`, modulo `2^32` (serial number
 /// arithmetic: the two records differ by one).
 pub fn is_newer(a: u32, b: u32) -> bool {
@@ -178,7 +157,8 @@ pub fn load<F: Flash + ?Sized>(flash: &F) -> Option<Stored> {
 
 /// Write `record` as the newest, in the sector that does not hold the newest valid
 /// record (see the module documentation for the steps and the power-cut argument).
-/// Returns where it went and its sequence number. Call only when [`may_write`].
+/// Returns where it went and its sequence number. Call only when
+/// [`crate::controller::may_write_table`].
 pub fn store<F: Flash + ?Sized>(
     flash: &mut F,
     record: &Record,
