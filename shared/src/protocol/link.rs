@@ -19,7 +19,8 @@ use crate::controller::{
     may_write_table, Command, Controller, Outputs, Params, SelfTest, SelfTestReport,
     SelfTestStatus, Telemetry, TuningTable,
 };
-use crate::storage::{self, Flash, Record, Stored};
+use crate::storage::{self, Record, Stored};
+use embedded_storage::nor_flash::NorFlash;
 
 /// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
 /// pass, so the caller gets to sleep and to check its clock.
@@ -238,19 +239,19 @@ impl<L: StateLock + ?Sized> StateLock for &mut L {
 /// for each access and never across a flash operation, and the flash. (The
 /// handler asks the device through `&self` for what it only reads; the lock needs
 /// `&mut`, hence the cell, borrowed for one access at a time.)
-struct Session<'a, L: StateLock, F: Flash + ?Sized> {
+struct Session<'a, L: StateLock, F: NorFlash> {
     state: core::cell::RefCell<&'a mut L>,
     flash: &'a mut F,
 }
 
-impl<L: StateLock, F: Flash + ?Sized> Session<'_, L, F> {
+impl<L: StateLock, F: NorFlash> Session<'_, L, F> {
     /// Run `f` on the state under the lock.
     fn locked<R>(&self, f: impl FnOnce(&mut LinkState) -> R) -> R {
         self.state.borrow_mut().lock(f)
     }
 }
 
-impl<L: StateLock, F: Flash + ?Sized> Device for Session<'_, L, F> {
+impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
     fn status(&self) -> StatusReport {
         self.locked(|s| s.status)
     }
@@ -365,7 +366,7 @@ impl Link {
     /// 5. send telemetry when due.
     ///
     /// Returns whether a byte came (the caller sleeps otherwise).
-    pub fn poll<F: Flash + ?Sized>(
+    pub fn poll<F: NorFlash>(
         &mut self,
         mut rx: impl FnMut() -> Option<u8>,
         now_ms: u32,
