@@ -19,6 +19,10 @@ use shared::storage::{
     MAX_UNIT,
 };
 
+mod support;
+
+use support::power_cut::STORE_WORK;
+
 fn record(k: u32) -> Record {
     let rows: Vec<(f32, f32, f32)> = (0..=(k % 32))
         .map(|i| {
@@ -51,9 +55,6 @@ fn record(k: u32) -> Record {
         }),
     }
 }
-
-/// Units of work (bytes erased or programmed) of one store on `SimFlash`.
-const STORE_WORK: usize = SIM_SECTOR_BYTES + RECORD_LEN;
 
 #[test]
 fn the_layout_is_as_documented() {
