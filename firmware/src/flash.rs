@@ -1,6 +1,14 @@
-//! The STM32F405's flash controller as a [`shared::storage::Flash`]: erase a
-//! parameter sector, program 32-bit words, read (RM0090 section 3.6, "Flash
-//! program/erase operations").
+//! The STM32F405's parameter sectors as an `embedded-storage` NOR flash
+//! ([`NorFlash`], what `shared::storage` writes its records through): erase whole
+//! sectors, program 32-bit words, read (RM0090 section 3.6, "Flash program/erase
+//! operations").
+//!
+//! The flash this driver shows is sectors 10 and 11 only ([`PARAM_BASE`], 128 KiB
+//! each, kept out of the program by `memory.x`): offset 0 is `0x080C0000` (sector
+//! 10), offset 128 Ki `0x080E0000` (sector 11), and the capacity is 256 KiB. An offset
+//! beyond them is out of bounds, so no offset can reach the program. Erase ranges are
+//! whole sectors (`ERASE_SIZE` 128 KiB); programs are whole aligned words
+//! (`WRITE_SIZE` 4).
 //!
 //! Register level, not the HAL's `UnlockedFlash`: that one erases and programs
 //! with 8-bit parallelism, which makes a 128 KiB sector erase take up to 4 s
@@ -9,17 +17,17 @@
 //!
 //! While a sector is erased, every read of the flash stalls, instruction fetches
 //! included (RM0090 3.5.4; the F405 has one bank): no task runs, the control
-//! task neither, so nothing feeds the 50 ms watchdog. [`ParamFlash::erase`]
-//! lengthens it to [`watchdog::Timeout::ERASE`] for the erase and restores
+//! task neither, so nothing feeds the 50 ms watchdog. Each sector's erase
+//! lengthens it to [`watchdog::Timeout::ERASE`] and restores
 //! [`watchdog::Timeout::RUN`] after. The link stores only with the motors
 //! stopped, and holds motion commands back until the store ends; the outputs
 //! stay cut (MOE = 0) and the hardware break still acts. A word program stalls
 //! reads for about 16 us, which the control loop rides through.
-//!
-//! Only the sectors of [`PARAM_SECTORS`] may be erased or programmed: any other
-//! address is refused, so a bad record address can never touch the program.
 
-use shared::storage::{Flash, Sector, PARAM_SECTORS};
+use embedded_storage::nor_flash::{
+    check_erase, check_read, check_write, ErrorType, NorFlash, NorFlashError, NorFlashErrorKind,
+    ReadNorFlash,
+};
 use stm32f4xx_hal::pac::FLASH;
 
 use crate::watchdog::{self, Timeout};
@@ -30,11 +38,24 @@ const KEY2: u32 = 0xCDEF_89AB;
 /// `FLASH_CR.PSIZE` for 32-bit parallelism.
 const PSIZE_X32: u8 = 0b10;
 
+/// Address of offset 0: sector 10 (RM0090, table 5 "Flash module organization").
+const PARAM_BASE: u32 = 0x080C_0000;
+/// Sector number of offset 0, as `FLASH_CR.SNB` takes it.
+const FIRST_SECTOR: u8 = 10;
+/// Bytes of each parameter sector.
+const SECTOR_SIZE: u32 = 128 * 1024;
+/// Parameter sectors: 10 and 11, the last two of the 1 MiB flash.
+const SECTORS: u32 = 2;
+// They end where the flash ends (1 MiB at 0x08000000).
+const _: () = assert!(PARAM_BASE + SECTORS * SECTOR_SIZE == 0x0810_0000);
+
 /// Why a flash operation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
-    /// The address or sector is not one of the parameter sectors, or not aligned.
+    /// The range is outside the parameter sectors.
     OutOfRange,
+    /// An offset or a length is not whole words (program) or whole sectors (erase).
+    NotAligned,
     /// The controller stayed locked after the key sequence.
     Locked,
     /// `FLASH_SR` error bits after the operation (PGSERR, PGPERR, PGAERR, WRPERR,
@@ -61,16 +82,6 @@ impl ParamFlash {
     pub fn new(flash: FLASH) -> Self {
         flash.cr().modify(|_, w| w.lock().set_bit());
         ParamFlash { flash }
-    }
-
-    /// Whether `[address, address + len)` lies inside one parameter sector.
-    fn in_params(address: u32, len: u32) -> bool {
-        PARAM_SECTORS.iter().any(|s| {
-            address >= s.address
-                && address
-                    .checked_add(len)
-                    .is_some_and(|end| end <= s.address + s.size)
-        })
     }
 
     /// Unlock, run `op`, wait until not busy, check the error bits, lock again.
@@ -112,15 +123,10 @@ fn flush_data_cache(f: &FLASH) {
     }
 }
 
-impl Flash for ParamFlash {
-    type Error = FlashError;
-
-    /// Sector erase (RM0090 3.6.3): SER, SNB, PSIZE x32, then STRT.
-    fn erase(&mut self, sector: &Sector) -> Result<(), FlashError> {
-        if !PARAM_SECTORS.contains(sector) {
-            return Err(FlashError::OutOfRange);
-        }
-        let snb = sector.number;
+impl ParamFlash {
+    /// Sector erase (RM0090 3.6.3): SER, SNB, PSIZE x32, then STRT; the watchdog
+    /// lengthened around it, and never with the bridges' outputs on.
+    fn erase_sector(&mut self, snb: u8) -> Result<(), FlashError> {
         // The watchdog outlasts the stall (module documentation), or no erase.
         watchdog::set(Timeout::ERASE).map_err(|_| FlashError::Watchdog)?;
         let mut started = false;
@@ -153,11 +159,9 @@ impl Flash for ParamFlash {
         restored.map_err(|_| FlashError::Watchdog)
     }
 
-    /// Word program (RM0090 3.6.4): PG with PSIZE x32, then one aligned word write.
+    /// Word program (RM0090 3.6.4): PG with PSIZE x32, then one aligned word write
+    /// at `address` (checked by the caller: an aligned word of a parameter sector).
     fn program_word(&mut self, address: u32, word: u32) -> Result<(), FlashError> {
-        if address & 3 != 0 || !Self::in_params(address, 4) {
-            return Err(FlashError::OutOfRange);
-        }
         self.with_unlocked(|f| {
             f.cr().modify(|_, w| unsafe {
                 w.ser().clear_bit();
@@ -169,17 +173,73 @@ impl Flash for ParamFlash {
             unsafe { core::ptr::write_volatile(address as *mut u32, word) };
         })
     }
+}
 
-    fn read(&self, address: u32, out: &mut [u8]) -> Result<(), FlashError> {
-        let Ok(len) = u32::try_from(out.len()) else {
-            return Err(FlashError::OutOfRange);
-        };
-        if !Self::in_params(address, len) {
-            return Err(FlashError::OutOfRange);
+impl NorFlashError for FlashError {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            FlashError::OutOfRange => NorFlashErrorKind::OutOfBounds,
+            FlashError::NotAligned => NorFlashErrorKind::NotAligned,
+            _ => NorFlashErrorKind::Other,
         }
-        for (i, byte) in out.iter_mut().enumerate() {
-            // SAFETY: inside a parameter sector (checked above), always readable.
-            *byte = unsafe { core::ptr::read_volatile((address as usize + i) as *const u8) };
+    }
+}
+
+impl From<NorFlashErrorKind> for FlashError {
+    /// The error of a failed `embedded-storage` range check.
+    fn from(kind: NorFlashErrorKind) -> Self {
+        match kind {
+            NorFlashErrorKind::NotAligned => FlashError::NotAligned,
+            _ => FlashError::OutOfRange,
+        }
+    }
+}
+
+impl ErrorType for ParamFlash {
+    type Error = FlashError;
+}
+
+impl ReadNorFlash for ParamFlash {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
+        check_read(self, offset, bytes.len())?;
+        let start = PARAM_BASE + offset;
+        for (i, byte) in bytes.iter_mut().enumerate() {
+            // SAFETY: inside the parameter sectors (checked above), always readable.
+            *byte = unsafe { core::ptr::read_volatile((start as usize + i) as *const u8) };
+        }
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        (SECTORS * SECTOR_SIZE) as usize
+    }
+}
+
+impl NorFlash for ParamFlash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SECTOR_SIZE as usize;
+
+    /// Erase the sectors of `[from, to)` (whole sectors), one after the other.
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
+        check_erase(self, from, to)?;
+        for index in from / SECTOR_SIZE..to / SECTOR_SIZE {
+            let snb = FIRST_SECTOR + u8::try_from(index).map_err(|_| FlashError::OutOfRange)?;
+            self.erase_sector(snb)?;
+        }
+        Ok(())
+    }
+
+    /// Program `bytes` (whole aligned words) at `offset`, word by word in address
+    /// order, each word little-endian as the core stores it.
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
+        check_write(self, offset, bytes.len())?;
+        let mut address = PARAM_BASE + offset;
+        for word in bytes.chunks_exact(4) {
+            let word = <[u8; 4]>::try_from(word).map_err(|_| FlashError::NotAligned)?;
+            self.program_word(address, u32::from_le_bytes(word))?;
+            address += 4;
         }
         Ok(())
     }

@@ -91,15 +91,18 @@ mod machine {
     include!(concat!(env!("OUT_DIR"), "/machine.rs"));
 }
 
-use shared::controller::{Command, Controller, Outputs, Params, ResetCause, TuningTable};
+use embedded_storage::nor_flash::ReadNorFlash;
+use shared::controller::{
+    Command, Controller, Outputs, Params, ResetCause, SelfTestReport, TuningTable,
+};
 use shared::protocol::link::{use_stored, LinkState};
-use shared::protocol::SelfTestReport;
-use shared::storage::{self, Flash};
+use shared::storage;
 
 /// The controller and the link's state at start: the compiled-in machine with the
-/// tuning table stored in `flash`, or the compiled-in one when none is stored
-/// (first start); the stored self-test result, if any.
-fn start<F: Flash>(flash: &F, reset_cause: ResetCause) -> (Controller, LinkState) {
+/// tuning table stored in `flash` (`&mut` the driver, or `&` a simulated flash), or
+/// the compiled-in one when none is stored (first start); the stored self-test
+/// result, if any.
+fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller, LinkState) {
     let mut params = Params::from_machine(&machine::MACHINE);
     let stored = storage::load(flash);
     match &stored {
@@ -291,11 +294,11 @@ mod app {
         cx.core.DCB.enable_trace();
         cx.core.DWT.enable_cycle_counter();
 
-        let b = board::setup(cx.device);
+        let mut b = board::setup(cx.device);
 
         // Parameters: the reference machine with the table stored in flash, or
         // the compiled-in one when none is stored (first start).
-        let (controller, link) = crate::start(&b.flash, b.reset_cause);
+        let (controller, link) = crate::start(&mut b.flash, b.reset_cause);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
 
         (

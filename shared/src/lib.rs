@@ -8,20 +8,29 @@
 //! - [`drive`]: the H-bridge as wired (decay mode, PWM period) and its driver over
 //!   embedded-hal's PWM outputs: what a duty means, for the firmware and the plant;
 //! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
-//!   ramps, tuning table and latched faults, one `step(inputs, dt)` per tick in `f32`;
+//!   ramps, tuning table, latched faults and the self-test, one `step(inputs, dt)`
+//!   per tick in `f32`; it knows nothing of bytes, flash or frames;
+//! - [`codec`]: the bytes under the protocol and the storage: CRC-16/CCITT-FALSE and
+//!   CRC-32/ISO-HDLC, little-endian fields read and written with bounds checks, the
+//!   layouts of the controller's values (self-test result, tuning row);
+//! - [`storage`]: the tuning table and self-test results in two flash slots used in
+//!   turn over any NOR flash (`embedded-storage`), each record with a magic word, a
+//!   version, a sequence number and a CRC-32;
 //! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
 //!   decoder that never trusts a length, the messages and the answer to every frame;
-//! - [`storage`]: the tuning table and self-test results in two flash sectors used in
-//!   turn, each record with a magic word, a version, a sequence number and a CRC-32;
 //! - [`timing`]: the control tick's lateness and duration from a cycle counter, for
 //!   the controller's deadline check;
 //! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
+//!
+//! The controller is the bottom layer; `codec` uses it, `storage` uses both, and
+//! `protocol` uses all three.
 #![no_std]
 #![warn(missing_docs)]
 // Numeric kernels index several parallel arrays with one loop variable; iterator
 // chains would hide the formulas they implement.
 #![allow(clippy::needless_range_loop)]
 
+pub mod codec;
 pub mod controller;
 pub mod drive;
 pub mod impact;

@@ -15,8 +15,8 @@
 
 use shared::controller::angle::{wrap_deg, wrap_deg_signed};
 use shared::controller::{
-    Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, SpeedEstimator,
-    State, TableError, TickTiming, TuningTable,
+    may_write_table, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
+    SpeedEstimator, State, TableError, TickTiming, TuningTable,
 };
 
 use std::f64::consts::TAU;
@@ -889,5 +889,16 @@ fn out_of_range_commands_are_refused() {
         assert!(out.telemetry.command_rejected, "{c:?}");
         assert_eq!(out.state, State::Idle);
         assert!(safe(&out));
+    }
+}
+
+#[test]
+fn writes_only_with_the_driver_off_and_the_rotors_at_rest() {
+    assert!(may_write_table(State::Idle, [0.0, 0.0]));
+    assert!(may_write_table(State::Fault, [-10.0, 10.0]));
+    assert!(!may_write_table(State::Idle, [10.5, 0.0]));
+    assert!(!may_write_table(State::Idle, [0.0, f32::NAN]));
+    for state in [State::Starting, State::Running, State::Stopping] {
+        assert!(!may_write_table(state, [0.0, 0.0]));
     }
 }

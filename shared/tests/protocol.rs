@@ -3,15 +3,16 @@
 //! see `docs/protocol.md`), every message's round trip, the decoder's recovery
 //! cases, and the answer rule on a mock device.
 
-use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
-use shared::protocol::crc::{crc16_ccitt_false, crc32};
+use shared::codec::crc::{crc16_ccitt_false, crc32};
+use shared::controller::{
+    Command, Direction, Faults, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State,
+    Telemetry, TuningTable,
+};
 use shared::protocol::{
     answer_error, answer_event, answer_request, encode, encode_frame, Decoder, Device, EncodeError,
-    Frame, FrameError, Message, MessageId, NackReason, ParseError, Request, Response,
-    SelfTestReport, SelfTestStatus, StatusReport, HEADER_LEN, MAX_FRAME, MAX_PAYLOAD,
-    PROTOCOL_VERSION,
+    Frame, FrameError, Message, MessageId, NackReason, ParseError, Request, Response, StatusReport,
+    HEADER_LEN, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,
 };
-use shared::storage::{RotorSelfTest, SelfTest};
 
 /// A decoder event with the frame copied out as `(id, seq, payload)`.
 type Event = Result<(u8, u16, Vec<u8>), FrameError>;

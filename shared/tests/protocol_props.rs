@@ -5,66 +5,17 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{Direction, Faults, State, Telemetry, TuningTable};
-use shared::protocol::{
-    encode, encode_frame, Decoder, Frame, FrameError, Message, NackReason, Request, Response,
-    SelfTestReport, SelfTestStatus, StatusReport, MAX_FRAME, MAX_PAYLOAD,
+use shared::controller::{
+    Direction, Faults, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State, Telemetry,
+    TuningTable,
 };
-use shared::storage::{RotorSelfTest, SelfTest};
+use shared::protocol::{
+    Decoder, Frame, Message, NackReason, Request, Response, StatusReport, MAX_FRAME, MAX_PAYLOAD,
+};
 
-/// An event with the frame copied out.
-type Event = Result<(u8, u16, Vec<u8>), FrameError>;
+mod support;
 
-/// Feed `bytes` in chunks of the given sizes (cycled), collecting every event.
-fn feed(decoder: &mut Decoder, bytes: &[u8], chunks: &[usize]) -> Vec<Event> {
-    let mut out = Vec::new();
-    let mut rest = bytes;
-    let mut k = 0;
-    while !rest.is_empty() {
-        let n = chunks
-            .get(k % chunks.len().max(1))
-            .copied()
-            .unwrap_or(1)
-            .clamp(1, rest.len());
-        k += 1;
-        let (mut input, tail) = rest.split_at(n);
-        rest = tail;
-        while let Some(event) = decoder.decode(&mut input) {
-            out.push(event.map(|f| (f.id, f.seq, f.payload.to_vec())));
-        }
-        assert!(input.is_empty());
-    }
-    out
-}
-
-/// Abandon whatever is held (the line went quiet) until nothing is.
-fn finish(decoder: &mut Decoder) -> Vec<Event> {
-    let mut out = Vec::new();
-    for _ in 0..=MAX_FRAME {
-        if decoder.held() == 0 {
-            break;
-        }
-        decoder.abandon();
-        let mut input: &[u8] = &[];
-        while let Some(event) = decoder.decode(&mut input) {
-            out.push(event.map(|f| (f.id, f.seq, f.payload.to_vec())));
-        }
-    }
-    assert_eq!(decoder.held(), 0);
-    out
-}
-
-fn frame_bytes<M: Message>(msg: &M, seq: u16) -> Vec<u8> {
-    let mut buf = [0u8; MAX_FRAME];
-    let n = encode(msg, seq, &mut buf).unwrap();
-    buf[..n].to_vec()
-}
-
-fn raw_frame(id: u8, seq: u16, payload: &[u8]) -> Vec<u8> {
-    let mut buf = [0u8; MAX_FRAME];
-    let n = encode_frame(id, seq, payload, &mut buf).unwrap();
-    buf[..n].to_vec()
-}
+use support::frames::{feed, finish, frame_bytes, raw_frame};
 
 fn finite() -> impl Strategy<Value = f32> {
     -1.0e6f32..1.0e6

@@ -5,16 +5,23 @@
 //! one once the store has completed), never garbage, never nothing when a record
 //! existed.
 
-use shared::controller::{State, TuningTable};
-use shared::protocol::crc::crc32;
+use embedded_storage::nor_flash::{
+    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+use shared::codec::crc::crc32;
+use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
 use shared::storage::record::{
     encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
 };
-use shared::storage::sim::SIM_SECTOR_BYTES;
+use shared::storage::sim::{SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 use shared::storage::{
-    is_newer, load, may_write, store, Flash, Record, RotorSelfTest, SelfTest, SimError, SimFlash,
-    StoreError, Stored, MAGIC, PARAM_SECTORS,
+    is_newer, load, slot_offset, store, Record, SimError, SimFlash, StoreError, Stored, MAGIC,
+    MAX_UNIT,
 };
+
+mod support;
+
+use support::power_cut::STORE_WORK;
 
 fn record(k: u32) -> Record {
     let rows: Vec<(f32, f32, f32)> = (0..=(k % 32))
@@ -48,9 +55,6 @@ fn record(k: u32) -> Record {
         }),
     }
 }
-
-/// Units of work (bytes erased or programmed) of one store on `SimFlash`.
-const STORE_WORK: usize = SIM_SECTOR_BYTES + RECORD_LEN;
 
 #[test]
 fn the_layout_is_as_documented() {
@@ -178,7 +182,7 @@ fn a_corrupt_newest_record_falls_back_to_the_older() {
     // A bit flipped anywhere in the newest record: the older one is taken.
     for byte in (0..RECORD_LEN).step_by(7) {
         let mut f = flash.clone();
-        f.corrupt(PARAM_SECTORS[new.slot].address + byte as u32, 0x10)
+        f.corrupt(SIM_SECTOR_SIZE * new.slot as u32 + byte as u32, 0x10)
             .unwrap();
         assert_eq!(load(&f), Some(old.clone()), "byte {byte}");
         // The next store overwrites the corrupt sector, not the good one.
@@ -199,11 +203,7 @@ fn sequence_numbers_compare_across_the_wrap() {
     let a = encode_record(&record(1), u32::MAX);
     let b = encode_record(&record(2), 0);
     for (slot, bytes) in [(0, a), (1, b)] {
-        let base = PARAM_SECTORS[slot].address;
-        for (i, w) in bytes.chunks_exact(4).enumerate() {
-            let word = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
-            flash.program_word(base + 4 * i as u32, word).unwrap();
-        }
+        flash.write(SIM_SECTOR_SIZE * slot, &bytes).unwrap();
     }
     let loaded = load(&flash).unwrap();
     assert_eq!((loaded.slot, loaded.sequence), (1, 0));
@@ -213,30 +213,48 @@ fn sequence_numbers_compare_across_the_wrap() {
 #[test]
 fn the_sim_flash_follows_the_chip_rules() {
     let mut flash = SimFlash::new();
-    let base = PARAM_SECTORS[0].address;
-    assert_eq!(flash.program_word(base + 2, 0), Err(SimError::Unaligned));
-    assert_eq!(
-        flash.program_word(0x0800_0000, 0),
-        Err(SimError::OutOfRange)
-    );
-    flash.program_word(base, 0x1234_5678).unwrap();
-    assert_eq!(flash.program_word(base, 0), Err(SimError::NotErased));
+    // Two 128 KiB sectors, programmed in words, read in bytes.
+    assert_eq!(flash.capacity(), 2 * SIM_SECTOR_SIZE as usize);
+    assert_eq!(SimFlash::ERASE_SIZE, SIM_SECTOR_SIZE as usize);
+    assert_eq!((SimFlash::WRITE_SIZE, SimFlash::READ_SIZE), (4, 1));
+    let base = SIM_SECTOR_SIZE;
+    assert_eq!(flash.write(base + 2, &[0; 4]), Err(SimError::Unaligned));
+    assert_eq!(flash.write(base, &[0; 3]), Err(SimError::Unaligned));
+    assert_eq!(flash.write(2 * base, &[0; 4]), Err(SimError::OutOfRange));
+    // Programming outside the modelled bytes of a sector is refused.
+    let past = base + SIM_SECTOR_BYTES as u32;
+    assert_eq!(flash.write(past, &[0; 4]), Err(SimError::OutOfRange));
+    assert_eq!(flash.erase(1, base), Err(SimError::Unaligned));
+    assert_eq!(flash.erase(0, 3 * base), Err(SimError::OutOfRange));
+    flash.write(base, &0x1234_5678u32.to_le_bytes()).unwrap();
+    assert_eq!(flash.write(base, &[0; 4]), Err(SimError::NotErased));
     let mut out = [0u8; 6];
     flash.read(base, &mut out).unwrap();
     assert_eq!(out, [0x78, 0x56, 0x34, 0x12, 0xFF, 0xFF]);
-    flash.erase(&PARAM_SECTORS[0]).unwrap();
+    // Unmodelled bytes read erased.
+    let mut far = [0u8; 2];
+    flash.read(past, &mut far).unwrap();
+    assert_eq!(far, [0xFF; 2]);
+    assert_eq!(
+        flash.read(2 * base - 1, &mut far),
+        Err(SimError::OutOfRange)
+    );
+    flash.erase(base, 2 * base).unwrap();
     flash.read(base, &mut out).unwrap();
     assert_eq!(out, [0xFF; 6]);
     // A cut: the power stays off until power_on.
     flash.cut_after(2);
-    assert_eq!(flash.program_word(base, 0), Err(SimError::PowerCut));
+    assert_eq!(flash.write(base, &[0; 4]), Err(SimError::PowerCut));
     assert!(flash.is_off());
     flash.read(base, &mut out).unwrap();
     assert_eq!(out[..4], [0x00, 0x00, 0xF0, 0xFF]);
-    assert_eq!(flash.erase(&PARAM_SECTORS[1]), Err(SimError::PowerCut));
+    assert_eq!(flash.erase(0, base), Err(SimError::PowerCut));
     flash.power_on();
     assert!(!flash.is_off());
-    flash.erase(&PARAM_SECTORS[0]).unwrap();
+    flash.erase(base, 2 * base).unwrap();
+    // The errors' kinds, for generic callers.
+    assert_eq!(SimError::Unaligned.kind(), NorFlashErrorKind::NotAligned);
+    assert_eq!(SimError::OutOfRange.kind(), NorFlashErrorKind::OutOfBounds);
 }
 
 /// The flash states a store can start from, with the record `load` gives before it.
@@ -329,13 +347,121 @@ fn a_cut_during_the_commit_word_never_validates_the_new_record() {
     }
 }
 
-#[test]
-fn writes_only_with_the_driver_off_and_the_rotors_at_rest() {
-    assert!(may_write(State::Idle, [0.0, 0.0]));
-    assert!(may_write(State::Fault, [-10.0, 10.0]));
-    assert!(!may_write(State::Idle, [10.5, 0.0]));
-    assert!(!may_write(State::Idle, [0.0, f32::NAN]));
-    for state in [State::Starting, State::Running, State::Stopping] {
-        assert!(!may_write(state, [0.0, 0.0]));
+/// A NOR flash in RAM of any geometry: program units of `W` bytes, read units of
+/// `R` bytes, two erase units of `E` bytes. Programming only clears bits, as on the
+/// chips; every write is logged as `(offset, length)`.
+struct RamFlash<const W: usize, const R: usize, const E: usize> {
+    bytes: Vec<u8>,
+    writes: Vec<(u32, usize)>,
+}
+
+impl<const W: usize, const R: usize, const E: usize> RamFlash<W, R, E> {
+    fn new() -> Self {
+        RamFlash {
+            bytes: vec![0xFF; 2 * E],
+            writes: Vec::new(),
+        }
     }
+}
+
+#[derive(Debug)]
+struct RamError(NorFlashErrorKind);
+
+impl NorFlashError for RamError {
+    fn kind(&self) -> NorFlashErrorKind {
+        self.0
+    }
+}
+
+impl<const W: usize, const R: usize, const E: usize> ErrorType for RamFlash<W, R, E> {
+    type Error = RamError;
+}
+
+impl<const W: usize, const R: usize, const E: usize> ReadNorFlash for RamFlash<W, R, E> {
+    const READ_SIZE: usize = R;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), RamError> {
+        embedded_storage::nor_flash::check_read(self, offset, bytes.len()).map_err(RamError)?;
+        let at = offset as usize;
+        bytes.copy_from_slice(&self.bytes[at..at + bytes.len()]);
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        2 * E
+    }
+}
+
+impl<const W: usize, const R: usize, const E: usize> NorFlash for RamFlash<W, R, E> {
+    const WRITE_SIZE: usize = W;
+    const ERASE_SIZE: usize = E;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), RamError> {
+        embedded_storage::nor_flash::check_erase(self, from, to).map_err(RamError)?;
+        self.bytes[from as usize..to as usize].fill(0xFF);
+        Ok(())
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), RamError> {
+        embedded_storage::nor_flash::check_write(self, offset, bytes.len()).map_err(RamError)?;
+        let at = offset as usize;
+        for (dst, src) in self.bytes[at..at + bytes.len()].iter_mut().zip(bytes) {
+            *dst &= src;
+        }
+        self.writes.push((offset, bytes.len()));
+        Ok(())
+    }
+}
+
+/// Three stores and loads on a flash of the given geometry: the slots alternate,
+/// each record's bytes are exactly the board's (the same `encode_record`), the
+/// padding to whole program units is left erased, and the last write of each
+/// store is the commit unit at the slot's start.
+fn round_trip<const W: usize, const R: usize, const E: usize>() {
+    let mut flash = RamFlash::<W, R, E>::new();
+    for k in 0..3u32 {
+        let stored = store(&mut flash, &record(k)).unwrap();
+        assert_eq!((stored.slot, stored.sequence), ((k % 2) as usize, k + 1));
+        assert_eq!(
+            load(&mut flash),
+            Some(stored.clone()),
+            "W {W}, R {R}, E {E}"
+        );
+        let at = slot_offset(flash.capacity(), stored.slot).unwrap() as usize;
+        let bytes = &flash.bytes[at..at + RECORD_LEN];
+        assert_eq!(bytes, &encode_record(&record(k), stored.sequence)[..]);
+        let padded = RECORD_LEN.next_multiple_of(W.max(4));
+        assert!(flash.bytes[at + RECORD_LEN..at + padded]
+            .iter()
+            .all(|&b| b == 0xFF));
+        let &(commit_at, commit_len) = flash.writes.last().unwrap();
+        assert_eq!(commit_at as usize, at);
+        assert!(commit_len >= 4 && commit_len % W == 0 && commit_len <= MAX_UNIT);
+    }
+}
+
+#[test]
+fn any_nor_flash_geometry_keeps_the_record_format() {
+    // Byte, half-word, word, double-word and 256-bit program units; small and
+    // large erase units.
+    round_trip::<1, 1, 4096>();
+    round_trip::<2, 1, 4096>();
+    round_trip::<4, 4, 2048>();
+    round_trip::<8, 1, 8192>();
+    round_trip::<16, 16, 4096>();
+    round_trip::<32, 32, 131_072>();
+    // Program units above MAX_UNIT, or halves too small for a record: refused,
+    // nothing written.
+    let mut big = RamFlash::<64, 1, 4096>::new();
+    assert!(matches!(
+        store(&mut big, &record(1)),
+        Err(StoreError::Geometry)
+    ));
+    assert!(big.writes.is_empty());
+    let mut small = RamFlash::<4, 1, 256>::new();
+    assert!(matches!(
+        store(&mut small, &record(1)),
+        Err(StoreError::Geometry)
+    ));
+    assert_eq!(load(&mut small), None);
 }

@@ -5,10 +5,12 @@
 
 use proptest::prelude::*;
 
-use shared::controller::TuningTable;
-use shared::storage::record::RECORD_LEN;
-use shared::storage::sim::SIM_SECTOR_BYTES;
-use shared::storage::{load, store, Record, RotorSelfTest, SelfTest, SimFlash};
+use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
+use shared::storage::{Record, SimFlash};
+
+mod support;
+
+use support::power_cut::{store_and_check, STORE_WORK};
 
 fn record() -> impl Strategy<Value = Record> {
     (
@@ -46,7 +48,7 @@ proptest! {
     #[test]
     fn the_last_completed_store_is_what_loads(
         history in prop::collection::vec(
-            (record(), prop::option::of(0usize..SIM_SECTOR_BYTES + RECORD_LEN + 50)),
+            (record(), prop::option::of(0usize..STORE_WORK + 50)),
             1..12,
         ),
         zeroed in any::<bool>(),
@@ -54,21 +56,7 @@ proptest! {
         let mut flash = if zeroed { SimFlash::filled(0) } else { SimFlash::new() };
         let mut last: Option<(Record, u32)> = None;
         for (record, cut) in history {
-            if let Some(n) = cut {
-                flash.cut_after(n);
-            }
-            let result = store(&mut flash, &record);
-            flash.power_on();
-            match result {
-                Ok(stored) => {
-                    let expected_seq = last.as_ref().map_or(1, |(_, s)| s + 1);
-                    prop_assert_eq!(stored.sequence, expected_seq);
-                    last = Some((record, stored.sequence));
-                }
-                Err(_) => prop_assert!(cut.is_some()),
-            }
-            let loaded = load(&flash).map(|s| (s.record, s.sequence));
-            prop_assert_eq!(loaded, last.clone());
+            store_and_check(&mut flash, record, cut, &mut last);
         }
     }
 }

@@ -31,9 +31,9 @@ use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::trace::EventRow;
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use shared::controller::{
-    self_test, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, State,
+    self_test, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
+    SelfTestReport, SelfTestStatus, State,
 };
-use shared::protocol::{SelfTestReport, SelfTestStatus};
 
 /// When the tests start the self-test, s: the reference machine starts with both
 /// eccentrics horizontal; they swing down and come to rest well before.

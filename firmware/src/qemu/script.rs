@@ -45,11 +45,13 @@ use cortex_m::peripheral::NVIC;
 use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
-use shared::controller::{Direction, Faults, Params, State, TuningTable, CONTROL_RATE_HZ};
+use shared::controller::{
+    Direction, Faults, Params, SelfTestReport, SelfTestStatus, State, TuningTable, CONTROL_RATE_HZ,
+};
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
-    encode_frame, MessageId, NackReason, Request, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, HEARTBEAT_PERIOD_MS, MAX_FRAME,
+    encode_frame, MessageId, NackReason, Request, Response, StatusReport, HEARTBEAT_PERIOD_MS,
+    MAX_FRAME,
 };
 use shared::storage::{self, SimFlash};
 

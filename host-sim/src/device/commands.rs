@@ -9,10 +9,9 @@ use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::controller::{Direction, TuningTable};
+use shared::controller::{Direction, SelfTestReport, SelfTestStatus, TuningTable};
 use shared::protocol::{
-    Request, Response, SelfTestReport, SelfTestStatus, StatusReport, HEARTBEAT_PERIOD_MS,
-    MIN_TELEMETRY_PERIOD_MS,
+    Request, Response, StatusReport, HEARTBEAT_PERIOD_MS, MIN_TELEMETRY_PERIOD_MS,
 };
 
 use super::args::{

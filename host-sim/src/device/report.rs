@@ -1,9 +1,8 @@
 //! What `host-sim device` prints: a status report as aligned lines, a telemetry
 //! frame as one readable line or one CSV row, a self-test result per rotor.
 
-use shared::controller::Faults;
-use shared::protocol::{SelfTestReport, SelfTestStatus, StatusReport};
-use shared::storage::RotorSelfTest;
+use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus};
+use shared::protocol::StatusReport;
 
 /// The fault names, `none` when there is none.
 pub fn faults_text(faults: Faults) -> String {

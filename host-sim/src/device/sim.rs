@@ -226,8 +226,8 @@ impl SimDevice {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use shared::controller::SelfTestStatus;
     use shared::controller::{Command, Direction, State};
-    use shared::protocol::SelfTestStatus;
 
     fn run(dev: &mut SimDevice, ms: u32) {
         for _ in 0..ms / dev.tick_ms() {

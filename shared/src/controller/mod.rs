@@ -21,7 +21,9 @@
 //! - [`phase_loop`]: PI on the phase error, giving the rotors a speed difference;
 //! - [`faults`]: the fault flags and their checks;
 //! - [`tuning`]: the offset table, interpolated circularly;
-//! - [`self_test`]: the first-run self-test (polarities, index, counts per turn);
+//! - [`self_test`]: the first-run self-test (polarities, index, counts per turn) and
+//!   its result;
+//! - [`stopped`]: whether the motors are stopped for a flash write;
 //! - [`angle`]: wrapping and units.
 //!
 //! # States
@@ -105,6 +107,7 @@ pub mod phase_loop;
 pub mod ramp;
 pub mod self_test;
 pub mod speed_loop;
+pub mod stopped;
 pub mod tuning;
 
 pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
@@ -113,10 +116,10 @@ pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, 
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
 };
+pub use self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
+pub use stopped::{may_write_table, WRITE_MAX_SPEED_RPM};
 pub use tuning::{TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
 
-use crate::protocol::{SelfTestReport, SelfTestStatus};
-use crate::storage::SelfTest;
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
 use phase_loop::PhaseLoop;
 use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};

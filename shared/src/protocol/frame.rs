@@ -38,8 +38,8 @@
 //! still found. Each call returns at most one event; a byte can complete an error and,
 //! on the rescan, a frame, so callers loop until [`Decoder::decode`] returns `None`.
 
-use super::crc::{crc16_ccitt_false, Crc32};
 use super::{MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION};
+use crate::codec::crc::{crc16_ccitt_false, Crc32};
 
 /// The two bytes that open every frame.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];

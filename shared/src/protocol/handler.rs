@@ -16,18 +16,17 @@
 //! | `GetStatus` | `Status` |
 //! | `Stop`, `Travel`, `HoldOffset`, `ResetFaults` | `Ack`, or `Nack` with the device's reason |
 //! | `ReadTuningTable` | `TuningTable` |
-//! | `WriteTuningTable` | `Ack` once stored; `Nack(Busy)` while a self-test runs; `Nack(NotStopped)` unless [`may_write`]; `Nack(StorageFailed)` |
+//! | `WriteTuningTable` | `Ack` once stored; `Nack(Busy)` while a self-test runs; `Nack(NotStopped)` unless [`may_write_table`]; `Nack(StorageFailed)` |
 //! | `RunSelfTest` | `Ack` once started; `Nack(Busy)` while one runs; `Nack(Faulted)` in fault; `Nack(NotStopped)` unless idle and at rest |
 //! | `ReadSelfTest` | `SelfTest` |
 //! | `StreamTelemetry` | `Ack` |
 
-use crate::controller::{Command, State, TuningTable};
-use crate::storage::may_write;
+use crate::controller::{
+    may_write_table, Command, SelfTestReport, SelfTestStatus, State, TuningTable,
+};
 
 use super::frame::{Frame, FrameError};
-use super::message::{
-    Message, MessageId, NackReason, Request, Response, SelfTestReport, SelfTestStatus, StatusReport,
-};
+use super::message::{Message, MessageId, NackReason, Request, Response, StatusReport};
 
 /// What the protocol needs from the device (the firmware, or host-sim's simulated
 /// device). Every method returns at once except
@@ -47,7 +46,7 @@ pub trait Device {
     fn tuning_table(&self) -> TuningTable;
 
     /// Store `table` in flash ([`crate::storage::store`], motors stopped: the caller
-    /// checked [`may_write`]) and use it from now on; `Err` leaves the previous table
+    /// checked [`may_write_table`]) and use it from now on; `Err` leaves the previous table
     /// in use (and in flash).
     fn store_tuning_table(&mut self, table: &TuningTable) -> Result<(), NackReason>;
 
@@ -91,7 +90,7 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
             let status = device.status();
             if device.self_test().status == SelfTestStatus::Running {
                 verdict(id, Err(NackReason::Busy))
-            } else if may_write(status.state, status.telemetry.speed_rpm) {
+            } else if may_write_table(status.state, status.telemetry.speed_rpm) {
                 verdict(id, device.store_tuning_table(table))
             } else {
                 verdict(id, Err(NackReason::NotStopped))
@@ -104,7 +103,7 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
             } else if status.state == State::Fault {
                 Err(NackReason::Faulted)
             } else if status.state != State::Idle
-                || !may_write(status.state, status.telemetry.speed_rpm)
+                || !may_write_table(status.state, status.telemetry.speed_rpm)
             {
                 Err(NackReason::NotStopped)
             } else {

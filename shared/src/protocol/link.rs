@@ -12,11 +12,15 @@
 //! [`LinkState::self_test_requested`].
 
 use super::{
-    answer_event, encode, Decoder, Device, NackReason, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
+    answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
+    FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use crate::controller::{Command, Controller, Outputs, Params, Telemetry, TuningTable};
-use crate::storage::{self, Flash, Record, SelfTest, Stored};
+use crate::controller::{
+    may_write_table, Command, Controller, Outputs, Params, SelfTest, SelfTestReport,
+    SelfTestStatus, Telemetry, TuningTable,
+};
+use crate::storage::{self, Record, Stored};
+use embedded_storage::nor_flash::NorFlash;
 
 /// Bytes [`Link::poll`] takes from the receive side per call: bounded work per
 /// pass, so the caller gets to sleep and to check its clock.
@@ -235,19 +239,19 @@ impl<L: StateLock + ?Sized> StateLock for &mut L {
 /// for each access and never across a flash operation, and the flash. (The
 /// handler asks the device through `&self` for what it only reads; the lock needs
 /// `&mut`, hence the cell, borrowed for one access at a time.)
-struct Session<'a, L: StateLock, F: Flash + ?Sized> {
+struct Session<'a, L: StateLock, F: NorFlash> {
     state: core::cell::RefCell<&'a mut L>,
     flash: &'a mut F,
 }
 
-impl<L: StateLock, F: Flash + ?Sized> Session<'_, L, F> {
+impl<L: StateLock, F: NorFlash> Session<'_, L, F> {
     /// Run `f` on the state under the lock.
     fn locked<R>(&self, f: impl FnOnce(&mut LinkState) -> R) -> R {
         self.state.borrow_mut().lock(f)
     }
 }
 
-impl<L: StateLock, F: Flash + ?Sized> Device for Session<'_, L, F> {
+impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
     fn status(&self) -> StatusReport {
         self.locked(|s| s.status)
     }
@@ -286,7 +290,7 @@ impl<L: StateLock, F: Flash + ?Sized> Device for Session<'_, L, F> {
             if state.self_test_requested {
                 return Err(NackReason::Busy);
             }
-            if !storage::may_write(state.status.state, state.status.telemetry.speed_rpm) {
+            if !may_write_table(state.status.state, state.status.telemetry.speed_rpm) {
                 return Err(NackReason::NotStopped);
             }
             state.storing = true;
@@ -362,7 +366,7 @@ impl Link {
     /// 5. send telemetry when due.
     ///
     /// Returns whether a byte came (the caller sleeps otherwise).
-    pub fn poll<F: Flash + ?Sized>(
+    pub fn poll<F: NorFlash>(
         &mut self,
         mut rx: impl FnMut() -> Option<u8>,
         now_ms: u32,
@@ -415,7 +419,7 @@ impl Link {
         // written outside it.
         let record = state.lock(|s| {
             let due = s.self_test_unsaved
-                && storage::may_write(s.status.state, s.status.telemetry.speed_rpm);
+                && may_write_table(s.status.state, s.status.telemetry.speed_rpm);
             s.storing |= due;
             due.then(|| s.record(&s.tuning))
         });

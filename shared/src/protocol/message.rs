@@ -2,13 +2,14 @@
 //! sends, and their payload layouts (little-endian, fixed, no padding; `f32` is IEEE
 //! 754 binary32). Every layout is listed in `docs/protocol.md`.
 
+use crate::codec::wire::{flag_byte, Field, Reader, Writer};
+use crate::codec::{SELF_TEST_REPORT_LEN, TUNING_ROW_LEN};
 use crate::controller::{
-    Command, Direction, Faults, Outputs, State, Telemetry, TuningTable, MAX_TUNING_ROWS,
+    Command, Direction, Faults, Outputs, SelfTestReport, State, Telemetry, TuningRow, TuningTable,
+    MAX_TUNING_ROWS,
 };
-use crate::storage::SelfTest;
 
 use super::frame::Frame;
-use super::wire::{Reader, Writer};
 
 /// Message ids: requests (host to device) below `0x80`, responses (device to host)
 /// from `0x80`.
@@ -117,7 +118,8 @@ pub enum NackReason {
     /// the device's [`super::PROTOCOL_VERSION`].
     BadVersion = 6,
     /// Needs the motors stopped: state idle or fault and both rotors below
-    /// [`crate::storage::WRITE_MAX_SPEED_RPM`] ([`crate::storage::may_write`]).
+    /// [`crate::controller::WRITE_MAX_SPEED_RPM`]
+    /// ([`crate::controller::may_write_table`]).
     NotStopped = 7,
     /// A fault is latched: reset it first (for [`Request::RunSelfTest`]).
     Faulted = 8,
@@ -208,52 +210,6 @@ pub enum Request {
         /// Period, ms; 0 or at least [`MIN_TELEMETRY_PERIOD_MS`].
         period_ms: u16,
     },
-}
-
-/// Where a self-test stands ([`SelfTestReport::status`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u8)]
-pub enum SelfTestStatus {
-    /// None has run since the table was written, or ever: the result is all zero.
-    NotRun = 0,
-    /// One is running; the result is not final.
-    Running = 1,
-    /// The last one completed; the result is its measurements (whether they pass is
-    /// [`SelfTest::passed`]).
-    Done = 2,
-    /// The last one was stopped (a fault, the E-stop, a stop command); the result
-    /// is what it had measured.
-    Aborted = 3,
-}
-
-impl SelfTestStatus {
-    /// The status of code `b`, if there is one.
-    pub fn from_u8(b: u8) -> Option<SelfTestStatus> {
-        [
-            SelfTestStatus::NotRun,
-            SelfTestStatus::Running,
-            SelfTestStatus::Done,
-            SelfTestStatus::Aborted,
-        ]
-        .into_iter()
-        .find(|s| *s as u8 == b)
-    }
-}
-
-/// The self-test as the device reports it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SelfTestReport {
-    /// Where it stands.
-    pub status: SelfTestStatus,
-    /// Its measurements.
-    pub result: SelfTest,
-}
-
-impl SelfTestReport {
-    /// Payload bytes: status `u8`, 3 reserved zero bytes, [`SelfTest::LEN`] bytes.
-    pub const LEN: usize = 4 + SelfTest::LEN;
 }
 
 /// The controller's state, faults and telemetry at one tick, with the device's
@@ -372,17 +328,12 @@ const PHASE_LOOP_CLOSED: u8 = 1 << 1;
 /// See [`Telemetry::command_rejected`].
 const COMMAND_REJECTED: u8 = 1 << 2;
 
-/// Bytes of one tuning row: speed, right offset, left offset, `f32` each.
-pub const TUNING_ROW_LEN: usize = 12;
-
 /// Write a table: row count `u8`, then the rows.
 pub(crate) fn write_table(w: &mut Writer<'_>, table: &TuningTable) {
     let rows = table.rows();
     w.u8(rows.len().min(usize::from(u8::MAX)) as u8);
     for row in rows {
-        w.f32(row.speed_rpm);
-        w.f32(row.right_offset_deg);
-        w.f32(row.left_offset_deg);
+        row.write(w);
     }
 }
 
@@ -398,10 +349,8 @@ fn read_table(payload: &[u8]) -> Result<TuningTable, ParseError> {
     }
     let mut rows = [(0.0f32, 0.0f32, 0.0f32); MAX_TUNING_ROWS];
     for row in rows.iter_mut().take(count) {
-        let (Some(s), Some(a), Some(b)) = (r.f32(), r.f32(), r.f32()) else {
-            return Err(ParseError::BadLength);
-        };
-        *row = (s, a, b);
+        let r = TuningRow::read(&mut r).ok_or(ParseError::BadLength)?;
+        *row = (r.speed_rpm, r.right_offset_deg, r.left_offset_deg);
     }
     TuningTable::from_rows(rows.get(..count).unwrap_or(&[])).map_err(|_| ParseError::BadValue)
 }
@@ -409,16 +358,11 @@ fn read_table(payload: &[u8]) -> Result<TuningTable, ParseError> {
 /// Write a status report ([`StatusReport::LEN`] bytes).
 fn write_status(w: &mut Writer<'_>, s: &StatusReport) {
     let t = &s.telemetry;
-    let mut flags = 0;
-    if t.phase_valid {
-        flags |= PHASE_VALID;
-    }
-    if t.phase_loop_closed {
-        flags |= PHASE_LOOP_CLOSED;
-    }
-    if t.command_rejected {
-        flags |= COMMAND_REJECTED;
-    }
+    let flags = flag_byte(&[
+        (t.phase_valid, PHASE_VALID),
+        (t.phase_loop_closed, PHASE_LOOP_CLOSED),
+        (t.command_rejected, COMMAND_REJECTED),
+    ]);
     w.u32(s.uptime_ms);
     w.u8(state_code(s.state));
     w.u8(flags);
@@ -706,11 +650,7 @@ impl Message for Response {
             }
             Response::Status(s) | Response::Telemetry(s) => write_status(&mut w, s),
             Response::TuningTable(table) => write_table(&mut w, table),
-            Response::SelfTest(report) => {
-                w.u8(report.status as u8);
-                w.zeros(3);
-                report.result.write(&mut w);
-            }
+            Response::SelfTest(report) => report.write(&mut w),
         }
         w.finish()
     }
@@ -738,12 +678,9 @@ impl Message for Response {
             MessageId::Telemetry => read_status(p).map(Response::Telemetry),
             MessageId::TuningTable => read_table(p).map(Response::TuningTable),
             MessageId::SelfTestResult => {
-                let mut r = expect_len(p, SelfTestReport::LEN)?;
-                let status = r.u8().ok_or(ParseError::BadLength)?;
-                let status = SelfTestStatus::from_u8(status).ok_or(ParseError::BadValue)?;
-                r.zeros(3).ok_or(ParseError::BadValue)?;
-                let result = SelfTest::read(&mut r).ok_or(ParseError::BadValue)?;
-                Ok(Response::SelfTest(SelfTestReport { status, result }))
+                let mut r = expect_len(p, SELF_TEST_REPORT_LEN)?;
+                let report = SelfTestReport::read(&mut r).ok_or(ParseError::BadValue)?;
+                Ok(Response::SelfTest(report))
             }
             // Requests were filtered out above.
             MessageId::Heartbeat

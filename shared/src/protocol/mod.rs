@@ -2,8 +2,8 @@
 //! length and two CRCs, a decoder that never trusts a length it has not checked, an
 //! answer to every frame, and a heartbeat. `docs/protocol.md` is the byte-by-byte
 //! reference; this crate is its implementation, used by the firmware and by host-sim.
+//! Its CRCs and little-endian fields are [`crate::codec`]'s.
 //!
-//! - [`crc`]: CRC-16/CCITT-FALSE (header) and CRC-32/ISO-HDLC (frame, flash record);
 //! - [`frame`]: the frame layout, [`encode_frame`], the streaming [`Decoder`];
 //! - [`message`]: message ids, [`Request`], [`Response`] and their payloads;
 //! - [`handler`]: the answer rule, on a [`Device`];
@@ -28,20 +28,18 @@
 //! the decoder's buffer never holds more than one frame. `tests/protocol_props.rs`
 //! feeds arbitrary bytes.
 
-pub mod crc;
 pub mod frame;
 pub mod handler;
 pub mod link;
 pub mod message;
-pub(crate) mod wire;
 
 pub use frame::{
     encode_frame, Decoder, DecoderStats, EncodeError, Frame, FrameError, CRC_LEN, HEADER_LEN, SYNC,
 };
 pub use handler::{answer_error, answer_event, answer_request, is_answer, Device};
 pub use message::{
-    Message, MessageId, NackReason, ParseError, Request, Response, SelfTestReport, SelfTestStatus,
-    StatusReport, MIN_TELEMETRY_PERIOD_MS, TUNING_ROW_LEN,
+    Message, MessageId, NackReason, ParseError, Request, Response, StatusReport,
+    MIN_TELEMETRY_PERIOD_MS,
 };
 
 /// Protocol version, byte 2 of every frame: 2 since the status report grew to 68

@@ -13,7 +13,7 @@
 //!                  2   2 reserved zero bytes
 //!                  4   32 rows x (speed_rpm, right_offset_deg, left_offset_deg) f32;
 //!                      rows past the count are zero
-//!                  388 self-test, 24 bytes (storage::SelfTest), zero when absent
+//!                  388 self-test, 24 bytes (codec::self_test), zero when absent
 //!  424     4     CRC-32/ISO-HDLC of bytes 0..424 (the magic as MAGIC included)
 //! ```
 //!
@@ -31,12 +31,10 @@
 //! 424 zero bytes is not 0 (the init makes it non-zero for every non-zero length).
 //! `tests/storage.rs` checks both, for every length.
 
-use crate::controller::{TuningTable, MAX_TUNING_ROWS};
-use crate::protocol::crc::Crc32;
-use crate::protocol::wire::{Reader, Writer};
-use crate::protocol::TUNING_ROW_LEN;
-
-use super::self_test::SelfTest;
+use crate::codec::crc::Crc32;
+use crate::codec::wire::{Field, Reader, Writer};
+use crate::codec::{SELF_TEST_LEN, TUNING_ROW_LEN};
+use crate::controller::{SelfTest, TuningRow, TuningTable, MAX_TUNING_ROWS};
 
 /// The commit word, first in the record and written last: the bytes `"VIBT"`. Not
 /// `0xFFFFFFFF` (erased) nor `0` (zeroed), and no byte of it is `0xFF`, so a magic
@@ -50,7 +48,7 @@ pub const FORMAT_VERSION: u16 = 1;
 pub const HEADER_LEN: usize = 12;
 
 /// Payload bytes: counts and flags (4), [`MAX_TUNING_ROWS`] rows, a [`SelfTest`].
-pub const PAYLOAD_LEN: usize = 4 + MAX_TUNING_ROWS * TUNING_ROW_LEN + SelfTest::LEN;
+pub const PAYLOAD_LEN: usize = 4 + MAX_TUNING_ROWS * TUNING_ROW_LEN + SELF_TEST_LEN;
 
 /// Bytes of the CRC at the end.
 pub const CRC_LEN: usize = 4;
@@ -91,17 +89,13 @@ pub fn encode_record(record: &Record, sequence: u32) -> [u8; RECORD_LEN] {
     w.zeros(2);
     for slot in 0..MAX_TUNING_ROWS {
         match rows.get(slot) {
-            Some(row) => {
-                w.f32(row.speed_rpm);
-                w.f32(row.right_offset_deg);
-                w.f32(row.left_offset_deg);
-            }
+            Some(row) => row.write(&mut w),
             None => w.zeros(TUNING_ROW_LEN),
         }
     }
     match &record.self_test {
         Some(test) => test.write(&mut w),
-        None => w.zeros(SelfTest::LEN),
+        None => w.zeros(SELF_TEST_LEN),
     }
     // The layout fills the array exactly (checked by the tests).
     let end = w.finish().unwrap_or(0);
@@ -148,7 +142,12 @@ pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
     let mut rows = [(0.0f32, 0.0f32, 0.0f32); MAX_TUNING_ROWS];
     for (slot, row) in rows.iter_mut().enumerate() {
         if slot < count {
-            *row = (r.f32()?, r.f32()?, r.f32()?);
+            let TuningRow {
+                speed_rpm,
+                right_offset_deg,
+                left_offset_deg,
+            } = TuningRow::read(&mut r)?;
+            *row = (speed_rpm, right_offset_deg, left_offset_deg);
         } else {
             r.zeros(TUNING_ROW_LEN)?;
         }
@@ -159,7 +158,7 @@ pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
     let self_test = if has_self_test {
         Some(SelfTest::read(&mut r)?)
     } else {
-        r.zeros(SelfTest::LEN)?;
+        r.zeros(SELF_TEST_LEN)?;
         None
     };
     r.is_empty()

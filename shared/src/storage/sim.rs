@@ -1,25 +1,38 @@
-//! [`SimFlash`]: a simulated pair of parameter sectors for host tests and host-sim,
-//! with the STM32F4's rules and a power cut that can be set to happen after any
-//! number of bytes.
+//! [`SimFlash`]: a simulated NOR flash of two sectors for host tests, host-sim and the
+//! firmware's `qemu` build, with the STM32F4's rules and a power cut that can be set
+//! to happen after any number of bytes. It implements `embedded-storage`'s
+//! [`NorFlash`] like the board's driver: two erase units of [`SIM_SECTOR_SIZE`]
+//! bytes (128 KiB, as sectors 10 and 11 of the STM32F405), programmed in 4-byte
+//! words, read byte by byte.
 //!
-//! Only the first [`SIM_SECTOR_BYTES`] of each of the [`PARAM_SECTORS`] are
-//! modelled (a record is [`super::RECORD_LEN`] bytes); reading past them inside the
-//! sector gives `0xFF`, programming there is [`SimError::OutOfRange`].
+//! Only the first [`SIM_SECTOR_BYTES`] of each sector are modelled (a record is
+//! [`super::RECORD_LEN`] bytes); reading past them inside the sector gives `0xFF`,
+//! programming there is [`SimError::OutOfRange`].
 //!
 //! # The power-cut model
 //!
-//! Work is counted in bytes: an erase changes the modelled bytes of its sector one
-//! after the other, in address order ([`SIM_SECTOR_BYTES`] bytes); programming a
-//! word changes its 4 bytes in address order. [`SimFlash::cut_after`]`(n)` lets `n`
-//! more bytes complete; the next byte is left *half done* (an erase sets only its
-//! low 4 bits; a program clears only the 0 bits of its low 4 bits), the operation
-//! returns [`SimError::PowerCut`], and so does every later erase or program until
-//! [`SimFlash::power_on`]. Reads always work (they model the next boot).
+//! Work is counted in bytes: an erase changes the modelled bytes of each of its
+//! sectors one after the other, in address order ([`SIM_SECTOR_BYTES`] bytes a
+//! sector); programming changes its bytes in address order, word by word.
+//! [`SimFlash::cut_after`]`(n)` lets `n` more bytes complete; the next byte is left
+//! *half done* (an erase sets only its low 4 bits; a program clears only the 0 bits
+//! of its low 4 bits), the operation returns [`SimError::PowerCut`], and so does
+//! every later erase or program until [`SimFlash::power_on`]. Reads always work
+//! (they model the next boot); a shared reference reads too (`load(&flash)`).
 
-use super::{Flash, Sector, PARAM_SECTORS};
+use embedded_storage::nor_flash::{
+    check_erase, check_read, check_write, ErrorType, NorFlash, NorFlashError, NorFlashErrorKind,
+    ReadNorFlash,
+};
 
 /// Bytes modelled at the start of each sector.
 pub const SIM_SECTOR_BYTES: usize = 1024;
+
+/// Bytes of a sector, the erase unit: 128 KiB, as the STM32F405's parameter sectors.
+pub const SIM_SECTOR_SIZE: u32 = 128 * 1024;
+
+/// Sectors simulated: one for each slot of the store.
+const SECTORS: usize = 2;
 
 /// Why a [`SimFlash`] operation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,26 +40,47 @@ pub const SIM_SECTOR_BYTES: usize = 1024;
 pub enum SimError {
     /// The power was cut during (or before) this operation.
     PowerCut,
-    /// The address is outside the modelled bytes, or the sector is not a parameter
-    /// sector.
+    /// The range is outside the flash, or outside the modelled bytes of a sector
+    /// (programming).
     OutOfRange,
-    /// The address is not a multiple of 4.
+    /// An offset or a length is not a whole number of program words (4 bytes) or
+    /// erase units (sectors).
     Unaligned,
     /// The word is not erased: on the chip programming can only clear bits, and a
     /// second program of a word is a bug in the caller.
     NotErased,
 }
 
-/// Two simulated parameter sectors; see the [module documentation](self).
+impl NorFlashError for SimError {
+    fn kind(&self) -> NorFlashErrorKind {
+        match self {
+            SimError::OutOfRange => NorFlashErrorKind::OutOfBounds,
+            SimError::Unaligned => NorFlashErrorKind::NotAligned,
+            SimError::PowerCut | SimError::NotErased => NorFlashErrorKind::Other,
+        }
+    }
+}
+
+impl From<NorFlashErrorKind> for SimError {
+    /// The error of a failed `embedded-storage` range check.
+    fn from(kind: NorFlashErrorKind) -> Self {
+        match kind {
+            NorFlashErrorKind::NotAligned => SimError::Unaligned,
+            _ => SimError::OutOfRange,
+        }
+    }
+}
+
+/// Two simulated sectors; see the [module documentation](self).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SimFlash {
     /// The modelled bytes of each sector.
-    bytes: [[u8; SIM_SECTOR_BYTES]; 2],
+    bytes: [[u8; SIM_SECTOR_BYTES]; SECTORS],
     /// Bytes that may still complete before the power is cut; `None`: no cut set.
     budget: Option<usize>,
     /// The power is off.
     off: bool,
-    /// Erases done (whole ones).
+    /// Sector erases done (whole ones).
     erases: u32,
     /// Words programmed (whole ones).
     words: u32,
@@ -67,7 +101,7 @@ impl SimFlash {
     /// Every modelled byte `value` (0 models zeroed flash, as QEMU's has).
     pub fn filled(value: u8) -> Self {
         SimFlash {
-            bytes: [[value; SIM_SECTOR_BYTES]; 2],
+            bytes: [[value; SIM_SECTOR_BYTES]; SECTORS],
             budget: None,
             off: false,
             erases: 0,
@@ -92,21 +126,21 @@ impl SimFlash {
         self.off
     }
 
-    /// The modelled bytes of sector `slot` (0 or 1) of [`PARAM_SECTORS`].
-    pub fn sector_bytes(&self, slot: usize) -> Option<&[u8; SIM_SECTOR_BYTES]> {
-        self.bytes.get(slot)
+    /// The modelled bytes of sector `sector` (0 or 1).
+    pub fn sector_bytes(&self, sector: usize) -> Option<&[u8; SIM_SECTOR_BYTES]> {
+        self.bytes.get(sector)
     }
 
-    /// Xor the byte at `address` with `mask` (a bit flip, whatever the rules): for
+    /// Xor the byte at `offset` with `mask` (a bit flip, whatever the rules): for
     /// tests of corrupt records.
-    pub fn corrupt(&mut self, address: u32, mask: u8) -> Result<(), SimError> {
-        let (slot, offset) = locate(address).ok_or(SimError::OutOfRange)?;
-        let byte = self.byte_mut(slot, offset).ok_or(SimError::OutOfRange)?;
+    pub fn corrupt(&mut self, offset: u32, mask: u8) -> Result<(), SimError> {
+        let (sector, at) = locate(offset).ok_or(SimError::OutOfRange)?;
+        let byte = self.byte_mut(sector, at).ok_or(SimError::OutOfRange)?;
         *byte ^= mask;
         Ok(())
     }
 
-    /// Whole erases done.
+    /// Whole sector erases done.
     pub fn erases(&self) -> u32 {
         self.erases
     }
@@ -116,9 +150,9 @@ impl SimFlash {
         self.words
     }
 
-    /// The byte of sector `slot` at `offset`.
-    fn byte_mut(&mut self, slot: usize, offset: usize) -> Option<&mut u8> {
-        self.bytes.get_mut(slot)?.get_mut(offset)
+    /// The byte of sector `sector` at `at`.
+    fn byte_mut(&mut self, sector: usize, at: usize) -> Option<&mut u8> {
+        self.bytes.get_mut(sector)?.get_mut(at)
     }
 
     /// Take one byte of work: `true` if it completes, `false` if the power goes
@@ -137,30 +171,12 @@ impl SimFlash {
             None => true,
         }
     }
-}
 
-/// The parameter sector and the offset in it of `address`, if it is modelled.
-fn locate(address: u32) -> Option<(usize, usize)> {
-    PARAM_SECTORS.iter().enumerate().find_map(|(slot, s)| {
-        let offset = usize::try_from(address.checked_sub(s.address)?).ok()?;
-        (offset < SIM_SECTOR_BYTES).then_some((slot, offset))
-    })
-}
-
-impl Flash for SimFlash {
-    type Error = SimError;
-
-    fn erase(&mut self, sector: &Sector) -> Result<(), SimError> {
-        if self.off {
-            return Err(SimError::PowerCut);
-        }
-        let slot = PARAM_SECTORS
-            .iter()
-            .position(|s| s == sector)
-            .ok_or(SimError::OutOfRange)?;
-        for offset in 0..SIM_SECTOR_BYTES {
+    /// Erase the modelled bytes of sector `sector`, byte by byte.
+    fn erase_sector(&mut self, sector: usize) -> Result<(), SimError> {
+        for at in 0..SIM_SECTOR_BYTES {
             let done = self.work();
-            let byte = self.byte_mut(slot, offset).ok_or(SimError::OutOfRange)?;
+            let byte = self.byte_mut(sector, at).ok_or(SimError::OutOfRange)?;
             if !done {
                 // Half erased: the low nibble set, the high one as it was.
                 *byte |= 0x0F;
@@ -172,29 +188,22 @@ impl Flash for SimFlash {
         Ok(())
     }
 
-    fn program_word(&mut self, address: u32, word: u32) -> Result<(), SimError> {
-        if self.off {
-            return Err(SimError::PowerCut);
-        }
-        if address & 3 != 0 {
-            return Err(SimError::Unaligned);
-        }
-        let (slot, offset) = locate(address).ok_or(SimError::OutOfRange)?;
+    /// Program the word at `offset` (a multiple of 4) with `word`, byte by byte.
+    fn program_word(&mut self, offset: u32, word: [u8; 4]) -> Result<(), SimError> {
+        let (sector, at) = locate(offset).ok_or(SimError::OutOfRange)?;
         let erased = self
             .bytes
-            .get(slot)
-            .and_then(|s| s.get(offset..offset + 4))
+            .get(sector)
+            .and_then(|s| s.get(at..at + 4))
             .ok_or(SimError::OutOfRange)?
             .iter()
             .all(|&b| b == 0xFF);
         if !erased {
             return Err(SimError::NotErased);
         }
-        for (i, value) in word.to_le_bytes().into_iter().enumerate() {
+        for (i, value) in word.into_iter().enumerate() {
             let done = self.work();
-            let byte = self
-                .byte_mut(slot, offset + i)
-                .ok_or(SimError::OutOfRange)?;
+            let byte = self.byte_mut(sector, at + i).ok_or(SimError::OutOfRange)?;
             if !done {
                 // Half programmed: only the low nibble's zeros cleared.
                 *byte &= value | 0xF0;
@@ -206,26 +215,89 @@ impl Flash for SimFlash {
         Ok(())
     }
 
-    fn read(&self, address: u32, out: &mut [u8]) -> Result<(), SimError> {
-        let sector = PARAM_SECTORS
-            .iter()
-            .find(|s| address >= s.address && address - s.address < s.size)
-            .ok_or(SimError::OutOfRange)?;
+    /// Read `out.len()` bytes from `offset`: what the chip would show.
+    fn read_bytes(&self, offset: u32, out: &mut [u8]) -> Result<(), SimError> {
+        check_read(self, offset, out.len())?;
         for (i, slot) in out.iter_mut().enumerate() {
-            let a = address.checked_add(i as u32).ok_or(SimError::OutOfRange)?;
-            if a - sector.address >= sector.size {
-                return Err(SimError::OutOfRange);
-            }
-            *slot = match locate(a) {
-                Some((s, offset)) => self
-                    .bytes
-                    .get(s)
-                    .and_then(|b| b.get(offset))
-                    .copied()
-                    .unwrap_or(0xFF),
-                None => 0xFF,
-            };
+            let at = offset.checked_add(i as u32).ok_or(SimError::OutOfRange)?;
+            *slot = locate(at)
+                .and_then(|(sector, at)| self.bytes.get(sector)?.get(at).copied())
+                .unwrap_or(0xFF);
         }
         Ok(())
+    }
+}
+
+/// The sector and the offset in it of `offset`, if that byte is modelled.
+fn locate(offset: u32) -> Option<(usize, usize)> {
+    let sector = usize::try_from(offset / SIM_SECTOR_SIZE).ok()?;
+    let at = usize::try_from(offset % SIM_SECTOR_SIZE).ok()?;
+    (sector < SECTORS && at < SIM_SECTOR_BYTES).then_some((sector, at))
+}
+
+impl ErrorType for SimFlash {
+    type Error = SimError;
+}
+
+impl ReadNorFlash for SimFlash {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), SimError> {
+        self.read_bytes(offset, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        SECTORS * SIM_SECTOR_SIZE as usize
+    }
+}
+
+impl NorFlash for SimFlash {
+    const WRITE_SIZE: usize = 4;
+    const ERASE_SIZE: usize = SIM_SECTOR_SIZE as usize;
+
+    /// Erase the sectors of `[from, to)`, in order.
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), SimError> {
+        if self.off {
+            return Err(SimError::PowerCut);
+        }
+        check_erase(self, from, to)?;
+        for sector in from / SIM_SECTOR_SIZE..to / SIM_SECTOR_SIZE {
+            self.erase_sector(sector as usize)?;
+        }
+        Ok(())
+    }
+
+    /// Program `bytes` at `offset`, word by word in address order.
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), SimError> {
+        if self.off {
+            return Err(SimError::PowerCut);
+        }
+        check_write(self, offset, bytes.len())?;
+        for (i, word) in bytes.chunks_exact(4).enumerate() {
+            let at = offset
+                .checked_add(4 * i as u32)
+                .ok_or(SimError::OutOfRange)?;
+            let word = <[u8; 4]>::try_from(word).map_err(|_| SimError::Unaligned)?;
+            self.program_word(at, word)?;
+        }
+        Ok(())
+    }
+}
+
+/// Reading through a shared reference: the simulation's reads change nothing, so
+/// `load(&flash)` works on a flash that is only borrowed.
+impl ErrorType for &SimFlash {
+    type Error = SimError;
+}
+
+impl ReadNorFlash for &SimFlash {
+    const READ_SIZE: usize = 1;
+
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), SimError> {
+        self.read_bytes(offset, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        SimFlash::capacity(self)
     }
 }

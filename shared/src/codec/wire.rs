@@ -1,6 +1,7 @@
 //! Little-endian field readers and writers over fixed buffers, for the message
 //! payloads and the flash records: every access is bounds-checked and reports
-//! running out of room instead of panicking.
+//! running out of room instead of panicking. [`Field`] is a value with a fixed
+//! layout, read and written whole.
 
 /// Reads little-endian fields from a slice, front to back.
 #[derive(Clone, Copy, Debug)]
@@ -120,4 +121,23 @@ impl<'a> Writer<'a> {
     pub(crate) fn finish(self) -> Option<usize> {
         (!self.overflow).then_some(self.len)
     }
+}
+
+/// A flag byte: `bit` set for every `(set, bit)` whose `set` is true.
+pub(crate) fn flag_byte(flags: &[(bool, u8)]) -> u8 {
+    flags
+        .iter()
+        .filter(|(set, _)| *set)
+        .fold(0, |byte, (_, bit)| byte | bit)
+}
+
+/// A value with a fixed little-endian layout, the same in a message payload and in
+/// the flash record (its length is a constant beside its implementation).
+pub(crate) trait Field: Sized {
+    /// Append the layout's bytes.
+    fn write(&self, w: &mut Writer<'_>);
+
+    /// Read the layout's bytes; `None` if too few are left, or a value is outside
+    /// the layout's domain (an unknown flag, a reserved byte not zero).
+    fn read(r: &mut Reader<'_>) -> Option<Self>;
 }

@@ -1,7 +1,8 @@
 //! The first-run self-test (issue 5): per rotor, motor and encoder polarity, the
 //! index pulse, the counts per revolution and the index offset, as a pure state
 //! machine ([`SelfTestRun`]) the controller steps in [`super::State::SelfTest`]. The
-//! result is a [`SelfTest`] (`shared::storage`), stored with the tuning table.
+//! result is a [`SelfTest`] ([`result`]), which the device stores with the tuning
+//! table and reports over the link.
 //!
 //! # Procedure
 //!
@@ -105,9 +106,12 @@
 //! whose job is to measure the index: a wrong configured `encoder_counts` or a dead
 //! index shows as `counts_per_rev` or `index_seen` instead of an `ENCODER` fault.
 
+pub mod result;
+
+pub use result::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
+
 use super::angle::rpm_to_rad_s;
 use super::params::Params;
-use crate::storage::SelfTest;
 
 /// The duty's stall torque over the rotor's largest load torque.
 pub const TORQUE_MARGIN: f32 = 2.0;
@@ -119,7 +123,7 @@ pub const MAX_DUTY: f32 = 0.5;
 /// The mean current counts (for the polarity flags) from this fraction of the
 /// stall current `d V / R`.
 pub const CURRENT_FRACTION: f32 = 0.25;
-/// A rotor is at rest below this speed, rpm (as `storage::WRITE_MAX_SPEED_RPM`).
+/// A rotor is at rest below this speed, rpm (as [`super::WRITE_MAX_SPEED_RPM`]).
 pub const REST_RPM: f32 = 10.0;
 /// Both rotors at rest this long end a settle, s.
 pub const REST_TIME_S: f32 = 0.2;
@@ -424,7 +428,6 @@ impl SelfTestRun {
 mod tests {
     use super::*;
     use crate::controller::Params;
-    use crate::storage::RotorSelfTest;
 
     /// A synthetic rotor: counts and index as an ideal encoder of `n` counts whose
     /// index sits at count 0 (mod n), turning `rate` counts a tick while driven.
