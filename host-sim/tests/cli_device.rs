@@ -2,9 +2,11 @@
 //! (`shared::protocol::link::Link` with the controller on simulated rotors and a
 //! `SimFlash`, served in this process over TCP, or as `host-sim device-sim` behind
 //! a pseudo-terminal): every subcommand, a table round trip, telemetry as CSV, a
-//! noisy line, a silent device, and clear refusals (exit 2, no panic) of bad input.
+//! noisy line, a silent device, devices that answer wrongly (an Ack for another
+//! request, an acknowledged stream that never comes), and clear refusals (exit 2,
+//! no panic) of bad input.
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -21,6 +23,7 @@ use host_sim::device::report::CSV_HEADER;
 use host_sim::device::serve::{serve, Endpoint};
 use host_sim::device::sim::{Noise, SimDevice};
 use host_sim::machine::tuning_file;
+use shared::protocol::{encode, Decoder, Message, MessageId, Request, Response, MAX_FRAME};
 use shared::storage;
 
 /// A simulated device served over TCP on this machine until dropped.
@@ -73,6 +76,48 @@ impl Device {
 impl Drop for Device {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
+    }
+}
+
+/// A device of the test's own making on a TCP port, for the misbehaviours the
+/// firmware's link code never shows: every request decoded and handed to
+/// `answer`, whose responses go back with the request's sequence number. It
+/// serves one host after another until the test process ends.
+fn fake_device(answer: fn(&Request) -> Vec<Response>) -> String {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = format!("tcp:{}", listener.local_addr().unwrap());
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { return };
+            let mut decoder = Decoder::new();
+            let mut buf = [0u8; 512];
+            while let Ok(n @ 1..) = stream.read(&mut buf) {
+                let mut input = &buf[..n];
+                let mut out = Vec::new();
+                while let Some(event) = decoder.decode(&mut input) {
+                    let Ok(frame) = event else { continue };
+                    let Ok(request) = Request::parse(&frame) else {
+                        continue;
+                    };
+                    for response in answer(&request) {
+                        let mut bytes = [0u8; MAX_FRAME];
+                        let len = encode(&response, frame.seq, &mut bytes).unwrap();
+                        out.extend_from_slice(&bytes[..len]);
+                    }
+                }
+                if stream.write_all(&out).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    port
+}
+
+/// The Ack a well-behaved device gives `request`.
+fn ack(request: &Request) -> Response {
+    Response::Ack {
+        request: request.id() as u8,
     }
 }
 
@@ -541,4 +586,92 @@ fn the_self_test_runs_and_reports_each_rotor() {
     assert_eq!(out.matches("PASS").count(), 2, "{out}");
     assert_eq!(out.matches("counts per rev     4096").count(), 2, "{out}");
     dev.finish();
+}
+
+/// Regression: `device stop` printed "stop: accepted" (exit 0) when the device
+/// answered Stop with an Ack for a Heartbeat at Stop's sequence number. The
+/// command took any Ack as acceptance without reading which request it
+/// acknowledged, so an operator was told the motors stopped when the device had
+/// said nothing of the kind. Every answer is now checked against its request.
+#[test]
+fn an_ack_for_another_request_is_no_acceptance() {
+    let port = fake_device(|_| {
+        vec![Response::Ack {
+            request: MessageId::Heartbeat as u8,
+        }]
+    });
+    let table = scratch("ack-check.toml");
+    std::fs::write(&table, tuning_file::write(&[(3000.0, 80.0, 280.0)], "t")).unwrap();
+    let cases: [(&[&str], &str); 7] = [
+        (&["stop"], "Stop"),
+        (&["travel", "right", "--speed", "3000"], "Travel"),
+        (&["hold", "--offset", "90", "--speed", "3000"], "HoldOffset"),
+        (&["reset"], "ResetFaults"),
+        (&["telemetry", "--count", "1"], "StreamTelemetry"),
+        (&["self-test"], "RunSelfTest"),
+        (
+            &["table", "write", table.to_str().unwrap()],
+            "WriteTuningTable",
+        ),
+    ];
+    for (args, request) in cases {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        assert!(!r.stdout.contains("accepted"), "{args:?}: {}", r.stdout);
+        assert!(!r.stdout.contains("stored"), "{args:?}: {}", r.stdout);
+        assert!(
+            r.stderr.contains(&format!(
+                "error: the device answered {request} with an Ack for Heartbeat, not an answer to {request}"
+            )),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
+
+    // The other way round: the heartbeats of `travel --for` answered by an Ack
+    // for Travel; and reports of the wrong kind.
+    let port = fake_device(|request| match request {
+        Request::Heartbeat => vec![Response::Ack {
+            request: MessageId::Travel as u8,
+        }],
+        Request::GetStatus => vec![ack(request)],
+        Request::ReadTuningTable => vec![Response::Ack {
+            request: MessageId::ReadTuningTable as u8,
+        }],
+        _ => vec![ack(request)],
+    });
+    let r = host_sim(&[
+        "device", "--port", &port, "travel", "left", "--speed", "3000", "--for", "1",
+    ]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr.contains(
+            "error: the device answered Heartbeat with an Ack for Travel, not an answer to Heartbeat"
+        ),
+        "{}",
+        r.stderr
+    );
+    for (args, request) in [(["status"], "GetStatus"), (["reset"], "GetStatus")] {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(&args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        assert!(
+            r.stderr
+                .contains(&format!("answered {request} with an Ack for {request}")),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
+    let r = host_sim(&["device", "--port", &port, "table", "read"]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert_eq!(r.stdout, "");
+    assert!(
+        r.stderr
+            .contains("answered ReadTuningTable with an Ack for ReadTuningTable"),
+        "{}",
+        r.stderr
+    );
 }

@@ -1,8 +1,9 @@
 //! `host-sim device --port PORT <COMMAND>`: the arguments checked, the port
 //! opened, the requests made through a [`Client`], the answers printed.
 //!
-//! Exit status: 0 done; 1 the device refused (a Nack) or did not answer, or the
-//! port failed while in use; 2 a user mistake (a bad or missing option, a port that
+//! Exit status: 0 done; 1 the device refused (a Nack), did not answer, answered
+//! something else than what was asked (an Ack for another request is no
+//! acceptance), or the port failed while in use; 2 a user mistake (a bad or missing option, a port that
 //! cannot be opened, an unreadable table file).
 
 use std::io::Write;
@@ -19,7 +20,7 @@ use super::args::{
     DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TelemetryArgs,
     TravelArgs,
 };
-use super::client::{nack_text, request_name, Client, LinkError};
+use super::client::{answer_text, nack_text, request_name, Client, LinkError};
 use super::interrupt;
 use super::port::PortSpec;
 use super::report;
@@ -194,34 +195,39 @@ fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A request answered by Ack; a Nack or any other answer is a failure.
-fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
+/// Send `request` and take its answer; a Nack is the device's refusal, with its
+/// reason. The client has checked that the answer is one to `request`.
+fn ask(client: &mut Client, request: &Request) -> Result<Response, Failure> {
     match client.request(request)? {
-        Response::Ack { .. } => Ok(()),
         Response::Nack { reason, .. } => Err(Failure::Device(format!(
             "error: the device refused {}: {}",
             request_name(request),
             nack_text(reason)
         ))),
+        response => Ok(response),
+    }
+}
+
+/// A request answered by Ack: an Ack for `request` is its acceptance; anything
+/// else is a failure.
+fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
+    match ask(client, request)? {
+        Response::Ack { .. } => Ok(()),
         other => Err(unexpected(request, &other)),
     }
 }
 
+/// An answer of another kind than `request` asks for: the device's failure.
 fn unexpected(request: &Request, response: &Response) -> Failure {
-    Failure::Device(format!(
-        "error: the device answered {} with an unexpected {:?}",
-        request_name(request),
-        shared::protocol::Message::id(response)
-    ))
+    Failure::from(LinkError::WrongAnswer {
+        request: request_name(request),
+        answer: answer_text(response),
+    })
 }
 
 fn status(client: &mut Client) -> Result<StatusReport, Failure> {
-    match client.request(&Request::GetStatus)? {
+    match ask(client, &Request::GetStatus)? {
         Response::Status(s) => Ok(s),
-        Response::Nack { reason, .. } => Err(Failure::Device(format!(
-            "error: the device refused GetStatus: {}",
-            nack_text(reason)
-        ))),
         other => Err(unexpected(&Request::GetStatus, &other)),
     }
 }
@@ -370,7 +376,7 @@ fn telemetry(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result
 }
 
 fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
-    match client.request(&Request::ReadSelfTest)? {
+    match ask(client, &Request::ReadSelfTest)? {
         Response::SelfTest(r) => Ok(r),
         other => Err(unexpected(&Request::ReadSelfTest, &other)),
     }
@@ -423,7 +429,7 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<
 }
 
 fn table_read(client: &mut Client, file: Option<&Path>, out: &mut String) -> Result<(), Failure> {
-    let table = match client.request(&Request::ReadTuningTable)? {
+    let table = match ask(client, &Request::ReadTuningTable)? {
         Response::TuningTable(t) => t,
         other => return Err(unexpected(&Request::ReadTuningTable, &other)),
     };
