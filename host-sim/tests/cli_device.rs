@@ -156,6 +156,50 @@ fn host_sim(args: &[&str]) -> Run {
     common::finish(cmd)
 }
 
+/// Runs `host-sim` with `args`, no standard input; `None` if it has not ended
+/// after `limit` (then it is killed, by its handle).
+fn host_sim_within(args: &[&str], limit: Duration) -> Option<Run> {
+    let start = Instant::now();
+    let mut child = common::host_sim()
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    loop {
+        if let Some(status) = child.try_wait().expect("the child can be waited for") {
+            let mut stdout = String::new();
+            let mut stderr = String::new();
+            child
+                .stdout
+                .take()
+                .unwrap()
+                .read_to_string(&mut stdout)
+                .unwrap();
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut stderr)
+                .unwrap();
+            assert!(!stderr.contains("panicked"), "{stderr}");
+            return Some(Run {
+                status: status.code().unwrap_or(-1),
+                stdout,
+                stderr,
+                took: start.elapsed(),
+            });
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-device", name)
 }
@@ -674,4 +718,39 @@ fn an_ack_for_another_request_is_no_acceptance() {
         "{}",
         r.stderr
     );
+}
+
+/// Regression: `device telemetry --count N` never ended when no telemetry frame
+/// came (a device that acknowledges StreamTelemetry but does not stream, a line
+/// no frame crosses whole): it counted frames and heartbeated for ever, with no
+/// deadline on the frames. A stream silent for max(1 s, 5 periods) now ends the
+/// run (exit 1), the stream turned off; a `--duration` run the same way.
+#[test]
+fn a_stream_that_never_comes_ends_the_run() {
+    // Acknowledges every request and never streams.
+    let port = fake_device(|request| vec![ack(request)]);
+    let runs: [(&[&str], f64); 3] = [
+        (&["telemetry", "--count", "3"], 1.0),
+        (&["telemetry", "--period", "400", "--duration", "30"], 2.0),
+        (&["telemetry", "--duration", "0.5", "--csv", "-"], 0.5),
+    ];
+    for (args, quiet_s) in runs {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(args);
+        let r = host_sim_within(&all, Duration::from_secs(15))
+            .unwrap_or_else(|| panic!("{args:?} did not end within 15 s"));
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        let expected = format!("error: no telemetry from the device in {quiet_s:.1} s");
+        assert!(r.stderr.starts_with(&expected), "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("0 frames before"),
+            "{args:?}: {}",
+            r.stderr
+        );
+        assert!(
+            r.took < Duration::from_secs_f64(quiet_s + 2.0),
+            "{args:?}: {:?}",
+            r.took
+        );
+    }
 }

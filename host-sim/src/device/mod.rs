@@ -7,6 +7,7 @@
 //!   a pseudo-terminal;
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
+//! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - [`interrupt`]: Ctrl-C as a flag, so streams end cleanly;
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
@@ -23,3 +24,4 @@ pub mod report;
 pub mod rotors;
 pub mod serve;
 pub mod sim;
+pub mod telemetry;
