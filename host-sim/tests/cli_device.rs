@@ -754,3 +754,20 @@ fn a_stream_that_never_comes_ends_the_run() {
         );
     }
 }
+
+/// Regression: `device-sim --listen` on a port already taken exited 1, the
+/// status of a failed run, though the port is the user's to change (a user
+/// mistake is 2, as for a `--port` that cannot be opened).
+#[test]
+fn device_sim_on_a_busy_port_is_a_usage_error() {
+    let taken = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let r = host_sim(&["device-sim", "--listen", &format!("tcp:{addr}")]);
+    let stderr = r.usage();
+    assert!(
+        stderr.starts_with(&format!("error: --listen: cannot listen on {addr}: ")),
+        "{stderr}"
+    );
+    assert_eq!(r.stdout, "");
+    drop(taken);
+}
