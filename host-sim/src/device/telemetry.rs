@@ -1,6 +1,6 @@
 //! `host-sim device telemetry`: the device's telemetry stream turned on, each frame
-//! printed (readable lines or CSV) as it comes, a heartbeat every
-//! [`HEARTBEAT_EVERY`], the stream watched for silence, and turned off at the end
+//! printed (readable lines or CSV) as it comes, a heartbeat every 50 ms (twice
+//! per heartbeat period), the stream watched for silence, and turned off at the end
 //! (`--count`, `--duration`, Ctrl-C, or a failure).
 //!
 //! A stream that goes silent ends the run: no frame for [`silence_limit`] (five
