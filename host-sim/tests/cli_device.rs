@@ -584,11 +584,9 @@ fn ctrl_c_ends_the_stream_cleanly() {
         let line = lines.next().expect("a line").unwrap();
         assert!(line.contains(" idle "), "{line}");
     }
-    let pid = i32::try_from(child.id()).unwrap();
-    // SAFETY: signals the child this test started, by its id.
-    unsafe {
-        libc::kill(pid, libc::SIGINT);
-    }
+    // Ctrl-C to the child this test started, by its id.
+    let pid = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(0));
     let device = dev.finish();

@@ -1,24 +1,28 @@
 //! Ctrl-C (SIGINT, and SIGTERM) as a flag: the streaming commands stop the stream
 //! and the motors' heartbeat cleanly instead of dying mid-frame.
+//!
+//! The handler is `signal-hook`'s flag: it only stores `true` into an atomic,
+//! which is all a signal handler may safely do.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Once;
+
+use signal_hook::consts::{SIGINT, SIGTERM};
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
-#[cfg(unix)]
-extern "C" fn on_signal(_: libc::c_int) {
-    INTERRUPTED.store(true, Ordering::SeqCst);
-}
+/// The handlers are installed once, however many commands ask.
+static CATCH: Once = Once::new();
 
 /// From now on, Ctrl-C sets the flag instead of ending the process.
 pub fn catch() {
-    #[cfg(unix)]
-    // SAFETY: the handler only stores to an atomic (async-signal-safe).
-    unsafe {
-        let handler = on_signal as extern "C" fn(libc::c_int);
-        libc::signal(libc::SIGINT, handler as libc::sighandler_t);
-        libc::signal(libc::SIGTERM, handler as libc::sighandler_t);
-    }
+    CATCH.call_once(|| {
+        for signal in [SIGINT, SIGTERM] {
+            // Fails only for the signals no process may catch; these two it may,
+            // and without the flag Ctrl-C still ends the process as before.
+            let _ = signal_hook::flag::register(signal, &INTERRUPTED);
+        }
+    });
 }
 
 /// Whether Ctrl-C was pressed since [`catch`].

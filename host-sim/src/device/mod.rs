@@ -3,8 +3,9 @@
 //! protocol (`docs/protocol.md`, `docs/cli-device.md`).
 //!
 //! - [`args`]: the command lines;
-//! - [`port`]: the byte pipe: a serial port raw at 115200 baud 8N1, a TCP socket,
-//!   a pseudo-terminal;
+//! - [`port`]: the byte pipe: a serial port or a TCP socket;
+//! - [`serial`]: a serial port raw at 115200 baud 8N1;
+//! - [`pty`]: the pseudo-terminal `device-sim` serves (Unix);
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
 //! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
@@ -20,8 +21,11 @@ pub mod client;
 pub mod commands;
 pub mod interrupt;
 pub mod port;
+#[cfg(unix)]
+pub mod pty;
 pub mod report;
 pub mod rotors;
+pub mod serial;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;
