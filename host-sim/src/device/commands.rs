@@ -3,8 +3,9 @@
 //!
 //! Exit status: 0 done; 1 the device refused (a Nack), did not answer, answered
 //! something else than what was asked (an Ack for another request is no
-//! acceptance), or the port failed while in use; 2 a user mistake (a bad or missing option, a port that
-//! cannot be opened, an unreadable table file).
+//! acceptance), sent no telemetry it was asked for, or the port failed while in
+//! use; 2 a user mistake (a bad or missing option, a port that cannot be opened,
+//! an unreadable table file).
 
 use std::path::Path;
 use std::time::{Duration, Instant};
