@@ -22,6 +22,7 @@ pub mod cli;
 pub mod device;
 pub mod failure;
 pub mod impact;
+pub mod interrupt;
 pub mod machine;
 pub mod output;
 pub mod plant;

@@ -2,9 +2,11 @@
 //! (`shared::protocol::link::Link` with the controller on simulated rotors and a
 //! `SimFlash`, served in this process over TCP, or as `host-sim device-sim` behind
 //! a pseudo-terminal): every subcommand, a table round trip, telemetry as CSV, a
-//! noisy line, a silent device, and clear refusals (exit 2, no panic) of bad input.
+//! noisy line, a silent device, devices that answer wrongly (an Ack for another
+//! request, an acknowledged stream that never comes), and clear refusals (exit 2,
+//! no panic) of bad input.
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -21,6 +23,7 @@ use host_sim::device::report::CSV_HEADER;
 use host_sim::device::serve::{serve, Endpoint};
 use host_sim::device::sim::{Noise, SimDevice};
 use host_sim::machine::tuning_file;
+use shared::protocol::{encode, Decoder, Message, MessageId, Request, Response, MAX_FRAME};
 use shared::storage;
 
 /// A simulated device served over TCP on this machine until dropped.
@@ -76,6 +79,48 @@ impl Drop for Device {
     }
 }
 
+/// A device of the test's own making on a TCP port, for the misbehaviours the
+/// firmware's link code never shows: every request decoded and handed to
+/// `answer`, whose responses go back with the request's sequence number. It
+/// serves one host after another until the test process ends.
+fn fake_device(answer: fn(&Request) -> Vec<Response>) -> String {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = format!("tcp:{}", listener.local_addr().unwrap());
+    std::thread::spawn(move || {
+        for stream in listener.incoming() {
+            let Ok(mut stream) = stream else { return };
+            let mut decoder = Decoder::new();
+            let mut buf = [0u8; 512];
+            while let Ok(n @ 1..) = stream.read(&mut buf) {
+                let mut input = &buf[..n];
+                let mut out = Vec::new();
+                while let Some(event) = decoder.decode(&mut input) {
+                    let Ok(frame) = event else { continue };
+                    let Ok(request) = Request::parse(&frame) else {
+                        continue;
+                    };
+                    for response in answer(&request) {
+                        let mut bytes = [0u8; MAX_FRAME];
+                        let len = encode(&response, frame.seq, &mut bytes).unwrap();
+                        out.extend_from_slice(&bytes[..len]);
+                    }
+                }
+                if stream.write_all(&out).is_err() {
+                    break;
+                }
+            }
+        }
+    });
+    port
+}
+
+/// The Ack a well-behaved device gives `request`.
+fn ack(request: &Request) -> Response {
+    Response::Ack {
+        request: request.id() as u8,
+    }
+}
+
 /// What the tests expect of a finished run.
 trait Outcome {
     /// Exit 0: its standard output.
@@ -109,6 +154,50 @@ fn host_sim(args: &[&str]) -> Run {
     let mut cmd = common::host_sim();
     cmd.args(args).stdin(Stdio::null());
     common::finish(cmd)
+}
+
+/// Runs `host-sim` with `args`, no standard input; `None` if it has not ended
+/// after `limit` (then it is killed, by its handle).
+fn host_sim_within(args: &[&str], limit: Duration) -> Option<Run> {
+    let start = Instant::now();
+    let mut child = common::host_sim()
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    loop {
+        if let Some(status) = child.try_wait().expect("the child can be waited for") {
+            let mut stdout = String::new();
+            let mut stderr = String::new();
+            child
+                .stdout
+                .take()
+                .unwrap()
+                .read_to_string(&mut stdout)
+                .unwrap();
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut stderr)
+                .unwrap();
+            assert!(!stderr.contains("panicked"), "{stderr}");
+            return Some(Run {
+                status: status.code().unwrap_or(-1),
+                stdout,
+                stderr,
+                took: start.elapsed(),
+            });
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -495,11 +584,9 @@ fn ctrl_c_ends_the_stream_cleanly() {
         let line = lines.next().expect("a line").unwrap();
         assert!(line.contains(" idle "), "{line}");
     }
-    let pid = i32::try_from(child.id()).unwrap();
-    // SAFETY: signals the child this test started, by its id.
-    unsafe {
-        libc::kill(pid, libc::SIGINT);
-    }
+    // Ctrl-C to the child this test started, by its id.
+    let pid = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(0));
     let device = dev.finish();
@@ -541,4 +628,140 @@ fn the_self_test_runs_and_reports_each_rotor() {
     assert_eq!(out.matches("PASS").count(), 2, "{out}");
     assert_eq!(out.matches("counts per rev     4096").count(), 2, "{out}");
     dev.finish();
+}
+
+/// Regression: `device stop` printed "stop: accepted" (exit 0) when the device
+/// answered Stop with an Ack for a Heartbeat at Stop's sequence number. The
+/// command took any Ack as acceptance without reading which request it
+/// acknowledged, so an operator was told the motors stopped when the device had
+/// said nothing of the kind. Every answer is now checked against its request.
+#[test]
+fn an_ack_for_another_request_is_no_acceptance() {
+    let port = fake_device(|_| {
+        vec![Response::Ack {
+            request: MessageId::Heartbeat as u8,
+        }]
+    });
+    let table = scratch("ack-check.toml");
+    std::fs::write(&table, tuning_file::write(&[(3000.0, 80.0, 280.0)], "t")).unwrap();
+    let cases: [(&[&str], &str); 7] = [
+        (&["stop"], "Stop"),
+        (&["travel", "right", "--speed", "3000"], "Travel"),
+        (&["hold", "--offset", "90", "--speed", "3000"], "HoldOffset"),
+        (&["reset"], "ResetFaults"),
+        (&["telemetry", "--count", "1"], "StreamTelemetry"),
+        (&["self-test"], "RunSelfTest"),
+        (
+            &["table", "write", table.to_str().unwrap()],
+            "WriteTuningTable",
+        ),
+    ];
+    for (args, request) in cases {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        assert!(!r.stdout.contains("accepted"), "{args:?}: {}", r.stdout);
+        assert!(!r.stdout.contains("stored"), "{args:?}: {}", r.stdout);
+        assert!(
+            r.stderr.contains(&format!(
+                "error: the device answered {request} with an Ack for Heartbeat, not an answer to {request}"
+            )),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
+
+    // The other way round: the heartbeats of `travel --for` answered by an Ack
+    // for Travel; and an Ack where a report is due (status, table read).
+    let port = fake_device(|request| match request {
+        Request::Heartbeat => vec![Response::Ack {
+            request: MessageId::Travel as u8,
+        }],
+        _ => vec![ack(request)],
+    });
+    let r = host_sim(&[
+        "device", "--port", &port, "travel", "left", "--speed", "3000", "--for", "1",
+    ]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr.contains(
+            "error: the device answered Heartbeat with an Ack for Travel, not an answer to Heartbeat"
+        ),
+        "{}",
+        r.stderr
+    );
+    for (args, request) in [(["status"], "GetStatus"), (["reset"], "GetStatus")] {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(&args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        assert!(
+            r.stderr
+                .contains(&format!("answered {request} with an Ack for {request}")),
+            "{args:?}: {}",
+            r.stderr
+        );
+    }
+    let r = host_sim(&["device", "--port", &port, "table", "read"]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert_eq!(r.stdout, "");
+    assert!(
+        r.stderr
+            .contains("answered ReadTuningTable with an Ack for ReadTuningTable"),
+        "{}",
+        r.stderr
+    );
+}
+
+/// Regression: `device telemetry --count N` never ended when no telemetry frame
+/// came (a device that acknowledges StreamTelemetry but does not stream, a line
+/// no frame crosses whole): it counted frames and heartbeated for ever, with no
+/// deadline on the frames. A stream silent for max(1 s, 5 periods) now ends the
+/// run (exit 1), the stream turned off; a `--duration` run the same way.
+#[test]
+fn a_stream_that_never_comes_ends_the_run() {
+    // Acknowledges every request and never streams.
+    let port = fake_device(|request| vec![ack(request)]);
+    let runs: [(&[&str], f64); 3] = [
+        (&["telemetry", "--count", "3"], 1.0),
+        (&["telemetry", "--period", "400", "--duration", "30"], 2.0),
+        (&["telemetry", "--duration", "0.5", "--csv", "-"], 0.5),
+    ];
+    for (args, quiet_s) in runs {
+        let mut all = vec!["device", "--port", &port];
+        all.extend_from_slice(args);
+        let r = host_sim_within(&all, Duration::from_secs(15))
+            .unwrap_or_else(|| panic!("{args:?} did not end within 15 s"));
+        assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
+        let expected = format!("error: no telemetry from the device in {quiet_s:.1} s");
+        assert!(r.stderr.starts_with(&expected), "{args:?}: {}", r.stderr);
+        assert!(
+            r.stderr.contains("0 frames before"),
+            "{args:?}: {}",
+            r.stderr
+        );
+        assert!(
+            r.took < Duration::from_secs_f64(quiet_s + 2.0),
+            "{args:?}: {:?}",
+            r.took
+        );
+    }
+}
+
+/// Regression: `device-sim --listen` on a port already taken exited 1, the
+/// status of a failed run, though the port is the user's to change (a user
+/// mistake is 2, as for a `--port` that cannot be opened).
+#[test]
+fn device_sim_on_a_busy_port_is_a_usage_error() {
+    let taken = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let r = host_sim(&["device-sim", "--listen", &format!("tcp:{addr}")]);
+    let stderr = r.usage();
+    assert!(
+        stderr.starts_with(&format!("error: --listen: cannot listen on {addr}: ")),
+        "{stderr}"
+    );
+    assert_eq!(r.stdout, "");
+    drop(taken);
 }

@@ -3,6 +3,12 @@
 //! for a table write), answers matched by sequence number, unsolicited telemetry
 //! frames kept aside, everything else (garbage, corrupt frames, stale answers to an
 //! earlier try) dropped.
+//!
+//! An answer at the request's sequence number must also be an answer to that
+//! request ([`answers`]): an Ack or a Nack naming the request's id, or the report
+//! the request asks for. Anything else there is [`LinkError::WrongAnswer`]: the
+//! device did not say that it carried out what was asked, so the host never
+//! reports it as accepted.
 
 use std::collections::VecDeque;
 use std::fmt;
@@ -31,6 +37,14 @@ pub enum LinkError {
         /// Wait after each, ms.
         timeout_ms: u32,
     },
+    /// The answer at the request's sequence number answers something else (an
+    /// Ack for another request, a report that was not asked for).
+    WrongAnswer {
+        /// The request's name.
+        request: &'static str,
+        /// What came instead, for people ("an Ack for Heartbeat").
+        answer: String,
+    },
     /// The port failed (closed, unplugged).
     Io(std::io::Error),
 }
@@ -46,6 +60,11 @@ impl fmt::Display for LinkError {
                 f,
                 "no answer from the device to {request} after {tries} tries of {timeout_ms} ms \
                  (is the port right, the device powered, its firmware running at 115200 baud?)"
+            ),
+            LinkError::WrongAnswer { request, answer } => write!(
+                f,
+                "the device answered {request} with {answer}, not an answer to {request} \
+                 (it may not have carried it out)"
             ),
             LinkError::Io(e) => write!(f, "the port failed: {e}"),
         }
@@ -77,7 +96,12 @@ pub struct Client {
 
 /// The name of a request for messages.
 pub fn request_name(request: &Request) -> &'static str {
-    match request.id() {
+    id_name(request.id())
+}
+
+/// The name of a request id for messages.
+fn id_name(id: MessageId) -> &'static str {
+    match id {
         MessageId::Heartbeat => "Heartbeat",
         MessageId::GetStatus => "GetStatus",
         MessageId::Stop => "Stop",
@@ -90,6 +114,50 @@ pub fn request_name(request: &Request) -> &'static str {
         MessageId::ReadSelfTest => "ReadSelfTest",
         MessageId::StreamTelemetry => "StreamTelemetry",
         _ => "a response",
+    }
+}
+
+/// The request a raw id byte of an Ack or Nack names, for messages.
+fn answered_name(id: u8) -> String {
+    match MessageId::from_u8(id).filter(|id| id.is_request()) {
+        Some(id) => id_name(id).to_string(),
+        None => format!("an unknown request (id 0x{id:02X})"),
+    }
+}
+
+/// A response, for messages: "an Ack for Heartbeat", "a status report".
+pub fn answer_text(response: &Response) -> String {
+    match response {
+        Response::Ack { request } => format!("an Ack for {}", answered_name(*request)),
+        Response::Nack { request, reason } => format!(
+            "a Nack for {} ({})",
+            answered_name(*request),
+            nack_text(*reason)
+        ),
+        Response::Status(_) => "a status report".into(),
+        Response::TuningTable(_) => "a tuning table".into(),
+        Response::SelfTest(_) => "a self-test report".into(),
+        Response::Telemetry(_) => "a telemetry frame".into(),
+    }
+}
+
+/// Whether `response` answers `request` (the device's answer rule,
+/// `shared::protocol::handler`): a Nack naming the request's id; an Ack naming it,
+/// for the requests answered by Ack; the report asked for by `GetStatus`,
+/// `ReadTuningTable` and `ReadSelfTest`.
+pub fn answers(request: &Request, response: &Response) -> bool {
+    let asked = request.id() as u8;
+    let wants_report = matches!(
+        request,
+        Request::GetStatus | Request::ReadTuningTable | Request::ReadSelfTest
+    );
+    match response {
+        Response::Nack { request: id, .. } => *id == asked,
+        Response::Ack { request: id } => *id == asked && !wants_report,
+        Response::Status(_) => matches!(request, Request::GetStatus),
+        Response::TuningTable(_) => matches!(request, Request::ReadTuningTable),
+        Response::SelfTest(_) => matches!(request, Request::ReadSelfTest),
+        Response::Telemetry(_) => false,
     }
 }
 
@@ -139,7 +207,9 @@ impl Client {
     }
 
     /// Send `request` and wait for its answer, trying again after each timeout
-    /// and after a `Nack(BadCrc)` (the request was corrupted on the way).
+    /// and after a `Nack(BadCrc)` (the request was corrupted on the way). The
+    /// answer returned [`answers`] the request; one that does not is
+    /// [`LinkError::WrongAnswer`].
     pub fn request(&mut self, request: &Request) -> Result<Response, LinkError> {
         self.seq = self.seq.wrapping_add(1);
         let seq = self.seq;
@@ -159,6 +229,12 @@ impl Client {
             self.port.write_all(&frame[..len]).map_err(LinkError::Io)?;
             let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
             match self.wait_answer(seq, deadline)? {
+                Some(response) if !answers(request, &response) => {
+                    return Err(LinkError::WrongAnswer {
+                        request: request_name(request),
+                        answer: answer_text(&response),
+                    })
+                }
                 Some(Response::Nack {
                     reason: NackReason::BadCrc,
                     ..

@@ -1,11 +1,12 @@
 //! `host-sim device --port PORT <COMMAND>`: the arguments checked, the port
 //! opened, the requests made through a [`Client`], the answers printed.
 //!
-//! Exit status: 0 done; 1 the device refused (a Nack) or did not answer, or the
-//! port failed while in use; 2 a user mistake (a bad or missing option, a port that
-//! cannot be opened, an unreadable table file).
+//! Exit status: 0 done; 1 the device refused (a Nack), did not answer, answered
+//! something else than what was asked (an Ack for another request is no
+//! acceptance), sent no telemetry it was asked for, or the port failed while in
+//! use; 2 a user mistake (a bad or missing option, a port that cannot be opened,
+//! an unreadable table file).
 
-use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -15,20 +16,20 @@ use shared::protocol::{
 };
 
 use super::args::{
-    DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TelemetryArgs,
-    TravelArgs,
+    DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TravelArgs,
 };
-use super::client::{nack_text, request_name, Client, LinkError};
-use super::interrupt;
+use super::client::{answer_text, nack_text, request_name, Client, LinkError};
 use super::port::PortSpec;
 use super::report;
+use super::telemetry;
 use crate::failure::{Console, Failure};
+use crate::interrupt;
 use crate::machine::input;
 use crate::machine::tuning_file;
 
 /// How often the streaming commands send a heartbeat: twice per
 /// [`HEARTBEAT_PERIOD_MS`].
-const HEARTBEAT_EVERY: Duration = Duration::from_millis(HEARTBEAT_PERIOD_MS as u64 / 2);
+pub(super) const HEARTBEAT_EVERY: Duration = Duration::from_millis(HEARTBEAT_PERIOD_MS as u64 / 2);
 
 /// How often the self-test is polled.
 const SELF_TEST_POLL: Duration = Duration::from_millis(50);
@@ -175,7 +176,7 @@ fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
                 report::faults_text(s.faults)
             ));
         }
-        DeviceCommand::Telemetry(a) => telemetry(&mut client, a, out)?,
+        DeviceCommand::Telemetry(a) => telemetry::run(&mut client, a, out)?,
         DeviceCommand::SelfTest(a) => self_test(&mut client, a, out)?,
         DeviceCommand::Table(TableCommand::Read { out: file }) => {
             table_read(&mut client, file.as_deref(), out)?
@@ -193,34 +194,39 @@ fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A request answered by Ack; a Nack or any other answer is a failure.
-fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
+/// Send `request` and take its answer; a Nack is the device's refusal, with its
+/// reason. The client has checked that the answer is one to `request`.
+fn ask(client: &mut Client, request: &Request) -> Result<Response, Failure> {
     match client.request(request)? {
-        Response::Ack { .. } => Ok(()),
         Response::Nack { reason, .. } => Err(Failure::Device(format!(
             "error: the device refused {}: {}",
             request_name(request),
             nack_text(reason)
         ))),
+        response => Ok(response),
+    }
+}
+
+/// A request answered by Ack: an Ack for `request` is its acceptance; anything
+/// else is a failure.
+pub(super) fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
+    match ask(client, request)? {
+        Response::Ack { .. } => Ok(()),
         other => Err(unexpected(request, &other)),
     }
 }
 
+/// An answer of another kind than `request` asks for: the device's failure.
 fn unexpected(request: &Request, response: &Response) -> Failure {
-    Failure::Device(format!(
-        "error: the device answered {} with an unexpected {:?}",
-        request_name(request),
-        shared::protocol::Message::id(response)
-    ))
+    Failure::from(LinkError::WrongAnswer {
+        request: request_name(request),
+        answer: answer_text(response),
+    })
 }
 
 fn status(client: &mut Client) -> Result<StatusReport, Failure> {
-    match client.request(&Request::GetStatus)? {
+    match ask(client, &Request::GetStatus)? {
         Response::Status(s) => Ok(s),
-        Response::Nack { reason, .. } => Err(Failure::Device(format!(
-            "error: the device refused GetStatus: {}",
-            nack_text(reason)
-        ))),
         other => Err(unexpected(&Request::GetStatus, &other)),
     }
 }
@@ -278,98 +284,8 @@ fn keep_alive(client: &mut Client, for_s: Option<f64>, out: &mut String) -> Resu
     Ok(())
 }
 
-/// Where the telemetry goes.
-enum Sink {
-    /// Readable lines on stdout, as they come.
-    Lines,
-    /// CSV on stdout, as it comes.
-    CsvStdout,
-    /// Readable lines on stdout and CSV kept for a file written at the end.
-    CsvFile(String, String),
-}
-
-fn telemetry(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result<(), Failure> {
-    let mut sink = match a.csv.as_deref() {
-        None => Sink::Lines,
-        Some("-") => Sink::CsvStdout,
-        Some(file) => Sink::CsvFile(file.to_string(), format!("{}\n", report::CSV_HEADER)),
-    };
-    let stdout = std::io::stdout();
-    let emit = |text: &str| {
-        let mut lock = stdout.lock();
-        let _ = lock.write_all(text.as_bytes());
-        let _ = lock.flush();
-    };
-    if matches!(sink, Sink::CsvStdout) {
-        emit(&format!("{}\n", report::CSV_HEADER));
-    }
-    interrupt::catch();
-    command(
-        client,
-        &Request::StreamTelemetry {
-            period_ms: a.period,
-        },
-    )?;
-    let end = a
-        .duration
-        .map(|d| Instant::now() + Duration::from_secs_f64(d));
-    let mut frames: u64 = 0;
-    let mut result = Ok(());
-    'stream: loop {
-        if interrupt::interrupted() || end.is_some_and(|e| Instant::now() >= e) {
-            break;
-        }
-        // A heartbeat, then frames until the next one is due.
-        if let Err(e) = client.request(&Request::Heartbeat) {
-            result = Err(Failure::from(e));
-            break;
-        }
-        let next = Instant::now() + HEARTBEAT_EVERY;
-        loop {
-            for (_, report) in client.take_telemetry() {
-                frames += 1;
-                match &mut sink {
-                    Sink::Lines => emit(&format!("{}\n", report::telemetry_line(&report))),
-                    Sink::CsvStdout => emit(&format!("{}\n", report::csv_row(&report))),
-                    Sink::CsvFile(_, csv) => {
-                        emit(&format!("{}\n", report::telemetry_line(&report)));
-                        csv.push_str(&report::csv_row(&report));
-                        csv.push('\n');
-                    }
-                }
-                if a.count.is_some_and(|n| frames >= n) {
-                    break 'stream;
-                }
-            }
-            let now = Instant::now();
-            if now >= next || interrupt::interrupted() {
-                break;
-            }
-            let wait = next - now;
-            let wait = end.map_or(wait, |e| wait.min(e.saturating_duration_since(now)));
-            if wait.is_zero() {
-                break;
-            }
-            if let Err(e) = client.pump(wait) {
-                result = Err(Failure::from(e));
-                break 'stream;
-            }
-        }
-    }
-    // The stream off, whatever ended it (tried even after a failure).
-    let off = command(client, &Request::StreamTelemetry { period_ms: 0 });
-    result?;
-    off?;
-    if let Sink::CsvFile(file, csv) = &sink {
-        std::fs::write(file, csv)
-            .map_err(|e| Failure::Device(format!("error: --csv: {file}: cannot write: {e}")))?;
-        out.push_str(&format!("telemetry: {frames} frames written to {file}\n"));
-    }
-    Ok(())
-}
-
 fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
-    match client.request(&Request::ReadSelfTest)? {
+    match ask(client, &Request::ReadSelfTest)? {
         Response::SelfTest(r) => Ok(r),
         other => Err(unexpected(&Request::ReadSelfTest, &other)),
     }
@@ -422,7 +338,7 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<
 }
 
 fn table_read(client: &mut Client, file: Option<&Path>, out: &mut String) -> Result<(), Failure> {
-    let table = match client.request(&Request::ReadTuningTable)? {
+    let table = match ask(client, &Request::ReadTuningTable)? {
         Response::TuningTable(t) => t,
         other => return Err(unexpected(&Request::ReadTuningTable, &other)),
     };

@@ -3,12 +3,14 @@
 //! protocol (`docs/protocol.md`, `docs/cli-device.md`).
 //!
 //! - [`args`]: the command lines;
-//! - [`port`]: the byte pipe: a serial port raw at 115200 baud 8N1, a TCP socket,
-//!   a pseudo-terminal;
+//! - [`port`]: the byte pipe: a serial port or a TCP socket;
+//! - [`serial`]: a serial port raw at 115200 baud 8N1;
+//! - [`pty`]: the pseudo-terminal `device-sim` serves (Unix);
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
+//! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
-//! - [`interrupt`]: Ctrl-C as a flag, so streams end cleanly;
+//! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
 //! - [`sim`]: the simulated device: the firmware's control tick and link task;
 //! - [`serve`]: `host-sim device-sim`, the simulated device in real time behind a
@@ -17,9 +19,12 @@
 pub mod args;
 pub mod client;
 pub mod commands;
-pub mod interrupt;
 pub mod port;
+#[cfg(unix)]
+pub mod pty;
 pub mod report;
 pub mod rotors;
+pub mod serial;
 pub mod serve;
 pub mod sim;
+pub mod telemetry;

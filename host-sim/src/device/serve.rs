@@ -12,10 +12,10 @@ use std::net::TcpListener;
 use std::time::{Duration, Instant};
 
 use super::args::DeviceSimArgs;
-use super::interrupt;
 use super::port::{Port, PortSpec, TcpPort};
 use super::sim::{Noise, SimDevice};
 use crate::failure::{Console, Failure};
+use crate::interrupt;
 use crate::machine::tuning_file;
 
 /// Ticks the simulator runs at most in one go when it fell behind the clock
@@ -26,7 +26,7 @@ const MAX_CATCH_UP_TICKS: u64 = 200;
 pub enum Endpoint {
     /// A pseudo-terminal's master side.
     #[cfg(unix)]
-    Pty(super::port::unix::Pty),
+    Pty(super::pty::Pty),
     /// A TCP listener and the connection being served.
     Tcp {
         /// The listener (non-blocking).
@@ -40,7 +40,7 @@ impl Endpoint {
     /// A new pseudo-terminal.
     #[cfg(unix)]
     pub fn pty() -> io::Result<Endpoint> {
-        super::port::unix::open_pty().map(Endpoint::Pty)
+        super::pty::Pty::open().map(Endpoint::Pty)
     }
 
     /// Listen on `addr` (`HOST:PORT`).
@@ -57,7 +57,7 @@ impl Endpoint {
     pub fn port_name(&self) -> String {
         match self {
             #[cfg(unix)]
-            Endpoint::Pty(p) => p.path.clone(),
+            Endpoint::Pty(p) => p.path().to_string(),
             Endpoint::Tcp { listener, .. } => match listener.local_addr() {
                 Ok(a) => format!("tcp:{a}"),
                 Err(_) => "tcp:?".into(),
@@ -69,7 +69,7 @@ impl Endpoint {
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> usize {
         match self {
             #[cfg(unix)]
-            Endpoint::Pty(p) => p.master.read_timeout(buf, timeout).unwrap_or(0),
+            Endpoint::Pty(p) => p.read_timeout(buf, timeout).unwrap_or(0),
             Endpoint::Tcp { listener, conn } => {
                 if conn.is_none() {
                     if let Ok((stream, _)) = listener.accept() {
@@ -99,7 +99,7 @@ impl Endpoint {
         }
         match self {
             #[cfg(unix)]
-            Endpoint::Pty(p) => p.master.write_or_drop(bytes),
+            Endpoint::Pty(p) => p.write_or_drop(bytes),
             Endpoint::Tcp { conn, .. } => {
                 if let Some(c) = conn {
                     if c.write_all(bytes).is_err() {

@@ -16,24 +16,23 @@ use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use shared::impact::MAX_CONTACTS;
-
-use crate::device::interrupt;
-use crate::output::text::sig;
-use plot::plot_svg;
 use shared::controller::{Command, Direction};
+use shared::impact::MAX_CONTACTS;
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
+use crate::interrupt;
 use crate::machine::Machine;
 use crate::output::csv::{events_csv, trace_header, trace_line};
 use crate::output::file::Staged;
+use crate::output::text::sig;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::trace::TraceRow;
 use crate::simulation::{
     limits, simulate_observed, Observer, OpenLoop, OpenLoopDriver, RunOptions,
 };
+use plot::plot_svg;
 use report::{summary_json, summary_table};
 
 /// Arguments of `host-sim run`.

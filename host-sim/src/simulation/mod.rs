@@ -135,9 +135,9 @@ impl Observer for Unobserved {}
 pub struct Interruptible;
 
 impl Interruptible {
-    /// Catches Ctrl-C from now on ([`crate::device::interrupt`]).
+    /// Catches Ctrl-C from now on ([`crate::interrupt`]).
     pub fn new() -> Self {
-        crate::device::interrupt::catch();
+        crate::interrupt::catch();
         Interruptible
     }
 }
@@ -150,7 +150,7 @@ impl Default for Interruptible {
 
 impl Observer for Interruptible {
     fn go_on(&mut self, _t: f64) -> bool {
-        !crate::device::interrupt::interrupted()
+        !crate::interrupt::interrupted()
     }
 }
 

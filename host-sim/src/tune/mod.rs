@@ -258,7 +258,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
-    if crate::device::interrupt::interrupted() {
+    if crate::interrupt::interrupted() {
         return Err(Failure::Run(
             "error: tune: interrupted (Ctrl-C): the sweep is incomplete, nothing written".into(),
         ));
