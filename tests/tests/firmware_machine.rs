@@ -15,8 +15,8 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
+use host_sim::machine::machine_constants;
 use host_sim::machine::Machine;
-use host_sim::simulation::closed_loop::machine_constants;
 use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
 use shared::drive::{BridgeConfig, Decay};
 

@@ -23,6 +23,7 @@ pub mod tuning_file;
 
 use std::path::{Path, PathBuf};
 
+use shared::controller::{MachineConstants, MachinePhysics, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
 use shared::impact::{ImpactLaw, MAX_CONTACTS};
 use toml::Table;
@@ -270,8 +271,41 @@ impl Machine {
 
     /// Platform mass plus both eccentric masses, kg: the mass that moves.
     pub fn total_mass(&self) -> f64 {
-        self.platform.mass + self.rotors.iter().map(|r| r.eccentric_mass).sum::<f64>()
+        self.physics().total_mass_kg()
     }
+
+    /// The values the controller's constants depend on, key by key: `[controller]
+    /// rate_hz`, `[sensors] encoder_counts`, `[drive]` (supply, decay, PWM),
+    /// `[platform] mass`, `[fundament] gravity`, and each rotor's eccentric mass,
+    /// eccentricity and inertia with its motor's resistance, torque constant, Coulomb
+    /// friction and current limit.
+    pub fn physics(&self) -> MachinePhysics {
+        let rotor = |r: &Rotor| RotorPhysics {
+            resistance_ohm: r.motor.resistance,
+            torque_constant: r.motor.torque_constant,
+            inertia_kg_m2: r.inertia,
+            eccentric_mass_kg: r.eccentric_mass,
+            eccentricity_m: r.eccentricity,
+            coulomb_friction_nm: r.motor.coulomb_friction,
+            current_limit_a: r.motor.current_limit,
+        };
+        MachinePhysics {
+            rate_hz: self.controller.rate_hz,
+            encoder_counts: self.sensors.encoder_counts,
+            supply_voltage_v: self.drive.supply_voltage,
+            platform_mass_kg: self.platform.mass,
+            gravity_m_s2: self.fundament.gravity,
+            rotors: [rotor(&self.rotors[0]), rotor(&self.rotors[1])],
+            bridge: self.drive.bridge,
+        }
+    }
+}
+
+/// The controller's constants for a machine: its [`Machine::physics`] through
+/// `shared`'s formulas ([`MachineConstants::from_physics`]), as the firmware's build
+/// script compiles them in.
+pub fn machine_constants(m: &Machine) -> MachineConstants {
+    MachineConstants::from_physics(&m.physics())
 }
 
 /// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that

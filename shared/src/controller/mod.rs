@@ -14,6 +14,7 @@
 //! Modules, one job each:
 //! - [`io`]: inputs, commands, outputs, telemetry, states;
 //! - [`params`]: parameters and the design rules of their defaults;
+//! - [`machine`]: the machine's physical values mapped to [`MachineConstants`];
 //! - [`encoder`]: speed from counts, angle from the index pulse, encoder checks;
 //! - [`ramp`]: speed ramp (soft start, fast through the resonance band) and offset
 //!   ramp (direction changes through the vertical-force offset);
@@ -100,6 +101,7 @@ pub mod angle;
 pub mod encoder;
 pub mod faults;
 pub mod io;
+pub mod machine;
 pub mod params;
 pub mod phase_loop;
 pub mod ramp;
@@ -110,6 +112,7 @@ pub mod tuning;
 pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
 pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
+pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
 };
