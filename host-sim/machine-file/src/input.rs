@@ -669,7 +669,7 @@ impl<'a> Section<'a> {
 }
 
 /// A named element of an array of tables (`[[contacts]]`, `[[rotors]]`) as read.
-pub(crate) struct Named<T> {
+pub struct Named<T> {
     /// Whether the file gives the name (else the default, or refused).
     pub given: bool,
     /// The name, given or default; `None` when the given one is refused.
@@ -679,7 +679,7 @@ pub(crate) struct Named<T> {
 }
 
 /// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
-pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
+pub fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
     let given = s.string("name", Need::Optional);
     match given {
         Some(n) if n.is_empty() => {
@@ -700,7 +700,7 @@ pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Optio
 
 /// Unique names among `list` (problems reported on `root`); `what` is the element
 /// (`contact`, `rotor`), `array` its key.
-pub(crate) fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
+pub fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
     let mut ok = true;
     let mut seen: Vec<(&str, usize)> = Vec::new();
     for (i, element) in list.iter().enumerate() {

@@ -18,7 +18,7 @@ use std::path::Path;
 
 use shared::controller::{TuningTable, MAX_TUNING_ROWS};
 
-use crate::machine::input::{self, Limit, Need, Problem};
+use crate::input::{self, Limit, Need, Problem};
 
 /// One row: speed, rpm; right and left offsets, degrees.
 pub type Row = (f64, f64, f64);
