@@ -66,10 +66,7 @@ fn variant(name: &str, edits: &[(&str, &str)]) -> PathBuf {
 /// `text` written to the scratch file `name`.
 fn scratch(name: &str, text: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware_machine");
-    fs::create_dir_all(&dir).expect("scratch folder");
-    let path = dir.join(name);
-    fs::write(&path, text).expect("scratch file");
-    path
+    tests::scratch_file(&dir, name, text)
 }
 
 /// The `KEY: VALUE` pairs of generated code, in order, each value as written
@@ -264,7 +261,7 @@ fn generated_tuning_rows_are_the_crates() {
     assert!(code.contains(&format!("[(f32, f32, f32); {}]", rows.len())));
     // The controller takes them as host-sim does.
     assert_eq!(
-        TuningTable::<MAX_TUNING_ROWS>::from_rows(&rows).ok(),
+        TuningTable::<MAX_TUNING_ROWS>::from_rows(&rows),
         tuning_file::table(&tuning_file::read(&path).unwrap())
     );
     // Without a table: the controller's default offsets.

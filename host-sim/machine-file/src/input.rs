@@ -416,19 +416,37 @@ impl<'a> Section<'a> {
             Limit::Any => "a number".to_string(),
             l => format!("a number {}", l.describe()),
         };
-        let value = match self.raw(key, &need, &what) {
+        self.number_by(key, need, &what, |x| {
+            if limit.admits(x) {
+                Ok(())
+            } else {
+                Err(limit.describe())
+            }
+        })
+    }
+
+    /// A finite number that `rule` accepts: `rule(x)` is `Err(requirement)` for a
+    /// refused `x`, reported as `must be REQUIREMENT (got X)`; `what` says what is
+    /// required when the key is missing. For a rule kept elsewhere (the controller's
+    /// for a tuning row).
+    pub fn number_by(
+        &self,
+        key: &'static str,
+        need: Need<f64>,
+        what: &str,
+        rule: impl Fn(f64) -> Result<(), String>,
+    ) -> Option<f64> {
+        let value = match self.raw(key, &need, what) {
             Ok(v) => v,
             Err(default) => return default,
         };
-        match finite_number(value) {
-            Ok(x) if limit.admits(x) => Some(x),
-            Ok(x) => {
-                self.problem(
-                    key,
-                    format!("must be {} (got {})", limit.describe(), number(x)),
-                );
-                None
-            }
+        let checked = finite_number(value).and_then(|x| {
+            rule(x)
+                .map(|()| x)
+                .map_err(|requirement| format!("must be {requirement} (got {})", number(x)))
+        });
+        match checked {
+            Ok(x) => Some(x),
             Err(message) => {
                 self.problem(key, message);
                 None

@@ -84,17 +84,7 @@ pub struct ControllerDriver {
 pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
     let mut p = Params::from_machine(&machine_constants(m));
     if let Some(path) = &m.controller.tuning_table {
-        let rows = tuning_file::read(path)?;
-        match tuning_file::table(&rows) {
-            Some(t) => p.tuning = t,
-            None => {
-                return Err(vec![Problem {
-                    file: path.display().to_string(),
-                    location: crate::machine::input::Location::Key("rows".into()),
-                    message: "the controller refused the table (check speeds and offsets)".into(),
-                }])
-            }
-        }
+        p.tuning = tuning_file::read_table(path)?;
     }
     Ok(p)
 }

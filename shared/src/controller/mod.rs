@@ -116,7 +116,7 @@ pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
 };
-pub use tuning::{TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
+pub use tuning::{RowField, TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
 
 use crate::protocol::{SelfTestReport, SelfTestStatus};
 use crate::storage::SelfTest;
