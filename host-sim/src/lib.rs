@@ -4,7 +4,8 @@
 //! arguments' handling, its stages and its outputs. From input to output:
 //! - [`machine`]: the machine file and the tuning file, read and checked into plain
 //!   values (every problem with its key path), `--set` overrides, the checked TOML
-//!   reader the other files use;
+//!   reader the other files use: the `machine-file` crate, which the firmware's
+//!   build script reads the same files with;
 //! - [`plant`]: the simulated platform, rotors, motors, contacts and sensors;
 //! - [`simulation`]: a whole run, tick by tick, with the `shared` controller in the
 //!   loop, its trace, events and summary statistics;
@@ -23,7 +24,7 @@ pub mod device;
 pub mod failure;
 pub mod impact;
 pub mod interrupt;
-pub mod machine;
+pub use machine_file as machine;
 pub mod output;
 pub mod plant;
 pub mod run;

@@ -16,7 +16,7 @@
 use shared::controller::angle::{wrap_deg, wrap_deg_signed};
 use shared::controller::{
     may_write_table, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
-    SpeedEstimator, State, TableError, TickTiming, TuningTable,
+    RowField, SpeedEstimator, State, TableError, TickTiming, TuningTable,
 };
 
 use std::f64::consts::TAU;
@@ -261,37 +261,62 @@ fn tuning_table_interpolates_circularly_across_zero() {
     let d: TuningTable = TuningTable::default();
     assert_eq!(d.offset(Direction::Right, 3000.0), 90.0);
     assert_eq!(d.offset(Direction::Left, 123.0), 270.0);
-    // Refusals.
+    // Refusals, each naming the row and the value; the ends of the ranges among
+    // them: a speed of 0 and an offset of 360 (which is 0: one turn, each offset
+    // written once).
     type T = TuningTable<4>;
-    assert_eq!(T::from_rows(&[]), Err(TableError::Empty));
-    assert_eq!(
-        T::from_rows(&[(1.0, 0.0, 0.0); 5]),
-        Err(TableError::TooManyRows {
-            rows: 5,
-            capacity: 4
-        })
-    );
-    assert_eq!(
-        T::from_rows(&[(1.0, 0.0, 0.0), (1.0, 0.0, 0.0)]),
-        Err(TableError::SpeedsNotIncreasing { row: 1 })
-    );
-    assert_eq!(
-        T::from_rows(&[(1.0, f32::NAN, 0.0)]),
-        Err(TableError::NotFinite { row: 0 })
-    );
-    assert_eq!(
-        T::from_rows(&[(-1.0, 0.0, 0.0)]),
-        Err(TableError::NegativeSpeed { row: 0 })
-    );
-    assert_eq!(
-        T::from_rows(&[(1.0, 0.0, 361.0)]),
-        Err(TableError::OffsetOutOfRange { row: 0 })
-    );
-    // 360 is 0.
-    assert_eq!(
-        T::from_rows(&[(1.0, 360.0, 0.0)]).unwrap().rows()[0].right_offset_deg,
-        0.0
-    );
+    type Rows = &'static [(f32, f32, f32)];
+    let (right, left) = (RowField::RightOffset, RowField::LeftOffset);
+    let cases: [(Rows, TableError); 8] = [
+        (&[], TableError::Empty),
+        (
+            &[(1.0, 0.0, 0.0); 5],
+            TableError::TooManyRows {
+                rows: 5,
+                capacity: 4,
+            },
+        ),
+        (
+            &[(1.0, 0.0, 0.0), (1.0, 0.0, 0.0)],
+            TableError::SpeedsNotIncreasing { row: 1 },
+        ),
+        (
+            &[(1.0, f32::NAN, 0.0)],
+            TableError::NotFinite {
+                row: 0,
+                field: right,
+            },
+        ),
+        (&[(-1.0, 0.0, 0.0)], TableError::SpeedNotPositive { row: 0 }),
+        (
+            &[(1.0, 0.0, 361.0)],
+            TableError::OffsetOutOfRange {
+                row: 0,
+                field: left,
+            },
+        ),
+        (
+            &[(0.0, 90.0, 270.0)],
+            TableError::SpeedNotPositive { row: 0 },
+        ),
+        (
+            &[(1.0, 360.0, 0.0)],
+            TableError::OffsetOutOfRange {
+                row: 0,
+                field: right,
+            },
+        ),
+    ];
+    for (rows, error) in cases {
+        assert_eq!(T::from_rows(rows), Err(error), "{rows:?}");
+    }
+    // 0 degrees, the last f32 below 360 and the smallest positive speed pass.
+    let below = f32::from_bits(360.0_f32.to_bits() - 1);
+    let t = T::from_rows(&[(f32::MIN_POSITIVE, 0.0, below)]).unwrap();
+    assert_eq!(t.rows()[0].left_offset_deg, below);
+    // The default table passes the rule it defines.
+    let d = d.rows()[0];
+    assert!(T::from_rows(&[(d.speed_rpm, d.right_offset_deg, d.left_offset_deg)]).is_ok());
 }
 
 #[test]

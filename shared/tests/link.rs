@@ -288,7 +288,7 @@ fn a_frame_cut_short_is_abandoned_after_the_frame_gap() {
         &Request::WriteTuningTable(
             TuningTable::from_rows(
                 &(0..32)
-                    .map(|k| (100.0 * k as f32, 90.0, 270.0))
+                    .map(|k| (100.0 * (k + 1) as f32, 90.0, 270.0))
                     .collect::<Vec<_>>(),
             )
             .unwrap(),

@@ -53,7 +53,7 @@ fn hex(s: &str) -> Vec<u8> {
 
 fn sample_table() -> TuningTable {
     TuningTable::from_rows(&[
-        (0.0, 90.0, 270.0),
+        (500.0, 90.0, 270.0),
         (1500.0, 100.5, 250.0),
         (3000.0, 350.0, 10.0),
     ])
@@ -62,7 +62,7 @@ fn sample_table() -> TuningTable {
 
 fn full_table() -> TuningTable {
     let rows: Vec<(f32, f32, f32)> = (0..32)
-        .map(|i| (100.0 * i as f32, (i * 11) as f32, 359.5 - i as f32))
+        .map(|i| (100.0 * (i + 1) as f32, (i * 11) as f32, 359.5 - i as f32))
         .collect();
     TuningTable::from_rows(&rows).unwrap()
 }

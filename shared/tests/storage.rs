@@ -27,7 +27,7 @@ fn record(k: u32) -> Record {
     let rows: Vec<(f32, f32, f32)> = (0..=(k % 32))
         .map(|i| {
             (
-                100.0 * i as f32 + k as f32,
+                100.0 * (i + 1) as f32 + k as f32,
                 (i * 7 + k) as f32 % 360.0,
                 (200 + i + k) as f32 % 360.0,
             )
@@ -66,7 +66,7 @@ fn the_layout_is_as_documented() {
     assert_eq!(MAGIC.to_le_bytes(), *b"VIBT");
 
     let r = Record {
-        tuning: TuningTable::from_rows(&[(0.0, 90.0, 270.0), (3000.0, 80.0, 280.0)]).unwrap(),
+        tuning: TuningTable::from_rows(&[(500.0, 90.0, 270.0), (3000.0, 80.0, 280.0)]).unwrap(),
         self_test: None,
     };
     let bytes = encode_record(&r, 0x0102_0304);
@@ -75,7 +75,7 @@ fn the_layout_is_as_documented() {
     assert_eq!(&bytes[6..8], &412u16.to_le_bytes());
     assert_eq!(&bytes[8..12], &[4, 3, 2, 1]);
     assert_eq!(&bytes[12..16], &[2, 0, 0, 0]); // 2 rows, no self-test
-    assert_eq!(&bytes[16..20], &0f32.to_le_bytes());
+    assert_eq!(&bytes[16..20], &500f32.to_le_bytes());
     assert_eq!(&bytes[20..24], &90f32.to_le_bytes());
     assert_eq!(&bytes[24..28], &270f32.to_le_bytes());
     assert_eq!(&bytes[28..32], &3000f32.to_le_bytes());

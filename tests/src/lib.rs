@@ -6,6 +6,18 @@ pub mod impact_oscillator;
 pub mod moreau_jean;
 pub mod rig;
 
+use std::path::{Path, PathBuf};
+
+/// `text` written to the file `name` in the folder `dir` (created if missing), for
+/// a test that hands a file to a reader: a test passes its
+/// `env!("CARGO_TARGET_TMPDIR")` joined with a folder of its own.
+pub fn scratch_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    std::fs::create_dir_all(dir).expect("scratch folder");
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("scratch file");
+    path
+}
+
 /// A tiny deterministic generator (xorshift64*, Vigna 2016), so that random
 /// parameter sets are the same on every run and every machine.
 pub struct Rng(u64);

@@ -1,22 +1,28 @@
 //! The machine the firmware compiles in is the machine host-sim simulates.
 //!
-//! `firmware/build.rs` reads the machine file (`VIBRO_MACHINE`, default
-//! `examples/vibro-driver.toml`) with its own small reader (the firmware does not
-//! depend on host-sim) and writes `MachineConstants` into the firmware. This test
-//! includes that build script as a module and checks, on the reference machine and
-//! on variants that exercise every key it reads (a rotor's own `[rotors.motor]`,
-//! other gravity, rate, counts, supply, no eccentric masses), that its values are
-//! exactly host-sim's `closed_loop::machine_constants` of the same file: the
-//! firmware runs the controller with the parameters `host-sim run` and
-//! `host-sim tune` used. It also checks the reference against
-//! `MachineConstants::REFERENCE`, the tuning-table reading against host-sim's, and
-//! that mistakes name the file and the key.
+//! `firmware/build.rs` reads the machine file and its tuning table with the
+//! `machine-file` crate (host-sim's reader) and maps it with
+//! `machine_file::machine_constants` (shared's formulas); what is left in it is glue:
+//! the paths, the environment, the firmware's own checks and the generated code.
+//! This test includes that build script as a module and checks the glue:
+//! - the generated `machine.rs` reads back (its literals parsed as rustc parses them)
+//!   as exactly the constants the crate computes, on the reference machine and on
+//!   variants that change every value it carries;
+//! - the reference machine gives `MachineConstants::REFERENCE`;
+//! - the generated `tuning.rs` holds the rows the crate reads, or the controller's
+//!   default offsets;
+//! - the paths: `VIBRO_MACHINE` and `VIBRO_TUNING` relative to `firmware/`, a
+//!   machine's table relative to the machine file;
+//! - a machine file with problems fails the build with every problem, each naming
+//!   the file and the key, as host-sim prints them; and what only the firmware
+//!   refuses (another control rate, constants its controller refuses) too.
 
+use std::ffi::OsString;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use host_sim::machine::Machine;
-use host_sim::simulation::closed_loop::machine_constants;
+use machine_file::input::render;
+use machine_file::{machine_constants, tuning_file, Machine};
 use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
 use shared::drive::{BridgeConfig, Decay};
 
@@ -24,50 +30,23 @@ use shared::drive::{BridgeConfig, Decay};
 #[path = "../../firmware/build.rs"]
 mod firmware_build;
 
-use firmware_build::{machine_rs, parse_tuning, read_machine, MachineValues};
+use firmware_build::{
+    load_machine, machine_path, machine_rs, tuning_path, tuning_rows, tuning_rs, Row,
+};
 
 /// The repository's root.
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
+/// The firmware's folder, where cargo runs its build script.
+fn firmware_dir() -> PathBuf {
+    root().join("firmware")
+}
+
 /// The reference machine file.
 fn reference_file() -> PathBuf {
     root().join("examples/vibro-driver.toml")
-}
-
-/// What the firmware's generated `MACHINE` holds for `v` (the build script writes
-/// each value as the shortest `f32` literal, which reads back as the same `f32`).
-fn constants(v: &MachineValues) -> MachineConstants {
-    let rotor = |k: usize| RotorModel {
-        resistance_ohm: v.rotors[k].resistance_ohm as f32,
-        torque_constant: v.rotors[k].torque_constant as f32,
-        inertia_kg_m2: v.rotors[k].inertia_kg_m2 as f32,
-        load_torque_nm: v.rotors[k].load_torque_nm as f32,
-    };
-    MachineConstants {
-        rate_hz: v.rate_hz as f32,
-        encoder_counts: v.encoder_counts,
-        supply_voltage_v: v.supply_voltage_v as f32,
-        current_limit_a: v.current_limit_a as f32,
-        rotors: [rotor(0), rotor(1)],
-        resonance_band_rpm: v.resonance_band_rpm,
-        bridge: BridgeConfig {
-            decay: if v.fast_decay {
-                Decay::Fast
-            } else {
-                Decay::Slow
-            },
-            pwm_hz: v.pwm_hz,
-        },
-    }
-}
-
-/// Both readers on the machine file at `path`: (firmware, host-sim).
-fn both(path: &Path) -> (MachineConstants, MachineConstants) {
-    let firmware = read_machine(path).unwrap_or_else(|e| panic!("firmware reader: {e:?}"));
-    let machine = Machine::load(path, &[]).unwrap_or_else(|e| panic!("host-sim reader: {e:?}"));
-    (constants(&firmware), machine_constants(&machine))
 }
 
 /// A scratch copy of the reference machine with `edits` (text replacements, each
@@ -81,67 +60,107 @@ fn variant(name: &str, edits: &[(&str, &str)]) -> PathBuf {
         );
         text = text.replacen(from, to, 1);
     }
+    scratch(&format!("{name}.toml"), &text)
+}
+
+/// `text` written to the scratch file `name`.
+fn scratch(name: &str, text: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware_machine");
-    fs::create_dir_all(&dir).expect("scratch folder");
-    let path = dir.join(format!("{name}.toml"));
-    fs::write(&path, text).expect("scratch machine file");
-    path
+    tests::scratch_file(&dir, name, text)
 }
 
-#[test]
-fn build_script_constants_are_shareds_and_host_sims() {
-    assert_eq!(
-        firmware_build::FIRMWARE_RATE_HZ as f32,
-        shared::controller::CONTROL_RATE_HZ
-    );
-    assert_eq!(
-        firmware_build::MAX_ENCODER_COUNTS,
-        i64::from(shared::controller::params::MAX_ENCODER_COUNTS)
-    );
-    assert_eq!(firmware_build::MAX_RATE_HZ, host_sim::machine::MAX_RATE_HZ);
-    assert_eq!(
-        firmware_build::DEFAULT_GRAVITY,
-        host_sim::machine::DEFAULT_GRAVITY
-    );
-    assert_eq!(firmware_build::DEFAULT_PWM_HZ, BridgeConfig::DEFAULT.pwm_hz);
-    assert_eq!(
-        firmware_build::PWM_HZ_RANGE.map(|f| f as u32),
-        host_sim::machine::PWM_HZ_RANGE
-    );
+/// The `KEY: VALUE` pairs of generated code, in order, each value as written
+/// (a trailing comma dropped).
+fn fields(code: &str) -> Vec<(String, String)> {
+    code.lines()
+        .filter_map(|line| {
+            let (key, value) = line.trim().split_once(": ")?;
+            let value = value.strip_suffix(',')?;
+            Some((key.to_string(), value.to_string()))
+        })
+        .collect()
 }
 
-#[test]
-fn reference_machine_is_host_sims() {
-    let (firmware, host) = both(&reference_file());
-    assert_eq!(firmware, host);
+/// A float literal of generated code, read as rustc reads it (correctly rounded).
+fn float(literal: &str) -> f32 {
+    literal
+        .parse()
+        .unwrap_or_else(|e| panic!("`{literal}`: {e}"))
 }
 
-#[test]
-fn reference_machine_is_the_reference_constants() {
-    let firmware = constants(&read_machine(&reference_file()).unwrap());
-    let reference = MachineConstants::REFERENCE;
-    // Everything but the resonance band exactly.
-    assert_eq!(
-        MachineConstants {
-            resonance_band_rpm: reference.resonance_band_rpm,
-            ..firmware
+/// What the generated `MACHINE` holds: its literals read back, field by field.
+fn read_back(code: &str) -> MachineConstants {
+    let fields = fields(code);
+    let one = |key: &str| -> &str {
+        let mut found = fields.iter().filter(|(k, _)| k == key);
+        let (_, value) = found
+            .next()
+            .unwrap_or_else(|| panic!("no {key} in\n{code}"));
+        assert!(found.next().is_none(), "{key} twice in\n{code}");
+        value
+    };
+    let per_rotor = |key: &str| -> [f32; 2] {
+        let values: Vec<f32> = fields
+            .iter()
+            .filter(|(k, _)| k == key)
+            .map(|(_, v)| float(v))
+            .collect();
+        values
+            .try_into()
+            .unwrap_or_else(|_| panic!("{key}: not two in\n{code}"))
+    };
+    let [resistance, torque_constant, inertia, load] = [
+        "resistance_ohm",
+        "torque_constant",
+        "inertia_kg_m2",
+        "load_torque_nm",
+    ]
+    .map(per_rotor);
+    let rotor = |k: usize| RotorModel {
+        resistance_ohm: resistance[k],
+        torque_constant: torque_constant[k],
+        inertia_kg_m2: inertia[k],
+        load_torque_nm: load[k],
+    };
+    let band: Vec<f32> = one("resonance_band_rpm")
+        .trim_matches(['[', ']'])
+        .split(", ")
+        .map(float)
+        .collect();
+    let decay = match one("decay") {
+        "shared::drive::Decay::Slow" => Decay::Slow,
+        "shared::drive::Decay::Fast" => Decay::Fast,
+        other => panic!("decay `{other}`"),
+    };
+    MachineConstants {
+        rate_hz: float(one("rate_hz")),
+        encoder_counts: one("encoder_counts").parse().unwrap(),
+        supply_voltage_v: float(one("supply_voltage_v")),
+        current_limit_a: float(one("current_limit_a")),
+        rotors: [rotor(0), rotor(1)],
+        resonance_band_rpm: [band[0], band[1]],
+        bridge: BridgeConfig {
+            decay,
+            pwm_hz: one("pwm_hz").parse().unwrap(),
         },
-        reference
-    );
-    // The band: REFERENCE rounds the file's 0.7 and 1.18 x the 2125 rpm lift-off
-    // (1488 and 2508 rpm) to 1500 and 2500.
-    for (got, want) in firmware
-        .resonance_band_rpm
-        .iter()
-        .zip(reference.resonance_band_rpm)
-    {
-        assert!((got - want).abs() <= 0.01 * want, "band {got} vs {want}");
     }
 }
 
+/// The rows of generated `TUNING_ROWS`, read back.
+fn read_back_rows(code: &str) -> Vec<Row> {
+    code.lines()
+        .filter_map(|line| line.trim().strip_prefix('(')?.strip_suffix("),"))
+        .map(|row| {
+            let v: Vec<f32> = row.split(", ").map(float).collect();
+            (v[0], v[1], v[2])
+        })
+        .collect()
+}
+
 #[test]
-fn variants_are_host_sims() {
+fn generated_machine_reads_back_as_the_crates_constants() {
     let cases: [(&str, &[(&str, &str)]); 6] = [
+        ("reference", &[]),
         (
             "fast_decay",
             // The bridge wired for fast decay at 10 kHz.
@@ -159,21 +178,11 @@ fn variants_are_host_sims() {
             )],
         ),
         (
-            "gravity_rate_counts",
+            "gravity_counts_supply",
             &[
                 ("gravity = [0.0, -9.81]", "gravity = [-1.0, -9.7]"),
-                ("rate_hz = 1000", "rate_hz = 2000"),
                 ("encoder_counts = 4096", "encoder_counts = 2048"),
                 ("supply_voltage = 12.0", "supply_voltage = 24"),
-            ],
-        ),
-        (
-            "defaults",
-            // No [fundament] gravity, no rate, no counts: the defaults.
-            &[
-                ("gravity = [0.0, -9.81]", ""),
-                ("rate_hz = 1000", ""),
-                ("encoder_counts = 4096", ""),
             ],
         ),
         (
@@ -193,59 +202,111 @@ fn variants_are_host_sims() {
     ];
     for (name, edits) in cases {
         let path = variant(name, edits);
-        let (firmware, host) = both(&path);
-        assert_eq!(firmware, host, "{name}");
+        let machine = load_machine(&path).unwrap_or_else(|p| panic!("{name}: {}", render(&p)));
+        let constants = machine_constants(&machine);
+        let code = machine_rs(&constants, &path);
+        assert_eq!(read_back(&code), constants, "{name}:\n{code}");
+        assert!(
+            code.contains(&format!(
+                "pub const MACHINE_FILE: &str = {:?};",
+                path.display().to_string()
+            )),
+            "{name}"
+        );
     }
 }
 
 #[test]
-fn generated_code_holds_the_values() {
-    let values = read_machine(&reference_file()).unwrap();
-    let code = machine_rs(&values, &reference_file());
-    let c = constants(&values);
-    for line in [
-        format!("rate_hz: {:?},", c.rate_hz),
-        format!("encoder_counts: {},", c.encoder_counts),
-        format!("supply_voltage_v: {:?},", c.supply_voltage_v),
-        format!("current_limit_a: {:?},", c.current_limit_a),
-        format!("inertia_kg_m2: {:?},", c.rotors[0].inertia_kg_m2),
-        format!("load_torque_nm: {:?},", c.rotors[0].load_torque_nm),
-        format!(
-            "resonance_band_rpm: [{:?}, {:?}],",
-            c.resonance_band_rpm[0], c.resonance_band_rpm[1]
-        ),
-    ] {
-        assert!(code.contains(&line), "`{line}` not in\n{code}");
+fn reference_machine_is_the_reference_constants() {
+    let machine = load_machine(&reference_file()).unwrap();
+    let constants = machine_constants(&machine);
+    let reference = MachineConstants::REFERENCE;
+    // Everything but the resonance band exactly.
+    assert_eq!(
+        MachineConstants {
+            resonance_band_rpm: reference.resonance_band_rpm,
+            ..constants
+        },
+        reference
+    );
+    // The band: REFERENCE rounds the file's 0.7 and 1.18 x the 2125 rpm lift-off
+    // (1488 and 2508 rpm) to 1500 and 2500.
+    for (got, want) in constants
+        .resonance_band_rpm
+        .iter()
+        .zip(reference.resonance_band_rpm)
+    {
+        assert!((got - want).abs() <= 0.01 * want, "band {got} vs {want}");
     }
 }
 
 #[test]
-fn tuning_table_is_host_sims() {
-    let path = root().join("examples/vibro-driver.tuning.toml");
-    let firmware = parse_tuning(&path).unwrap();
-    let host: Vec<(f32, f32, f32)> = host_sim::machine::tuning_file::read(&path)
+fn generated_tuning_rows_are_the_crates() {
+    let machine = load_machine(&reference_file()).unwrap();
+    // The machine's table, relative to the machine file.
+    let path = tuning_path(&firmware_dir(), None, &machine).expect("the machine names a table");
+    assert_eq!(
+        fs::canonicalize(&path).unwrap(),
+        fs::canonicalize(root().join("examples/vibro-driver.tuning.toml")).unwrap()
+    );
+    let rows = tuning_rows(Some(&path)).unwrap();
+    let read: Vec<Row> = tuning_file::read(&path)
         .unwrap()
         .iter()
         .map(|&(s, r, l)| (s as f32, r as f32, l as f32))
         .collect();
-    assert_eq!(firmware, host);
-    assert_eq!(firmware_build::MAX_TUNING_ROWS, MAX_TUNING_ROWS);
-    assert!(TuningTable::<MAX_TUNING_ROWS>::from_rows(&firmware).is_ok());
-    // The machine names this table.
-    let machine = read_machine(&reference_file()).unwrap();
+    assert_eq!(rows, read);
+    let code = tuning_rs(&rows, Some(&path));
+    assert_eq!(read_back_rows(&code), rows, "{code}");
+    assert!(code.contains(&format!("[(f32, f32, f32); {}]", rows.len())));
+    // The controller takes them as host-sim does.
     assert_eq!(
-        machine.tuning_table.map(|p| fs::canonicalize(p).unwrap()),
-        Some(fs::canonicalize(&path).unwrap())
+        TuningTable::<MAX_TUNING_ROWS>::from_rows(&rows),
+        tuning_file::table(&tuning_file::read(&path).unwrap())
     );
-    // Without a table the firmware gets the controller's default, as host-sim.
+    // Without a table: the controller's default offsets.
+    let default = tuning_rows(None).unwrap();
     assert_eq!(
-        TuningTable::<MAX_TUNING_ROWS>::from_rows(&firmware_build::DEFAULT_ROWS).unwrap(),
+        TuningTable::<MAX_TUNING_ROWS>::from_rows(&default).unwrap(),
         TuningTable::default()
     );
+    let code = tuning_rs(&default, None);
+    assert_eq!(read_back_rows(&code), default, "{code}");
+    assert!(code.contains("the controller's default offsets"), "{code}");
 }
 
 #[test]
-fn mistakes_name_the_file_and_the_key() {
+fn paths_are_relative_to_the_firmware_and_the_machine_file() {
+    let dir = firmware_dir();
+    // The default machine, and an unset or empty variable.
+    for value in [None, Some(OsString::new())] {
+        assert_eq!(
+            machine_path(&dir, value),
+            dir.join("../examples/vibro-driver.toml")
+        );
+    }
+    // Relative to firmware/, or absolute.
+    assert_eq!(
+        machine_path(&dir, Some("my.toml".into())),
+        dir.join("my.toml")
+    );
+    assert_eq!(
+        machine_path(&dir, Some("/abs/my.toml".into())),
+        PathBuf::from("/abs/my.toml")
+    );
+    // VIBRO_TUNING wins over the machine's table; without either, none.
+    let mut machine = load_machine(&reference_file()).unwrap();
+    assert_eq!(
+        tuning_path(&dir, Some("t.toml".into()), &machine),
+        Some(dir.join("t.toml"))
+    );
+    machine.controller.tuning_table = None;
+    assert_eq!(tuning_path(&dir, Some(OsString::new()), &machine), None);
+}
+
+#[test]
+fn mistakes_fail_the_build_naming_the_file_and_the_key() {
+    // Every problem at once, each as host-sim prints it.
     let path = variant(
         "bad",
         &[
@@ -253,25 +314,72 @@ fn mistakes_name_the_file_and_the_key() {
             ("torque_constant = 0.02", "torque_constant = \"0.02\""),
             ("supply_voltage = 12.0", "supply_voltage = -12.0"),
             ("decay = \"slow\"", "decay = \"medium\""),
-            ("pwm_hz = 20000", "pwm_hz = 500"),
+            (
+                "mass = 2.0                      # kg",
+                "mass = 2.0\nmas = 1",
+            ),
         ],
     );
-    let problems = read_machine(&path).unwrap_err();
+    let problems = load_machine(&path).unwrap_err();
+    assert_eq!(
+        render(&problems),
+        render(&Machine::load(&path, &[]).unwrap_err())
+    );
     let file = path.display().to_string();
     for key in [
-        "drive.decay",
-        "drive.pwm_hz",
-        "drive.supply_voltage",
-        "sensors.encoder_counts",
+        "platform.mas",
         "motor.torque_constant",
+        "drive.supply_voltage",
+        "drive.decay",
+        "sensors.encoder_counts",
     ] {
+        let start = format!("error: {file}: {key}: ");
         assert!(
-            problems
-                .iter()
-                .any(|p| p.starts_with(&file) && p.contains(key)),
-            "{key} not named in {problems:?}"
+            render(&problems).lines().any(|l| l.starts_with(&start)),
+            "{key} not named in\n{}",
+            render(&problems)
         );
     }
-    let missing = read_machine(&root().join("examples/no-such-machine.toml")).unwrap_err();
-    assert!(missing[0].contains("no-such-machine.toml") && missing[0].contains("VIBRO_MACHINE"));
+
+    // Only the firmware refuses: another control rate, and constants its
+    // controller refuses (host-sim takes any multiple of 4 counts; the controller
+    // at most 2^24).
+    let rate = variant("rate", &[("rate_hz = 1000", "rate_hz = 2000")]);
+    let p = render(&load_machine(&rate).unwrap_err());
+    assert!(
+        p.starts_with(&format!(
+            "error: {}: controller.rate_hz: must be 1000 Hz",
+            rate.display()
+        )),
+        "{p}"
+    );
+    let counts = variant(
+        "counts",
+        &[("encoder_counts = 4096", "encoder_counts = 33554432")],
+    );
+    assert!(Machine::load(&counts, &[]).is_ok());
+    let p = render(&load_machine(&counts).unwrap_err());
+    assert!(
+        p.starts_with(&format!("error: {}: ", counts.display())) && p.contains("encoder_counts"),
+        "{p}"
+    );
+
+    // A machine file that is not there, a bad tuning table.
+    let missing = render(&load_machine(&root().join("examples/no-such-machine.toml")).unwrap_err());
+    assert!(
+        missing.contains("no-such-machine.toml: cannot read the file"),
+        "{missing}"
+    );
+    let table = scratch(
+        "bad.tuning.toml",
+        "[[rows]]\nspeed_rpm = 3000\nright_offset_deg = 90\nleft_ofset_deg = 270\n",
+    );
+    let p = render(&tuning_rows(Some(&table)).unwrap_err());
+    assert!(
+        p.contains(&format!(
+            "error: {}: rows[0].left_ofset_deg: unknown key",
+            table.display()
+        )),
+        "{p}"
+    );
 }

@@ -114,14 +114,8 @@ fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> 
         }
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
         DeviceCommand::Table(TableCommand::Write { file }) => {
-            let rows = tuning_file::read(file)
+            let t = tuning_file::read_table(file)
                 .map_err(|problems| Failure::Usage(input::render(&problems)))?;
-            let t = tuning_file::table(&rows).ok_or_else(|| {
-                Failure::Usage(format!(
-                    "error: {}: rows: the controller refuses the table (speeds >= 0 strictly ascending, offsets 0 to 360)",
-                    file.display()
-                ))
-            })?;
             table = Some(t);
         }
         DeviceCommand::Table(TableCommand::Read { out }) => {

@@ -143,18 +143,7 @@ pub fn serve(endpoint: &mut Endpoint, device: &mut SimDevice, mut go: impl FnMut
 pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let table = match &args.table {
         None => None,
-        Some(path) => match tuning_file::read(path) {
-            Err(problems) => return Err(problems.into()),
-            Ok(rows) => match tuning_file::table(&rows) {
-                Some(t) => Some(t),
-                None => {
-                    return Err(Failure::Usage(format!(
-                        "error: {}: rows: the controller refuses the table",
-                        path.display()
-                    )))
-                }
-            },
-        },
+        Some(path) => Some(tuning_file::read_table(path)?),
     };
     for (flag, v) in [
         ("--flip-every", args.flip_every),

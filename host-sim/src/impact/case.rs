@@ -18,9 +18,7 @@ use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody, MAX_CONTACT
 use crate::machine::input::{
     self, check_names, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
 };
-
-/// The impact laws a case file may name, in the order the docs list them.
-pub const LAWS: [&str; 3] = ["poisson", "newton", "stronge"];
+use crate::machine::LAWS;
 
 /// Relative tolerance of the check that `[body].velocity` agrees with the pivot:
 /// `|v - omega x (C - O)| <= 1e-9 max(|v|, |omega| |C - O|)`. Far above rounding

@@ -19,13 +19,12 @@
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Inputs, MachineConstants, Outputs, Params, ResetCause, RotorModel, State,
-    TickTiming,
+    Command, Controller, Inputs, Outputs, Params, ResetCause, State, TickTiming,
 };
 
 use crate::machine::input::Problem;
 use crate::machine::tuning_file;
-use crate::machine::Machine;
+use crate::machine::{machine_constants, Machine};
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::sensors::{CurrentSensor, Encoder};
 use crate::plant::simulator::Plant;
@@ -80,65 +79,12 @@ pub struct ControllerDriver {
     self_test_started: Option<(f64, bool)>,
 }
 
-/// The controller's constants for a machine file.
-pub fn machine_constants(m: &Machine) -> MachineConstants {
-    let g = (m.fundament.gravity[0].powi(2) + m.fundament.gravity[1].powi(2)).sqrt();
-    let rotor = |k: usize| {
-        let r = &m.rotors[k];
-        RotorModel {
-            resistance_ohm: r.motor.resistance as f32,
-            torque_constant: r.motor.torque_constant as f32,
-            // The rotor with its eccentric mass, about its axis.
-            inertia_kg_m2: (r.inertia + r.eccentric_mass * r.eccentricity * r.eccentricity) as f32,
-            // The eccentric's weight torque (horizontal) plus Coulomb friction.
-            load_torque_nm: (r.eccentric_mass * r.eccentricity * g + r.motor.coulomb_friction)
-                as f32,
-        }
-    };
-    // The band the ramps hurry through: around lift-off, where the exciting
-    // force 2 m e w^2 equals the weight M g (from 0.7 to 1.18 times that speed:
-    // 1500 to 2500 rpm for the reference machine, lift-off at 2125 rpm).
-    let me: f64 = (0..2)
-        .map(|k| m.rotors[k].eccentric_mass * m.rotors[k].eccentricity)
-        .sum::<f64>()
-        / 2.0;
-    let band = if me > 0.0 {
-        let w = (m.total_mass() * g / (2.0 * me)).sqrt();
-        let rpm = w * 30.0 / std::f64::consts::PI;
-        [(0.7 * rpm) as f32, (1.18 * rpm) as f32]
-    } else {
-        [0.0, 0.0]
-    };
-    MachineConstants {
-        rate_hz: m.controller.rate_hz as f32,
-        encoder_counts: m.sensors.encoder_counts,
-        supply_voltage_v: m.drive.supply_voltage as f32,
-        current_limit_a: m.rotors[0]
-            .motor
-            .current_limit
-            .min(m.rotors[1].motor.current_limit) as f32,
-        rotors: [rotor(0), rotor(1)],
-        resonance_band_rpm: band,
-        bridge: m.drive.bridge,
-    }
-}
-
 /// The controller's parameters for a machine file, with its tuning table if it
 /// names one (problems name the table file and key).
 pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
     let mut p = Params::from_machine(&machine_constants(m));
     if let Some(path) = &m.controller.tuning_table {
-        let rows = tuning_file::read(path)?;
-        match tuning_file::table(&rows) {
-            Some(t) => p.tuning = t,
-            None => {
-                return Err(vec![Problem {
-                    file: path.display().to_string(),
-                    location: crate::machine::input::Location::Key("rows".into()),
-                    message: "the controller refused the table (check speeds and offsets)".into(),
-                }])
-            }
-        }
+        p.tuning = tuning_file::read_table(path)?;
     }
     Ok(p)
 }

@@ -275,7 +275,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // What is written must read back as a table the controller takes.
         let readable = tuning_file::parse(&path.display().to_string(), &text)
             .ok()
-            .and_then(|rows| tuning_file::table(&rows));
+            .and_then(|rows| tuning_file::table(&rows).ok());
         if readable.is_none() {
             return Err(Failure::Run(format!(
                 "error: --write {}: the table does not read back (an internal error)",

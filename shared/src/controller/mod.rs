@@ -14,6 +14,7 @@
 //! Modules, one job each:
 //! - [`io`]: inputs, commands, outputs, telemetry, states;
 //! - [`params`]: parameters and the design rules of their defaults;
+//! - [`machine`]: the machine's physical values mapped to [`MachineConstants`];
 //! - [`encoder`]: speed from counts, angle from the index pulse, encoder checks;
 //! - [`ramp`]: speed ramp (soft start, fast through the resonance band) and offset
 //!   ramp (direction changes through the vertical-force offset);
@@ -102,6 +103,7 @@ pub mod angle;
 pub mod encoder;
 pub mod faults;
 pub mod io;
+pub mod machine;
 pub mod params;
 pub mod phase_loop;
 pub mod ramp;
@@ -113,12 +115,13 @@ pub mod tuning;
 pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
 pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
+pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
 };
 pub use self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 pub use stopped::{may_write_table, WRITE_MAX_SPEED_RPM};
-pub use tuning::{TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
+pub use tuning::{RowField, TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
 
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
 use phase_loop::PhaseLoop;

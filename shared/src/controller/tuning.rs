@@ -8,10 +8,15 @@
 //! a table the default is 90 degrees for right and 270 for left at every speed: the
 //! spec's force along `offset / 2` then leans 45 degrees from the vertical, up and
 //! right (or up and left) every revolution.
+//!
+//! The rule for rows is [`TuningTable::from_rows`] with [`RowField::check`]: 1 to
+//! [`MAX_TUNING_ROWS`] rows, speeds > 0 rpm and strictly increasing, offsets in
+//! [0, 360) degrees. The tuning file's reader (host-sim and the firmware's build),
+//! the device link (a table it receives) and the flash record all apply it.
 
 use core::fmt;
 
-use super::angle::{lerp_deg, wrap_deg};
+use super::angle::{lerp_deg, wrap_deg, TURN_DEG};
 use super::Direction;
 
 /// Most rows a [`TuningTable`] holds by default (a sweep every 100 rpm from 0 to
@@ -23,11 +28,17 @@ pub const DEFAULT_RIGHT_OFFSET_DEG: f32 = 90.0;
 /// The default offset for leftward travel, degrees.
 pub const DEFAULT_LEFT_OFFSET_DEG: f32 = 270.0;
 
+/// The speed of the default table's one row, rpm. One row holds at every speed, so
+/// its speed only has to be a valid one (> 0): 300 rpm, the lowest speed a run may
+/// ask for (`min_speed_rpm` of [`super::Params::from_machine`]), where the phase
+/// loop joins.
+pub const DEFAULT_ROW_SPEED_RPM: f32 = 300.0;
+
 /// One row of a tuning table.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TuningRow {
-    /// Rotor speed, rpm, >= 0.
+    /// Rotor speed, rpm, > 0.
     pub speed_rpm: f32,
     /// Best offset for rightward travel at this speed, degrees in [0, 360).
     pub right_offset_deg: f32,
@@ -41,6 +52,61 @@ impl TuningRow {
         match direction {
             Direction::Right => self.right_offset_deg,
             Direction::Left => self.left_offset_deg,
+        }
+    }
+}
+
+/// A value of a row, named as [`TuningRow`]'s fields and the tuning file's keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RowField {
+    /// `speed_rpm`.
+    Speed,
+    /// `right_offset_deg`.
+    RightOffset,
+    /// `left_offset_deg`.
+    LeftOffset,
+}
+
+impl RowField {
+    /// The values of a row, in the order of `(speed_rpm, right_offset_deg,
+    /// left_offset_deg)`.
+    pub const ALL: [RowField; 3] = [RowField::Speed, RowField::RightOffset, RowField::LeftOffset];
+
+    /// The field's name, as the tuning file's key.
+    pub fn key(self) -> &'static str {
+        match self {
+            RowField::Speed => "speed_rpm",
+            RowField::RightOffset => "right_offset_deg",
+            RowField::LeftOffset => "left_offset_deg",
+        }
+    }
+
+    /// What a value of this field must be, as in "must be > 0".
+    pub fn requirement(self) -> &'static str {
+        match self {
+            RowField::Speed => "> 0",
+            RowField::RightOffset | RowField::LeftOffset => "in [0, 360)",
+        }
+    }
+
+    /// The rule for one value of row `row` on its own: finite; a speed > 0 (a row
+    /// is the best offset *while turning*; the controller never runs at 0 rpm); an
+    /// offset in [0, 360) degrees (one turn, each offset written once: 360 is 0).
+    /// `None` when `x` passes.
+    pub fn check(self, row: usize, x: f32) -> Option<TableError> {
+        let field = self;
+        if !x.is_finite() {
+            return Some(TableError::NotFinite { row, field });
+        }
+        let ok = match self {
+            RowField::Speed => x > 0.0,
+            RowField::RightOffset | RowField::LeftOffset => (0.0..TURN_DEG).contains(&x),
+        };
+        match (ok, self) {
+            (true, _) => None,
+            (false, RowField::Speed) => Some(TableError::SpeedNotPositive { row }),
+            (false, _) => Some(TableError::OffsetOutOfRange { row, field }),
         }
     }
 }
@@ -62,9 +128,11 @@ pub enum TableError {
     NotFinite {
         /// The row.
         row: usize,
+        /// The value.
+        field: RowField,
     },
-    /// A negative speed.
-    NegativeSpeed {
+    /// A speed of 0 or below.
+    SpeedNotPositive {
         /// The row.
         row: usize,
     },
@@ -73,11 +141,27 @@ pub enum TableError {
         /// The row.
         row: usize,
     },
-    /// An offset outside [0, 360] degrees (360 is taken as 0).
+    /// An offset outside [0, 360) degrees.
     OffsetOutOfRange {
         /// The row.
         row: usize,
+        /// The offset.
+        field: RowField,
     },
+}
+
+impl TableError {
+    /// What the rows must be, as in "must be > 0".
+    pub fn requirement(&self) -> &'static str {
+        match self {
+            TableError::Empty => "at least one row",
+            TableError::TooManyRows { .. } => "at most as many rows as the table holds",
+            TableError::NotFinite { .. } => "a finite number",
+            TableError::SpeedNotPositive { .. } => RowField::Speed.requirement(),
+            TableError::SpeedsNotIncreasing { .. } => "above the previous row's speed",
+            TableError::OffsetOutOfRange { field, .. } => field.requirement(),
+        }
+    }
 }
 
 impl fmt::Display for TableError {
@@ -88,14 +172,16 @@ impl fmt::Display for TableError {
                 f,
                 "the tuning table has {rows} rows, at most {capacity} are allowed"
             ),
-            TableError::NotFinite { row } => write!(f, "row {row}: a value is not finite"),
-            TableError::NegativeSpeed { row } => write!(f, "row {row}: negative speed"),
-            TableError::SpeedsNotIncreasing { row } => write!(
-                f,
-                "row {row}: speed not above the previous row's (speeds must increase)"
-            ),
-            TableError::OffsetOutOfRange { row } => {
-                write!(f, "row {row}: offset outside [0, 360] degrees")
+            TableError::NotFinite { row, field } | TableError::OffsetOutOfRange { row, field } => {
+                write!(
+                    f,
+                    "row {row}: {} must be {}",
+                    field.key(),
+                    self.requirement()
+                )
+            }
+            TableError::SpeedNotPositive { row } | TableError::SpeedsNotIncreasing { row } => {
+                write!(f, "row {row}: speed_rpm must be {}", self.requirement())
             }
         }
     }
@@ -116,13 +202,14 @@ impl<const N: usize> Default for TuningTable<N> {
 }
 
 impl<const N: usize> TuningTable<N> {
-    /// The default: one row, 90 degrees right and 270 left at every speed (empty if
-    /// `N` is 0, which [`TuningTable::offset`] treats the same way).
+    /// The default: one row (at [`DEFAULT_ROW_SPEED_RPM`]), 90 degrees right and 270
+    /// left at every speed (empty if `N` is 0, which [`TuningTable::offset`] treats
+    /// the same way).
     pub fn default_offsets() -> Self {
         let mut rows = heapless::Vec::new();
         // Fails only when N == 0; the empty table gives the same offsets.
         let _ = rows.push(TuningRow {
-            speed_rpm: 0.0,
+            speed_rpm: DEFAULT_ROW_SPEED_RPM,
             right_offset_deg: DEFAULT_RIGHT_OFFSET_DEG,
             left_offset_deg: DEFAULT_LEFT_OFFSET_DEG,
         });
@@ -130,8 +217,10 @@ impl<const N: usize> TuningTable<N> {
     }
 
     /// A table from `(speed_rpm, right_offset_deg, left_offset_deg)` rows: at least
-    /// one, at most `N`; every value finite; speeds >= 0 and strictly increasing;
-    /// offsets in [0, 360] (stored wrapped to [0, 360)).
+    /// one, at most `N`; each value by [`RowField::check`] (finite, speeds > 0,
+    /// offsets in [0, 360)); speeds strictly increasing. The one rule for a tuning
+    /// table: the tuning file's reader, the device link and the flash record all
+    /// take rows through it.
     pub fn from_rows(rows: &[(f32, f32, f32)]) -> Result<Self, TableError> {
         if rows.is_empty() {
             return Err(TableError::Empty);
@@ -145,20 +234,15 @@ impl<const N: usize> TuningTable<N> {
         let mut table = heapless::Vec::new();
         let mut previous: Option<f32> = None;
         for (row, &(speed, right, left)) in rows.iter().enumerate() {
-            if !(speed.is_finite() && right.is_finite() && left.is_finite()) {
-                return Err(TableError::NotFinite { row });
-            }
-            if speed < 0.0 {
-                return Err(TableError::NegativeSpeed { row });
+            let values = RowField::ALL.into_iter().zip([speed, right, left]);
+            if let Some(e) = values.filter_map(|(field, x)| field.check(row, x)).next() {
+                return Err(e);
             }
             if previous.is_some_and(|p| speed <= p) {
                 return Err(TableError::SpeedsNotIncreasing { row });
             }
-            let in_range = |o: f32| (0.0..=360.0).contains(&o);
-            if !(in_range(right) && in_range(left)) {
-                return Err(TableError::OffsetOutOfRange { row });
-            }
             previous = Some(speed);
+            // In [0, 360) already; a -0 is stored as +0.
             let pushed = table.push(TuningRow {
                 speed_rpm: speed,
                 right_offset_deg: wrap_deg(right),

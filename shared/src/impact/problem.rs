@@ -23,8 +23,11 @@ pub enum ImpactLaw {
 }
 
 impl ImpactLaw {
+    /// Every law, in the order the docs list them.
+    pub const ALL: [ImpactLaw; 3] = [ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
+
     /// The law's name as written in case and machine files.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             ImpactLaw::Poisson => "poisson",
             ImpactLaw::Newton => "newton",

@@ -25,7 +25,7 @@
 use serde::Deserialize;
 use toml::{Table, Value};
 
-use crate::machine::input::{suggest, Location, Problem};
+use crate::input::{suggest, Location, Problem};
 
 /// What a key of the machine file holds.
 #[derive(Clone, Copy, Debug)]

@@ -1,12 +1,24 @@
-//! The machine file (`../shared/spec/machine.md`): the vibro driver that host-sim
-//! simulates, checked into plain values. All positions are world coordinates at
-//! `t = 0`, SI units, radians. `docs/machine-file.md` lists every key, default and
-//! message.
+//! `machine-file`: the machine file and the tuning file read and checked, for
+//! host-sim and for the firmware's build script: one path from the files to the
+//! controller's constants, so the firmware compiles in exactly what the simulator
+//! runs and tunes.
+//!
+//! - [`Machine::load`]: the machine file (`../shared/spec/machine.md`), the vibro
+//!   driver that host-sim simulates, checked into plain values. All positions are
+//!   world coordinates at `t = 0`, SI units, radians. `docs/machine-file.md` lists
+//!   every key, default and message;
+//! - [`set`]: the `--set KEY=VALUE` overrides;
+//! - [`tuning_file`]: the tuning table file, read with the controller's own rule for
+//!   its rows, and written;
+//! - [`machine_constants`]: the controller's constants of a machine, by `shared`'s
+//!   formulas ([`MachineConstants::from_physics`]);
+//! - [`input`]: the checked TOML reader the files (and host-sim's other input files)
+//!   are read with: every problem with its file and key path.
 //!
 //! Reading a machine file (see [`Machine::load`]):
-//! 1. read and parse the TOML ([`crate::machine::input`]);
+//! 1. read and parse the TOML ([`input`]);
 //! 2. apply the `--set KEY=VALUE` overrides to the parsed table
-//!    ([`crate::machine::set`]), so overridden values meet the same checks;
+//!    ([`set`]), so overridden values meet the same checks;
 //! 3. every key on its own: types, NaN and infinities, ranges, unknown keys with a
 //!    "did you mean"; the optional sections take their defaults;
 //! 4. each rotor's motor: the machine's `[motor]`, with any key the rotor's own
@@ -16,6 +28,10 @@
 //! 6. the geometry at `t = 0`: no contact below the fundament,
 //!    `gap = n . (K - P) >= 0`;
 //! 7. every problem at once; a problem in a value a `--set` gave names that `--set`.
+//!
+//! Its dependencies stay few (`shared`, `toml`, `serde`, `strsim`): the firmware's
+//! build compiles it for the host.
+#![warn(missing_docs)]
 
 pub mod input;
 pub mod set;
@@ -23,11 +39,11 @@ pub mod tuning_file;
 
 use std::path::{Path, PathBuf};
 
+use shared::controller::{MachineConstants, MachinePhysics, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
 use shared::impact::{ImpactLaw, MAX_CONTACTS};
 use toml::Table;
 
-use crate::impact::case::LAWS;
 use input::{
     check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
     Section,
@@ -151,6 +167,14 @@ pub struct Drive {
 /// below 1 kHz the PWM period would be as long as a control tick.
 pub const PWM_HZ_RANGE: [u32; 2] = [1_000, 200_000];
 
+/// The names of `[impact] law` (`shared::impact::ImpactLaw::name`), in the order
+/// the docs list them; an impact case file names its law the same way.
+pub const LAWS: [&str; 3] = [
+    ImpactLaw::ALL[0].name(),
+    ImpactLaw::ALL[1].name(),
+    ImpactLaw::ALL[2].name(),
+];
+
 /// The names of `[drive] decay` (`shared::drive::Decay::name`).
 pub const DECAYS: [&str; 2] = [Decay::ALL[0].name(), Decay::ALL[1].name()];
 
@@ -270,8 +294,41 @@ impl Machine {
 
     /// Platform mass plus both eccentric masses, kg: the mass that moves.
     pub fn total_mass(&self) -> f64 {
-        self.platform.mass + self.rotors.iter().map(|r| r.eccentric_mass).sum::<f64>()
+        self.physics().total_mass_kg()
     }
+
+    /// The values the controller's constants depend on, key by key: `[controller]
+    /// rate_hz`, `[sensors] encoder_counts`, `[drive]` (supply, decay, PWM),
+    /// `[platform] mass`, `[fundament] gravity`, and each rotor's eccentric mass,
+    /// eccentricity and inertia with its motor's resistance, torque constant, Coulomb
+    /// friction and current limit.
+    pub fn physics(&self) -> MachinePhysics {
+        let rotor = |r: &Rotor| RotorPhysics {
+            resistance_ohm: r.motor.resistance,
+            torque_constant: r.motor.torque_constant,
+            inertia_kg_m2: r.inertia,
+            eccentric_mass_kg: r.eccentric_mass,
+            eccentricity_m: r.eccentricity,
+            coulomb_friction_nm: r.motor.coulomb_friction,
+            current_limit_a: r.motor.current_limit,
+        };
+        MachinePhysics {
+            rate_hz: self.controller.rate_hz,
+            encoder_counts: self.sensors.encoder_counts,
+            supply_voltage_v: self.drive.supply_voltage,
+            platform_mass_kg: self.platform.mass,
+            gravity_m_s2: self.fundament.gravity,
+            rotors: [rotor(&self.rotors[0]), rotor(&self.rotors[1])],
+            bridge: self.drive.bridge,
+        }
+    }
+}
+
+/// The controller's constants for a machine: its [`Machine::physics`] through
+/// `shared`'s formulas ([`MachineConstants::from_physics`]), as the firmware's build
+/// script compiles them in.
+pub fn machine_constants(m: &Machine) -> MachineConstants {
+    MachineConstants::from_physics(&m.physics())
 }
 
 /// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that
@@ -883,7 +940,7 @@ fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::set::{Node, SCHEMA};
+    use crate::set::{Node, SCHEMA};
 
     const REFERENCE: &str = include_str!("../../../examples/vibro-driver.toml");
 

@@ -416,19 +416,37 @@ impl<'a> Section<'a> {
             Limit::Any => "a number".to_string(),
             l => format!("a number {}", l.describe()),
         };
-        let value = match self.raw(key, &need, &what) {
+        self.number_by(key, need, &what, |x| {
+            if limit.admits(x) {
+                Ok(())
+            } else {
+                Err(limit.describe())
+            }
+        })
+    }
+
+    /// A finite number that `rule` accepts: `rule(x)` is `Err(requirement)` for a
+    /// refused `x`, reported as `must be REQUIREMENT (got X)`; `what` says what is
+    /// required when the key is missing. For a rule kept elsewhere (the controller's
+    /// for a tuning row).
+    pub fn number_by(
+        &self,
+        key: &'static str,
+        need: Need<f64>,
+        what: &str,
+        rule: impl Fn(f64) -> Result<(), String>,
+    ) -> Option<f64> {
+        let value = match self.raw(key, &need, what) {
             Ok(v) => v,
             Err(default) => return default,
         };
-        match finite_number(value) {
-            Ok(x) if limit.admits(x) => Some(x),
-            Ok(x) => {
-                self.problem(
-                    key,
-                    format!("must be {} (got {})", limit.describe(), number(x)),
-                );
-                None
-            }
+        let checked = finite_number(value).and_then(|x| {
+            rule(x)
+                .map(|()| x)
+                .map_err(|requirement| format!("must be {requirement} (got {})", number(x)))
+        });
+        match checked {
+            Ok(x) => Some(x),
             Err(message) => {
                 self.problem(key, message);
                 None
@@ -669,7 +687,7 @@ impl<'a> Section<'a> {
 }
 
 /// A named element of an array of tables (`[[contacts]]`, `[[rotors]]`) as read.
-pub(crate) struct Named<T> {
+pub struct Named<T> {
     /// Whether the file gives the name (else the default, or refused).
     pub given: bool,
     /// The name, given or default; `None` when the given one is refused.
@@ -679,7 +697,7 @@ pub(crate) struct Named<T> {
 }
 
 /// An element's `name`: given (non-empty), or `{prefix}{i+1}` when absent.
-pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
+pub fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<String>) {
     let given = s.string("name", Need::Optional);
     match given {
         Some(n) if n.is_empty() => {
@@ -700,7 +718,7 @@ pub(crate) fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Optio
 
 /// Unique names among `list` (problems reported on `root`); `what` is the element
 /// (`contact`, `rotor`), `array` its key.
-pub(crate) fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
+pub fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {
     let mut ok = true;
     let mut seen: Vec<(&str, usize)> = Vec::new();
     for (i, element) in list.iter().enumerate() {

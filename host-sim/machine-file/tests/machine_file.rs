@@ -6,15 +6,15 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use host_sim::machine::input::{render, Location, Problem};
-use host_sim::machine::set;
-use host_sim::machine::{Machine, Sense};
+use machine_file::input::{render, Location, Problem};
+use machine_file::set;
+use machine_file::{Machine, Sense};
 use proptest::prelude::*;
 use shared::impact::ImpactLaw;
 
 /// The reference machine, `examples/vibro-driver.toml`.
 fn reference_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vibro-driver.toml")
 }
 
 fn reference_text() -> String {
