@@ -11,25 +11,20 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use shared::controller::{Direction, SelfTestReport, SelfTestStatus, TuningTable};
-use shared::protocol::{
-    Request, Response, StatusReport, HEARTBEAT_PERIOD_MS, MIN_TELEMETRY_PERIOD_MS,
-};
+use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS};
 
 use super::args::{
     DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TravelArgs,
 };
-use super::client::{answer_text, nack_text, request_name, Client, LinkError};
+use super::client::{Client, LinkError};
 use super::port::PortSpec;
 use super::report;
+use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use super::telemetry;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::input;
 use crate::machine::tuning_file;
-
-/// How often the streaming commands send a heartbeat: twice per
-/// [`HEARTBEAT_PERIOD_MS`].
-pub(super) const HEARTBEAT_EVERY: Duration = Duration::from_millis(HEARTBEAT_PERIOD_MS as u64 / 2);
 
 /// How often the self-test is polled.
 const SELF_TEST_POLL: Duration = Duration::from_millis(50);
@@ -186,36 +181,6 @@ fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
         }
     }
     Ok(())
-}
-
-/// Send `request` and take its answer; a Nack is the device's refusal, with its
-/// reason. The client has checked that the answer is one to `request`.
-fn ask(client: &mut Client, request: &Request) -> Result<Response, Failure> {
-    match client.request(request)? {
-        Response::Nack { reason, .. } => Err(Failure::Device(format!(
-            "error: the device refused {}: {}",
-            request_name(request),
-            nack_text(reason)
-        ))),
-        response => Ok(response),
-    }
-}
-
-/// A request answered by Ack: an Ack for `request` is its acceptance; anything
-/// else is a failure.
-pub(super) fn command(client: &mut Client, request: &Request) -> Result<(), Failure> {
-    match ask(client, request)? {
-        Response::Ack { .. } => Ok(()),
-        other => Err(unexpected(request, &other)),
-    }
-}
-
-/// An answer of another kind than `request` asks for: the device's failure.
-fn unexpected(request: &Request, response: &Response) -> Failure {
-    Failure::from(LinkError::WrongAnswer {
-        request: request_name(request),
-        answer: answer_text(response),
-    })
 }
 
 fn status(client: &mut Client) -> Result<StatusReport, Failure> {

@@ -19,10 +19,12 @@
 pub mod args;
 pub mod client;
 pub mod commands;
+pub mod pipe;
 pub mod port;
 #[cfg(unix)]
 pub mod pty;
 pub mod report;
+pub mod requests;
 pub mod rotors;
 pub mod serial;
 pub mod serve;

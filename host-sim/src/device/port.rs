@@ -8,19 +8,11 @@ use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
+pub use super::pipe::Port;
 use super::serial::SerialLine;
 
 /// How long connecting to a TCP port may take.
 const CONNECT_TIMEOUT: Duration = Duration::from_secs(2);
-
-/// A byte pipe with a read timeout.
-pub trait Port {
-    /// Read what has come, waiting at most `timeout` for the first byte; `Ok(0)`
-    /// when nothing came in time.
-    fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
-    /// Write every byte of `bytes`.
-    fn write_all(&mut self, bytes: &[u8]) -> io::Result<()>;
-}
 
 /// How `--port` names a device.
 #[derive(Clone, Debug, PartialEq, Eq)]

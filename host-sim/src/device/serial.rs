@@ -8,7 +8,7 @@ use std::time::Duration;
 use serialport::{ClearBuffer, DataBits, ErrorKind, FlowControl, Parity, SerialPort, StopBits};
 use shared::protocol::BAUD_RATE;
 
-use super::port::Port;
+use super::pipe::Port;
 
 /// The longest a write may wait for room in the driver's buffer. The largest
 /// frame (a 32-row table, under 450 bytes) takes 40 ms at 115200 baud; a port that

@@ -16,8 +16,8 @@ use shared::protocol::Request;
 
 use super::args::TelemetryArgs;
 use super::client::Client;
-use super::commands::{command, HEARTBEAT_EVERY};
 use super::report;
+use super::requests::{command, HEARTBEAT_EVERY};
 use crate::failure::Failure;
 use crate::interrupt;
 
