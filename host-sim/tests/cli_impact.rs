@@ -11,26 +11,7 @@ mod common;
 use common::{keys, run as host_sim};
 
 /// The spec's example case, valid.
-const GOOD: &str = r#"law = "poisson"
-
-[body]
-mass = 2.0
-inertia = 0.05
-position = [0.3, 0.1]
-velocity = [-0.5, 1.5]
-angular_velocity = 5.0
-
-[pivot]
-point = [0.0, 0.0]
-
-[[contacts]]
-name = "K"
-point = [-0.4, 0.25]
-normal = [1.0, 0.0]
-restitution = 0.6
-friction = 0.3
-weight = 1.0
-"#;
+const GOOD: &str = include_str!("fixtures/pinned-body.toml");
 
 /// A second contact to append to [`GOOD`].
 const SECOND: &str = r#"
@@ -268,10 +249,14 @@ fn every_problem_is_reported_at_once() {
 #[test]
 fn a_syntax_error_names_file_and_line() {
     let file = case_file(&replace("inertia = 0.05", "inertia = = 0.05"));
+    let line = 1 + GOOD
+        .lines()
+        .position(|l| l.starts_with("inertia = 0.05"))
+        .unwrap();
     let run = host_sim(&["impact", &file]);
     assert_eq!(run.status, 2);
     assert!(
-        run.stderr.starts_with(&format!("error: {file}:5:")),
+        run.stderr.starts_with(&format!("error: {file}:{line}:")),
         "{}",
         run.stderr
     );

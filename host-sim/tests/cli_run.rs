@@ -69,23 +69,30 @@ fn open_loop_files(tag: &str) -> (PathBuf, PathBuf, PathBuf) {
         scratch(&format!("{tag}-e.csv")),
         scratch(&format!("{tag}-p.svg")),
     );
+    let r = run_writing("12,12", "0.4", [&out, &events, &plot]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    (out, events, plot)
+}
+
+/// An open-loop run of the reference machine (`--open-loop volts`, `--t-end`)
+/// writing its trace, events and plot to `files`.
+fn run_writing(volts: &str, t_end: &str, files: [&PathBuf; 3]) -> common::Run {
     let m = machine();
-    let r = run(&[
+    let [out, events, plot] = files.map(|f| f.to_str().unwrap());
+    run(&[
         "run",
         m.to_str().unwrap(),
         "--open-loop",
-        "12,12",
+        volts,
         "--t-end",
-        "0.4",
+        t_end,
         "--out",
-        out.to_str().unwrap(),
+        out,
         "--events",
-        events.to_str().unwrap(),
+        events,
         "--plot",
-        plot.to_str().unwrap(),
-    ]);
-    assert_eq!(r.status, 0, "{}", r.stderr);
-    (out, events, plot)
+        plot,
+    ])
 }
 
 #[test]
@@ -249,25 +256,11 @@ fn unwritable_output_is_refused_and_nothing_is_left() {
 /// Now every path is checked and staged first: exit 2, nothing left behind.
 #[test]
 fn one_unwritable_output_leaves_none_of_the_others() {
-    let m = machine();
     let dir = scratch("set");
     std::fs::create_dir_all(&dir).unwrap();
     let (out, events) = (dir.join("ok.csv"), dir.join("ev.csv"));
     let plot = dir.join("UNWRITABLE").join("p.svg");
-    let r = run(&[
-        "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        "coast",
-        "--t-end",
-        "0.05",
-        "--out",
-        out.to_str().unwrap(),
-        "--events",
-        events.to_str().unwrap(),
-        "--plot",
-        plot.to_str().unwrap(),
-    ]);
+    let r = run_writing("coast", "0.05", [&out, &events, &plot]);
     assert_eq!(r.status, 2, "{}", r.stderr);
     assert!(r.stderr.contains("p.svg"), "{}", r.stderr);
     let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();

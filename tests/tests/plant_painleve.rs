@@ -22,57 +22,33 @@ const R1: [f64; 2] = [-0.1, -0.1];
 const VX: f64 = -0.5;
 
 fn machine() -> Machine {
-    let text = format!(
-        r#"
-[platform]
-mass = {MASS}
-inertia = {INERTIA}
-position = [0.0, 0.1]
-velocity = [{VX}, 0.0]
-
-[[contacts]]
-name = "K1"
-point = [{x1}, {y1}]
-restitution = 0.3
-friction = {MU}
-
-[[contacts]]
-name = "K2"
-point = [0.1, 0.05]
-restitution = 0.3
-friction = 0.4
-
-[[rotors]]
-name = "left"
-axis = [-0.03, 0.13]
-eccentric_mass = 0.0
-eccentricity = 0.0
-inertia = 6.0e-6
-sense = "ccw"
-
-[[rotors]]
-name = "right"
-axis = [0.03, 0.13]
-eccentric_mass = 0.0
-eccentricity = 0.0
-inertia = 6.0e-6
-sense = "cw"
-
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 0.0
-viscous_friction = 0.0
-current_limit = 2.0
-
-[drive]
-supply_voltage = 12.0
-"#,
-        x1 = R1[0],
-        y1 = 0.1 + R1[1],
-    );
-    Machine::from_text("painleve.toml", &text, Path::new("."), &[]).expect("valid machine")
+    // The minimal machine with the Painleve geometry: a tall platform sliding left,
+    // foot K1 with high friction, rotors without eccentrics, motors without friction.
+    let sets: Vec<String> = [
+        format!("platform.mass={MASS}"),
+        format!("platform.inertia={INERTIA}"),
+        "platform.position=[0.0, 0.1]".to_string(),
+        format!("platform.velocity=[{VX}, 0.0]"),
+        format!("contacts.K1.point=[{}, {}]", R1[0], 0.1 + R1[1]),
+        format!("contacts.K1.friction={MU}"),
+        "contacts.K2.point=[0.1, 0.05]".to_string(),
+        "rotors.left.axis=[-0.03, 0.13]".to_string(),
+        "rotors.right.axis=[0.03, 0.13]".to_string(),
+        "rotors.left.eccentric_mass=0.0".to_string(),
+        "rotors.right.eccentric_mass=0.0".to_string(),
+        "rotors.left.eccentricity=0.0".to_string(),
+        "rotors.right.eccentricity=0.0".to_string(),
+        "motor.coulomb_friction=0.0".to_string(),
+        "motor.viscous_friction=0.0".to_string(),
+    ]
+    .to_vec();
+    Machine::from_text(
+        "painleve.toml",
+        include_str!("../fixtures/minimal-machine.toml"),
+        Path::new("."),
+        &sets,
+    )
+    .expect("valid machine")
 }
 
 /// The premise, by hand: foot K1 at `r = (-0.1, -0.1)` from C, fundament normal

@@ -716,6 +716,39 @@ pub fn read_name(s: &Section, index: usize, prefix: &str) -> (bool, Option<Strin
     }
 }
 
+/// The `[[contacts]]` array of a file: at least one, at most [`MAX_CONTACTS`] (the
+/// impact solver's limit: `why` says it in the file's words), names unique
+/// ([`check_names`]). The checked contacts, named, when all is well.
+///
+/// [`MAX_CONTACTS`]: shared::impact::MAX_CONTACTS
+pub fn check_contact_list<T>(
+    root: &Section,
+    list: Vec<Named<T>>,
+    why: &str,
+) -> Option<Vec<(String, T)>> {
+    let limit = shared::impact::MAX_CONTACTS;
+    if list.is_empty() {
+        root.problem(
+            "contacts",
+            "no contact: at least one [[contacts]] table is required",
+        );
+        return None;
+    }
+    let mut ok = check_names(root, "contacts", "contact", &list);
+    if list.len() > limit {
+        root.problem(
+            "contacts",
+            format!("{} contacts; at most {limit} are allowed {why}", list.len()),
+        );
+        ok = false;
+    }
+    let contacts = list
+        .into_iter()
+        .map(|k| Some((k.name?, k.value?)))
+        .collect::<Option<Vec<_>>>();
+    contacts.filter(|_| ok)
+}
+
 /// Unique names among `list` (problems reported on `root`); `what` is the element
 /// (`contact`, `rotor`), `array` its key.
 pub fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]) -> bool {

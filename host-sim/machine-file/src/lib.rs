@@ -23,7 +23,7 @@
 //!    "did you mean"; the optional sections take their defaults;
 //! 4. each rotor's motor: the machine's `[motor]`, with any key the rotor's own
 //!    `[rotors.motor]` gives replaced (partial override);
-//! 5. the contacts and rotors as a whole: 1 to [`MAX_CONTACTS`] contacts, exactly two
+//! 5. the contacts and rotors as a whole: 1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS) contacts, exactly two
 //!    rotors, unique names;
 //! 6. the geometry at `t = 0`: no contact below the fundament,
 //!    `gap = n . (K - P) >= 0`;
@@ -41,7 +41,7 @@ use std::path::{Path, PathBuf};
 
 use shared::controller::{MachineConstants, MachinePhysics, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
-use shared::impact::{ImpactLaw, MAX_CONTACTS};
+use shared::impact::ImpactLaw;
 use toml::Table;
 
 use input::{
@@ -866,31 +866,10 @@ fn merge_motors(
     rotors
 }
 
-/// 1 to [`MAX_CONTACTS`] contacts (the impact solver's limit), names unique.
+/// 1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS) contacts (the impact solver's limit), names unique.
 fn check_contacts(root: &Section, list: Vec<Named<MachineContact>>) -> Option<Vec<MachineContact>> {
-    if list.is_empty() {
-        root.problem(
-            "contacts",
-            "no contact: at least one [[contacts]] table is required",
-        );
-        return None;
-    }
-    let mut ok = check_names(root, "contacts", "contact", &list);
-    if list.len() > MAX_CONTACTS {
-        root.problem(
-            "contacts",
-            format!(
-                "{} contacts; at most {MAX_CONTACTS} are allowed (the impact solver's limit)",
-                list.len()
-            ),
-        );
-        ok = false;
-    }
-    let contacts = list
-        .into_iter()
-        .map(|c| c.value)
-        .collect::<Option<Vec<_>>>();
-    contacts.filter(|_| ok)
+    input::check_contact_list(root, list, "(the impact solver's limit)")
+        .map(|named| named.into_iter().map(|(_, c)| c).collect())
 }
 
 /// Exactly two rotors, names unique.

@@ -22,51 +22,7 @@ fn reference_text() -> String {
 }
 
 /// Only the required sections; every optional section omitted.
-const MINIMAL: &str = r#"
-[platform]
-mass = 2.0
-inertia = 7.3e-3
-position = [0.0, 0.03]
-
-[[contacts]]
-name = "K1"
-point = [-0.08, 0.0]
-restitution = 0.3
-friction = 0.4
-
-[[contacts]]
-name = "K2"
-point = [0.08, 0.0]
-restitution = 0.3
-friction = 0.4
-
-[[rotors]]
-name = "left"
-axis = [-0.03, 0.03]
-eccentric_mass = 0.01
-eccentricity = 0.02
-inertia = 6.0e-6
-sense = "ccw"
-
-[[rotors]]
-name = "right"
-axis = [0.03, 0.03]
-eccentric_mass = 0.01
-eccentricity = 0.02
-inertia = 6.0e-6
-sense = "cw"
-
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 1.0e-3
-viscous_friction = 1.0e-6
-current_limit = 2.0
-
-[drive]
-supply_voltage = 12.0
-"#;
+const MINIMAL: &str = include_str!("../../../tests/fixtures/minimal-machine.toml");
 
 /// A fresh directory for this test's files.
 fn temp_dir() -> PathBuf {

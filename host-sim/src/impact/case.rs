@@ -5,7 +5,7 @@
 //! 1. keys and values, each checked on its own ([`crate::machine::input`]): types, NaN and
 //!    infinities, ranges (mass and inertia > 0, restitution in [0, 1], friction >= 0,
 //!    weight > 0), unknown keys with a "did you mean";
-//! 2. the contacts as a whole: 1 to [`MAX_CONTACTS`], unique names, non-zero normals;
+//! 2. the contacts as a whole: 1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS), unique names, non-zero normals;
 //! 3. the body's velocity against the pivot: pinned at O, the centre of mass C moves
 //!    at `omega x (C - O)`;
 //! 4. at least one contact approaching: `u_n = n . v_K < 0` with
@@ -13,10 +13,10 @@
 
 use std::path::Path;
 
-use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody, MAX_CONTACTS};
+use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody};
 
 use crate::machine::input::{
-    self, check_names, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
+    self, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
 };
 use crate::machine::LAWS;
 
@@ -44,7 +44,7 @@ pub struct ImpactCase {
     pub body: PlanarBody<f64>,
     /// The pivot O, where the body is pinned to the ground, m.
     pub pivot: Option<[f64; 2]>,
-    /// The contacts in file order (1 to [`MAX_CONTACTS`]), normals of unit length.
+    /// The contacts in file order (1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS)), normals of unit length.
     pub contacts: Vec<NamedContact>,
 }
 
@@ -202,36 +202,15 @@ fn read_contact(index: usize, s: &Section) -> Named<BodyContact<f64>> {
     }
 }
 
-/// At least one contact, at most [`MAX_CONTACTS`], names unique.
+/// At least one contact, at most [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS), names unique.
 fn check_contacts(root: &Section, list: Vec<Named<BodyContact<f64>>>) -> Option<Vec<NamedContact>> {
-    if list.is_empty() {
-        root.problem(
-            "contacts",
-            "no contact: at least one [[contacts]] table is required",
-        );
-        return None;
-    }
-    let mut ok = check_names(root, "contacts", "contact", &list);
-    if list.len() > MAX_CONTACTS {
-        root.problem(
-            "contacts",
-            format!(
-                "{} contacts; at most {MAX_CONTACTS} are allowed in one impact",
-                list.len()
-            ),
-        );
-        ok = false;
-    }
-    let contacts = list
-        .into_iter()
-        .map(|k| {
-            Some(NamedContact {
-                name: k.name?,
-                contact: k.value?,
-            })
-        })
-        .collect::<Option<Vec<_>>>();
-    contacts.filter(|_| ok)
+    let named = input::check_contact_list(root, list, "in one impact")?;
+    Some(
+        named
+            .into_iter()
+            .map(|(name, contact)| NamedContact { name, contact })
+            .collect(),
+    )
 }
 
 /// The body: pinned at O, `v_C` must be `omega x (C - O)` (computed when absent);
@@ -312,27 +291,16 @@ fn check_approach(root: &Section, case: &ImpactCase) {
 mod tests {
     use super::*;
 
-    const GOOD: &str = r#"
-law = "newton"
-[body]
-mass = 2.0
-inertia = 0.05
-position = [0.3, 0.1]
-velocity = [-0.5, 1.5]
-angular_velocity = 5.0
-[pivot]
-point = [0.0, 0.0]
-[[contacts]]
-name = "K"
-point = [-0.4, 0.25]
-normal = [2.0, 0.0]
-restitution = 0.6
-friction = 0.3
-"#;
+    /// The spec's example with Newton's law and an unnormalised normal.
+    fn good() -> String {
+        include_str!("../../tests/fixtures/pinned-body.toml")
+            .replace("law = \"poisson\"", "law = \"newton\"")
+            .replace("normal = [1.0, 0.0]", "normal = [2.0, 0.0]")
+    }
 
     #[test]
     fn the_spec_example_reads() {
-        let case = parse_case("c.toml", GOOD).expect("valid");
+        let case = parse_case("c.toml", &good()).expect("valid");
         assert_eq!(case.law, ImpactLaw::Newton);
         assert_eq!(case.pivot, Some([0.0, 0.0]));
         assert_eq!(case.contacts[0].name, "K");
@@ -345,7 +313,7 @@ friction = 0.3
 
     #[test]
     fn pinned_velocity_is_computed_when_absent() {
-        let text = GOOD.replace("velocity = [-0.5, 1.5]\n", "");
+        let text = good().replace("velocity = [-0.5, 1.5]\n", "");
         let case = parse_case("c.toml", &text).expect("valid");
         assert!((case.body.velocity[0] + 0.5).abs() < 1e-15);
         assert!((case.body.velocity[1] - 1.5).abs() < 1e-15);
@@ -353,7 +321,7 @@ friction = 0.3
 
     #[test]
     fn default_names_and_their_clashes() {
-        let text = GOOD.replace("name = \"K\"", "name = \"K2\"")
+        let text = good().replace("name = \"K\"", "name = \"K2\"")
             + "[[contacts]]\npoint = [-0.4, 0.3]\nnormal = [1.0, 0.0]\nrestitution = 0.5\nfriction = 0.1\n";
         let e = parse_case("c.toml", &text).unwrap_err();
         let s = input::render(&e);

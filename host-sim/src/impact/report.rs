@@ -338,27 +338,11 @@ mod tests {
     use crate::impact::case::parse_case;
     use shared::impact::{ImpactOutcome, InteractionCase, Phase, PivotImpulse, Segment, Warnings};
 
-    const CASE: &str = r#"
-[body]
-mass = 2.0
-inertia = 0.05
-position = [0.3, 0.1]
-angular_velocity = 5.0
-[pivot]
-point = [0.0, 0.0]
-[[contacts]]
-name = "K"
-point = [-0.4, 0.25]
-normal = [1.0, 0.0]
-restitution = 0.6
-friction = 0.3
-[[contacts]]
-name = "B"
-point = [-0.4, 0.3]
-normal = [1.0, 0.0]
-restitution = 0.6
-friction = 0.3
-"#;
+    /// The spec's example with a second contact "B".
+    fn case_text() -> String {
+        include_str!("../../tests/fixtures/pinned-body.toml").to_string()
+            + "[[contacts]]\nname = \"B\"\npoint = [-0.4, 0.3]\nnormal = [1.0, 0.0]\nrestitution = 0.6\nfriction = 0.3\n"
+    }
 
     /// A hand-made result (numbers arbitrary, not a solution).
     fn fake(warnings: Warnings) -> Solved {
@@ -421,7 +405,7 @@ friction = 0.3
 
     #[test]
     fn json_has_exactly_the_spec_keys_in_order() {
-        let case = parse_case("c.toml", CASE).unwrap();
+        let case = parse_case("c.toml", &case_text()).unwrap();
         let doc = json(&case, &fake(Warnings::default()));
         assert_eq!(
             keys(&doc),
@@ -482,7 +466,7 @@ friction = 0.3
 
     #[test]
     fn json_text_is_one_parseable_document() {
-        let case = parse_case("c.toml", CASE).unwrap();
+        let case = parse_case("c.toml", &case_text()).unwrap();
         let text = json_text(&case, &fake(Warnings::default()));
         let back: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(back["velocity_after"][1], -0.3);
@@ -490,7 +474,7 @@ friction = 0.3
 
     #[test]
     fn no_pivot_key_for_a_free_body() {
-        let case = parse_case("c.toml", CASE).unwrap();
+        let case = parse_case("c.toml", &case_text()).unwrap();
         let mut r = fake(Warnings::default());
         r.pivot = None;
         assert!(json(&case, &r).get("pivot").is_none());
@@ -498,7 +482,7 @@ friction = 0.3
 
     #[test]
     fn warnings_in_words() {
-        let case = parse_case("c.toml", CASE).unwrap();
+        let case = parse_case("c.toml", &case_text()).unwrap();
         let mut flags = Warnings::default();
         for w in [
             Warnings::ENERGY_GAINED,
@@ -531,7 +515,7 @@ friction = 0.3
 
     #[test]
     fn table_has_one_line_per_contact() {
-        let case = parse_case("c.toml", CASE).unwrap();
+        let case = parse_case("c.toml", &case_text()).unwrap();
         let t = table(&case, &fake(Warnings::ENERGY_GAINED));
         assert!(t.contains("law: poisson"), "{t}");
         assert!(t.contains("pinned at [0, 0]"), "{t}");

@@ -335,50 +335,17 @@ pub(crate) mod tests {
     /// A machine like the spec's example: rotor 1 "left" ccw, rotor 2 "right" cw,
     /// index angles given (rad).
     pub(crate) fn machine(index: [f64; 2]) -> Machine {
-        let text = format!(
-            r#"
-[platform]
-mass = 2.0
-inertia = 7.3e-3
-position = [0.0, 0.03]
-angle = 0.0
-[[contacts]]
-name = "K1"
-point = [-0.08, 0.0]
-restitution = 0.3
-friction = 0.4
-[[rotors]]
-name = "left"
-axis = [-0.03, 0.03]
-eccentric_mass = 0.01
-eccentricity = 0.02
-inertia = 6.0e-6
-sense = "ccw"
-angle = 0.0
-index_angle = {:?}
-[[rotors]]
-name = "right"
-axis = [0.03, 0.03]
-eccentric_mass = 0.01
-eccentricity = 0.02
-inertia = 6.0e-6
-sense = "cw"
-angle = 0.0
-index_angle = {:?}
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 1.0e-3
-viscous_friction = 1.0e-6
-current_limit = 2.0
-[drive]
-supply_voltage = 12.0
-"#,
-            index[0], index[1]
-        );
-        Machine::from_text("test.toml", &text, std::path::Path::new(""), &[])
-            .unwrap_or_else(|p| panic!("{}", crate::machine::input::render(&p)))
+        let sets = [
+            format!("rotors.left.index_angle={:?}", index[0]),
+            format!("rotors.right.index_angle={:?}", index[1]),
+        ];
+        Machine::from_text(
+            "test.toml",
+            include_str!("../../../tests/fixtures/minimal-machine.toml"),
+            std::path::Path::new(""),
+            &sets,
+        )
+        .unwrap_or_else(|p| panic!("{}", crate::machine::input::render(&p)))
     }
 
     /// An impact event at `t`.
