@@ -319,3 +319,69 @@ fn a_negative_speed_is_refused_naming_the_option() {
     assert_eq!(r.status, 2);
     assert!(r.stderr.contains("--speed -3000"), "{}", r.stderr);
 }
+
+/// `--out /dev/stdout` with stdout redirected to a file, and `--out FILE` naming
+/// that same file: the trace then the summary, in order, through the one stream
+/// (opening the file again would write over it from its start); the link in /dev
+/// stays a link.
+#[test]
+fn an_output_naming_stdout_goes_through_stdout() {
+    let m = machine();
+    let file = scratch("own-stdout.txt");
+    for out in ["/dev/stdout", file.to_str().unwrap()] {
+        let link_before = std::fs::symlink_metadata("/dev/stdout")
+            .ok()
+            .map(|m| m.file_type());
+        let sink = std::fs::File::create(&file).unwrap();
+        let mut cmd = common::host_sim();
+        cmd.args([
+            "run",
+            m.to_str().unwrap(),
+            "--open-loop",
+            "coast",
+            "--t-end",
+            "0.05",
+            "--out",
+            out,
+            "--format",
+            "json",
+        ])
+        .stdout(sink);
+        let status = cmd.status().unwrap();
+        assert!(status.success());
+        let text = std::fs::read_to_string(&file).unwrap();
+        assert!(text.starts_with("t,x,y,"), "{out}: {}", &text[..40]);
+        let json = text.find("\n{").expect("the summary follows the trace");
+        assert!(text[json..].contains("\"mean_velocity\""));
+        let link_after = std::fs::symlink_metadata("/dev/stdout")
+            .ok()
+            .map(|m| m.file_type());
+        assert_eq!(link_before, link_after, "/dev/stdout was replaced");
+    }
+}
+
+/// `--out - | head`: a reader that goes away is not an error worth a message.
+#[test]
+fn a_closed_pipe_on_stdout_is_not_an_error() {
+    let m = machine();
+    let mut child = common::host_sim()
+        .args([
+            "run",
+            m.to_str().unwrap(),
+            "--open-loop",
+            "coast",
+            "--t-end",
+            "0.5",
+            "--out",
+            "-",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("error"), "{stderr}");
+}

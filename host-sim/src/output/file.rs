@@ -2,13 +2,17 @@
 //! set: either every regular file is replaced, or none is.
 //!
 //! What a path names decides how it is written ([`Target::of`]):
-//! - `-`: the process's stdout, written through;
+//! - `-`: the process's stdout, written through; so is a path naming the file or
+//!   pipe stdout already writes to (`/dev/stdout`, or `--out t.csv > t.csv`), and
+//!   likewise stderr's, so that what goes there stays in order;
 //! - a regular file, or a name not yet taken: a temporary file beside it (same
 //!   directory, so the rename cannot cross file systems), flushed to disk, then
 //!   renamed over it. A symbolic link is followed: the file it points to is
 //!   replaced, the link stays a link. An existing file keeps its permissions;
 //! - anything else that exists and is not a directory (`/dev/null`, `/dev/full`, a
-//!   FIFO, a terminal): opened for writing and written through, never replaced;
+//!   FIFO, a terminal), and any existing path under `/dev` or `/proc`
+//!   (`/dev/stdout` redirected to a file): opened for writing and written through,
+//!   never replaced;
 //! - a directory: refused.
 //!
 //! [`Staged`] holds a set of outputs while a run writes them (a trace streamed row
@@ -26,8 +30,12 @@ use crate::failure::Failure;
 /// Where an output path's bytes go.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Target {
-    /// `-`: the process's stdout.
+    /// `-`, or a path naming the file or pipe the process's stdout already
+    /// writes to (`/dev/stdout`, `> t.csv` with `--out t.csv`): the stdout stream,
+    /// so that the file holds what is written to it in order.
     Stdout,
+    /// A path naming what the process's stderr writes to (`/dev/stderr`).
+    Stderr,
     /// A regular file (the symbolic links resolved): replaced whole.
     Regular(PathBuf),
     /// A device, FIFO or socket: written through.
@@ -40,8 +48,16 @@ impl Target {
         if path.as_os_str() == "-" {
             return Ok(Target::Stdout);
         }
-        match fs::metadata(path) {
+        let metadata = fs::metadata(path);
+        // `/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N` name a stream the process
+        // already has open, even when it is redirected to a regular file: written
+        // through, never renamed over (that would cut the file from the stream).
+        let stream = path.starts_with("/dev") || path.starts_with("/proc");
+        match metadata {
             Ok(m) if m.is_dir() => Err("is a directory".to_string()),
+            Ok(m) if same_file(&m, "/proc/self/fd/1") => Ok(Target::Stdout),
+            Ok(m) if same_file(&m, "/proc/self/fd/2") => Ok(Target::Stderr),
+            Ok(_) if stream => Ok(Target::Special(path.to_path_buf())),
             Ok(m) if m.is_file() => Ok(Target::Regular(resolve_links(path))),
             Ok(_) => Ok(Target::Special(path.to_path_buf())),
             // Not there (or a link to nothing): a new regular file where the
@@ -52,6 +68,13 @@ impl Target {
             Err(e) => Err(e.to_string()),
         }
     }
+}
+
+/// Whether `m` is the file behind `other` (same device and inode): a pipe, a
+/// terminal or a regular file. `false` where `other` cannot be read.
+fn same_file(m: &fs::Metadata, other: &str) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    fs::metadata(other).is_ok_and(|o| o.dev() == m.dev() && o.ino() == m.ino())
 }
 
 /// `path` with its symbolic links followed as far as they lead (at most 40, as
@@ -91,6 +114,25 @@ struct Pending {
     /// The temporary file of a regular target.
     temporary: Option<PathBuf>,
     writer: BufWriter<Box<dyn Write>>,
+    /// A stream whose reader has gone (`host-sim ... --out - | head`): what
+    /// follows is dropped without a word, as for any output to a closed pipe.
+    closed: bool,
+}
+
+impl Pending {
+    /// A write error, or `Ok` for a closed pipe on stdout or stderr.
+    fn check(&mut self, r: io::Result<()>) -> Result<(), Failure> {
+        match r {
+            Err(e)
+                if e.kind() == io::ErrorKind::BrokenPipe
+                    && matches!(self.target, Target::Stdout | Target::Stderr) =>
+            {
+                self.closed = true;
+                Ok(())
+            }
+            r => r.map_err(|e| cannot_write(&self.named, e)),
+        }
+    }
 }
 
 /// A set of outputs written together ([module doc](self)).
@@ -112,11 +154,12 @@ impl Staged {
     }
 
     /// Adds `path` to the set: checks it and opens its temporary file (or the
-    /// special file). Returns its index for [`Staged::writer`].
+    /// special file). Returns its index for [`Staged::write`].
     pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
         let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
         let (temporary, sink): (Option<PathBuf>, Box<dyn Write>) = match &target {
             Target::Stdout => (None, Box::new(io::stdout())),
+            Target::Stderr => (None, Box::new(io::stderr())),
             Target::Special(p) => {
                 let f = OpenOptions::new()
                     .write(true)
@@ -145,28 +188,29 @@ impl Staged {
             target,
             temporary,
             writer: BufWriter::with_capacity(1 << 16, sink),
+            closed: false,
         });
         Ok(self.pending.len() - 1)
-    }
-
-    /// The writer of output `index`.
-    pub fn writer(&mut self, index: usize) -> &mut dyn Write {
-        &mut self.pending[index].writer
     }
 
     /// Writes `contents` to output `index`.
     pub fn write(&mut self, index: usize, contents: &str) -> Result<(), Failure> {
         let p = &mut self.pending[index];
-        p.writer
-            .write_all(contents.as_bytes())
-            .map_err(|e| cannot_write(&p.named, e))
+        if p.closed {
+            return Ok(());
+        }
+        let r = p.writer.write_all(contents.as_bytes());
+        p.check(r)
     }
 
     /// Flushes every output, then renames every temporary file over its target.
     /// On an error before the first rename nothing is replaced.
     pub fn commit(mut self) -> Result<(), Failure> {
         for p in &mut self.pending {
-            p.writer.flush().map_err(|e| cannot_write(&p.named, e))?;
+            if !p.closed {
+                let r = p.writer.flush();
+                p.check(r)?;
+            }
         }
         // Durable before the renames: reopen each temporary file and sync it.
         for p in &self.pending {
