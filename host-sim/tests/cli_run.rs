@@ -7,7 +7,8 @@ use std::path::PathBuf;
 use serde_json::Value;
 
 mod common;
-use common::{machine, run};
+use common::{keys, machine, run, run_machine};
+use host_sim::run::report::{FINAL_KEYS, SUMMARY_KEYS};
 
 fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-run", name)
@@ -15,43 +16,14 @@ fn scratch(name: &str) -> PathBuf {
 
 #[test]
 fn json_summary_has_the_spec_keys_in_order() {
-    let m = machine();
-    let r = run(&[
+    let r = run_machine(
         "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        "12,12",
-        "--t-end",
-        "0.5",
-        "--format",
-        "json",
-    ]);
+        &["--open-loop", "12,12", "--t-end", "0.5", "--format", "json"],
+    );
     assert_eq!(r.status, 0, "{}", r.stderr);
     let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
-    let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
-    assert_eq!(
-        keys,
-        [
-            "t_end",
-            "mean_velocity",
-            "distance",
-            "impacts",
-            "rotor_speed_rpm",
-            "phase_offset_deg",
-            "phase_error_deg_rms",
-            "state",
-            "faults",
-            "final",
-            "warnings"
-        ]
-    );
-    let fin: Vec<&str> = v["final"]
-        .as_object()
-        .unwrap()
-        .keys()
-        .map(String::as_str)
-        .collect();
-    assert_eq!(fin, ["position", "angle", "velocity", "angular_velocity"]);
+    assert_eq!(keys(&v), SUMMARY_KEYS);
+    assert_eq!(keys(&v["final"]), FINAL_KEYS);
     assert_eq!(v["state"], "open-loop");
     assert_eq!(v["t_end"], 0.5);
     assert_eq!(v["phase_error_deg_rms"], 0.0);
@@ -77,22 +49,22 @@ fn open_loop_files(tag: &str) -> (PathBuf, PathBuf, PathBuf) {
 /// An open-loop run of the reference machine (`--open-loop volts`, `--t-end`)
 /// writing its trace, events and plot to `files`.
 fn run_writing(volts: &str, t_end: &str, files: [&PathBuf; 3]) -> common::Run {
-    let m = machine();
     let [out, events, plot] = files.map(|f| f.to_str().unwrap());
-    run(&[
+    run_machine(
         "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        volts,
-        "--t-end",
-        t_end,
-        "--out",
-        out,
-        "--events",
-        events,
-        "--plot",
-        plot,
-    ])
+        &[
+            "--open-loop",
+            volts,
+            "--t-end",
+            t_end,
+            "--out",
+            out,
+            "--events",
+            events,
+            "--plot",
+            plot,
+        ],
+    )
 }
 
 #[test]
@@ -175,19 +147,9 @@ fn trace_has_contact_forces_that_never_pull() {
 
 #[test]
 fn same_file_and_seed_give_identical_output() {
-    let m = machine();
-    let args = [
-        "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        "12,11",
-        "--t-end",
-        "0.6",
-        "--format",
-        "json",
-    ];
-    let a = run(&args);
-    let b = run(&args);
+    let args = ["--open-loop", "12,11", "--t-end", "0.6", "--format", "json"];
+    let a = run_machine("run", &args);
+    let b = run_machine("run", &args);
     assert_eq!(a.status, 0);
     assert_eq!(a.stdout, b.stdout);
 }
@@ -235,18 +197,18 @@ fn bad_machine_file_names_the_key() {
 
 #[test]
 fn unwritable_output_is_refused_and_nothing_is_left() {
-    let m = machine();
     let target = scratch("no-such-dir").join("t.csv");
-    let r = run(&[
+    let r = run_machine(
         "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        "coast",
-        "--t-end",
-        "0.05",
-        "--out",
-        target.to_str().unwrap(),
-    ]);
+        &[
+            "--open-loop",
+            "coast",
+            "--t-end",
+            "0.05",
+            "--out",
+            target.to_str().unwrap(),
+        ],
+    );
     assert_eq!(r.status, 2);
     assert!(r.stderr.contains("t.csv"), "{}", r.stderr);
     assert!(!target.exists());
@@ -271,7 +233,6 @@ fn one_unwritable_output_leaves_none_of_the_others() {
 /// and `/dev/null` could not be written by a user (the rename needs /dev).
 #[test]
 fn outputs_follow_links_and_write_through_special_files() {
-    let m = machine();
     let dir = scratch("links");
     std::fs::create_dir_all(&dir).unwrap();
     let real = dir.join("real.csv");
@@ -279,17 +240,10 @@ fn outputs_follow_links_and_write_through_special_files() {
     let link = dir.join("link.csv");
     let _ = std::fs::remove_file(&link);
     std::os::unix::fs::symlink(&real, &link).unwrap();
-    let base = [
-        "run",
-        m.to_str().unwrap(),
-        "--open-loop",
-        "coast",
-        "--t-end",
-        "0.05",
-    ];
+    let base = ["--open-loop", "coast", "--t-end", "0.05"];
     let mut args = base.to_vec();
     args.extend(["--out", link.to_str().unwrap(), "--events", "/dev/null"]);
-    let r = run(&args);
+    let r = run_machine("run", &args);
     assert_eq!(r.status, 0, "{}", r.stderr);
     let meta = std::fs::symlink_metadata(&link).unwrap();
     assert!(meta.file_type().is_symlink(), "the link was replaced");
@@ -297,7 +251,7 @@ fn outputs_follow_links_and_write_through_special_files() {
     // `-`: the trace on stdout, then the summary.
     let mut args = base.to_vec();
     args.extend(["--out", "-", "--format", "json"]);
-    let r = run(&args);
+    let r = run_machine("run", &args);
     assert_eq!(r.status, 0, "{}", r.stderr);
     assert!(r.stdout.starts_with("t,x,y"), "{}", &r.stdout[..80]);
     assert!(r.stdout.contains("\"mean_velocity\""));
@@ -307,15 +261,7 @@ fn outputs_follow_links_and_write_through_special_files() {
 /// name `--speed`.
 #[test]
 fn a_negative_speed_is_refused_naming_the_option() {
-    let m = machine();
-    let r = run(&[
-        "run",
-        m.to_str().unwrap(),
-        "--command",
-        "right",
-        "--speed",
-        "-3000",
-    ]);
+    let r = run_machine("run", &["--command", "right", "--speed", "-3000"]);
     assert_eq!(r.status, 2);
     assert!(r.stderr.contains("--speed -3000"), "{}", r.stderr);
 }

@@ -7,37 +7,10 @@
 //! Newton's law and the friction cone, 50 sweeps. It is not the same physics (one
 //! velocity-level LCP, no phases, no events), but it is the usual cost reference.
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use shared::impact::{
-    body_problem, solve, BodyContact, ContactLaw, ImpactLaw, ImpactProblem, PlanarBody,
-};
-use shared::Real;
+use shared::impact::{solve, ImpactProblem};
 
-fn problem<T: Real>() -> ImpactProblem<T, 8> {
-    let f = T::from_f64;
-    let body = PlanarBody {
-        mass: f(2.0),
-        inertia: f(7.3e-3),
-        position: [f(0.0), f(0.03)],
-        velocity: [f(0.4), f(-1.0)],
-        angular_velocity: f(0.5),
-    };
-    let feet = [
-        (-0.1, 0.3, 0.5),
-        (-0.03, 0.4, 0.4),
-        (0.03, 0.5, 0.3),
-        (0.1, 0.6, 0.5),
-    ];
-    let contacts = feet.map(|(x, r, mu)| BodyContact {
-        point: [f(x), f(0.0)],
-        normal: [f(0.0), f(1.0)],
-        law: ContactLaw {
-            restitution: f(r),
-            friction: f(mu),
-            weight: f(1.0),
-        },
-    });
-    body_problem(&body, None, &contacts, ImpactLaw::Poisson)
-}
+mod landing;
+use landing::problem;
 
 /// Projected Gauss-Seidel on `W P + u0 = v`, Newton targets, friction cone.
 fn pgs(p: &ImpactProblem<f64, 8>, sweeps: usize) -> [f64; 16] {

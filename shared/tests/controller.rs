@@ -230,6 +230,14 @@ fn start(rig: &mut Rig, command: Command) -> usize {
         .expect("reaches running")
 }
 
+/// The command to travel in `direction` at `speed_rpm`.
+fn travel(direction: Direction, speed_rpm: f32) -> Command {
+    Command::Travel {
+        direction,
+        speed_rpm,
+    }
+}
+
 /// Outputs in the safe state.
 fn safe(o: &Outputs) -> bool {
     !o.enable && o.duty == [0.0, 0.0]
@@ -455,13 +463,7 @@ fn phase_loop_holds_the_offset_against_a_disturbance() {
 #[test]
 fn direction_change_ramps_the_offset_through_180_not_0() {
     let mut rig = Rig::reference();
-    start(
-        &mut rig,
-        Command::Travel {
-            direction: Direction::Right,
-            speed_rpm: 3000.0,
-        },
-    );
+    start(&mut rig, travel(Direction::Right, 3000.0));
     rig.run(1500);
     let out = rig.last.unwrap();
     assert_eq!(out.telemetry.commanded_offset_deg, 90.0);
@@ -469,10 +471,7 @@ fn direction_change_ramps_the_offset_through_180_not_0() {
         (Direction::Left, 90.0f32, 270.0f32),
         (Direction::Right, 270.0, 90.0),
     ] {
-        rig.command(Command::Travel {
-            direction,
-            speed_rpm: 3000.0,
-        });
+        rig.command(travel(direction, 3000.0));
         let mut prev = from;
         let mut near180 = f32::MAX;
         let mut near0 = f32::MAX;
@@ -505,23 +504,14 @@ fn travel_follows_the_tuning_table_with_the_speed() {
     let mut p = Params::reference();
     p.tuning = TuningTable::from_rows(&[(1000.0, 60.0, 300.0), (3000.0, 120.0, 240.0)]).unwrap();
     let mut rig = Rig::new(&p, [0.0, 0.5]);
-    start(
-        &mut rig,
-        Command::Travel {
-            direction: Direction::Right,
-            speed_rpm: 3000.0,
-        },
-    );
+    start(&mut rig, travel(Direction::Right, 3000.0));
     rig.run(1000);
     let out = rig.last.unwrap();
     assert_eq!(out.telemetry.target_offset_deg, 120.0);
     assert_eq!(out.telemetry.commanded_offset_deg, 120.0);
     assert!(wrap_deg_signed(rig.true_offset() - 120.0).abs() < 2.0);
     // Slower: the offset moves with the speed along the table.
-    rig.command(Command::Travel {
-        direction: Direction::Right,
-        speed_rpm: 2000.0,
-    });
+    rig.command(travel(Direction::Right, 2000.0));
     let out = rig.run(2000);
     assert!((out.telemetry.commanded_offset_deg - 90.0).abs() < 1e-3);
     assert!(wrap_deg_signed(rig.true_offset() - 90.0).abs() < 2.0);
@@ -544,13 +534,7 @@ fn a_reset_in_the_tick_of_a_new_fault_leaves_it_reported() {
 #[test]
 fn stop_ramps_down_then_idles() {
     let mut rig = Rig::reference();
-    start(
-        &mut rig,
-        Command::Travel {
-            direction: Direction::Left,
-            speed_rpm: 3000.0,
-        },
-    );
+    start(&mut rig, travel(Direction::Left, 3000.0));
     rig.command(Command::Stop);
     let out = rig.step();
     assert_eq!(out.state, State::Stopping);
@@ -597,10 +581,7 @@ fn latched(rig: &mut Rig, flag: Faults) {
         assert!(safe(&out));
     }
     // A run command is refused while latched.
-    rig.command(Command::Travel {
-        direction: Direction::Right,
-        speed_rpm: 3000.0,
-    });
+    rig.command(travel(Direction::Right, 3000.0));
     let out = rig.step();
     assert!(out.telemetry.command_rejected);
     assert!(safe(&out));
@@ -614,13 +595,7 @@ fn latched(rig: &mut Rig, flag: Faults) {
 
 fn running() -> Rig {
     let mut rig = Rig::reference();
-    start(
-        &mut rig,
-        Command::Travel {
-            direction: Direction::Right,
-            speed_rpm: 3000.0,
-        },
-    );
+    start(&mut rig, travel(Direction::Right, 3000.0));
     rig.run(500);
     rig
 }
@@ -755,10 +730,7 @@ fn stall_within_its_bound_and_named_stall() {
     // A rotor jammed from the start.
     let mut rig = Rig::reference();
     rig.rotors[1].blocked = true;
-    rig.command(Command::Travel {
-        direction: Direction::Right,
-        speed_rpm: 3000.0,
-    });
+    rig.command(travel(Direction::Right, 3000.0));
     detect(&mut rig, Faults::STALL, 2000);
 }
 
@@ -794,10 +766,7 @@ fn misplaced_index_and_count_jumps_are_encoder_faults_at_once() {
     // No index at all: detected within a turn and the tolerance.
     let mut rig = Rig::reference();
     rig.no_index[0] = true;
-    rig.command(Command::Travel {
-        direction: Direction::Right,
-        speed_rpm: 3000.0,
-    });
+    rig.command(travel(Direction::Right, 3000.0));
     detect(&mut rig, Faults::ENCODER, 3000);
     let turns = rig.rotors[0].theta / TAU;
     eprintln!("missing index: detected after {turns:.4} turns");
@@ -869,10 +838,7 @@ fn watchdog_restart_is_a_fault_and_never_starts_the_motors() {
     assert_eq!(out.faults.names().collect::<Vec<_>>(), ["watchdog_reset"]);
     latched(&mut rig, Faults::WATCHDOG_RESET);
     // Only a new run command starts them.
-    rig.command(Command::Travel {
-        direction: Direction::Left,
-        speed_rpm: 2000.0,
-    });
+    rig.command(travel(Direction::Left, 2000.0));
     assert_eq!(rig.step().state, State::Starting);
 }
 
@@ -896,10 +862,7 @@ fn out_of_range_commands_are_refused() {
             direction: Direction::Right,
             speed_rpm: f32::NAN,
         },
-        Command::Travel {
-            direction: Direction::Right,
-            speed_rpm: 1.0e6,
-        },
+        travel(Direction::Right, 1.0e6),
         Command::HoldOffset {
             speed_rpm: 3000.0,
             offset_deg: f32::INFINITY,

@@ -44,6 +44,34 @@ fn command() -> impl Strategy<Value = Option<Command>> {
     ]
 }
 
+/// The generated parts of one tick's inputs but the counters: index latches,
+/// currents, supply, E-stop, command and (late, busy) timing.
+type Parts = (
+    [Option<u32>; 2],
+    [f32; 2],
+    f32,
+    bool,
+    Option<Command>,
+    (f32, f32),
+);
+
+/// One tick's inputs from the counters `encoder` and the generated parts.
+fn inputs(
+    encoder: [u32; 2],
+    (index, current, supply_voltage, estop, command, timing): Parts,
+) -> Inputs {
+    let (late_s, busy_s) = timing;
+    Inputs {
+        encoder,
+        index,
+        current,
+        supply_voltage,
+        estop,
+        command,
+        timing: TickTiming { late_s, busy_s },
+    }
+}
+
 /// One tick of arbitrary inputs.
 fn wild_tick() -> impl Strategy<Value = (Inputs, f32)> {
     (
@@ -57,17 +85,12 @@ fn wild_tick() -> impl Strategy<Value = (Inputs, f32)> {
         (any_f32(), any_f32()),
     )
         .prop_map(
-            |(encoder, index, current, supply_voltage, estop, command, dt, (late_s, busy_s))| {
+            |(encoder, index, current, supply_voltage, estop, command, dt, timing)| {
                 (
-                    Inputs {
+                    inputs(
                         encoder,
-                        index,
-                        current,
-                        supply_voltage,
-                        estop,
-                        command,
-                        timing: TickTiming { late_s, busy_s },
-                    },
+                        (index, current, supply_voltage, estop, command, timing),
+                    ),
                     dt,
                 )
             },
@@ -93,19 +116,14 @@ fn sane_tick() -> impl Strategy<Value = ([i32; 2], [Option<u32>; 2], Inputs, f32
         ],
     )
         .prop_map(
-            |(delta, index, current, supply_voltage, estop, command, dt, (late_s, busy_s))| {
+            |(delta, index, current, supply_voltage, estop, command, dt, timing)| {
                 (
                     delta,
                     index,
-                    Inputs {
-                        encoder: [0; 2],
-                        index,
-                        current,
-                        supply_voltage,
-                        estop,
-                        command,
-                        timing: TickTiming { late_s, busy_s },
-                    },
+                    inputs(
+                        [0; 2],
+                        (index, current, supply_voltage, estop, command, timing),
+                    ),
                     dt,
                 )
             },

@@ -16,23 +16,15 @@ use shared::protocol::{
 mod support;
 
 use support::frames::{feed, finish, frame_bytes, raw_frame};
+use support::tables::table_from_steps;
 
 fn finite() -> impl Strategy<Value = f32> {
     -1.0e6f32..1.0e6
 }
 
 fn table() -> impl Strategy<Value = TuningTable> {
-    prop::collection::vec((1.0f32..300.0, 0.0f32..360.0, 0.0f32..360.0), 1..=32).prop_map(|rows| {
-        let mut speed = 0.0;
-        let rows: Vec<(f32, f32, f32)> = rows
-            .into_iter()
-            .map(|(step, right, left)| {
-                speed += step;
-                (speed, right, left)
-            })
-            .collect();
-        TuningTable::from_rows(&rows).unwrap()
-    })
+    prop::collection::vec((1.0f32..300.0, 0.0f32..360.0, 0.0f32..360.0), 1..=32)
+        .prop_map(table_from_steps)
 }
 
 fn direction() -> impl Strategy<Value = Direction> {

@@ -5,12 +5,13 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
+use shared::controller::{RotorSelfTest, SelfTest};
 use shared::storage::{Record, SimFlash};
 
 mod support;
 
 use support::power_cut::{store_and_check, STORE_WORK};
+use support::tables::table_from_steps;
 
 fn record() -> impl Strategy<Value = Record> {
     (
@@ -18,14 +19,6 @@ fn record() -> impl Strategy<Value = Record> {
         prop::option::of((any::<[bool; 6]>(), any::<[u32; 4]>())),
     )
         .prop_map(|(rows, test)| {
-            let mut speed = 0.0;
-            let rows: Vec<(f32, f32, f32)> = rows
-                .into_iter()
-                .map(|(step, right, left)| {
-                    speed += step;
-                    (speed, right, left)
-                })
-                .collect();
             let rotor = |b: &[bool], cpr: u32, offset: u32| RotorSelfTest {
                 motor_polarity_ok: b[0],
                 encoder_polarity_ok: b[1],
@@ -34,7 +27,7 @@ fn record() -> impl Strategy<Value = Record> {
                 index_offset_counts: offset,
             };
             Record {
-                tuning: TuningTable::from_rows(&rows).unwrap(),
+                tuning: table_from_steps(rows),
                 self_test: test.map(|(b, n)| SelfTest {
                     rotors: [rotor(&b[..3], n[0], n[1]), rotor(&b[3..], n[2], n[3])],
                 }),

@@ -16,8 +16,8 @@
 //! `omega x r = omega (-r_y, r_x)`.
 
 use shared::impact::{
-    solve, solve_body, BodyContact, BodyImpact, ContactLaw, ImpactLaw, ImpactProblem,
-    InteractionCase, PlanarBody, SlipState, Warnings,
+    solve, solve_body, BodyContact, BodyImpact, ContactLaw, ContactOutcome, ImpactLaw,
+    ImpactProblem, InteractionCase, PlanarBody, SlipState, Warnings,
 };
 use tests::rig::cross;
 
@@ -43,6 +43,22 @@ fn contact(point: [f64; 2], normal: [f64; 2], restitution: f64, friction: f64) -
             friction,
             weight: 1.0,
         },
+    }
+}
+
+fn planar_body(
+    mass: f64,
+    inertia: f64,
+    position: [f64; 2],
+    velocity: [f64; 2],
+    angular_velocity: f64,
+) -> PlanarBody<f64> {
+    PlanarBody {
+        mass,
+        inertia,
+        position,
+        velocity,
+        angular_velocity,
     }
 }
 
@@ -97,13 +113,7 @@ fn housner_rocking_block_angular_velocity_ratio() {
             // v_C = omega_0 x (C - A).
             let r_ac = [c[0] - a_corner[0], c[1] - a_corner[1]];
             let v0 = [-omega0 * r_ac[1], omega0 * r_ac[0]];
-            let body = PlanarBody {
-                mass: m,
-                inertia: jc,
-                position: c,
-                velocity: v0,
-                angular_velocity: omega0,
-            };
+            let body = planar_body(m, jc, c, v0, omega0);
             let out = solved(
                 &body,
                 None,
@@ -206,13 +216,7 @@ impl PinnedRod {
         self.jc + self.m * (self.c[0] * self.c[0] + self.c[1] * self.c[1])
     }
     fn solve(&self, law: ImpactLaw) -> BodyImpact<f64, 8> {
-        let body = PlanarBody {
-            mass: self.m,
-            inertia: self.jc,
-            position: self.c,
-            velocity: [0.0, 0.0],
-            angular_velocity: self.omega0,
-        };
+        let body = planar_body(self.m, self.jc, self.c, [0.0, 0.0], self.omega0);
         solved(
             &body,
             Some([0.0, 0.0]),
@@ -713,13 +717,7 @@ impl FreeRod {
         }
     }
     fn body(&self) -> PlanarBody<f64> {
-        PlanarBody {
-            mass: self.m,
-            inertia: self.jc(),
-            position: self.c(),
-            velocity: self.v,
-            angular_velocity: self.omega,
-        }
+        planar_body(self.m, self.jc(), self.c(), self.v, self.omega)
     }
 }
 
@@ -757,22 +755,7 @@ fn compare_free_rod(rod: &FreeRod, law: ImpactLaw, expected_case: Option<u8>) {
         tol_p,
         &context,
     );
-    check("P_n total", k.normal_impulse, b.total[0], tol_p, &context);
-    check(
-        "P_t total",
-        k.tangential_impulse,
-        b.total[1],
-        tol_p,
-        &context,
-    );
-    check("u_n after", k.normal_velocity_after, b.u_n, tol_u, &context);
-    check(
-        "u_t after",
-        k.tangential_velocity_after,
-        b.u_t,
-        tol_u,
-        &context,
-    );
+    check_totals("", k, &b, (tol_p, tol_u), &context);
     // The body's velocities from the brute force's impulses: v_C + P/m, omega + r x P / Jc.
     let imp = [
         b.total[0] * FreeRod::N[0] + b.total[1] * FreeRod::T[0],
@@ -819,34 +802,45 @@ fn compare_free_rod(rod: &FreeRod, law: ImpactLaw, expected_case: Option<u8>) {
         weight: 1.0,
     };
     let o = solve(&problem).unwrap_or_else(|e| panic!("solve failed with {e:?}: {context:?}"));
-    let k = &o.contacts[0];
+    check_totals("problem: ", &o.contacts[0], &b, (tol_p, tol_u), &context);
+}
+
+/// A contact's total impulses and velocities after against the brute force's, to
+/// the tolerances `(impulse, velocity)`; `prefix` names the route in a failure.
+fn check_totals(
+    prefix: &str,
+    k: &ContactOutcome<f64>,
+    b: &Brute,
+    (tol_p, tol_u): (f64, f64),
+    context: &dyn core::fmt::Debug,
+) {
     check(
-        "problem: P_n total",
+        &format!("{prefix}P_n total"),
         k.normal_impulse,
         b.total[0],
         tol_p,
-        &context,
+        context,
     );
     check(
-        "problem: P_t total",
+        &format!("{prefix}P_t total"),
         k.tangential_impulse,
         b.total[1],
         tol_p,
-        &context,
+        context,
     );
     check(
-        "problem: u_n after",
+        &format!("{prefix}u_n after"),
         k.normal_velocity_after,
         b.u_n,
         tol_u,
-        &context,
+        context,
     );
     check(
-        "problem: u_t after",
+        &format!("{prefix}u_t after"),
         k.tangential_velocity_after,
         b.u_t,
         tol_u,
-        &context,
+        context,
     );
 }
 
@@ -868,43 +862,38 @@ fn base_rod(mu: f64, r: f64) -> FreeRod {
     }
 }
 
+/// One hand-built case: the base rod with friction `mu` and restitution `r`, its
+/// end approaching at 1 m/s and sliding at `u_t0`, under every law, compared with
+/// the brute force and expected to fall in the paper's case `case`.
+fn free_rod_case(mu: f64, r: f64, u_t0: f64, case: u8) {
+    for law in LAWS {
+        compare_free_rod(
+            &base_rod(mu, r).with_contact_velocity(-1.0, u_t0),
+            law,
+            Some(case),
+        );
+    }
+}
+
 /// Case 1: mu = 0.3, u_t0 = +1 (slip +): `du_t/dP_n = 1.5 - 0.75 > 0`, u_t never
 /// reaches zero: slip in one direction throughout.
 #[test]
 fn free_rod_slips_throughout_case_1() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.3, 0.7).with_contact_velocity(-1.0, 1.0),
-            law,
-            Some(1),
-        );
-    }
+    free_rod_case(0.3, 0.7, 1.0, 1);
 }
 
 /// Case 2: u_t0 = 0 and mu = 0.3 < 0.6: sticking is impossible, it slips from rest
 /// along sign(W_nt) = + and keeps slipping.
 #[test]
 fn free_rod_slips_from_rest_case_2() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.3, 0.7).with_contact_velocity(-1.0, 0.0),
-            law,
-            Some(2),
-        );
-    }
+    free_rod_case(0.3, 0.7, 0.0, 2);
 }
 
 /// Case 3: mu = 0.8 > 0.6, u_t0 = +0.2: `du_t/dP_n = 1.5 - 2 = -0.5`, u_t reaches zero
 /// at P_n = 0.4 where `u_n = -1 + 1.3 * 0.4 = -0.48 < 0`: sticks in compression.
 #[test]
 fn free_rod_sticks_in_compression_case_3() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.8, 0.7).with_contact_velocity(-1.0, 0.2),
-            law,
-            Some(3),
-        );
-    }
+    free_rod_case(0.8, 0.7, 0.2, 3);
 }
 
 /// Case 4: mu = 0.8, u_t0 = +0.6: u_t reaches zero at P_n = 1.2; compression ends
@@ -913,13 +902,7 @@ fn free_rod_sticks_in_compression_case_3() {
 /// case 4; Stronge ends near Poisson for a constant rate).
 #[test]
 fn free_rod_sticks_in_restitution_case_4() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.8, 0.8).with_contact_velocity(-1.0, 0.6),
-            law,
-            Some(4),
-        );
-    }
+    free_rod_case(0.8, 0.8, 0.6, 4);
 }
 
 /// Case 5: mu = 0.3 < 0.6, u_t0 = -0.5 (slip -): `du_t/dP_n = 1.5 + 0.75 = 2.25`,
@@ -927,13 +910,7 @@ fn free_rod_sticks_in_restitution_case_4() {
 /// needs 0.6 > mu: reverses in compression.
 #[test]
 fn free_rod_reverses_in_compression_case_5() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.3, 0.7).with_contact_velocity(-1.0, -0.5),
-            law,
-            Some(5),
-        );
-    }
+    free_rod_case(0.3, 0.7, -0.5, 5);
 }
 
 /// Case 6: as case 5 with u_t0 = -1.2: compression ends at P_n = 1/2.95 = 0.34, u_t
@@ -942,25 +919,13 @@ fn free_rod_reverses_in_compression_case_5() {
 /// there, below `R^2 |W_C| = 0.64 / (2 * 2.95) = 0.108`).
 #[test]
 fn free_rod_reverses_in_restitution_case_6() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.3, 0.8).with_contact_velocity(-1.0, -1.2),
-            law,
-            Some(6),
-        );
-    }
+    free_rod_case(0.3, 0.8, -1.2, 6);
 }
 
 /// Case 7: u_t0 = 0 and mu = 0.8 > 0.6: sticks from the start.
 #[test]
 fn free_rod_sticks_from_rest_case_7() {
-    for law in LAWS {
-        compare_free_rod(
-            &base_rod(0.8, 0.7).with_contact_velocity(-1.0, 0.0),
-            law,
-            Some(7),
-        );
-    }
+    free_rod_case(0.8, 0.7, 0.0, 7);
 }
 
 /// Random free rods and approaches, every law, compared with the brute force on
@@ -1014,41 +979,47 @@ fn free_rod_random_against_brute_force() {
 /// v_y = R V, omega = 0. Impulses: vertical momentum `P1 + P2 = (1 + R) m V` and
 /// moment about C `P1 (-a - xc) + P2 (a2 - xc) = 0` (lever rule):
 /// `P1 = (1 + R) m V (a2 - xc)/(a + a2)`.
+/// Two feet on the ground (n = (0, 1)) at x = `x[0]` and `x[1]`, with the same law.
+fn flat_feet(x: [f64; 2], restitution: f64, friction: f64) -> [BodyContact<f64>; 2] {
+    x.map(|x| contact([x, 0.0], [0.0, 1.0], restitution, friction))
+}
+
+/// A flat frictionless landing's velocities after: `v_x` untouched, `v_y = R V`, no
+/// spin (its tolerance over the lever arm `arm`). `motion` is `(v_x, R, V)`.
+fn check_flat_rebound(
+    out: &BodyImpact<f64, 8>,
+    (vx, r, big_v): (f64, f64, f64),
+    arm: f64,
+    ctx: &dyn core::fmt::Debug,
+) {
+    check("v_x after", out.velocity_after[0], vx, 1e-9 * big_v, ctx);
+    check(
+        "v_y after = R V",
+        out.velocity_after[1],
+        r * big_v,
+        1e-9 * big_v,
+        ctx,
+    );
+    check(
+        "omega after",
+        out.angular_velocity_after,
+        0.0,
+        1e-9 * big_v / arm,
+        ctx,
+    );
+}
+
 #[test]
 fn flat_two_foot_landing_frictionless() {
     let (m, jc, vx, big_v, h) = (4.0, 0.3, 0.7, 2.5, 0.4);
     for &r in &[0.0, 0.3, 0.75, 1.0] {
         // Symmetric: a = a2 = 0.5, C = (0, h).
         for law in LAWS {
-            let body = PlanarBody {
-                mass: m,
-                inertia: jc,
-                position: [0.0, h],
-                velocity: [vx, -big_v],
-                angular_velocity: 0.0,
-            };
-            let feet = [
-                contact([-0.5, 0.0], [0.0, 1.0], r, 0.0),
-                contact([0.5, 0.0], [0.0, 1.0], r, 0.0),
-            ];
-            let out = solved(&body, None, &feet, law);
+            let body = planar_body(m, jc, [0.0, h], [vx, -big_v], 0.0);
+            let out = solved(&body, None, &flat_feet([-0.5, 0.5], r, 0.0), law);
             let ctx = (law, r, "symmetric");
             let p = (1.0 + r) * m * big_v / 2.0;
-            check("v_x after", out.velocity_after[0], vx, 1e-9 * big_v, &ctx);
-            check(
-                "v_y after = R V",
-                out.velocity_after[1],
-                r * big_v,
-                1e-9 * big_v,
-                &ctx,
-            );
-            check(
-                "omega after",
-                out.angular_velocity_after,
-                0.0,
-                1e-9 * big_v / 0.5,
-                &ctx,
-            );
+            check_flat_rebound(&out, (vx, r, big_v), 0.5, &ctx);
             for c in &out.outcome.contacts[..2] {
                 check("P_n per foot", c.normal_impulse, p, 1e-9 * m * big_v, &ctx);
                 check(
@@ -1064,37 +1035,13 @@ fn flat_two_foot_landing_frictionless() {
         // Asymmetric: a = 0.3, a2 = 0.7, xc = 0.15.
         let (a, a2, xc) = (0.3, 0.7, 0.15);
         for law in [ImpactLaw::Poisson, ImpactLaw::Newton] {
-            let body = PlanarBody {
-                mass: m,
-                inertia: jc,
-                position: [xc, h],
-                velocity: [vx, -big_v],
-                angular_velocity: 0.0,
-            };
-            let feet = [
-                contact([-a, 0.0], [0.0, 1.0], r, 0.0),
-                contact([a2, 0.0], [0.0, 1.0], r, 0.0),
-            ];
-            let out = solved(&body, None, &feet, law);
+            let body = planar_body(m, jc, [xc, h], [vx, -big_v], 0.0);
+            let out = solved(&body, None, &flat_feet([-a, a2], r, 0.0), law);
             let ctx = (law, r, "asymmetric");
             let total = (1.0 + r) * m * big_v;
             let p1 = total * (a2 - xc) / (a + a2);
             let p2 = total * (a + xc) / (a + a2);
-            check("v_x after", out.velocity_after[0], vx, 1e-9 * big_v, &ctx);
-            check(
-                "v_y after = R V",
-                out.velocity_after[1],
-                r * big_v,
-                1e-9 * big_v,
-                &ctx,
-            );
-            check(
-                "omega after",
-                out.angular_velocity_after,
-                0.0,
-                1e-9 * big_v / a,
-                &ctx,
-            );
+            check_flat_rebound(&out, (vx, r, big_v), a, &ctx);
             check(
                 "P1 (lever rule)",
                 out.outcome.contacts[0].normal_impulse,
@@ -1148,18 +1095,8 @@ fn flat_two_foot_landing_sticking_shares_friction() {
     let pt = [mu * pn[0], pt_sum - mu * pn[0]];
     assert!(pt_sum / 2.0 > mu * pn[0] && pt_sum <= mu * pn_sum);
     for law in LAWS {
-        let body = PlanarBody {
-            mass: m,
-            inertia: jc,
-            position: [0.0, h],
-            velocity: [vx, vy],
-            angular_velocity: omega0,
-        };
-        let feet = [
-            contact([-a, 0.0], [0.0, 1.0], 0.0, mu),
-            contact([a, 0.0], [0.0, 1.0], 0.0, mu),
-        ];
-        let out = solved(&body, None, &feet, law);
+        let body = planar_body(m, jc, [0.0, h], [vx, vy], omega0);
+        let out = solved(&body, None, &flat_feet([-a, a], 0.0, mu), law);
         let ctx = (law, "two feet sticking");
         let tol = 1e-9 * m;
         check("v_x after", out.velocity_after[0], 0.0, 1e-9, &ctx);

@@ -51,20 +51,26 @@ const VS: f64 = 12.0;
 const K: f64 = 0.02;
 const T: f64 = 1.0 / 20_000.0;
 
-/// The reference machine with `decay`, a current limit high enough to stay out
-/// of the way (10 A), and its rotors and platform held, rotor speeds `rpm`.
-fn held(decay: &str, rpm: f64) -> (Machine, Plant) {
-    let sets = [
-        format!("drive.decay={decay}"),
-        "motor.current_limit=10".to_string(),
-    ];
-    let m = reference_machine(0.0, &sets);
-    let holds = Holds {
+/// The reference machine with the `--set` override `set` and a current limit high
+/// enough to stay out of the way (10 A).
+fn machine_with(set: String) -> Machine {
+    reference_machine(0.0, &[set, "motor.current_limit=10".to_string()])
+}
+
+/// Rotors and platform held.
+fn all_held() -> Holds {
+    Holds {
         platform: true,
         rotors: true,
         ..Holds::default()
-    };
-    let plant = held_plant(&m, rpm, Settings::default(), holds);
+    }
+}
+
+/// The reference machine with `decay`, a current limit high enough to stay out
+/// of the way (10 A), and its rotors and platform held, rotor speeds `rpm`.
+fn held(decay: &str, rpm: f64) -> (Machine, Plant) {
+    let m = machine_with(format!("drive.decay={decay}"));
+    let plant = held_plant(&m, rpm, Settings::default(), all_held());
     (m, plant)
 }
 
@@ -316,21 +322,12 @@ fn the_bridge_switches_as_the_timer_does() {
 #[test]
 fn above_50_khz_a_duty_waits_for_the_update_every_few_periods() {
     let t = 1.0 / 200_000.0;
-    let sets = [
-        "drive.pwm_hz=200000".to_string(),
-        "motor.current_limit=10".to_string(),
-    ];
-    let m = reference_machine(0.0, &sets);
-    let holds = Holds {
-        platform: true,
-        rotors: true,
-        ..Holds::default()
-    };
+    let m = machine_with("drive.pwm_hz=200000".to_string());
     let mut plant = Plant::new(
         PlantModel::new(&m),
         initial_state(&m),
         Settings::default(),
-        holds,
+        all_held(),
     );
     plant.advance_to(1.5 * t, &mut |_| {});
     plant.set_bridges([BridgeCommand::Duty(1.0), BridgeCommand::Off]);

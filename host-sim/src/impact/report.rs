@@ -15,6 +15,38 @@ use crate::output::text::{self, Align, Table};
 /// A body's impact result, as `solve_body` returns it for up to [`MAX_CONTACTS`].
 pub type Solved = BodyImpact<f64, MAX_CONTACTS>;
 
+/// The document's keys in the spec's order (`pivot` only when pinned).
+pub const DOCUMENT_KEYS: [&str; 10] = [
+    "law",
+    "velocity_before",
+    "angular_velocity_before",
+    "velocity_after",
+    "angular_velocity_after",
+    "contacts",
+    "pivot",
+    "kinetic_energy_before",
+    "kinetic_energy_after",
+    "warnings",
+];
+
+/// The keys of a contact's object, in the spec's order.
+pub const CONTACT_KEYS: [&str; 11] = [
+    "normal_impulse",
+    "tangential_impulse",
+    "compression",
+    "restitution",
+    "normal_velocity_before",
+    "normal_velocity_after",
+    "tangential_velocity_before",
+    "tangential_velocity_after",
+    "case",
+    "case_name",
+    "segments",
+];
+
+/// The keys of one segment of a contact's history, in the spec's order.
+pub const SEGMENT_KEYS: [&str; 4] = ["phase", "state", "normal_impulse", "tangential_impulse"];
+
 /// `[x, y]` as a JSON array of numbers.
 fn pair(v: [f64; 2]) -> Value {
     Value::Array(vec![Value::from(v[0]), Value::from(v[1])])
@@ -407,49 +439,17 @@ mod tests {
     fn json_has_exactly_the_spec_keys_in_order() {
         let case = parse_case("c.toml", &case_text()).unwrap();
         let doc = json(&case, &fake(Warnings::default()));
-        assert_eq!(
-            keys(&doc),
-            [
-                "law",
-                "velocity_before",
-                "angular_velocity_before",
-                "velocity_after",
-                "angular_velocity_after",
-                "contacts",
-                "pivot",
-                "kinetic_energy_before",
-                "kinetic_energy_after",
-                "warnings"
-            ]
-        );
+        assert_eq!(keys(&doc), DOCUMENT_KEYS);
         assert_eq!(keys(&doc["contacts"]), ["K", "B"]);
         let k = &doc["contacts"]["K"];
-        assert_eq!(
-            keys(k),
-            [
-                "normal_impulse",
-                "tangential_impulse",
-                "compression",
-                "restitution",
-                "normal_velocity_before",
-                "normal_velocity_after",
-                "tangential_velocity_before",
-                "tangential_velocity_after",
-                "case",
-                "case_name",
-                "segments"
-            ]
-        );
+        assert_eq!(keys(k), CONTACT_KEYS);
         assert_eq!(
             keys(&k["compression"]),
             ["normal_impulse", "tangential_impulse"]
         );
         assert_eq!(k["case"], 6);
         assert_eq!(k["case_name"], "reversal-in-restitution");
-        assert_eq!(
-            keys(&k["segments"][0]),
-            ["phase", "state", "normal_impulse", "tangential_impulse"]
-        );
+        assert_eq!(keys(&k["segments"][0]), SEGMENT_KEYS);
         assert_eq!(k["segments"][0]["state"], "slip-");
         assert_eq!(k["segments"][1]["phase"], "restitution");
         assert_eq!(k["segments"][1]["normal_impulse"][1], 1.5);

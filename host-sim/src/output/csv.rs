@@ -215,17 +215,11 @@ mod tests {
                 case: Some(3),
                 detail: String::new(),
             },
-            EventRow {
-                t: 0.75,
-                kind: EventKind::Fault,
-                contact: String::new(),
-                normal_velocity_before: 0.0,
-                normal_velocity_after: 0.0,
-                normal_impulse: 0.0,
-                tangential_impulse: 0.0,
-                case: None,
-                detail: "overcurrent, rotor \"left\"".to_string(),
-            },
+            EventRow::controller(
+                0.75,
+                EventKind::Fault,
+                "overcurrent, rotor \"left\"".to_string(),
+            ),
         ];
         let csv = events_csv(&rows);
         let lines: Vec<&str> = csv.lines().collect();

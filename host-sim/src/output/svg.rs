@@ -93,3 +93,22 @@ pub fn open_document(svg: &mut String, width: f64, height: f64, title: &str, x: 
         escape(title)
     );
 }
+
+/// A horizontal grid line at `py` from `left` to `right` in `colour`, with the
+/// value tick's `label` (written as given) at its left end.
+pub fn value_grid_line(
+    svg: &mut String,
+    (left, right): (f64, f64),
+    py: f64,
+    colour: &str,
+    label: &str,
+) {
+    use std::fmt::Write;
+    let _ = writeln!(
+        svg,
+        r#"<line x1="{left:.1}" y1="{py:.1}" x2="{right:.1}" y2="{py:.1}" stroke="{colour}" stroke-width="1"/><text x="{:.1}" y="{:.1}" font-size="11" text-anchor="end">{}</text>"#,
+        left - 6.0,
+        py + 4.0,
+        label
+    );
+}

@@ -347,6 +347,20 @@ mod tests {
         (i, w)
     }
 
+    /// The rotor's speed after 1.5 s at the constant voltage `u` from rest, in steps
+    /// of 10 us.
+    fn speed_after_1_5_s(motor: &DcMotor, u: f64) -> f64 {
+        let (_, w) = integrate(
+            motor,
+            Winding::Voltage(u),
+            (0.0, 0.0),
+            1e-5,
+            150_000,
+            |_, _, _| {},
+        );
+        w
+    }
+
     /// The poles `p1` (slow), `p2` (fast) of `L J s^2 + R J s + k^2 = 0`.
     fn poles(m: &DcMotor) -> (f64, f64) {
         let p = &m.params;
@@ -434,14 +448,7 @@ mod tests {
             p.torque_constant * u / (p.resistance * p.viscous_friction + p.torque_constant.powi(2));
         assert!((m.steady_speed(u) - exact).abs() < 1e-12 * exact);
         // Mechanical time constant J R / (k^2 + R b) ~ 50 ms: 1.5 s is 30 of them.
-        let (_, w) = integrate(
-            &m,
-            Winding::Voltage(u),
-            (0.0, 0.0),
-            1e-5,
-            150_000,
-            |_, _, _| {},
-        );
+        let w = speed_after_1_5_s(&m, u);
         assert!((w - exact).abs() < 1e-9 * exact, "{w} vs {exact}");
     }
 
@@ -455,14 +462,7 @@ mod tests {
         let u = 6.0;
         let exact = m.steady_speed(u);
         assert!((exact - (0.02 * 6.0 - 2.0e-3) / (4e-4 + 2e-6)).abs() < 1e-9);
-        let (_, w) = integrate(
-            &m,
-            Winding::Voltage(u),
-            (0.0, 0.0),
-            1e-5,
-            150_000,
-            |_, _, _| {},
-        );
+        let w = speed_after_1_5_s(&m, u);
         assert!((w - exact).abs() < 1e-9 * exact, "{w} vs {exact}");
         // Odd in u, and zero below breakaway.
         assert_eq!(m.steady_speed(-u), -exact);

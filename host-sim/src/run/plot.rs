@@ -21,7 +21,9 @@
 use std::fmt::Write as _;
 
 use crate::machine::Machine;
-use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks, PALETTE};
+use crate::output::svg::{
+    escape, nice_step, open_document, tick_label, ticks, value_grid_line, PALETTE,
+};
 use crate::simulation::summary::{impact_times, phase_offset_deg};
 use crate::simulation::trace::{EventRow, TraceRow};
 
@@ -319,12 +321,12 @@ fn draw_panel(svg: &mut String, panel: &Panel, top: f64, time: (Scale, f64), las
         } else {
             "#e3e3e3"
         };
-        let _ = writeln!(
+        value_grid_line(
             svg,
-            r#"<line x1="{left:.1}" y1="{py:.1}" x2="{right:.1}" y2="{py:.1}" stroke="{colour}" stroke-width="1"/><text x="{:.1}" y="{:.1}" font-size="11" text-anchor="end">{}</text>"#,
-            left - 6.0,
-            py + 4.0,
-            escape(&tick_label(v, step))
+            (left, right),
+            py,
+            colour,
+            &escape(&tick_label(v, step)),
         );
     }
     for t in ticks(x.from.0, x.from.1, t_step) {

@@ -9,6 +9,24 @@ use serde_json::{Map, Value};
 use crate::output::text::{self, Align, Table};
 use crate::simulation::trace::Summary;
 
+/// The keys of the summary document, in the spec's order.
+pub const SUMMARY_KEYS: [&str; 11] = [
+    "t_end",
+    "mean_velocity",
+    "distance",
+    "impacts",
+    "rotor_speed_rpm",
+    "phase_offset_deg",
+    "phase_error_deg_rms",
+    "state",
+    "faults",
+    "final",
+    "warnings",
+];
+
+/// The keys of the summary's `final` object, in the spec's order.
+pub const FINAL_KEYS: [&str; 4] = ["position", "angle", "velocity", "angular_velocity"];
+
 /// A JSON number, or `null` when `x` is not finite (JSON has no NaN or infinity).
 fn number(x: f64) -> Value {
     // serde_json gives Null for a non-finite f64.
@@ -163,26 +181,8 @@ mod tests {
     fn json_has_exactly_the_spec_keys_in_order() {
         let text = summary_json(&summary());
         let doc: Value = serde_json::from_str(&text).unwrap();
-        assert_eq!(
-            keys(&doc),
-            [
-                "t_end",
-                "mean_velocity",
-                "distance",
-                "impacts",
-                "rotor_speed_rpm",
-                "phase_offset_deg",
-                "phase_error_deg_rms",
-                "state",
-                "faults",
-                "final",
-                "warnings"
-            ]
-        );
-        assert_eq!(
-            keys(&doc["final"]),
-            ["position", "angle", "velocity", "angular_velocity"]
-        );
+        assert_eq!(keys(&doc), SUMMARY_KEYS);
+        assert_eq!(keys(&doc["final"]), FINAL_KEYS);
         assert_eq!(doc["impacts"], 42);
         assert_eq!(doc["rotor_speed_rpm"][1], 2999.5);
         assert_eq!(doc["final"]["velocity"][1], -0.5);

@@ -142,17 +142,7 @@ impl ControllerDriver {
     }
 
     fn event(&mut self, t: f64, kind: EventKind, detail: String) {
-        self.events.push(EventRow {
-            t,
-            kind,
-            contact: String::new(),
-            normal_velocity_before: 0.0,
-            normal_velocity_after: 0.0,
-            normal_impulse: 0.0,
-            tangential_impulse: 0.0,
-            case: None,
-            detail,
-        });
+        self.events.push(EventRow::controller(t, kind, detail));
     }
 }
 

@@ -106,6 +106,23 @@ pub struct EventRow {
     pub detail: String,
 }
 
+impl EventRow {
+    /// A controller event at `t`: no contact, no velocities, impulses or case.
+    pub fn controller(t: f64, kind: EventKind, detail: String) -> Self {
+        EventRow {
+            t,
+            kind,
+            contact: String::new(),
+            normal_velocity_before: 0.0,
+            normal_velocity_after: 0.0,
+            normal_impulse: 0.0,
+            tangential_impulse: 0.0,
+            case: None,
+            detail,
+        }
+    }
+}
+
 /// The final state in the summary.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FinalState {

@@ -12,7 +12,9 @@
 use std::fmt::Write as _;
 
 use super::best::{Best, Tuning};
-use crate::output::svg::{escape, nice_step, open_document, tick_label, ticks, PALETTE};
+use crate::output::svg::{
+    escape, nice_step, open_document, tick_label, ticks, value_grid_line, PALETTE,
+};
 
 /// Figure width, px.
 const WIDTH: f64 = 960.0;
@@ -111,13 +113,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
         } else {
             "#e3e3e3"
         };
-        let _ = writeln!(
-            svg,
-            r#"<line x1="{left:.1}" y1="{py:.1}" x2="{right:.1}" y2="{py:.1}" stroke="{colour}" stroke-width="1"/><text x="{:.1}" y="{:.1}" font-size="11" text-anchor="end">{}</text>"#,
-            left - 6.0,
-            py + 4.0,
-            tick_label(v, step)
-        );
+        value_grid_line(&mut svg, (left, right), py, colour, &tick_label(v, step));
     }
     for o in ticks(0.0, 360.0, 45.0) {
         let px = x_of(o);

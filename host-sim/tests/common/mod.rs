@@ -116,6 +116,14 @@ pub fn run(args: &[&str]) -> Run {
     finish(cmd)
 }
 
+/// Run `host-sim command <reference machine> args…` from the repository root.
+pub fn run_machine(command: &str, args: &[&str]) -> Run {
+    let m = machine();
+    let mut all = vec![command, m.to_str().expect("a UTF-8 path")];
+    all.extend_from_slice(args);
+    run(&all)
+}
+
 /// The keys of a JSON object, in order (the spec fixes the order).
 pub fn keys(v: &Value) -> Vec<&str> {
     v.as_object()
