@@ -60,6 +60,11 @@ impl Target {
             Ok(_) if stream => Ok(Target::Special(path.to_path_buf())),
             Ok(m) if m.is_file() => Ok(Target::Regular(resolve_links(path))),
             Ok(_) => Ok(Target::Special(path.to_path_buf())),
+            // No new files among the devices: `/dev/stdot` is a typo, not a file
+            // to create (as root it would be).
+            Err(e) if e.kind() == io::ErrorKind::NotFound && stream => {
+                Err("no such device or stream (nothing is created under /dev or /proc)".to_string())
+            }
             // Not there (or a link to nothing): a new regular file where the
             // links lead.
             Err(e) if e.kind() == io::ErrorKind::NotFound => {
@@ -363,6 +368,9 @@ mod tests {
     fn special_files_are_written_through_not_replaced() {
         write_whole(Path::new("/dev/null"), "discarded").unwrap();
         assert!(!fs::metadata("/dev/null").unwrap().is_file());
+        let e = write_whole(Path::new("/dev/no-such-device"), "x").unwrap_err();
+        assert!(e.contains("no such device"), "{e}");
+        assert!(!Path::new("/dev/no-such-device").exists());
         if Path::new("/dev/full").exists() {
             let e = write_whole(Path::new("/dev/full"), &"x".repeat(1 << 17)).unwrap_err();
             assert!(e.contains("/dev/full"), "{e}");
