@@ -159,18 +159,12 @@ fn bad_options_are_refused_with_exit_2() {
     let m = machine();
     let m = m.to_str().unwrap();
     let r = run(&["run", m, "--open-loop", "12"]);
-    assert_eq!(r.status, 2);
-    assert!(
-        r.stderr.contains("'12' for '--open-loop") && r.stderr.contains("coast"),
-        "{}",
-        r.stderr
-    );
+    r.refused("'12' for '--open-loop");
+    assert!(r.stderr.contains("coast"), "{}", r.stderr);
     let r = run(&["run", m]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("--open-loop"), "{}", r.stderr);
+    r.refused("--open-loop");
     let r = run(&["run", m, "--open-loop", "coast", "--t-end", "-1"]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("--t-end"), "{}", r.stderr);
+    r.refused("--t-end");
     let r = run(&[
         "run",
         m,
@@ -179,8 +173,7 @@ fn bad_options_are_refused_with_exit_2() {
         "--set",
         "contacts.K9.friction=0.2",
     ]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("K9"), "{}", r.stderr);
+    r.refused("K9");
 }
 
 #[test]
@@ -191,8 +184,7 @@ fn bad_machine_file_names_the_key() {
         .replace("friction = 0.4", "friction = -0.4");
     std::fs::write(&f, text).unwrap();
     let r = run(&["run", f.to_str().unwrap(), "--open-loop", "coast"]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("contacts[0].friction"), "{}", r.stderr);
+    r.refused("contacts[0].friction");
 }
 
 #[test]
@@ -209,8 +201,7 @@ fn unwritable_output_is_refused_and_nothing_is_left() {
             target.to_str().unwrap(),
         ],
     );
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("t.csv"), "{}", r.stderr);
+    r.refused("t.csv");
     assert!(!target.exists());
 }
 
@@ -262,8 +253,7 @@ fn outputs_follow_links_and_write_through_special_files() {
 #[test]
 fn a_negative_speed_is_refused_naming_the_option() {
     let r = run_machine("run", &["--command", "right", "--speed", "-3000"]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("--speed -3000"), "{}", r.stderr);
+    r.refused("--speed -3000");
 }
 
 /// `--out /dev/stdout` with stdout redirected to a file, and `--out FILE` naming

@@ -118,20 +118,13 @@ fn a_bad_file_exits_2_with_every_key_path() {
 
     // A missing file, and a machine that does not exist: exit 2, named.
     let r = run(&["scenario", "no-such-scenario.toml"]);
-    assert_eq!(r.status, 2);
-    assert!(
-        r.stderr
-            .contains("no-such-scenario.toml: cannot read the file"),
-        "{}",
-        r.stderr
-    );
+    r.refused("no-such-scenario.toml: cannot read the file");
     let file = scratch(
         "no-machine.toml",
         "machine = \"nowhere.toml\"\n[[expect]]\nkind = \"no_fault\"\n",
     );
     let r = run(&["scenario", file.to_str().unwrap()]);
-    assert_eq!(r.status, 2);
-    assert!(r.stderr.contains("machine: no such file"), "{}", r.stderr);
+    r.refused("machine: no such file");
 }
 
 /// Defect: a scenario whose `machine` names a directory was told "no such file".
@@ -145,11 +138,5 @@ fn a_machine_that_is_a_directory_is_named_as_such() {
         ),
     );
     let r = run(&["scenario", s.to_str().unwrap()]);
-    assert_eq!(r.status, 2);
-    assert!(
-        r.stderr
-            .contains("machine: is a directory, not a machine file"),
-        "{}",
-        r.stderr
-    );
+    r.refused("machine: is a directory, not a machine file");
 }

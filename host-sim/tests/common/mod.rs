@@ -36,6 +36,18 @@ pub struct Run {
     pub took: Duration,
 }
 
+impl Run {
+    /// Asserts a refusal of the user's mistake: exit 2 and `needle` in stderr.
+    pub fn refused(&self, needle: &str) {
+        assert_eq!(self.status, 2, "exit {}: {}", self.status, self.stderr);
+        assert!(
+            self.stderr.contains(needle),
+            "{needle:?} not in: {}",
+            self.stderr
+        );
+    }
+}
+
 /// The `host-sim` binary, to add arguments and environment to.
 pub fn host_sim() -> Command {
     Command::new(env!("CARGO_BIN_EXE_host-sim"))
