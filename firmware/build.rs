@@ -157,6 +157,19 @@ pub fn load_machine(path: &Path) -> Result<Machine, Vec<Problem>> {
             ),
         }]);
     }
+    // The constants' formulas (the lift-off band from the platform's weight) are
+    // those of a single platform so far, as is the simulated plant.
+    let beyond = machine.beyond_the_platform();
+    if !beyond.is_empty() {
+        return Err(vec![Problem {
+            file,
+            location: Location::File,
+            message: format!(
+                "several bodies ({}): the controller's constants are defined for a single platform on the fundament so far",
+                beyond.join(", ")
+            ),
+        }]);
+    }
     // What host-sim accepts but the controller would refuse at init (a parameters
     // fault on the board), such as more than 2^24 encoder counts.
     if let Err(e) = Params::from_machine(&machine_constants(&machine)).validate() {

@@ -321,3 +321,15 @@ fn a_closed_pipe_on_stdout_is_not_an_error() {
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("error"), "{stderr}");
 }
+
+/// A machine with a further body is read and checked, but the plant is a single
+/// platform so far: refused before the run, exit 2, saying so.
+#[test]
+fn a_machine_with_several_bodies_is_refused_until_the_plant_has_them() {
+    let text = std::fs::read_to_string(machine()).unwrap()
+        + "\n[[bodies]]\nname = \"element\"\nmass = 0.05\ninertia = 2e-5\nposition = [0.1, 0.2]\n";
+    let file = scratch("bodies.toml");
+    std::fs::write(&file, text).unwrap();
+    let r = run(&["run", file.to_str().unwrap(), "--open-loop", "12,12"]);
+    r.refused("the machine has several bodies (bodies (1 further))");
+}

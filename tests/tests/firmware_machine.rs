@@ -364,6 +364,17 @@ fn mistakes_fail_the_build_naming_the_file_and_the_key() {
         "{p}"
     );
 
+    // Several bodies: read and checked, but the constants are a single platform's.
+    let text = std::fs::read_to_string(reference_file()).unwrap()
+        + "\n[[bodies]]\nname = \"element\"\nmass = 0.05\ninertia = 2e-5\nposition = [0.1, 0.2]\n";
+    let bodies = scratch("bodies.toml", &text);
+    assert!(Machine::load(&bodies, &[]).is_ok());
+    let p = render(&load_machine(&bodies).unwrap_err());
+    assert!(
+        p.starts_with(&format!("error: {}: several bodies", bodies.display())),
+        "{p}"
+    );
+
     // A machine file that is not there, a bad tuning table.
     let missing = render(&load_machine(&root().join("examples/no-such-machine.toml")).unwrap_err());
     assert!(

@@ -533,6 +533,28 @@ impl<'a> Section<'a> {
         }
     }
 
+    /// Two strings, `[A, B]`.
+    pub fn string_pair(&self, key: &'static str, need: Need<[String; 2]>) -> Option<[String; 2]> {
+        let value = match self.raw(key, &need, "two names, [A, B]") {
+            Ok(v) => v,
+            Err(default) => return default,
+        };
+        let pair = match value {
+            Value::Array(a) if a.len() == 2 => match (&a[0], &a[1]) {
+                (Value::String(x), Value::String(y)) => Some([x.clone(), y.clone()]),
+                _ => None,
+            },
+            _ => None,
+        };
+        if pair.is_none() {
+            self.problem(
+                key,
+                format!("must be two names, [A, B] (got {})", shown(value)),
+            );
+        }
+        pair
+    }
+
     /// A boolean.
     pub fn boolean(&self, key: &'static str, need: Need<bool>) -> Option<bool> {
         let value = match self.raw(key, &need, "true or false") {

@@ -33,6 +33,7 @@
 //! build compiles it for the host.
 #![warn(missing_docs)]
 
+pub mod bodies;
 pub mod input;
 pub mod set;
 pub mod tuning_file;
@@ -44,6 +45,7 @@ use shared::drive::{BridgeConfig, Decay};
 use shared::impact::ImpactLaw;
 use toml::Table;
 
+use bodies::{Body, ContactEnds, Joint};
 use input::{
     check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
     Section,
@@ -90,6 +92,9 @@ pub struct MachineContact {
     pub friction: f64,
     /// Relative stiffness, > 0.
     pub weight: f64,
+    /// The bodies it is between: the platform against the fundament unless
+    /// `body`, `against`, `face` and `normal` say otherwise ([`bodies`]).
+    pub ends: ContactEnds,
 }
 
 /// The sense a rotor turns when driven forward.
@@ -149,6 +154,8 @@ pub struct Rotor {
     pub index_angle: f64,
     /// Its motor (the machine's `[motor]` unless the rotor has its own).
     pub motor: MotorParams,
+    /// The body that carries it: `platform` unless `body` says otherwise.
+    pub body: String,
 }
 
 /// The motor drivers: the H-bridges as wired (`shared::drive`).
@@ -218,6 +225,10 @@ pub struct Machine {
     pub fundament: Fundament,
     /// The platform.
     pub platform: Platform,
+    /// The further bodies, `[[bodies]]` ([`bodies`]).
+    pub bodies: Vec<Body>,
+    /// The joints between bodies, `[[joints]]`.
+    pub joints: Vec<Joint>,
     /// The contact points, K1, K2, ...
     pub contacts: Vec<MachineContact>,
     /// Rotor 1, then rotor 2.
@@ -292,6 +303,15 @@ impl Machine {
         }
     }
 
+    /// What the machine asks beyond a single platform on the fundament (further
+    /// bodies, joints, contacts between bodies, rotors elsewhere), one item a
+    /// line: empty for the machines the plant simulates today.
+    pub fn beyond_the_platform(&self) -> Vec<String> {
+        let ends: Vec<ContactEnds> = self.contacts.iter().map(|c| c.ends.clone()).collect();
+        let rotor_bodies: Vec<String> = self.rotors.iter().map(|r| r.body.clone()).collect();
+        bodies::beyond_the_platform(&self.bodies, &self.joints, &ends, &rotor_bodies)
+    }
+
     /// Platform mass plus both eccentric masses, kg: the mass that moves.
     pub fn total_mass(&self) -> f64 {
         self.physics().total_mass_kg()
@@ -329,6 +349,22 @@ impl Machine {
 /// script compiles them in.
 pub fn machine_constants(m: &Machine) -> MachineConstants {
     MachineConstants::from_physics(&m.physics())
+}
+
+/// Reads every table of an array of tables with `read` (an element that is not a
+/// table was reported and reads as nothing).
+fn read_all<T>(list: Vec<Option<Section>>, read: fn(usize, &Section) -> Named<T>) -> Vec<Named<T>> {
+    list.iter()
+        .enumerate()
+        .map(|(i, s)| match s {
+            Some(s) => read(i, s),
+            None => Named {
+                given: false,
+                name: None,
+                value: None,
+            },
+        })
+        .collect()
 }
 
 /// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that
@@ -444,6 +480,12 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
             })
             .collect::<Vec<_>>()
     });
+    let further = root
+        .sections("bodies")
+        .map(|list| read_all(list, bodies::read_body));
+    let joints = root
+        .sections("joints")
+        .map(|list| read_all(list, bodies::read_joint));
     let has_motor = root.has("motor");
     let motor = match root.section("motor", Need::Optional) {
         Some(s) => Some(read_motor(&s)),
@@ -484,19 +526,43 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let contacts = contacts.and_then(|list| check_contacts(&root, list));
     let rotors = rotors.and_then(|list| check_rotors(&root, list));
 
-    // Stage 6: the geometry at t = 0; the bridges against the control rate.
+    // Stage 6: the bodies, joints and contact ends together; the geometry at
+    // t = 0; the bridges against the control rate.
     let fundament = fundament?;
-    let contacts = contacts?;
+    let mut contacts = contacts?;
+    let (further, joints) = (further?, joints?);
+    let rotors = rotors?;
+    let mut ends: Vec<ContactEnds> = contacts.iter().map(|c| c.ends.clone()).collect();
+    let points: Vec<(String, [f64; 2])> =
+        contacts.iter().map(|c| (c.name.clone(), c.point)).collect();
+    let rotor_bodies: Vec<String> = rotors.iter().map(|r| r.body.clone()).collect();
+    let bodies_ok = bodies::check(&root, &further, &joints, &mut ends, &points, &rotor_bodies);
+    for (c, e) in contacts.iter_mut().zip(ends) {
+        c.ends = e;
+    }
     check_gaps(&root, &fundament, &contacts);
     if let (Some(d), Some(c)) = (&drive, &controller) {
         check_update_rate(&root, d.bridge, c.rate_hz);
     }
 
+    let further = further
+        .into_iter()
+        .map(|b| b.value)
+        .collect::<Option<Vec<_>>>()?;
+    let joints = joints
+        .into_iter()
+        .map(|j| j.value)
+        .collect::<Option<Vec<_>>>()?;
+    if !bodies_ok {
+        return None;
+    }
     let machine = Machine {
         fundament,
         platform: platform?,
+        bodies: further,
+        joints,
         contacts,
-        rotors: rotors?,
+        rotors,
         drive: drive?,
         sensors: sensors?,
         controller: controller?,
@@ -571,7 +637,7 @@ fn read_fundament(s: &Section) -> Option<Fundament> {
 
 /// `[platform]`: mass and inertia > 0, position, angle (default 0), velocity
 /// (default [0, 0]), angular velocity (default 0).
-fn read_platform(s: &Section) -> Option<Platform> {
+pub(crate) fn read_platform(s: &Section) -> Option<Platform> {
     let mass = s.number("mass", Need::Required, Limit::Positive);
     let inertia = s.number("inertia", Need::Required, Limit::Positive);
     let position = s.vec2("position", Need::Required, Limit::Any);
@@ -597,6 +663,7 @@ fn read_contact(index: usize, s: &Section) -> Named<MachineContact> {
     let restitution = s.number("restitution", Need::Required, Limit::Between(0.0, 1.0));
     let friction = s.number("friction", Need::Required, Limit::NonNegative);
     let weight = s.number("weight", Need::Default(1.0), Limit::Positive);
+    let ends = bodies::read_ends(s);
     s.finish();
     let value = (|| {
         Some(MachineContact {
@@ -605,6 +672,7 @@ fn read_contact(index: usize, s: &Section) -> Named<MachineContact> {
             restitution: restitution?,
             friction: friction?,
             weight: weight?,
+            ends: ends?,
         })
     })();
     Named { given, name, value }
@@ -625,6 +693,7 @@ fn read_rotor(index: usize, s: &Section) -> Named<RotorKeys> {
     });
     let angle = s.number("angle", Need::Default(0.0), Limit::Any);
     let index_angle = s.number("index_angle", Need::Default(0.0), Limit::Any);
+    let body = s.string("body", Need::Default(bodies::PLATFORM.to_string()));
     let own_motor = match s.section("motor", Need::Optional) {
         Some(m) => Some(read_motor(&m)),
         None if s.has("motor") => None, // not a table, reported
@@ -664,6 +733,7 @@ fn read_rotor(index: usize, s: &Section) -> Named<RotorKeys> {
                 viscous_friction: 0.0,
                 current_limit: 0.0,
             },
+            body: body?,
         })
     })();
     Named {
@@ -899,6 +969,9 @@ fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<[Rotor; 2]> {
 fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]) {
     let (p, n) = (fundament.point, fundament.normal);
     for (i, c) in contacts.iter().enumerate() {
+        if c.ends.against != bodies::FUNDAMENT {
+            continue;
+        }
         let gap = n[0] * (c.point[0] - p[0]) + n[1] * (c.point[1] - p[1]);
         if gap < -GAP_TOLERANCE {
             root.problem(
@@ -985,8 +1058,13 @@ mod tests {
     fn the_reader_reads_exactly_the_schema_keys() {
         // An unknown key in every table of the schema: the reader's "allowed here"
         // list, the keys it read, must be the schema's (which --set uses).
+        // The reference machine with one further body on a joint, so that every
+        // array of the schema has a table.
+        let text = format!(
+            "{REFERENCE}\n[[bodies]]\nname = \"B\"\nmass = 1.0\ninertia = 0.01\nposition = [0.0, 0.5]\n\n[[joints]]\nkind = \"revolute\"\nbodies = [\"platform\", \"B\"]\npoint = [0.0, 0.5]\n"
+        );
         for (steps, path, keys) in schema_tables() {
-            let mut table: Table = toml::from_str(REFERENCE).unwrap();
+            let mut table: Table = toml::from_str(&text).unwrap();
             let steps: Vec<&str> = steps.into_iter().filter(|s| *s != "0").collect();
             table_at(&mut table, &steps).insert("zzz".into(), toml::Value::Integer(1));
             let problems = Problems::new("m.toml");

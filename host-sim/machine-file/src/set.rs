@@ -79,6 +79,38 @@ pub const SCHEMA: &[(&str, Node)] = &[
         ]),
     ),
     (
+        "bodies",
+        Node::Array {
+            noun: "body",
+            default_prefix: "B",
+            keys: &[
+                ("name", Node::Value),
+                ("mass", Node::Value),
+                ("inertia", Node::Value),
+                ("position", Node::Value),
+                ("angle", Node::Value),
+                ("velocity", Node::Value),
+                ("angular_velocity", Node::Value),
+            ],
+        },
+    ),
+    (
+        "joints",
+        Node::Array {
+            noun: "joint",
+            default_prefix: "J",
+            keys: &[
+                ("name", Node::Value),
+                ("kind", Node::Value),
+                ("bodies", Node::Value),
+                ("point", Node::Value),
+                ("stiffness", Node::Value),
+                ("damping", Node::Value),
+                ("rest_angle", Node::Value),
+            ],
+        },
+    ),
+    (
         "contacts",
         Node::Array {
             noun: "contact",
@@ -89,6 +121,10 @@ pub const SCHEMA: &[(&str, Node)] = &[
                 ("restitution", Node::Value),
                 ("friction", Node::Value),
                 ("weight", Node::Value),
+                ("body", Node::Value),
+                ("against", Node::Value),
+                ("face", Node::Value),
+                ("normal", Node::Value),
             ],
         },
     ),
@@ -106,6 +142,7 @@ pub const SCHEMA: &[(&str, Node)] = &[
                 ("sense", Node::Value),
                 ("angle", Node::Value),
                 ("index_angle", Node::Value),
+                ("body", Node::Value),
                 ("motor", Node::Table(MOTOR_KEYS)),
             ],
         },
@@ -620,6 +657,13 @@ mod tests {
         assert!(paths.contains(&"contacts.NAME.friction".to_string()));
         assert!(paths.contains(&"rotors.NAME.motor.current_limit".to_string()));
         assert!(paths.contains(&"simulation.seed".to_string()));
-        assert_eq!(paths.len(), 3 + 6 + 5 + 8 + 6 + 6 + 3 + 3 + 3 + 1 + 3);
+        assert!(paths.contains(&"joints.NAME.stiffness".to_string()));
+        assert!(paths.contains(&"bodies.NAME.mass".to_string()));
+        // fundament, platform, bodies, joints, contacts, rotors (with their motor),
+        // motor, drive, sensors, controller, impact, simulation.
+        assert_eq!(
+            paths.len(),
+            3 + 6 + 7 + 7 + 9 + 9 + 6 + 6 + 3 + 3 + 3 + 1 + 3
+        );
     }
 }

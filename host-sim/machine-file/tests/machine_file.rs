@@ -754,7 +754,7 @@ fn bad_sets_are_refused_with_the_reason() {
         ),
         (
             "simulaton.t_end=2",
-            "error: --set simulaton.t_end=2: unknown key `simulaton` at the top level; did you mean `simulation`? (allowed: fundament, platform, contacts, rotors, motor, drive, sensors, controller, impact, simulation)",
+            "error: --set simulaton.t_end=2: unknown key `simulaton` at the top level; did you mean `simulation`? (allowed: fundament, platform, bodies, joints, contacts, rotors, motor, drive, sensors, controller, impact, simulation)",
         ),
         (
             "rotors.left.motor.resistence=3",
@@ -766,7 +766,7 @@ fn bad_sets_are_refused_with_the_reason() {
         ),
         (
             "contacts.K1=2",
-            "error: --set contacts.K1=2: `contacts.K1` names a contact, not a key; add one of its keys (name, point, restitution, friction, weight)",
+            "error: --set contacts.K1=2: `contacts.K1` names a contact, not a key; add one of its keys (name, point, restitution, friction, weight, body, against, face, normal)",
         ),
         (
             "contacts=2",

@@ -1,6 +1,7 @@
-//! Bounds on what one run may ask, so that a typo (`--t-end 1e300`,
-//! `simulation.output_step=1e-300`) is refused with the key and the limit instead of
-//! running forever or filling the memory.
+//! What one run may ask: a machine the plant simulates (a single platform on the
+//! fundament so far: [`Machine::beyond_the_platform`]), and bounds, so that a typo
+//! (`--t-end 1e300`, `simulation.output_step=1e-300`) is refused with the key and
+//! the limit instead of running forever or filling the memory.
 //!
 //! - [`MAX_T_END_S`]: one hour of simulated time. The reference machine runs at
 //!   20 to 40 times real time on one core, so the longest run takes about 1.5 to 3
@@ -24,6 +25,13 @@ pub const MAX_TRACE_ROWS: f64 = 1.0e7;
 /// first.
 pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
     let mut problems = Vec::new();
+    let beyond = machine.beyond_the_platform();
+    if !beyond.is_empty() {
+        problems.push(format!(
+            "error: the machine has several bodies ({}): the file reads and checks them, but the simulated plant is a single platform on the fundament so far",
+            beyond.join(", ")
+        ));
+    }
     if !(t_end.is_finite() && t_end > 0.0) {
         // The caller's own check says what a valid end time is.
         return problems;

@@ -1,0 +1,364 @@
+//! Several bodies in one machine (docs/machine-file.md, "Several bodies"): the
+//! `[[bodies]]` after the platform, the `[[joints]]` that hinge them (revolute, with
+//! an optional torsional spring-damper), the two ends of every contact (`body`
+//! against `against`, a point of one on a flat face of the other) and the body that
+//! carries each rotor.
+//!
+//! Read and checked here, every problem with its key:
+//! - body names unique, and neither `platform` nor `fundament` (the names of the
+//!   first body and of the ground);
+//! - a joint joins two different bodies that exist (`fundament` allowed for one),
+//!   and joints make trees: a joint between two bodies already joined closes a loop;
+//! - a contact's `body` moves (the platform or a further body), its `against` is any
+//!   body or the fundament, never the contact's own body; against the fundament the
+//!   face is the fundament's line (`face` and `normal` are for a contact against a
+//!   body); against a body it needs a `normal` (world, t = 0, from `against`
+//!   towards `body`) and its point must not be behind the face at t = 0;
+//! - a rotor's body moves.
+//!
+//! The simulated plant is the platform alone so far: [`beyond_the_platform`] names
+//! what a machine asks beyond it, and the commands refuse such a machine with it.
+
+use crate::input::{check_names, number, read_name, vector, Limit, Named, Need, Section};
+use crate::{read_platform, Platform};
+
+/// The first body's name.
+pub const PLATFORM: &str = "platform";
+/// The ground's name.
+pub const FUNDAMENT: &str = "fundament";
+/// The joint kinds.
+pub const JOINT_KINDS: [&str; 1] = ["revolute"];
+/// How far a contact point may be behind its face at t = 0, m (rounding of the
+/// file's decimals).
+pub const GAP_TOLERANCE: f64 = 1e-9;
+
+/// A further rigid body: its name, and the same keys as `[platform]` (mass, kg;
+/// inertia about its centre of mass, kg m^2; centre of mass, angle, velocity and
+/// angular velocity at t = 0, world).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Name, unique among the bodies.
+    pub name: String,
+    /// Its inertia and its state at t = 0.
+    pub rigid: Platform,
+}
+
+/// A revolute joint between two bodies (one may be the fundament) at a world point
+/// at t = 0, with a torsional spring-damper about it: stiffness, N m/rad; damping,
+/// N m s/rad; the relative angle at which the spring is relaxed, rad (`None`: the
+/// one at t = 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// Name, unique among the joints.
+    pub name: String,
+    /// The two bodies it joins (`fundament` allowed for one).
+    pub bodies: [String; 2],
+    /// The hinge at t = 0, world, m.
+    pub point: [f64; 2],
+    /// Torsional stiffness, N m/rad (0: no spring).
+    pub stiffness: f64,
+    /// Torsional damping, N m s/rad.
+    pub damping: f64,
+    /// Relative angle at which the spring is relaxed, rad; `None`: the one at t = 0.
+    pub rest_angle: Option<f64>,
+}
+
+/// The two ends of a contact: the point is fixed on `body`, the face on `against`.
+/// `face` and `normal` (world, t = 0; the normal of unit length, from `against`
+/// towards `body`) are `None` against the fundament, whose line is the face.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactEnds {
+    /// The body the point is fixed on.
+    pub body: String,
+    /// The body (or the fundament) the face is fixed on.
+    pub against: String,
+    /// A point of the face at t = 0, world, m (against a body; default: the contact point).
+    pub face: Option<[f64; 2]>,
+    /// The face's unit normal at t = 0, from `against` towards `body` (against a body).
+    pub normal: Option<[f64; 2]>,
+}
+
+impl ContactEnds {
+    /// The platform against the fundament: every contact of a one-body machine.
+    pub fn platform_on_fundament() -> Self {
+        ContactEnds {
+            body: PLATFORM.to_string(),
+            against: FUNDAMENT.to_string(),
+            face: None,
+            normal: None,
+        }
+    }
+}
+
+/// One `[[bodies]]` table (default name `B{i+1}`): a name and `[platform]`'s keys.
+pub fn read_body(index: usize, s: &Section) -> Named<Body> {
+    let (given, name) = read_name(s, index, "B");
+    let rigid = read_platform(s);
+    let value = name
+        .clone()
+        .zip(rigid)
+        .map(|(name, rigid)| Body { name, rigid });
+    Named { given, name, value }
+}
+
+/// One `[[joints]]` table (default name `J{i+1}`).
+pub fn read_joint(index: usize, s: &Section) -> Named<Joint> {
+    let (given, name) = read_name(s, index, "J");
+    let kind = s.choice("kind", Need::Required, &JOINT_KINDS);
+    let bodies = s.string_pair("bodies", Need::Required);
+    let point = s.vec2("point", Need::Required, Limit::Any);
+    let stiffness = s.number("stiffness", Need::Default(0.0), Limit::NonNegative);
+    let damping = s.number("damping", Need::Default(0.0), Limit::NonNegative);
+    let rest_angle = s.number("rest_angle", Need::Optional, Limit::Any);
+    let rest_given = s.has("rest_angle");
+    s.finish();
+    let value = (|| {
+        kind?;
+        Some(Joint {
+            name: name.clone()?,
+            bodies: bodies?,
+            point: point?,
+            stiffness: stiffness?,
+            damping: damping?,
+            rest_angle: if rest_given { Some(rest_angle?) } else { None },
+        })
+    })();
+    Named { given, name, value }
+}
+
+/// A contact's `body`, `against`, `face` and `normal` keys (checked against the
+/// bodies later, in [`check`]).
+pub fn read_ends(s: &Section) -> Option<ContactEnds> {
+    let body = s.string("body", Need::Default(PLATFORM.to_string()));
+    let against = s.string("against", Need::Default(FUNDAMENT.to_string()));
+    let face = s.vec2("face", Need::Optional, Limit::Any);
+    let face_given = s.has("face");
+    let normal = s.vec2("normal", Need::Optional, Limit::Any);
+    let normal_given = s.has("normal");
+    Some(ContactEnds {
+        body: body?,
+        against: against?,
+        face: if face_given { Some(face?) } else { None },
+        normal: if normal_given { Some(normal?) } else { None },
+    })
+}
+
+/// Checks the bodies, joints, contact ends and rotor bodies together (the module
+/// doc's rules); normalises the contacts' normals. `false` when a problem was
+/// recorded.
+pub fn check(
+    root: &Section,
+    bodies: &[Named<Body>],
+    joints: &[Named<Joint>],
+    contacts: &mut [ContactEnds],
+    contact_points: &[(String, [f64; 2])],
+    rotor_bodies: &[String],
+) -> bool {
+    let mut ok = check_names(root, "bodies", "body", bodies);
+    let names: Vec<&str> = bodies.iter().filter_map(|b| b.name.as_deref()).collect();
+    for (i, name) in names.iter().enumerate() {
+        if *name == PLATFORM || *name == FUNDAMENT {
+            root.problem(
+                &format!("bodies[{i}].name"),
+                format!("{name:?} is taken: the first body is `platform` ([platform]), the ground `fundament`"),
+            );
+            ok = false;
+        }
+    }
+    let moving = |n: &str| n == PLATFORM || names.contains(&n);
+    let known = |n: &str| n == FUNDAMENT || moving(n);
+    let allowed = || {
+        let mut all = vec![PLATFORM, FUNDAMENT];
+        all.extend(names.iter().copied());
+        all.join(", ")
+    };
+
+    // Joints: two different bodies that exist, in trees (union-find over the
+    // bodies and the fundament).
+    ok &= check_names(root, "joints", "joint", joints);
+    let mut sets: Vec<String> = Vec::new();
+    let mut parent: Vec<usize> = Vec::new();
+    let node = |n: &str, sets: &mut Vec<String>, parent: &mut Vec<usize>| match sets
+        .iter()
+        .position(|s| s == n)
+    {
+        Some(i) => i,
+        None => {
+            sets.push(n.to_string());
+            parent.push(parent.len());
+            parent.len() - 1
+        }
+    };
+    fn root_of(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (i, joint) in joints.iter().enumerate() {
+        let Some(j) = &joint.value else { continue };
+        let key = format!("joints[{i}].bodies");
+        let [a, b] = &j.bodies;
+        for n in [a, b] {
+            if !known(n) {
+                root.problem(&key, format!("no body named {n:?} (bodies: {})", allowed()));
+                ok = false;
+            }
+        }
+        if a == b {
+            root.problem(
+                &key,
+                format!("joins {a:?} to itself: a joint joins two bodies"),
+            );
+            ok = false;
+            continue;
+        }
+        if !(known(a) && known(b)) {
+            continue;
+        }
+        let (x, y) = (
+            node(a, &mut sets, &mut parent),
+            node(b, &mut sets, &mut parent),
+        );
+        let (rx, ry) = (root_of(&mut parent, x), root_of(&mut parent, y));
+        if rx == ry {
+            root.problem(
+                &key,
+                format!("{a:?} and {b:?} are already joined through other joints: this joint closes a loop (joints must make trees)"),
+            );
+            ok = false;
+        } else {
+            parent[rx] = ry;
+        }
+    }
+
+    // Contacts: the point on a moving body, the face on another body or the
+    // fundament, not behind the face at t = 0.
+    for (i, (ends, (name, point))) in contacts.iter_mut().zip(contact_points).enumerate() {
+        let key = |k: &str| format!("contacts[{i}].{k}");
+        if !moving(&ends.body) {
+            let why = if ends.body == FUNDAMENT {
+                "the fundament does not move: the point is on a moving body (put the fundament in `against`)".to_string()
+            } else {
+                format!("no moving body named {:?} (moving: {})", ends.body, {
+                    let mut m = vec![PLATFORM];
+                    m.extend(names.iter().copied());
+                    m.join(", ")
+                })
+            };
+            root.problem(&key("body"), why);
+            ok = false;
+        }
+        if !known(&ends.against) {
+            root.problem(
+                &key("against"),
+                format!("no body named {:?} (bodies: {})", ends.against, allowed()),
+            );
+            ok = false;
+        }
+        if ends.body == ends.against {
+            root.problem(
+                &key("against"),
+                format!(
+                    "contact {name} is on {:?} against itself: a contact is between two bodies",
+                    ends.body
+                ),
+            );
+            ok = false;
+        }
+        if ends.against == FUNDAMENT {
+            for (k, given) in [
+                ("face", ends.face.is_some()),
+                ("normal", ends.normal.is_some()),
+            ] {
+                if given {
+                    root.problem(
+                        &key(k),
+                        "only for a contact against a body: against the fundament the face is [fundament]'s line",
+                    );
+                    ok = false;
+                }
+            }
+            continue;
+        }
+        let Some(n) = ends.normal else {
+            root.problem(
+                &key("normal"),
+                format!("missing; required against a body ({:?}): the face's normal, from it towards {:?}", ends.against, ends.body),
+            );
+            ok = false;
+            continue;
+        };
+        let length = n[0].hypot(n[1]);
+        if !(length > 0.0 && length.is_finite()) {
+            root.problem(
+                &key("normal"),
+                format!("must not be zero (got {})", vector(n)),
+            );
+            ok = false;
+            continue;
+        }
+        let unit = [n[0] / length, n[1] / length];
+        ends.normal = Some(unit);
+        let face = *ends.face.get_or_insert(*point);
+        let gap = unit[0] * (point[0] - face[0]) + unit[1] * (point[1] - face[1]);
+        if gap < -GAP_TOLERANCE {
+            root.problem(
+                &key("point"),
+                format!(
+                    "contact {name} overlaps {:?} at t = 0: the point {} is {} m behind the face through {} (normal {}); it must be on or in front of it",
+                    ends.against,
+                    vector(*point),
+                    number(-gap),
+                    vector(face),
+                    vector(unit)
+                ),
+            );
+            ok = false;
+        }
+    }
+
+    // Rotors: on a moving body.
+    for (i, body) in rotor_bodies.iter().enumerate() {
+        if !moving(body) {
+            root.problem(
+                &format!("rotors[{i}].body"),
+                format!(
+                    "no moving body named {body:?}: a rotor sits on the platform or a further body"
+                ),
+            );
+            ok = false;
+        }
+    }
+    ok
+}
+
+/// What a machine asks beyond a single platform on the fundament, one key path a
+/// line (empty for a one-body machine): the further bodies, the joints, contacts
+/// that are not the platform's against the fundament, rotors not on the platform.
+pub fn beyond_the_platform(
+    bodies: &[Body],
+    joints: &[Joint],
+    contacts: &[ContactEnds],
+    rotor_bodies: &[String],
+) -> Vec<String> {
+    let mut keys = Vec::new();
+    if !bodies.is_empty() {
+        keys.push(format!("bodies ({} further)", bodies.len()));
+    }
+    if !joints.is_empty() {
+        keys.push(format!("joints ({})", joints.len()));
+    }
+    for (i, c) in contacts.iter().enumerate() {
+        if c.body != PLATFORM || c.against != FUNDAMENT {
+            keys.push(format!("contacts[{i}] ({} against {})", c.body, c.against));
+        }
+    }
+    for (i, b) in rotor_bodies.iter().enumerate() {
+        if b != PLATFORM {
+            keys.push(format!("rotors[{i}].body ({b})"));
+        }
+    }
+    keys
+}
