@@ -107,7 +107,7 @@ pub struct TelemetryArgs {
     /// Write CSV (a header, then a row per frame) to FILE, written whole at the
     /// end, or to stdout with `-` instead of the readable lines.
     #[arg(long, value_name = "FILE|-")]
-    pub csv: Option<String>,
+    pub csv: Option<PathBuf>,
 }
 
 /// Arguments of `host-sim device self-test`.

@@ -23,8 +23,8 @@ use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use super::telemetry;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
-use crate::machine::input;
 use crate::machine::tuning_file;
+use crate::output::file::Staged;
 
 /// How often the self-test is polled.
 const SELF_TEST_POLL: Duration = Duration::from_millis(50);
@@ -40,17 +40,37 @@ impl From<LinkError> for Failure {
     }
 }
 
-/// Runs `host-sim device`. What was printed before a failure stays printed.
+/// Runs `host-sim device`: its lines go out as they come (what was printed before
+/// a failure stays printed).
 pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> {
-    let mut stdout = String::new();
-    let result = run_inner(args, &mut stdout);
-    console.print(&stdout);
-    result
+    let Checked { port, table, file } = check(args)?;
+    // A port that cannot be opened is a bad --port, as a missing file is.
+    let port = port
+        .open()
+        .map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
+    let mut client = Client::new(port, args.retries);
+    run_on(&mut client, args, table, file, console)
+}
+
+/// What [`check`] found: the port, the table to write, and the output file staged
+/// (`--csv` or `--out`), so that an unwritable path is refused before the device
+/// is asked anything.
+struct Checked {
+    port: PortSpec,
+    table: Option<TuningTable>,
+    file: Option<(Staged, usize)>,
+}
+
+/// `path` staged as the command's one output file.
+fn staged(path: &Path) -> Result<Option<(Staged, usize)>, Failure> {
+    let mut set = Staged::new();
+    let i = set.add(path)?;
+    Ok(Some((set, i)))
 }
 
 /// Everything checked before the port is opened, so that a mistake in an
 /// option never reaches the device.
-fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> {
+fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
     let port = args.port.as_deref().ok_or_else(|| {
         Failure::Usage(
             "error: --port: missing: name the device, a serial port (e.g. --port /dev/ttyUSB0) \
@@ -69,6 +89,7 @@ fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> 
         }
     };
     let mut table = None;
+    let mut file = None;
     match &args.command {
         DeviceCommand::Travel(a) => {
             positive("--speed", f64::from(a.speed), "rpm")?;
@@ -98,8 +119,8 @@ fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> 
             if let Some(d) = a.duration {
                 positive("--duration", d, "seconds")?;
             }
-            if let Some(file) = a.csv.as_deref().filter(|f| *f != "-") {
-                writable_dir("--csv", Path::new(file))?;
+            if let Some(path) = &a.csv {
+                file = staged(path)?;
             }
             if a.count == Some(0) {
                 return Err(Failure::Usage(
@@ -109,71 +130,56 @@ fn check(args: &DeviceArgs) -> Result<(PortSpec, Option<TuningTable>), Failure> 
         }
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
         DeviceCommand::Table(TableCommand::Write { file }) => {
-            let t = tuning_file::read_table(file)
-                .map_err(|problems| Failure::Usage(input::render(&problems)))?;
-            table = Some(t);
+            table = Some(tuning_file::read_table(file)?);
         }
-        DeviceCommand::Table(TableCommand::Read { out }) => {
-            if let Some(file) = out {
-                writable_dir("--out", file)?;
-            }
-        }
-        DeviceCommand::Status | DeviceCommand::Stop | DeviceCommand::Reset => {}
+        DeviceCommand::Table(TableCommand::Read { out: Some(path) }) => file = staged(path)?,
+        DeviceCommand::Table(TableCommand::Read { out: None })
+        | DeviceCommand::Status
+        | DeviceCommand::Stop
+        | DeviceCommand::Reset => {}
     }
-    Ok((port, table))
+    Ok(Checked { port, table, file })
 }
 
-/// An output file's folder must exist (checked before talking to the device, so
-/// that its answers are not lost at the end).
-fn writable_dir(flag: &str, file: &Path) -> Result<(), Failure> {
-    match file.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(Failure::Usage(format!(
-            "error: {flag}: {}: the folder {} does not exist",
-            file.display(),
-            dir.display()
-        ))),
-        _ => Ok(()),
-    }
-}
-
-fn run_inner(args: &DeviceArgs, out: &mut String) -> Result<(), Failure> {
-    let (port, table) = check(args)?;
-    // A port that cannot be opened is a bad --port, as a missing file is.
-    let port = port
-        .open()
-        .map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
-    let mut client = Client::new(port, args.retries);
+/// The command's requests through `client`.
+fn run_on(
+    client: &mut Client,
+    args: &DeviceArgs,
+    table: Option<TuningTable>,
+    file: Option<(Staged, usize)>,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
     match &args.command {
         DeviceCommand::Status => {
-            let s = status(&mut client)?;
-            out.push_str(&report::status_text(&s));
+            let s = status(client)?;
+            out.print(&report::status_text(&s));
         }
-        DeviceCommand::Travel(a) => travel(&mut client, a, out)?,
-        DeviceCommand::Hold(a) => hold(&mut client, a, out)?,
+        DeviceCommand::Travel(a) => travel(client, a, out)?,
+        DeviceCommand::Hold(a) => hold(client, a, out)?,
         DeviceCommand::Stop => {
-            command(&mut client, &Request::Stop)?;
-            out.push_str("stop: accepted\n");
+            command(client, &Request::Stop)?;
+            out.print("stop: accepted\n");
         }
         DeviceCommand::Reset => {
-            command(&mut client, &Request::ResetFaults)?;
+            command(client, &Request::ResetFaults)?;
             // The controller clears the faults at its next tick.
             std::thread::sleep(Duration::from_millis(20));
-            let s = status(&mut client)?;
-            out.push_str(&format!(
+            let s = status(client)?;
+            out.print(&format!(
                 "reset: accepted; state {}, faults {}\n",
                 s.state.name(),
                 report::faults_text(s.faults)
             ));
         }
-        DeviceCommand::Telemetry(a) => telemetry::run(&mut client, a, out)?,
-        DeviceCommand::SelfTest(a) => self_test(&mut client, a, out)?,
-        DeviceCommand::Table(TableCommand::Read { out: file }) => {
-            table_read(&mut client, file.as_deref(), out)?
+        DeviceCommand::Telemetry(a) => telemetry::run(client, a, file, out)?,
+        DeviceCommand::SelfTest(a) => self_test(client, a, out)?,
+        DeviceCommand::Table(TableCommand::Read { out: path }) => {
+            table_read(client, path.as_deref().zip(file), out)?
         }
         DeviceCommand::Table(TableCommand::Write { file }) => {
             let table = table.unwrap_or_default();
-            command(&mut client, &Request::WriteTuningTable(table.clone()))?;
-            out.push_str(&format!(
+            command(client, &Request::WriteTuningTable(table.clone()))?;
+            out.print(&format!(
                 "table write: {} rows from {} stored in the device's flash and in use\n",
                 table.rows().len(),
                 file.display()
@@ -190,7 +196,7 @@ fn status(client: &mut Client) -> Result<StatusReport, Failure> {
     }
 }
 
-fn travel(client: &mut Client, a: &TravelArgs, out: &mut String) -> Result<(), Failure> {
+fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     let (direction, name) = match a.direction {
         DirectionArg::Right => (Direction::Right, "right"),
         DirectionArg::Left => (Direction::Left, "left"),
@@ -202,11 +208,11 @@ fn travel(client: &mut Client, a: &TravelArgs, out: &mut String) -> Result<(), F
             speed_rpm: a.speed,
         },
     )?;
-    out.push_str(&format!("travel {name} at {} rpm: accepted\n", a.speed));
+    out.print(&format!("travel {name} at {} rpm: accepted\n", a.speed));
     keep_alive(client, a.for_s, out)
 }
 
-fn hold(client: &mut Client, a: &HoldArgs, out: &mut String) -> Result<(), Failure> {
+fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     command(
         client,
         &Request::HoldOffset {
@@ -214,7 +220,7 @@ fn hold(client: &mut Client, a: &HoldArgs, out: &mut String) -> Result<(), Failu
             offset_deg: a.offset,
         },
     )?;
-    out.push_str(&format!(
+    out.print(&format!(
         "hold offset {} deg at {} rpm: accepted\n",
         a.offset, a.speed
     ));
@@ -223,7 +229,11 @@ fn hold(client: &mut Client, a: &HoldArgs, out: &mut String) -> Result<(), Failu
 
 /// After a motion command: return at once (`None`), or keep the link alive for
 /// `for_s` seconds (Ctrl-C ends it early), then stop.
-fn keep_alive(client: &mut Client, for_s: Option<f64>, out: &mut String) -> Result<(), Failure> {
+fn keep_alive(
+    client: &mut Client,
+    for_s: Option<f64>,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
     let Some(for_s) = for_s else {
         return Ok(());
     };
@@ -235,7 +245,7 @@ fn keep_alive(client: &mut Client, for_s: Option<f64>, out: &mut String) -> Resu
     }
     let s = status(client)?;
     command(client, &Request::Stop)?;
-    out.push_str(&format!(
+    out.print(&format!(
         "after {:.1} s: {}\nstop: accepted\n",
         for_s,
         report::telemetry_line(&s).trim_start()
@@ -250,7 +260,7 @@ fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
     }
 }
 
-fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<(), Failure> {
+fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     interrupt::catch();
     command(client, &Request::RunSelfTest)?;
     let start = Instant::now();
@@ -262,7 +272,7 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<
         let r = read_self_test(client)?;
         match r.status {
             SelfTestStatus::Done | SelfTestStatus::Aborted => {
-                out.push_str(&report::self_test_text(&r));
+                out.print(&report::self_test_text(&r));
                 return if r.status == SelfTestStatus::Done {
                     Ok(())
                 } else {
@@ -296,7 +306,11 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut String) -> Result<
     }
 }
 
-fn table_read(client: &mut Client, file: Option<&Path>, out: &mut String) -> Result<(), Failure> {
+fn table_read(
+    client: &mut Client,
+    file: Option<(&Path, (Staged, usize))>,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
     let table = match ask(client, &Request::ReadTuningTable)? {
         Response::TuningTable(t) => t,
         other => return Err(unexpected(&Request::ReadTuningTable, &other)),
@@ -314,15 +328,11 @@ fn table_read(client: &mut Client, file: Option<&Path>, out: &mut String) -> Res
         .collect();
     let text = tuning_file::write(&rows, TABLE_HEADER);
     match file {
-        None => out.push_str(&text),
-        Some(path) => {
-            std::fs::write(path, &text).map_err(|e| {
-                Failure::Usage(format!(
-                    "error: --out: {}: cannot write: {e}",
-                    path.display()
-                ))
-            })?;
-            out.push_str(&format!(
+        None => out.print(&text),
+        Some((path, (mut set, i))) => {
+            set.write(i, &text)?;
+            set.commit()?;
+            out.print(&format!(
                 "table read: {} rows written to {}\n",
                 rows.len(),
                 path.display()

@@ -9,7 +9,7 @@
 //! that no frame crosses it whole). Without that watch a `--count` run waited for
 //! ever, heartbeating all the while.
 
-use std::io::Write;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use shared::protocol::Request;
@@ -18,18 +18,9 @@ use super::args::TelemetryArgs;
 use super::client::Client;
 use super::report;
 use super::requests::{command, HEARTBEAT_EVERY};
-use crate::failure::Failure;
+use crate::failure::{Console, Failure};
 use crate::interrupt;
-
-/// Where the telemetry goes.
-enum Sink {
-    /// Readable lines on stdout, as they come.
-    Lines,
-    /// CSV on stdout, as it comes.
-    CsvStdout,
-    /// Readable lines on stdout and CSV kept for a file written at the end.
-    CsvFile(String, String),
-}
+use crate::output::file::Staged;
 
 /// The longest a stream at `period_ms` may go without a frame: five periods (a
 /// few frames lost in a row on a noisy line are no silence), and at least 1 s (a
@@ -48,22 +39,18 @@ fn silent(quiet_s: f64, period_ms: u16, frames: u64) -> Failure {
     ))
 }
 
-/// Runs `host-sim device telemetry`; `out` gets the closing line of a `--csv FILE`
-/// run (the frames themselves are printed as they come).
-pub fn run(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result<(), Failure> {
-    let mut sink = match a.csv.as_deref() {
-        None => Sink::Lines,
-        Some("-") => Sink::CsvStdout,
-        Some(file) => Sink::CsvFile(file.to_string(), format!("{}\n", report::CSV_HEADER)),
-    };
-    let stdout = std::io::stdout();
-    let emit = |text: &str| {
-        let mut lock = stdout.lock();
-        let _ = lock.write_all(text.as_bytes());
-        let _ = lock.flush();
-    };
-    if matches!(sink, Sink::CsvStdout) {
-        emit(&format!("{}\n", report::CSV_HEADER));
+/// Runs `host-sim device telemetry`: readable lines on `out` as the frames come,
+/// and with `--csv` the frames as CSV rows into `csv` (staged, committed at the
+/// end; `--csv -` is stdout, and then no readable lines).
+pub fn run(
+    client: &mut Client,
+    a: &TelemetryArgs,
+    mut csv: Option<(Staged, usize)>,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
+    let lines = a.csv.as_deref() != Some(Path::new("-"));
+    if let Some((set, i)) = &mut csv {
+        set.write(*i, &format!("{}\n", report::CSV_HEADER))?;
     }
     interrupt::catch();
     command(
@@ -103,13 +90,13 @@ pub fn run(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result<(
             for (at, report) in client.take_telemetry() {
                 frames += 1;
                 last_frame = last_frame.max(at);
-                match &mut sink {
-                    Sink::Lines => emit(&format!("{}\n", report::telemetry_line(&report))),
-                    Sink::CsvStdout => emit(&format!("{}\n", report::csv_row(&report))),
-                    Sink::CsvFile(_, csv) => {
-                        emit(&format!("{}\n", report::telemetry_line(&report)));
-                        csv.push_str(&report::csv_row(&report));
-                        csv.push('\n');
+                if lines {
+                    out.print(&format!("{}\n", report::telemetry_line(&report)));
+                }
+                if let Some((set, i)) = &mut csv {
+                    if let Err(e) = set.write(*i, &format!("{}\n", report::csv_row(&report))) {
+                        result = Err(e);
+                        break 'stream;
                     }
                 }
                 if a.count.is_some_and(|n| frames >= n) {
@@ -139,10 +126,12 @@ pub fn run(client: &mut Client, a: &TelemetryArgs, out: &mut String) -> Result<(
     let off = command(client, &Request::StreamTelemetry { period_ms: 0 });
     result?;
     off?;
-    if let Sink::CsvFile(file, csv) = &sink {
-        std::fs::write(file, csv)
-            .map_err(|e| Failure::Device(format!("error: --csv: {file}: cannot write: {e}")))?;
-        out.push_str(&format!("telemetry: {frames} frames written to {file}\n"));
+    if let Some((set, _)) = csv {
+        set.commit()?;
+        if lines {
+            let file = a.csv.as_deref().unwrap_or(Path::new("")).display();
+            out.print(&format!("telemetry: {frames} frames written to {file}\n"));
+        }
     }
     Ok(())
 }

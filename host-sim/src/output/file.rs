@@ -100,6 +100,19 @@ fn resolve_links(path: &Path) -> PathBuf {
     p
 }
 
+/// `path` with its folder made absolute and its links resolved (the file itself
+/// need not exist yet), so that two spellings of one file compare equal.
+fn canonical(path: &Path) -> PathBuf {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (fs::canonicalize(dir), path.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
 /// The temporary file beside `path`: the same directory, a hidden name with the
 /// process id.
 fn temporary_beside(path: &Path) -> Option<PathBuf> {
@@ -162,6 +175,23 @@ impl Staged {
     /// special file). Returns its index for [`Staged::write`].
     pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
         let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
+        // Two outputs into one file would share its temporary file and replace it
+        // with a mix of both.
+        if let Target::Regular(p) = &target {
+            let here = canonical(p);
+            if let Some(other) = self.pending.iter().find(|o| match &o.target {
+                Target::Regular(q) => canonical(q) == here,
+                _ => false,
+            }) {
+                return Err(cannot_write(
+                    path,
+                    format!(
+                        "it is the file {} is written to already: give each output its own file",
+                        other.named.display()
+                    ),
+                ));
+            }
+        }
         let (temporary, sink): (Option<PathBuf>, Box<dyn Write>) = match &target {
             Target::Stdout => (None, Box::new(io::stdout())),
             Target::Stderr => (None, Box::new(io::stderr())),
@@ -394,6 +424,23 @@ mod tests {
         assert_eq!(e.status(), crate::failure::EXIT_USAGE);
         assert!(e.message().contains("p.svg"), "{e:?}");
         assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
+        assert_eq!(names(&dir), ["a.csv"]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn one_file_named_twice_in_a_set_is_refused() {
+        let dir = scratch("twice");
+        let a = dir.join("a.csv");
+        fs::write(&a, "old").unwrap();
+        let again = dir.join(".").join("a.csv");
+        let e = write_files(&[(a.as_path(), "one".into()), (again.as_path(), "two".into())])
+            .unwrap_err();
+        assert!(
+            e.message().contains("give each output its own file"),
+            "{e:?}"
+        );
+        assert_eq!(fs::read_to_string(&a).unwrap(), "old");
         assert_eq!(names(&dir), ["a.csv"]);
         fs::remove_dir_all(&dir).unwrap();
     }
