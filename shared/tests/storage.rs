@@ -9,7 +9,7 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 use shared::codec::crc::crc32;
-use shared::controller::{RotorSelfTest, SelfTest, TuningTable};
+use shared::controller::{Direction, RotorSelfTest, SelfTest, TuningTable};
 use shared::storage::record::{
     encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
 };
@@ -158,6 +158,44 @@ fn a_valid_crc_is_not_enough() {
         assert_eq!(parse_record(&reseal(case)), None, "case {i}");
     }
     assert!(parse_record(&good).is_some());
+}
+
+/// A record written under the rule before tuning rows had one rule (the same
+/// format version): the default table's single row at speed 0, offsets of 360
+/// degrees. It still loads, meaning what it meant: the single row holds its
+/// offsets at every speed, 360 is 0; the self-test result stored with it is kept.
+/// A table of several rows with a speed 0 was never written and stays refused.
+#[test]
+fn a_record_under_the_earlier_row_rule_still_loads() {
+    let mut one_row = record(2);
+    one_row.tuning = TuningTable::default();
+    let mut b = encode_record(&one_row, 5);
+    b[16..20].copy_from_slice(&0f32.to_le_bytes()); // speed 0
+    b[20..24].copy_from_slice(&360f32.to_le_bytes()); // right offset 360
+    let crc = crc32(&b[..RECORD_LEN - 4]);
+    b[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+    let (loaded, sequence) = parse_record(&b).expect("an earlier record loads");
+    assert_eq!(sequence, 5);
+    assert_eq!(loaded.self_test, one_row.self_test);
+    let row = loaded.tuning.rows()[0];
+    assert_eq!(row.right_offset_deg, 0.0);
+    assert_eq!(
+        row.left_offset_deg,
+        one_row.tuning.rows()[0].left_offset_deg
+    );
+    for speed in [300.0, 3000.0, 6000.0] {
+        assert_eq!(
+            loaded.tuning.offset(Direction::Right, speed),
+            0.0,
+            "at {speed} rpm"
+        );
+    }
+
+    let mut b = encode_record(&record(3), 5);
+    b[16..20].copy_from_slice(&0f32.to_le_bytes()); // the first of 4 rows at 0
+    let crc = crc32(&b[..RECORD_LEN - 4]);
+    b[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(parse_record(&b), None);
 }
 
 #[test]

@@ -121,7 +121,9 @@ pub use params::{
 };
 pub use self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 pub use stopped::{may_write_table, WRITE_MAX_SPEED_RPM};
-pub use tuning::{RowField, TableError, TuningRow, TuningTable, MAX_TUNING_ROWS};
+pub use tuning::{
+    RowField, TableError, TuningRow, TuningTable, DEFAULT_ROW_SPEED_RPM, MAX_TUNING_ROWS,
+};
 
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
 use phase_loop::PhaseLoop;

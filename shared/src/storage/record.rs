@@ -34,7 +34,7 @@
 use crate::codec::crc::Crc32;
 use crate::codec::wire::{Field, Reader, Writer};
 use crate::codec::{SELF_TEST_LEN, TUNING_ROW_LEN};
-use crate::controller::{SelfTest, TuningRow, TuningTable, MAX_TUNING_ROWS};
+use crate::controller::{SelfTest, TuningRow, TuningTable, DEFAULT_ROW_SPEED_RPM, MAX_TUNING_ROWS};
 
 /// The commit word, first in the record and written last: the bytes `"VIBT"`. Not
 /// `0xFFFFFFFF` (erased) nor `0` (zeroed), and no byte of it is `0xFF`, so a magic
@@ -110,6 +110,28 @@ pub fn encode_record(record: &Record, sequence: u32) -> [u8; RECORD_LEN] {
     bytes
 }
 
+/// Rows stored under the rule before tuning rows had one rule (same format version):
+/// speeds `>= 0` and offsets in `[0, 360]`. The two values it took that the rule
+/// refuses now mean what they meant: an offset of 360 degrees is 0 (a full turn),
+/// and the default table's single row at speed 0 holds its offsets at every speed,
+/// as a single row at [`DEFAULT_ROW_SPEED_RPM`] does. (host-sim never wrote a speed
+/// of 0, so a table of several rows never had one.) Without this an updated
+/// firmware would lose the stored table and self-test result.
+fn from_earlier_rule(rows: &mut [(f32, f32, f32)]) {
+    if let [(speed, _, _)] = rows {
+        if *speed == 0.0 {
+            *speed = DEFAULT_ROW_SPEED_RPM;
+        }
+    }
+    for (_, right, left) in rows.iter_mut() {
+        for offset in [right, left] {
+            if *offset == 360.0 {
+                *offset = 0.0;
+            }
+        }
+    }
+}
+
 /// The record in `bytes` and its sequence number, if every check passes (see the
 /// module documentation).
 pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
@@ -152,7 +174,9 @@ pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
             r.zeros(TUNING_ROW_LEN)?;
         }
     }
-    let tuning = TuningTable::from_rows(rows.get(..count)?).ok()?;
+    let rows = rows.get_mut(..count)?;
+    from_earlier_rule(rows);
+    let tuning = TuningTable::from_rows(rows).ok()?;
 
     // Self-test, or zeros.
     let self_test = if has_self_test {
