@@ -333,3 +333,36 @@ fn a_machine_with_several_bodies_is_refused_until_the_plant_has_them() {
     let r = run(&["run", file.to_str().unwrap(), "--open-loop", "12,12"]);
     r.refused("the machine has several bodies (bodies (1 further))");
 }
+
+/// In fast decay the winding's current dies behind the diodes in every PWM period
+/// (discontinuous conduction at 3 V): that is an event of the winding only, located
+/// but with no trace rows and no contact decision. The trace has its regular rows
+/// and two per event of the events file, not two per PWM period (it had 16 202
+/// rows for these 0.2 s).
+#[test]
+fn a_dying_coast_current_takes_no_trace_rows() {
+    let (out, events) = (scratch("coast-t.csv"), scratch("coast-e.csv"));
+    let r = run_machine(
+        "run",
+        &[
+            "--open-loop",
+            "3,3",
+            "--set",
+            "drive.decay=fast",
+            "--t-end",
+            "0.2",
+            "--out",
+            out.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+    let event_rows = std::fs::read_to_string(&events).unwrap().lines().count() - 1;
+    // 201 regular rows (0 to 0.2 s every 1 ms), two per event at most.
+    assert!(
+        rows <= 201 + 2 * event_rows,
+        "{rows} rows, {event_rows} events"
+    );
+}

@@ -48,6 +48,7 @@ mod forces;
 mod impacts;
 mod modes;
 
+use events::Crossing;
 use forces::CachedEvaluation;
 use shared::impact::{SlipState, MAX_CONTACTS};
 
@@ -469,7 +470,22 @@ impl Plant {
                     let at_switch = h == remaining && t_switch.is_some();
                     let ev1 = self.event_values(&step.y1);
                     match self.first_crossing(&step, &ev0, &ev1) {
-                        Some((te, ye)) if te > step.t0 || stalled < MAX_STALLED_EVENTS => {
+                        Some(c) if c.current_only && c.t > step.t0 => {
+                            // A winding's event: the current clamped (held at its
+                            // limit, or zero behind the diodes), nothing else; no
+                            // contact changes, so no impact check and no rows.
+                            stalled = 0;
+                            self.integrate_currents(&step, c.t);
+                            record(Output::Dense(self.dense(&step), c.t));
+                            self.t = c.t;
+                            self.y = c.y;
+                            self.fsal = None;
+                            self.clamp_currents();
+                            ev0 = self.event_values(&self.y);
+                        }
+                        Some(Crossing { t: te, y: ye, .. })
+                            if te > step.t0 || stalled < MAX_STALLED_EVENTS =>
+                        {
                             stalled = if te > step.t0 { 0 } else { stalled + 1 };
                             self.integrate_currents(&step, te);
                             record(Output::Dense(self.dense(&step), te));

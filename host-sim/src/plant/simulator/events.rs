@@ -32,6 +32,15 @@ pub(super) enum Watch {
     Nothing,
 }
 
+/// The earliest event of a step: its time, the state there, and whether only a
+/// winding's current crossed (a coasting current dying, a current reaching its
+/// driver's limit): such an event changes no contact and takes no trace rows.
+pub(super) struct Crossing {
+    pub(super) t: f64,
+    pub(super) y: [f64; NY],
+    pub(super) current_only: bool,
+}
+
 impl Plant {
     /// What event function `i` watches (see [`Watch`]): two slots per contact,
     /// then one per motor driver.
@@ -145,12 +154,13 @@ impl Plant {
         step: &Step<NY>,
         ev0: &[f64],
         ev1: &[f64],
-    ) -> Option<(f64, [f64; NY])> {
-        let mut best: Option<f64> = None;
-        let mut consider = |te: f64| {
-            if best.is_none_or(|b| te < b) {
-                best = Some(te);
-            }
+    ) -> Option<Crossing> {
+        // The earliest time, and whether only a winding's current crossed there.
+        let mut best: Option<(f64, bool)> = None;
+        let mut consider_kind = |te: f64, current: bool| match &mut best {
+            Some((b, only)) if te == *b => *only &= current,
+            Some((b, _)) if te > *b => {}
+            _ => best = Some((te, current)),
         };
         // The event functions at the step's middle, computed once if needed.
         let t_mid = step.t0 + 0.5 * step.h;
@@ -158,8 +168,10 @@ impl Plant {
         for i in 0..ev0.len() {
             let watch = self.watch(i);
             let f = |y: &[f64; NY]| self.event_value(watch, y, None);
+            let mut consider = |te: f64| consider_kind(te, false);
             if ev0[i] > 0.0 && ev1[i] <= 0.0 {
-                consider(self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]));
+                let te = self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]);
+                consider_kind(te, matches!(watch, Watch::Current(_)));
                 continue;
             }
             match watch {
@@ -181,14 +193,15 @@ impl Plant {
                 Watch::Current(_) | Watch::Nothing => {}
             }
         }
-        best.map(|te| {
-            if te >= step.t1() {
+        best.map(|(te, current_only)| {
+            let (t, y) = if te >= step.t1() {
                 (step.t1(), step.y1)
             } else if te <= step.t0 {
                 (step.t0, step.y0)
             } else {
                 (te, step.at(te))
-            }
+            };
+            Crossing { t, y, current_only }
         })
     }
 
