@@ -34,6 +34,7 @@ use std::path::{Path, PathBuf};
 use machine_file::input::{render, Location, Problem};
 use machine_file::{machine_constants, tuning_file, Machine};
 use shared::controller::{MachineConstants, Params, TuningTable, CONTROL_RATE_HZ};
+use shared::drive::Decay;
 
 /// The machine compiled in unless `VIBRO_MACHINE` is set, relative to `firmware/`.
 pub const DEFAULT_MACHINE_FILE: &str = "../examples/vibro-driver.toml";
@@ -168,6 +169,17 @@ pub fn load_machine(path: &Path) -> Result<Machine, Vec<Problem>> {
                 "several bodies ({}): the controller's constants are defined for a single platform on the fundament so far",
                 beyond.join(", ")
             ),
+        }]);
+    }
+    // The current the controller reads is the mean over the tick in host-sim; the
+    // board samples once per PWM update, at the period's extreme, which is the
+    // period's mean only while the ripple is linear about it: slow decay. In fast
+    // decay the current dies in each coasting part and a sample mid-coast reads 0.
+    if machine.drive.bridge.decay == Decay::Fast {
+        return Err(vec![Problem {
+            file,
+            location: Location::Key("drive.decay".into()),
+            message: "must be \"slow\" for the firmware: its ADC samples the current once per PWM period, which is the period's mean only in slow decay (host-sim simulates \"fast\")".into(),
         }]);
     }
     // What host-sim accepts but the controller would refuse at init (a parameters

@@ -202,7 +202,10 @@ fn generated_machine_reads_back_as_the_crates_constants() {
     ];
     for (name, edits) in cases {
         let path = variant(name, edits);
-        let machine = load_machine(&path).unwrap_or_else(|p| panic!("{name}: {}", render(&p)));
+        // The generated code for every machine the crate reads (the firmware's own
+        // refusals, fast decay among them, are checked below).
+        let machine =
+            Machine::load(&path, &[]).unwrap_or_else(|p| panic!("{name}: {}", render(&p)));
         let constants = machine_constants(&machine);
         let code = machine_rs(&constants, &path);
         assert_eq!(read_back(&code), constants, "{name}:\n{code}");
@@ -372,6 +375,19 @@ fn mistakes_fail_the_build_naming_the_file_and_the_key() {
     let p = render(&load_machine(&bodies).unwrap_err());
     assert!(
         p.starts_with(&format!("error: {}: several bodies", bodies.display())),
+        "{p}"
+    );
+
+    // Fast decay: host-sim simulates it, the board's current sampling does not
+    // follow it.
+    let fast = variant("fast", &[("decay = \"slow\"", "decay = \"fast\"")]);
+    assert!(Machine::load(&fast, &[]).is_ok());
+    let p = render(&load_machine(&fast).unwrap_err());
+    assert!(
+        p.starts_with(&format!(
+            "error: {}: drive.decay: must be \"slow\"",
+            fast.display()
+        )),
         "{p}"
     );
 

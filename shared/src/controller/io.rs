@@ -79,6 +79,10 @@ pub struct Inputs {
     /// each the mean over the tick just ended (the firmware averages its ADC
     /// conversions, one per PWM update, over the tick; host-sim integrates the
     /// plant's current over the tick), not a sample at some point of the ripple.
+    /// The two are the same in slow decay, where the current's ripple is linear
+    /// about its mean at the sampling instant (`shared::drive`); in fast decay with
+    /// the current dying in each period they are not, so the firmware's build
+    /// refuses fast decay until its ADC averages the period.
     pub current: [f32; 2],
     /// Motor supply (DC bus) voltage, V, measured.
     pub supply_voltage: f32,
