@@ -155,3 +155,27 @@ fn ctrl_c_ends_a_long_run_with_its_files_whole() {
     }
     assert!(n > 10, "{n} rows");
 }
+
+/// `tune` checks its output files before the sweep: an unwritable `--write` is
+/// refused at once, not after the runs (here one run of an hour, which the
+/// refusal must not wait for).
+#[test]
+fn tune_refuses_an_unwritable_output_before_the_sweep() {
+    let m = machine();
+    refused(
+        &[
+            "tune",
+            m.to_str().unwrap(),
+            "--speeds",
+            "3000",
+            "--offsets",
+            "90",
+            "--t-end",
+            "3600",
+            "--write",
+            "no-such-dir/t.toml",
+        ],
+        "no-such-dir/t.toml",
+        "No such file",
+    );
+}

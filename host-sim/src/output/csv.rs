@@ -60,19 +60,6 @@ pub fn csv_text(s: &str) -> String {
     }
 }
 
-/// The `--out` trace of a machine whose contacts are named `contacts`:
-/// [`trace_header`], then one line per row ([`trace_line`]).
-pub fn trace_csv(rows: &[TraceRow], contacts: &[String]) -> String {
-    let n = contacts.len().min(MAX_CONTACTS);
-    let mut out = String::with_capacity(32 + rows.len() * (15 + 2 * n) * 12);
-    out.push_str(&trace_header(&contacts[..n]));
-    out.push('\n');
-    for r in rows {
-        trace_line(r, n, &mut out);
-    }
-    out
-}
-
 /// One trace row as a CSV line (with its line break) appended to `out`: the
 /// fifteen columns every machine has, then normal and tangential force of the
 /// first `contacts` contacts.
@@ -121,6 +108,19 @@ pub fn events_csv(rows: &[EventRow]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The `--out` trace of a machine whose contacts are named `contacts`:
+    /// [`trace_header`], then one line per row ([`trace_line`]).
+    fn trace_csv(rows: &[TraceRow], contacts: &[String]) -> String {
+        let n = contacts.len().min(MAX_CONTACTS);
+        let mut out = String::with_capacity(32 + rows.len() * (15 + 2 * n) * 12);
+        out.push_str(&trace_header(&contacts[..n]));
+        out.push('\n');
+        for r in rows {
+            trace_line(r, n, &mut out);
+        }
+        out
+    }
     use crate::simulation::trace::EventKind;
 
     #[test]

@@ -286,34 +286,34 @@ impl Drop for Staged {
     }
 }
 
-/// Writes every `(path, contents)` as one set ([`Staged`]): all regular files
-/// replaced, or none.
-pub fn write_files(files: &[(&Path, String)]) -> Result<(), Failure> {
-    let mut staged = Staged::new();
-    let indices = files
-        .iter()
-        .map(|(path, _)| staged.add(path))
-        .collect::<Result<Vec<_>, _>>()?;
-    for (i, (_, contents)) in indices.into_iter().zip(files) {
-        staged.write(i, contents)?;
-    }
-    staged.commit()
-}
-
-/// Writes `contents` to `path` whole or not at all ([`write_files`] with one file);
-/// the message names `path` and the reason.
-pub fn write_whole(path: &Path, contents: &str) -> Result<(), String> {
-    write_files(&[(path, contents.to_string())]).map_err(|f| {
-        f.message()
-            .trim_end()
-            .trim_start_matches("error: ")
-            .to_string()
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Writes every `(path, contents)` as one set ([`Staged`]): all regular files
+    /// replaced, or none.
+    fn write_files(files: &[(&Path, String)]) -> Result<(), Failure> {
+        let mut staged = Staged::new();
+        let indices = files
+            .iter()
+            .map(|(path, _)| staged.add(path))
+            .collect::<Result<Vec<_>, _>>()?;
+        for (i, (_, contents)) in indices.into_iter().zip(files) {
+            staged.write(i, contents)?;
+        }
+        staged.commit()
+    }
+
+    /// Writes `contents` to `path` whole or not at all ([`write_files`] with one file);
+    /// the message names `path` and the reason.
+    fn write_whole(path: &Path, contents: &str) -> Result<(), String> {
+        write_files(&[(path, contents.to_string())]).map_err(|f| {
+            f.message()
+                .trim_end()
+                .trim_start_matches("error: ")
+                .to_string()
+        })
+    }
 
     /// A fresh directory for one test.
     fn scratch(name: &str) -> PathBuf {

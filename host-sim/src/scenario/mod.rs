@@ -41,14 +41,15 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     // 1. Read and check.
     let scenario = file::load(&args.scenario)?;
 
-    let problems = limits::check(&scenario.machine, scenario.t_end, "t_end");
+    let t_end_key = format!("{}: t_end", args.scenario.display());
+    let problems = limits::check(
+        &scenario.machine,
+        &scenario.machine_file,
+        scenario.t_end,
+        &t_end_key,
+    );
     if !problems.is_empty() {
-        let file = args.scenario.display();
-        let lines: Vec<String> = problems
-            .iter()
-            .map(|p| p.replacen("error: ", &format!("error: {file}: "), 1))
-            .collect();
-        return Err(Failure::Usage(lines.join("\n")));
+        return Err(Failure::Usage(problems.join("\n")));
     }
 
     // 2. Run.

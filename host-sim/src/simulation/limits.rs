@@ -11,6 +11,8 @@
 //!   written, and the summary keeps 16 bytes of each row of the second half, so
 //!   10^7 rows are at most 80 MB and about 2 GB of CSV.
 
+use std::path::Path;
+
 use crate::machine::Machine;
 use crate::output::text::sig;
 
@@ -20,15 +22,16 @@ pub const MAX_T_END_S: f64 = 3600.0;
 /// Most regular trace rows of one run (`t_end / output_step`).
 pub const MAX_TRACE_ROWS: f64 = 1.0e7;
 
-/// The problems of a run of `machine` to `t_end`, s, whose end time was given as
-/// `t_end_key` (`--t-end`, `simulation.t_end`, `t_end`): one line each, `error: `
-/// first.
-pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
+/// The problems of a run of `machine` (read from `file`) to `t_end`, s, whose end
+/// time was given as `t_end_key` (`--t-end`, `simulation.t_end`, `FILE: t_end`):
+/// one line each, `error: ` first.
+pub fn check(machine: &Machine, file: &Path, t_end: f64, t_end_key: &str) -> Vec<String> {
     let mut problems = Vec::new();
     let beyond = machine.beyond_the_platform();
     if !beyond.is_empty() {
         problems.push(format!(
-            "error: the machine has several bodies ({}): the file reads and checks them, but the simulated plant is a single platform on the fundament so far",
+            "error: {}: the machine has several bodies ({}): the file reads and checks them, but the simulated plant is a single platform on the fundament so far",
+            file.display(),
             beyond.join(", ")
         ));
     }

@@ -24,7 +24,6 @@ pub mod plot;
 pub mod report;
 pub mod sweep;
 
-use std::path::Path;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -37,7 +36,7 @@ use crate::failure::{Console, Failure};
 use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
-use crate::output::file::write_files;
+use crate::output::file::Staged;
 use crate::output::text;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
@@ -199,7 +198,12 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
         ));
     }
 
-    problems.extend(limits::check(&machine, t_end, "--t-end"));
+    problems.extend(limits::check(
+        &machine,
+        &args.machine.path,
+        t_end,
+        "--t-end",
+    ));
 
     // The whole grid, and what the table file can hold.
     if let (Some(s), Some(o)) = (&speeds, &offsets) {
@@ -246,6 +250,16 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
     let (machine, grid, speeds_text, offsets_text) = read_options(args).map_err(Failure::Usage)?;
+    // The output files, checked and opened before the sweep: a path that cannot
+    // be written is refused at once, not after minutes of runs.
+    let mut staged = Staged::new();
+    let table_out = args.write.as_deref().map(|p| staged.add(p)).transpose()?;
+    let plot_out = args
+        .plot
+        .file
+        .as_deref()
+        .map(|p| staged.add(p))
+        .transpose()?;
 
     // 2.-4. The sweep, with a progress bar on stderr (drawn only on a terminal).
     let started = Instant::now();
@@ -266,8 +280,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let seconds = started.elapsed().as_secs_f64();
 
     // 5. Files, then the result.
-    let mut files: Vec<(&Path, String)> = Vec::new();
-    if let Some(path) = &args.write {
+    if let (Some(i), Some(path)) = (table_out, &args.write) {
         if tuning.right.is_empty() || tuning.left.is_empty() {
             return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
         }
@@ -282,13 +295,13 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                 path.display()
             )));
         }
-        files.push((path, text));
+        staged.write(i, &text)?;
     }
-    if let Some(path) = &args.plot.file {
+    if let Some(i) = plot_out {
         let title = format!("host-sim tune {}", args.machine.path.display());
-        files.push((path, plot::plot_svg(&tuning, &title)));
+        staged.write(i, &plot::plot_svg(&tuning, &title))?;
     }
-    write_files(&files)?;
+    staged.commit()?;
     console.print(&match args.format.format {
         Format::Json => tuning_json(&tuning),
         Format::Table => tuning_table(&tuning, &args.machine.path),
