@@ -354,3 +354,51 @@ fn two_identical_runs_give_identical_results() {
         "seed 2 gives the same trace as seed 1"
     );
 }
+
+/// The summary is built row by row while the run goes, with its midpoint fixed
+/// before it starts. On a real run (travel right, its rows kept), the travel speed
+/// and the rotor speeds computed here from the stored rows, by the definitions
+/// (`(x(T) - x(T/2)) / (T/2)` with `x(T/2)` interpolated linearly between the rows
+/// around it), are the summary's; and so is the whole summary computed afresh from
+/// the stored rows.
+#[test]
+fn the_summary_built_row_by_row_is_the_one_of_the_stored_rows() {
+    let run = right();
+    let rows = &run.result.rows;
+    let s = run.summary();
+    let last = rows.last().expect("rows");
+    let half = 0.5 * (rows[0].t + last.t);
+    let i = rows.partition_point(|r| r.t <= half);
+    let (a, b) = (&rows[i - 1], &rows[i]);
+    let at_half = |f: fn(&host_sim::simulation::trace::TraceRow) -> f64| {
+        f(a) + (f(b) - f(a)) * (half - a.t) / (b.t - a.t)
+    };
+    let duration = last.t - half;
+    let v = (last.x - at_half(|r| r.x)) / duration;
+    assert!(
+        (s.mean_velocity - v).abs() <= 1e-12 * v.abs().max(1e-6),
+        "{} vs {v}",
+        s.mean_velocity
+    );
+    let w1 = (last.phi1 - at_half(|r| r.phi1)) / duration * 30.0 / std::f64::consts::PI;
+    assert!(
+        (s.rotor_speed_rpm[0].abs() - w1.abs()).abs() <= 1e-9 * w1.abs(),
+        "{:?} vs {w1}",
+        s.rotor_speed_rpm
+    );
+    let machine =
+        Machine::load(&tests::held::reference_path(), &[]).expect("the reference machine loads");
+    let again = host_sim::simulation::summary::summarize(
+        rows,
+        &run.result.events,
+        &machine,
+        Some(run.target_offset_deg),
+        &s.state,
+        s.faults.clone(),
+        s.warnings.clone(),
+    );
+    assert_eq!(again.mean_velocity, s.mean_velocity);
+    assert_eq!(again.rotor_speed_rpm, s.rotor_speed_rpm);
+    assert_eq!(again.phase_offset_deg, s.phase_offset_deg);
+    assert_eq!(again.impacts, s.impacts);
+}

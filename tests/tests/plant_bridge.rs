@@ -261,6 +261,41 @@ fn fast_decay_mean_current_follows_the_closed_forms() {
     }
 }
 
+/// What the controller reads (`Plant::mean_currents`, the winding current's mean
+/// over the last `advance_to`, one control tick of 1 ms = 20 PWM periods) once the
+/// transient has died: the closed forms above, in both decay modes, in the
+/// continuous and the discontinuous case. The tick is a whole number of periods,
+/// so the tick's mean is the periods' mean.
+#[test]
+fn the_current_a_tick_reads_is_the_closed_form_mean() {
+    let tick = 1e-3;
+    let settled_ticks = 6; // 6 ms: 24 electrical time constants
+    for (decay, d, rpm) in [
+        ("slow", 0.049, 0.0),
+        ("slow", 0.5, 3000.0),
+        ("slow", -0.3, 0.0),
+        ("fast", 0.049, 0.0),
+        ("fast", 0.5, 0.0),
+        ("fast", 0.9, 3000.0),
+    ] {
+        let (_, mut plant) = held(decay, rpm);
+        plant.set_bridges([BridgeCommand::Duty(d), BridgeCommand::Off]);
+        for k in 1..=settled_ticks {
+            plant.advance_to(k as f64 * tick, &mut |_| {});
+        }
+        plant.advance_to((settled_ticks + 1) as f64 * tick, &mut |_| {});
+        let got = plant.mean_currents()[0];
+        let want = match decay {
+            "slow" => (d * VS - K * rpm * PI / 30.0) / R,
+            _ => fast_decay_closed_form(d, rpm).1,
+        };
+        assert!(
+            (got - want).abs() < 1e-6 + 1e-6 * want.abs(),
+            "{decay}, d {d}, {rpm} rpm: the tick reads {got} A, the closed form is {want} A"
+        );
+    }
+}
+
 /// What the first board would have done with the self-test's duty at standstill:
 /// the closed forms, the plant, and the ratio the issue reported (a hundred times
 /// less current than the controller expects).
