@@ -46,6 +46,24 @@ pub enum Node {
     },
 }
 
+/// The keys of a further body, `[[bodies]]`: a name, then those of `[platform]`
+/// (the reader takes a body as a name and the platform's keys).
+pub const BODY_KEYS: &[(&str, Node)] = &[
+    ("name", Node::Value),
+    ("mass", Node::Value),
+    ("inertia", Node::Value),
+    ("position", Node::Value),
+    ("angle", Node::Value),
+    ("velocity", Node::Value),
+    ("angular_velocity", Node::Value),
+];
+
+/// The keys of `[platform]`: a body's without its name.
+pub const RIGID_BODY_KEYS: &[(&str, Node)] = match BODY_KEYS.split_first() {
+    Some((_, rest)) => rest,
+    None => &[],
+};
+
 /// The keys of a brushed DC motor: `[motor]` and a rotor's own `[rotors.motor]`.
 pub const MOTOR_KEYS: &[(&str, Node)] = &[
     ("resistance", Node::Value),
@@ -67,31 +85,13 @@ pub const SCHEMA: &[(&str, Node)] = &[
             ("gravity", Node::Value),
         ]),
     ),
-    (
-        "platform",
-        Node::Table(&[
-            ("mass", Node::Value),
-            ("inertia", Node::Value),
-            ("position", Node::Value),
-            ("angle", Node::Value),
-            ("velocity", Node::Value),
-            ("angular_velocity", Node::Value),
-        ]),
-    ),
+    ("platform", Node::Table(RIGID_BODY_KEYS)),
     (
         "bodies",
         Node::Array {
             noun: "body",
             default_prefix: "B",
-            keys: &[
-                ("name", Node::Value),
-                ("mass", Node::Value),
-                ("inertia", Node::Value),
-                ("position", Node::Value),
-                ("angle", Node::Value),
-                ("velocity", Node::Value),
-                ("angular_velocity", Node::Value),
-            ],
+            keys: BODY_KEYS,
         },
     ),
     (
