@@ -156,50 +156,6 @@ fn host_sim(args: &[&str]) -> Run {
     common::finish(cmd)
 }
 
-/// Runs `host-sim` with `args`, no standard input; `None` if it has not ended
-/// after `limit` (then it is killed, by its handle).
-fn host_sim_within(args: &[&str], limit: Duration) -> Option<Run> {
-    let start = Instant::now();
-    let mut child = common::host_sim()
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("host-sim runs");
-    loop {
-        if let Some(status) = child.try_wait().expect("the child can be waited for") {
-            let mut stdout = String::new();
-            let mut stderr = String::new();
-            child
-                .stdout
-                .take()
-                .unwrap()
-                .read_to_string(&mut stdout)
-                .unwrap();
-            child
-                .stderr
-                .take()
-                .unwrap()
-                .read_to_string(&mut stderr)
-                .unwrap();
-            assert!(!stderr.contains("panicked"), "{stderr}");
-            return Some(Run {
-                status: status.code().unwrap_or(-1),
-                stdout,
-                stderr,
-                took: start.elapsed(),
-            });
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            return None;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-device", name)
 }
@@ -731,8 +687,9 @@ fn a_stream_that_never_comes_ends_the_run() {
     for (args, quiet_s) in runs {
         let mut all = vec!["device", "--port", &port];
         all.extend_from_slice(args);
-        let r = host_sim_within(&all, Duration::from_secs(15))
-            .unwrap_or_else(|| panic!("{args:?} did not end within 15 s"));
+        let mut cmd = common::host_sim();
+        cmd.args(&all).stdin(Stdio::null());
+        let r = common::finish_within(cmd, Duration::from_secs(15));
         assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
         let expected = format!("error: no telemetry from the device in {quiet_s:.1} s");
         assert!(r.stderr.starts_with(&expected), "{args:?}: {}", r.stderr);

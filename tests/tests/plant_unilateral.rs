@@ -53,6 +53,14 @@ fn eps_f() -> f64 {
     Settings::default().force_tolerance * M_TOTAL * G
 }
 
+/// The bounds here follow the plant's lift-off margin; this pins it at the
+/// documented 1e-6 of the weight (docs/plant-model.md), so a looser setting fails
+/// here instead of loosening every bound with it.
+#[test]
+fn the_lift_off_margin_is_a_millionth_of_the_weight() {
+    assert_eq!(Settings::default().force_tolerance, 1e-6);
+}
+
 /// The reference machine with `sets`, its rotors started at the offset
 /// `offset_deg` (rotor 1 hanging down).
 fn machine(offset_deg: f64, sets: &[String]) -> Machine {
