@@ -19,7 +19,8 @@
 //! included (RM0090 3.5.4; the F405 has one bank): no task runs, the control
 //! task neither, so nothing feeds the 50 ms watchdog. Each sector's erase
 //! lengthens it to [`watchdog::Timeout::ERASE`] and restores
-//! [`watchdog::Timeout::RUN`] after. The link stores only with the motors
+//! [`watchdog::Timeout::RUN`] after; if that cannot be restored, the bridges are
+//! cut and the board waits for the watchdog reset (and starts in `Fault`). The link stores only with the motors
 //! stopped, and holds motion commands back until the store ends; the outputs
 //! stay cut (MOE = 0) and the hardware break still acts. A word program stalls
 //! reads for about 16 us, which the control loop rides through.
@@ -61,8 +62,9 @@ pub enum FlashError {
     /// `FLASH_SR` error bits after the operation (PGSERR, PGPERR, PGAERR, WRPERR,
     /// OPERR), as read.
     Status(u32),
-    /// The watchdog could not be lengthened for an erase (nothing erased), or
-    /// not set back to its running timeout after one.
+    /// The watchdog could not be lengthened for an erase (nothing erased). One
+    /// that cannot be set back to its running timeout after an erase does not
+    /// return: the board waits, bridges cut, for the watchdog reset.
     Watchdog,
     /// The bridges' outputs were enabled: no erase, which would stall the control
     /// task for seconds with the motors driven.
@@ -148,15 +150,24 @@ impl ParamFlash {
                 }
             });
         });
-        let restored = watchdog::set(Timeout::RUN);
-        if restored.is_err() {
-            defmt::error!("watchdog not set back to its running timeout after an erase");
+        if watchdog::set(Timeout::RUN).is_err() {
+            // The loop would run on under the erase's seconds-long timeout, where
+            // a hang must end within 100 ms: the one safe state left is the reset.
+            // Bridges off, interrupts off (nothing runs, nothing feeds), and the
+            // watchdog resets the chip within Timeout::ERASE; the next start reads
+            // the watchdog flag and the controller starts in Fault.
+            defmt::error!("watchdog not set back to its running timeout after an erase: bridges cut, waiting for the watchdog reset");
+            crate::motor_out::cut();
+            cortex_m::interrupt::disable();
+            loop {
+                cortex_m::asm::wfi();
+            }
         }
         erased?;
         if !started {
             return Err(FlashError::MotorsDriven);
         }
-        restored.map_err(|_| FlashError::Watchdog)
+        Ok(())
     }
 
     /// Word program (RM0090 3.6.4): PG with PSIZE x32, then one aligned word write
