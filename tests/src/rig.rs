@@ -330,12 +330,13 @@ pub fn foot(rig: &Rig, y: &[f64; NY], j: usize) -> [f64; 2] {
 /// The plant's Dormand-Prince controller (`simulator.rs`, `tolerance`) accepts a step
 /// when `sqrt(mean_i (e_i / sc_i)^2) <= 1`, `sc_i = atol_i + rtol |y_i|`, with
 /// `atol = 1e-3 rtol` on positions and angles and `rtol` on everything else. Then
-/// `sum_i (e_i / sc_i)^2 <= NY`, and by Cauchy-Schwarz the error the step puts into
-/// `f` is at most `sqrt(NY) |grad f o sc|_2`. The gradient is taken here by central
-/// differences (`f` is smooth).
+/// `sum_i (e_i / sc_i)^2 <= n` over the single platform's [`STATE_LEN`] components,
+/// and by Cauchy-Schwarz the error the step puts into `f` is at most
+/// `sqrt(n) |grad f o sc|_2`. The gradient is taken here by central differences
+/// (`f` is smooth).
 pub fn step_allowance(f: &dyn Fn(&[f64; NY]) -> f64, y: &[f64; NY], rtol: f64) -> f64 {
     let mut sum = 0.0;
-    for i in 0..NY {
+    for i in 0..STATE_LEN {
         let atol = if i < 5 { 1e-3 * rtol } else { rtol };
         let sc = atol + rtol * y[i].abs();
         let h = 1e-6 * (1.0 + y[i].abs());
@@ -345,5 +346,10 @@ pub fn step_allowance(f: &dyn Fn(&[f64; NY]) -> f64, y: &[f64; NY], rtol: f64) -
         let g = (f(&up) - f(&down)) / (2.0 * h);
         sum += (g * sc) * (g * sc);
     }
-    (NY as f64).sqrt() * sum.sqrt()
+    (STATE_LEN as f64).sqrt() * sum.sqrt()
 }
+
+/// The components of the single platform's state `(q, q', i)`: 5 + 5 + 2 (the
+/// plant's state array holds up to [`NY`] for larger machines; the rest stay zero
+/// and take no part in the integrator's error norm).
+pub const STATE_LEN: usize = 12;

@@ -275,9 +275,9 @@ fn spin_rig(current_limit: f64) -> Rig {
 /// The current peaks near `u / R = 6 A`, so the limit is set to 100 A.
 ///
 /// Tolerance, from the integrator's `rtol` (`Settings::default()`): each accepted step
-/// errs by at most `sqrt(NY) (atol + rtol |y|)` per component (see
+/// errs by at most `sqrt(12) (atol + rtol |y|)` per component (see
 /// [`step_allowance`]; `atol = rtol` on rates and currents), in the coordinates scaled
-/// by `u / R` and `w_ss` at most `sqrt(2) sqrt(NY) rtol (1 + 1 / min scale)`. The
+/// by `u / R` and `w_ss` at most `sqrt(2) sqrt(12) rtol (1 + 1 / min scale)`. The
 /// system is linear and stable: a local error `d_j` is carried to `t` as
 /// `V e^{Lambda (t - t_j)} V^-1 d_j` (`V` the eigenvectors, both poles negative), so
 /// the global error is at most `kappa(V) * sum_j |d_j|` = `kappa * steps * that`
@@ -335,12 +335,13 @@ fn free_rotor_spin_up_is_the_second_order_step_response() {
         worst[1] = worst[1].max((y[8] - w).abs()).max((y[9] + w).abs());
         assert_eq!(y[5..8], [0.0; 3], "the platform is held");
     }
-    // Per step, each scaled component errs by at most sqrt(NY) (atol + rtol |y|) /
-    // scale <= sqrt(NY) rtol (1 + 1 / scale) (atol = rtol on rates and currents), the
+    // Per step, each scaled component errs by at most sqrt(12) (atol + rtol |y|) /
+    // scale <= sqrt(12) rtol (1 + 1 / scale) (atol = rtol on rates and currents), the
     // pair by sqrt(2) times that; errors decay in modal coordinates, so the global
     // scaled error is at most kappa * steps * that.
     let rtol = settings.rtol;
-    let per_step = 2f64.sqrt() * (NY as f64).sqrt() * rtol * (1.0 + 1.0 / scale[0].min(scale[1]));
+    let per_step =
+        2f64.sqrt() * (STATE_LEN as f64).sqrt() * rtol * (1.0 + 1.0 / scale[0].min(scale[1]));
     let bound = kappa * plant.steps as f64 * per_step;
     eprintln!(
         "spin-up: {} steps, kappa {kappa:.3}, relative bound {bound:.3e}; worst current \

@@ -903,9 +903,12 @@ fn feet_heights(r: &TraceRow) -> [f64; 2] {
 
 /// The state of a trace row (currents and positions as recorded).
 fn trace_state(r: &TraceRow) -> [f64; NY] {
-    [
+    // The single platform's layout: (q, q', i), the rest of the state zero.
+    let mut y = [0.0; NY];
+    y[..12].copy_from_slice(&[
         r.x, r.y, r.angle, r.phi1, r.phi2, r.vx, r.vy, r.omega, r.omega1, r.omega2, r.i1, r.i2,
-    ]
+    ]);
+    y
 }
 
 /// No trace row has a closed foot pulled beyond `eps_F` (the row just before a

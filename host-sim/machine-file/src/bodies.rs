@@ -28,6 +28,14 @@ pub const PLATFORM: &str = "platform";
 pub const FUNDAMENT: &str = "fundament";
 /// The joint kinds.
 pub const JOINT_KINDS: [&str; 1] = ["revolute"];
+/// The most bodies a machine may have, the platform included (the plant's
+/// fixed-size state).
+pub const MAX_BODIES: usize = 6;
+/// The most rotors a machine may have (the controller's two channels).
+pub const MAX_ROTORS: usize = 2;
+/// The most generalized coordinates a machine may have: 3 per body, less 2 per
+/// joint, plus 1 per rotor.
+pub const MAX_DOF: usize = 12;
 /// How far a contact point may be behind its face at t = 0, m (rounding of the
 /// file's decimals).
 pub const GAP_TOLERANCE: f64 = 1e-9;
@@ -326,6 +334,91 @@ pub fn check(
                 &format!("rotors[{i}].body"),
                 format!(
                     "no moving body named {body:?}: a rotor sits on the platform or a further body"
+                ),
+            );
+            ok = false;
+        }
+    }
+    ok
+}
+
+/// The machine's size against the plant's limits ([`MAX_BODIES`], [`MAX_DOF`]:
+/// 3 coordinates per body, less 2 per joint, plus 1 per rotor), and every joint's
+/// two bodies moving together at its hinge at t = 0: the hinge's velocity from
+/// either body, `v_c + omega x (p - c)` (the fundament's: zero), must agree, since
+/// the joint holds it. Run after [`check`] found the names and trees sound.
+pub fn check_size_and_motion(
+    root: &Section,
+    platform: Option<&Platform>,
+    bodies: &[Named<Body>],
+    joints: &[Named<Joint>],
+    rotors: usize,
+) -> bool {
+    let mut ok = true;
+    let n_bodies = 1 + bodies.len();
+    if n_bodies > MAX_BODIES {
+        root.problem(
+            "bodies",
+            format!(
+                "{} [[bodies]] make {n_bodies} bodies with the platform; at most {MAX_BODIES} are allowed ({} [[bodies]])",
+                bodies.len(),
+                MAX_BODIES - 1
+            ),
+        );
+        ok = false;
+    }
+    let dof = 3 * n_bodies + rotors;
+    let dof = dof.saturating_sub(2 * joints.len());
+    if dof > MAX_DOF {
+        root.problem(
+            "joints",
+            format!(
+                "the machine has {dof} degrees of freedom (3 per body, less 2 per joint, plus 1 per rotor: 3 x {n_bodies} - 2 x {} + {rotors}); at most {MAX_DOF} are allowed",
+                joints.len()
+            ),
+        );
+        ok = false;
+    }
+    let Some(platform) = platform else {
+        return ok;
+    };
+    let rigid = |name: &str| -> Option<&Platform> {
+        if name == PLATFORM {
+            return Some(platform);
+        }
+        bodies
+            .iter()
+            .filter_map(|b| b.value.as_ref())
+            .find(|b| b.name == name)
+            .map(|b| &b.rigid)
+    };
+    for (i, joint) in joints.iter().enumerate() {
+        let Some(j) = &joint.value else { continue };
+        // The hinge's velocity as each body carries it, m/s.
+        let carried = |name: &str| -> Option<[f64; 2]> {
+            if name == FUNDAMENT {
+                return Some([0.0, 0.0]);
+            }
+            let r = rigid(name)?;
+            let d = [j.point[0] - r.position[0], j.point[1] - r.position[1]];
+            let w = r.angular_velocity;
+            Some([r.velocity[0] - w * d[1], r.velocity[1] + w * d[0]])
+        };
+        let (Some(a), Some(b)) = (carried(&j.bodies[0]), carried(&j.bodies[1])) else {
+            continue;
+        };
+        let gap = (a[0] - b[0]).hypot(a[1] - b[1]);
+        let scale = 1.0 + a[0].hypot(a[1]).max(b[0].hypot(b[1]));
+        if gap > 1e-9 * scale {
+            root.problem(
+                &format!("joints[{i}].point"),
+                format!(
+                    "the hinge {} moves at {} m/s with {:?} but at {} m/s with {:?} at t = 0; a joint holds its two bodies together there: give the bodies' `velocity` and `angular_velocity` so that they agree (v_c + omega x (point - c))",
+                    vector(j.point),
+                    vector(a),
+                    j.bodies[0],
+                    vector(b),
+                    j.bodies[1]
                 ),
             );
             ok = false;

@@ -536,7 +536,8 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let points: Vec<(String, [f64; 2])> =
         contacts.iter().map(|c| (c.name.clone(), c.point)).collect();
     let rotor_bodies: Vec<String> = rotors.iter().map(|r| r.body.clone()).collect();
-    let bodies_ok = bodies::check(&root, &further, &joints, &mut ends, &points, &rotor_bodies);
+    let bodies_ok = bodies::check(&root, &further, &joints, &mut ends, &points, &rotor_bodies)
+        && bodies::check_size_and_motion(&root, platform.as_ref(), &further, &joints, rotors.len());
     for (c, e) in contacts.iter_mut().zip(ends) {
         c.ends = e;
     }

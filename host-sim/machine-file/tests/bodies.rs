@@ -25,6 +25,7 @@ name = "actuator"
 mass = 0.2
 inertia = 1e-4
 position = [0.1, 0.1]
+velocity = [0.0, 0.05]          # turning about its hinge at (0, 0.1)
 angular_velocity = 0.5
 
 [[joints]]
@@ -177,6 +178,12 @@ fn every_rule_is_refused_with_its_key() {
             ">= 0",
         ),
         ("mass = 0.05", "mass = 0.0", "bodies[0].mass", "> 0"),
+        (
+            "velocity = [0.0, 0.05]",
+            "velocity = [0.0, 0.0]",
+            "joints[1].point",
+            "moves at [0, 0] m/s with \"platform\" but at [0, -0.05] m/s with \"actuator\"",
+        ),
     ];
     for (from, to, key, words) in cases {
         assert!(
@@ -235,4 +242,38 @@ fn further_bodies_can_be_set_from_the_command_line() {
     .expect("valid");
     assert_eq!(m.bodies[0].rigid.mass, 0.07);
     assert_eq!(m.joints[0].stiffness, 55.0);
+}
+
+/// `n` free bodies (no joints) far above the floor.
+fn free_bodies(n: usize) -> String {
+    (0..n)
+        .map(|i| {
+            format!(
+                "\n[[bodies]]\nname = \"b{i}\"\nmass = 0.1\ninertia = 1e-4\nposition = [{}, 1.0]\n",
+                i as f64
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_plant_limits_are_refused_with_the_numbers() {
+    use machine_file::bodies::{MAX_BODIES, MAX_DOF};
+    // Within the bodies' limit, beyond the coordinates': 3 x 6 + 2 rotors.
+    let e = read(&free_bodies(MAX_BODIES - 1)).expect_err("too many coordinates");
+    assert!(
+        e.contains("m.toml: joints: the machine has 20 degrees of freedom")
+            && e.contains(&format!("at most {MAX_DOF}")),
+        "{e}"
+    );
+    let e = read(&free_bodies(MAX_BODIES)).expect_err("too many bodies");
+    assert!(
+        e.contains(&format!(
+            "m.toml: bodies: {MAX_BODIES} [[bodies]] make {} bodies",
+            MAX_BODIES + 1
+        )),
+        "{e}"
+    );
+    // Three free bodies with two rotors: 11 coordinates, accepted.
+    read(&free_bodies(2)).expect("11 coordinates");
 }

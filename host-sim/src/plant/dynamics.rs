@@ -1,44 +1,46 @@
-//! Equations of motion of the platform with its two unbalance rotors, in the
-//! generalized coordinates `q = (x, y, theta, phi_1, phi_2)`: the platform's centre
-//! of mass, its angle, and the eccentric angles in the platform frame.
+//! Equations of motion of the bodies with their unbalance rotors, in the
+//! generalized coordinates of [`super::model`] (`q = (x, y, theta, phi_1, phi_2)`
+//! for a single platform).
 //!
-//! The eccentric mass `m_k` of rotor `k` sits at `r_k = rho_k + eps_k` from the
-//! platform's centre of mass, with the axis `rho_k = R(theta) a_k` and the
-//! eccentric `eps_k = e_k (cos(theta + phi_k), sin(theta + phi_k))`. Its velocity
-//! is `v_k = J_k q'` with the Jacobian columns
-//!
-//! ```text
-//!   d/dx = (1, 0),  d/dy = (0, 1),  d/dtheta = z x r_k,  d/dphi_k = z x eps_k
-//! ```
-//!
-//! and its acceleration `J_k q'' + b_k` with the velocity-product term
-//! `b_k = -theta'^2 rho_k - (theta' + phi_k')^2 eps_k`. The rotor (armature and hub,
-//! inertia `I_k`) turns at `theta' + phi_k'`. Lagrange's equations
-//! (Goldstein, *Classical Mechanics*, ch. 1; d'Alembert for point masses) give
+//! Every mass is a point with a Jacobian: a body's centre of mass (mass `m_b`,
+//! inertia `I_b` turning at `theta_b'`) and each rotor's eccentric mass `m_k` at
+//! `eps_k = e_k (cos(theta_b + phi_k), sin(theta_b + phi_k))` from its axis, the
+//! rotor (armature and hub, inertia `I_k`) turning at `theta_b' + phi_k'`. A point
+//! `p = base + sum_s w_s` (the segments of its chain, [`Chain`]) moves at
+//! `v = J q'` with one column per coordinate,
 //!
 //! ```text
-//!   M(q) q'' = Q_g + Q_motor + J_c^T lambda - sum_k m_k J_k^T b_k
-//!   M = diag(m_p, m_p, J_p, 0, 0) + sum_k m_k J_k^T J_k + sum_k I_k (e_theta + e_phi_k)(e_theta + e_phi_k)^T
+//!   d/dx = (1, 0),  d/dy = (0, 1)  (a free root),   d/dtheta_a = sum of z x w_s over the segments turning with theta_a
 //! ```
 //!
-//! so the coupling is complete: the exciting force of an eccentric
-//! `m e (phi'^2 cos phi + phi'' sin phi, ...)` is the `m_k J_k^T b_k` and `M` terms, and the
-//! platform's acceleration and gravity act back on the rotors through the same
-//! terms (Sommerfeld effect, self-synchronisation; Blekhman, *Vibrational
-//! Mechanics*, 2000). A motor's torque acts between platform and rotor, so its
-//! generalized force is on `phi_k` only.
+//! and accelerates at `J q'' + b` with the velocity-product term
+//! `b = -sum_s omega_s^2 w_s` (`omega_s` the segment's angular velocity).
+//! Lagrange's equations (Goldstein, *Classical Mechanics*, ch. 1; d'Alembert for
+//! point masses) give
+//!
+//! ```text
+//!   M(q) q'' = Q_g + Q_motor + Q_spring + J_c^T lambda - sum_e m_e J_e^T b_e
+//!   M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T)
+//! ```
+//!
+//! with `s_e` the coordinates the element turns with (`e_theta_b`, plus `e_phi_k`
+//! for a rotor), so the coupling is complete: the exciting force of an eccentric
+//! `m e (phi'^2 cos phi + phi'' sin phi, ...)` is in the `m_k J_k^T b_k` and `M`
+//! terms, and the bodies' accelerations and gravity act back on the rotors through
+//! the same terms (Sommerfeld effect, self-synchronisation; Blekhman, *Vibrational
+//! Mechanics*, 2000). A motor's torque acts between its body and its rotor, so its
+//! generalized force is on `phi_k` only; a joint's spring-damper acts on the two
+//! bodies' angles, equal and opposite.
+//!
+//! The single platform's terms come out in the same floating-point operations, in
+//! the same order, as the closed forms this module had before it took several
+//! bodies (a machine file without further bodies gives the same numbers to the bit).
 
-use super::model::PlantModel;
-pub use super::model::DOF;
+use super::model::{Face, Mount, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS};
 
-/// The mechanical state.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct State {
-    /// `(x, y, theta, phi_1, phi_2)`: m, m, rad, rad, rad.
-    pub q: [f64; DOF],
-    /// Their rates: m/s, m/s, rad/s, rad/s, rad/s.
-    pub v: [f64; DOF],
-}
+/// A vector of generalized coordinates (a machine uses the first
+/// [`PlantModel::dof`]).
+pub type Vector = [f64; MAX_DOF];
 
 /// `z x r = (-r_y, r_x)`.
 #[inline]
@@ -65,45 +67,364 @@ pub fn rotate(angle_cs: (f64, f64), v: [f64; 2]) -> [f64; 2] {
     [c * v[0] - s * v[1], s * v[0] + c * v[1]]
 }
 
+/// One segment of a point's chain: a world vector turning at `v[angle]` (plus
+/// `v[spin]`, a rotor's eccentric angle, for an eccentric; [`NO_SPIN`] for none).
+/// Small on purpose: chains are built and copied in the innermost loops.
+#[derive(Clone, Copy, Debug, Default)]
+struct Segment {
+    w: [f64; 2],
+    angle: u8,
+    spin: u8,
+}
+
+/// [`Segment::spin`] of a segment that turns with a body alone.
+const NO_SPIN: u8 = u8::MAX;
+
+impl Segment {
+    /// Its angular velocity, rad/s.
+    fn omega(&self, v: &Vector) -> f64 {
+        if self.spin == NO_SPIN {
+            v[self.angle as usize]
+        } else {
+            v[self.angle as usize] + v[self.spin as usize]
+        }
+    }
+
+    /// The eccentric angle it also turns with.
+    fn spin(&self) -> Option<usize> {
+        (self.spin != NO_SPIN).then_some(self.spin as usize)
+    }
+}
+
+/// A point of the machine at a configuration: where it is, and the chain of
+/// segments its velocity is made of.
+#[derive(Clone, Copy, Debug)]
+pub struct Chain {
+    /// World position, m.
+    pub p: [f64; 2],
+    /// The free root's `x` coordinate, if the tree has one.
+    trans: Option<usize>,
+    segments: [Segment; MAX_BODIES + 1],
+    len: usize,
+}
+
+impl Chain {
+    fn push(&mut self, angle: usize, spin: Option<usize>, w: [f64; 2]) {
+        // Coordinates are fewer than MAX_DOF (12): they fit a byte.
+        self.segments[self.len] = Segment {
+            w,
+            angle: angle as u8,
+            spin: spin.map_or(NO_SPIN, |k| k as u8),
+        };
+        self.len += 1;
+        self.p = [self.p[0] + w[0], self.p[1] + w[1]];
+    }
+
+    fn segments(&self) -> &[Segment] {
+        &self.segments[..self.len]
+    }
+
+    /// Its velocity `J q'`, m/s.
+    pub fn velocity(&self, v: &Vector) -> [f64; 2] {
+        let mut u = match self.trans {
+            Some(x) => [v[x], v[x + 1]],
+            None => [0.0; 2],
+        };
+        for s in self.segments() {
+            let w = s.omega(v);
+            u[0] -= w * s.w[1];
+            u[1] += w * s.w[0];
+        }
+        u
+    }
+
+    /// The velocity-product part of its acceleration along `d`,
+    /// `d . b = -sum_s omega_s^2 d . w_s`, m/s^2.
+    pub fn bias_along(&self, d: [f64; 2], v: &Vector) -> f64 {
+        let mut b = 0.0;
+        for s in self.segments() {
+            let w = s.omega(v);
+            b -= (w * w) * dot(d, s.w);
+        }
+        b
+    }
+
+    /// Adds `sign d . J` to `row` (the Jacobian row of its velocity along `d`).
+    pub fn add_row(&self, d: [f64; 2], sign: f64, row: &mut Vector) {
+        if let Some(x) = self.trans {
+            row[x] += sign * d[0];
+            row[x + 1] += sign * d[1];
+        }
+        for s in self.segments() {
+            let c = sign * cross(s.w, d);
+            row[s.angle as usize] += c;
+            if let Some(k) = s.spin() {
+                row[k] += c;
+            }
+        }
+    }
+
+    /// The columns of its angular coordinates, each once, in increasing order
+    /// (parents' angles before children's, rotors' last): `(coordinate, z x w)`
+    /// summed over the segments turning with it.
+    fn columns(&self) -> ([(usize, [f64; 2]); MAX_BODIES + 2], usize) {
+        let mut cols = [(0, [0.0; 2]); MAX_BODIES + 2];
+        let mut n = 0;
+        let mut add = |i: usize, c: [f64; 2]| {
+            if n > 0 && cols[n - 1].0 == i {
+                cols[n - 1].1 = [cols[n - 1].1[0] + c[0], cols[n - 1].1[1] + c[1]];
+            } else {
+                cols[n] = (i, c);
+                n += 1;
+            }
+        };
+        for s in self.segments() {
+            add(s.angle as usize, perp(s.w));
+        }
+        // The eccentric's own angle after every body angle.
+        for s in self.segments() {
+            if let Some(k) = s.spin() {
+                add(k, perp(s.w));
+            }
+        }
+        (cols, n)
+    }
+}
+
+/// Where the bodies are at a configuration: each one's angle (sine, cosine) and
+/// reference point (world, m). No mass matrix: the event functions use this alone.
+#[derive(Clone, Copy, Debug)]
+pub struct Pose {
+    cs: [(f64, f64); MAX_BODIES],
+    reference: [[f64; 2]; MAX_BODIES],
+}
+
+impl Pose {
+    /// The pose at `q`.
+    pub fn new(model: &PlantModel, q: &Vector) -> Self {
+        let mut pose = Pose {
+            cs: [(0.0, 1.0); MAX_BODIES],
+            reference: [[0.0; 2]; MAX_BODIES],
+        };
+        for &b in &model.order {
+            let body = &model.bodies[b];
+            pose.cs[b] = q[body.angle].sin_cos();
+            pose.reference[b] = match body.mount {
+                Mount::Free { x } => [q[x], q[x + 1]],
+                Mount::Pinned { pivot } => pivot,
+                Mount::Child { parent, joint } => {
+                    let r = rotate(pose.cs[parent], joint);
+                    let o = pose.reference[parent];
+                    [o[0] + r[0], o[1] + r[1]]
+                }
+            };
+        }
+        pose
+    }
+
+    /// `(sin theta, cos theta)` of body `b`.
+    pub fn angle_cs(&self, b: usize) -> (f64, f64) {
+        self.cs[b]
+    }
+
+    /// The chain of body `b`'s reference point: its root's base and the segments
+    /// of its ancestors' hinges.
+    fn chain_to(&self, model: &PlantModel, b: usize) -> Chain {
+        let body = &model.bodies[b];
+        let root = &model.bodies[body.chain[0]];
+        let (trans, p) = match root.mount {
+            Mount::Free { x } => (Some(x), self.reference[body.chain[0]]),
+            Mount::Pinned { pivot } => (None, pivot),
+            Mount::Child { .. } => unreachable!("a chain starts at its tree's root"),
+        };
+        let mut chain = Chain {
+            p,
+            trans,
+            segments: [Segment::default(); MAX_BODIES + 1],
+            len: 0,
+        };
+        for pair in body.chain.windows(2) {
+            let (a, child) = (pair[0], pair[1]);
+            if let Mount::Child { joint, .. } = model.bodies[child].mount {
+                chain.push(model.bodies[a].angle, None, rotate(self.cs[a], joint));
+            }
+        }
+        chain
+    }
+
+    /// The point of body `b` at `r` from its reference point (body frame, m).
+    pub fn point(&self, model: &PlantModel, b: usize, r: [f64; 2]) -> Chain {
+        let mut chain = self.chain_to(model, b);
+        chain.push(model.bodies[b].angle, None, rotate(self.cs[b], r));
+        chain
+    }
+
+    /// The material point of body `b` that is at world position `p` now.
+    pub fn point_at(&self, model: &PlantModel, b: usize, p: [f64; 2]) -> Chain {
+        let mut chain = self.chain_to(model, b);
+        let o = self.reference[b];
+        chain.push(model.bodies[b].angle, None, [p[0] - o[0], p[1] - o[1]]);
+        chain
+    }
+
+    /// Body `b`'s centre of mass.
+    pub fn centre_of_mass(&self, model: &PlantModel, b: usize) -> Chain {
+        self.point(model, b, model.bodies[b].com)
+    }
+
+    /// Rotor `k`'s eccentric mass at `q`: its axis, then
+    /// `eps = e (cos(theta_b + phi_k), sin(theta_b + phi_k))` turning at
+    /// `theta_b' + phi_k'`.
+    pub fn eccentric(&self, model: &PlantModel, k: usize, q: &Vector) -> Chain {
+        self.eccentric_at(model, k, eccentric_offset(model, k, q))
+    }
+
+    /// Rotor `k`'s eccentric mass at `eps` from its axis (world, m).
+    fn eccentric_at(&self, model: &PlantModel, k: usize, eps: [f64; 2]) -> Chain {
+        let rotor = &model.rotors[k];
+        let b = rotor.body;
+        let mut chain = self.point(model, b, rotor.axis);
+        chain.push(model.bodies[b].angle, Some(rotor.phi), eps);
+        chain
+    }
+
+    /// The kinematics of contact `j` at velocities `v` (this pose's `q`).
+    pub fn contact(&self, model: &PlantModel, j: usize, v: &Vector) -> ContactKinematics {
+        let c = &model.contacts[j];
+        let point = self.point(model, c.body, c.point);
+        let mut k = ContactKinematics::default();
+        match c.face {
+            Face::Fundament => {
+                let (n, t) = (model.normal, model.tangent);
+                point.add_row(n, 1.0, &mut k.j_n);
+                point.add_row(t, 1.0, &mut k.j_t);
+                let g = model.ground_point;
+                k.gap = dot(n, [point.p[0] - g[0], point.p[1] - g[1]]);
+                k.bias_n = point.bias_along(n, v);
+                k.bias_t = point.bias_along(t, v);
+            }
+            Face::Body {
+                body: a,
+                point: f,
+                normal,
+            } => {
+                // The face turns with body a: n = R(theta_a) n_a, t = z x n. With
+                // d = P - F (F the face's point), g = n . d and the relative velocity
+                // at the contact u = v_P - v_C (C: a's material point at P),
+                //   g' = n . u,  u_t = t . u,
+                //   g'' = n . (J_P - J_C) q'' + n . (b_P - b_F) + 2 w_a t . (v_P - v_F) - w_a^2 g,
+                //   u_t' = t . (J_P - J_C) q'' + t . (b_P - b_F) - w_a n . (v_P - v_F) - w_a g'.
+                let n = rotate(self.cs[a], normal);
+                let t = perp(n);
+                let face = self.point(model, a, f);
+                let coincident = self.point_at(model, a, point.p);
+                point.add_row(n, 1.0, &mut k.j_n);
+                coincident.add_row(n, -1.0, &mut k.j_n);
+                point.add_row(t, 1.0, &mut k.j_t);
+                coincident.add_row(t, -1.0, &mut k.j_t);
+                k.gap = dot(n, [point.p[0] - face.p[0], point.p[1] - face.p[1]]);
+                let (vp, vf) = (point.velocity(v), face.velocity(v));
+                let rel = [vp[0] - vf[0], vp[1] - vf[1]];
+                let wa = v[model.bodies[a].angle];
+                let u_n = row_dot(&k.j_n, v);
+                k.bias_n = point.bias_along(n, v) - face.bias_along(n, v) + 2.0 * wa * dot(t, rel)
+                    - wa * wa * k.gap;
+                k.bias_t =
+                    point.bias_along(t, v) - face.bias_along(t, v) - wa * dot(n, rel) - wa * u_n;
+            }
+        }
+        k.u_n = row_dot(&k.j_n, v);
+        k.u_t = row_dot(&k.j_t, v);
+        k
+    }
+}
+
+/// Rotor `k`'s eccentric at `q`, from its axis (world, m):
+/// `eps = e (cos(theta_b + phi_k), sin(theta_b + phi_k))`.
+fn eccentric_offset(model: &PlantModel, k: usize, q: &Vector) -> [f64; 2] {
+    let rotor = &model.rotors[k];
+    let angle = model.bodies[rotor.body].angle;
+    let (s, c) = (q[angle] + q[rotor.phi]).sin_cos();
+    let e = rotor.eccentricity;
+    [e * c, e * s]
+}
+
+/// `j . v` over the machine's coordinates (the rest of both are zero).
+#[inline]
+pub fn row_dot(j: &Vector, v: &Vector) -> f64 {
+    let mut s = 0.0;
+    for i in 0..MAX_DOF {
+        s += j[i] * v[i];
+    }
+    s
+}
+
 /// A contact point's kinematics at a state.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ContactKinematics {
     /// Normal Jacobian row: `u_n = j_n . q'`.
-    pub j_n: [f64; DOF],
+    pub j_n: Vector,
     /// Tangential Jacobian row: `u_t = j_t . q'`.
-    pub j_t: [f64; DOF],
-    /// Gap to the fundament along its normal, m (negative: penetration).
+    pub j_t: Vector,
+    /// Gap to the face along its normal, m (negative: penetration).
     pub gap: f64,
     /// Normal velocity, m/s.
     pub u_n: f64,
     /// Tangential velocity, m/s.
     pub u_t: f64,
-    /// Velocity-product part of the normal acceleration, `-theta'^2 n . r`, m/s^2.
+    /// Velocity-product part of the normal acceleration, m/s^2.
     pub bias_n: f64,
     /// Velocity-product part of the tangential acceleration, m/s^2.
     pub bias_t: f64,
 }
 
-/// Everything that depends on the configuration: mass matrix (factored) and the
-/// eccentric masses' geometry.
+/// A point mass of the machine at a configuration: a body's centre of mass or a
+/// rotor's eccentric mass, with the inertia that turns with it.
+#[derive(Clone, Copy, Debug)]
+struct Element {
+    chain: Chain,
+    mass: f64,
+    /// Inertia about the point, kg m^2, turning with `spin` (a body's angle; a
+    /// rotor's body angle plus its eccentric angle).
+    inertia: f64,
+    spin: (usize, Option<usize>),
+    /// The rotor it is, if it is one.
+    rotor: Option<usize>,
+}
+
+impl Element {
+    fn spins_with(&self, i: usize) -> bool {
+        self.spin.0 == i || self.spin.1 == Some(i)
+    }
+}
+
+/// Everything that depends on the configuration: the mass matrix (factored) and
+/// the point masses' chains.
 #[derive(Clone, Debug)]
 pub struct Frame {
-    /// The mass matrix, kg / kg m / kg m^2.
-    pub mass: [[f64; DOF]; DOF],
-    /// Its Cholesky factor (lower), used when coordinates are held.
-    chol: [[f64; DOF]; DOF],
-    /// The platform block's Schur complement `S = A - B D^-1 B^T` (inverse, 3x3),
-    /// used when nothing is held (see [`Frame::solve`]).
+    /// The mass matrix, kg / kg m / kg m^2 (the first [`PlantModel::dof`] rows
+    /// and columns).
+    pub mass: [[f64; MAX_DOF]; MAX_DOF],
+    /// Where the bodies are.
+    pub pose: Pose,
+    /// The configuration.
+    q: Vector,
+    /// Coordinates: all, the bodies' (the rotors' follow).
+    n: usize,
+    nb: usize,
+    /// The Cholesky factor (lower) of the mass matrix with the held coordinates'
+    /// rows and columns replaced by the identity when some are held; else of the
+    /// bodies' Schur complement `S = A - B D^-1 B^T` (see [`Frame::solve`]) unless
+    /// that is 3x3.
+    factor: [[f64; MAX_DOF]; MAX_DOF],
+    /// `S^-1` by the adjugate where the bodies have three coordinates (one free
+    /// body, the common case).
     schur_inv: [[f64; 3]; 3],
-    /// Axis offsets `rho_k` (world), m.
-    rho: [[f64; 2]; 2],
-    /// Eccentric offsets `eps_k` (world), m.
-    eps: [[f64; 2]; 2],
-    /// `(sin theta, cos theta)`.
-    cs: (f64, f64),
+    /// Each rotor's eccentric from its axis (world, m).
+    eps: [[f64; 2]; MAX_ROTORS],
     /// Coordinates held still.
-    locked: [bool; DOF],
-    /// Some coordinate is held: solve with the Cholesky factor.
+    locked: [bool; MAX_DOF],
+    /// Some coordinate is held: solve with the full Cholesky factor.
     any_locked: bool,
 }
 
@@ -112,20 +433,21 @@ impl Frame {
     /// `locked` held (their rows and columns of the factored mass matrix replaced
     /// by the identity, so that no force or impulse moves them; [`Frame::mass`]
     /// stays the true mass matrix).
-    pub fn locked(model: &PlantModel, q: &[f64; DOF], locked: &[bool; DOF]) -> Self {
+    pub fn locked(model: &PlantModel, q: &Vector, locked: &[bool; MAX_DOF]) -> Self {
         let mut f = Self::new(model, q);
         if locked.iter().any(|l| *l) {
             let mut m = f.mass;
-            for i in 0..DOF {
+            for i in 0..f.n {
                 if locked[i] {
-                    for j in 0..DOF {
+                    for j in 0..f.n {
                         m[i][j] = 0.0;
                         m[j][i] = 0.0;
                     }
                     m[i][i] = 1.0;
                 }
             }
-            f.chol = cholesky(&m);
+            cholesky_in_place(&mut m, f.n);
+            f.factor = m;
             f.locked = *locked;
             f.any_locked = true;
         }
@@ -133,209 +455,244 @@ impl Frame {
     }
 
     /// The configuration-dependent terms at `q`.
-    pub fn new(model: &PlantModel, q: &[f64; DOF]) -> Self {
-        let cs = q[2].sin_cos();
-        let mut rho = [[0.0; 2]; 2];
-        let mut eps = [[0.0; 2]; 2];
-        let mut m = [[0.0; DOF]; DOF];
-        let total = model.total_mass();
-        m[0][0] = total;
-        m[1][1] = total;
-        m[2][2] = model.platform_inertia;
-        for k in 0..2 {
-            let rot = &model.rotors[k];
-            rho[k] = rotate(cs, rot.axis);
-            let (s, c) = (q[2] + q[3 + k]).sin_cos();
-            eps[k] = [rot.eccentricity * c, rot.eccentricity * s];
-            let r = [rho[k][0] + eps[k][0], rho[k][1] + eps[k][1]];
-            let (mk, ik) = (rot.mass, rot.inertia);
-            // m_k J_k^T J_k with columns (1,0), (0,1), z x r, z x eps.
-            m[0][2] += -mk * r[1];
-            m[1][2] += mk * r[0];
-            m[0][3 + k] = -mk * eps[k][1];
-            m[1][3 + k] = mk * eps[k][0];
-            m[2][2] += mk * dot(r, r) + ik;
-            m[2][3 + k] = mk * dot(r, eps[k]) + ik;
-            m[3 + k][3 + k] = mk * dot(eps[k], eps[k]) + ik;
+    pub fn new(model: &PlantModel, q: &Vector) -> Self {
+        let pose = Pose::new(model, q);
+        let (n, nb) = (model.dof, model.body_dof);
+        let mut eps = [[0.0; 2]; MAX_ROTORS];
+        for (k, e) in eps.iter_mut().enumerate().take(model.rotors.len()) {
+            *e = eccentric_offset(model, k, q);
         }
-        for i in 0..DOF {
+        let mut frame = Frame {
+            mass: [[0.0; MAX_DOF]; MAX_DOF],
+            pose,
+            q: *q,
+            n,
+            nb,
+            factor: [[0.0; MAX_DOF]; MAX_DOF],
+            schur_inv: [[0.0; 3]; 3],
+            eps,
+            locked: [false; MAX_DOF],
+            any_locked: false,
+        };
+
+        // M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T), upper triangle, then mirrored.
+        let m = &mut frame.mass;
+        for i in 0..model.bodies.len() + model.rotors.len() {
+            let e = &element(model, &frame.pose, &frame.eps, i);
+            let (cols, nc) = e.chain.columns();
+            let cols = &cols[..nc];
+            if let Some(x) = e.chain.trans {
+                m[x][x] += e.mass;
+                m[x + 1][x + 1] += e.mass;
+                for &(i, c) in cols {
+                    m[x][i] += e.mass * c[0];
+                    m[x + 1][i] += e.mass * c[1];
+                }
+            }
+            for (a, &(i, ci)) in cols.iter().enumerate() {
+                for &(j, cj) in &cols[a..] {
+                    let spin = if e.spins_with(i) && e.spins_with(j) {
+                        e.inertia
+                    } else {
+                        0.0
+                    };
+                    m[i][j] += e.mass * dot(ci, cj) + spin;
+                }
+            }
+        }
+        for i in 0..n {
             for j in 0..i {
                 m[i][j] = m[j][i];
             }
         }
-        let schur_inv = schur_inverse(&m);
-        Frame {
-            mass: m,
-            chol: [[0.0; DOF]; DOF],
-            schur_inv,
-            rho,
-            eps,
-            cs,
-            locked: [false; DOF],
-            any_locked: false,
+        // The Schur complement in the factor's place, then factored there (or
+        // inverted by the adjugate when 3x3).
+        frame.schur_into_factor();
+        if nb == 3 {
+            frame.schur_inv = inverse3(&frame.factor);
+        } else {
+            cholesky_in_place(&mut frame.factor, nb);
+        }
+        frame
+    }
+
+    /// The bodies' Schur complement `S = A - B D^-1 B^T` of
+    /// `M = [A B; B^T D]`, `D` the rotors' block: diagonal (two eccentrics never
+    /// share a coordinate).
+    fn schur_into_factor(&mut self) {
+        let (m, nb) = (&self.mass, self.nb);
+        for i in 0..nb {
+            for j in 0..nb {
+                let mut x = m[i][j];
+                for r in nb..self.n {
+                    x -= m[i][r] * m[j][r] / m[r][r];
+                }
+                self.factor[i][j] = x;
+            }
         }
     }
 
     /// `M^-1 b` (held coordinates: zero).
     ///
     /// Nothing held: block elimination of the rotors, whose block `D` is diagonal
-    /// (`M = [A B; B^T D]`, `A` the platform's 3x3 block):
-    /// `x_p = S^-1 (b_p - B D^-1 b_r)`, `x_r = D^-1 (b_r - B^T x_p)`.
-    pub fn solve(&self, b: &[f64; DOF]) -> [f64; DOF] {
+    /// (`M = [A B; B^T D]`, `A` the bodies' block):
+    /// `x_b = S^-1 (b_b - B D^-1 b_r)`, `x_r = D^-1 (b_r - B^T x_b)`.
+    pub fn solve(&self, b: &Vector) -> Vector {
+        let (n, nb) = (self.n, self.nb);
+        let mut x = [0.0; MAX_DOF];
         if !self.any_locked {
             let m = &self.mass;
-            let br = [b[3] / m[3][3], b[4] / m[4][4]];
-            let rhs = [
-                b[0] - m[0][3] * br[0] - m[0][4] * br[1],
-                b[1] - m[1][3] * br[0] - m[1][4] * br[1],
-                b[2] - m[2][3] * br[0] - m[2][4] * br[1],
-            ];
-            let si = &self.schur_inv;
-            let xp = [
-                si[0][0] * rhs[0] + si[0][1] * rhs[1] + si[0][2] * rhs[2],
-                si[1][0] * rhs[0] + si[1][1] * rhs[1] + si[1][2] * rhs[2],
-                si[2][0] * rhs[0] + si[2][1] * rhs[1] + si[2][2] * rhs[2],
-            ];
-            let xr =
-                |k: usize| (b[k] - m[0][k] * xp[0] - m[1][k] * xp[1] - m[2][k] * xp[2]) / m[k][k];
-            return [xp[0], xp[1], xp[2], xr(3), xr(4)];
-        }
-        let l = &self.chol;
-        let mut y = [0.0; DOF];
-        for i in 0..DOF {
-            let mut s = if self.locked[i] { 0.0 } else { b[i] };
-            for k in 0..i {
-                s -= l[i][k] * y[k];
+            let mut br = [0.0; MAX_ROTORS];
+            for r in nb..n {
+                br[r - nb] = b[r] / m[r][r];
             }
-            y[i] = s / l[i][i];
-        }
-        let mut x = [0.0; DOF];
-        for i in (0..DOF).rev() {
-            let mut s = y[i];
-            for k in (i + 1)..DOF {
-                s -= l[k][i] * x[k];
+            let mut rhs = [0.0; MAX_DOF];
+            for i in 0..nb {
+                let mut y = b[i];
+                for r in nb..n {
+                    y -= m[i][r] * br[r - nb];
+                }
+                rhs[i] = y;
             }
-            x[i] = s / l[i][i];
+            if nb == 3 {
+                let si = &self.schur_inv;
+                for i in 0..3 {
+                    x[i] = si[i][0] * rhs[0] + si[i][1] * rhs[1] + si[i][2] * rhs[2];
+                }
+            } else {
+                x = cholesky_solve(&self.factor, &rhs, nb, &[false; MAX_DOF]);
+            }
+            for r in nb..n {
+                let mut y = b[r];
+                for i in 0..nb {
+                    y -= m[i][r] * x[i];
+                }
+                x[r] = y / m[r][r];
+            }
+            return x;
         }
-        x
+        cholesky_solve(&self.factor, b, n, &self.locked)
     }
 
-    /// Generalized forces without contacts: gravity, the rotors' generalized torques
-    /// `tau` (on `phi_1`, `phi_2`, N m), minus the velocity-product terms.
+    /// Generalized forces without contacts: gravity, the rotors' motor torques
+    /// `tau` (on each `phi_k`, N m), the joints' spring-dampers, minus the
+    /// velocity-product terms.
     ///
-    /// `Q = sum_masses J^T m g - sum_k m_k J_k^T b_k + (0, 0, 0, tau_1, tau_2)`
-    pub fn forces(&self, model: &PlantModel, v: &[f64; DOF], tau: [f64; 2]) -> [f64; DOF] {
+    /// `Q = sum_e J_e^T m_e (g - b_e) + Q_spring + tau on phi`; on a free root's
+    /// `x, y` this is its tree's weight plus `sum_e m_e (a_e - g)` with
+    /// `a_e = g - b_e`.
+    pub fn forces(&self, model: &PlantModel, v: &Vector, tau: &[f64]) -> Vector {
         let g = model.gravity;
-        let mut f = [0.0; DOF];
-        f[0] = model.total_mass() * g[0];
-        f[1] = model.total_mass() * g[1];
-        let w = v[2];
-        for k in 0..2 {
-            let mk = model.rotors[k].mass;
-            let wk = w + v[3 + k];
-            let (rho, eps) = (self.rho[k], self.eps[k]);
-            // Force on the eccentric mass: m (g - b_k), b_k = -w^2 rho - wk^2 eps.
-            let a = [
-                g[0] + w * w * rho[0] + wk * wk * eps[0],
-                g[1] + w * w * rho[1] + wk * wk * eps[1],
-            ];
-            let fk = [mk * a[0], mk * a[1]];
-            let r = [rho[0] + eps[0], rho[1] + eps[1]];
-            // Gravity's share on x, y is already in the total mass above.
-            f[0] += fk[0] - mk * g[0];
-            f[1] += fk[1] - mk * g[1];
-            f[2] += cross(r, fk);
-            f[3 + k] += cross(eps, fk) + tau[k];
+        let mut f = [0.0; MAX_DOF];
+        for &(x, mass) in &model.free_roots {
+            f[x] = mass * g[0];
+            f[x + 1] = mass * g[1];
+        }
+        for i in 0..model.bodies.len() + model.rotors.len() {
+            let e = &element(model, &self.pose, &self.eps, i);
+            // Force on the point mass: m (g - b), b = -sum_s omega_s^2 w_s.
+            let mut a = g;
+            for s in e.chain.segments() {
+                let w = s.omega(v);
+                a[0] += w * w * s.w[0];
+                a[1] += w * w * s.w[1];
+            }
+            let fe = [e.mass * a[0], e.mass * a[1]];
+            if let Some(x) = e.chain.trans {
+                // Gravity's share on x, y is already in the tree's weight above.
+                f[x] += fe[0] - e.mass * g[0];
+                f[x + 1] += fe[1] - e.mass * g[1];
+            }
+            let (cols, nc) = e.chain.columns();
+            for &(i, c) in &cols[..nc] {
+                match e.rotor {
+                    Some(k) if i == model.rotors[k].phi => f[i] += dot(c, fe) + tau[k],
+                    _ => f[i] += dot(c, fe),
+                }
+            }
+        }
+        for s in &model.springs {
+            let angle = |x: Option<usize>| {
+                x.map_or((0.0, 0.0), |b| {
+                    let i = model.bodies[b].angle;
+                    (self.q[i], v[i])
+                })
+            };
+            let ((ta, wa), (tb, wb)) = (angle(s.a), angle(s.b));
+            let torque = -s.stiffness * ((tb - ta) - s.rest_angle) - s.damping * (wb - wa);
+            if let Some(b) = s.b {
+                f[model.bodies[b].angle] += torque;
+            }
+            if let Some(a) = s.a {
+                f[model.bodies[a].angle] -= torque;
+            }
         }
         f
     }
 
     /// Kinetic energy `q'^T M q' / 2`, J.
-    pub fn kinetic_energy(&self, v: &[f64; DOF]) -> f64 {
+    pub fn kinetic_energy(&self, v: &Vector) -> f64 {
         let mut e = 0.0;
-        for i in 0..DOF {
-            for j in 0..DOF {
+        for i in 0..self.n {
+            for j in 0..self.n {
                 e += v[i] * self.mass[i][j] * v[j];
             }
         }
         0.5 * e
     }
 
-    /// Potential energy of gravity, `-sum m g . r`, J (zero at the origin).
-    pub fn potential_energy(&self, model: &PlantModel, q: &[f64; DOF]) -> f64 {
+    /// Potential energy of gravity, `-sum m g . r` (zero at the origin), and of the
+    /// joints' springs, `k (alpha - alpha_0)^2 / 2`, J.
+    pub fn potential_energy(&self, model: &PlantModel, q: &Vector) -> f64 {
         let g = model.gravity;
-        let mut e = -model.platform_mass * (g[0] * q[0] + g[1] * q[1]);
-        for k in 0..2 {
-            let mk = model.rotors[k].mass;
-            let p = [
-                q[0] + self.rho[k][0] + self.eps[k][0],
-                q[1] + self.rho[k][1] + self.eps[k][1],
-            ];
-            e -= mk * dot(g, p);
+        let mut e = 0.0;
+        for i in 0..model.bodies.len() + model.rotors.len() {
+            let el = element(model, &self.pose, &self.eps, i);
+            e -= el.mass * dot(g, el.chain.p);
+        }
+        for s in &model.springs {
+            let angle = |x: Option<usize>| x.map_or(0.0, |b| q[model.bodies[b].angle]);
+            let stretch = angle(s.b) - angle(s.a) - s.rest_angle;
+            e += 0.5 * s.stiffness * stretch * stretch;
         }
         e
     }
 
-    /// The kinematics of contact point `j` at state `(q, v)`.
-    pub fn contact(
-        &self,
-        model: &PlantModel,
-        j: usize,
-        q: &[f64; DOF],
-        v: &[f64; DOF],
-    ) -> ContactKinematics {
-        contact_kinematics(model, self.cs, j, q, v)
-    }
-
-    /// World position of the eccentric mass of rotor `k`, relative to the platform's
-    /// centre of mass, m.
-    pub fn eccentric_offset(&self, k: usize) -> [f64; 2] {
-        [
-            self.rho[k][0] + self.eps[k][0],
-            self.rho[k][1] + self.eps[k][1],
-        ]
+    /// The kinematics of contact point `j` at `(q, v)` (`q` this frame's).
+    pub fn contact(&self, model: &PlantModel, j: usize, v: &Vector) -> ContactKinematics {
+        self.pose.contact(model, j, v)
     }
 }
 
-/// The kinematics of contact point `j` at state `(q, v)`, with `cs` the
-/// `(sin theta, cos theta)` of `q` (no mass matrix needed: events use this).
-pub fn contact_kinematics(
-    model: &PlantModel,
-    cs: (f64, f64),
-    j: usize,
-    q: &[f64; DOF],
-    v: &[f64; DOF],
-) -> ContactKinematics {
-    let (n, t) = (model.normal, model.tangent);
-    let r = rotate(cs, model.contacts[j].point);
-    let p = [q[0] + r[0], q[1] + r[1]];
-    let j_n = [n[0], n[1], cross(r, n), 0.0, 0.0];
-    let j_t = [t[0], t[1], cross(r, t), 0.0, 0.0];
-    let w2 = v[2] * v[2];
-    let row = |jr: &[f64; DOF]| jr[0] * v[0] + jr[1] * v[1] + jr[2] * v[2];
-    ContactKinematics {
-        j_n,
-        j_t,
-        gap: dot(
-            n,
-            [p[0] - model.ground_point[0], p[1] - model.ground_point[1]],
-        ),
-        u_n: row(&j_n),
-        u_t: row(&j_t),
-        bias_n: -w2 * dot(n, r),
-        bias_t: -w2 * dot(t, r),
-    }
-}
-
-/// The inverse of the platform block's Schur complement `S = A - B D^-1 B^T`
-/// (3x3, symmetric positive definite), by the adjugate.
-fn schur_inverse(m: &[[f64; DOF]; DOF]) -> [[f64; 3]; 3] {
-    let mut s = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            s[i][j] = m[i][j] - m[i][3] * m[j][3] / m[3][3] - m[i][4] * m[j][4] / m[4][4];
+/// Point mass `i`: the bodies' centres of mass in order, then the rotors'
+/// eccentrics.
+fn element(model: &PlantModel, pose: &Pose, eps: &[[f64; 2]; MAX_ROTORS], i: usize) -> Element {
+    let nb = model.bodies.len();
+    if i < nb {
+        let body = &model.bodies[i];
+        Element {
+            chain: pose.centre_of_mass(model, i),
+            mass: body.mass,
+            inertia: body.inertia,
+            spin: (body.angle, None),
+            rotor: None,
+        }
+    } else {
+        let k = i - nb;
+        let rotor = &model.rotors[k];
+        Element {
+            chain: pose.eccentric_at(model, k, eps[k]),
+            mass: rotor.mass,
+            inertia: rotor.inertia,
+            spin: (model.bodies[rotor.body].angle, Some(rotor.phi)),
+            rotor: Some(k),
         }
     }
+}
+
+/// The inverse of a 3x3 symmetric positive definite matrix (the first three rows
+/// and columns of `s`), by the adjugate.
+fn inverse3(s: &[[f64; MAX_DOF]; MAX_DOF]) -> [[f64; 3]; 3] {
     let c00 = s[1][1] * s[2][2] - s[1][2] * s[2][1];
     let c01 = s[1][2] * s[2][0] - s[1][0] * s[2][2];
     let c02 = s[1][0] * s[2][1] - s[1][1] * s[2][0];
@@ -360,12 +717,13 @@ fn schur_inverse(m: &[[f64; DOF]; DOF]) -> [[f64; 3]; 3] {
     ]
 }
 
-/// Cholesky factor of a symmetric positive definite matrix (lower triangle).
-fn cholesky(m: &[[f64; DOF]; DOF]) -> [[f64; DOF]; DOF] {
-    let mut l = [[0.0; DOF]; DOF];
-    for i in 0..DOF {
+/// The Cholesky factor (lower triangle) of the leading `n x n` block of a
+/// symmetric positive definite matrix, in its place (the upper triangle is left
+/// as it was and never read).
+fn cholesky_in_place(l: &mut [[f64; MAX_DOF]; MAX_DOF], n: usize) {
+    for i in 0..n {
         for j in 0..=i {
-            let mut s = m[i][j];
+            let mut s = l[i][j];
             for k in 0..j {
                 s -= l[i][k] * l[j][k];
             }
@@ -376,47 +734,31 @@ fn cholesky(m: &[[f64; DOF]; DOF]) -> [[f64; DOF]; DOF] {
             }
         }
     }
-    l
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::machine::Machine;
-
-    /// The block solve and the Cholesky solve agree with M x = b (residual).
-    #[test]
-    fn block_solve_inverts_the_mass_matrix() {
-        let text = std::fs::read_to_string(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../examples/vibro-driver.toml"
-        ))
-        .unwrap();
-        let machine = Machine::from_text("m.toml", &text, std::path::Path::new("."), &[]).unwrap();
-        let model = PlantModel::new(&machine);
-        for (k, q) in [[0.0, 0.03, 0.1, 0.3, -2.0], [0.2, 0.05, -0.4, 5.0, 1.0]]
-            .iter()
-            .enumerate()
-        {
-            let b = [1.0, -2.0, 0.3, 0.01, -0.02];
-            let fast = Frame::new(&model, q);
-            let slow = Frame::locked(&model, q, &[false; DOF]);
-            let mut held = Frame::new(&model, q);
-            held.chol = cholesky(&held.mass);
-            held.any_locked = true;
-            for (name, x) in [
-                ("block", fast.solve(&b)),
-                ("cholesky", held.solve(&b)),
-                ("unlocked", slow.solve(&b)),
-            ] {
-                for i in 0..DOF {
-                    let r: f64 = (0..DOF).map(|j| fast.mass[i][j] * x[j]).sum::<f64>() - b[i];
-                    assert!(
-                        r.abs() < 1e-12 * (1.0 + b[i].abs()),
-                        "case {k} {name}: residual {r}"
-                    );
-                }
-            }
+/// `x = (L L^T)^-1 b` over the leading `n` coordinates, the `held` ones' right-hand
+/// side taken as zero.
+fn cholesky_solve(
+    l: &[[f64; MAX_DOF]; MAX_DOF],
+    b: &Vector,
+    n: usize,
+    held: &[bool; MAX_DOF],
+) -> Vector {
+    let mut y = [0.0; MAX_DOF];
+    for i in 0..n {
+        let mut s = if held[i] { 0.0 } else { b[i] };
+        for k in 0..i {
+            s -= l[i][k] * y[k];
         }
+        y[i] = s / l[i][i];
     }
+    let mut x = [0.0; MAX_DOF];
+    for i in (0..n).rev() {
+        let mut s = y[i];
+        for k in (i + 1)..n {
+            s -= l[k][i] * x[k];
+        }
+        x[i] = s / l[i][i];
+    }
+    x
 }

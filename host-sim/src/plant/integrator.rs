@@ -24,6 +24,8 @@ pub struct Step<const N: usize> {
     rcont: [[f64; N]; 5],
     /// Derivative at the end (FSAL).
     pub f1: [f64; N],
+    /// Components in use ([`Tolerance::len`]).
+    len: usize,
 }
 
 impl<const N: usize> Step<N> {
@@ -38,7 +40,7 @@ impl<const N: usize> Step<N> {
         let theta1 = 1.0 - theta;
         let r = &self.rcont;
         let mut y = [0.0; N];
-        for i in 0..N {
+        for i in 0..self.len {
             y[i] = r[0][i]
                 + theta * (r[1][i] + theta1 * (r[2][i] + theta * (r[3][i] + theta1 * r[4][i])));
         }
@@ -53,6 +55,9 @@ pub struct Tolerance<const N: usize> {
     pub rtol: f64,
     /// Absolute tolerance per component.
     pub atol: [f64; N],
+    /// Components in use: the first `len` of the `N` (a state sized for the
+    /// largest machine); the rest stay zero and take no part in the error norm.
+    pub len: usize,
 }
 
 // Butcher tableau of DOPRI5 (HNW II Table 5.2).
@@ -112,10 +117,11 @@ pub fn attempt<const N: usize>(
     h: f64,
     tol: &Tolerance<N>,
 ) -> Attempt<N> {
+    let len = tol.len;
     let stage = |coef: &[(f64, &[f64; N])]| -> [f64; N] {
         let mut out = *y;
         for (c, k) in coef {
-            for i in 0..N {
+            for i in 0..len {
                 out[i] += h * c * k[i];
             }
         }
@@ -138,12 +144,12 @@ pub fn attempt<const N: usize>(
 
     // Error in the weighted RMS norm.
     let mut sum = 0.0;
-    for i in 0..N {
+    for i in 0..len {
         let e = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
         let sc = tol.atol[i] + tol.rtol * y[i].abs().max(y1[i].abs());
         sum += (e / sc) * (e / sc);
     }
-    let err = (sum / N as f64).sqrt();
+    let err = (sum / len as f64).sqrt();
     if !err.is_finite() {
         return Attempt::Rejected(0.2 * h);
     }
@@ -153,7 +159,7 @@ pub fn attempt<const N: usize>(
     }
     // Dense output coefficients (HNW II, dopri5 contd5).
     let mut rcont = [[0.0; N]; 5];
-    for i in 0..N {
+    for i in 0..len {
         let ydiff = y1[i] - y[i];
         let bspl = h * k1[i] - ydiff;
         rcont[0][i] = y[i];
@@ -171,6 +177,7 @@ pub fn attempt<const N: usize>(
             y1,
             rcont,
             f1: k7,
+            len,
         }),
         h * factor,
     )
@@ -190,6 +197,7 @@ mod tests {
         let tol = Tolerance {
             rtol,
             atol: [rtol; N],
+            len: N,
         };
         let (mut t, mut y, mut h): (f64, _, f64) = (0.0, y0, 1e-3);
         let mut f0 = f(0.0, &y);

@@ -1,7 +1,9 @@
-//! The simulated vibro driver: platform, rotors, motors, contacts, sensors.
+//! The simulated vibro driver: bodies, rotors, motors, contacts, sensors.
 //!
-//! - [`model`]: the constant model (platform-frame geometry) from a machine file;
-//! - [`dynamics`]: equations of motion in `(x, y, theta, phi_1, phi_2)`;
+//! - [`model`]: the constant model (body-frame geometry, the coordinates of the
+//!   bodies' trees) from a machine file;
+//! - [`dynamics`]: equations of motion (`(x, y, theta, phi_1, phi_2)` for a single
+//!   platform);
 //! - [`motor`]: the brushed DC motors and their driver;
 //! - [`integrator`]: Dormand-Prince 5(4) with dense output;
 //! - [`simulator`]: the hybrid simulation (modes, events, impacts, Zeno, Painleve);

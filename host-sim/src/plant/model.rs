@@ -1,21 +1,87 @@
 //! The constant model of the simulated machine (MuJoCo's `mjModel`): the machine
-//! file turned into platform-frame geometry. The changing state lives in
-//! [`super::dynamics::State`].
+//! file turned into body-frame geometry and a layout of generalized coordinates.
+//! The changing state lives in the plant ([`super::simulator::Plant::y`]).
+//!
+//! **Coordinates.** Planar rigid bodies joined by revolute joints into trees:
+//! - a tree not hinged to the fundament has a free root: `(x, y, theta)`, its centre
+//!   of mass and its angle (the platform of a one-body machine: exactly the
+//!   coordinates of the single-platform plant);
+//! - a tree hinged to the fundament has its root on that hinge: its angle only;
+//! - every further body of a tree: its angle (world, not relative to its parent);
+//! - then each rotor's eccentric angle `phi_k` in the frame of the body carrying it.
+//!
+//! With world angles a point of body `b` is `p = base + sum_a R(theta_a) s_a` over
+//! the bodies `a` from the root to `b` (`s_a` constant in `a`'s frame: the hinge of
+//! the next body, or the point itself), so its velocity is linear in `q'` with one
+//! column per angle, `z x R(theta_a) s_a` (Featherstone, *Rigid Body Dynamics
+//! Algorithms*, 2008, ch. 4, for trees in minimal coordinates). Every body's
+//! reference point is its centre of mass for a free root and its hinge otherwise.
 
 use shared::impact::{ContactLaw, ImpactLaw};
 
+use super::dynamics::Pose;
+use super::simulator::ContactForces;
+use crate::machine::bodies::{FUNDAMENT, PLATFORM};
 use crate::machine::{Machine, MotorParams};
+use crate::simulation::trace::TraceRow;
 
-/// Number of generalized coordinates: `(x, y, theta, phi_1, phi_2)`.
-pub const DOF: usize = 5;
+pub use crate::machine::bodies::{MAX_BODIES, MAX_DOF, MAX_ROTORS};
 
-/// Size of the integrated state: `q` (5), `q'` (5), winding currents (2).
-pub const NY: usize = 2 * DOF + 2;
+/// Capacity of the integrated state: `q`, `q'` (up to [`MAX_DOF`] each) and the
+/// winding currents; a machine uses the first [`PlantModel::ny`].
+pub const NY: usize = 2 * MAX_DOF + MAX_ROTORS;
 
-/// An unbalance rotor, in the platform frame.
+/// How a body hangs in its tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Mount {
+    /// A tree's free root: its centre of mass is coordinates `x`, `x + 1`.
+    Free {
+        /// Index of its `x` coordinate.
+        x: usize,
+    },
+    /// A tree's root hinged to the fundament at `pivot` (world, m).
+    Pinned {
+        /// The hinge, world, m.
+        pivot: [f64; 2],
+    },
+    /// Hinged to body `parent` at `joint` (the parent's frame, from its reference
+    /// point, m).
+    Child {
+        /// The parent body.
+        parent: usize,
+        /// The hinge in the parent's frame, m.
+        joint: [f64; 2],
+    },
+}
+
+/// A rigid body of the machine.
+#[derive(Clone, Debug)]
+pub struct BodyModel {
+    /// Name (`platform` for the first).
+    pub name: String,
+    /// Mass without eccentric masses, kg.
+    pub mass: f64,
+    /// Inertia about its centre of mass, kg m^2.
+    pub inertia: f64,
+    /// How it hangs in its tree.
+    pub mount: Mount,
+    /// Index of its angle coordinate (world angle).
+    pub angle: usize,
+    /// Its centre of mass from its reference point, body frame, m (zero for a
+    /// free root).
+    pub com: [f64; 2],
+    /// The bodies from its tree's root down to itself.
+    pub chain: Vec<usize>,
+}
+
+/// An unbalance rotor, in the frame of the body carrying it.
 #[derive(Clone, Debug)]
 pub struct RotorModel {
-    /// Axis position relative to the platform's centre of mass, platform frame, m.
+    /// The body carrying it.
+    pub body: usize,
+    /// Index of its eccentric angle coordinate `phi`.
+    pub phi: usize,
+    /// Axis position from the body's reference point, body frame, m.
     pub axis: [f64; 2],
     /// Eccentric mass, kg.
     pub mass: f64,
@@ -31,31 +97,80 @@ pub struct RotorModel {
     pub motor: MotorParams,
 }
 
-/// A contact point, in the platform frame.
+/// What a contact point strikes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Face {
+    /// The fundament's line ([`PlantModel::ground_point`], [`PlantModel::normal`]).
+    Fundament,
+    /// A flat face fixed on a body.
+    Body {
+        /// The body.
+        body: usize,
+        /// A point of the face, that body's frame from its reference point, m.
+        point: [f64; 2],
+        /// The face's unit normal, that body's frame, towards the contact's body.
+        normal: [f64; 2],
+    },
+}
+
+/// A contact point fixed on a body, against a face.
 #[derive(Clone, Debug)]
 pub struct ContactPoint {
     /// Name (K1, K2, ...).
     pub name: String,
-    /// Position relative to the platform's centre of mass, platform frame, m.
+    /// The body the point is fixed on.
+    pub body: usize,
+    /// Position from that body's reference point, body frame, m.
     pub point: [f64; 2],
+    /// What it strikes.
+    pub face: Face,
     /// Restitution, friction and weight.
     pub law: ContactLaw<f64>,
+}
+
+/// A revolute joint's torsional spring-damper: torque `-k (alpha - alpha_0) - c alpha'`
+/// on body `b` and its reaction on body `a`, `alpha = theta_b - theta_a` (the
+/// fundament's angle is 0).
+#[derive(Clone, Debug)]
+pub struct Spring {
+    /// Name of the joint.
+    pub name: String,
+    /// The first body of `bodies = [A, B]` (`None`: the fundament).
+    pub a: Option<usize>,
+    /// The second body (`None`: the fundament).
+    pub b: Option<usize>,
+    /// Stiffness, N m/rad.
+    pub stiffness: f64,
+    /// Damping, N m s/rad.
+    pub damping: f64,
+    /// Relative angle at which the spring is relaxed, rad.
+    pub rest_angle: f64,
 }
 
 /// The machine, ready to simulate.
 #[derive(Clone, Debug)]
 pub struct PlantModel {
-    /// Platform mass without the eccentric masses, kg.
-    pub platform_mass: f64,
-    /// Platform inertia about its centre of mass, kg m^2.
-    pub platform_inertia: f64,
-    /// Rotor 1 and rotor 2.
-    pub rotors: [RotorModel; 2],
+    /// The bodies, the platform first; parents before their children in
+    /// [`PlantModel::order`].
+    pub bodies: Vec<BodyModel>,
+    /// The bodies in coordinate order (every parent before its children).
+    pub order: Vec<usize>,
+    /// Each free root's `x` coordinate and its tree's mass (bodies, then the
+    /// eccentric masses they carry), kg.
+    pub free_roots: Vec<(usize, f64)>,
+    /// Number of generalized coordinates.
+    pub dof: usize,
+    /// Number of the bodies' coordinates (the rotors' follow).
+    pub body_dof: usize,
+    /// The rotors (one or two).
+    pub rotors: Vec<RotorModel>,
+    /// The joints with a spring or a damper.
+    pub springs: Vec<Spring>,
     /// The contact points.
     pub contacts: Vec<ContactPoint>,
     /// A point of the fundament line, m.
     pub ground_point: [f64; 2],
-    /// Unit normal of the fundament, towards the platform.
+    /// Unit normal of the fundament, towards the machine.
     pub normal: [f64; 2],
     /// Unit tangent `t = (-n_y, n_x)`.
     pub tangent: [f64; 2],
@@ -69,79 +184,378 @@ pub struct PlantModel {
     pub bridge: shared::drive::BridgeConfig,
 }
 
-/// `R(-angle) v`: a world vector in the platform frame.
-fn to_platform(angle: f64, v: [f64; 2]) -> [f64; 2] {
+/// `R(-angle) v`: a world vector in a body's frame.
+fn to_body(angle: f64, v: [f64; 2]) -> [f64; 2] {
     let (s, c) = angle.sin_cos();
     [c * v[0] + s * v[1], -s * v[0] + c * v[1]]
 }
 
+/// `a - b`.
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// A body of the file as the layout reads it.
+struct FileBody<'a> {
+    name: &'a str,
+    rigid: &'a crate::machine::Platform,
+}
+
 impl PlantModel {
-    /// The model of a checked machine file.
+    /// The model of a checked machine file (its bodies in trees, every name known,
+    /// no loops: the machine file's checks).
     pub fn new(m: &Machine) -> Self {
-        let c0 = m.platform.position;
-        let a0 = m.platform.angle;
-        let local = |p: [f64; 2]| to_platform(a0, [p[0] - c0[0], p[1] - c0[1]]);
-        let rotors = [0, 1].map(|k| {
-            let r = &m.rotors[k];
-            RotorModel {
-                axis: local(r.axis),
-                mass: r.eccentric_mass,
-                eccentricity: r.eccentricity,
-                inertia: r.inertia,
-                sense: r.sense.sign(),
-                index_angle: r.index_angle,
-                motor: r.motor.clone(),
+        let mut file = vec![FileBody {
+            name: PLATFORM,
+            rigid: &m.platform,
+        }];
+        file.extend(m.bodies.iter().map(|b| FileBody {
+            name: &b.name,
+            rigid: &b.rigid,
+        }));
+        let index = |name: &str| file.iter().position(|b| b.name == name);
+        // The joints as (body A, body B, world point), `None` for the fundament.
+        let joints: Vec<(Option<usize>, Option<usize>, [f64; 2])> = m
+            .joints
+            .iter()
+            .map(|j| (index(&j.bodies[0]), index(&j.bodies[1]), j.point))
+            .collect();
+
+        // The layout: trees in the order of their first body, each from its root.
+        let n = file.len();
+        let mut mount: Vec<Option<Mount>> = vec![None; n];
+        let mut angle = vec![0; n];
+        let mut reference = vec![[0.0; 2]; n];
+        let mut parent_of: Vec<Option<usize>> = vec![None; n];
+        let mut order = Vec::with_capacity(n);
+        let mut next = 0;
+        for first in 0..n {
+            if mount[first].is_some() {
+                continue;
             }
-        });
+            // The tree of `first`, and its hinge to the fundament if it has one.
+            let mut tree = vec![first];
+            let mut k = 0;
+            while k < tree.len() {
+                for &(a, b, _) in &joints {
+                    for (x, y) in [(a, b), (b, a)] {
+                        if let (Some(x), Some(y)) = (x, y) {
+                            if x == tree[k] && !tree.contains(&y) {
+                                tree.push(y);
+                            }
+                        }
+                    }
+                }
+                k += 1;
+            }
+            let pinned = joints.iter().find_map(|&(a, b, p)| match (a, b) {
+                (None, Some(x)) | (Some(x), None) if tree.contains(&x) => Some((x, p)),
+                _ => None,
+            });
+            let root = match pinned {
+                Some((root, pivot)) => {
+                    mount[root] = Some(Mount::Pinned { pivot });
+                    angle[root] = next;
+                    reference[root] = pivot;
+                    next += 1;
+                    root
+                }
+                None => {
+                    mount[first] = Some(Mount::Free { x: next });
+                    angle[first] = next + 2;
+                    reference[first] = file[first].rigid.position;
+                    next += 3;
+                    first
+                }
+            };
+            // Depth first from the root: every body's children after it.
+            let mut stack = vec![root];
+            while let Some(p) = stack.pop() {
+                order.push(p);
+                let mut children = Vec::new();
+                for &(a, b, point) in &joints {
+                    for (x, y) in [(a, b), (b, a)] {
+                        if let (Some(x), Some(y)) = (x, y) {
+                            if x == p && mount[y].is_none() {
+                                let joint = to_body(file[p].rigid.angle, sub(point, reference[p]));
+                                mount[y] = Some(Mount::Child { parent: p, joint });
+                                parent_of[y] = Some(p);
+                                angle[y] = next;
+                                reference[y] = point;
+                                next += 1;
+                                children.push(y);
+                            }
+                        }
+                    }
+                }
+                stack.extend(children.into_iter().rev());
+            }
+        }
+        let body_dof = next;
+        let bodies: Vec<BodyModel> = (0..n)
+            .map(|b| {
+                let mut chain = vec![b];
+                while let Some(p) = parent_of[*chain.last().expect("chain starts at b")] {
+                    chain.push(p);
+                }
+                chain.reverse();
+                let r = file[b].rigid;
+                BodyModel {
+                    name: file[b].name.to_string(),
+                    mass: r.mass,
+                    inertia: r.inertia,
+                    mount: mount[b].expect("every body is in a tree"),
+                    angle: angle[b],
+                    com: to_body(r.angle, sub(r.position, reference[b])),
+                    chain,
+                }
+            })
+            .collect();
+        let local = |b: usize, p: [f64; 2]| to_body(file[b].rigid.angle, sub(p, reference[b]));
+        let body_of = |name: &str| index(name).expect("a checked machine names known bodies");
+
+        let rotors: Vec<RotorModel> = m
+            .rotors
+            .iter()
+            .enumerate()
+            .map(|(k, r)| {
+                let body = body_of(&r.body);
+                RotorModel {
+                    body,
+                    phi: body_dof + k,
+                    axis: local(body, r.axis),
+                    mass: r.eccentric_mass,
+                    eccentricity: r.eccentricity,
+                    inertia: r.inertia,
+                    sense: r.sense.sign(),
+                    index_angle: r.index_angle,
+                    motor: r.motor.clone(),
+                }
+            })
+            .collect();
         let contacts = m
             .contacts
             .iter()
-            .map(|c| ContactPoint {
-                name: c.name.clone(),
-                point: local(c.point),
-                law: ContactLaw {
-                    restitution: c.restitution,
-                    friction: c.friction,
-                    weight: c.weight,
-                },
+            .map(|c| {
+                let body = body_of(&c.ends.body);
+                let face = if c.ends.against == FUNDAMENT {
+                    Face::Fundament
+                } else {
+                    let a = body_of(&c.ends.against);
+                    let normal = c
+                        .ends
+                        .normal
+                        .expect("a checked contact against a body has a normal");
+                    Face::Body {
+                        body: a,
+                        point: local(a, c.ends.face.unwrap_or(c.point)),
+                        normal: to_body(file[a].rigid.angle, normal),
+                    }
+                };
+                ContactPoint {
+                    name: c.name.clone(),
+                    body,
+                    point: local(body, c.point),
+                    face,
+                    law: ContactLaw {
+                        restitution: c.restitution,
+                        friction: c.friction,
+                        weight: c.weight,
+                    },
+                }
             })
             .collect();
-        let n = m.fundament.normal;
-        PlantModel {
-            platform_mass: m.platform.mass,
-            platform_inertia: m.platform.inertia,
+        let springs = m
+            .joints
+            .iter()
+            .zip(&joints)
+            .filter(|(j, _)| j.stiffness > 0.0 || j.damping > 0.0)
+            .map(|(j, &(a, b, _))| {
+                let world = |x: Option<usize>| x.map_or(0.0, |x| file[x].rigid.angle);
+                Spring {
+                    name: j.name.clone(),
+                    a,
+                    b,
+                    stiffness: j.stiffness,
+                    damping: j.damping,
+                    rest_angle: j.rest_angle.unwrap_or(world(b) - world(a)),
+                }
+            })
+            .collect();
+        let nrm = m.fundament.normal;
+        let mut model = PlantModel {
+            bodies,
+            order,
+            free_roots: Vec::new(),
+            dof: body_dof + m.rotors.len(),
+            body_dof,
             rotors,
+            springs,
             contacts,
             ground_point: m.fundament.point,
-            normal: n,
-            tangent: [-n[1], n[0]],
+            normal: nrm,
+            tangent: [-nrm[1], nrm[0]],
             gravity: m.fundament.gravity,
             law: m.law,
             supply_voltage: m.drive.supply_voltage,
             bridge: m.drive.bridge,
+        };
+        model.free_roots = (0..model.bodies.len())
+            .filter_map(|b| match model.bodies[b].mount {
+                Mount::Free { x } => Some((x, model.tree_mass(b))),
+                _ => None,
+            })
+            .collect();
+        model
+    }
+
+    /// Length of the integrated state: `q`, `q'`, one current per rotor.
+    pub fn ny(&self) -> usize {
+        2 * self.dof + self.rotors.len()
+    }
+
+    /// Index of rotor `k`'s winding current in the state.
+    pub fn current(&self, k: usize) -> usize {
+        2 * self.dof + k
+    }
+
+    /// The coordinates `q` of state `y` (zero past [`PlantModel::dof`]).
+    pub fn q(&self, y: &[f64; NY]) -> [f64; MAX_DOF] {
+        let mut q = [0.0; MAX_DOF];
+        q[..self.dof].copy_from_slice(&y[..self.dof]);
+        q
+    }
+
+    /// The velocities `q'` of state `y`.
+    pub fn v(&self, y: &[f64; NY]) -> [f64; MAX_DOF] {
+        let mut v = [0.0; MAX_DOF];
+        v[..self.dof].copy_from_slice(&y[self.dof..2 * self.dof]);
+        v
+    }
+
+    /// The winding currents of state `y`, A (0 for a rotor the machine does not
+    /// have).
+    pub fn currents(&self, y: &[f64; NY]) -> [f64; MAX_ROTORS] {
+        let mut i = [0.0; MAX_ROTORS];
+        for (k, c) in i.iter_mut().enumerate().take(self.rotors.len()) {
+            *c = y[self.current(k)];
+        }
+        i
+    }
+
+    /// Total mass: the bodies and the eccentric masses, kg.
+    pub fn total_mass(&self) -> f64 {
+        let bodies = self.bodies.iter().fold(0.0, |s, b| s + b.mass);
+        self.rotors.iter().fold(bodies, |s, r| s + r.mass)
+    }
+
+    /// The mass of the tree whose root is `root`: its bodies, then the eccentric
+    /// masses they carry, kg.
+    pub fn tree_mass(&self, root: usize) -> f64 {
+        let in_tree = |b: usize| self.bodies[b].chain[0] == root;
+        let bodies = (0..self.bodies.len())
+            .filter(|b| in_tree(*b))
+            .fold(0.0, |s, b| s + self.bodies[b].mass);
+        self.rotors
+            .iter()
+            .filter(|r| in_tree(r.body))
+            .fold(bodies, |s, r| s + r.mass)
+    }
+
+    /// The coordinates of body `b`'s own placement: `(x, y, theta)` for a free
+    /// root, `theta` otherwise.
+    pub fn body_coordinates(&self, b: usize) -> Vec<usize> {
+        let body = &self.bodies[b];
+        match body.mount {
+            Mount::Free { x } => vec![x, x + 1, body.angle],
+            _ => vec![body.angle],
         }
     }
 
-    /// Total mass: platform and eccentric masses, kg.
-    pub fn total_mass(&self) -> f64 {
-        self.platform_mass + self.rotors[0].mass + self.rotors[1].mass
+    /// The state at `t = 0` of machine file `m` (the one this model was made of):
+    /// each free root's centre of mass, angle and velocities, every other body's
+    /// angle and angular velocity, the eccentric angles in their bodies' frames,
+    /// rotors at rest relative to their bodies, no current. Layout:
+    /// `(q, q', i)`, `q` as the module doc orders it.
+    pub fn initial_state(&self, m: &Machine) -> [f64; NY] {
+        let n = self.dof;
+        let mut y = [0.0; NY];
+        for (b, body) in self.bodies.iter().enumerate() {
+            let r = if b == 0 {
+                &m.platform
+            } else {
+                &m.bodies[b - 1].rigid
+            };
+            if let Mount::Free { x } = body.mount {
+                y[x] = r.position[0];
+                y[x + 1] = r.position[1];
+                y[n + x] = r.velocity[0];
+                y[n + x + 1] = r.velocity[1];
+            }
+            y[body.angle] = r.angle;
+            y[n + body.angle] = r.angular_velocity;
+        }
+        for (rotor, r) in self.rotors.iter().zip(&m.rotors) {
+            y[rotor.phi] = r.angle;
+        }
+        y
     }
 }
 
-/// The state at `t = 0` of a machine file: the platform's position, angle and
-/// velocities, the rotors' eccentric angles, rotors at rest relative to the
-/// platform, no current. Layout of [`NY`]:
-/// `(x, y, theta, phi_1, phi_2, x', y', theta', phi_1', phi_2', i_1, i_2)`.
+impl PlantModel {
+    /// Body `b`'s motion in state `y`: centre of mass (m, m), angle (rad), its
+    /// velocity (m/s, m/s) and angular velocity (rad/s).
+    pub fn body_motion(&self, b: usize, y: &[f64; NY]) -> [f64; 6] {
+        let n = self.dof;
+        let body = &self.bodies[b];
+        let (angle, omega) = (y[body.angle], y[n + body.angle]);
+        if let Mount::Free { x } = body.mount {
+            return [y[x], y[x + 1], angle, y[n + x], y[n + x + 1], omega];
+        }
+        let (q, v) = (self.q(y), self.v(y));
+        let com = Pose::new(self, &q).centre_of_mass(self, b);
+        let u = com.velocity(&v);
+        [com.p[0], com.p[1], angle, u[0], u[1], omega]
+    }
+
+    /// The trace row of state `y` at `t` with duties `duty` and the contact
+    /// forces `forces` at that state; a rotor the machine does not have reads 0.
+    pub fn row(&self, t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
+        let n = self.dof;
+        let [x, yc, angle, vx, vy, omega] = self.body_motion(0, y);
+        let rotor = |k: usize| match self.rotors.get(k) {
+            Some(r) => (y[r.phi], y[n + r.phi], y[self.current(k)]),
+            None => (0.0, 0.0, 0.0),
+        };
+        let ((phi1, omega1, i1), (phi2, omega2, i2)) = (rotor(0), rotor(1));
+        let mut bodies = [[0.0; 6]; MAX_BODIES - 1];
+        for (b, row) in bodies.iter_mut().enumerate().take(self.bodies.len() - 1) {
+            *row = self.body_motion(b + 1, y);
+        }
+        TraceRow {
+            t,
+            x,
+            y: yc,
+            angle,
+            vx,
+            vy,
+            omega,
+            phi1,
+            phi2,
+            omega1,
+            omega2,
+            i1,
+            i2,
+            duty1: duty[0],
+            duty2: duty[1],
+            normal_force: forces.normal,
+            tangential_force: forces.tangential,
+            bodies,
+        }
+    }
+}
+
+/// The state at `t = 0` of a machine file ([`PlantModel::initial_state`]).
 pub fn initial_state(m: &Machine) -> [f64; NY] {
-    let p = &m.platform;
-    let mut y = [0.0; NY];
-    y[0] = p.position[0];
-    y[1] = p.position[1];
-    y[2] = p.angle;
-    y[3] = m.rotors[0].angle;
-    y[4] = m.rotors[1].angle;
-    y[5] = p.velocity[0];
-    y[6] = p.velocity[1];
-    y[7] = p.angular_velocity;
-    y
+    PlantModel::new(m).initial_state(m)
 }

@@ -53,11 +53,11 @@ use forces::CachedEvaluation;
 use shared::impact::{SlipState, MAX_CONTACTS};
 
 use super::bridge::{Bridge, BridgeCommand};
-use super::dynamics::{Frame, DOF};
+use super::dynamics::{Frame, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
-use super::model::PlantModel;
+use super::model::{Mount, PlantModel, MAX_DOF};
 use super::motor::{DcMotor, Winding};
-use crate::simulation::trace::{EventRow, TraceRow};
+use crate::simulation::trace::EventRow;
 
 /// Events handled at one instant without progress before the step is taken anyway.
 const MAX_STALLED_EVENTS: u32 = 16;
@@ -157,10 +157,22 @@ pub struct Holds {
 }
 
 impl Holds {
-    fn mask(self) -> [bool; DOF] {
-        let p = self.platform;
-        let r = self.rotors;
-        [p, p, p, r || self.jammed[0], r || self.jammed[1]]
+    /// The held coordinates of `model`: the platform's own (its centre of mass
+    /// and angle when it is a free body), the rotors'.
+    fn mask(self, model: &PlantModel) -> [bool; MAX_DOF] {
+        let mut mask = [false; MAX_DOF];
+        if self.platform {
+            let platform = &model.bodies[0];
+            mask[platform.angle] = true;
+            if let Mount::Free { x } = platform.mount {
+                mask[x] = true;
+                mask[x + 1] = true;
+            }
+        }
+        for (k, rotor) in model.rotors.iter().enumerate() {
+            mask[rotor.phi] = self.rotors || self.jammed[k];
+        }
+        mask
     }
 }
 
@@ -194,7 +206,7 @@ pub struct Plant {
     pub warnings: Vec<String>,
     /// Accepted integration steps so far.
     pub steps: u64,
-    motors: [DcMotor; 2],
+    motors: Vec<DcMotor>,
     h: f64,
     fsal: Option<[f64; NY]>,
     /// Inside the resolution of a Painleve configuration.
@@ -214,10 +226,11 @@ impl Plant {
     /// A plant at `t = 0` in state `y` (see [`NY`]), windings open, modes decided
     /// from the state.
     pub fn new(model: PlantModel, y: [f64; NY], settings: Settings, holds: Holds) -> Self {
-        let motors = [
-            DcMotor::new(model.rotors[0].motor.clone()),
-            DcMotor::new(model.rotors[1].motor.clone()),
-        ];
+        let motors = model
+            .rotors
+            .iter()
+            .map(|r| DcMotor::new(r.motor.clone()))
+            .collect();
         let n = model.contacts.len();
         let mut plant = Plant {
             model,
@@ -286,15 +299,19 @@ impl Plant {
 
     /// Puts `winding` on the windings, restarting the integrator where it changes;
     /// whether it changed.
-    fn use_winding(&mut self, winding: [Winding; 2]) -> bool {
+    fn use_winding(&mut self, mut winding: [Winding; 2]) -> bool {
+        // A rotor the machine does not have: nothing is wired to its bridge.
+        for w in winding.iter_mut().skip(self.model.rotors.len()) {
+            *w = Winding::Open;
+        }
         let changed = winding != self.winding;
         if changed {
-            for k in 0..2 {
+            for k in 0..self.model.rotors.len() {
                 if matches!(winding[k], Winding::Coast(_))
                     && !matches!(self.winding[k], Winding::Coast(_))
                 {
-                    self.coast_sign[k] =
-                        self.y[2 * DOF + k].signum() * f64::from(self.y[2 * DOF + k] != 0.0);
+                    let i = self.y[self.model.current(k)];
+                    self.coast_sign[k] = i.signum() * f64::from(i != 0.0);
                 }
             }
             self.winding = winding;
@@ -341,26 +358,26 @@ impl Plant {
         if self.holds.jammed[k] != jammed {
             self.holds.jammed[k] = jammed;
             if jammed {
-                self.y[DOF + 3 + k] = 0.0;
+                self.y[self.model.dof + self.model.rotors[k].phi] = 0.0;
             }
             self.fsal = None;
             self.ev_cache = None;
         }
     }
 
-    /// Generalized coordinates `q`.
-    pub fn q(&self) -> [f64; DOF] {
-        core::array::from_fn(|i| self.y[i])
+    /// Generalized coordinates `q` (the first [`PlantModel::dof`]; the rest 0).
+    pub fn q(&self) -> Vector {
+        self.model.q(&self.y)
     }
 
     /// Generalized velocities `q'`.
-    pub fn v(&self) -> [f64; DOF] {
-        core::array::from_fn(|i| self.y[DOF + i])
+    pub fn v(&self) -> Vector {
+        self.model.v(&self.y)
     }
 
-    /// Winding currents, A.
+    /// Winding currents, A (0 for a rotor the machine does not have).
     pub fn currents(&self) -> [f64; 2] {
-        [self.y[2 * DOF], self.y[2 * DOF + 1]]
+        self.model.currents(&self.y)
     }
 
     /// The winding currents' means over the last [`Plant::advance_to`], A (the
@@ -391,16 +408,21 @@ impl Plant {
             step.at(t_end)
         };
         let (integral, span) = &mut self.current_integral;
-        for k in 0..2 {
-            let c = 2 * DOF + k;
+        for k in 0..self.model.rotors.len() {
+            let c = self.model.current(k);
             integral[k] += h / 6.0 * (step.y0[c] + 4.0 * mid[c] + end[c]);
         }
         *span += h;
     }
 
     /// The configuration terms at `q` with the holds applied.
-    fn frame(&self, q: &[f64; DOF]) -> Frame {
-        Frame::locked(&self.model, q, &self.holds.mask())
+    fn frame(&self, q: &Vector) -> Frame {
+        let mask = self.holds.mask(&self.model);
+        if mask.contains(&true) {
+            Frame::locked(&self.model, q, &mask)
+        } else {
+            Frame::new(&self.model, q)
+        }
     }
 
     /// Adds a warning once.
@@ -547,40 +569,47 @@ impl Plant {
     }
 
     /// The integrator's tolerances: relative `rtol`; absolute `1e-3 rtol` m on the
-    /// platform's position (the travel per impact is a small difference of large
-    /// motions), `rtol` rad, rad/s, m/s elsewhere, and `rtol` times the current
+    /// position of every free body (the travel per impact is a small difference
+    /// of large motions), `rtol` rad, rad/s, m/s elsewhere, and `rtol` times the current
     /// limit on the winding currents (their natural scale; tighter only adds steps
     /// to follow the 0.25 ms electrical transient: about 10 % more accepted steps
     /// for the reference machine with `rtol` amperes).
     fn tolerance(&self) -> Tolerance<NY> {
         let r = self.settings.rtol;
         let mut atol = [r; NY];
-        for a in atol.iter_mut().take(2) {
-            *a = 1e-3 * r;
+        for body in &self.model.bodies {
+            if let Mount::Free { x } = body.mount {
+                atol[x] = 1e-3 * r;
+                atol[x + 1] = 1e-3 * r;
+            }
         }
-        for k in 0..2 {
-            atol[2 * DOF + k] = r * self.model.rotors[k].motor.current_limit;
+        for (k, rotor) in self.model.rotors.iter().enumerate() {
+            atol[self.model.current(k)] = r * rotor.motor.current_limit;
         }
-        Tolerance { rtol: r, atol }
+        Tolerance {
+            rtol: r,
+            atol,
+            len: self.model.ny(),
+        }
     }
 
     /// Clamps the winding currents to the drivers' limits; a coasting current
     /// that has reached zero (its event) stops there.
     fn clamp_currents(&mut self) {
-        for k in 0..2 {
-            let i = self.y[2 * DOF + k];
+        for k in 0..self.model.rotors.len() {
+            let c = self.model.current(k);
+            let i = self.y[c];
             if let Winding::Coast(_) = self.winding[k] {
                 if self.coast_sign[k] == 0.0 {
                     // A current that starts flowing (the back-EMF above the supply).
                     self.coast_sign[k] = i.signum() * f64::from(i != 0.0);
                 } else if self.coast_sign[k] * i <= 0.0 {
                     // It died: the diodes block.
-                    self.y[2 * DOF + k] = 0.0;
+                    self.y[c] = 0.0;
                     self.coast_sign[k] = 0.0;
                 }
             }
-            self.y[2 * DOF + k] =
-                self.motors[k].project_current(self.winding[k], self.y[2 * DOF + k]);
+            self.y[c] = self.motors[k].project_current(self.winding[k], self.y[c]);
         }
     }
 
@@ -593,63 +622,54 @@ impl Plant {
         }
     }
 
-    /// The trace row of state `y` at `t` with duties `duty` and the contact
-    /// forces `forces` at that state.
-    pub fn row(t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
-        TraceRow {
-            t,
-            x: y[0],
-            y: y[1],
-            angle: y[2],
-            vx: y[DOF],
-            vy: y[DOF + 1],
-            omega: y[DOF + 2],
-            phi1: y[3],
-            phi2: y[4],
-            omega1: y[DOF + 3],
-            omega2: y[DOF + 4],
-            i1: y[2 * DOF],
-            i2: y[2 * DOF + 1],
-            duty1: duty[0],
-            duty2: duty[1],
-            normal_force: forces.normal,
-            tangential_force: forces.tangential,
-        }
-    }
-
-    /// The generalized force that the holds exert at the current state: on
-    /// `(x, y, theta)` the force (N, N) and moment (N m) holding the platform, on
-    /// `(phi_1, phi_2)` the torques holding the rotors' speeds; zero where nothing
-    /// is held. `Q_hold = M q'' - Q` with the true mass matrix and the accelerations
-    /// the holds allow (zero on held coordinates); contact forces included in `Q`.
-    pub fn holding_force(&self) -> [f64; DOF] {
+    /// The generalized force that the holds exert at the current state: on the
+    /// platform's coordinates the force (N) and moment (N m) holding it, on each
+    /// `phi_k` the torque holding the rotor's speed; zero where nothing is held.
+    /// `Q_hold = M q'' - Q` with the true mass matrix and the accelerations the
+    /// holds allow (zero on held coordinates); contact forces included in `Q`.
+    pub fn holding_force(&self) -> Vector {
+        let n = self.model.dof;
         let q = self.q();
         let v = self.v();
         let e = self.evaluate(&self.y);
-        let acc: [f64; DOF] = core::array::from_fn(|i| e.ydot[DOF + i]);
+        let mut acc = [0.0; MAX_DOF];
+        acc[..n].copy_from_slice(&e.ydot[n..2 * n]);
         let frame = Frame::new(&self.model, &q);
-        let mut tau = [0.0; 2];
-        for k in 0..2 {
-            let s = self.model.rotors[k].sense;
-            tau[k] = s * self.motors[k].shaft_torque(self.y[2 * DOF + k], s * v[3 + k]);
-        }
-        let mut f = frame.forces(&self.model, &v, tau);
+        let (tau, _) = self.motor_rates(&self.y, &v);
+        let mut f = frame.forces(&self.model, &v, &tau);
         // Contact forces: J^T lambda.
         for j in 0..self.modes.len() {
             if self.modes[j].closed() {
-                let k = frame.contact(&self.model, j, &q, &v);
-                for i in 0..DOF {
+                let k = frame.contact(&self.model, j, &v);
+                for i in 0..n {
                     f[i] += k.j_n[i] * e.lambda_n[j] + k.j_t[i] * e.lambda_t[j];
                 }
             }
         }
-        let mask = self.holds.mask();
+        let mask = self.holds.mask(&self.model);
         core::array::from_fn(|i| {
             if !mask[i] {
                 return 0.0;
             }
-            (0..DOF).map(|j| frame.mass[i][j] * acc[j]).sum::<f64>() - f[i]
+            (0..n).map(|j| frame.mass[i][j] * acc[j]).sum::<f64>() - f[i]
         })
+    }
+
+    /// The motors at state `y` (velocities `v`): each shaft's torque on its
+    /// rotor's `phi`, N m, and the rate of its winding current, A/s; zero for a
+    /// rotor the machine does not have.
+    pub(super) fn motor_rates(&self, y: &[f64; NY], v: &Vector) -> ([f64; 2], [f64; 2]) {
+        let mut tau = [0.0; 2];
+        let mut di = [0.0; 2];
+        for (k, rotor) in self.model.rotors.iter().enumerate() {
+            // Shaft speed relative to its body in the driven sense.
+            let s = rotor.sense;
+            let omega_m = s * v[rotor.phi];
+            let i = y[self.model.current(k)];
+            tau[k] = s * self.motors[k].shaft_torque(i, omega_m);
+            di[k] = self.motors[k].current_rate(self.winding[k], i, omega_m);
+        }
+        (tau, di)
     }
 
     /// Contact forces of the closed contacts at the current state: (normal,
@@ -711,9 +731,9 @@ impl Dense<'_> {
         } else {
             self.step.at(t)
         };
-        for k in 0..2 {
-            y[2 * DOF + k] =
-                self.plant.motors[k].project_current(self.plant.winding[k], y[2 * DOF + k]);
+        for k in 0..self.plant.model.rotors.len() {
+            let c = self.plant.model.current(k);
+            y[c] = self.plant.motors[k].project_current(self.plant.winding[k], y[c]);
         }
         y
     }

@@ -180,6 +180,8 @@ struct Recorder<'r, 'm> {
     last: Option<TraceRow>,
     summary: SummaryBuilder<'m>,
     observer: &'r mut dyn Observer,
+    /// The plant's model (its coordinate layout for the rows).
+    model: PlantModel,
     output_step: f64,
     /// Index of the next regular output time `k * output_step`.
     next: u64,
@@ -206,7 +208,7 @@ impl Recorder<'_, '_> {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        let row = Plant::row(t, y, self.duty, forces);
+        let row = self.model.row(t, y, self.duty, forces);
         self.summary.push(&row);
         self.observer.row(&row);
         if self.keep_rows {
@@ -246,6 +248,7 @@ pub fn simulate_observed(
         last: None,
         summary: SummaryBuilder::new(machine, 0.0, options.t_end),
         observer,
+        model: plant.model.clone(),
         output_step: machine.simulation.output_step,
         next: 0,
         duty: [0.0; 2],

@@ -2,6 +2,8 @@
 
 use shared::impact::MAX_CONTACTS;
 
+use crate::machine::bodies::MAX_BODIES;
+
 /// One row of the `--out` trace.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceRow {
@@ -41,6 +43,10 @@ pub struct TraceRow {
     /// Tangential force of persistent contact per contact, N, along the
     /// fundament's tangent `t = (-n_y, n_x)`.
     pub tangential_force: [f64; MAX_CONTACTS],
+    /// Every body after the platform, in file order: centre of mass (m, m),
+    /// angle (rad), its velocity (m/s, m/s) and angular velocity (rad/s); entries
+    /// past the machine's bodies are 0.
+    pub bodies: [[f64; 6]; MAX_BODIES - 1],
 }
 
 /// The kind of an event (spec `machine.md`, `--events`).

@@ -7,7 +7,7 @@
 //! step), located by Illinois false position on the dense output
 //! ([`Plant::locate`]).
 
-use super::super::dynamics::{contact_kinematics, ContactKinematics, DOF};
+use super::super::dynamics::{ContactKinematics, Pose};
 use super::super::integrator::Step;
 use super::super::motor::Winding;
 use super::{ContactMode, Plant, NY};
@@ -80,7 +80,7 @@ impl Plant {
     pub(super) fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
-        (0..2 * self.modes.len() + 2)
+        (0..2 * self.modes.len() + self.model.rotors.len())
             .map(|i| self.event_value(self.watch(i), y, ev.as_ref()))
             .collect()
     }
@@ -95,9 +95,7 @@ impl Plant {
         y: &[f64; NY],
         ev: Option<&super::forces::Evaluation>,
     ) -> f64 {
-        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
-        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
-        let kinematics = |j| contact_kinematics(&self.model, q[2].sin_cos(), j, &q, &v);
+        let kinematics = |j| self.contact_at(y, j);
         let forces = |j: usize| match ev {
             Some(e) => (e.lambda_n[j], e.lambda_t[j]),
             None => {
@@ -123,10 +121,10 @@ impl Plant {
             }
             Watch::Current(k) => match self.winding[k] {
                 Winding::Voltage(_) => {
-                    self.model.rotors[k].motor.current_limit - y[2 * DOF + k].abs()
+                    self.model.rotors[k].motor.current_limit - y[self.model.current(k)].abs()
                 }
                 Winding::Coast(_) if self.coast_sign[k] != 0.0 => {
-                    self.coast_sign[k] * y[2 * DOF + k]
+                    self.coast_sign[k] * y[self.model.current(k)]
                 }
                 Winding::Coast(_) | Winding::Open => f64::INFINITY,
             },
@@ -315,9 +313,8 @@ impl Plant {
 
     /// Contact `j`'s kinematics at state `y`.
     pub(super) fn contact_at(&self, y: &[f64; NY], j: usize) -> ContactKinematics {
-        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
-        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
-        contact_kinematics(&self.model, q[2].sin_cos(), j, &q, &v)
+        let (q, v) = (self.model.q(y), self.model.v(y));
+        Pose::new(&self.model, &q).contact(&self.model, j, &v)
     }
 
     /// Illinois false position on the dense output for the function `f`, from

@@ -17,8 +17,9 @@ use shared::impact::linalg::Solved;
 use shared::impact::split::within_cones;
 use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
 
-use super::super::dynamics::{ContactKinematics, Frame, DOF};
-use super::{ContactMode, Plant, NY};
+use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
+use super::super::model::MAX_DOF;
+use super::{ContactMode, Holds, Plant, NY};
 
 /// An evaluation with the state and modes it was made at.
 pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
@@ -36,8 +37,8 @@ pub(super) struct Evaluation {
 /// A contact problem assembled for a set of contacts.
 pub(super) struct ContactSystem {
     pub(super) problem: ImpactProblem<f64, MAX_CONTACTS>,
-    pub(super) minv_jn: [[f64; DOF]; MAX_CONTACTS],
-    pub(super) minv_jt: [[f64; DOF]; MAX_CONTACTS],
+    pub(super) minv_jn: [Vector; MAX_CONTACTS],
+    pub(super) minv_jt: [Vector; MAX_CONTACTS],
     pub(super) kin: [ContactKinematics; MAX_CONTACTS],
     pub(super) base_n: [f64; MAX_CONTACTS],
     pub(super) base_t: [f64; MAX_CONTACTS],
@@ -63,24 +64,17 @@ impl Plant {
 
     /// Accelerations and contact forces at `y` with the contacts in `modes`.
     pub(super) fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
-        let q: [f64; DOF] = core::array::from_fn(|i| y[i]);
-        let v: [f64; DOF] = core::array::from_fn(|i| y[DOF + i]);
+        let n = self.model.dof;
+        let q = self.model.q(y);
+        let v = self.model.v(y);
         let frame = self.frame(&q);
-
-        // Motors: shaft speed relative to the platform in the driven sense.
-        let mut tau = [0.0; 2];
-        let mut di = [0.0; 2];
-        for k in 0..2 {
-            let s = self.model.rotors[k].sense;
-            let omega_m = s * v[3 + k];
-            let i = y[2 * DOF + k];
-            tau[k] = s * self.motors[k].shaft_torque(i, omega_m);
-            di[k] = self.motors[k].current_rate(self.winding[k], i, omega_m);
-        }
-        let mut f = frame.forces(&self.model, &v, tau);
-        for (i, held) in self.holds.mask().iter().enumerate() {
-            if *held {
-                f[i] = 0.0;
+        let (tau, di) = self.motor_rates(y, &v);
+        let mut f = frame.forces(&self.model, &v, &tau);
+        if self.holds != Holds::default() {
+            for (i, held) in self.holds.mask(&self.model).iter().enumerate() {
+                if *held {
+                    f[i] = 0.0;
+                }
             }
         }
         let mut acc = frame.solve(&f);
@@ -99,7 +93,7 @@ impl Plant {
         }
         let closed = &closed_buf[..n_closed];
         if !closed.is_empty() {
-            let sys = self.contact_system(&frame, &q, &v, closed, Some(&acc));
+            let sys = self.contact_system(&frame, &v, closed, Some(&acc));
             let mut active = [false; MAX_CONTACTS];
             let mut mode = [SlipState::Stick; MAX_CONTACTS];
             for (r, &j) in closed.iter().enumerate() {
@@ -123,17 +117,18 @@ impl Plant {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
                     // The internal forces do no work: accelerations from either split.
-                    for i in 0..DOF {
+                    for i in 0..n {
                         acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
                     }
                 }
             }
         }
         let mut ydot = [0.0; NY];
-        ydot[..DOF].copy_from_slice(&v);
-        ydot[DOF..2 * DOF].copy_from_slice(&acc);
-        ydot[2 * DOF] = di[0];
-        ydot[2 * DOF + 1] = di[1];
+        ydot[..n].copy_from_slice(&v[..n]);
+        ydot[n..2 * n].copy_from_slice(&acc[..n]);
+        for k in 0..self.model.rotors.len() {
+            ydot[self.model.current(k)] = di[k];
+        }
         Evaluation {
             ydot,
             lambda_n,
@@ -196,42 +191,38 @@ impl Plant {
     pub(super) fn contact_system(
         &self,
         frame: &Frame,
-        q: &[f64; DOF],
-        v: &[f64; DOF],
+        v: &Vector,
         set: &[usize],
-        acc_free: Option<&[f64; DOF]>,
+        acc_free: Option<&Vector>,
     ) -> ContactSystem {
         let mut sys = ContactSystem {
             problem: ImpactProblem::new(self.model.law),
-            minv_jn: [[0.0; DOF]; MAX_CONTACTS],
-            minv_jt: [[0.0; DOF]; MAX_CONTACTS],
+            minv_jn: [[0.0; MAX_DOF]; MAX_CONTACTS],
+            minv_jt: [[0.0; MAX_DOF]; MAX_CONTACTS],
             kin: [ContactKinematics::default(); MAX_CONTACTS],
             base_n: [0.0; MAX_CONTACTS],
             base_t: [0.0; MAX_CONTACTS],
         };
         sys.problem.len = set.len();
         for (r, &j) in set.iter().enumerate() {
-            let k = frame.contact(&self.model, j, q, v);
+            let k = frame.contact(&self.model, j, v);
             sys.minv_jn[r] = frame.solve(&k.j_n);
             sys.minv_jt[r] = frame.solve(&k.j_t);
             sys.problem.u_n[r] = k.u_n;
             sys.problem.u_t[r] = k.u_t;
             sys.problem.contacts[r] = self.model.contacts[j].law;
             if let Some(a) = acc_free {
-                let row = |jr: &[f64; DOF]| (0..DOF).map(|i| jr[i] * a[i]).sum::<f64>();
-                sys.base_n[r] = row(&k.j_n) + k.bias_n;
-                sys.base_t[r] = row(&k.j_t) + k.bias_t;
+                sys.base_n[r] = row_dot(&k.j_n, a) + k.bias_n;
+                sys.base_t[r] = row_dot(&k.j_t, a) + k.bias_t;
             }
             sys.kin[r] = k;
         }
         for r in 0..set.len() {
             for c in 0..set.len() {
                 let (jn, jt) = (&sys.kin[r].j_n, &sys.kin[r].j_t);
-                let dotp =
-                    |a: &[f64; DOF], b: &[f64; DOF]| (0..DOF).map(|i| a[i] * b[i]).sum::<f64>();
-                sys.problem.w_nn[r][c] = dotp(jn, &sys.minv_jn[c]);
-                sys.problem.w_nt[r][c] = dotp(jn, &sys.minv_jt[c]);
-                sys.problem.w_tt[r][c] = dotp(jt, &sys.minv_jt[c]);
+                sys.problem.w_nn[r][c] = row_dot(jn, &sys.minv_jn[c]);
+                sys.problem.w_nt[r][c] = row_dot(jn, &sys.minv_jt[c]);
+                sys.problem.w_tt[r][c] = row_dot(jt, &sys.minv_jt[c]);
             }
         }
         sys

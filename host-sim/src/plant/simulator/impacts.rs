@@ -4,7 +4,8 @@
 
 use shared::impact::{solve, ImpactLaw};
 
-use super::super::dynamics::DOF;
+use super::super::dynamics::row_dot;
+use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
 use crate::simulation::trace::{EventKind, EventRow};
 
@@ -14,7 +15,7 @@ impl Plant {
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
-        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let sys = self.contact_system(&frame, &v, set, None);
         let outcome = match solve(&sys.problem) {
             Ok(o) => o,
             Err(e) => {
@@ -46,8 +47,9 @@ impl Plant {
         // Velocity jump: q'+ = q'- + M^-1 J^T P.
         for (r, &j) in set.iter().enumerate() {
             let c = &outcome.contacts[r];
-            for i in 0..DOF {
-                self.y[DOF + i] +=
+            let n = self.model.dof;
+            for i in 0..n {
+                self.y[n + i] +=
                     c.normal_impulse * sys.minv_jn[r][i] + c.tangential_impulse * sys.minv_jt[r][i];
             }
             if c.normal_impulse > 0.0 || sys.problem.u_n[r] < 0.0 {
@@ -119,13 +121,16 @@ impl Plant {
     pub(super) fn free_normal_acceleration(&self, set: &[usize]) -> f64 {
         let q = self.q();
         let v = self.v();
+        let n = self.model.dof;
         let frame = self.frame(&q);
         let open = vec![ContactMode::Open; self.modes.len()];
         let e = self.evaluate_with_modes(&self.y, &open);
+        let mut acc = [0.0; MAX_DOF];
+        acc[..n].copy_from_slice(&e.ydot[n..2 * n]);
         set.iter()
             .map(|&j| {
-                let k = frame.contact(&self.model, j, &q, &v);
-                (0..DOF).map(|i| k.j_n[i] * e.ydot[DOF + i]).sum::<f64>() + k.bias_n
+                let k = frame.contact(&self.model, j, &v);
+                row_dot(&k.j_n, &acc) + k.bias_n
             })
             .fold(f64::NEG_INFINITY, f64::max)
     }
@@ -161,7 +166,7 @@ impl Plant {
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
-        let sys = self.contact_system(&frame, &q, &v, set, None);
+        let sys = self.contact_system(&frame, &v, set, None);
         let mut problem = sys.problem.clone();
         let slip = (0..set.len())
             .map(|r| problem.u_t[r].abs())
@@ -174,8 +179,9 @@ impl Plant {
             Ok(outcome) => {
                 for (r, &j) in set.iter().enumerate() {
                     let c = &outcome.contacts[r];
-                    for i in 0..DOF {
-                        self.y[DOF + i] += c.normal_impulse * sys.minv_jn[r][i]
+                    let n = self.model.dof;
+                    for i in 0..n {
+                        self.y[n + i] += c.normal_impulse * sys.minv_jn[r][i]
                             + c.tangential_impulse * sys.minv_jt[r][i];
                     }
                     self.events.push(EventRow {
@@ -200,7 +206,7 @@ impl Plant {
                     "contacts: tangential impact at t = {:.9} s not solved ({e:?}); contacts held",
                     self.t
                 ));
-                let mut rows: Vec<([f64; DOF], [f64; DOF], f64)> = Vec::new();
+                let mut rows: Vec<([f64; MAX_DOF], [f64; MAX_DOF], f64)> = Vec::new();
                 for r in 0..set.len() {
                     rows.push((sys.kin[r].j_n, sys.minv_jn[r], sys.kin[r].u_n.min(0.0)));
                     rows.push((sys.kin[r].j_t, sys.minv_jt[r], sys.kin[r].u_t));

@@ -3,32 +3,33 @@
 //! state onto the closed contacts' constraints.
 
 use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
-use shared::impact::linalg::{solve_weighted, Vector, DIM};
+use shared::impact::linalg::{solve_weighted, DIM};
 use shared::impact::MAX_CONTACTS;
 
-use super::super::dynamics::{ContactKinematics, Frame, DOF};
+use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
+use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
 use crate::simulation::trace::{EventKind, EventRow};
 
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
-pub(super) fn least_change(rows: &[([f64; DOF], [f64; DOF], f64)]) -> Option<[f64; DOF]> {
+pub(super) fn least_change(rows: &[(Vector, Vector, f64)]) -> Option<Vector> {
     let n = rows.len().min(DIM);
     if n == 0 {
         return None;
     }
     let mut w = [[0.0; DIM]; DIM];
-    let mut b: Vector<f64> = [0.0; DIM];
+    let mut b = [0.0f64; DIM];
     for r in 0..n {
         for c in 0..n {
-            w[r][c] = (0..DOF).map(|i| rows[r].0[i] * rows[c].1[i]).sum();
+            w[r][c] = row_dot(&rows[r].0, &rows[c].1);
         }
         b[r] = -rows[r].2;
     }
     let (x, _) = solve_weighted(&w, &b, &[1.0; DIM], n)?;
-    let mut dx = [0.0; DOF];
+    let mut dx = [0.0; MAX_DOF];
     for r in 0..n {
-        for i in 0..DOF {
+        for i in 0..MAX_DOF {
             dx[i] += x[r] * rows[r].1[i];
         }
     }
@@ -54,9 +55,9 @@ impl Plant {
         for _ in 0..16 {
             let q = self.q();
             let v = self.v();
-            let frame = Frame::new(&self.model, &q);
+            let pose = Pose::new(&self.model, &q);
             let kin: Vec<ContactKinematics> = (0..self.model.contacts.len())
-                .map(|j| frame.contact(&self.model, j, &q, &v))
+                .map(|j| pose.contact(&self.model, j, &v))
                 .collect();
             let touching: Vec<usize> = (0..kin.len())
                 .filter(|j| kin[*j].gap <= self.settings.together_gap)
@@ -111,7 +112,7 @@ impl Plant {
             let mut rows = Vec::new();
             for j in 0..old.len() {
                 if old[j].closed() {
-                    let k = frame.contact(&self.model, j, &q, &v);
+                    let k = frame.contact(&self.model, j, &v);
                     rows.push((k.j_n, frame.solve(&k.j_n), k.u_n));
                     if ending.contains(&j) || old[j] == ContactMode::Stick {
                         rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
@@ -119,9 +120,9 @@ impl Plant {
                 }
             }
             self.project_rows(&rows);
-            let (q, v) = (self.q(), self.v());
+            let v = self.v();
             refreshed = (0..old.len())
-                .map(|j| frame.contact(&self.model, j, &q, &v))
+                .map(|j| frame.contact(&self.model, j, &v))
                 .collect();
             &refreshed
         };
@@ -137,11 +138,13 @@ impl Plant {
             // give (`base_n`, `base_t`); W = J M^-1 J^T.
             let open = vec![ContactMode::Open; self.modes.len()];
             let free = self.evaluate_with_modes(&self.y, &open);
-            let acc: [f64; DOF] = core::array::from_fn(|i| free.ydot[DOF + i]);
+            let n = self.model.dof;
+            let mut acc = [0.0; MAX_DOF];
+            acc[..n].copy_from_slice(&free.ydot[n..2 * n]);
             let q = self.q();
             let v = self.v();
             let frame = self.frame(&q);
-            let sys = self.contact_system(&frame, &q, &v, &candidates, Some(&acc));
+            let sys = self.contact_system(&frame, &v, &candidates, Some(&acc));
             // Slip states from the slip velocities, with zero below the tolerance.
             let mut slip = [0.0; MAX_CONTACTS];
             for (r, &j) in candidates.iter().enumerate() {
@@ -242,7 +245,7 @@ impl Plant {
         let mut vel_rows = Vec::new();
         let mut pos_rows = Vec::new();
         for &j in &closed {
-            let k = frame.contact(&self.model, j, &q, &v);
+            let k = frame.contact(&self.model, j, &v);
             let minv_n = frame.solve(&k.j_n);
             vel_rows.push((k.j_n, minv_n, k.u_n));
             pos_rows.push((k.j_n, minv_n, k.gap));
@@ -253,17 +256,18 @@ impl Plant {
         self.project_rows(&vel_rows);
         // Positions: one Gauss-Newton step on the gaps.
         if let Some(dq) = least_change(&pos_rows) {
-            for i in 0..DOF {
+            for i in 0..self.model.dof {
                 self.y[i] += dq[i];
             }
         }
     }
 
     /// Applies the least mass-weighted velocity change that zeroes the rows.
-    pub(super) fn project_rows(&mut self, rows: &[([f64; DOF], [f64; DOF], f64)]) {
+    pub(super) fn project_rows(&mut self, rows: &[(Vector, Vector, f64)]) {
         if let Some(dv) = least_change(rows) {
-            for i in 0..DOF {
-                self.y[DOF + i] += dv[i];
+            let n = self.model.dof;
+            for i in 0..n {
+                self.y[n + i] += dv[i];
             }
         }
     }

@@ -1,0 +1,276 @@
+//! The plant with several bodies (issue 12), against closed forms and
+//! conservation laws that do not go through the plant's Jacobians:
+//!
+//! - a body hinged to the held platform on a torsional spring, no gravity, swings
+//!   with the period `2 pi sqrt(J_h / k)` for small angles, `J_h = I_c + m d^2`
+//!   its inertia about the hinge (Steiner), `d` the hinge-to-centre distance;
+//! - the same body hinged to the fundament under gravity, without a spring: a
+//!   compound pendulum, period `2 pi sqrt(J_h / (m g d))` for small angles;
+//! - a pendulum hinged to a platform that rests on a frictionless floor, striking a
+//!   stop on the platform: no horizontal external force, so the system's
+//!   horizontal momentum `sum m v_x` (computed here from the bodies' centres of
+//!   mass, finite differences of their positions) stays what it was through every
+//!   impact, and the mechanical energy never grows under Poisson's law with one
+//!   restitution;
+//! - the reference machine gives the same numbers as the single-platform plant did
+//!   (checked by the CLI's golden summaries in CI; here: its layout).
+
+use std::f64::consts::PI;
+use std::path::Path;
+
+use host_sim::machine::Machine;
+use host_sim::plant::model::{initial_state, Mount, PlantModel};
+use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
+
+/// The reference machine's text with `replace` applied and `extra` appended.
+fn machine(replace: &[(&str, &str)], extra: &str) -> Machine {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
+    let mut text = std::fs::read_to_string(&path).expect("the reference machine");
+    for (a, b) in replace {
+        assert!(text.contains(a), "{a:?} not in the reference machine");
+        text = text.replace(a, b);
+    }
+    text.push_str(extra);
+    match Machine::from_text("test.toml", &text, path.parent().unwrap(), &[]) {
+        Ok(m) => m,
+        Err(e) => panic!("the test machine is refused: {e:?}"),
+    }
+}
+
+/// The arm of the swinging tests: 0.3 kg, `I_c` = 1e-3 kg m^2, its centre 0.1 m
+/// from the hinge along +x, started `angle0` from its spring's rest.
+fn arm(against: &str, hinge: [f64; 2], angle0: f64, stiffness: f64) -> String {
+    let d = 0.1;
+    let (s, c) = angle0.sin_cos();
+    format!(
+        r#"
+[[bodies]]
+name = "arm"
+mass = 0.3
+inertia = 1e-3
+position = [{}, {}]
+angle = {angle0}
+
+[[joints]]
+name = "hinge"
+kind = "revolute"
+bodies = ["{against}", "arm"]
+point = [{}, {}]
+stiffness = {stiffness}
+rest_angle = 0.0
+"#,
+        hinge[0] + d * c,
+        hinge[1] + d * s,
+        hinge[0],
+        hinge[1]
+    )
+}
+
+/// The times the arm's angular velocity crosses zero from above (its turning
+/// points at the positive end), over `t_end`.
+fn turning_points(plant: &mut Plant, omega: usize, t_end: f64) -> Vec<f64> {
+    let mut last: Option<(f64, f64)> = None;
+    let mut found = Vec::new();
+    let dt = 1e-4;
+    let mut t = 0.0;
+    while t < t_end {
+        t += dt;
+        plant.advance_to(t, &mut |_| {});
+        let w = plant.y[omega];
+        if let Some((t0, w0)) = last {
+            if w0 > 0.0 && w <= 0.0 {
+                found.push(t0 + dt * w0 / (w0 - w));
+            }
+        }
+        last = Some((t, w));
+    }
+    found
+}
+
+/// The mean period from turning points.
+fn period(points: &[f64]) -> f64 {
+    assert!(points.len() >= 3, "too few swings: {points:?}");
+    (points[points.len() - 1] - points[0]) / (points.len() - 1) as f64
+}
+
+#[test]
+fn a_body_on_a_torsional_spring_swings_with_the_closed_form_period() {
+    // No gravity; the platform held; the arm on the platform's spring joint.
+    let k = 5.0;
+    let m = machine(
+        &[("gravity = [0.0, -9.81]", "gravity = [0.0, 0.0]")],
+        &arm("platform", [0.15, 0.03], 0.02, k),
+    );
+    let model = PlantModel::new(&m);
+    // Layout: platform free (x, y, theta), the arm's angle, the two rotors.
+    assert_eq!(model.dof, 6);
+    assert!(matches!(
+        model.bodies[1].mount,
+        Mount::Child { parent: 0, .. }
+    ));
+    let omega = model.dof + model.bodies[1].angle;
+    let holds = Holds {
+        platform: true,
+        ..Holds::default()
+    };
+    let mut plant = Plant::new(model, initial_state(&m), Settings::default(), holds);
+    let points = turning_points(&mut plant, omega, 2.0);
+    let j_hinge = 1e-3 + 0.3 * 0.1 * 0.1;
+    let expected = 2.0 * PI * (j_hinge / k).sqrt();
+    let got = period(&points);
+    // Small-angle error of a linear spring: none (the spring is linear in the
+    // angle and nothing else acts); the turning points are interpolated to
+    // O(dt^2 / T^2), far below 1e-6 of the period.
+    assert!(
+        (got - expected).abs() < 1e-6 * expected,
+        "period {got} s, closed form {expected} s"
+    );
+}
+
+#[test]
+fn a_compound_pendulum_on_the_fundament_swings_with_the_closed_form_period() {
+    // Gravity -9.81; the arm hinged to the fundament high above the floor, hanging
+    // down (angle -pi/2), started 0.01 rad off; no spring.
+    let hinge = [0.5, 1.0];
+    let angle0 = -PI / 2.0 + 0.01;
+    let m = machine(&[], &arm("fundament", hinge, angle0, 0.0));
+    let model = PlantModel::new(&m);
+    assert!(matches!(model.bodies[1].mount, Mount::Pinned { .. }));
+    let omega = model.dof + model.bodies[1].angle;
+    let holds = Holds {
+        platform: true,
+        ..Holds::default()
+    };
+    let mut plant = Plant::new(model, initial_state(&m), Settings::default(), holds);
+    let points = turning_points(&mut plant, omega, 3.0);
+    let (mass, d, g): (f64, f64, f64) = (0.3, 0.1, 9.81);
+    let j_hinge = 1e-3 + mass * d * d;
+    let small = 2.0 * PI * (j_hinge / (mass * g * d)).sqrt();
+    // Amplitude 0.01 rad: the period grows by theta0^2 / 16 (the pendulum's series,
+    // Landau & Lifshitz, Mechanics, sec. 11), 6e-6 of it.
+    let expected = small * (1.0 + 0.01f64.powi(2) / 16.0);
+    let got = period(&points);
+    assert!(
+        (got - expected).abs() < 1e-6 * expected,
+        "period {got} s, closed form {expected} s"
+    );
+}
+
+/// A pendulum (the arm, 0.3 kg) hinged 0.25 m above the floor to the platform,
+/// which stands on a frictionless floor; its tip strikes a stop, a vertical face of
+/// the platform at x = 0.03 m, with friction. Rotors without eccentric masses.
+fn pendulum_on_a_sliding_platform() -> Machine {
+    let hinge = [0.0, 0.25];
+    let a0 = -PI / 2.0 - 0.3;
+    let (s, c) = a0.sin_cos();
+    let tip = 0.15;
+    let extra = format!(
+        r#"{}
+[[contacts]]
+name = "stop"
+body = "arm"
+against = "platform"
+point = [{}, {}]
+face = [0.03, 0.1]
+normal = [-1.0, 0.0]
+restitution = 0.3
+friction = 0.3
+"#,
+        arm("platform", hinge, a0, 0.0),
+        hinge[0] + tip * c,
+        hinge[1] + tip * s,
+    );
+    machine(
+        &[
+            // Every occurrence: both feet, both rotors.
+            ("friction = 0.4\nweight", "friction = 0.0\nweight"),
+            ("eccentric_mass = 0.01 ", "eccentric_mass = 0.0 "),
+        ],
+        &extra,
+    )
+}
+
+/// Horizontal momentum and mechanical energy from a trace row: the platform
+/// (mass 2 kg, inertia 7.3e-3 kg m^2) and the arm (0.3 kg, 1e-3 kg m^2), each
+/// `m v_x`, and `m v^2 / 2 + I omega^2 / 2 + m g y`.
+fn momentum_and_energy(r: &host_sim::simulation::trace::TraceRow) -> (f64, f64) {
+    let g = 9.81;
+    let platform = (2.0, 7.3e-3, [r.x, r.y, r.angle, r.vx, r.vy, r.omega]);
+    let arm = (0.3, 1e-3, r.bodies[0]);
+    let mut p = 0.0;
+    let mut e = 0.0;
+    for (m, i, b) in [platform, arm] {
+        p += m * b[3];
+        e += 0.5 * m * (b[3] * b[3] + b[4] * b[4]) + 0.5 * i * b[5] * b[5] + m * g * b[1];
+    }
+    (p, e)
+}
+
+#[test]
+fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
+    let m = pendulum_on_a_sliding_platform();
+    let model = PlantModel::new(&m);
+    let row_model = model.clone();
+    let mut plant = Plant::new(
+        model,
+        initial_state(&m),
+        Settings::default(),
+        Holds::default(),
+    );
+    let forces = Default::default();
+    let row =
+        |t: f64, y: &[f64; host_sim::plant::model::NY]| row_model.row(t, y, [0.0; 2], &forces);
+    let (p0, e0) = momentum_and_energy(&row(0.0, &plant.y));
+    assert_eq!(p0, 0.0);
+    let mut impacts = 0;
+    let mut worst_p: f64 = 0.0;
+    let mut highest_e = f64::NEG_INFINITY;
+    let mut before_e = f64::NAN;
+    let mut gained: f64 = 0.0;
+    let mut platform_speed: f64 = 0.0;
+    plant.advance_to(1.5, &mut |out| match out {
+        Output::Dense(step, upto) => {
+            let r = row(upto, &step.at(upto));
+            platform_speed = platform_speed.max(r.vx.abs());
+            let (p, e) = momentum_and_energy(&r);
+            worst_p = worst_p.max(p.abs());
+            highest_e = highest_e.max(e);
+        }
+        Output::Before(at) => before_e = momentum_and_energy(&row(at.t, at.y)).1,
+        Output::After(at) => {
+            let (p, e) = momentum_and_energy(&row(at.t, at.y));
+            worst_p = worst_p.max(p.abs());
+            gained = gained.max(e - before_e);
+            impacts += 1;
+        }
+    });
+    let stop_impacts = plant
+        .events
+        .iter()
+        .filter(|e| e.contact == "stop" && e.kind.name() == "impact")
+        .count();
+    assert!(
+        stop_impacts >= 2,
+        "the arm strikes the stop: {stop_impacts} impacts"
+    );
+    // The platform is pushed back and forth by the swing (the mechanism under
+    // test): the arm's momentum m v ~ 0.1 N s over 2.3 kg.
+    assert!(
+        platform_speed > 1e-2,
+        "the platform moved at most {platform_speed} m/s"
+    );
+    // Momentum: zero to the integrator's and the projections' accuracy, against
+    // the swing's own momentum scale m v (0.3 kg x 0.4 m/s).
+    assert!(
+        worst_p < 1e-7,
+        "horizontal momentum reached {worst_p} N s ({impacts} events)"
+    );
+    // Energy: never above the start (no spring, no motor; impacts and friction
+    // only take), to the integrator's tolerance.
+    let scale = e0.abs().max(1.0);
+    assert!(
+        highest_e <= e0 + 1e-7 * scale,
+        "energy rose from {e0} J to {highest_e} J"
+    );
+    assert!(gained <= 1e-9 * scale, "an event gained {gained} J");
+}
