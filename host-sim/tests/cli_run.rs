@@ -84,10 +84,11 @@ fn files_are_written_with_the_spec_headers() {
     assert!(times.windows(2).all(|w| w[1] >= w[0]));
     let ev = std::fs::read_to_string(&events).unwrap();
     assert!(ev.starts_with(
-        "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail\n"
+        "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail,body,against\n"
     ));
     assert!(
-        ev.contains(",impact,K1,") || ev.contains(",impact,K2,"),
+        (ev.contains(",impact,K1,") || ev.contains(",impact,K2,"))
+            && ev.contains(",platform,fundament\n"),
         "{ev}"
     );
     let svg = std::fs::read_to_string(&plot).unwrap();
@@ -325,13 +326,50 @@ fn a_closed_pipe_on_stdout_is_not_an_error() {
 /// A machine with a further body is read and checked, but the plant is a single
 /// platform so far: refused before the run, exit 2, saying so.
 #[test]
-fn a_machine_with_several_bodies_is_refused_until_the_plant_has_them() {
+fn a_further_body_is_traced_in_its_own_columns() {
+    // A free body that touches nothing: it falls, y = y0 - g t^2 / 2, while the
+    // machine runs beside it.
     let text = std::fs::read_to_string(machine()).unwrap()
         + "\n[[bodies]]\nname = \"element\"\nmass = 0.05\ninertia = 2e-5\nposition = [0.1, 0.2]\n";
     let file = scratch("bodies.toml");
     std::fs::write(&file, text).unwrap();
-    let r = run(&["run", file.to_str().unwrap(), "--open-loop", "12,12"]);
-    r.refused("the machine has several bodies (bodies (1 further))");
+    let out = scratch("bodies.csv");
+    let r = run(&[
+        "run",
+        file.to_str().unwrap(),
+        "--open-loop",
+        "12,12",
+        "--t-end",
+        "0.1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let trace = std::fs::read_to_string(&out).unwrap();
+    let header: Vec<&str> = trace.lines().next().unwrap().split(',').collect();
+    let tail = &header[header.len() - 6..];
+    assert_eq!(
+        tail,
+        [
+            "x_element",
+            "y_element",
+            "angle_element",
+            "vx_element",
+            "vy_element",
+            "omega_element"
+        ]
+    );
+    let last: Vec<f64> = trace
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let (t, y, vy) = (last[0], last[last.len() - 5], last[last.len() - 2]);
+    assert!((t - 0.1).abs() < 1e-12, "t = {t}");
+    assert!((y - (0.2 - 9.81 * t * t / 2.0)).abs() < 1e-9, "y = {y}");
+    assert!((vy + 9.81 * t).abs() < 1e-9, "vy = {vy}");
 }
 
 /// In fast decay the winding's current dies behind the diodes in every PWM period

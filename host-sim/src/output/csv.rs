@@ -16,10 +16,15 @@ use crate::simulation::trace::{EventRow, TraceRow};
 /// the contact forces follow ([`trace_header`]).
 pub const TRACE_HEADER: &str = "t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2";
 
-/// The trace CSV's header for a machine whose contacts are named `contacts`:
-/// [`TRACE_HEADER`], then per contact in file order `fn_<name>,ft_<name>` (the
-/// spec's addition: normal and tangential force of persistent contact, N).
-pub fn trace_header(contacts: &[String]) -> String {
+/// The columns of every body after the platform, `<column>_<name>`: centre of
+/// mass (m), angle (rad), their rates (m/s, rad/s).
+pub const BODY_COLUMNS: [&str; 6] = ["x", "y", "angle", "vx", "vy", "omega"];
+
+/// The trace CSV's header for a machine whose contacts are named `contacts` and
+/// whose bodies after the platform `bodies`: [`TRACE_HEADER`], then per contact in
+/// file order `fn_<name>,ft_<name>` (the spec's addition: normal and tangential
+/// force of persistent contact, N), then per body [`BODY_COLUMNS`] with `_<name>`.
+pub fn trace_header(contacts: &[String], bodies: &[String]) -> String {
     let mut header = TRACE_HEADER.to_string();
     for name in contacts {
         let _ = write!(
@@ -29,11 +34,18 @@ pub fn trace_header(contacts: &[String]) -> String {
             csv_text(&format!("ft_{name}"))
         );
     }
+    for name in bodies {
+        for column in BODY_COLUMNS {
+            let _ = write!(header, ",{}", csv_text(&format!("{column}_{name}")));
+        }
+    }
     header
 }
 
-/// The events CSV's header (spec `machine.md`, `--events`).
-pub const EVENTS_HEADER: &str = "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail";
+/// The events CSV's header (spec `machine.md`, `--events`), then the contact's two
+/// bodies (`body`, the point's; `against`, the face's: a body or `fundament`;
+/// empty for controller events).
+pub const EVENTS_HEADER: &str = "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail,body,against";
 
 /// A number for the CSV files: the shortest decimal that reads back to the same
 /// `f64` (Rust's `Display` and `LowerExp` without a precision), plain for
@@ -62,15 +74,17 @@ pub fn csv_text(s: &str) -> String {
 
 /// One trace row as a CSV line (with its line break) appended to `out`: the
 /// fifteen columns every machine has, then normal and tangential force of the
-/// first `contacts` contacts.
-pub fn trace_line(r: &TraceRow, contacts: usize, out: &mut String) {
+/// first `contacts` contacts, then the motion of the first `bodies` bodies after
+/// the platform.
+pub fn trace_line(r: &TraceRow, contacts: usize, bodies: usize, out: &mut String) {
     let n = contacts.min(MAX_CONTACTS);
     let fields = [
         r.t, r.x, r.y, r.angle, r.vx, r.vy, r.omega, r.phi1, r.phi2, r.omega1, r.omega2, r.i1,
         r.i2, r.duty1, r.duty2,
     ];
     let forces = (0..n).flat_map(|j| [r.normal_force[j], r.tangential_force[j]]);
-    for (i, v) in fields.into_iter().chain(forces).enumerate() {
+    let motion = r.bodies.iter().take(bodies).flatten().copied();
+    for (i, v) in fields.into_iter().chain(forces).chain(motion).enumerate() {
         if i > 0 {
             out.push(',');
         }
@@ -80,17 +94,22 @@ pub fn trace_line(r: &TraceRow, contacts: usize, out: &mut String) {
 }
 
 /// The `--events` CSV: [`EVENTS_HEADER`], then one line per row; `case` empty when
-/// the row has none.
-pub fn events_csv(rows: &[EventRow]) -> String {
+/// the row has none; `body` and `against` from `ends`, `(contact, body, against)`
+/// per contact (empty for a row naming none of them).
+pub fn events_csv(rows: &[EventRow], ends: &[(String, String, String)]) -> String {
     let mut out = String::new();
     out.push_str(EVENTS_HEADER);
     out.push('\n');
     for e in rows {
         let case = e.case.map(|c| c.to_string()).unwrap_or_default();
+        let (body, against) = ends
+            .iter()
+            .find(|(name, _, _)| *name == e.contact)
+            .map_or(("", ""), |(_, b, a)| (b.as_str(), a.as_str()));
         // Writing to a String cannot fail.
         let _ = writeln!(
             out,
-            "{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             csv_number(e.t),
             e.kind.name(),
             csv_text(&e.contact),
@@ -100,6 +119,8 @@ pub fn events_csv(rows: &[EventRow]) -> String {
             csv_number(e.tangential_impulse),
             case,
             csv_text(&e.detail),
+            csv_text(body),
+            csv_text(against),
         );
     }
     out
@@ -114,10 +135,10 @@ mod tests {
     fn trace_csv(rows: &[TraceRow], contacts: &[String]) -> String {
         let n = contacts.len().min(MAX_CONTACTS);
         let mut out = String::with_capacity(32 + rows.len() * (15 + 2 * n) * 12);
-        out.push_str(&trace_header(&contacts[..n]));
+        out.push_str(&trace_header(&contacts[..n], &[]));
         out.push('\n');
         for r in rows {
-            trace_line(r, n, &mut out);
+            trace_line(r, n, 0, &mut out);
         }
         out
     }
@@ -221,13 +242,21 @@ mod tests {
                 "overcurrent, rotor \"left\"".to_string(),
             ),
         ];
-        let csv = events_csv(&rows);
+        let ends = [(
+            "K1".to_string(),
+            "platform".to_string(),
+            "fundament".to_string(),
+        )];
+        let csv = events_csv(&rows, &ends);
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(lines[0], EVENTS_HEADER);
-        assert_eq!(lines[1], "0.5,impact,K1,-0.25,0.075,0.5,-0.125,3,");
+        assert_eq!(
+            lines[1],
+            "0.5,impact,K1,-0.25,0.075,0.5,-0.125,3,,platform,fundament"
+        );
         assert_eq!(
             lines[2],
-            "0.75,fault,,0,0,0,0,,\"overcurrent, rotor \"\"left\"\"\""
+            "0.75,fault,,0,0,0,0,,\"overcurrent, rotor \"\"left\"\"\",,"
         );
         assert_eq!(csv_text("a\nb"), "\"a\nb\"");
     }

@@ -178,9 +178,13 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let contacts = machine.contacts.len();
     if let Some(i) = trace {
         let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
+        let bodies: Vec<String> = machine.bodies.iter().map(|b| b.name.clone()).collect();
         staged.write(
             i,
-            &format!("{}\n", trace_header(&names[..contacts.min(MAX_CONTACTS)])),
+            &format!(
+                "{}\n",
+                trace_header(&names[..contacts.min(MAX_CONTACTS)], &bodies)
+            ),
         )?;
     }
 
@@ -189,7 +193,8 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let mut warnings = Vec::new();
     let mut options = RunOptions::new(t_end);
     options.keep_rows = plot.is_some();
-    let mut watch = Watch::new(t_end, trace.map(|i| (&mut staged, i)), contacts);
+    let shape = (contacts, machine.bodies.len());
+    let mut watch = Watch::new(t_end, trace.map(|i| (&mut staged, i)), shape);
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
             if let OpenLoop::Voltages(v) = open_loop {
@@ -224,7 +229,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
 
     // 3. Files, then the summary.
     if let Some(i) = events {
-        staged.write(i, &events_csv(&result.events))?;
+        let ends: Vec<(String, String, String)> = machine
+            .contacts
+            .iter()
+            .map(|c| (c.name.clone(), c.ends.body.clone(), c.ends.against.clone()))
+            .collect();
+        staged.write(i, &events_csv(&result.events, &ends))?;
     }
     if let Some(i) = plot {
         let title = format!("host-sim run {} ({how})", args.machine.path.display());
@@ -251,7 +261,9 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
 /// terminal, and ends the run on Ctrl-C.
 struct Watch<'s> {
     trace: Option<(&'s mut Staged, usize)>,
+    /// The machine's contacts and bodies after the platform (the trace's columns).
     contacts: usize,
+    bodies: usize,
     line: String,
     /// The first write error: the run stops there.
     error: Option<Failure>,
@@ -259,7 +271,11 @@ struct Watch<'s> {
 }
 
 impl<'s> Watch<'s> {
-    fn new(t_end: f64, trace: Option<(&'s mut Staged, usize)>, contacts: usize) -> Self {
+    fn new(
+        t_end: f64,
+        trace: Option<(&'s mut Staged, usize)>,
+        (contacts, bodies): (usize, usize),
+    ) -> Self {
         interrupt::catch();
         // Progress in ms of simulated time, drawn only when stderr is a terminal.
         let progress = ProgressBar::with_draw_target(
@@ -274,6 +290,7 @@ impl<'s> Watch<'s> {
         Watch {
             trace,
             contacts,
+            bodies,
             line: String::new(),
             error: None,
             progress,
@@ -291,7 +308,7 @@ impl Observer for Watch<'_> {
     fn row(&mut self, row: &TraceRow) {
         if let (Some((staged, i)), None) = (&mut self.trace, &self.error) {
             self.line.clear();
-            trace_line(row, self.contacts, &mut self.line);
+            trace_line(row, self.contacts, self.bodies, &mut self.line);
             if let Err(e) = staged.write(*i, &self.line) {
                 self.error = Some(e);
             }

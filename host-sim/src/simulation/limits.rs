@@ -1,5 +1,4 @@
-//! What one run may ask: a machine the plant simulates (a single platform on the
-//! fundament so far: [`Machine::beyond_the_platform`]), and bounds, so that a typo
+//! What one run may ask: bounds, so that a typo
 //! (`--t-end 1e300`, `simulation.output_step=1e-300`) is refused with the key and
 //! the limit instead of running forever or filling the memory.
 //!
@@ -26,15 +25,8 @@ pub const MAX_TRACE_ROWS: f64 = 1.0e7;
 /// time was given as `t_end_key` (`--t-end`, `simulation.t_end`, `FILE: t_end`):
 /// one line each, `error: ` first.
 pub fn check(machine: &Machine, file: &Path, t_end: f64, t_end_key: &str) -> Vec<String> {
+    let _ = file;
     let mut problems = Vec::new();
-    let beyond = machine.beyond_the_platform();
-    if !beyond.is_empty() {
-        problems.push(format!(
-            "error: {}: the machine has several bodies ({}): the file reads and checks them, but the simulated plant is a single platform on the fundament so far",
-            file.display(),
-            beyond.join(", ")
-        ));
-    }
     if !(t_end.is_finite() && t_end > 0.0) {
         // The caller's own check says what a valid end time is.
         return problems;
