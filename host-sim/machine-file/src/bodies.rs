@@ -16,8 +16,9 @@
 //!   towards `body`) and its point must not be behind the face at t = 0;
 //! - a rotor's body moves.
 //!
-//! The simulated plant is the platform alone so far: [`beyond_the_platform`] names
-//! what a machine asks beyond it, and the commands refuse such a machine with it.
+//! host-sim simulates all of it; the firmware drives rotors only, and its build
+//! refuses a machine that asks more than a platform on the fundament
+//! ([`beyond_the_platform`] names what).
 
 use crate::input::{check_names, number, read_name, vector, Limit, Named, Need, Section};
 use crate::{read_platform, Platform};

@@ -222,11 +222,6 @@ impl Pose {
         pose
     }
 
-    /// `(sin theta, cos theta)` of body `b`.
-    pub fn angle_cs(&self, b: usize) -> (f64, f64) {
-        self.cs[b]
-    }
-
     /// The chain of body `b`'s reference point: its root's base and the segments
     /// of its ancestors' hinges.
     fn chain_to(&self, model: &PlantModel, b: usize) -> Chain {
@@ -272,15 +267,9 @@ impl Pose {
         self.point(model, b, model.bodies[b].com)
     }
 
-    /// Rotor `k`'s eccentric mass at `q`: its axis, then
-    /// `eps = e (cos(theta_b + phi_k), sin(theta_b + phi_k))` turning at
-    /// `theta_b' + phi_k'`.
-    pub fn eccentric(&self, model: &PlantModel, k: usize, q: &Vector) -> Chain {
-        self.eccentric_at(model, k, eccentric_offset(model, k, q))
-    }
-
-    /// Rotor `k`'s eccentric mass at `eps` from its axis (world, m).
-    fn eccentric_at(&self, model: &PlantModel, k: usize, eps: [f64; 2]) -> Chain {
+    /// Rotor `k`'s eccentric mass at `eps` from its axis (world, m;
+    /// [`eccentric_offset`]), turning at `theta_b' + phi_k'`.
+    fn eccentric(&self, model: &PlantModel, k: usize, eps: [f64; 2]) -> Chain {
         let rotor = &model.rotors[k];
         let b = rotor.body;
         let mut chain = self.point(model, b, rotor.axis);
@@ -681,7 +670,7 @@ fn element(model: &PlantModel, pose: &Pose, eps: &[[f64; 2]; MAX_ROTORS], i: usi
         let k = i - nb;
         let rotor = &model.rotors[k];
         Element {
-            chain: pose.eccentric_at(model, k, eps[k]),
+            chain: pose.eccentric(model, k, eps[k]),
             mass: rotor.mass,
             inertia: rotor.inertia,
             spin: (model.bodies[rotor.body].angle, Some(rotor.phi)),
@@ -761,4 +750,70 @@ fn cholesky_solve(
         x[i] = s / l[i][i];
     }
     x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::Machine;
+
+    /// The reference machine, with `extra` appended to its file.
+    fn machine(extra: &str) -> Machine {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../examples/vibro-driver.toml"
+        ))
+        .unwrap();
+        Machine::from_text("m.toml", &(text + extra), std::path::Path::new("."), &[]).unwrap()
+    }
+
+    /// The block solve, the Cholesky solve of the whole matrix, and (three bodies,
+    /// bodies' coordinates 3 + 1 + 3) the Cholesky solve of the Schur complement
+    /// each give `M x = b`.
+    #[test]
+    fn block_solve_inverts_the_mass_matrix() {
+        for (name, m) in [
+            ("one body", machine("")),
+            (
+                "three bodies",
+                machine(include_str!("../../../tests/fixtures/three-bodies.toml")),
+            ),
+        ] {
+            let model = PlantModel::new(&m);
+            let n = model.dof;
+            for (k, q0) in [
+                [0.0, 0.03, 0.1, 0.3, -2.0, 0.7, 0.2, -1.0],
+                [0.2, 0.05, -0.4, 5.0, 1.0, -0.3, 0.0, 2.0],
+            ]
+            .iter()
+            .enumerate()
+            {
+                let mut q = [0.0; MAX_DOF];
+                q[..n.min(8)].copy_from_slice(&q0[..n.min(8)]);
+                let mut b = [0.0; MAX_DOF];
+                for (i, x) in b.iter_mut().take(n).enumerate() {
+                    *x = 1.0 - 0.37 * i as f64;
+                }
+                let fast = Frame::new(&model, &q);
+                let unlocked = Frame::locked(&model, &q, &[false; MAX_DOF]);
+                let mut held = Frame::new(&model, &q);
+                held.factor = held.mass;
+                cholesky_in_place(&mut held.factor, n);
+                held.any_locked = true;
+                for (how, x) in [
+                    ("block", fast.solve(&b)),
+                    ("cholesky", held.solve(&b)),
+                    ("unlocked", unlocked.solve(&b)),
+                ] {
+                    for i in 0..n {
+                        let r: f64 = (0..n).map(|j| fast.mass[i][j] * x[j]).sum::<f64>() - b[i];
+                        assert!(
+                            r.abs() < 1e-12 * (1.0 + b[i].abs()),
+                            "{name} case {k} {how}: residual {r}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -462,16 +462,6 @@ impl PlantModel {
             .fold(bodies, |s, r| s + r.mass)
     }
 
-    /// The coordinates of body `b`'s own placement: `(x, y, theta)` for a free
-    /// root, `theta` otherwise.
-    pub fn body_coordinates(&self, b: usize) -> Vec<usize> {
-        let body = &self.bodies[b];
-        match body.mount {
-            Mount::Free { x } => vec![x, x + 1, body.angle],
-            _ => vec![body.angle],
-        }
-    }
-
     /// The state at `t = 0` of machine file `m` (the one this model was made of):
     /// each free root's centre of mass, angle and velocities, every other body's
     /// angle and angular velocity, the eccentric angles in their bodies' frames,

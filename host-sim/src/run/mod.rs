@@ -152,7 +152,6 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
 
     problems.extend(limits::check(
         &machine,
-        &args.machine.path,
         t_end,
         if args.t_end.seconds.is_some() {
             "--t-end"

@@ -42,12 +42,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     let scenario = file::load(&args.scenario)?;
 
     let t_end_key = format!("{}: t_end", args.scenario.display());
-    let problems = limits::check(
-        &scenario.machine,
-        &scenario.machine_file,
-        scenario.t_end,
-        &t_end_key,
-    );
+    let problems = limits::check(&scenario.machine, scenario.t_end, &t_end_key);
     if !problems.is_empty() {
         return Err(Failure::Usage(problems.join("\n")));
     }

@@ -10,8 +10,6 @@
 //!   written, and the summary keeps 16 bytes of each row of the second half, so
 //!   10^7 rows are at most 80 MB and about 2 GB of CSV.
 
-use std::path::Path;
-
 use crate::machine::Machine;
 use crate::output::text::sig;
 
@@ -21,11 +19,10 @@ pub const MAX_T_END_S: f64 = 3600.0;
 /// Most regular trace rows of one run (`t_end / output_step`).
 pub const MAX_TRACE_ROWS: f64 = 1.0e7;
 
-/// The problems of a run of `machine` (read from `file`) to `t_end`, s, whose end
+/// The problems of a run of `machine` to `t_end`, s, whose end
 /// time was given as `t_end_key` (`--t-end`, `simulation.t_end`, `FILE: t_end`):
 /// one line each, `error: ` first.
-pub fn check(machine: &Machine, file: &Path, t_end: f64, t_end_key: &str) -> Vec<String> {
-    let _ = file;
+pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
     let mut problems = Vec::new();
     if !(t_end.is_finite() && t_end > 0.0) {
         // The caller's own check says what a valid end time is.

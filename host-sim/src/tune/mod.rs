@@ -198,12 +198,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
         ));
     }
 
-    problems.extend(limits::check(
-        &machine,
-        &args.machine.path,
-        t_end,
-        "--t-end",
-    ));
+    problems.extend(limits::check(&machine, t_end, "--t-end"));
 
     // The whole grid, and what the table file can hold.
     if let (Some(s), Some(o)) = (&speeds, &offsets) {
