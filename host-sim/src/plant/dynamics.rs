@@ -68,60 +68,60 @@ pub fn rotate(angle_cs: (f64, f64), v: [f64; 2]) -> [f64; 2] {
 }
 
 /// One segment of a point's chain: a world vector turning at `v[angle]` (plus
-/// `v[spin]`, a rotor's eccentric angle, for an eccentric; [`NO_SPIN`] for none).
-/// Small on purpose: chains are built and copied in the innermost loops.
-#[derive(Clone, Copy, Debug, Default)]
+/// `v[spin]`, a rotor's eccentric angle, for an eccentric).
+#[derive(Clone, Copy, Debug)]
 struct Segment {
     w: [f64; 2],
-    angle: u8,
-    spin: u8,
+    angle: usize,
+    spin: Option<usize>,
 }
-
-/// [`Segment::spin`] of a segment that turns with a body alone.
-const NO_SPIN: u8 = u8::MAX;
 
 impl Segment {
     /// Its angular velocity, rad/s.
+    #[inline]
     fn omega(&self, v: &Vector) -> f64 {
-        if self.spin == NO_SPIN {
-            v[self.angle as usize]
-        } else {
-            v[self.angle as usize] + v[self.spin as usize]
+        match self.spin {
+            None => v[self.angle],
+            Some(k) => v[self.angle] + v[k],
         }
-    }
-
-    /// The eccentric angle it also turns with.
-    fn spin(&self) -> Option<usize> {
-        (self.spin != NO_SPIN).then_some(self.spin as usize)
     }
 }
 
 /// A point of the machine at a configuration: where it is, and the chain of
-/// segments its velocity is made of.
+/// segments its velocity is made of: the hinges from its tree's root to its body
+/// ([`Pose`] keeps them), the segment from its body's reference point, and for an
+/// eccentric the eccentric's own. It borrows the pose: building one copies
+/// nothing of the chain (chains are built in the innermost loops).
 #[derive(Clone, Copy, Debug)]
-pub struct Chain {
+pub struct Chain<'a> {
     /// World position, m.
     pub p: [f64; 2],
     /// The free root's `x` coordinate, if the tree has one.
     trans: Option<usize>,
-    segments: [Segment; MAX_BODIES + 1],
-    len: usize,
+    model: &'a PlantModel,
+    pose: &'a Pose,
+    /// The bodies from the tree's root to the point's body.
+    path: &'a [usize],
+    own: Segment,
+    eccentric: Option<Segment>,
 }
 
-impl Chain {
-    fn push(&mut self, angle: usize, spin: Option<usize>, w: [f64; 2]) {
-        // Coordinates are fewer than MAX_DOF (12): they fit a byte.
-        self.segments[self.len] = Segment {
-            w,
-            angle: angle as u8,
-            spin: spin.map_or(NO_SPIN, |k| k as u8),
-        };
-        self.len += 1;
-        self.p = [self.p[0] + w[0], self.p[1] + w[1]];
-    }
-
-    fn segments(&self) -> &[Segment] {
-        &self.segments[..self.len]
+impl Chain<'_> {
+    /// Calls `f` with each segment from the root out: the hinges, the body's, the
+    /// eccentric's.
+    #[inline(always)]
+    fn each_segment(&self, mut f: impl FnMut(&Segment)) {
+        for pair in self.path.windows(2) {
+            f(&Segment {
+                w: self.pose.hinge[pair[1]],
+                angle: self.model.bodies[pair[0]].angle,
+                spin: None,
+            });
+        }
+        f(&self.own);
+        if let Some(e) = &self.eccentric {
+            f(e);
+        }
     }
 
     /// Its velocity `J q'`, m/s.
@@ -130,11 +130,11 @@ impl Chain {
             Some(x) => [v[x], v[x + 1]],
             None => [0.0; 2],
         };
-        for s in self.segments() {
+        self.each_segment(|s| {
             let w = s.omega(v);
             u[0] -= w * s.w[1];
             u[1] += w * s.w[0];
-        }
+        });
         u
     }
 
@@ -142,10 +142,10 @@ impl Chain {
     /// `d . b = -sum_s omega_s^2 d . w_s`, m/s^2.
     pub fn bias_along(&self, d: [f64; 2], v: &Vector) -> f64 {
         let mut b = 0.0;
-        for s in self.segments() {
+        self.each_segment(|s| {
             let w = s.omega(v);
             b -= (w * w) * dot(d, s.w);
-        }
+        });
         b
     }
 
@@ -155,20 +155,20 @@ impl Chain {
             row[x] += sign * d[0];
             row[x + 1] += sign * d[1];
         }
-        for s in self.segments() {
+        self.each_segment(|s| {
             let c = sign * cross(s.w, d);
-            row[s.angle as usize] += c;
-            if let Some(k) = s.spin() {
+            row[s.angle] += c;
+            if let Some(k) = s.spin {
                 row[k] += c;
             }
-        }
+        });
     }
 
     /// The columns of its angular coordinates, each once, in increasing order
     /// (parents' angles before children's, rotors' last): `(coordinate, z x w)`
     /// summed over the segments turning with it.
-    fn columns(&self) -> ([(usize, [f64; 2]); MAX_BODIES + 2], usize) {
-        let mut cols = [(0, [0.0; 2]); MAX_BODIES + 2];
+    #[inline(always)]
+    fn columns(&self, cols: &mut Columns) -> usize {
         let mut n = 0;
         let mut add = |i: usize, c: [f64; 2]| {
             if n > 0 && cols[n - 1].0 == i {
@@ -178,25 +178,29 @@ impl Chain {
                 n += 1;
             }
         };
-        for s in self.segments() {
-            add(s.angle as usize, perp(s.w));
-        }
+        self.each_segment(|s| add(s.angle, perp(s.w)));
         // The eccentric's own angle after every body angle.
-        for s in self.segments() {
-            if let Some(k) = s.spin() {
-                add(k, perp(s.w));
-            }
+        if let Some(Segment {
+            w, spin: Some(k), ..
+        }) = self.eccentric
+        {
+            add(k, perp(w));
         }
-        (cols, n)
+        n
     }
 }
 
-/// Where the bodies are at a configuration: each one's angle (sine, cosine) and
-/// reference point (world, m). No mass matrix: the event functions use this alone.
+/// A point's Jacobian columns, `(coordinate, column)` ([`Chain::columns`]).
+type Columns = [(usize, [f64; 2]); MAX_BODIES + 2];
+
+/// Where the bodies are at a configuration: each one's angle (sine, cosine),
+/// reference point (world, m) and hinge (from its parent's reference point to
+/// its own, world, m). No mass matrix: the event functions use this alone.
 #[derive(Clone, Copy, Debug)]
 pub struct Pose {
     cs: [(f64, f64); MAX_BODIES],
     reference: [[f64; 2]; MAX_BODIES],
+    hinge: [[f64; 2]; MAX_BODIES],
 }
 
 impl Pose {
@@ -205,6 +209,7 @@ impl Pose {
         let mut pose = Pose {
             cs: [(0.0, 1.0); MAX_BODIES],
             reference: [[0.0; 2]; MAX_BODIES],
+            hinge: [[0.0; 2]; MAX_BODIES],
         };
         for &b in &model.order {
             let body = &model.bodies[b];
@@ -214,6 +219,7 @@ impl Pose {
                 Mount::Pinned { pivot } => pivot,
                 Mount::Child { parent, joint } => {
                     let r = rotate(pose.cs[parent], joint);
+                    pose.hinge[b] = r;
                     let o = pose.reference[parent];
                     [o[0] + r[0], o[1] + r[1]]
                 }
@@ -222,58 +228,57 @@ impl Pose {
         pose
     }
 
-    /// The chain of body `b`'s reference point: its root's base and the segments
-    /// of its ancestors' hinges.
-    fn chain_to(&self, model: &PlantModel, b: usize) -> Chain {
-        let body = &model.bodies[b];
-        let root = &model.bodies[body.chain[0]];
-        let (trans, p) = match root.mount {
-            Mount::Free { x } => (Some(x), self.reference[body.chain[0]]),
-            Mount::Pinned { pivot } => (None, pivot),
-            Mount::Child { .. } => unreachable!("a chain starts at its tree's root"),
+    /// The point of body `b` at `w` (world, m) from its reference point.
+    fn chain<'a>(&'a self, model: &'a PlantModel, b: usize, w: [f64; 2]) -> Chain<'a> {
+        let path = &model.bodies[b].chain[..];
+        let trans = match model.bodies[path[0]].mount {
+            Mount::Free { x } => Some(x),
+            _ => None,
         };
-        let mut chain = Chain {
-            p,
+        let o = self.reference[b];
+        Chain {
+            p: [o[0] + w[0], o[1] + w[1]],
             trans,
-            segments: [Segment::default(); MAX_BODIES + 1],
-            len: 0,
-        };
-        for pair in body.chain.windows(2) {
-            let (a, child) = (pair[0], pair[1]);
-            if let Mount::Child { joint, .. } = model.bodies[child].mount {
-                chain.push(model.bodies[a].angle, None, rotate(self.cs[a], joint));
-            }
+            model,
+            pose: self,
+            path,
+            own: Segment {
+                w,
+                angle: model.bodies[b].angle,
+                spin: None,
+            },
+            eccentric: None,
         }
-        chain
     }
 
     /// The point of body `b` at `r` from its reference point (body frame, m).
-    pub fn point(&self, model: &PlantModel, b: usize, r: [f64; 2]) -> Chain {
-        let mut chain = self.chain_to(model, b);
-        chain.push(model.bodies[b].angle, None, rotate(self.cs[b], r));
-        chain
+    pub fn point<'a>(&'a self, model: &'a PlantModel, b: usize, r: [f64; 2]) -> Chain<'a> {
+        self.chain(model, b, rotate(self.cs[b], r))
     }
 
     /// The material point of body `b` that is at world position `p` now.
-    pub fn point_at(&self, model: &PlantModel, b: usize, p: [f64; 2]) -> Chain {
-        let mut chain = self.chain_to(model, b);
+    pub fn point_at<'a>(&'a self, model: &'a PlantModel, b: usize, p: [f64; 2]) -> Chain<'a> {
         let o = self.reference[b];
-        chain.push(model.bodies[b].angle, None, [p[0] - o[0], p[1] - o[1]]);
-        chain
+        self.chain(model, b, [p[0] - o[0], p[1] - o[1]])
     }
 
     /// Body `b`'s centre of mass.
-    pub fn centre_of_mass(&self, model: &PlantModel, b: usize) -> Chain {
+    pub fn centre_of_mass<'a>(&'a self, model: &'a PlantModel, b: usize) -> Chain<'a> {
         self.point(model, b, model.bodies[b].com)
     }
 
     /// Rotor `k`'s eccentric mass at `eps` from its axis (world, m;
     /// [`eccentric_offset`]), turning at `theta_b' + phi_k'`.
-    fn eccentric(&self, model: &PlantModel, k: usize, eps: [f64; 2]) -> Chain {
+    fn eccentric<'a>(&'a self, model: &'a PlantModel, k: usize, eps: [f64; 2]) -> Chain<'a> {
         let rotor = &model.rotors[k];
         let b = rotor.body;
         let mut chain = self.point(model, b, rotor.axis);
-        chain.push(model.bodies[b].angle, Some(rotor.phi), eps);
+        chain.p = [chain.p[0] + eps[0], chain.p[1] + eps[1]];
+        chain.eccentric = Some(Segment {
+            w: eps,
+            angle: model.bodies[b].angle,
+            spin: Some(rotor.phi),
+        });
         chain
     }
 
@@ -370,8 +375,8 @@ pub struct ContactKinematics {
 /// A point mass of the machine at a configuration: a body's centre of mass or a
 /// rotor's eccentric mass, with the inertia that turns with it.
 #[derive(Clone, Copy, Debug)]
-struct Element {
-    chain: Chain,
+struct Element<'a> {
+    chain: Chain<'a>,
     mass: f64,
     /// Inertia about the point, kg m^2, turning with `spin` (a body's angle; a
     /// rotor's body angle plus its eccentric angle).
@@ -381,7 +386,7 @@ struct Element {
     rotor: Option<usize>,
 }
 
-impl Element {
+impl Element<'_> {
     fn spins_with(&self, i: usize) -> bool {
         self.spin.0 == i || self.spin.1 == Some(i)
     }
@@ -468,7 +473,8 @@ impl Frame {
         let m = &mut frame.mass;
         for i in 0..model.bodies.len() + model.rotors.len() {
             let e = &element(model, &frame.pose, &frame.eps, i);
-            let (cols, nc) = e.chain.columns();
+            let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
+            let nc = e.chain.columns(&mut cols);
             let cols = &cols[..nc];
             if let Some(x) = e.chain.trans {
                 m[x][x] += e.mass;
@@ -581,18 +587,19 @@ impl Frame {
             let e = &element(model, &self.pose, &self.eps, i);
             // Force on the point mass: m (g - b), b = -sum_s omega_s^2 w_s.
             let mut a = g;
-            for s in e.chain.segments() {
+            e.chain.each_segment(|s| {
                 let w = s.omega(v);
                 a[0] += w * w * s.w[0];
                 a[1] += w * w * s.w[1];
-            }
+            });
             let fe = [e.mass * a[0], e.mass * a[1]];
             if let Some(x) = e.chain.trans {
                 // Gravity's share on x, y is already in the tree's weight above.
                 f[x] += fe[0] - e.mass * g[0];
                 f[x + 1] += fe[1] - e.mass * g[1];
             }
-            let (cols, nc) = e.chain.columns();
+            let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
+            let nc = e.chain.columns(&mut cols);
             for &(i, c) in &cols[..nc] {
                 match e.rotor {
                     Some(k) if i == model.rotors[k].phi => f[i] += dot(c, fe) + tau[k],
@@ -655,7 +662,12 @@ impl Frame {
 
 /// Point mass `i`: the bodies' centres of mass in order, then the rotors'
 /// eccentrics.
-fn element(model: &PlantModel, pose: &Pose, eps: &[[f64; 2]; MAX_ROTORS], i: usize) -> Element {
+fn element<'a>(
+    model: &'a PlantModel,
+    pose: &'a Pose,
+    eps: &[[f64; 2]; MAX_ROTORS],
+    i: usize,
+) -> Element<'a> {
     let nb = model.bodies.len();
     if i < nb {
         let body = &model.bodies[i];

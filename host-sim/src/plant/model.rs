@@ -503,7 +503,8 @@ impl PlantModel {
             return [y[x], y[x + 1], angle, y[n + x], y[n + x + 1], omega];
         }
         let (q, v) = (self.q(y), self.v(y));
-        let com = Pose::new(self, &q).centre_of_mass(self, b);
+        let pose = Pose::new(self, &q);
+        let com = pose.centre_of_mass(self, b);
         let u = com.velocity(&v);
         [com.p[0], com.p[1], angle, u[0], u[1], omega]
     }
