@@ -231,6 +231,10 @@ pub fn machine_rs(m: &MachineConstants, path: &Path) -> String {
         m.supply_voltage_v
     ));
     code.push_str(&format!("    current_limit_a: {:?},\n", m.current_limit_a));
+    code.push_str(&format!(
+        "    rotor_count: shared::controller::RotorCount::{:?},\n",
+        m.rotor_count
+    ));
     code.push_str("    rotors: [\n");
     for r in &m.rotors {
         code.push_str(&format!(

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use machine_file::input::render;
 use machine_file::{machine_constants, tuning_file, Machine};
-use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
+use shared::controller::{MachineConstants, RotorCount, RotorModel, TuningTable, MAX_TUNING_ROWS};
 use shared::drive::{BridgeConfig, Decay};
 
 #[allow(dead_code)]
@@ -132,11 +132,17 @@ fn read_back(code: &str) -> MachineConstants {
         "shared::drive::Decay::Fast" => Decay::Fast,
         other => panic!("decay `{other}`"),
     };
+    let rotor_count = match one("rotor_count") {
+        "shared::controller::RotorCount::One" => RotorCount::One,
+        "shared::controller::RotorCount::Two" => RotorCount::Two,
+        other => panic!("rotor_count `{other}`"),
+    };
     MachineConstants {
         rate_hz: float(one("rate_hz")),
         encoder_counts: one("encoder_counts").parse().unwrap(),
         supply_voltage_v: float(one("supply_voltage_v")),
         current_limit_a: float(one("current_limit_a")),
+        rotor_count,
         rotors: [rotor(0), rotor(1)],
         resonance_band_rpm: [band[0], band[1]],
         bridge: BridgeConfig {

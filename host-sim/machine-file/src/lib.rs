@@ -40,7 +40,7 @@ pub mod tuning_file;
 
 use std::path::{Path, PathBuf};
 
-use shared::controller::{MachineConstants, MachinePhysics, RotorPhysics};
+use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
 use shared::impact::ImpactLaw;
 use toml::Table;
@@ -338,6 +338,7 @@ impl Machine {
             supply_voltage_v: self.drive.supply_voltage,
             platform_mass_kg: self.platform.mass,
             gravity_m_s2: self.fundament.gravity,
+            rotor_count: RotorCount::Two,
             rotors: [rotor(&self.rotors[0]), rotor(&self.rotors[1])],
             bridge: self.drive.bridge,
         }
