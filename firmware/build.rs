@@ -171,6 +171,16 @@ pub fn load_machine(path: &Path) -> Result<Machine, Vec<Problem>> {
             ),
         }]);
     }
+    // One rotor: the controller takes it, the board's bridges not yet.
+    if machine.rotors.len() == 1 {
+        return Err(vec![Problem {
+            file,
+            location: Location::Key("rotors".into()),
+            message:
+                "one rotor: the firmware drives two bridges and cannot yet leave the second off"
+                    .into(),
+        }]);
+    }
     // The current the controller reads is the mean over the tick in host-sim; the
     // board samples once per PWM update, at the period's extreme, which is the
     // period's mean only while the ripple is linear about it: slow decay. In fast

@@ -506,36 +506,6 @@ fn the_gap_message_gives_the_geometry() {
 }
 
 #[test]
-fn not_exactly_two_rotors() {
-    let text = reference_text();
-    // The first [[rotors]] table, up to the second.
-    let first = text.find("[[rotors]]").unwrap();
-    let second = first + 1 + text[first + 1..].find("[[rotors]]").unwrap();
-    let rotor = &text[first..second];
-    let three = text.replace(
-        rotor,
-        &format!("{rotor}{}", rotor.replace("\"left\"", "\"third\"")),
-    );
-    let e = refused(&three, &[]);
-    assert_problem(
-        &e,
-        "rotors",
-        "exactly two [[rotors]] tables are required (got 3)",
-    );
-    let one = text.replacen(rotor, "", 1);
-    let e = refused(&one, &[]);
-    assert_problem(
-        &e,
-        "rotors",
-        "exactly two [[rotors]] tables are required (got 1)",
-    );
-    let none = MINIMAL[..MINIMAL.find("[[rotors]]").unwrap()].to_string()
-        + &MINIMAL[MINIMAL.find("[motor]").unwrap()..];
-    let e = refused(&none, &[]);
-    assert_problem(&e, "rotors", "(got 0)");
-}
-
-#[test]
 fn no_contact() {
     let none = MINIMAL[..MINIMAL.find("[[contacts]]").unwrap()].to_string()
         + &MINIMAL[MINIMAL.find("[[rotors]]").unwrap()..];

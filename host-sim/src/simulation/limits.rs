@@ -1,5 +1,6 @@
 //! What one run may ask: a machine the plant simulates (a single platform on the
-//! fundament so far: [`Machine::beyond_the_platform`]), and bounds, so that a typo
+//! fundament so far: [`Machine::beyond_the_platform`]; with two rotors so far:
+//! [`PLANT_ROTORS`]), and bounds, so that a typo
 //! (`--t-end 1e300`, `simulation.output_step=1e-300`) is refused with the key and
 //! the limit instead of running forever or filling the memory.
 //!
@@ -15,6 +16,13 @@ use std::path::Path;
 
 use crate::machine::Machine;
 use crate::output::text::sig;
+
+/// The rotor counts the simulated plant takes: two so far (its state is
+/// `(x, y, theta, phi_1, phi_2)`). The machine file, the controller, the firmware
+/// and the rest of host-sim take one rotor too (issue 12): the plant's rewrite
+/// for one-rotor machines widens this to `[1, 2]`, and a one-rotor run then goes
+/// through (the closed loop and open loop drive rotor 2's bridge `Off`).
+pub const PLANT_ROTORS: &[usize] = &[2];
 
 /// Longest simulated time of one run, s.
 pub const MAX_T_END_S: f64 = 3600.0;
@@ -33,6 +41,25 @@ pub fn check(machine: &Machine, file: &Path, t_end: f64, t_end_key: &str) -> Vec
             "error: {}: the machine has several bodies ({}): the file reads and checks them, but the simulated plant is a single platform on the fundament so far",
             file.display(),
             beyond.join(", ")
+        ));
+    }
+    let rotors = machine.rotors.len();
+    if !PLANT_ROTORS.contains(&rotors) {
+        problems.push(format!(
+            "error: {}: the machine has {rotors} rotor{} ({}): the file, the controller and the firmware take it, but the simulated plant takes {} rotors so far",
+            file.display(),
+            if rotors == 1 { "" } else { "s" },
+            machine
+                .rotors
+                .iter()
+                .map(|r| r.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            PLANT_ROTORS
+                .iter()
+                .map(|n| n.to_string())
+                .collect::<Vec<_>>()
+                .join(" or ")
         ));
     }
     if !(t_end.is_finite() && t_end > 0.0) {
