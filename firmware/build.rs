@@ -9,7 +9,9 @@
 //!    `MACHINE: shared::controller::MachineConstants` from
 //!    `machine_file::machine_constants` (shared's formulas), for
 //!    `Params::from_machine(&MACHINE)` at init. The firmware ticks at
-//!    `CONTROL_RATE_HZ`: a machine file with another `rate_hz` fails;
+//!    `CONTROL_RATE_HZ`: a machine file with another `rate_hz` fails. A machine
+//!    with one rotor builds: `MACHINE.rotor_count` is `RotorCount::One`, the
+//!    controller holds that rotor's speed and the second bridge stays off;
 //! 3. compiles in the tuning table: `VIBRO_TUNING` if set, else the machine file's
 //!    `[controller].tuning_table`, read with `machine_file::tuning_file::read` (the
 //!    controller's rule for rows), and writes `OUT_DIR/tuning.rs` with
@@ -83,7 +85,8 @@ fn main() {
     let tuning = tuning_path(&manifest_dir, env::var_os(TUNING_ENV), &machine);
     if let Some(path) = &tuning {
         println!("cargo:rerun-if-changed={}", path.display());
-    } else {
+    } else if machine.rotors.len() == 2 {
+        // (One rotor has no offset to look up: the table is compiled in unused.)
         println!(
             "cargo:warning={}: no [controller].tuning_table and no {TUNING_ENV}: \
              the controller's default offsets (90 right, 270 left) are compiled in",
@@ -169,16 +172,6 @@ pub fn load_machine(path: &Path) -> Result<Machine, Vec<Problem>> {
                 "several bodies ({}): the controller's constants are defined for a single platform on the fundament so far",
                 beyond.join(", ")
             ),
-        }]);
-    }
-    // One rotor: the controller takes it, the board's bridges not yet.
-    if machine.rotors.len() == 1 {
-        return Err(vec![Problem {
-            file,
-            location: Location::Key("rotors".into()),
-            message:
-                "one rotor: the firmware drives two bridges and cannot yet leave the second off"
-                    .into(),
         }]);
     }
     // The current the controller reads is the mean over the tick in host-sim; the

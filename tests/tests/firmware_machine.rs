@@ -250,6 +250,26 @@ fn reference_machine_is_the_reference_constants() {
 }
 
 #[test]
+fn one_rotor_machine_builds_with_one_rotor() {
+    // The firmware takes a one-rotor machine: its constants say so, and the
+    // generated code carries it (the controller then drives motor 1 alone and
+    // `drive.rs` leaves motor 2's bridge off).
+    let path = root().join("tests/fixtures/one-rotor-machine.toml");
+    let machine = load_machine(&path).unwrap_or_else(|p| panic!("{}", render(&p)));
+    let constants = machine_constants(&machine);
+    assert_eq!(constants.rotor_count, RotorCount::One);
+    let code = machine_rs(&constants, &path);
+    assert!(
+        code.contains("    rotor_count: shared::controller::RotorCount::One,\n"),
+        "{code}"
+    );
+    assert_eq!(read_back(&code), constants, "{code}");
+    // The reference machine: two.
+    let two = machine_constants(&load_machine(&reference_file()).unwrap());
+    assert_eq!(two.rotor_count, RotorCount::Two);
+}
+
+#[test]
 fn generated_tuning_rows_are_the_crates() {
     let machine = load_machine(&reference_file()).unwrap();
     // The machine's table, relative to the machine file.
