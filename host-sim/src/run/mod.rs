@@ -166,7 +166,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         },
         (None, None) => {
             problems.push(
-                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V) or --open-loop coast"
+                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
                     .to_string(),
             );
             None
