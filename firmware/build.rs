@@ -9,7 +9,9 @@
 //!    `MACHINE: shared::controller::MachineConstants` from
 //!    `machine_file::machine_constants` (shared's formulas), for
 //!    `Params::from_machine(&MACHINE)` at init. The firmware ticks at
-//!    `CONTROL_RATE_HZ`: a machine file with another `rate_hz` fails;
+//!    `CONTROL_RATE_HZ`: a machine file with another `rate_hz` fails. A machine
+//!    with one rotor builds: `MACHINE.rotor_count` is `RotorCount::One`, the
+//!    controller holds that rotor's speed and the second bridge stays off;
 //! 3. compiles in the tuning table: `VIBRO_TUNING` if set, else the machine file's
 //!    `[controller].tuning_table`, read with `machine_file::tuning_file::read` (the
 //!    controller's rule for rows), and writes `OUT_DIR/tuning.rs` with
@@ -83,7 +85,8 @@ fn main() {
     let tuning = tuning_path(&manifest_dir, env::var_os(TUNING_ENV), &machine);
     if let Some(path) = &tuning {
         println!("cargo:rerun-if-changed={}", path.display());
-    } else {
+    } else if machine.rotors.len() == 2 {
+        // (One rotor has no offset to look up: the table is compiled in unused.)
         println!(
             "cargo:warning={}: no [controller].tuning_table and no {TUNING_ENV}: \
              the controller's default offsets (90 right, 270 left) are compiled in",
@@ -231,6 +234,10 @@ pub fn machine_rs(m: &MachineConstants, path: &Path) -> String {
         m.supply_voltage_v
     ));
     code.push_str(&format!("    current_limit_a: {:?},\n", m.current_limit_a));
+    code.push_str(&format!(
+        "    rotor_count: shared::controller::RotorCount::{:?},\n",
+        m.rotor_count
+    ));
     code.push_str("    rotors: [\n");
     for r in &m.rotors {
         code.push_str(&format!(

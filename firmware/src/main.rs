@@ -128,6 +128,9 @@ fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller, Lin
         controller.state().name(),
         tuning::TUNING_ROWS.len()
     );
+    if !machine::MACHINE.rotor_count.has_rotor2() {
+        defmt::info!("one rotor: its speed held, no phase loop; motor 2's bridge off");
+    }
     let link = LinkState::at_start(&controller, stored.as_ref());
     (controller, link)
 }

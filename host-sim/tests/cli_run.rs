@@ -160,7 +160,10 @@ fn bad_options_are_refused_with_exit_2() {
     let m = machine();
     let m = m.to_str().unwrap();
     let r = run(&["run", m, "--open-loop", "12"]);
-    r.refused("'12' for '--open-loop");
+    r.refused("--open-loop 12: 1 voltage for a machine with 2 rotors");
+    assert!(r.stderr.contains("coast"), "{}", r.stderr);
+    let r = run(&["run", m, "--open-loop", "12,a"]);
+    r.refused("'12,a' for '--open-loop");
     assert!(r.stderr.contains("coast"), "{}", r.stderr);
     let r = run(&["run", m]);
     r.refused("--open-loop");

@@ -21,19 +21,8 @@ use shared::controller::{
 
 use std::f64::consts::TAU;
 
-// The reference machine's motor and rotor (examples/vibro-driver.toml).
-const R: f64 = 2.0;
-const K: f64 = 0.02;
-const V: f64 = 12.0;
-const J: f64 = 1.0e-5;
-const B: f64 = 1.0e-6;
-const TAU_C: f64 = 1.0e-3;
-const I_MAX: f64 = 2.0;
-/// Weight torque of the eccentric, `m g e`, N m.
-const GRAVITY_TORQUE: f64 = 0.01 * 9.81 * 0.02;
-const N: u32 = 4096;
-const DT: f32 = 1.0e-3;
-const SUBSTEPS: usize = 20;
+mod support;
+use support::rig::{B, DT, GRAVITY_TORQUE, I_MAX, J, K, N, R, SUBSTEPS, TAU_C, V};
 
 /// One rotor of the rig.
 #[derive(Clone, Copy, Debug)]

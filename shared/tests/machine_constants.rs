@@ -4,7 +4,7 @@
 //! cases of the resonance band.
 
 use shared::controller::machine::{lift_off_speed_rad_s, resonance_band_rpm};
-use shared::controller::{MachineConstants, MachinePhysics, RotorModel, RotorPhysics};
+use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorModel, RotorPhysics};
 use shared::drive::BridgeConfig;
 
 /// The reference machine's rotor and motor: `R = 2 ohm`, `k = 0.02 N m/A`,
@@ -27,6 +27,7 @@ fn reference() -> MachinePhysics {
         supply_voltage_v: 12.0,
         platform_mass_kg: 2.0,
         gravity_m_s2: [0.0, -9.81],
+        rotor_count: RotorCount::Two,
         rotors: [ROTOR; 2],
         bridge: BridgeConfig::DEFAULT,
     }
@@ -99,4 +100,40 @@ fn no_unbalance_no_band() {
     let c = MachineConstants::from_physics(&m);
     assert_eq!(c.resonance_band_rpm, [0.0, 0.0]);
     assert_eq!(c.rotors[0].inertia_kg_m2, 6.0e-6);
+}
+
+#[test]
+fn one_rotor_counts_rotor_1_alone() {
+    // Rotor 2's values are there but not the machine's: a 0.1 A limit, a 0 ohm
+    // winding, a 1 kg eccentric. None of them may show.
+    let mut m = reference();
+    m.rotor_count = RotorCount::One;
+    m.rotors[1] = RotorPhysics {
+        resistance_ohm: 0.0,
+        eccentric_mass_kg: 1.0,
+        current_limit_a: 0.1,
+        ..ROTOR
+    };
+    assert_eq!(m.total_mass_kg(), 2.01);
+    let c = MachineConstants::from_physics(&m);
+    assert_eq!(c.rotor_count, RotorCount::One);
+    assert_eq!(c.current_limit_a, 2.0);
+    assert_eq!(c.rotors[1], c.rotors[0]);
+    assert_eq!(
+        c.rotors[0],
+        MachineConstants::from_physics(&reference()).rotors[0]
+    );
+    // One eccentric: its force m e w^2 = 2e-4 w^2 lifts M g = 2.01 x 9.81 at
+    // w0 = sqrt(2.01 x 9.81 / 2e-4) = 314.0 rad/s, 2998.5 rpm (the pair of the
+    // reference machine lifts off at 2125 rpm).
+    let rpm = (2.01 * 9.81 / 2.0e-4_f64).sqrt() * 60.0 / std::f64::consts::TAU;
+    assert!(close(rpm, 2998.5, 1e-4), "{rpm}");
+    let [lo, hi] = c.resonance_band_rpm;
+    assert!(close(f64::from(lo), 0.7 * rpm, 1e-6), "{lo}");
+    assert!(close(f64::from(hi), 1.18 * rpm, 1e-6), "{hi}");
+    // The controller's parameters: rotor 1's, rotor 2 a copy; valid.
+    let p = shared::controller::Params::from_machine(&c);
+    assert_eq!(p.rotor_count, RotorCount::One);
+    assert_eq!(p.speed_gains[1], p.speed_gains[0]);
+    assert_eq!(p.validate(), Ok(()));
 }

@@ -197,6 +197,11 @@ fn forced_rotors_velocity(offset_deg: f64, t0: f64, t1: f64) -> f64 {
     mean_velocity(&mut plant, t0, t1)
 }
 
+/// The phase offset of a two-rotor run's summary, degrees.
+fn offset(s: &Summary) -> f64 {
+    s.phase_offset_deg.expect("two rotors have a phase offset")
+}
+
 /// `|a - b|` wrapped to [0, 180], degrees.
 fn angle_between_deg(a: f64, b: f64) -> f64 {
     let d = (a - b).rem_euclid(360.0);
@@ -239,12 +244,11 @@ fn assert_mirror_antisymmetric(d: f32, run: &ClosedLoop) {
         let (r, s) = (a.rotor_speed_rpm[k], b.rotor_speed_rpm[1 - k]);
         assert!((r - s).abs() < 0.1, "rotor speeds {r} and {s} rpm");
     }
-    let mirrored_offset = 360.0 - b.phase_offset_deg;
+    let (a_offset, b_offset) = (offset(a), offset(b));
+    let mirrored_offset = 360.0 - b_offset;
     assert!(
-        angle_between_deg(a.phase_offset_deg, mirrored_offset) < 0.1,
-        "offsets {} and {}",
-        a.phase_offset_deg,
-        b.phase_offset_deg
+        angle_between_deg(a_offset, mirrored_offset) < 0.1,
+        "offsets {a_offset} and {b_offset}"
     );
 }
 
@@ -294,11 +298,11 @@ fn the_measured_offset_holds_the_commanded_one() {
             "{what}: RMS phase error {} degrees",
             s.phase_error_deg_rms
         );
-        let off = angle_between_deg(s.phase_offset_deg, run.target_offset_deg);
+        let off = angle_between_deg(offset(s), run.target_offset_deg);
         assert!(
             off < 0.5,
             "{what}: mean offset {} degrees, commanded {}",
-            s.phase_offset_deg,
+            offset(s),
             run.target_offset_deg
         );
     }

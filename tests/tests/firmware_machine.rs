@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use machine_file::input::render;
 use machine_file::{machine_constants, tuning_file, Machine};
-use shared::controller::{MachineConstants, RotorModel, TuningTable, MAX_TUNING_ROWS};
+use shared::controller::{MachineConstants, RotorCount, RotorModel, TuningTable, MAX_TUNING_ROWS};
 use shared::drive::{BridgeConfig, Decay};
 
 #[allow(dead_code)]
@@ -132,11 +132,17 @@ fn read_back(code: &str) -> MachineConstants {
         "shared::drive::Decay::Fast" => Decay::Fast,
         other => panic!("decay `{other}`"),
     };
+    let rotor_count = match one("rotor_count") {
+        "shared::controller::RotorCount::One" => RotorCount::One,
+        "shared::controller::RotorCount::Two" => RotorCount::Two,
+        other => panic!("rotor_count `{other}`"),
+    };
     MachineConstants {
         rate_hz: float(one("rate_hz")),
         encoder_counts: one("encoder_counts").parse().unwrap(),
         supply_voltage_v: float(one("supply_voltage_v")),
         current_limit_a: float(one("current_limit_a")),
+        rotor_count,
         rotors: [rotor(0), rotor(1)],
         resonance_band_rpm: [band[0], band[1]],
         bridge: BridgeConfig {
@@ -241,6 +247,26 @@ fn reference_machine_is_the_reference_constants() {
     {
         assert!((got - want).abs() <= 0.01 * want, "band {got} vs {want}");
     }
+}
+
+#[test]
+fn one_rotor_machine_builds_with_one_rotor() {
+    // The firmware takes a one-rotor machine: its constants say so, and the
+    // generated code carries it (the controller then drives motor 1 alone and
+    // `drive.rs` leaves motor 2's bridge off).
+    let path = root().join("tests/fixtures/one-rotor-machine.toml");
+    let machine = load_machine(&path).unwrap_or_else(|p| panic!("{}", render(&p)));
+    let constants = machine_constants(&machine);
+    assert_eq!(constants.rotor_count, RotorCount::One);
+    let code = machine_rs(&constants, &path);
+    assert!(
+        code.contains("    rotor_count: shared::controller::RotorCount::One,\n"),
+        "{code}"
+    );
+    assert_eq!(read_back(&code), constants, "{code}");
+    // The reference machine: two.
+    let two = machine_constants(&load_machine(&reference_file()).unwrap());
+    assert_eq!(two.rotor_count, RotorCount::Two);
 }
 
 #[test]

@@ -23,8 +23,8 @@
 //!    "did you mean"; the optional sections take their defaults;
 //! 4. each rotor's motor: the machine's `[motor]`, with any key the rotor's own
 //!    `[rotors.motor]` gives replaced (partial override);
-//! 5. the contacts and rotors as a whole: 1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS) contacts, exactly two
-//!    rotors, unique names;
+//! 5. the contacts and rotors as a whole: 1 to [`MAX_CONTACTS`](shared::impact::MAX_CONTACTS) contacts, one or two
+//!    rotors ([`Rotors`]), unique names;
 //! 6. the geometry at `t = 0`: no contact below the fundament,
 //!    `gap = n . (K - P) >= 0`;
 //! 7. every problem at once; a problem in a value a `--set` gave names that `--set`.
@@ -35,12 +35,15 @@
 
 pub mod bodies;
 pub mod input;
+pub mod rotors;
 pub mod set;
 pub mod tuning_file;
 
+pub use rotors::Rotors;
+
 use std::path::{Path, PathBuf};
 
-use shared::controller::{MachineConstants, MachinePhysics, RotorPhysics};
+use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
 use shared::impact::ImpactLaw;
 use toml::Table;
@@ -231,8 +234,9 @@ pub struct Machine {
     pub joints: Vec<Joint>,
     /// The contact points, K1, K2, ...
     pub contacts: Vec<MachineContact>,
-    /// Rotor 1, then rotor 2.
-    pub rotors: [Rotor; 2],
+    /// Rotor 1, then rotor 2 if the machine has two: one or two rotors, never
+    /// another count ([`Rotors`]).
+    pub rotors: Rotors,
     /// The motor driver.
     pub drive: Drive,
     /// The sensors.
@@ -312,7 +316,7 @@ impl Machine {
         bodies::beyond_the_platform(&self.bodies, &self.joints, &ends, &rotor_bodies)
     }
 
-    /// Platform mass plus both eccentric masses, kg: the mass that moves.
+    /// Platform mass plus the eccentric masses, kg: the mass that moves.
     pub fn total_mass(&self) -> f64 {
         self.physics().total_mass_kg()
     }
@@ -321,7 +325,8 @@ impl Machine {
     /// rate_hz`, `[sensors] encoder_counts`, `[drive]` (supply, decay, PWM),
     /// `[platform] mass`, `[fundament] gravity`, and each rotor's eccentric mass,
     /// eccentricity and inertia with its motor's resistance, torque constant, Coulomb
-    /// friction and current limit.
+    /// friction and current limit; one rotor or two (with one, rotor 1's values
+    /// stand in rotor 2's place, which [`MachinePhysics`] then ignores).
     pub fn physics(&self) -> MachinePhysics {
         let rotor = |r: &Rotor| RotorPhysics {
             resistance_ohm: r.motor.resistance,
@@ -338,7 +343,11 @@ impl Machine {
             supply_voltage_v: self.drive.supply_voltage,
             platform_mass_kg: self.platform.mass,
             gravity_m_s2: self.fundament.gravity,
-            rotors: [rotor(&self.rotors[0]), rotor(&self.rotors[1])],
+            rotor_count: self.rotors.count(),
+            rotors: [
+                rotor(self.rotors.rotor1()),
+                rotor(self.rotors.rotor2().unwrap_or(self.rotors.rotor1())),
+            ],
             bridge: self.drive.bridge,
         }
     }
@@ -943,14 +952,14 @@ fn check_contacts(root: &Section, list: Vec<Named<MachineContact>>) -> Option<Ve
         .map(|named| named.into_iter().map(|(_, c)| c).collect())
 }
 
-/// Exactly two rotors, names unique.
-fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<[Rotor; 2]> {
+/// One or two rotors ([`Rotors::COUNTS`]), names unique.
+fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<Rotors> {
     let ok = check_names(root, "rotors", "rotor", &list);
-    if list.len() != 2 {
+    if RotorCount::from_count(list.len()).is_none() {
         root.problem(
             "rotors",
             format!(
-                "exactly two [[rotors]] tables are required (got {}): rotor 1, then rotor 2",
+                "one or two [[rotors]] tables are required (got {}): rotor 1, then rotor 2 if the machine has two",
                 list.len()
             ),
         );
@@ -960,8 +969,7 @@ fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<[Rotor; 2]> {
         .into_iter()
         .map(|r| r.value)
         .collect::<Option<Vec<_>>>()?;
-    let rotors: [Rotor; 2] = rotors.try_into().ok()?;
-    ok.then_some(rotors)
+    Rotors::new(rotors).ok().filter(|_| ok)
 }
 
 /// Stage 6: every contact on or above the fundament at `t = 0`:

@@ -6,6 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod common;
+use common::assert_problem;
 use machine_file::input::{render, Location, Problem};
 use machine_file::set;
 use machine_file::{Machine, Sense};
@@ -60,18 +62,6 @@ fn refused(text: &str, set: &[&str]) -> Vec<Problem> {
         Ok(_) => panic!("accepted, with --set {set:?}"),
         Err(p) => p,
     }
-}
-
-/// Asserts a problem at `key` whose message contains `fragment`.
-fn assert_problem(problems: &[Problem], key: &str, fragment: &str) {
-    let hit = problems
-        .iter()
-        .any(|p| p.location == Location::Key(key.to_string()) && p.message.contains(fragment));
-    assert!(
-        hit,
-        "no problem at `{key}` containing {fragment:?}; got:\n{}",
-        render(problems)
-    );
 }
 
 /// The reference text with `set` written into the file (not on the command line).
@@ -503,36 +493,6 @@ fn the_gap_message_gives_the_geometry() {
         ),
         "{line}"
     );
-}
-
-#[test]
-fn not_exactly_two_rotors() {
-    let text = reference_text();
-    // The first [[rotors]] table, up to the second.
-    let first = text.find("[[rotors]]").unwrap();
-    let second = first + 1 + text[first + 1..].find("[[rotors]]").unwrap();
-    let rotor = &text[first..second];
-    let three = text.replace(
-        rotor,
-        &format!("{rotor}{}", rotor.replace("\"left\"", "\"third\"")),
-    );
-    let e = refused(&three, &[]);
-    assert_problem(
-        &e,
-        "rotors",
-        "exactly two [[rotors]] tables are required (got 3)",
-    );
-    let one = text.replacen(rotor, "", 1);
-    let e = refused(&one, &[]);
-    assert_problem(
-        &e,
-        "rotors",
-        "exactly two [[rotors]] tables are required (got 1)",
-    );
-    let none = MINIMAL[..MINIMAL.find("[[rotors]]").unwrap()].to_string()
-        + &MINIMAL[MINIMAL.find("[motor]").unwrap()..];
-    let e = refused(&none, &[]);
-    assert_problem(&e, "rotors", "(got 0)");
 }
 
 #[test]

@@ -1,6 +1,11 @@
 //! `host-sim run MACHINE [--command right|left|stop] [--speed RPM] [--offset DEG]
-//! [--open-loop V1,V2|coast] [--t-end T] [--out FILE.csv]
+//! [--open-loop V1,V2|V|coast] [--t-end T] [--out FILE.csv]
 //! [--events FILE.csv] [--plot FILE.svg] [--format table|json] [--set KEY=VALUE]...`
+//!
+//! A machine with one rotor: `--open-loop V` takes one voltage (`V1,V2` is for two
+//! rotors, `coast` for both kinds); `--command` runs the controller, which holds
+//! the rotor's speed only (no phase loop: `right` and `left` set no offset, and
+//! `--offset` is refused), and the output says so ([`report`]).
 //!
 //! Stages:
 //! 1. read and check the machine file with the `--set` overrides
@@ -55,8 +60,9 @@ pub struct RunArgs {
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub offset: Option<f64>,
     /// Drive the windings open loop: constant voltages `V1,V2` (V, signed; `0,0`
-    /// shorts the windings), or `coast` (windings open).
-    #[arg(long, value_name = "V1,V2|coast", allow_hyphen_values = true, value_parser = parse_open_loop)]
+    /// shorts the windings), one voltage `V` on a one-rotor machine, or `coast`
+    /// (windings open).
+    #[arg(long, value_name = "V1,V2|V|coast", allow_hyphen_values = true, value_parser = parse_open_loop)]
     pub open_loop: Option<OpenLoop>,
     /// End time.
     #[command(flatten)]
@@ -89,7 +95,9 @@ pub enum CommandArg {
     Stop,
 }
 
-/// Parses `--open-loop` (a clap value parser): `coast`, or two voltages `V1,V2`.
+/// Parses `--open-loop` (a clap value parser): `coast`, two voltages `V1,V2`, or
+/// one `V` (for a one-rotor machine: [`check_open_loop`] matches the count with
+/// the machine's rotors).
 pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
     if text.trim() == "coast" {
         return Ok(OpenLoop::Coast);
@@ -101,10 +109,31 @@ pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
         .collect();
     match volts.as_slice() {
         [Some(a), Some(b)] => Ok(OpenLoop::Voltages([*a, *b])),
+        [Some(a)] => Ok(OpenLoop::Voltage(*a)),
         _ => Err(
-            "expected two winding voltages in V, `V1,V2` (e.g. `12,12`; `0,0` shorts the windings), or `coast` (windings open)"
+            "expected two winding voltages in V, `V1,V2` (e.g. `12,12`; `0,0` shorts the windings), one `V` for a machine with one rotor, or `coast` (windings open)"
                 .to_string(),
         ),
+    }
+}
+
+/// `--open-loop` against the machine: one voltage per rotor (`coast` fits any).
+pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), String> {
+    let rotors = machine.rotors.len();
+    match open_loop.rotors() {
+        Some(n) if n != rotors => {
+            let (given, want) = match open_loop {
+                OpenLoop::Voltage(v) => (format!("{v}"), "two winding voltages `V1,V2`"),
+                OpenLoop::Voltages(v) => (format!("{},{}", v[0], v[1]), "one winding voltage `V`"),
+                OpenLoop::Coast => ("coast".to_string(), ""),
+            };
+            Err(format!(
+                "error: --open-loop {given}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
+                if n == 1 { "" } else { "s" },
+                if rotors == 1 { "" } else { "s" },
+            ))
+        }
+        _ => Ok(()),
     }
 }
 
@@ -128,10 +157,16 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                 None
             }
         },
-        (None, Some(o)) => Some(Drive::OpenLoop(o)),
+        (None, Some(o)) => match check_open_loop(o, &machine) {
+            Ok(()) => Some(Drive::OpenLoop(o)),
+            Err(e) => {
+                problems.push(e);
+                None
+            }
+        },
         (None, None) => {
             problems.push(
-                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V) or --open-loop coast"
+                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
                     .to_string(),
             );
             None
@@ -196,11 +231,15 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let mut watch = Watch::new(t_end, trace.map(|i| (&mut staged, i)), shape);
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
-            if let OpenLoop::Voltages(v) = open_loop {
+            let given = match open_loop {
+                OpenLoop::Voltages(v) => Some((format!("{},{}", v[0], v[1]), v.to_vec())),
+                OpenLoop::Voltage(v) => Some((format!("{v}"), vec![*v])),
+                OpenLoop::Coast => None,
+            };
+            if let Some((text, v)) = given {
                 if v.iter().any(|u| u.abs() > supply) {
                     warnings.push(format!(
-                        "--open-loop {},{}: clamped to the supply of {supply} V",
-                        v[0], v[1]
+                        "--open-loop {text}: clamped to the supply of {supply} V"
                     ));
                 }
             }
@@ -208,6 +247,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             let how = match open_loop {
                 OpenLoop::Coast => "open loop, coast".to_string(),
                 OpenLoop::Voltages(v) => format!("open loop, {} V, {} V", v[0], v[1]),
+                OpenLoop::Voltage(v) => format!("open loop, {v} V, one rotor"),
             };
             (
                 simulate_observed(&machine, &mut driver, &options, &mut watch),
@@ -354,7 +394,12 @@ fn controller_schedule(
         ));
     }
     if let Some(o) = args.offset {
-        if !o.is_finite() {
+        if machine.rotors.len() == 1 {
+            problems.push(format!(
+                "error: --offset {o}: the machine has one rotor ({:?}): there is no phase offset to hold (the controller holds its speed only)",
+                machine.rotors[0].name
+            ));
+        } else if !o.is_finite() {
             problems.push(format!(
                 "error: --offset {o}: must be a finite angle in degrees"
             ));
@@ -384,6 +429,12 @@ fn controller_schedule(
 /// The plot title's description of a controller run.
 fn describe_command(args: &RunArgs, machine: &Machine) -> String {
     let speed = args.speed.unwrap_or(machine.controller.speed_rpm);
+    if machine.rotors.len() == 1 {
+        return match args.command {
+            Some(CommandArg::Stop) => "controller, stop (one rotor)".to_string(),
+            _ => format!("controller, one rotor held at {speed} rpm, no phase loop"),
+        };
+    }
     match (args.command, args.offset) {
         (Some(CommandArg::Stop), _) => "controller, stop".to_string(),
         (_, Some(o)) => format!("controller, offset {o} deg at {speed} rpm"),

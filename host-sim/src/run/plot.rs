@@ -395,14 +395,11 @@ fn panels(rows: &[TraceRow], events: &[EventRow], machine: &Machine) -> Vec<Pane
         points: rows.iter().map(|r| (r.t, f(r))).collect(),
         dashed: false,
     };
-    let [s1, s2] = [
-        machine.rotors[0].sense.sign(),
-        machine.rotors[1].sense.sign(),
-    ];
+    let s1 = machine.rotors.rotor1().sense.sign();
     let impacts = impact_times(events);
     let count = impacts.len();
     let impact_label = format!("{count} impact{}", if count == 1 { "" } else { "s" });
-    vec![
+    let mut panels = vec![
         Panel {
             title: "Platform position x",
             axis: "x (mm)",
@@ -431,28 +428,37 @@ fn panels(rows: &[TraceRow], events: &[EventRow], machine: &Machine) -> Vec<Pane
             fixed: None,
             marks: None,
         },
-        Panel {
-            title: "Rotor speeds (driven sense)",
-            axis: "speed (rpm)",
-            series: vec![
-                line(&rotor_label(0, machine), BLUE, &|r| {
-                    s1 * r.omega1 * RPM_PER_RAD_S
-                }),
-                Series {
-                    dashed: true,
-                    ..line(&rotor_label(1, machine), ORANGE, &|r| {
-                        s2 * r.omega2 * RPM_PER_RAD_S
-                    })
-                },
-            ],
-            fixed: None,
-            marks: None,
+    ];
+    // Rotor 1's speed, and on two rotors rotor 2's and their phase offset.
+    let mut speeds = vec![line(&rotor_label(0, machine), BLUE, &|r| {
+        s1 * r.omega1 * RPM_PER_RAD_S
+    })];
+    if let Some(r2) = machine.rotors.rotor2() {
+        let s2 = r2.sense.sign();
+        speeds.push(Series {
+            dashed: true,
+            ..line(&rotor_label(1, machine), ORANGE, &|r| {
+                s2 * r.omega2 * RPM_PER_RAD_S
+            })
+        });
+    }
+    panels.push(Panel {
+        title: if speeds.len() == 1 {
+            "Rotor speed (driven sense)"
+        } else {
+            "Rotor speeds (driven sense)"
         },
-        Panel {
+        axis: "speed (rpm)",
+        series: speeds,
+        fixed: None,
+        marks: None,
+    });
+    if machine.rotors.rotor2().is_some() {
+        panels.push(Panel {
             title: "Phase offset",
             axis: "offset (deg)",
             series: vec![line("theta1 - theta2, wrapped to [0, 360)", PURPLE, &|r| {
-                phase_offset_deg(r.phi1, r.phi2, machine)
+                phase_offset_deg(r.phi1, r.phi2, machine).unwrap_or(f64::NAN)
             })],
             fixed: Some(Fixed {
                 range: (0.0, 360.0),
@@ -460,8 +466,9 @@ fn panels(rows: &[TraceRow], events: &[EventRow], machine: &Machine) -> Vec<Pane
                 period: 360.0,
             }),
             marks: None,
-        },
-    ]
+        });
+    }
+    panels
 }
 
 /// The figure of a run: its trace `rows` (times ascending), its `events` (impacts
@@ -488,13 +495,22 @@ pub fn plot_svg(rows: &[TraceRow], events: &[EventRow], machine: &Machine, title
 
     let mut svg = String::new();
     open_document(&mut svg, WIDTH, height, title, LEFT, 24.0);
+    let rotors = match machine.rotors.rotor2() {
+        Some(r2) => format!(
+            "rotor 1 \"{}\", rotor 2 \"{}\"; phase offset theta_k = s_k (phi_k - index_angle_k)",
+            machine.rotors.rotor1().name,
+            r2.name
+        ),
+        None => format!(
+            "one rotor, \"{}\": no phase offset",
+            machine.rotors.rotor1().name
+        ),
+    };
     let subtitle = format!(
-        "{} rows from t = {} s to {} s; rotor 1 \"{}\", rotor 2 \"{}\"; phase offset theta_k = s_k (phi_k - index_angle_k)",
+        "{} rows from t = {} s to {} s; {rotors}",
         rows.len(),
         crate::output::text::sig(t0),
         crate::output::text::sig(t1),
-        machine.rotors[0].name,
-        machine.rotors[1].name,
     );
     let _ = writeln!(
         svg,

@@ -1,16 +1,23 @@
 //! The summary of `host-sim run` as the spec's JSON document or as a table for
 //! people (spec `machine.md`): keys and their order are the contract (`t_end`,
 //! `mean_velocity`, `distance`, `impacts`, `rotor_speed_rpm`, `phase_offset_deg`,
-//! `phase_error_deg_rms`, `state`, `faults`, `final`, `warnings`); a number that is
-//! not finite is written `null`, so the document always parses.
+//! `phase_error_deg_rms`, `state`, `faults`, `final`, `warnings`), followed by the
+//! project's additions (`rotors`, `phase_loop`); a number that is not finite is
+//! written `null`, so the document always parses.
+//!
+//! A machine with one rotor (issue 12): `rotor_speed_rpm` has one entry,
+//! `phase_offset_deg` is `null`, `rotors` is 1 and `phase_loop` false; the table
+//! says in a line of its own that the controller holds the rotor's speed only.
 
 use serde_json::{Map, Value};
 
 use crate::output::text::{self, Align, Table};
 use crate::simulation::trace::Summary;
 
-/// The keys of the summary document, in the spec's order.
-pub const SUMMARY_KEYS: [&str; 11] = [
+/// The keys of the summary document: the spec's, in its order, then the
+/// project's additions: `rotors` (1 or 2) and `phase_loop` (whether a phase loop
+/// held the offset: a controller run on two rotors).
+pub const SUMMARY_KEYS: [&str; 13] = [
     "t_end",
     "mean_velocity",
     "distance",
@@ -22,7 +29,16 @@ pub const SUMMARY_KEYS: [&str; 11] = [
     "faults",
     "final",
     "warnings",
+    "rotors",
+    "phase_loop",
 ];
+
+/// The table's line for a one-rotor machine run by the controller.
+pub const ONE_ROTOR_LINE: &str =
+    "one rotor: the controller holds its speed only (no phase loop, no phase offset)";
+
+/// The table's line for a one-rotor machine in open loop.
+pub const ONE_ROTOR_OPEN_LOOP_LINE: &str = "one rotor: no phase offset";
 
 /// The keys of the summary's `final` object, in the spec's order.
 pub const FINAL_KEYS: [&str; 4] = ["position", "angle", "velocity", "angular_velocity"];
@@ -50,8 +66,14 @@ pub fn summary_value(s: &Summary) -> Value {
     doc.insert("mean_velocity".into(), number(s.mean_velocity));
     doc.insert("distance".into(), number(s.distance));
     doc.insert("impacts".into(), Value::from(s.impacts));
-    doc.insert("rotor_speed_rpm".into(), pair(s.rotor_speed_rpm));
-    doc.insert("phase_offset_deg".into(), number(s.phase_offset_deg));
+    doc.insert(
+        "rotor_speed_rpm".into(),
+        Value::Array(s.rotor_speed_rpm.iter().map(|w| number(*w)).collect()),
+    );
+    doc.insert(
+        "phase_offset_deg".into(),
+        s.phase_offset_deg.map_or(Value::Null, number),
+    );
     doc.insert("phase_error_deg_rms".into(), number(s.phase_error_deg_rms));
     doc.insert("state".into(), Value::from(s.state.as_str()));
     doc.insert("faults".into(), strings(&s.faults));
@@ -63,6 +85,8 @@ pub fn summary_value(s: &Summary) -> Value {
     fin.insert("angular_velocity".into(), number(f.angular_velocity));
     doc.insert("final".into(), Value::Object(fin));
     doc.insert("warnings".into(), strings(&s.warnings));
+    doc.insert("rotors".into(), Value::from(s.rotors));
+    doc.insert("phase_loop".into(), Value::from(s.phase_loop));
     Value::Object(doc)
 }
 
@@ -78,10 +102,19 @@ pub fn summary_json(s: &Summary) -> String {
 /// the warnings.
 pub fn summary_table(s: &Summary) -> String {
     let mut out = format!(
-        "run to t = {} s, controller state: {}\n\n",
+        "run to t = {} s, controller state: {}\n",
         text::sig(s.t_end),
         s.state
     );
+    if s.rotors == 1 {
+        out.push_str(if s.state == "open-loop" {
+            ONE_ROTOR_OPEN_LOOP_LINE
+        } else {
+            ONE_ROTOR_LINE
+        });
+        out.push('\n');
+    }
+    out.push('\n');
     let mut t = Table::new(&[
         ("quantity", Align::Left),
         ("value", Align::Right),
@@ -97,22 +130,18 @@ pub fn summary_table(s: &Summary) -> String {
     );
     row("distance", text::signed(s.distance), "m");
     row("impacts", s.impacts.to_string(), "");
-    row(
-        "rotor 1 speed (second half)",
-        text::sig(s.rotor_speed_rpm[0]),
-        "rpm",
-    );
-    row(
-        "rotor 2 speed (second half)",
-        text::sig(s.rotor_speed_rpm[1]),
-        "rpm",
-    );
-    row(
-        "phase offset (circular mean)",
-        text::sig(s.phase_offset_deg),
-        "deg",
-    );
-    row("phase error (RMS)", text::sig(s.phase_error_deg_rms), "deg");
+    for (k, w) in s.rotor_speed_rpm.iter().enumerate() {
+        row(
+            &format!("rotor {} speed (second half)", k + 1),
+            text::sig(*w),
+            "rpm",
+        );
+    }
+    // One rotor: no offset, no phase error.
+    if let Some(offset) = s.phase_offset_deg {
+        row("phase offset (circular mean)", text::sig(offset), "deg");
+        row("phase error (RMS)", text::sig(s.phase_error_deg_rms), "deg");
+    }
     let f = &s.final_state;
     row("final position", text::vec2(f.position), "m");
     row(
@@ -158,10 +187,12 @@ mod tests {
             mean_velocity: 0.0125,
             distance: 0.1,
             impacts: 42,
-            rotor_speed_rpm: [3000.5, 2999.5],
-            phase_offset_deg: 90.25,
+            rotor_speed_rpm: vec![3000.5, 2999.5],
+            phase_offset_deg: Some(90.25),
             phase_error_deg_rms: 1.5,
             state: "running".to_string(),
+            rotors: 2,
+            phase_loop: true,
             faults: vec![],
             final_state: FinalState {
                 position: [0.25, 0.03],
@@ -205,7 +236,7 @@ mod tests {
         assert_eq!(doc["rotor_speed_rpm"][1], 2999.5);
         assert!(doc["final"]["angle"].is_null());
         // Nothing else is added.
-        assert_eq!(doc.as_object().unwrap().len(), 11);
+        assert_eq!(doc.as_object().unwrap().len(), SUMMARY_KEYS.len());
         assert_eq!(doc["warnings"].as_array().unwrap().len(), 1);
     }
 
@@ -231,5 +262,65 @@ mod tests {
         assert!(line("impacts").contains("42"), "{t}");
         assert!(t.contains("faults:\n  - overcurrent\n"), "{t}");
         assert!(t.contains("warnings:\n  - w1\n"), "{t}");
+    }
+
+    /// The summary of a one-rotor machine's controller run.
+    fn one_rotor() -> Summary {
+        Summary {
+            rotor_speed_rpm: vec![3000.5],
+            phase_offset_deg: None,
+            phase_error_deg_rms: 0.0,
+            rotors: 1,
+            phase_loop: false,
+            ..summary()
+        }
+    }
+
+    #[test]
+    fn one_rotor_json_has_one_speed_no_offset_and_says_so() {
+        let doc: Value = serde_json::from_str(&summary_json(&one_rotor())).unwrap();
+        assert_eq!(keys(&doc), SUMMARY_KEYS);
+        assert_eq!(doc["rotor_speed_rpm"], serde_json::json!([3000.5]));
+        assert!(doc["phase_offset_deg"].is_null());
+        assert_eq!(doc["phase_error_deg_rms"], 0.0);
+        assert_eq!(doc["rotors"], 1);
+        assert_eq!(doc["phase_loop"], false);
+        // Two rotors: both speeds, the offset, the phase loop.
+        let doc: Value = serde_json::from_str(&summary_json(&summary())).unwrap();
+        assert_eq!(doc["rotors"], 2);
+        assert_eq!(doc["phase_loop"], true);
+        assert_eq!(doc["phase_offset_deg"], 90.25);
+    }
+
+    #[test]
+    fn one_rotor_table_says_speed_only() {
+        let t = summary_table(&one_rotor());
+        let second = t.lines().nth(1).unwrap_or_default();
+        assert_eq!(second, ONE_ROTOR_LINE, "{t}");
+        assert!(t.contains("rotor 1 speed (second half)"), "{t}");
+        assert!(!t.contains("rotor 2 speed"), "{t}");
+        assert!(
+            !t.lines()
+                .any(|l| l.starts_with("phase offset") || l.starts_with("phase error")),
+            "{t}"
+        );
+        // Open loop: no controller to hold anything.
+        let open = summary_table(&Summary {
+            state: "open-loop".to_string(),
+            ..one_rotor()
+        });
+        assert_eq!(
+            open.lines().nth(1),
+            Some(ONE_ROTOR_OPEN_LOOP_LINE),
+            "{open}"
+        );
+        // Two rotors: no such line, both speeds and the offset.
+        let two = summary_table(&summary());
+        assert!(!two.contains("one rotor"), "{two}");
+        assert!(
+            two.contains("rotor 2 speed") && two.contains("phase offset"),
+            "{two}"
+        );
+        assert_eq!(two.lines().nth(1), Some(""), "{two}");
     }
 }

@@ -76,7 +76,9 @@ impl Driver for ScenarioDriver<'_> {
             }
         }
         self.inner.injected = injected;
-        for (k, on) in jam.into_iter().enumerate() {
+        // The rotors there are (a one-rotor machine's scenario names no rotor 2).
+        let rotors = self.inner.rotor_count().count();
+        for (k, on) in jam.into_iter().enumerate().take(rotors) {
             plant.set_jam(k, on);
         }
         self.inner.before_tick(t, plant);
@@ -100,6 +102,10 @@ impl Driver for ScenarioDriver<'_> {
 
     fn commanded_offset_deg(&self) -> Option<f64> {
         self.inner.commanded_offset_deg()
+    }
+
+    fn phase_loop(&self) -> bool {
+        self.inner.phase_loop()
     }
 
     fn faults(&self) -> Vec<String> {

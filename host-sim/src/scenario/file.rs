@@ -30,7 +30,9 @@
 //!    overrides ([`Machine::load`]) and its controller parameters;
 //! 4. what needs the machine: times within `t_end` (default the machine's
 //!    `simulation.t_end`), at most one command per control tick, the run speed of a
-//!    command (default the machine's `controller.speed_rpm`);
+//!    command (default the machine's `controller.speed_rpm`); on a machine with
+//!    one rotor, no rotor 2 in a fault or a speed expectation and no phase
+//!    expectation (its controller holds speed only);
 //! 5. every problem at once.
 
 //!
@@ -142,6 +144,16 @@ impl InjectedFault {
             InjectedFault::LostCommands => "lost_commands",
             InjectedFault::Estop => "estop",
             InjectedFault::LateTicks { .. } => "late_ticks",
+        }
+    }
+
+    /// The rotor it acts on (index 0 or 1), if it acts on one.
+    pub fn rotor(&self) -> Option<usize> {
+        match self {
+            InjectedFault::EncoderDropout { rotor }
+            | InjectedFault::JammedRotor { rotor }
+            | InjectedFault::CurrentOffset { rotor, .. } => Some(*rotor),
+            _ => None,
         }
     }
 
@@ -879,9 +891,26 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
     }
     commands.sort_by(|a, b| a.t.total_cmp(&b.t));
 
-    // Faults: starting before the end.
+    // One rotor: rotor 2 is not there (its name, for the messages).
+    let one_rotor = m
+        .filter(|m| m.rotors.len() == 1)
+        .map(|m| m.rotors.rotor1().name.clone());
+    let no_rotor_2 = |key: &str, name: &str| {
+        problems.at(
+            &format!("{key}.rotor"),
+            format!(
+                "must be 1: the machine has one rotor (\"{name}\"), rotor 2 does not exist (got 2)"
+            ),
+        );
+    };
+
+    // Faults: starting before the end, on a rotor there is.
     let mut faults = Vec::new();
     for (key, t, duration, fault) in &raw.faults {
+        if let (Some(name), Some(1)) = (&one_rotor, fault.rotor()) {
+            no_rotor_2(key, name);
+            continue;
+        }
         if *t >= t_end {
             problems.at(
                 &format!("{key}.t"),
@@ -897,9 +926,31 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
         });
     }
 
-    // Expectations: windows within the run.
+    // Expectations: windows within the run, on what the machine has.
     let mut expectations = Vec::new();
-    for (key, e) in raw.expects {
+    for (key, mut e) in raw.expects {
+        if let Some(name) = &one_rotor {
+            match &mut e {
+                RawExpect::Ready(Expectation::Phase { .. }) => {
+                    problems.at(
+                        &format!("{key}.kind"),
+                        format!(
+                            "\"phase\" does not apply: the machine has one rotor (\"{name}\"), no phase offset; its controller holds speed only (expect `speed` or `state`)"
+                        ),
+                    );
+                    continue;
+                }
+                RawExpect::Ready(Expectation::Speed { rotors, .. }) => {
+                    if rotors.len() == 1 && rotors[0] == 1 {
+                        no_rotor_2(&key, name);
+                        continue;
+                    }
+                    // No rotor named: the one there is.
+                    rotors.retain(|k| *k == 0);
+                }
+                _ => {}
+            }
+        }
         let (e, window_key, w) = match e {
             RawExpect::SafeFrom(t) => (
                 Expectation::Safe {

@@ -14,12 +14,18 @@
 //!    disables its outputs;
 //! 5. record the controller's state changes and faults as events.
 //!
+//! A machine with one rotor ([`RotorCount::One`], from its machine file): only
+//! rotor 1's encoder and current are sampled (the plant's `q[3]`, `v[3]` and
+//! `mean_currents()[0]`); the controller gets rotor 2's inputs at rest (counter 0,
+//! no index, 0 A), which it does not read; rotor 2's bridge is always commanded
+//! `Off` and its duty recorded 0. The controller holds rotor 1's speed only.
+//!
 //! A self-test ([`shared::controller::self_test`]) starts at a set time
 //! ([`ControllerDriver::start_self_test_at`]), as the firmware starts it when the
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Inputs, Outputs, Params, ResetCause, State, TickTiming,
+    Command, Controller, Inputs, Outputs, Params, ResetCause, RotorCount, State, TickTiming,
 };
 
 use crate::machine::input::Problem;
@@ -59,9 +65,13 @@ pub struct Injected {
 /// The controller in the loop.
 pub struct ControllerDriver {
     controller: Controller,
-    encoders: [Encoder; 2],
+    /// One rotor or two (the machine's, as the controller's parameters say).
+    rotor_count: RotorCount,
+    /// The encoders of the rotors there are (rotor 1's, then rotor 2's).
+    encoders: Vec<Encoder>,
     frozen_count: [Option<u32>; 2],
-    currents: [CurrentSensor; 2],
+    /// The current sensors of the rotors there are.
+    currents: Vec<CurrentSensor>,
     supply: f64,
     dt: f32,
     /// Commands still to send: (time, command), in time order.
@@ -94,10 +104,17 @@ impl ControllerDriver {
     pub fn new(machine: &Machine, schedule: Vec<(f64, Command)>) -> Result<Self, Vec<Problem>> {
         let params = params(machine)?;
         let seed = machine.simulation.seed;
-        let encoders =
-            [0, 1].map(|k| Encoder::for_rotor(k, &machine.rotors[k], &machine.sensors, seed));
-        let currents = [0, 1].map(|k| CurrentSensor::for_rotor(k, &machine.sensors, seed));
+        let encoders = machine
+            .rotors
+            .iter()
+            .enumerate()
+            .map(|(k, r)| Encoder::for_rotor(k, r, &machine.sensors, seed))
+            .collect();
+        let currents = (0..machine.rotors.len())
+            .map(|k| CurrentSensor::for_rotor(k, &machine.sensors, seed))
+            .collect();
         Ok(ControllerDriver {
+            rotor_count: params.rotor_count,
             controller: Controller::new(&params, ResetCause::PowerOn),
             encoders,
             frozen_count: [None; 2],
@@ -141,6 +158,11 @@ impl ControllerDriver {
         self.last.as_ref()
     }
 
+    /// One rotor or two.
+    pub fn rotor_count(&self) -> RotorCount {
+        self.rotor_count
+    }
+
     fn event(&mut self, t: f64, kind: EventKind, detail: String) {
         self.events.push(EventRow::controller(t, kind, detail));
     }
@@ -161,8 +183,9 @@ impl Driver for ControllerDriver {
         let i = plant.mean_currents();
         let mut encoder = [0u32; 2];
         let mut index = [None; 2];
-        for k in 0..2 {
-            let mut r = self.encoders[k].sample(t, q[3 + k], v[3 + k]);
+        let mut current = [0.0f32; 2];
+        for (k, e) in self.encoders.iter_mut().enumerate() {
+            let mut r = e.sample(t, q[3 + k], v[3 + k]);
             if self.injected.encoder_reversed[k] {
                 r.count = r.count.wrapping_neg();
                 r.index_count = r.index_count.map(u32::wrapping_neg);
@@ -175,8 +198,9 @@ impl Driver for ControllerDriver {
                 index[k] = r.index_count;
             }
         }
-        let current = [0, 1]
-            .map(|k| (self.currents[k].measure(i[k]) + self.injected.current_offset[k]) as f32);
+        for (k, sensor) in self.currents.iter_mut().enumerate() {
+            current[k] = (sensor.measure(i[k]) + self.injected.current_offset[k]) as f32;
+        }
         let supply = self.injected.supply_voltage.unwrap_or(self.supply);
 
         // 2. Commands due, else a heartbeat.
@@ -233,30 +257,31 @@ impl Driver for ControllerDriver {
             self.history.push((t, out));
         }
 
-        // 4. The H-bridges.
-        if out.enable {
-            let duty = out.duty.map(f64::from);
-            let applied = [0, 1].map(|k| {
-                if self.injected.motor_reversed[k] {
-                    -duty[k]
-                } else {
-                    duty[k]
-                }
-            });
-            (applied.map(BridgeCommand::Duty), duty)
-        } else {
-            ([BridgeCommand::Off, BridgeCommand::Off], [0.0, 0.0])
-        }
+        // 4. The H-bridges: those the controller drives (rotor 2's never on one
+        // rotor), the others off.
+        let on = self.rotor_count.bridges_on(out.enable);
+        let duty = [0, 1].map(|k| if on[k] { f64::from(out.duty[k]) } else { 0.0 });
+        let commands = [0, 1].map(|k| match (on[k], self.injected.motor_reversed[k]) {
+            (false, _) => BridgeCommand::Off,
+            (true, false) => BridgeCommand::Duty(duty[k]),
+            (true, true) => BridgeCommand::Duty(-duty[k]),
+        });
+        (commands, duty)
     }
 
     fn state(&self) -> String {
         self.last.map_or("idle", |o| o.state.name()).to_string()
     }
 
+    /// The offset held while running; none on one rotor (no phase loop).
     fn commanded_offset_deg(&self) -> Option<f64> {
         self.last
-            .filter(|o| o.state == State::Running)
+            .filter(|o| o.state == State::Running && self.rotor_count.has_rotor2())
             .map(|o| f64::from(o.telemetry.target_offset_deg))
+    }
+
+    fn phase_loop(&self) -> bool {
+        self.rotor_count.has_rotor2()
     }
 
     fn faults(&self) -> Vec<String> {

@@ -11,6 +11,10 @@
 //! 3. record a trace row every `output_step` (from the integrator's dense output)
 //!    and just before and after each event;
 //! 4. summarize ([`crate::simulation::summary`]).
+//!
+//! A machine with one rotor: the plant is called as for two, with rotor 2's
+//! H-bridge always off (`BridgeCommand::Off`); the trace's rotor 2 columns
+//! (`phi2`, `omega2`, `i2`, `duty2`) are written 0 whatever the plant holds there.
 
 pub mod closed_loop;
 pub mod limits;
@@ -38,6 +42,11 @@ pub trait Driver {
     fn commanded_offset_deg(&self) -> Option<f64> {
         None
     }
+    /// Whether a phase loop holds the rotors' offset (a controller on two
+    /// rotors); none by default.
+    fn phase_loop(&self) -> bool {
+        false
+    }
     /// Latched faults, by name.
     fn faults(&self) -> Vec<String> {
         Vec::new()
@@ -51,10 +60,26 @@ pub trait Driver {
 /// Open loop: constant winding voltages, or open windings (coast).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum OpenLoop {
-    /// Constant voltages on the windings, V (signed, within the supply).
+    /// Constant voltages on both windings of a two-rotor machine, V (signed,
+    /// within the supply).
     Voltages([f64; 2]),
+    /// The constant voltage on the winding of a one-rotor machine's rotor, V
+    /// (signed, within the supply); rotor 2's bridge off.
+    Voltage(f64),
     /// Windings open: the rotors coast.
     Coast,
+}
+
+impl OpenLoop {
+    /// How many rotors it drives: 2 for [`OpenLoop::Voltages`], 1 for
+    /// [`OpenLoop::Voltage`]; `None` for [`OpenLoop::Coast`], which fits any.
+    pub fn rotors(self) -> Option<usize> {
+        match self {
+            OpenLoop::Voltages(_) => Some(2),
+            OpenLoop::Voltage(_) => Some(1),
+            OpenLoop::Coast => None,
+        }
+    }
 }
 
 /// The open-loop driver.
@@ -78,6 +103,10 @@ impl Driver for OpenLoopDriver {
             OpenLoop::Voltages(v) => {
                 let duty = v.map(|u| (u / self.supply).clamp(-1.0, 1.0));
                 (duty.map(BridgeCommand::Duty), duty)
+            }
+            OpenLoop::Voltage(v) => {
+                let duty = (v / self.supply).clamp(-1.0, 1.0);
+                ([BridgeCommand::Duty(duty), BridgeCommand::Off], [duty, 0.0])
             }
         }
     }
@@ -186,6 +215,8 @@ struct Recorder<'r, 'm> {
     /// Index of the next regular output time `k * output_step`.
     next: u64,
     duty: [f64; 2],
+    /// The machine has one rotor: rotor 2's columns are written 0.
+    one_rotor: bool,
 }
 
 impl Recorder<'_, '_> {
@@ -208,7 +239,11 @@ impl Recorder<'_, '_> {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        let row = self.model.row(t, y, self.duty, forces);
+        let mut row = self.model.row(t, y, self.duty, forces);
+        if self.one_rotor {
+            // No rotor 2: its columns stay (the spec's trace has them), as 0.
+            (row.phi2, row.omega2, row.i2, row.duty2) = (0.0, 0.0, 0.0, 0.0);
+        }
         self.summary.push(&row);
         self.observer.row(&row);
         if self.keep_rows {
@@ -252,6 +287,7 @@ pub fn simulate_observed(
         output_step: machine.simulation.output_step,
         next: 0,
         duty: [0.0; 2],
+        one_rotor: machine.rotors.rotor2().is_none(),
     };
     let mut tick: u64 = 0;
     let mut stopped_at = None;
@@ -286,13 +322,14 @@ pub fn simulate_observed(
     let mut events = plant.events;
     events.extend(driver.events());
     events.sort_by(|a, b| a.t.total_cmp(&b.t));
-    let summary = rec.summary.finish(
+    let mut summary = rec.summary.finish(
         &events,
         driver.commanded_offset_deg(),
         &driver.state(),
         driver.faults(),
         plant.warnings.clone(),
     );
+    summary.phase_loop = driver.phase_loop();
     RunResult {
         rows: rec.rows,
         last_row: rec.last,

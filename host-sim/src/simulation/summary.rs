@@ -9,7 +9,9 @@
 //!
 //! Phase convention (spec, must): a rotor's encoder angle is
 //! `theta_k = s_k (phi_k - index_angle_k)`, `s_k = +1` for ccw and `-1` for cw; the
-//! phase offset is `theta_1 - theta_2` in degrees, wrapped to [0, 360).
+//! phase offset is `theta_1 - theta_2` in degrees, wrapped to [0, 360). A machine
+//! with one rotor has no offset: its summary has one rotor speed and no
+//! `phase_offset_deg`.
 
 use std::f64::consts::PI;
 
@@ -43,11 +45,12 @@ pub fn encoder_angle(phi: f64, rotor: &Rotor) -> f64 {
 }
 
 /// The phase offset `theta_1 - theta_2` in degrees, wrapped to [0, 360), of the
-/// eccentric angles `phi1`, `phi2` (rad, platform frame) of `machine`'s rotors.
-pub fn phase_offset_deg(phi1: f64, phi2: f64, machine: &Machine) -> f64 {
-    let [r1, r2] = &machine.rotors;
-    let theta = encoder_angle(phi1, r1) - encoder_angle(phi2, r2);
-    wrap_deg_360(theta.to_degrees())
+/// eccentric angles `phi1`, `phi2` (rad, platform frame) of `machine`'s rotors;
+/// `None` on a one-rotor machine.
+pub fn phase_offset_deg(phi1: f64, phi2: f64, machine: &Machine) -> Option<f64> {
+    let r2 = machine.rotors.rotor2()?;
+    let theta = encoder_angle(phi1, machine.rotors.rotor1()) - encoder_angle(phi2, r2);
+    Some(wrap_deg_360(theta.to_degrees()))
 }
 
 /// The distinct times of the impact events, ascending (the rows of one
@@ -196,11 +199,13 @@ impl<'m> SummaryBuilder<'m> {
                     }
                 };
                 self.at_half = Some(v);
-                self.offsets
-                    .push(self.half, phase_offset_deg(v.1, v.2, self.machine));
+                if let Some(o) = phase_offset_deg(v.1, v.2, self.machine) {
+                    self.offsets.push(self.half, o);
+                }
             }
-            self.offsets
-                .push(p.t, phase_offset_deg(p.phi1, p.phi2, self.machine));
+            if let Some(o) = phase_offset_deg(p.phi1, p.phi2, self.machine) {
+                self.offsets.push(p.t, o);
+            }
         }
         self.last = Some(*row);
     }
@@ -216,11 +221,16 @@ impl<'m> SummaryBuilder<'m> {
     ) -> Summary {
         let machine = self.machine;
         let impacts = impact_times(events).len();
+        let rotors = machine.rotors.len();
+        let two = machine.rotors.rotor2().is_some();
         let (Some(first), Some(last)) = (self.first, self.last) else {
             let p = &machine.platform;
             warnings.push("the run recorded no trace rows: the summary is empty".to_string());
             return Summary {
                 impacts,
+                rotor_speed_rpm: vec![0.0; rotors],
+                phase_offset_deg: two.then_some(0.0),
+                rotors,
                 state: state.to_string(),
                 faults,
                 final_state: FinalState {
@@ -238,8 +248,9 @@ impl<'m> SummaryBuilder<'m> {
             Some(v) => v,
             None => {
                 let a = self.at_or_before_half.unwrap_or(first);
-                self.offsets
-                    .push(self.half, phase_offset_deg(a.phi1, a.phi2, machine));
+                if let Some(o) = phase_offset_deg(a.phi1, a.phi2, machine) {
+                    self.offsets.push(self.half, o);
+                }
                 (a.x, a.phi1, a.phi2)
             }
         };
@@ -260,14 +271,21 @@ impl<'m> SummaryBuilder<'m> {
         let distance = last.x - first.x;
 
         // Rotor speeds in the driven sense: s_k dphi_k/dt, in rpm.
-        let [r1, r2] = &machine.rotors;
-        let rotor_speed_rpm = [
-            r1.sense.sign() * rate(last.phi1, phi1_half) * RPM_PER_RAD_S,
-            r2.sense.sign() * rate(last.phi2, phi2_half) * RPM_PER_RAD_S,
-        ];
+        let phis = [(last.phi1, phi1_half), (last.phi2, phi2_half)];
+        let rotor_speed_rpm = machine
+            .rotors
+            .iter()
+            .zip(phis)
+            .map(|(r, (end, mid))| r.sense.sign() * rate(end, mid) * RPM_PER_RAD_S)
+            .collect();
 
-        // Phase offset and its error over the second half.
-        let (phase_offset_deg, phase_error_deg_rms) = self.offsets.finish(commanded_offset_deg);
+        // Phase offset and its error over the second half (two rotors).
+        let (phase_offset_deg, phase_error_deg_rms) = if two {
+            let (mean, rms) = self.offsets.finish(commanded_offset_deg);
+            (Some(mean), rms)
+        } else {
+            (None, 0.0)
+        };
 
         Summary {
             t_end,
@@ -278,6 +296,9 @@ impl<'m> SummaryBuilder<'m> {
             phase_offset_deg,
             phase_error_deg_rms,
             state: state.to_string(),
+            rotors,
+            // The driver says (`simulate`).
+            phase_loop: false,
             faults,
             final_state: FinalState {
                 position: [last.x, last.y],
@@ -371,6 +392,11 @@ pub(crate) mod tests {
 
     const TOL: f64 = 1e-9;
 
+    /// The phase offset of a two-rotor summary.
+    fn offset(s: &Summary) -> f64 {
+        s.phase_offset_deg.expect("two rotors have an offset")
+    }
+
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
     }
@@ -393,16 +419,16 @@ pub(crate) mod tests {
     fn phase_offset_follows_the_convention() {
         let m = machine([0.0, 0.0]);
         // Rotor 1 ccw at +30 deg, rotor 2 cw at -60 deg: theta_1 = 30, theta_2 = 60.
-        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m);
+        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m).unwrap();
         assert!(close(offset, 330.0, TOL), "{offset}");
         // Index angles shift each theta: theta_1 = 30 - 10, theta_2 = -(-60 - 20) = 80.
         let m = machine([10f64.to_radians(), 20f64.to_radians()]);
-        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m);
+        let offset = phase_offset_deg(30f64.to_radians(), (-60f64).to_radians(), &m).unwrap();
         assert!(close(offset, 300.0, TOL), "{offset}");
         // A mirror-symmetric counter-rotating pair (phi_2 = pi - phi_1), with
         // phi_1 = 45 deg: theta_1 = 45, theta_2 = -135, offset 180: vertical.
         let m = machine([0.0, 0.0]);
-        let offset = phase_offset_deg(45f64.to_radians(), 135f64.to_radians(), &m);
+        let offset = phase_offset_deg(45f64.to_radians(), 135f64.to_radians(), &m).unwrap();
         assert!(close(offset, 180.0, TOL), "{offset}");
     }
 
@@ -538,11 +564,7 @@ pub(crate) mod tests {
         });
         let m = machine([0.0; 2]);
         let s = summarize(&trace, &[], &m, Some(80.0), "run", vec![], vec![]);
-        assert!(
-            close(s.phase_offset_deg, 90.0, 1e-6),
-            "{}",
-            s.phase_offset_deg
-        );
+        assert!(close(offset(&s), 90.0, 1e-6), "{}", offset(&s));
         assert!(
             close(s.phase_error_deg_rms, 10.0, 1e-6),
             "{}",
@@ -585,9 +607,9 @@ pub(crate) mod tests {
             vec![],
             vec![],
         );
-        let off = wrap_deg_180(s.phase_offset_deg);
-        assert!(close(off, 0.0, 1e-9), "{}", s.phase_offset_deg);
-        assert!(s.phase_offset_deg >= 0.0 && s.phase_offset_deg < 360.0);
+        let off = wrap_deg_180(offset(&s));
+        assert!(close(off, 0.0, 1e-9), "{}", offset(&s));
+        assert!(offset(&s) >= 0.0 && offset(&s) < 360.0);
         assert!(
             close(s.phase_error_deg_rms, 10.0, 1e-9),
             "{}",
@@ -626,9 +648,42 @@ pub(crate) mod tests {
         let s = summarize(&one, &[], &m, Some(80.0), "idle", vec![], vec![]);
         assert_eq!(s.mean_velocity, 0.0);
         assert_eq!(s.rotor_speed_rpm, [0.0, 0.0]);
-        assert!(close(s.phase_offset_deg, 90.0, 1e-9));
+        assert!(close(offset(&s), 90.0, 1e-9));
         assert!(close(s.phase_error_deg_rms, 10.0, 1e-9));
         assert_eq!(s.final_state.position, [0.5, 0.0]);
         assert!(s.warnings.is_empty());
+    }
+
+    #[test]
+    fn one_rotor_has_one_speed_and_no_offset() {
+        // Rotor 1 (ccw) at 50 rev/s; whatever rotor 2's columns hold is not read.
+        let m = Machine::from_text(
+            "one.toml",
+            include_str!("../../../tests/fixtures/one-rotor-machine.toml"),
+            std::path::Path::new(""),
+            &[],
+        )
+        .unwrap_or_else(|p| panic!("{}", crate::machine::input::render(&p)));
+        let w = 2.0 * PI * 50.0;
+        let trace = rows(1.0, 1e-3, |t| TraceRow {
+            t,
+            phi1: w * t,
+            phi2: 7.0 * t * t,
+            ..TraceRow::default()
+        });
+        let s = summarize(&trace, &[], &m, None, "running", vec![], vec![]);
+        assert_eq!(s.rotor_speed_rpm.len(), 1);
+        assert!(
+            close(s.rotor_speed_rpm[0], 3000.0, 1e-6),
+            "{:?}",
+            s.rotor_speed_rpm
+        );
+        assert_eq!(s.phase_offset_deg, None);
+        assert_eq!(s.phase_error_deg_rms, 0.0);
+        assert_eq!(s.rotors, 1);
+        assert_eq!(phase_offset_deg(1.0, 2.0, &m), None);
+        // An empty trace too.
+        let s = summarize(&[], &[], &m, None, "idle", vec![], vec![]);
+        assert_eq!((s.rotor_speed_rpm, s.phase_offset_deg), (vec![0.0], None));
     }
 }

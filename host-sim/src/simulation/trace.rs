@@ -4,7 +4,8 @@ use shared::impact::MAX_CONTACTS;
 
 use crate::machine::bodies::MAX_BODIES;
 
-/// One row of the `--out` trace.
+/// One row of the `--out` trace. On a machine with one rotor, rotor 2's columns
+/// (`phi2`, `omega2`, `i2`, `duty2`) stay, as 0 (the spec's columns are fixed).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceRow {
     /// Time, s.
@@ -153,14 +154,22 @@ pub struct Summary {
     pub distance: f64,
     /// Number of impact instants.
     pub impacts: usize,
-    /// Mean speeds over the second half in each rotor's driven sense, rpm.
-    pub rotor_speed_rpm: [f64; 2],
-    /// Circular mean of the measured phase offset over the second half, degrees.
-    pub phase_offset_deg: f64,
-    /// RMS of (measured - commanded) offset over the second half, degrees.
+    /// Mean speeds over the second half in each rotor's driven sense, rpm: one
+    /// per rotor of the machine (rotor 1, then rotor 2 if it has two).
+    pub rotor_speed_rpm: Vec<f64>,
+    /// Circular mean of the measured phase offset over the second half, degrees;
+    /// `None` on a one-rotor machine, which has no offset.
+    pub phase_offset_deg: Option<f64>,
+    /// RMS of (measured - commanded) offset over the second half, degrees (0
+    /// without a commanded offset: open loop, one rotor).
     pub phase_error_deg_rms: f64,
     /// Controller state at the end (`open-loop` without it).
     pub state: String,
+    /// The machine's rotors, 1 or 2.
+    pub rotors: usize,
+    /// Whether a phase loop held the offset: a controller run on two rotors;
+    /// false in open loop, and on one rotor, whose controller holds speed only.
+    pub phase_loop: bool,
     /// Faults latched at the end.
     pub faults: Vec<String>,
     /// The final state.

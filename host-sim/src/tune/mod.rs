@@ -5,6 +5,9 @@
 //! the offset that travels right fastest and the one that travels left fastest
 //! (spec `machine.md`, `host-sim tune`; docs/tuning.md).
 //!
+//! A machine with one rotor has no phase offset and its controller no tuning
+//! table to use: `tune` refuses it (exit 2, [`one_rotor_refusal`]).
+//!
 //! Stages of [`run`]:
 //! 1. read and check the machine file with the `--set` overrides, and the options
 //!    into a [`sweep::Grid`]: every problem at once, exit 2, before any run;
@@ -132,6 +135,9 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
         Ok(m) => m,
         Err(problems) => return Err(input::render(&problems)),
     };
+    if machine.rotors.len() == 1 {
+        return Err(one_rotor_refusal(&args.machine.path, &machine));
+    }
     machine.controller.tuning_table = None;
     let params = match closed_loop::params(&machine) {
         Ok(p) => p,
@@ -239,6 +245,18 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
         )),
         _ => Err(problems.join("\n") + "\n"),
     }
+}
+
+/// Why `tune` refuses a one-rotor machine: it sweeps the phase offset between two
+/// rotors and writes the offsets of the tuning table, and a single rotor has
+/// neither (its controller holds speed only).
+pub fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
+    format!(
+        "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
+        path.display(),
+        machine.rotors.rotor1().name,
+        path.display()
+    )
 }
 
 /// Runs the command (stages of the module doc).

@@ -2,7 +2,9 @@
 //! [`Outputs`], [`Telemetry`], and the names of its [`State`]s.
 //!
 //! Rotor 1 is index 0 of every pair, rotor 2 index 1, in the machine file's order
-//! (`[[rotors]]`). Every angle, speed, current and duty is signed in the rotor's
+//! (`[[rotors]]`). On a machine with one rotor ([`super::RotorCount::One`]) the pairs
+//! keep two entries: rotor 2's inputs are not read, and its outputs and telemetry
+//! (duty, speed, reference, current) are 0. Every angle, speed, current and duty is signed in the rotor's
 //! *driven sense* (the `sense` of the machine file): positive is the way the rotor
 //! turns when driven forward, whichever way that is in the platform frame.
 
@@ -193,7 +195,8 @@ pub struct Telemetry {
     /// Phase error `commanded - measured`, degrees in (-180, 180] (0 while the phase
     /// loop is open).
     pub phase_error_deg: f32,
-    /// Measured winding currents, A (as read; NaN passes through).
+    /// Measured winding currents, A (as read; NaN passes through); rotor 2's 0 on a
+    /// one-rotor machine, whose rotor 2 current is not read.
     pub current: [f32; 2],
     /// Measured supply voltage, V (as read).
     pub supply_voltage: f32,

@@ -15,12 +15,18 @@
 //!
 //! with `m`, `e` a rotor's eccentric mass and eccentricity, `J_r` its inertia without
 //! the eccentric mass, `g = |gravity|`, `M` the platform with both eccentric masses.
+//!
+//! A machine with one rotor ([`RotorCount::One`]): its rotor 2 is not there. `M`
+//! has rotor 1's eccentric mass alone, the exciting force is `m e w^2` (half a
+//! pair's: [`MachinePhysics::unbalance_kg_m`] is `m e / 2`), the current limit is
+//! rotor 1's, and the constants' rotor 2 repeats rotor 1's model (unused by the
+//! controller, [`super::Params::from_machine`]).
 
 use core::f64::consts::PI;
 
 use crate::drive::BridgeConfig;
 
-use super::params::{MachineConstants, RotorModel};
+use super::params::{MachineConstants, RotorCount, RotorModel};
 
 /// The low end of the resonance band, times the lift-off speed: the exciting force
 /// `~ w^2` is then `0.7^2 = 0.49` of the weight, about where the rigid platform
@@ -64,7 +70,9 @@ pub struct MachinePhysics {
     pub platform_mass_kg: f64,
     /// Gravity, m/s^2 (a vector in the plane; its magnitude `g` counts).
     pub gravity_m_s2: [f64; 2],
-    /// Rotor 1 and rotor 2.
+    /// One rotor or two.
+    pub rotor_count: RotorCount,
+    /// Rotor 1 and rotor 2; with [`RotorCount::One`] rotor 2's entry is ignored.
     pub rotors: [RotorPhysics; 2],
     /// The H-bridges as wired.
     pub bridge: BridgeConfig,
@@ -125,16 +133,27 @@ impl MachinePhysics {
         libm::sqrt(x * x + y * y)
     }
 
-    /// All that moves, kg: the platform and both eccentric masses.
+    /// All that moves, kg: the platform and the eccentric masses (both, or rotor
+    /// 1's on a one-rotor machine).
     pub fn total_mass_kg(&self) -> f64 {
-        self.platform_mass_kg
-            + (self.rotors[0].eccentric_mass_kg + self.rotors[1].eccentric_mass_kg)
+        match self.rotor_count {
+            RotorCount::Two => {
+                self.platform_mass_kg
+                    + (self.rotors[0].eccentric_mass_kg + self.rotors[1].eccentric_mass_kg)
+            }
+            RotorCount::One => self.platform_mass_kg + self.rotors[0].eccentric_mass_kg,
+        }
     }
 
-    /// The rotors' mean unbalance `m e`, kg m.
+    /// The unbalance `m e` per rotor of the pair whose exciting force `2 m e w^2`
+    /// is the machine's, kg m: the rotors' mean `(m_1 e_1 + m_2 e_2) / 2`; on a
+    /// one-rotor machine `m_1 e_1 / 2`, its force being `m_1 e_1 w^2`.
     pub fn unbalance_kg_m(&self) -> f64 {
         let me = |r: &RotorPhysics| r.eccentric_mass_kg * r.eccentricity_m;
-        (me(&self.rotors[0]) + me(&self.rotors[1])) / 2.0
+        match self.rotor_count {
+            RotorCount::Two => (me(&self.rotors[0]) + me(&self.rotors[1])) / 2.0,
+            RotorCount::One => me(&self.rotors[0]) / 2.0,
+        }
     }
 }
 
@@ -142,16 +161,22 @@ impl MachineConstants {
     /// The controller's constants of a machine (the module documentation's table):
     /// rate, counts, supply and bridge as given; each rotor by
     /// [`RotorModel::from_physics`]; the smaller current limit; the resonance band
-    /// by [`resonance_band_rpm`].
+    /// by [`resonance_band_rpm`]. On a one-rotor machine rotor 1 stands in for
+    /// rotor 2 (module documentation).
     pub fn from_physics(p: &MachinePhysics) -> MachineConstants {
         let g = p.gravity();
-        let [r1, r2] = &p.rotors;
+        let r1 = &p.rotors[0];
+        let r2 = match p.rotor_count {
+            RotorCount::Two => &p.rotors[1],
+            RotorCount::One => r1,
+        };
         MachineConstants {
             rate_hz: p.rate_hz as f32,
             encoder_counts: p.encoder_counts,
             supply_voltage_v: p.supply_voltage_v as f32,
             // The driver limits both windings; the controller plans with the weaker.
             current_limit_a: r1.current_limit_a.min(r2.current_limit_a) as f32,
+            rotor_count: p.rotor_count,
             rotors: [
                 RotorModel::from_physics(r1, g),
                 RotorModel::from_physics(r2, g),

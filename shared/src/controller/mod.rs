@@ -11,6 +11,23 @@
 //! way: the offset of the tuning table for the direction and speed
 //! ([`Command::Travel`]), or an explicit one ([`Command::HoldOffset`]).
 //!
+//! A machine may have one rotor ([`RotorCount::One`] in [`Params::rotor_count`],
+//! from its machine file): the controller then holds rotor 1's speed only, with
+//! the same ramps, speed loop, states and fault checks, and no phase loop:
+//! - a run command ([`Command::Travel`] or [`Command::HoldOffset`]) is accepted
+//!   as on two rotors (the same checks of speed and offset), its direction or
+//!   offset ignored: rotor 1 runs at the speed, and `Starting` becomes `Running`
+//!   once the ramp reaches it;
+//! - rotor 2 is not driven: its duty is exactly 0 in every state (the self-test
+//!   included) and its bridge stays off ([`RotorCount::bridges_on`]);
+//! - its encoder, index and current inputs are not read: no fault, no speed, no
+//!   current of rotor 2, which reads 0 in the telemetry; the phase offset is never
+//!   valid and the phase loop never closes (`PHASE_LOCK_LOST` cannot fire);
+//! - the self-test tests rotor 1 only.
+//!
+//! Two-rotor machines run exactly as without this (every one-rotor branch is
+//! taken only on [`RotorCount::One`]).
+//!
 //! Modules, one job each:
 //! - [`io`]: inputs, commands, outputs, telemetry, states;
 //! - [`params`]: parameters and the design rules of their defaults;
@@ -112,12 +129,13 @@ pub mod speed_loop;
 pub mod stopped;
 pub mod tuning;
 
-pub use encoder::{EncoderAnomaly, EncoderTracker, SpeedEstimator};
+pub use encoder::{EncoderAnomaly, EncoderSample, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
 pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
 pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
-    FaultLimits, MachineConstants, ParamError, Params, RotorModel, SpeedGains, CONTROL_RATE_HZ,
+    FaultLimits, MachineConstants, ParamError, Params, RotorCount, RotorModel, SpeedGains,
+    CONTROL_RATE_HZ,
 };
 pub use self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 pub use stopped::{may_write_table, WRITE_MAX_SPEED_RPM};
@@ -208,6 +226,9 @@ pub struct Controller {
     deg_per_count: f32,
     /// [`Params::phase_trim_max_rpm`] in rad/s (computed once).
     phase_trim_max_rad_s: f32,
+    /// The machine has one rotor ([`RotorCount::One`]): rotor 2 is neither read
+    /// nor driven (computed once).
+    one_rotor: bool,
     /// The constants of the last tick's `dt`, recomputed when `dt` changes.
     dt_constants: DtConstants,
     /// The last table offset looked up, cleared when the table changes
@@ -309,6 +330,7 @@ impl Controller {
             tick_s: params.tick_s(),
             deg_per_count: TURN_DEG / params.encoder_counts as f32,
             phase_trim_max_rad_s: rpm_to_rad_s(params.phase_trim_max_rpm),
+            one_rotor: params.rotor_count == RotorCount::One,
             dt_constants: DtConstants {
                 given_dt: f32::NAN,
                 dt: 0.0,
@@ -463,11 +485,17 @@ impl Controller {
             Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
             other => other,
         });
+        // One rotor: rotor 2's current is not read (0: no over-current from it).
+        let current = if self.one_rotor {
+            [inputs.current[0], 0.0]
+        } else {
+            inputs.current
+        };
         let obs = Observation {
             state: self.state,
             duty: self.last_duty,
             speed_rpm: map2(m.speed_rad_s, rad_s_to_rpm),
-            current: inputs.current,
+            current,
             current_filtered: self.current_filtered,
             encoder_anomaly,
             phase_error_deg: self.phase_error_unwrapped.map(|(sum, _)| sum),
@@ -496,7 +524,7 @@ impl Controller {
                     &SelfTestSample {
                         encoder: inputs.encoder,
                         index: inputs.index,
-                        current: inputs.current,
+                        current,
                         speed_rpm: obs.speed_rpm,
                     },
                     dt,
@@ -569,7 +597,12 @@ impl Controller {
                 speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
             };
             let [loop1, loop2] = &mut self.speed_loops;
-            duty = [update(0, loop1), update(1, loop2)];
+            duty = if self.one_rotor {
+                // Rotor 2 is not driven: exactly 0.
+                [update(0, loop1), 0.0]
+            } else {
+                [update(0, loop1), update(1, loop2)]
+            };
         } else {
             self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
         }
@@ -600,10 +633,12 @@ impl Controller {
             faults: self.faults,
             telemetry: Telemetry {
                 speed_rpm: obs.speed_rpm,
-                speed_ref_rpm: if driving {
-                    map2(speed_ref, rad_s_to_rpm)
-                } else {
+                speed_ref_rpm: if !driving {
                     [0.0; 2]
+                } else if self.one_rotor {
+                    [rad_s_to_rpm(speed_ref[0]), 0.0]
+                } else {
+                    map2(speed_ref, rad_s_to_rpm)
                 },
                 phase_valid: m.offset_deg.is_some(),
                 phase_offset_deg: m.offset_deg.unwrap_or(0.0),
@@ -615,7 +650,7 @@ impl Controller {
                 } else {
                     0.0
                 },
-                current: inputs.current,
+                current,
                 supply_voltage: inputs.supply_voltage,
                 duty,
                 command_rejected: rejected,
@@ -631,10 +666,18 @@ impl Controller {
         let p = &self.params;
         let max_counts = self.dt_constants.max_counts;
         let [e1, e2] = &mut self.encoders;
-        let s = [
-            e1.update(inputs.encoder[0], inputs.index[0], dt, max_counts),
-            e2.update(inputs.encoder[1], inputs.index[1], dt, max_counts),
-        ];
+        let s1 = e1.update(inputs.encoder[0], inputs.index[0], dt, max_counts);
+        // One rotor: rotor 2's encoder is not read (no speed, no angle, no anomaly).
+        let s2 = if self.one_rotor {
+            EncoderSample {
+                speed_rad_s: 0.0,
+                angle_counts: None,
+                anomaly: None,
+            }
+        } else {
+            e2.update(inputs.encoder[1], inputs.index[1], dt, max_counts)
+        };
+        let s = [s1, s2];
         let speed_rad_s = map2(s, |s| s.speed_rad_s);
         let anomaly = map2(s, |s| s.anomaly);
         let angle = map2(s, |s| s.angle_counts);
@@ -665,7 +708,9 @@ impl Controller {
         };
         let [i1, i2] = &mut self.current_filtered;
         filter(i1, inputs.current[0]);
-        filter(i2, inputs.current[1]);
+        if !self.one_rotor {
+            filter(i2, inputs.current[1]);
+        }
 
         Measurement {
             speed_rad_s,
@@ -757,7 +802,11 @@ impl Controller {
             // Start from the speed the rotors have (0 at rest, more if coasting).
             self.stop_run();
             let max = self.params.max_speed_rpm;
-            let mean = rad_s_to_rpm(0.5 * (m.speed_rad_s[0] + m.speed_rad_s[1]));
+            let mean = if self.one_rotor {
+                rad_s_to_rpm(m.speed_rad_s[0])
+            } else {
+                rad_s_to_rpm(0.5 * (m.speed_rad_s[0] + m.speed_rad_s[1]))
+            };
             self.ramp_rpm = if mean.is_finite() {
                 mean.clamp(0.0, max)
             } else {
@@ -857,7 +906,10 @@ impl Controller {
 
         // State changes.
         match self.state {
-            State::Starting if self.ramp_rpm == target_rpm && self.phase_closed => {
+            // One rotor: no phase loop to wait for.
+            State::Starting
+                if self.ramp_rpm == target_rpm && (self.phase_closed || self.one_rotor) =>
+            {
                 self.state = State::Running;
             }
             State::Stopping if self.ramp_rpm == 0.0 => {

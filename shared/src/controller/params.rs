@@ -77,6 +77,61 @@ pub struct RotorModel {
     pub load_torque_nm: f32,
 }
 
+/// How many unbalance rotors the machine has (its `[[rotors]]` tables): a build-time
+/// item of the firmware and host-sim's reading of the machine file, not a stored
+/// parameter.
+///
+/// - [`RotorCount::Two`]: rotor 1 and rotor 2 at one speed, their phase offset held
+///   by the phase loop (the reference machine);
+/// - [`RotorCount::One`]: rotor 1 alone, its speed held by the ramp and the speed
+///   loop; no phase loop (a run command's offset and direction are accepted and
+///   ignored); rotor 2's duty is exactly 0, its bridge is left off
+///   ([`RotorCount::bridges_on`]) and its encoder, index and current are not read, so
+///   no fault comes from a rotor that does not exist. The pairs of
+///   [`super::Inputs`], [`super::Outputs`] and [`super::Telemetry`] keep two
+///   entries; rotor 2's read 0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RotorCount {
+    /// Rotor 1 alone: speed only.
+    One,
+    /// Rotor 1 and rotor 2: speed and phase offset.
+    #[default]
+    Two,
+}
+
+impl RotorCount {
+    /// 1 or 2.
+    pub const fn count(self) -> usize {
+        match self {
+            RotorCount::One => 1,
+            RotorCount::Two => 2,
+        }
+    }
+
+    /// The count of `n` rotors: `None` unless 1 or 2.
+    pub const fn from_count(n: usize) -> Option<RotorCount> {
+        match n {
+            1 => Some(RotorCount::One),
+            2 => Some(RotorCount::Two),
+            _ => None,
+        }
+    }
+
+    /// Whether there is a rotor 2 (and a phase offset to hold).
+    pub const fn has_rotor2(self) -> bool {
+        matches!(self, RotorCount::Two)
+    }
+
+    /// Which H-bridges a tick drives, rotor 1's and rotor 2's, given the
+    /// controller's [`super::Outputs::enable`]: both with it on two rotors; on one,
+    /// rotor 1's with it and rotor 2's never (off: both inputs low, the winding
+    /// open). A bridge not driven is off.
+    pub const fn bridges_on(self, enable: bool) -> [bool; 2] {
+        [enable, enable && self.has_rotor2()]
+    }
+}
+
 /// What [`Params::from_machine`] needs to know of the machine (its file's values).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -89,7 +144,11 @@ pub struct MachineConstants {
     pub supply_voltage_v: f32,
     /// The driver's current limit, A (`motor.current_limit`, the smaller of the two).
     pub current_limit_a: f32,
-    /// Rotor 1 and rotor 2.
+    /// One rotor or two (`[[rotors]]`).
+    pub rotor_count: RotorCount,
+    /// Rotor 1 and rotor 2. With [`RotorCount::One`] rotor 2's entry is not used
+    /// ([`Params::from_machine`] takes rotor 1's in its place;
+    /// [`MachineConstants::from_physics`] writes rotor 1's there).
     pub rotors: [RotorModel; 2],
     /// Rotor speeds, rpm, `[low, high]`, where the platform responds badly (its
     /// resonances, or for a rigid platform the chattering around lift-off) and the
@@ -112,6 +171,7 @@ impl MachineConstants {
         encoder_counts: 4096,
         supply_voltage_v: 12.0,
         current_limit_a: 2.0,
+        rotor_count: RotorCount::Two,
         rotors: [RotorModel {
             resistance_ohm: 2.0,
             torque_constant: 0.02,
@@ -204,6 +264,10 @@ pub struct Params {
     /// Nominal supply voltage, V: used for the feedforward when the measurement is
     /// unusable.
     pub supply_nominal_v: f32,
+    /// One rotor or two: with [`RotorCount::One`] the controller drives rotor 1
+    /// alone, without the phase loop, and rotor 2's entries of `rotors` and
+    /// `speed_gains` are rotor 1's, unused.
+    pub rotor_count: RotorCount,
     /// Rotor 1 and rotor 2, for the feedforward.
     pub rotors: [RotorModel; 2],
     /// Time constant of the speed estimate's low-pass filter, s.
@@ -290,9 +354,19 @@ fn non_negative(x: f32) -> bool {
 impl Params {
     /// Parameters for a machine by the design rules of the module documentation,
     /// with the default tuning table.
+    ///
+    /// On a one-rotor machine rotor 2 is taken as a copy of rotor 1 for every rule
+    /// below, so that the rules "over both rotors" (the slower one's speed, the
+    /// weaker one's acceleration) give rotor 1's own values; rotor 2 is never
+    /// driven.
     pub fn from_machine(m: &MachineConstants) -> Params {
         let v = m.supply_voltage_v;
         let rate = m.rate_hz;
+        // The rotors that exist: on a one-rotor machine, rotor 1 in both places.
+        let rotors = match m.rotor_count {
+            RotorCount::Two => m.rotors,
+            RotorCount::One => [m.rotors[0]; 2],
+        };
 
         // Speed filter: 5 ms, never under 5 ticks; loop crossover for damping 1.
         let tau_f = if 5.0 / rate > 0.005 {
@@ -311,19 +385,19 @@ impl Params {
         let phase_ki = phase_kp * phase_kp / 4.0;
 
         // Speeds: 80 % of the slower rotor's no-load speed.
-        let k_max = m.rotors[0].torque_constant.max(m.rotors[1].torque_constant);
+        let k_max = rotors[0].torque_constant.max(rotors[1].torque_constant);
         let no_load_rpm = rad_s_to_rpm(v / k_max);
 
         // Resonance ramp: half the acceleration the current limit allows.
         let accel = |r: &RotorModel| r.torque_constant * m.current_limit_a / r.inertia_kg_m2;
-        let accel_max = accel(&m.rotors[0]).min(accel(&m.rotors[1]));
+        let accel_max = accel(&rotors[0]).min(accel(&rotors[1]));
         let speed_ramp = 3000.0;
         let resonance_ramp = rad_s_to_rpm(0.5 * accel_max).max(speed_ramp);
 
         // Stall current: half of what a stalled rotor draws at the stall duty.
         let stall_duty = 0.25;
         let stall_i = |r: &RotorModel| (stall_duty * v / r.resistance_ohm).min(m.current_limit_a);
-        let stall_current = 0.5 * stall_i(&m.rotors[0]).min(stall_i(&m.rotors[1]));
+        let stall_current = 0.5 * stall_i(&rotors[0]).min(stall_i(&rotors[1]));
 
         // Encoder jumps: twice the no-load speed at the highest supply, under the
         // aliasing limit (half a turn a tick = 30 rate rpm).
@@ -335,10 +409,11 @@ impl Params {
             rate_hz: rate,
             encoder_counts: m.encoder_counts,
             supply_nominal_v: v,
-            rotors: m.rotors,
+            rotor_count: m.rotor_count,
+            rotors,
             speed_filter_tau_s: tau_f,
             current_filter_tau_s: 0.005,
-            speed_gains: [gains(&m.rotors[0]), gains(&m.rotors[1])],
+            speed_gains: [gains(&rotors[0]), gains(&rotors[1])],
             min_duty: 0.0,
             phase_kp,
             phase_ki,

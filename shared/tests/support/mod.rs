@@ -1,7 +1,8 @@
 //! What several integration tests of `shared` use: frames and a decoder fed in
 //! chunks ([`frames`]), the device's end of the link ([`device`]), the fuzzers'
 //! generator and run length ([`fuzz`]), one checked store of a power-cut history
-//! ([`power_cut`]), tuning tables from generated rows ([`tables`]). Each test
+//! ([`power_cut`]), tuning tables from generated rows ([`tables`]), the controller
+//! tests' rotor rig ([`rig`]). Each test
 //! uses a part of it.
 #![allow(dead_code)]
 
@@ -9,4 +10,5 @@ pub mod device;
 pub mod frames;
 pub mod fuzz;
 pub mod power_cut;
+pub mod rig;
 pub mod tables;

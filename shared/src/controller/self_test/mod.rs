@@ -34,7 +34,9 @@
 //!      rotor reversed).
 //! 3. The next rotor's settle lets this one coast to rest.
 //!
-//! After rotor 2's settle the test is done. On the reference machine in host-sim
+//! After rotor 2's settle the test is done; on a one-rotor machine
+//! ([`super::RotorCount::One`]) after rotor 1's: rotor 2 is neither driven nor
+//! measured, and its result stays all zero (not run). On the reference machine in host-sim
 //! (`tests/tests/self_test.rs`): settle 0.2 s, about 20 ms to decide the direction,
 //! the first index within a turn and the second a turn later at about 190 rpm mean
 //! (0.41 and 0.54 s of drive from rest), 0.7 s to come to rest and settle again:
@@ -111,7 +113,7 @@ pub mod result;
 pub use result::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 
 use super::angle::rpm_to_rad_s;
-use super::params::Params;
+use super::params::{Params, RotorCount};
 
 /// The duty's stall torque over the rotor's largest load torque.
 pub const TORQUE_MARGIN: f32 = 2.0;
@@ -156,6 +158,8 @@ pub struct SelfTestConfig {
     pub drive_timeout_s: f32,
     /// See [`MAX_TURNS`], counts.
     pub max_travel_counts: u32,
+    /// The rotors tested: rotor 1, then rotor 2 if the machine has one.
+    pub rotor_count: RotorCount,
 }
 
 impl SelfTestConfig {
@@ -191,6 +195,7 @@ impl SelfTestConfig {
             move_timeout_s,
             drive_timeout_s: DRIVE_TIMEOUT_S,
             max_travel_counts: n.saturating_mul(MAX_TURNS),
+            rotor_count: p.rotor_count,
         }
     }
 }
@@ -232,7 +237,8 @@ struct Drive {
 /// Where the test stands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Phase {
-    /// Waiting for rest before driving `rotor` (2: before finishing).
+    /// Waiting for rest before driving `rotor` (the rotor count: before
+    /// finishing).
     Settle {
         /// Time both rotors have been at rest, s.
         rest_s: f32,
@@ -249,7 +255,7 @@ enum Phase {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SelfTestRun {
     config: SelfTestConfig,
-    /// The rotor settled for or driven (2 after the last).
+    /// The rotor settled for or driven (the rotor count after the last).
     rotor: usize,
     phase: Phase,
     result: SelfTest,
@@ -316,7 +322,7 @@ impl SelfTestRun {
                 let rest_s = if at_rest { rest_s + dt } else { 0.0 };
                 let elapsed_s = elapsed_s + dt;
                 if rest_s >= REST_TIME_S - 0.5 * dt || elapsed_s >= SETTLE_TIMEOUT_S {
-                    if self.rotor >= 2 {
+                    if self.rotor >= self.config.rotor_count.count() {
                         self.phase = Phase::Done;
                     } else {
                         // The drive starts in this tick, from this count.

@@ -63,6 +63,16 @@ impl SelfTest {
     pub fn passed(&self) -> bool {
         self.rotors.iter().all(RotorSelfTest::passed)
     }
+
+    /// The rotors a machine with `rotors` has passed: both, or rotor 1 alone on a
+    /// one-rotor machine (whose test leaves rotor 2's result all zero). The result
+    /// itself, and its bytes in a message or the flash record, do not say how many
+    /// rotors the machine has.
+    pub fn passed_with(&self, rotors: crate::controller::RotorCount) -> bool {
+        self.rotors[..rotors.count()]
+            .iter()
+            .all(RotorSelfTest::passed)
+    }
 }
 
 /// Where a self-test stands ([`SelfTestReport::status`]).
