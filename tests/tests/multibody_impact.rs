@@ -1,7 +1,8 @@
 //! Impacts between two moving bodies (issue 12's first reference): the `shared`
 //! solver on the Delassus matrix of two free planar bodies
 //! ([`tests::two_bodies`]), against closed forms written from the textbook
-//! impulse-momentum relations, not from the Jacobians:
+//! impulse-momentum relations, not from the Jacobians (in the same module, shared
+//! with the plant's test of the same impacts, `two_bodies_plant.rs`):
 //!
 //! - central frictionless impact: `v_A' = v_A - (1 + e) m_B / (m_A + m_B) (v_A -
 //!   v_B)`, `v_B' = v_B + (1 + e) m_A / (m_A + m_B) (v_A - v_B)` along the line of
@@ -19,23 +20,16 @@
 // The checks index parallel arrays (components, contacts) with one variable.
 #![allow(clippy::needless_range_loop)]
 
-use shared::impact::{
-    solve, ContactLaw, ImpactLaw, ImpactOutcome, InteractionCase, Warnings, MAX_CONTACTS,
+use shared::impact::{solve, ImpactLaw, ImpactOutcome, InteractionCase, Warnings, MAX_CONTACTS};
+use tests::rig::check;
+use tests::two_bodies::{
+    body, central_after, central_pair, law, off_centre_pair, poisson_closed_form, slipping_pair,
+    Body, Contact, Pair, CENTRAL_CASES,
 };
-use tests::rig::{check, cross};
-use tests::two_bodies::{tangent, Body, Contact, Pair};
 use tests::Rng;
 
 /// Relative tolerance of the closed-form checks (the solver's f64 accuracy).
 const REL: f64 = 1e-9;
-
-fn law(restitution: f64, friction: f64) -> ContactLaw<f64> {
-    ContactLaw {
-        restitution,
-        friction,
-        weight: 1.0,
-    }
-}
 
 fn solved(pair: &Pair, contacts: &[Contact], impact: ImpactLaw) -> ImpactOutcome<f64, 4> {
     const { assert!(4 <= MAX_CONTACTS) };
@@ -53,38 +47,14 @@ fn impulses(out: &ImpactOutcome<f64, 4>) -> Vec<(f64, f64)> {
         .collect()
 }
 
-fn body(mass: f64, inertia: f64, centre: [f64; 2], velocity: [f64; 2], omega: f64) -> Body {
-    Body {
-        mass,
-        inertia,
-        centre,
-        velocity,
-        omega,
-    }
-}
-
 #[test]
 fn a_central_impact_follows_the_textbook_formula() {
-    for (ma, mb, e, va, vb) in [
-        (1.0, 1.0, 1.0, 2.0, 0.0),
-        (2.0, 0.5, 0.3, 1.5, -0.7),
-        (0.2, 5.0, 0.0, 0.4, 0.1),
-    ] {
-        // Discs on the x axis, B to the right of A; B's point touches A's face.
-        let pair = Pair {
-            a: body(ma, 0.01, [0.0, 0.0], [va, 0.0], 0.0),
-            b: body(mb, 0.02, [0.2, 0.0], [vb, 0.0], 0.0),
-        };
-        let contact = [Contact {
-            point: [0.1, 0.0],
-            normal: [1.0, 0.0],
-            law: law(e, 0.0),
-        }];
+    for (ma, mb, e, va, vb) in CENTRAL_CASES {
+        let (pair, contact) = central_pair(ma, mb, e, va, vb);
+        let contact = [contact];
         for impact in [ImpactLaw::Poisson, ImpactLaw::Newton] {
             let after = pair.after(&contact, &impulses(&solved(&pair, &contact, impact)));
-            let closing = va - vb;
-            let va_after = va - (1.0 + e) * mb / (ma + mb) * closing;
-            let vb_after = vb + (1.0 + e) * ma / (ma + mb) * closing;
+            let [va_after, vb_after] = central_after(ma, mb, e, va, vb);
             let scale = va.abs() + vb.abs();
             check("v_A'", after.a.velocity[0], va_after, REL * scale);
             check("v_B'", after.b.velocity[0], vb_after, REL * scale);
@@ -96,37 +66,16 @@ fn a_central_impact_follows_the_textbook_formula() {
 
 #[test]
 fn an_off_centre_impact_spins_both_bodies_as_the_effective_mass_says() {
-    // A slab A falling onto a bar B below it at a corner, both turning.
-    let pair = Pair {
-        a: body(1.2, 0.015, [0.05, 0.3], [0.1, -0.8], 1.5),
-        b: body(3.0, 0.04, [-0.1, 0.0], [0.0, 0.2], -0.5),
-    };
-    // The face is on A's underside, the point on B: B is below, so the normal
-    // from A towards B points down.
-    let n = [0.0, -1.0];
-    let p = [0.12, 0.1];
-    let e = 0.4;
-    let contact = [Contact {
-        point: p,
-        normal: n,
-        law: law(e, 0.0),
-    }];
+    let (pair, contact) = off_centre_pair();
+    let e = contact.law.restitution;
+    let contact = [contact];
     let out = solved(&pair, &contact, ImpactLaw::Poisson);
     let after = pair.after(&contact, &impulses(&out));
 
-    let (a, b) = (&pair.a, &pair.b);
-    let ra = [p[0] - a.centre[0], p[1] - a.centre[1]];
-    let rb = [p[0] - b.centre[0], p[1] - b.centre[1]];
-    let spin = |w: f64, r: [f64; 2]| [-w * r[1], w * r[0]];
-    let (sa, sb) = (spin(a.omega, ra), spin(b.omega, rb));
-    let u_n0 = n[0] * (b.velocity[0] + sb[0] - a.velocity[0] - sa[0])
-        + n[1] * (b.velocity[1] + sb[1] - a.velocity[1] - sa[1]);
+    let closed = poisson_closed_form(&pair, &contact[0]);
+    let u_n0 = closed.u_n;
     assert!(u_n0 < 0.0, "the bodies approach: {u_n0}");
-    let w = 1.0 / a.mass
-        + 1.0 / b.mass
-        + cross(ra, n).powi(2) / a.inertia
-        + cross(rb, n).powi(2) / b.inertia;
-    let impulse = (1.0 + e) * (-u_n0) / w;
+    let impulse = closed.normal_impulse;
     check(
         "P_n",
         out.contacts[0].normal_impulse,
@@ -134,32 +83,13 @@ fn an_off_centre_impact_spins_both_bodies_as_the_effective_mass_says() {
         REL * impulse,
     );
     let tol = REL * 10.0;
+    let expected = closed.after;
     for k in 0..2 {
-        check(
-            "v_A'",
-            after.a.velocity[k],
-            a.velocity[k] - impulse * n[k] / a.mass,
-            tol,
-        );
-        check(
-            "v_B'",
-            after.b.velocity[k],
-            b.velocity[k] + impulse * n[k] / b.mass,
-            tol,
-        );
+        check("v_A'", after.a.velocity[k], expected.a.velocity[k], tol);
+        check("v_B'", after.b.velocity[k], expected.b.velocity[k], tol);
     }
-    check(
-        "omega_A'",
-        after.a.omega,
-        a.omega - impulse * cross(ra, n) / a.inertia,
-        tol,
-    );
-    check(
-        "omega_B'",
-        after.b.omega,
-        b.omega + impulse * cross(rb, n) / b.inertia,
-        tol,
-    );
+    check("omega_A'", after.a.omega, expected.a.omega, tol);
+    check("omega_B'", after.b.omega, expected.b.omega, tol);
     check(
         "u_n'",
         out.contacts[0].normal_velocity_after,
@@ -170,44 +100,24 @@ fn an_off_centre_impact_spins_both_bodies_as_the_effective_mass_says() {
 
 #[test]
 fn friction_with_slip_throughout_matches_the_closed_form() {
-    // B slides fast along A's top face while they close: slip never stops.
-    let pair = Pair {
-        a: body(2.0, 0.03, [0.0, 0.0], [0.0, 0.0], 0.0),
-        b: body(0.5, 0.004, [0.05, 0.15], [-3.0, -0.6], 2.0),
-    };
-    let n = [0.0, 1.0];
-    let t = tangent(n);
-    let p = [0.02, 0.1];
-    let (e, mu) = (0.5, 0.2);
-    let contact = [Contact {
-        point: p,
-        normal: n,
-        law: law(e, mu),
-    }];
-    let out = solved(&pair, &contact, ImpactLaw::Poisson);
+    let (pair, contact) = slipping_pair();
+    let out = solved(&pair, &[contact], ImpactLaw::Poisson);
 
-    let (a, b) = (&pair.a, &pair.b);
-    let ra = [p[0] - a.centre[0], p[1] - a.centre[1]];
-    let rb = [p[0] - b.centre[0], p[1] - b.centre[1]];
-    let rel = [
-        b.velocity[0] - b.omega * rb[1] - a.velocity[0] + a.omega * ra[1],
-        b.velocity[1] + b.omega * rb[0] - a.velocity[1] - a.omega * ra[0],
-    ];
-    let (u_n0, u_t0) = (rel[0] * n[0] + rel[1] * n[1], rel[0] * t[0] + rel[1] * t[1]);
-    let inv = 1.0 / a.mass + 1.0 / b.mass;
-    let w_nn = inv + cross(ra, n).powi(2) / a.inertia + cross(rb, n).powi(2) / b.inertia;
-    let w_nt = cross(ra, n) * cross(ra, t) / a.inertia + cross(rb, n) * cross(rb, t) / b.inertia;
-    let w_tt = inv + cross(ra, t).powi(2) / a.inertia + cross(rb, t).powi(2) / b.inertia;
-    let s = u_t0.signum();
-    let p_n = (1.0 + e) * (-u_n0) / (w_nn - s * mu * w_nt);
+    let closed = poisson_closed_form(&pair, &contact);
+    let (u_t0, p_n) = (closed.u_t, closed.normal_impulse);
     // The closed form holds while the slip keeps its sign to the end.
-    let u_t_end = u_t0 + (w_nt - s * mu * w_tt) * p_n;
-    assert!(u_t_end * s > 0.0, "slip continues: {u_t0} -> {u_t_end}");
+    let u_t_end = closed.u_t_after;
+    assert!(u_t_end * u_t0 > 0.0, "slip continues: {u_t0} -> {u_t_end}");
 
     let c = &out.contacts[0];
     assert_eq!(c.case, InteractionCase::Slip);
     check("P_n", c.normal_impulse, p_n, REL * p_n);
-    check("P_t", c.tangential_impulse, -s * mu * p_n, REL * p_n);
+    check(
+        "P_t",
+        c.tangential_impulse,
+        closed.tangential_impulse,
+        REL * p_n,
+    );
     check(
         "u_t'",
         c.tangential_velocity_after,
