@@ -326,8 +326,7 @@ fn a_closed_pipe_on_stdout_is_not_an_error() {
     assert!(!stderr.contains("error"), "{stderr}");
 }
 
-/// A machine with a further body is read and checked, but the plant is a single
-/// platform so far: refused before the run, exit 2, saying so.
+/// A further body gets its own trace columns after the platform's.
 #[test]
 fn a_further_body_is_traced_in_its_own_columns() {
     // A free body that touches nothing: it falls, y = y0 - g t^2 / 2, while the
@@ -373,6 +372,44 @@ fn a_further_body_is_traced_in_its_own_columns() {
     assert!((t - 0.1).abs() < 1e-12, "t = {t}");
     assert!((y - (0.2 - 9.81 * t * t / 2.0)).abs() < 1e-9, "y = {y}");
     assert!((vy + 9.81 * t).abs() < 1e-9, "vy = {vy}");
+}
+
+/// The controller in the loop of a machine whose rotors' angles are not the 4th
+/// and 5th coordinates: an arm hinged to the platform on a spring comes before
+/// them (x, y, theta, theta_arm, phi_1, phi_2). The encoders read each rotor's own
+/// angle: the speeds are held and the phase loop locks, with no fault (reading
+/// the arm's angle as rotor 1's, the controller latched an encoder fault).
+#[test]
+fn the_controller_reads_the_rotors_behind_a_further_body() {
+    let text = std::fs::read_to_string(machine()).unwrap()
+        + "\n[[bodies]]\nname = \"arm\"\nmass = 0.05\ninertia = 2e-5\nposition = [0.05, 0.1]\n\n[[joints]]\nname = \"hinge\"\nkind = \"revolute\"\nbodies = [\"platform\", \"arm\"]\npoint = [0.05, 0.06]\nstiffness = 5.0\ndamping = 0.01\n";
+    let file = scratch("arm.toml");
+    std::fs::write(&file, text).unwrap();
+    std::fs::copy(
+        common::root().join("examples/vibro-driver.tuning.toml"),
+        scratch("vibro-driver.tuning.toml"),
+    )
+    .unwrap();
+    let r = run(&[
+        "run",
+        file.to_str().unwrap(),
+        "--command",
+        "right",
+        "--t-end",
+        "2",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["faults"], serde_json::json!([]), "{v}");
+    assert_eq!(v["state"], "running", "{v}");
+    for k in 0..2 {
+        let rpm = v["rotor_speed_rpm"][k].as_f64().unwrap();
+        assert!((rpm - 3000.0).abs() < 30.0, "rotor {}: {rpm} rpm", k + 1);
+    }
+    let err = v["phase_error_deg_rms"].as_f64().unwrap();
+    assert!(err < 5.0, "phase error {err} deg RMS");
 }
 
 /// In fast decay the winding's current dies behind the diodes in every PWM period

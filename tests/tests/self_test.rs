@@ -83,11 +83,11 @@ impl Driver for Probe {
     }
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
-        let q = plant.q();
+        let phi = [plant.rotor_angle(0).0, plant.rotor_angle(1).0];
         let w = self.inner.bridges(t, plant);
         self.ticks.push(Tick {
             t,
-            phi: [q[3], q[4]],
+            phi,
             out: *self.inner.last().expect("stepped"),
             report: self.inner.controller().self_test_report(),
         });

@@ -375,6 +375,19 @@ impl Plant {
         self.model.v(&self.y)
     }
 
+    /// The platform's centre of mass (x, y, m), angle (rad) and their rates (m/s,
+    /// rad/s), whatever mount the machine gives it.
+    pub fn platform_motion(&self) -> [f64; 6] {
+        self.model.body_motion(0, &self.y)
+    }
+
+    /// Rotor `k`'s eccentric angle in its body's frame, rad, and its rate, rad/s:
+    /// what its encoder reads (`phi_k`, wherever the machine's coordinates put it).
+    pub fn rotor_angle(&self, k: usize) -> (f64, f64) {
+        let phi = self.model.rotors[k].phi;
+        (self.y[phi], self.y[self.model.dof + phi])
+    }
+
     /// Winding currents, A (0 for a rotor the machine does not have).
     pub fn currents(&self) -> [f64; 2] {
         self.model.currents(&self.y)

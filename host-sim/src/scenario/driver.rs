@@ -89,7 +89,7 @@ impl Driver for ScenarioDriver<'_> {
         if let Some(out) = self.inner.last() {
             self.ticks.push(Tick {
                 t,
-                x: plant.q()[0],
+                x: plant.platform_motion()[0],
                 out: *out,
             });
         }

@@ -176,8 +176,6 @@ impl Driver for ControllerDriver {
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
         // 1. Sensors.
-        let q = plant.q();
-        let v = plant.v();
         // The currents averaged over the tick just ended, as the firmware's ADC
         // buffer gives them (`Inputs::current`).
         let i = plant.mean_currents();
@@ -185,7 +183,8 @@ impl Driver for ControllerDriver {
         let mut index = [None; 2];
         let mut current = [0.0f32; 2];
         for (k, e) in self.encoders.iter_mut().enumerate() {
-            let mut r = e.sample(t, q[3 + k], v[3 + k]);
+            let (phi, phi_dot) = plant.rotor_angle(k);
+            let mut r = e.sample(t, phi, phi_dot);
             if self.injected.encoder_reversed[k] {
                 r.count = r.count.wrapping_neg();
                 r.index_count = r.index_count.map(u32::wrapping_neg);
