@@ -162,7 +162,7 @@ pub fn load_machine(path: &Path) -> Result<Machine, Vec<Problem>> {
         }]);
     }
     // The constants' formulas (the lift-off band from the platform's weight) are
-    // those of a single platform so far, as is the simulated plant.
+    // those of a single platform so far.
     let beyond = machine.beyond_the_platform();
     if !beyond.is_empty() {
         return Err(vec![Problem {

@@ -7,11 +7,13 @@ marked: the plot of docs/paper-fig8.md, made like the paper's Fig. 9.
     python3 scripts/paper-fig8-plot.py trace.csv events.csv OUT.svg [--from 1.0] [--to 1.1]
 
 Reads the trace's `t` and `vx` columns and the events' impact rows; writes one SVG
-(standard library only), whole or not at all. Bad arguments: a message, exit 2.
+(standard library only), whole or not at all (a path such as /dev/stdout is
+written through). Bad arguments: a message, exit 2.
 """
 
 import argparse
 import csv
+import math
 import os
 import sys
 import tempfile
@@ -35,8 +37,9 @@ def read_trace(path, t0, t1):
                     if t0 <= float(r["t"]) <= t1]
     except OSError as e:
         fail(f"{path}: {e.strerror}")
-    except ValueError as e:
-        fail(f"{path}: {e}")
+    except (ValueError, TypeError):
+        fail(f"{path}: line {rows.line_num}: not a number where one is expected "
+             "(a truncated or edited file?)")
 
 
 def read_impacts(path, t0, t1):
@@ -53,8 +56,9 @@ def read_impacts(path, t0, t1):
                     struck.setdefault(t, set()).add(r["contact"])
     except OSError as e:
         fail(f"{path}: {e.strerror}")
-    except ValueError as e:
-        fail(f"{path}: {e}")
+    except (ValueError, TypeError):
+        fail(f"{path}: line {rows.line_num}: not a number where one is expected "
+             "(a truncated or edited file?)")
     return sorted(struck.items())
 
 
@@ -76,6 +80,8 @@ def main():
     p.add_argument("--from", dest="t0", type=float, default=1.0, help="window start, s")
     p.add_argument("--to", dest="t1", type=float, default=1.1, help="window end, s")
     a = p.parse_args()
+    if not (math.isfinite(a.t0) and math.isfinite(a.t1)):
+        fail(f"--from {a.t0} --to {a.t1}: give finite times in seconds")
     if not a.t1 > a.t0:
         fail(f"--from {a.t0} --to {a.t1}: the window must have --to after --from")
     trace = read_trace(a.trace, a.t0, a.t1)
@@ -130,19 +136,38 @@ def main():
         lx += 20 + 7 * len(label)
     out.append("</svg>")
 
-    # Whole or not at all: written beside the target, then renamed over it.
-    d = os.path.dirname(os.path.abspath(a.out))
-    try:
-        fd, tmp = tempfile.mkstemp(dir=d, suffix=".svg.part")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        with os.fdopen(fd, "w") as f:
-            f.write("\n".join(out) + "\n")
-        os.replace(tmp, a.out)
-    except OSError as e:
-        fail(f"{a.out}: {e.strerror}")
+    write_whole(a.out, "\n".join(out) + "\n")
 
+
+def write_whole(path, text):
+    """Writes `text` to `path` whole or not at all: a regular file (or a new one)
+    through a temporary file beside it, renamed over it; a device or a stream
+    (/dev/stdout, a pipe, anything under /dev or /proc) written through as it is."""
+    absolute = os.path.abspath(path)
+    special = absolute.startswith(("/dev/", "/proc/")) or (
+        os.path.exists(absolute) and not os.path.isfile(absolute))
+    real = os.path.realpath(absolute)
+    if special:
+        try:
+            with open(path, "w") as f:
+                f.write(text)
+        except OSError as e:
+            fail(f"{path}: {e.strerror}")
+        return
+    try:
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(real), suffix=".svg.part")
+        try:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            os.replace(tmp, real)
+        except BaseException:
+            os.unlink(tmp)
+            raise
+    except OSError as e:
+        fail(f"{path}: {e.strerror}")
 
 if __name__ == "__main__":
     main()

@@ -13,7 +13,7 @@ among the layouts where K3 and K4 struck together at 10 % or more of their
 impact instants (the paper's hypothesis of impacts that begin together).
 
     cargo build --release -p host-sim
-    python3 scripts/paper-fig8-sweep.py [--voltages 5,6,7,8,9,10,11,12] [--t-end 3] [--jobs 2]
+    python3 scripts/paper-fig8-sweep.py [--voltages 5,6,7,8,9,10,11,12] [--t-end 3] [--jobs N]
         [--actuator K,...] [--element K,...] [--preloads RAD,...]
 
 Standard library only; exit status 2 with a message for bad arguments.
@@ -24,6 +24,7 @@ import concurrent.futures
 import csv
 import itertools
 import json
+import math
 import os
 import subprocess
 import sys
@@ -71,11 +72,14 @@ def run(layout, voltage, t_end):
             "--set", f"joints.spring3.stiffness={k3}",
             "--set", f"joints.spring4.rest_angle={-preload}",
         ]
-        out = subprocess.run(args, capture_output=True, text=True)
-        if out.returncode != 0:
-            return layout, None, out.stderr.strip()
-        summary = json.loads(out.stdout)
-        instants, both = together(events)
+        try:
+            out = subprocess.run(args, capture_output=True, text=True)
+            if out.returncode != 0:
+                return layout, None, out.stderr.strip()
+            summary = json.loads(out.stdout)
+            instants, both = together(events)
+        except (OSError, ValueError, KeyError) as e:
+            return layout, None, f"{BINARY}: {e}"
         return layout, (summary, instants, both), None
 
 
@@ -100,12 +104,14 @@ def main():
             p.error(f"{option} {text}: each must be >= 0 and finite")
         return values
 
-    voltages = sorted(numbers("--voltages", a.voltages, []))
+    voltages = sorted(set(numbers("--voltages", a.voltages, [])))
     springs4 = numbers("--actuator", a.actuator, ACTUATOR_STIFFNESS)
     springs3 = numbers("--element", a.element, ELEMENT_STIFFNESS)
     preloads = numbers("--preloads", a.preloads, PRELOADS)
-    if not (a.t_end > 0 and a.jobs > 0 and voltages and all(0 < v <= 1000 for v in voltages)):
-        p.error("--t-end and --jobs must be positive, each voltage in (0, 1000] V")
+    if not (math.isfinite(a.t_end) and a.t_end > 0 and a.jobs > 0 and voltages
+            and all(0 < v <= 1000 for v in voltages)):
+        p.error("--t-end must be a positive number of seconds, --jobs a positive count, "
+                "each voltage in (0, 1000] V")
     if not os.path.exists(BINARY):
         print(f"error: {BINARY} not found: run `cargo build --release -p host-sim` first",
               file=sys.stderr)

@@ -29,6 +29,7 @@ STEPS=(
     doc
     test
     run_main
+    scripts
     shared_no_std
     firmware_fmt
     firmware_clippy
@@ -101,6 +102,23 @@ step_test() {
 # The README's other command, the main job, must keep working.
 step_run_main() {
     bash scripts/run.sh
+}
+
+# The Python scripts (docs/paper-fig8.md) compile, and the plot script draws a
+# short run of the Fig. 8 machine (the sweep takes minutes: its pieces are the
+# same `host-sim run` calls, checked by the tests).
+step_scripts() {
+    local dir
+    dir="$(mktemp -d)"
+    python3 -c 'import ast, sys; [ast.parse(open(f).read(), f) for f in sys.argv[1:]]' scripts/*.py
+    cargo run --quiet --release -p host-sim -- run examples/paper-fig8.toml \
+        --command right --speed 3000 --t-end 0.5 --format json \
+        --out "$dir/trace.csv" --events "$dir/events.csv" >/dev/null
+    python3 scripts/paper-fig8-plot.py "$dir/trace.csv" "$dir/events.csv" "$dir/fig9.svg" \
+        --from 0.3 --to 0.5
+    grep -q '<polyline' "$dir/fig9.svg"
+    python3 scripts/paper-fig8-sweep.py --voltages x 2>/dev/null && return 1
+    rm -rf "$dir"
 }
 
 # shared must build for the firmware target: no_std, and no heap (no `alloc`).

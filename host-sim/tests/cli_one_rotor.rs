@@ -146,6 +146,11 @@ t_end = 1.0
 t = 0.0
 command = "right"
 
+[[commands]]
+t = 0.2
+command = "hold"
+offset_deg = 90
+
 [[faults]]
 t = 0.5
 kind = "encoder_dropout"
@@ -180,6 +185,7 @@ between = [0.5, 1.0]
     r.refused("faults[0].rotor: must be 1: the machine has one rotor (\"centre\"), rotor 2 does not exist (got 2)");
     r.refused("expect[0].rotor: must be 1");
     r.refused("expect[1].kind: \"phase\" does not apply: the machine has one rotor");
+    r.refused("commands[1].command: \"hold\" holds a phase offset: the machine has one rotor (\"centre\"), there is none to hold");
     // Rotor 1's fault and the speed of the rotor there is are fine.
     assert!(!r.stderr.contains("faults[1]"), "{}", r.stderr);
     assert!(!r.stderr.contains("expect[2]"), "{}", r.stderr);

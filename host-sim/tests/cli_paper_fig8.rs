@@ -110,3 +110,30 @@ fn the_fig8_machine_travels_right_with_simultaneous_impacts() {
     }
     assert!(rows > 3000, "{rows} rows");
 }
+
+/// The README's command: the controller holds the one rotor, which sits on the
+/// actuator (its angle the 6th coordinate), at 3000 rpm; no fault, and it travels
+/// right.
+#[test]
+fn the_controller_holds_the_fig8_rotor_at_speed() {
+    let machine = root().join("examples/paper-fig8.toml");
+    let r = run(&[
+        "run",
+        machine.to_str().unwrap(),
+        "--command",
+        "right",
+        "--speed",
+        "3000",
+        "--t-end",
+        "1.5",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(v["faults"], serde_json::json!([]), "{v}");
+    assert_eq!(v["state"], "running", "{v}");
+    let rpm = v["rotor_speed_rpm"][0].as_f64().unwrap();
+    assert!((rpm - 3000.0).abs() < 30.0, "rotor at {rpm} rpm");
+    assert!(v["mean_velocity"].as_f64().unwrap() > 0.0, "{v}");
+}

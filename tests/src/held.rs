@@ -46,17 +46,19 @@ pub fn held_rotors(m: &Machine, rpm: f64, settings: Settings) -> Plant {
 pub fn held_plant(m: &Machine, rpm: f64, settings: Settings, holds: Holds) -> Plant {
     let w = rpm * PI / 30.0;
     let mut y = initial_state(m);
-    // State layout (x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2).
-    y[8] = w;
-    y[9] = -w;
-    Plant::new(PlantModel::new(m), y, settings, holds)
+    let model = PlantModel::new(m);
+    // Each rotor's phi' (wherever the machine's coordinates put it).
+    for (rotor, speed) in model.rotors.iter().zip([w, -w]) {
+        y[model.dof + rotor.phi] = speed;
+    }
+    Plant::new(model, y, settings, holds)
 }
 
 /// The mean velocity of the platform's centre of mass from `t0` to `t1`,
 /// `(x(t1) - x(t0)) / (t1 - t0)`, m/s, advancing `plant` to `t1`.
 pub fn mean_velocity(plant: &mut Plant, t0: f64, t1: f64) -> f64 {
     plant.advance_to(t0, &mut |_| {});
-    let x0 = plant.q()[0];
+    let x0 = plant.platform_motion()[0];
     plant.advance_to(t1, &mut |_| {});
-    (plant.q()[0] - x0) / (t1 - t0)
+    (plant.platform_motion()[0] - x0) / (t1 - t0)
 }

@@ -25,7 +25,7 @@
 //!    contact grazed or flew inside it, locate the earliest event on the dense
 //!    output (Illinois false position, to [`Settings::event_time_tolerance`]), cut
 //!    the step there and **handle the event** (`simulator/modes.rs`): impacts (the `shared`
-//!    solver, all contacts within [`Settings::together_gap`] of the fundament in
+//!    solver, all contacts within [`Settings::together_gap`] of their faces in
 //!    one impact, the whole mechanism's Delassus matrix with the rotors free,
 //!    `simulator/impacts.rs`), then the new modes from the complementarity problem at
 //!    acceleration level (contact, lift-off, stick, slip); a problem with no
@@ -150,9 +150,9 @@ impl Default for Settings {
 pub struct Holds {
     /// Hold the platform (x, y, theta).
     pub platform: bool,
-    /// Hold both rotors at their current speed relative to the platform.
+    /// Hold the rotors at their current speed relative to their bodies.
     pub rotors: bool,
-    /// Rotor k jammed: held at rest relative to the platform (fault injection).
+    /// Rotor k jammed: held at rest relative to its body (fault injection).
     pub jammed: [bool; 2],
 }
 
@@ -351,8 +351,8 @@ impl Plant {
         self.use_winding(winding)
     }
 
-    /// Jams rotor `k` (or frees it): a jammed rotor stops at once relative to the
-    /// platform (the bearing seizes; the impulse of the stop on the platform is
+    /// Jams rotor `k` (or frees it): a jammed rotor stops at once relative to its
+    /// body (the bearing seizes; the impulse of the stop on the body is
     /// not modelled) and stays at rest; its motor then stalls against the jam.
     pub fn set_jam(&mut self, k: usize, jammed: bool) {
         if self.holds.jammed[k] != jammed {

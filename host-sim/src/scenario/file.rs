@@ -841,9 +841,24 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
     let rate = m.map(|m| m.controller.rate_hz);
     let tick_of = |t: f64| rate.map(|r| (t * r - 1e-6).ceil().max(0.0) as u64);
 
-    // Commands: before the end, one a tick, in time order.
+    // One rotor: rotor 2 is not there (its name, for the messages).
+    let one_rotor = m
+        .filter(|m| m.rotors.len() == 1)
+        .map(|m| m.rotors.rotor1().name.clone());
+
+    // Commands: before the end, one a tick, in time order; no phase offset to
+    // hold on one rotor.
     let mut commands: Vec<TimedCommand> = Vec::new();
     for (key, t, name, c) in &raw.commands {
+        if let (Some(rotor), RawCommand::Hold(..)) = (&one_rotor, c) {
+            problems.at(
+                &format!("{key}.command"),
+                format!(
+                    "\"hold\" holds a phase offset: the machine has one rotor (\"{rotor}\"), there is none to hold (use `right` or `left` with `speed_rpm`)"
+                ),
+            );
+            continue;
+        }
         if *t >= t_end {
             problems.at(
                 &format!("{key}.t"),
@@ -891,10 +906,6 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
     }
     commands.sort_by(|a, b| a.t.total_cmp(&b.t));
 
-    // One rotor: rotor 2 is not there (its name, for the messages).
-    let one_rotor = m
-        .filter(|m| m.rotors.len() == 1)
-        .map(|m| m.rotors.rotor1().name.clone());
     let no_rotor_2 = |key: &str, name: &str| {
         problems.at(
             &format!("{key}.rotor"),

@@ -15,7 +15,7 @@
 //! 5. record the controller's state changes and faults as events.
 //!
 //! A machine with one rotor ([`RotorCount::One`], from its machine file): only
-//! rotor 1's encoder and current are sampled (the plant's `q[3]`, `v[3]` and
+//! rotor 1's encoder and current are sampled (`Plant::rotor_angle(0)` and
 //! `mean_currents()[0]`); the controller gets rotor 2's inputs at rest (counter 0,
 //! no index, 0 A), which it does not read; rotor 2's bridge is always commanded
 //! `Off` and its duty recorded 0. The controller holds rotor 1's speed only.
