@@ -429,6 +429,27 @@ impl Frame {
     /// stays the true mass matrix).
     pub fn locked(model: &PlantModel, q: &Vector, locked: &[bool; MAX_DOF]) -> Self {
         let mut f = Self::new(model, q);
+        f.hold(locked);
+        f
+    }
+
+    /// [`Frame::locked`] with the generalized forces at velocities `v` and motor
+    /// torques `tau` ([`Frame::forces`]), assembled in the same pass.
+    pub fn locked_with_forces(
+        model: &PlantModel,
+        q: &Vector,
+        locked: &[bool; MAX_DOF],
+        v: &Vector,
+        tau: &[f64],
+    ) -> (Self, Vector) {
+        let (mut f, forces) = Self::assemble(model, q, Some((v, tau)));
+        f.hold(locked);
+        (f, forces)
+    }
+
+    /// Holds the coordinates marked in `locked` ([`Frame::locked`]).
+    fn hold(&mut self, locked: &[bool; MAX_DOF]) {
+        let f = self;
         if locked.iter().any(|l| *l) {
             let mut m = f.mass;
             for i in 0..f.n {
@@ -445,11 +466,28 @@ impl Frame {
             f.locked = *locked;
             f.any_locked = true;
         }
-        f
     }
 
     /// The configuration-dependent terms at `q`.
     pub fn new(model: &PlantModel, q: &Vector) -> Self {
+        Self::assemble(model, q, None).0
+    }
+
+    /// [`Frame::new`] with the generalized forces at velocities `v` and motor
+    /// torques `tau` ([`Frame::forces`]), assembled in the same pass over the
+    /// point masses (each one's chain and columns built once).
+    pub fn with_forces(model: &PlantModel, q: &Vector, v: &Vector, tau: &[f64]) -> (Self, Vector) {
+        Self::assemble(model, q, Some((v, tau)))
+    }
+
+    /// The frame at `q` and, given `(v, tau)`, the generalized forces (zero
+    /// without). Each sum is taken in the same order as [`Frame::forces`] alone
+    /// takes it, so the numbers are the same to the bit.
+    fn assemble(
+        model: &PlantModel,
+        q: &Vector,
+        motion: Option<(&Vector, &[f64])>,
+    ) -> (Self, Vector) {
         let pose = Pose::new(model, q);
         let (n, nb) = (model.dof, model.body_dof);
         let mut eps = [[0.0; 2]; MAX_ROTORS];
@@ -469,13 +507,21 @@ impl Frame {
             any_locked: false,
         };
 
-        // M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T), upper triangle, then mirrored.
+        // M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T), upper triangle, then mirrored;
+        // the forces element by element alongside.
+        let mut forces = [0.0; MAX_DOF];
+        if motion.is_some() {
+            forces = root_weights(model);
+        }
         let m = &mut frame.mass;
         for i in 0..model.bodies.len() + model.rotors.len() {
             let e = &element(model, &frame.pose, &frame.eps, i);
             let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
             let nc = e.chain.columns(&mut cols);
             let cols = &cols[..nc];
+            if let Some((v, tau)) = motion {
+                add_element_forces(model, e, cols, v, tau, &mut forces);
+            }
             if let Some(x) = e.chain.trans {
                 m[x][x] += e.mass;
                 m[x + 1][x + 1] += e.mass;
@@ -508,21 +554,27 @@ impl Frame {
         } else {
             cholesky_in_place(&mut frame.factor, nb);
         }
-        frame
+        if let Some((v, _)) = motion {
+            add_spring_forces(model, q, v, &mut forces);
+        }
+        (frame, forces)
     }
 
     /// The bodies' Schur complement `S = A - B D^-1 B^T` of
     /// `M = [A B; B^T D]`, `D` the rotors' block: diagonal (two eccentrics never
     /// share a coordinate).
     fn schur_into_factor(&mut self) {
+        // Symmetric to the bit (M is mirrored, and m_ir m_jr = m_jr m_ir exactly):
+        // the upper triangle computed, the lower copied.
         let (m, nb) = (&self.mass, self.nb);
         for i in 0..nb {
-            for j in 0..nb {
+            for j in i..nb {
                 let mut x = m[i][j];
                 for r in nb..self.n {
                     x -= m[i][r] * m[j][r] / m[r][r];
                 }
                 self.factor[i][j] = x;
+                self.factor[j][i] = x;
             }
         }
     }
@@ -577,52 +629,14 @@ impl Frame {
     /// `x, y` this is its tree's weight plus `sum_e m_e (a_e - g)` with
     /// `a_e = g - b_e`.
     pub fn forces(&self, model: &PlantModel, v: &Vector, tau: &[f64]) -> Vector {
-        let g = model.gravity;
-        let mut f = [0.0; MAX_DOF];
-        for &(x, mass) in &model.free_roots {
-            f[x] = mass * g[0];
-            f[x + 1] = mass * g[1];
-        }
+        let mut f = root_weights(model);
         for i in 0..model.bodies.len() + model.rotors.len() {
             let e = &element(model, &self.pose, &self.eps, i);
-            // Force on the point mass: m (g - b), b = -sum_s omega_s^2 w_s.
-            let mut a = g;
-            e.chain.each_segment(|s| {
-                let w = s.omega(v);
-                a[0] += w * w * s.w[0];
-                a[1] += w * w * s.w[1];
-            });
-            let fe = [e.mass * a[0], e.mass * a[1]];
-            if let Some(x) = e.chain.trans {
-                // Gravity's share on x, y is already in the tree's weight above.
-                f[x] += fe[0] - e.mass * g[0];
-                f[x + 1] += fe[1] - e.mass * g[1];
-            }
             let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
             let nc = e.chain.columns(&mut cols);
-            for &(i, c) in &cols[..nc] {
-                match e.rotor {
-                    Some(k) if i == model.rotors[k].phi => f[i] += dot(c, fe) + tau[k],
-                    _ => f[i] += dot(c, fe),
-                }
-            }
+            add_element_forces(model, e, &cols[..nc], v, tau, &mut f);
         }
-        for s in &model.springs {
-            let angle = |x: Option<usize>| {
-                x.map_or((0.0, 0.0), |b| {
-                    let i = model.bodies[b].angle;
-                    (self.q[i], v[i])
-                })
-            };
-            let ((ta, wa), (tb, wb)) = (angle(s.a), angle(s.b));
-            let torque = -s.stiffness * ((tb - ta) - s.rest_angle) - s.damping * (wb - wa);
-            if let Some(b) = s.b {
-                f[model.bodies[b].angle] += torque;
-            }
-            if let Some(a) = s.a {
-                f[model.bodies[a].angle] -= torque;
-            }
-        }
+        add_spring_forces(model, &self.q, v, &mut f);
         f
     }
 
@@ -687,6 +701,72 @@ fn element<'a>(
             inertia: rotor.inertia,
             spin: (model.bodies[rotor.body].angle, Some(rotor.phi)),
             rotor: Some(k),
+        }
+    }
+}
+
+/// Gravity on each free root's `x, y`: its tree's weight, N.
+fn root_weights(model: &PlantModel) -> Vector {
+    let g = model.gravity;
+    let mut f = [0.0; MAX_DOF];
+    for &(x, mass) in &model.free_roots {
+        f[x] = mass * g[0];
+        f[x + 1] = mass * g[1];
+    }
+    f
+}
+
+/// Adds point mass `e`'s generalized force to `f`: `J_e^T m_e (g - b_e)` (its
+/// columns `cols`), less the gravity already in its tree's weight on a free
+/// root's `x, y`, and its motor's torque `tau` on a rotor's `phi`.
+fn add_element_forces(
+    model: &PlantModel,
+    e: &Element,
+    cols: &[(usize, [f64; 2])],
+    v: &Vector,
+    tau: &[f64],
+    f: &mut Vector,
+) {
+    let g = model.gravity;
+    // Force on the point mass: m (g - b), b = -sum_s omega_s^2 w_s.
+    let mut a = g;
+    e.chain.each_segment(|s| {
+        let w = s.omega(v);
+        a[0] += w * w * s.w[0];
+        a[1] += w * w * s.w[1];
+    });
+    let fe = [e.mass * a[0], e.mass * a[1]];
+    if let Some(x) = e.chain.trans {
+        // Gravity's share on x, y is already in the tree's weight.
+        f[x] += fe[0] - e.mass * g[0];
+        f[x + 1] += fe[1] - e.mass * g[1];
+    }
+    for &(i, c) in cols {
+        match e.rotor {
+            Some(k) if i == model.rotors[k].phi => f[i] += dot(c, fe) + tau[k],
+            _ => f[i] += dot(c, fe),
+        }
+    }
+}
+
+/// Adds the joints' spring-dampers to `f`: `-k (alpha - alpha_0) - c alpha'` on
+/// the second body's angle, the reaction on the first's (`alpha` the relative
+/// angle at `q`, `v`).
+fn add_spring_forces(model: &PlantModel, q: &Vector, v: &Vector, f: &mut Vector) {
+    for s in &model.springs {
+        let angle = |x: Option<usize>| {
+            x.map_or((0.0, 0.0), |b| {
+                let i = model.bodies[b].angle;
+                (q[i], v[i])
+            })
+        };
+        let ((ta, wa), (tb, wb)) = (angle(s.a), angle(s.b));
+        let torque = -s.stiffness * ((tb - ta) - s.rest_angle) - s.damping * (wb - wa);
+        if let Some(b) = s.b {
+            f[model.bodies[b].angle] += torque;
+        }
+        if let Some(a) = s.a {
+            f[model.bodies[a].angle] -= torque;
         }
     }
 }

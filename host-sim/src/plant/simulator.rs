@@ -438,6 +438,17 @@ impl Plant {
         }
     }
 
+    /// [`Plant::frame`] and the generalized forces at velocities `v` and motor
+    /// torques `tau` ([`Frame::forces`]), in one pass.
+    fn frame_with_forces(&self, q: &Vector, v: &Vector, tau: &[f64]) -> (Frame, Vector) {
+        let mask = self.holds.mask(&self.model);
+        if mask.contains(&true) {
+            Frame::locked_with_forces(&self.model, q, &mask, v, tau)
+        } else {
+            Frame::with_forces(&self.model, q, v, tau)
+        }
+    }
+
     /// Adds a warning once.
     fn warn(&mut self, w: String) {
         if !self.warnings.contains(&w) {

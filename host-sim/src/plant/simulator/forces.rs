@@ -67,9 +67,8 @@ impl Plant {
         let n = self.model.dof;
         let q = self.model.q(y);
         let v = self.model.v(y);
-        let frame = self.frame(&q);
         let (tau, di) = self.motor_rates(y, &v);
-        let mut f = frame.forces(&self.model, &v, &tau);
+        let (frame, mut f) = self.frame_with_forces(&q, &v, &tau);
         if self.holds != Holds::default() {
             for (i, held) in self.holds.mask(&self.model).iter().enumerate() {
                 if *held {
