@@ -18,6 +18,7 @@ use crate::failure::{Console, Failure, EXIT_OK};
 use crate::impact::ImpactArgs;
 use crate::run::RunArgs;
 use crate::scenario::ScenarioArgs;
+use crate::tune::merge::MergeArgs;
 use crate::tune::TuneArgs;
 use crate::{device, impact, run, scenario, tune};
 
@@ -43,6 +44,9 @@ pub enum Command {
     /// Sweep rotor speed and phase offset in closed loop; find the best offsets
     /// for rightward and leftward travel at each speed (see docs/tuning.md).
     Tune(TuneArgs),
+    /// Combine the partial results of `tune --shard I/N` into the whole sweep's
+    /// output, as `tune` without `--shard` gives it (see docs/scale-out.md).
+    Merge(MergeArgs),
     /// Talk to the board over its UART (a serial port or tcp:HOST:PORT): status,
     /// travel, stop, hold, reset, telemetry, self-test, tuning table (see
     /// docs/cli-device.md).
@@ -72,6 +76,7 @@ pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
         Command::Run(args) => run::run(&args, console),
         Command::Scenario(args) => scenario::run(&args, console),
         Command::Tune(args) => tune::run(&args, console),
+        Command::Merge(args) => tune::merge::run(&args, console),
         Command::Device(args) => device::commands::run(&args, console),
         Command::DeviceSim(args) => device::serve::run(&args, console),
     };

@@ -28,31 +28,20 @@ fn run_on(threads: Option<usize>, args: &[&str]) -> Run {
     common::finish(cmd)
 }
 
-/// The tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0 and runs once).
-/// 4 s, not less: the offset reference ramps at 180 deg/s and passes 180 on its
-/// way to 270, holding it from 1.7 s on, and `mean_velocity` is over the second
-/// half (from 2 s).
+/// The tiny grid ([`common::TINY_GRID`]) on `threads` threads.
 fn tiny(threads: usize, write: &Path, plot: &Path) -> Run {
     let m = machine();
-    run_on(
-        Some(threads),
-        &[
-            "tune",
-            m.to_str().unwrap(),
-            "--speeds",
-            "2750:3000:250",
-            "--offsets",
-            "0:360:90",
-            "--t-end",
-            "4",
-            "--format",
-            "json",
-            "--write",
-            write.to_str().unwrap(),
-            "--plot",
-            plot.to_str().unwrap(),
-        ],
-    )
+    let mut args = vec!["tune", m.to_str().unwrap()];
+    args.extend_from_slice(&common::TINY_GRID);
+    args.extend_from_slice(&[
+        "--format",
+        "json",
+        "--write",
+        write.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    run_on(Some(threads), &args)
 }
 
 #[test]

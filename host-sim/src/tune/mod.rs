@@ -1,5 +1,6 @@
 //! `host-sim tune MACHINE [--speeds A:B:STEP] [--offsets A:B:STEP] [--t-end T]
-//! [--write FILE] [--plot FILE.svg] [--format table|json] [--set KEY=VALUE]...`
+//! [--write FILE] [--plot FILE.svg] [--format table|json] [--set KEY=VALUE]...
+//! [--shard I/N [--out-part FILE.json]]`
 //!
 //! Sweeps rotor speed and phase offset in closed loop and finds, at every speed,
 //! the offset that travels right fastest and the one that travels left fastest
@@ -19,15 +20,23 @@
 //!    refined by a parabola through it and its two neighbours in offset, the
 //!    refined offset checked by one more run (also in parallel);
 //! 4. warnings: runs whose offset was not held, speeds with no travel one way;
-//! 5. outputs: `--write` and `--plot` files, each whole or not at all, then the
-//!    result on stdout as a table or JSON; one summary line on stderr.
+//! 5. outputs ([`Report`]): `--write` and `--plot` files, each whole or not at
+//!    all, then the result on stdout as a table or JSON; one summary line on stderr.
+//!
+//! With `--shard I/N` stage 2 runs only the grid points `k` with `k % N == I - 1`
+//! and, instead of stages 3 to 5, writes their outcomes as a partial result
+//! ([`part`]); `host-sim merge` ([`merge`]) reads the N parts back into the whole
+//! grid's outcomes and goes on with stages 3 to 5 through the same functions
+//! ([`conclude`], [`Report`]), so its output is the unsharded one byte for byte.
 
 pub mod best;
+pub mod merge;
+pub mod part;
 pub mod plot;
 pub mod report;
 pub mod sweep;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
@@ -45,6 +54,7 @@ use crate::simulation::closed_loop;
 use crate::simulation::limits;
 use best::Tuning;
 use best::{best_offsets, warnings};
+use part::Shard;
 use report::count;
 use report::table_file;
 use report::tuning_json;
@@ -53,13 +63,12 @@ use sweep::default_speeds;
 use sweep::run_points;
 use sweep::wrap_offsets;
 use sweep::Grid;
+use sweep::RunOutcome;
 use sweep::{parse_offsets, parse_speeds, Range};
 
 /// Arguments of `host-sim tune`.
 #[derive(Debug, Args)]
 #[command(mut_arg("t_end", |a| a.help("End time of each run, s; the mean velocity is over the second half [default: 5]")))]
-#[command(mut_arg("plot", |a| a.help("Write a plot of mean velocity against offset, one line per speed, as SVG")))]
-#[command(mut_arg("format", |a| a.help("Output format of the result")))]
 pub struct TuneArgs {
     /// The machine file.
     #[command(flatten)]
@@ -75,6 +84,28 @@ pub struct TuneArgs {
     /// End time.
     #[command(flatten)]
     pub t_end: TEndArg,
+    /// The outputs.
+    #[command(flatten)]
+    pub output: TuneOutputs,
+    /// Overrides.
+    #[command(flatten)]
+    pub set: SetArgs,
+    /// Run only part I of N of the grid (the points k with k % N == I - 1, in
+    /// grid order) and write a partial result for `host-sim merge` instead of the
+    /// outputs (see docs/scale-out.md).
+    #[arg(long, value_name = "I/N", value_parser = part::parse_shard, conflicts_with_all = ["write", "plot", "format"])]
+    pub shard: Option<Shard>,
+    /// Where `--shard` writes its partial result, written whole (`-`: stdout)
+    /// [default: -].
+    #[arg(long, value_name = "FILE.json", requires = "shard")]
+    pub out_part: Option<PathBuf>,
+}
+
+/// The outputs of a sweep, the same for `tune` and `merge`.
+#[derive(Debug, Args)]
+#[command(mut_arg("plot", |a| a.help("Write a plot of mean velocity against offset, one line per speed, as SVG")))]
+#[command(mut_arg("format", |a| a.help("Output format of the result")))]
+pub struct TuneOutputs {
     /// Write the tuning table (best offsets per speed) that
     /// `[controller].tuning_table` names.
     #[arg(long, value_name = "FILE.toml")]
@@ -85,9 +116,20 @@ pub struct TuneArgs {
     /// Output format.
     #[command(flatten)]
     pub format: FormatArg,
-    /// Overrides.
-    #[command(flatten)]
-    pub set: SetArgs,
+}
+
+/// How a sweep was asked for: what its outputs name besides its results (the
+/// table's title, the tuning file's "regenerate with" command, the plot's title).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    /// The machine file as named on the command line.
+    pub machine_path: PathBuf,
+    /// The `--set` overrides, in order.
+    pub set: Vec<String>,
+    /// `--speeds` as given, or the default range's text.
+    pub speeds_text: String,
+    /// `--offsets` as given, or the default.
+    pub offsets_text: String,
 }
 
 /// Default `--t-end`, s: every offset held over the whole second half, over
@@ -127,18 +169,10 @@ pub const HELD_ERROR_DEG_RMS: f64 = 5.0;
 /// one reported and the one written are the same number.
 pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 
-/// Stage 1: the machine (its tuning table dropped: the sweep holds explicit
-/// offsets, so a missing or stale table must not stop its own regeneration) and
-/// the grid, with the range texts used (for the table file's header).
-fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), String> {
-    let mut machine = match Machine::load(&args.machine.path, &args.set.keys) {
-        Ok(m) => m,
-        Err(problems) => return Err(input::render(&problems)),
-    };
-    if machine.rotors.len() == 1 {
-        return Err(one_rotor_refusal(&args.machine.path, &machine));
-    }
-    machine.controller.tuning_table = None;
+/// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
+/// asked for (for the outputs).
+fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
+    let machine = load_machine(&args.machine.path, &args.set.keys)?;
     let params = match closed_loop::params(&machine) {
         Ok(p) => p,
         Err(problems) => return Err(input::render(&problems)),
@@ -216,20 +250,8 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
                 o.len()
             ));
         }
-        if args.write.is_some() {
-            if s.len() > shared::controller::MAX_TUNING_ROWS {
-                problems.push(format!(
-                    "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
-                    shared::controller::MAX_TUNING_ROWS,
-                    s.len()
-                ));
-            }
-            let written: Vec<String> = s.iter().map(|v| format!("{v:.1}")).collect();
-            if written.windows(2).any(|w| w[0] == w[1]) {
-                problems.push(format!(
-                    "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
-                ));
-            }
+        if args.output.write.is_some() {
+            problems.extend(table_problems(s, &speeds_text));
         }
     }
     match (speeds, offsets) {
@@ -240,11 +262,50 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, String, String), Stri
                 offsets_deg,
                 t_end,
             },
-            speeds_text,
-            offsets_text,
+            Request {
+                machine_path: args.machine.path.clone(),
+                set: args.set.keys.clone(),
+                speeds_text,
+                offsets_text,
+            },
         )),
         _ => Err(problems.join("\n") + "\n"),
     }
+}
+
+/// The machine of a sweep: `path` with the `--set` overrides, refused when it has
+/// one rotor, its tuning table dropped (the sweep holds explicit offsets, so a
+/// missing or stale table must not stop its own regeneration).
+pub(crate) fn load_machine(path: &Path, set: &[String]) -> Result<Machine, String> {
+    let mut machine = match Machine::load(path, set) {
+        Ok(m) => m,
+        Err(problems) => return Err(input::render(&problems)),
+    };
+    if machine.rotors.len() == 1 {
+        return Err(one_rotor_refusal(path, &machine));
+    }
+    machine.controller.tuning_table = None;
+    Ok(machine)
+}
+
+/// Why `--write` cannot hold a table of `speeds` (given as `speeds_text`): more
+/// rows than the controller's table, or two speeds that print alike.
+pub(crate) fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
+    let mut problems = Vec::new();
+    if speeds.len() > shared::controller::MAX_TUNING_ROWS {
+        problems.push(format!(
+            "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
+            shared::controller::MAX_TUNING_ROWS,
+            speeds.len()
+        ));
+    }
+    let written: Vec<String> = speeds.iter().map(|v| format!("{v:.1}")).collect();
+    if written.windows(2).any(|w| w[0] == w[1]) {
+        problems.push(format!(
+            "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
+        ));
+    }
+    problems
 }
 
 /// Why `tune` refuses a one-rotor machine: it sweeps the phase offset between two
@@ -262,81 +323,82 @@ pub fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
 /// Runs the command (stages of the module doc).
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
-    let (machine, grid, speeds_text, offsets_text) = read_options(args).map_err(Failure::Usage)?;
+    let (machine, grid, request) = read_options(args).map_err(Failure::Usage)?;
+    if let Some(shard) = args.shard {
+        return part::run_shard(args, shard, &machine, grid, &request, console);
+    }
     // The output files, checked and opened before the sweep: a path that cannot
     // be written is refused at once, not after minutes of runs.
-    let mut staged = Staged::new();
-    let table_out = args.write.as_deref().map(|p| staged.add(p)).transpose()?;
-    let plot_out = args
-        .plot
-        .file
-        .as_deref()
-        .map(|p| staged.add(p))
-        .transpose()?;
+    let report = Report::open(&args.output)?;
 
     // 2.-4. The sweep, with a progress bar on stderr (drawn only on a terminal).
     let started = Instant::now();
-    let total = grid.speeds_rpm.len() * grid.offsets_deg.len();
-    let progress = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template(
-        "tune {bar:40} {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
-    ) {
-        progress.set_style(style);
-    }
+    let progress = progress_bar("tune", grid.speeds_rpm.len() * grid.offsets_deg.len());
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
-    if crate::interrupt::interrupted() {
-        return Err(Failure::Run(
-            "error: tune: interrupted (Ctrl-C): the sweep is incomplete, nothing written".into(),
-        ));
-    }
+    refuse_interrupted("the sweep is incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
 
     // 5. Files, then the result.
-    if let (Some(i), Some(path)) = (table_out, &args.write) {
-        if tuning.right.is_empty() || tuning.left.is_empty() {
-            return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
-        }
-        let text = table_file(&tuning, args, &speeds_text, &offsets_text);
-        // What is written must read back as a table the controller takes.
-        let readable = tuning_file::parse(&path.display().to_string(), &text)
-            .ok()
-            .and_then(|rows| tuning_file::table(&rows).ok());
-        if readable.is_none() {
-            return Err(Failure::Run(format!(
-                "error: --write {}: the table does not read back (an internal error)",
-                path.display()
-            )));
-        }
-        staged.write(i, &text)?;
-    }
-    if let Some(i) = plot_out {
-        let title = format!("host-sim tune {}", args.machine.path.display());
-        staged.write(i, &plot::plot_svg(&tuning, &title))?;
-    }
-    staged.commit()?;
-    console.print(&match args.format.format {
-        Format::Json => tuning_json(&tuning),
-        Format::Table => tuning_table(&tuning, &args.machine.path),
-    });
+    report.finish(&tuning, &request, console)?;
     console.note(&format!(
         "tune: {} runs in {:.1} s on {}{}\n",
         tuning.run_count,
         seconds,
         count(rayon::current_num_threads(), "thread"),
-        if tuning.warnings.is_empty() {
-            String::new()
-        } else {
-            format!(", {}", count(tuning.warnings.len(), "warning"))
-        }
+        warning_count(&tuning)
     ));
     Ok(())
+}
+
+/// A progress bar on stderr for `total` runs, drawn only when stderr is a
+/// terminal; `name` heads it.
+pub(crate) fn progress_bar(name: &str, total: usize) -> ProgressBar {
+    let progress = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(&format!(
+        "{name} {{bar:40}} {{pos}}/{{len}} runs, {{elapsed}} elapsed, ~{{eta}} left"
+    )) {
+        progress.set_style(style);
+    }
+    progress
+}
+
+/// A failure when Ctrl-C stopped the runs (`what` is what that left undone):
+/// nothing is written then.
+pub(crate) fn refuse_interrupted(what: &str) -> Result<(), Failure> {
+    if crate::interrupt::interrupted() {
+        return Err(Failure::Run(format!(
+            "error: tune: interrupted (Ctrl-C): {what}, nothing written"
+        )));
+    }
+    Ok(())
+}
+
+/// `, 2 warnings` for the summary line on stderr, empty without warnings.
+pub(crate) fn warning_count(tuning: &Tuning) -> String {
+    if tuning.warnings.is_empty() {
+        String::new()
+    } else {
+        format!(", {}", count(tuning.warnings.len(), "warning"))
+    }
 }
 
 /// Stages 2 to 4 on a checked machine and grid.
 pub fn tune(machine: &Machine, grid: Grid, progress: &ProgressBar) -> Tuning {
     let points = grid.points();
     let runs = run_points(machine, &points, grid.t_end, progress);
+    conclude(machine, grid, runs, progress)
+}
+
+/// Stages 3 and 4 on the outcomes of every grid point, in [`Grid::points`] order:
+/// the best offsets (with their check runs) and the warnings. `tune` calls it on
+/// its own runs, `merge` on the runs the parts made.
+pub fn conclude(
+    machine: &Machine,
+    grid: Grid,
+    runs: Vec<RunOutcome>,
+    progress: &ProgressBar,
+) -> Tuning {
     let (right, left, checks) = best_offsets(machine, &grid, &runs, progress);
     let warnings = warnings(&grid, &runs, &right, &left);
     Tuning {
@@ -346,6 +408,77 @@ pub fn tune(machine: &Machine, grid: Grid, progress: &ProgressBar) -> Tuning {
         right,
         left,
         warnings,
+    }
+}
+
+/// Stage 5: the outputs of a sweep, opened before its runs ([`Report::open`]) and
+/// written after them ([`Report::finish`]).
+pub struct Report {
+    staged: Staged,
+    /// The tuning table's output and path (`--write`).
+    table: Option<(usize, PathBuf)>,
+    /// The plot's output (`--plot`).
+    plot: Option<usize>,
+    format: Format,
+}
+
+impl Report {
+    /// Checks and opens the output files: a path that cannot be written is
+    /// refused before any run.
+    pub fn open(output: &TuneOutputs) -> Result<Report, Failure> {
+        let mut staged = Staged::new();
+        let table = match &output.write {
+            Some(p) => Some((staged.add(p)?, p.clone())),
+            None => None,
+        };
+        let plot = output
+            .plot
+            .file
+            .as_deref()
+            .map(|p| staged.add(p))
+            .transpose()?;
+        Ok(Report {
+            staged,
+            table,
+            plot,
+            format: output.format.format,
+        })
+    }
+
+    /// Writes the files (all or none), then the result on stdout.
+    pub fn finish(
+        mut self,
+        tuning: &Tuning,
+        request: &Request,
+        console: &mut Console<'_>,
+    ) -> Result<(), Failure> {
+        if let Some((i, path)) = &self.table {
+            if tuning.right.is_empty() || tuning.left.is_empty() {
+                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
+            }
+            let text = table_file(tuning, request, path);
+            // What is written must read back as a table the controller takes.
+            let readable = tuning_file::parse(&path.display().to_string(), &text)
+                .ok()
+                .and_then(|rows| tuning_file::table(&rows).ok());
+            if readable.is_none() {
+                return Err(Failure::Run(format!(
+                    "error: --write {}: the table does not read back (an internal error)",
+                    path.display()
+                )));
+            }
+            self.staged.write(*i, &text)?;
+        }
+        if let Some(i) = self.plot {
+            let title = format!("host-sim tune {}", request.machine_path.display());
+            self.staged.write(i, &plot::plot_svg(tuning, &title))?;
+        }
+        self.staged.commit()?;
+        console.print(&match self.format {
+            Format::Json => tuning_json(tuning),
+            Format::Table => tuning_table(tuning, &request.machine_path),
+        });
+        Ok(())
     }
 }
 

@@ -10,7 +10,7 @@ use super::best::mm_s;
 use super::best::Best;
 use super::best::Refinement;
 use super::best::Tuning;
-use super::TuneArgs;
+use super::Request;
 use crate::machine::tuning_file;
 use crate::output::text::{self, Align, Table};
 
@@ -168,22 +168,22 @@ pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
     out
 }
 
-/// The tuning table file for `--write`: a header that says how it was made (no
-/// date, so the same sweep writes the same file) and one row per speed with a
-/// best offset both ways.
-pub fn table_file(t: &Tuning, args: &TuneArgs, speeds_text: &str, offsets_text: &str) -> String {
+/// The tuning table file for `--write FILE` (`write`): a header that says how it
+/// was made (no date, so the same sweep writes the same file) and one row per speed
+/// with a best offset both ways.
+pub fn table_file(t: &Tuning, request: &Request, write: &Path) -> String {
     let g = &t.grid;
     let mut command = format!(
-        "host-sim tune {} --speeds {speeds_text} --offsets {offsets_text} --t-end {}",
-        args.machine.path.display(),
+        "host-sim tune {} --speeds {} --offsets {} --t-end {}",
+        request.machine_path.display(),
+        request.speeds_text,
+        request.offsets_text,
         text::sig(g.t_end)
     );
-    for s in &args.set.keys {
+    for s in &request.set {
         let _ = write!(command, " --set {s}");
     }
-    if let Some(w) = &args.write {
-        let _ = write!(command, " --write {}", w.display());
-    }
+    let _ = write!(command, " --write {}", write.display());
     let mut header = format!(
         "Tuning table: the best phase offset for rightward and leftward travel per rotor speed.\n\
          Written by `host-sim tune` (see docs/tuning.md); regenerate with\n  {command}\n\

@@ -19,6 +19,19 @@ pub fn machine() -> PathBuf {
     root().join("examples/vibro-driver.toml")
 }
 
+/// The tuning tests' tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0
+/// and runs once). 4 s, not less: the offset reference ramps at 180 deg/s and
+/// passes 180 on its way to 270, holding it from 1.7 s on, and `mean_velocity` is
+/// over the second half (from 2 s).
+pub const TINY_GRID: [&str; 6] = [
+    "--speeds",
+    "2750:3000:250",
+    "--offsets",
+    "0:360:90",
+    "--t-end",
+    "4",
+];
+
 /// A path `name` in a scratch directory of this test binary (`tag` names it).
 pub fn scratch(tag: &str, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("host-sim-{tag}-{}", std::process::id()));

@@ -1,0 +1,115 @@
+//! `host-sim merge PART... [--machine MACHINE.toml] [--write FILE] [--plot FILE.svg]
+//! [--format table|json]`
+//!
+//! Combines the partial results of `host-sim tune --shard I/N` ([`super::part`])
+//! into the output of the whole sweep, byte for byte what `host-sim tune` without
+//! `--shard` prints and writes (docs/scale-out.md):
+//! 1. read and check every part on its own ([`part::read`]), then together
+//!    ([`part::assemble`]): one sweep, the same N, each part once, none missing;
+//!    every problem at once, exit 2, before any run;
+//! 2. the machine file the parts name (or `--machine`), its SHA-256 checked against
+//!    theirs, loaded with their `--set` overrides;
+//! 3. the outputs opened ([`Report::open`]), then the sweep concluded from the
+//!    grid's outcomes ([`super::conclude`]: the best offsets with their check runs,
+//!    at most two per speed, and the warnings) and reported ([`Report::finish`]),
+//!    as `tune` does.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+
+use super::part;
+use super::report::count;
+use super::{
+    conclude, load_machine, progress_bar, refuse_interrupted, table_problems, warning_count,
+    Report, TuneOutputs,
+};
+use crate::failure::{Console, Failure};
+
+/// Arguments of `host-sim merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The partial results of `host-sim tune --shard I/N`: all N parts of one
+    /// sweep, in any order.
+    #[arg(value_name = "PART.json", required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The machine file the parts were made from, when it is not where they name
+    /// it (the same file: its SHA-256 must match theirs) [default: the path in the
+    /// parts].
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub machine: Option<PathBuf>,
+    /// The outputs, as for `tune`.
+    #[command(flatten)]
+    pub output: TuneOutputs,
+}
+
+/// Runs the command (stages of the module doc).
+pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
+    // 1. The parts.
+    let mut parts = Vec::new();
+    let mut problems = Vec::new();
+    for path in &args.parts {
+        match part::read(path) {
+            Ok(p) => parts.push((path.clone(), p)),
+            Err(e) => problems.push(e),
+        }
+    }
+    if !problems.is_empty() {
+        return Err(Failure::Usage(problems.join("\n") + "\n"));
+    }
+    let (first, runs) = part::assemble(&parts).map_err(Failure::Usage)?;
+
+    // 2. The machine.
+    let path = args
+        .machine
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&first.machine.path));
+    let bytes = std::fs::read(&path).map_err(|e| {
+        Failure::Usage(format!(
+            "error: {}: cannot read the machine file the parts were made from: {e}{}",
+            path.display(),
+            if args.machine.is_none() {
+                " (give its path with --machine)"
+            } else {
+                ""
+            }
+        ))
+    })?;
+    let sha256 = part::sha256_hex(&bytes);
+    if sha256 != first.machine.sha256 {
+        return Err(Failure::Usage(format!(
+            "error: {}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
+            path.display(),
+            first.machine.sha256
+        )));
+    }
+    let machine = load_machine(&path, &first.sweep.set).map_err(Failure::Usage)?;
+    let grid = first.sweep.grid();
+    if args.output.write.is_some() {
+        let problems = table_problems(&grid.speeds_rpm, &first.sweep.speeds);
+        if !problems.is_empty() {
+            return Err(Failure::Usage(problems.join("\n") + "\n"));
+        }
+    }
+
+    // 3. As `tune` from its runs on.
+    let report = Report::open(&args.output)?;
+    let started = Instant::now();
+    let progress = progress_bar("merge", 0);
+    let grid_runs = runs.len();
+    let tuning = conclude(&machine, grid, runs, &progress);
+    progress.finish_and_clear();
+    refuse_interrupted("the check runs are incomplete")?;
+    let seconds = started.elapsed().as_secs_f64();
+    report.finish(&tuning, &first.sweep.request(&first.machine.path), console)?;
+    console.note(&format!(
+        "merge: {} of {grid_runs} grid runs, {} in {:.1} s on {}{}\n",
+        count(first.shard.count, "part"),
+        count(tuning.run_count - grid_runs, "check run"),
+        seconds,
+        count(rayon::current_num_threads(), "thread"),
+        warning_count(&tuning)
+    ));
+    Ok(())
+}

@@ -1,0 +1,605 @@
+//! A part of a sweep: `host-sim tune --shard I/N` runs the grid points `k` (0-based,
+//! in [`Grid::points`] order) with `k % N == I - 1` and writes their outcomes as a
+//! partial result ([`Part`], JSON); `host-sim merge` ([`super::merge`]) reads the N
+//! parts ([`read`]), checks that they are one sweep's and complete ([`assemble`]),
+//! and puts the outcomes back in grid order. docs/scale-out.md describes the
+//! format for people.
+//!
+//! Two hashes tie a part to its sweep:
+//! - `machine.sha256`: SHA-256 of the machine file's bytes as read;
+//! - `sweep_sha256`: SHA-256 of `machine.sha256` (64 lowercase hex digits), one
+//!   line feed, then the `sweep` object as compact JSON (serde_json, keys in the
+//!   order of [`Sweep`], numbers in shortest round-trip form): the machine file,
+//!   the host-sim version, the `--set` overrides, the speeds, the offsets and the
+//!   end time, everything that changes a run's outcome. A part whose
+//!   `sweep_sha256` does not match its own `machine` and `sweep` was edited or
+//!   damaged and is refused.
+//!
+//! Numbers are written in serde_json's shortest round-trip form and read back with
+//! its `float_roundtrip` parser, so a merged outcome is the run's own `f64`, bit for
+//! bit; a mean velocity that is not finite is written as the string `"NaN"`,
+//! `"inf"` or `"-inf"`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+use super::sweep::{run_points, Grid, RunOutcome};
+use super::{progress_bar, refuse_interrupted, Request, TuneArgs, MAX_POINTS};
+use crate::failure::{Console, Failure};
+use crate::machine::Machine;
+use crate::output::file::Staged;
+use crate::output::text;
+
+/// The `format` of a partial result.
+pub const FORMAT: &str = "host-sim-tune-part";
+
+/// The `version` of the format this host-sim writes and reads.
+pub const VERSION: u64 = 1;
+
+/// Which part of the grid: part `index` (from 1) of `count`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shard {
+    /// I, from 1 to N.
+    pub index: usize,
+    /// N, the number of parts.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Whether grid point `k` (0-based) is this part's.
+    pub fn holds(self, k: usize) -> bool {
+        k % self.count == self.index - 1
+    }
+
+    /// The grid points of this part among `points`, ascending.
+    pub fn points(self, points: usize) -> Vec<usize> {
+        (0..points).filter(|&k| self.holds(k)).collect()
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// `--shard I/N`: whole numbers, `1 <= I <= N`, N at most [`MAX_POINTS`] (the
+/// largest grid).
+pub fn parse_shard(text: &str) -> Result<Shard, String> {
+    let usage = || "expected I/N, part I of N with 1 <= I <= N, e.g. 1/4".to_string();
+    let (i, n) = text.split_once('/').ok_or_else(usage)?;
+    let whole = |s: &str| s.trim().parse::<usize>().ok();
+    let (Some(index), Some(count)) = (whole(i), whole(n)) else {
+        return Err(usage());
+    };
+    if count == 0 || count > MAX_POINTS {
+        return Err(format!(
+            "N must be from 1 to {MAX_POINTS} (the most grid points), got {count}"
+        ));
+    }
+    if index == 0 || index > count {
+        return Err(format!(
+            "I must be from 1 to N = {count} (I counts from 1), got {index}"
+        ));
+    }
+    Ok(Shard { index, count })
+}
+
+/// The machine file a part was made from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineFile {
+    /// As named on `tune`'s command line (the outputs name it so).
+    pub path: String,
+    /// SHA-256 of its bytes, lowercase hex.
+    pub sha256: String,
+}
+
+/// Everything besides the machine file that changes a run's outcome, and the
+/// range texts the outputs name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sweep {
+    /// The version of host-sim that ran it.
+    pub host_sim_version: String,
+    /// The `--set` overrides, in order.
+    pub set: Vec<String>,
+    /// `--speeds` as given (or the default range's text).
+    pub speeds: String,
+    /// `--offsets` as given (or the default).
+    pub offsets: String,
+    /// The grid's speeds, rpm, ascending.
+    pub speeds_rpm: Vec<f64>,
+    /// The grid's offsets, degrees in [0, 360), ascending.
+    pub offsets_deg: Vec<f64>,
+    /// End time of each run, s.
+    pub t_end: f64,
+}
+
+/// The outcome of grid point `point`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartRun {
+    /// Its index in grid order, from 0.
+    pub point: usize,
+    /// Rotor speed, rpm.
+    pub speed_rpm: f64,
+    /// Offset held, degrees.
+    pub offset_deg: f64,
+    /// Mean velocity over the second half, m/s.
+    #[serde(with = "maybe_finite")]
+    pub mean_velocity: f64,
+    /// Why the offset was not held, if it was not.
+    pub not_held: Option<String>,
+    /// The plant's warnings.
+    pub plant_warnings: Vec<String>,
+}
+
+/// A partial result ([module doc](self)).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Part {
+    /// [`FORMAT`].
+    pub format: String,
+    /// [`VERSION`].
+    pub version: u64,
+    /// The machine file.
+    pub machine: MachineFile,
+    /// The sweep.
+    pub sweep: Sweep,
+    /// The hash of `machine.sha256` and `sweep` ([module doc](self)).
+    pub sweep_sha256: String,
+    /// Which part.
+    pub shard: Shard,
+    /// The outcomes of the part's grid points, ascending.
+    pub runs: Vec<PartRun>,
+}
+
+/// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
+mod maybe_finite {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    #[derive(Serialize, Deserialize)]
+    #[serde(untagged)]
+    enum Number {
+        Finite(f64),
+        Other(String),
+    }
+
+    pub fn serialize<S: Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+        match *x {
+            x if x.is_finite() => Number::Finite(x),
+            x if x.is_nan() => Number::Other("NaN".into()),
+            x if x > 0.0 => Number::Other("inf".into()),
+            _ => Number::Other("-inf".into()),
+        }
+        .serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        match Number::deserialize(d)? {
+            Number::Finite(x) => Ok(x),
+            Number::Other(s) => match s.as_str() {
+                "NaN" => Ok(f64::NAN),
+                "inf" => Ok(f64::INFINITY),
+                "-inf" => Ok(f64::NEG_INFINITY),
+                _ => Err(serde::de::Error::custom(format!(
+                    "mean_velocity {s:?}: expected a number, \"NaN\", \"inf\" or \"-inf\""
+                ))),
+            },
+        }
+    }
+}
+
+/// SHA-256 of `bytes`, lowercase hex.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// `sweep_sha256` ([module doc](self)).
+pub fn sweep_sha256(machine_sha256: &str, sweep: &Sweep) -> String {
+    let mut bytes = format!("{machine_sha256}\n").into_bytes();
+    bytes.extend(serde_json::to_vec(sweep).unwrap_or_default());
+    sha256_hex(&bytes)
+}
+
+impl Sweep {
+    /// The sweep of `grid` as `request` asked for it.
+    pub fn new(grid: &Grid, request: &Request) -> Sweep {
+        Sweep {
+            host_sim_version: env!("CARGO_PKG_VERSION").to_string(),
+            set: request.set.clone(),
+            speeds: request.speeds_text.clone(),
+            offsets: request.offsets_text.clone(),
+            speeds_rpm: grid.speeds_rpm.clone(),
+            offsets_deg: grid.offsets_deg.clone(),
+            t_end: grid.t_end,
+        }
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> Grid {
+        Grid {
+            speeds_rpm: self.speeds_rpm.clone(),
+            offsets_deg: self.offsets_deg.clone(),
+            t_end: self.t_end,
+        }
+    }
+
+    /// How it was asked for, with the machine file as `tune` named it.
+    pub fn request(&self, machine_path: &str) -> Request {
+        Request {
+            machine_path: PathBuf::from(machine_path),
+            set: self.set.clone(),
+            speeds_text: self.speeds.clone(),
+            offsets_text: self.offsets.clone(),
+        }
+    }
+
+    /// What differs between `self` (of file `a`) and `other` (of file `b`), one
+    /// phrase each; empty when they are the same sweep.
+    fn differences(&self, other: &Sweep, a: &str, b: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut differ = |what: &str, x: String, y: String| {
+            out.push(format!("{what} differs ({x} in {a}, {y} in {b})"));
+        };
+        let list = |v: &[f64]| {
+            v.iter()
+                .map(|x| text::sig(*x))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if self.host_sim_version != other.host_sim_version {
+            differ(
+                "the host-sim version",
+                self.host_sim_version.clone(),
+                other.host_sim_version.clone(),
+            );
+        }
+        if self.set != other.set {
+            let set = |s: &[String]| {
+                if s.is_empty() {
+                    "none".to_string()
+                } else {
+                    s.join(" ")
+                }
+            };
+            differ("--set", set(&self.set), set(&other.set));
+        }
+        if self.speeds != other.speeds || self.speeds_rpm != other.speeds_rpm {
+            differ(
+                "--speeds",
+                format!("{} = [{}] rpm", self.speeds, list(&self.speeds_rpm)),
+                format!("{} = [{}] rpm", other.speeds, list(&other.speeds_rpm)),
+            );
+        }
+        if self.offsets != other.offsets || self.offsets_deg != other.offsets_deg {
+            differ(
+                "--offsets",
+                format!("{} = [{}] deg", self.offsets, list(&self.offsets_deg)),
+                format!("{} = [{}] deg", other.offsets, list(&other.offsets_deg)),
+            );
+        }
+        if self.t_end.to_bits() != other.t_end.to_bits() {
+            differ(
+                "--t-end",
+                format!("{} s", text::sig(self.t_end)),
+                format!("{} s", text::sig(other.t_end)),
+            );
+        }
+        out
+    }
+
+    /// Why the grid is not one `tune` makes (a hand-made or damaged file), if it
+    /// is not: ranges empty, not ascending, offsets outside [0, 360), too many
+    /// points, an end time that is not a positive number.
+    fn problem(&self) -> Option<String> {
+        let ascending = |v: &[f64]| v.windows(2).all(|w| w[0] < w[1]);
+        let (s, o) = (&self.speeds_rpm, &self.offsets_deg);
+        if s.is_empty() || !ascending(s) || !s.iter().all(|x| x.is_finite() && *x > 0.0) {
+            Some("speeds_rpm: not positive speeds, ascending".into())
+        } else if o.is_empty() || !ascending(o) || !o.iter().all(|x| (0.0..360.0).contains(x)) {
+            Some("offsets_deg: not offsets in [0, 360), ascending".into())
+        } else if s.len().saturating_mul(o.len()) > MAX_POINTS {
+            Some(format!("more than {MAX_POINTS} grid points"))
+        } else if !(self.t_end.is_finite() && self.t_end > 0.0) {
+            Some("t_end: not a positive number of seconds".into())
+        } else {
+            None
+        }
+    }
+}
+
+/// `tune --shard`: runs the part's grid points and writes the partial result to
+/// `--out-part` (stdout by default), whole or not at all.
+pub(crate) fn run_shard(
+    args: &TuneArgs,
+    shard: Shard,
+    machine: &Machine,
+    grid: Grid,
+    request: &Request,
+    console: &mut Console<'_>,
+) -> Result<(), Failure> {
+    let bytes = std::fs::read(&request.machine_path).map_err(|e| {
+        Failure::Usage(format!(
+            "error: {}: cannot read: {e}",
+            request.machine_path.display()
+        ))
+    })?;
+    let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
+    let mut staged = Staged::new();
+    let output = staged.add(&out)?;
+
+    let started = Instant::now();
+    let all = grid.points();
+    let mine = shard.points(all.len());
+    let points: Vec<(f64, f64)> = mine.iter().map(|&k| all[k]).collect();
+    let progress = progress_bar("tune", points.len());
+    let runs = run_points(machine, &points, grid.t_end, &progress);
+    progress.finish_and_clear();
+    refuse_interrupted("the part is incomplete")?;
+    let seconds = started.elapsed().as_secs_f64();
+
+    let machine_sha256 = sha256_hex(&bytes);
+    let sweep = Sweep::new(&grid, request);
+    let part = Part {
+        format: FORMAT.into(),
+        version: VERSION,
+        machine: MachineFile {
+            path: request.machine_path.display().to_string(),
+            sha256: machine_sha256.clone(),
+        },
+        sweep_sha256: sweep_sha256(&machine_sha256, &sweep),
+        sweep,
+        shard,
+        runs: mine
+            .iter()
+            .zip(runs)
+            .map(|(&point, r)| PartRun {
+                point,
+                speed_rpm: r.speed_rpm,
+                offset_deg: r.offset_deg,
+                mean_velocity: r.mean_velocity,
+                not_held: r.not_held,
+                plant_warnings: r.plant_warnings,
+            })
+            .collect(),
+    };
+    let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
+        Failure::Run(format!(
+            "error: tune --shard {shard}: the part does not serialize: {e}"
+        ))
+    })?;
+    text.push('\n');
+    staged.write(output, &text)?;
+    staged.commit()?;
+    console.note(&format!(
+        "tune: part {shard}: {} of {} grid runs in {:.1} s on {}, written to {}\n",
+        part.runs.len(),
+        all.len(),
+        seconds,
+        super::report::count(rayon::current_num_threads(), "thread"),
+        if out.as_os_str() == "-" {
+            "stdout".to_string()
+        } else {
+            out.display().to_string()
+        }
+    ));
+    Ok(())
+}
+
+/// "error: FILE: not a partial result of `host-sim tune --shard`: why".
+fn not_a_part(path: &Path, why: &str) -> String {
+    format!(
+        "error: {}: not a partial result of `host-sim tune --shard`: {why}",
+        path.display()
+    )
+}
+
+/// Reads the partial result `path` and checks it on its own: its format and
+/// version, its fields, its `sweep_sha256`, its shard, and that its runs are
+/// exactly its grid points.
+pub fn read(path: &Path) -> Result<Part, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("error: {}: cannot read: {e}", path.display()))?;
+    let value: Value =
+        serde_json::from_str(&text).map_err(|e| not_a_part(path, &format!("not JSON ({e})")))?;
+    match value.get("format") {
+        Some(Value::String(f)) if f == FORMAT => {}
+        Some(f) => {
+            return Err(not_a_part(
+                path,
+                &format!("its format is {f}, not {FORMAT:?}"),
+            ))
+        }
+        None => return Err(not_a_part(path, &format!("no \"format\": {FORMAT:?}"))),
+    }
+    match value.get("version").and_then(Value::as_u64) {
+        Some(VERSION) => {}
+        _ => {
+            return Err(format!(
+                "error: {}: partial result version {}: this host-sim reads version {VERSION}",
+                path.display(),
+                value.get("version").unwrap_or(&Value::Null)
+            ))
+        }
+    }
+    let part: Part = serde_json::from_value(value)
+        .map_err(|e| format!("error: {}: a damaged partial result: {e}", path.display()))?;
+    let damaged =
+        |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
+    if part.sweep_sha256 != sweep_sha256(&part.machine.sha256, &part.sweep) {
+        return Err(damaged(
+            "sweep_sha256 does not match the machine's hash and the sweep it describes (the file was edited)".into(),
+        ));
+    }
+    if let Some(why) = part.sweep.problem() {
+        return Err(damaged(why));
+    }
+    let Shard { index, count } = part.shard;
+    if count == 0 || index == 0 || index > count {
+        return Err(damaged(format!("shard {index}/{count}: not 1 <= I <= N")));
+    }
+    let all = part.sweep.grid().points();
+    let mine = part.shard.points(all.len());
+    let same = part.runs.len() == mine.len()
+        && part
+            .runs
+            .iter()
+            .zip(&mine)
+            .all(|(r, &k)| r.point == k && (r.speed_rpm, r.offset_deg) == all[k]);
+    if !same {
+        return Err(damaged(format!(
+            "its runs are not the grid points of part {}",
+            part.shard
+        )));
+    }
+    Ok(part)
+}
+
+/// The parts `(file, part)` as one sweep: the first part's, with every grid
+/// point's outcome in grid order. Refused, every problem one line naming the
+/// files: parts of different sweeps (what differs), parts that disagree on N, a
+/// part given twice, a part missing.
+pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), String> {
+    let Some((first_path, first)) = parts.first() else {
+        return Err("error: merge: no parts given\n".into());
+    };
+    let a = first_path.display().to_string();
+    let mut problems = Vec::new();
+    for (path, part) in &parts[1..] {
+        let b = path.display().to_string();
+        let mut differences = Vec::new();
+        if part.machine.sha256 != first.machine.sha256 {
+            differences.push(format!(
+                "the machine file differs (sha256 {} in {a}, {} in {b})",
+                first.machine.sha256, part.machine.sha256
+            ));
+        }
+        differences.extend(first.sweep.differences(&part.sweep, &a, &b));
+        if !differences.is_empty() {
+            problems.push(format!(
+                "error: {b}: a part of another sweep than {a}: {}",
+                differences.join("; ")
+            ));
+        } else if part.shard.count != first.shard.count {
+            problems.push(format!(
+                "error: {b}: part {} but {a} is part {}: the parts disagree on N",
+                part.shard, first.shard
+            ));
+        }
+    }
+    if problems.is_empty() {
+        let count = first.shard.count;
+        let mut seen: Vec<Option<&Path>> = vec![None; count];
+        for (path, part) in parts {
+            match seen[part.shard.index - 1] {
+                Some(other) => problems.push(format!(
+                    "error: {}: part {} again ({} is part {} too)",
+                    path.display(),
+                    part.shard,
+                    other.display(),
+                    part.shard
+                )),
+                None => seen[part.shard.index - 1] = Some(path),
+            }
+        }
+        let missing: Vec<String> = (1..=count)
+            .filter(|i| seen[i - 1].is_none())
+            .map(|i| i.to_string())
+            .collect();
+        if !missing.is_empty() {
+            let given: Vec<String> = seen
+                .iter()
+                .zip(1..)
+                .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
+                .collect();
+            problems.push(format!(
+                "error: merge: part{} {} of {count} missing: given {}; a sweep in {count} parts needs all of them",
+                if missing.len() == 1 { "" } else { "s" },
+                missing.join(", "),
+                given.join(", ")
+            ));
+        }
+    }
+    if !problems.is_empty() {
+        return Err(problems.join("\n") + "\n");
+    }
+    // The grid's own speeds and offsets (equal to the runs', checked by `read`).
+    let all = first.sweep.grid().points();
+    let points = all.len();
+    let mut runs: Vec<Option<RunOutcome>> = vec![None; points];
+    for (_, part) in parts {
+        for r in &part.runs {
+            runs[r.point] = Some(RunOutcome {
+                speed_rpm: all[r.point].0,
+                offset_deg: all[r.point].1,
+                mean_velocity: r.mean_velocity,
+                not_held: r.not_held.clone(),
+                plant_warnings: r.plant_warnings.clone(),
+            });
+        }
+    }
+    // Every point is some part's (each part checked on its own, none missing).
+    let runs = runs.into_iter().flatten().collect::<Vec<_>>();
+    if runs.len() != points {
+        return Err("error: merge: the parts do not cover the grid (an internal error)\n".into());
+    }
+    Ok((first.clone(), runs))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_parse_and_split_the_grid() {
+        assert_eq!(parse_shard("2/3"), Ok(Shard { index: 2, count: 3 }));
+        for bad in ["0/3", "4/3", "1/0", "a/b", "1", "1/2/3", "", "1/10001"] {
+            assert!(parse_shard(bad).is_err(), "{bad}");
+        }
+        // Every point in exactly one part.
+        let parts: Vec<Vec<usize>> = (1..=3)
+            .map(|index| Shard { index, count: 3 }.points(8))
+            .collect();
+        assert_eq!(parts, [vec![0, 3, 6], vec![1, 4, 7], vec![2, 5]]);
+    }
+
+    #[test]
+    fn a_run_reads_back_bit_for_bit() {
+        // Numbers whose shortest form the default parser may read an ulp off.
+        let values = [
+            0.1 + 0.2,
+            2.2250738585072014e-308,
+            5e-324,
+            1.7976931348623157e308,
+            0.026978362416430108,
+            -1.297364141220728e-7,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for v in values {
+            let run = PartRun {
+                point: 0,
+                speed_rpm: 3000.0,
+                offset_deg: 0.1 * 3.0,
+                mean_velocity: v,
+                not_held: None,
+                plant_warnings: vec![],
+            };
+            let back: PartRun =
+                serde_json::from_str(&serde_json::to_string_pretty(&run).unwrap()).unwrap();
+            assert_eq!(back.mean_velocity.to_bits(), v.to_bits(), "{v}");
+            assert_eq!(back.offset_deg.to_bits(), run.offset_deg.to_bits());
+        }
+    }
+}
