@@ -132,6 +132,11 @@ fn merge_refuses_parts_that_are_not_one_whole_sweep() {
         .unwrap()
         .replace("\"t_end\": 4.0", "\"t_end\": 5.0");
     std::fs::write(d.join("edited.json"), edited).unwrap();
+    // A part claiming N beyond any grid (its only run the grid's first point).
+    let mut huge: serde_json::Value = serde_json::from_slice(&bytes(d.join("p1.json"))).unwrap();
+    huge["shard"]["count"] = 100_000_000_000_000u64.into();
+    huge["runs"].as_array_mut().unwrap().truncate(1);
+    std::fs::write(d.join("huge.json"), huge.to_string()).unwrap();
 
     let cases: &[(&[&str], &str)] = &[
         (&["p1.json", "p2.json"], "part 3 of 3 missing"),
@@ -163,6 +168,10 @@ fn merge_refuses_parts_that_are_not_one_whole_sweep() {
         (
             &["p1.json", "p2.json", "edited.json"],
             "edited.json: a damaged partial result: sweep_sha256 does not match",
+        ),
+        (
+            &["huge.json"],
+            "huge.json: a damaged partial result: shard 1/100000000000000: not 1 <= I <= N <= 10000",
         ),
         (&["p1.json", "p2.json", "p4.json"], "p4.json: cannot read"),
         (

@@ -445,8 +445,10 @@ pub fn read(path: &Path) -> Result<Part, String> {
         return Err(damaged(why));
     }
     let Shard { index, count } = part.shard;
-    if count == 0 || index == 0 || index > count {
-        return Err(damaged(format!("shard {index}/{count}: not 1 <= I <= N")));
+    if count == 0 || count > MAX_POINTS || index == 0 || index > count {
+        return Err(damaged(format!(
+            "shard {index}/{count}: not 1 <= I <= N <= {MAX_POINTS}"
+        )));
     }
     let all = part.sweep.grid().points();
     let mine = part.shard.points(all.len());
