@@ -30,6 +30,7 @@ STEPS=(
     test
     run_main
     scripts
+    slurm
     shared_no_std
     firmware_fmt
     firmware_clippy
@@ -119,6 +120,11 @@ step_scripts() {
     grep -q '<polyline' "$dir/fig9.svg"
     python3 scripts/paper-fig8-sweep.py --voltages x 2>/dev/null && return 1
     rm -rf "$dir"
+}
+
+# A sweep in parts through a real single-node Slurm, merged = unsharded.
+step_slurm() {
+    bash scripts/slurm-check.sh
 }
 
 # shared must build for the firmware target: no_std, and no heap (no `alloc`).
