@@ -101,29 +101,35 @@ pub fn events_csv(rows: &[EventRow], ends: &[(String, String, String)]) -> Strin
     out.push_str(EVENTS_HEADER);
     out.push('\n');
     for e in rows {
-        let case = e.case.map(|c| c.to_string()).unwrap_or_default();
-        let (body, against) = ends
-            .iter()
-            .find(|(name, _, _)| *name == e.contact)
-            .map_or(("", ""), |(_, b, a)| (b.as_str(), a.as_str()));
-        // Writing to a String cannot fail.
-        let _ = writeln!(
-            out,
-            "{},{},{},{},{},{},{},{},{},{},{}",
-            csv_number(e.t),
-            e.kind.name(),
-            csv_text(&e.contact),
-            csv_number(e.normal_velocity_before),
-            csv_number(e.normal_velocity_after),
-            csv_number(e.normal_impulse),
-            csv_number(e.tangential_impulse),
-            case,
-            csv_text(&e.detail),
-            csv_text(body),
-            csv_text(against),
-        );
+        event_line(e, ends, &mut out);
     }
     out
+}
+
+/// Appends one line of the `--events` CSV ([`events_csv`]) for `e`, its newline
+/// included; `ends` names each contact's body and the body of its face.
+pub fn event_line(e: &EventRow, ends: &[(String, String, String)], out: &mut String) {
+    let case = e.case.map(|c| c.to_string()).unwrap_or_default();
+    let (body, against) = ends
+        .iter()
+        .find(|(name, _, _)| *name == e.contact)
+        .map_or(("", ""), |(_, b, a)| (b.as_str(), a.as_str()));
+    // Writing to a String cannot fail.
+    let _ = writeln!(
+        out,
+        "{},{},{},{},{},{},{},{},{},{},{}",
+        csv_number(e.t),
+        e.kind.name(),
+        csv_text(&e.contact),
+        csv_number(e.normal_velocity_before),
+        csv_number(e.normal_velocity_after),
+        csv_number(e.normal_impulse),
+        csv_number(e.tangential_impulse),
+        case,
+        csv_text(&e.detail),
+        csv_text(body),
+        csv_text(against),
+    );
 }
 
 #[cfg(test)]

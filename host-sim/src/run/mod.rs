@@ -29,11 +29,11 @@ use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::Machine;
-use crate::output::csv::{events_csv, trace_header, trace_line};
+use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
 use crate::output::text::sig;
 use crate::simulation::closed_loop::ControllerDriver;
-use crate::simulation::trace::TraceRow;
+use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
     limits, simulate_observed, Observer, OpenLoop, OpenLoopDriver, RunOptions,
 };
@@ -222,13 +222,23 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         )?;
     }
 
-    // 2. Simulate, the trace streamed to its file.
+    let ends: Vec<(String, String, String)> = machine
+        .contacts
+        .iter()
+        .map(|c| (c.name.clone(), c.ends.body.clone(), c.ends.against.clone()))
+        .collect();
+    if let Some(i) = events {
+        staged.write(i, &format!("{EVENTS_HEADER}\n"))?;
+    }
+
+    // 2. Simulate, the trace and the events streamed to their files.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
     let mut options = RunOptions::new(t_end);
     options.keep_rows = plot.is_some();
+    options.keep_events = plot.is_some();
     let shape = (contacts, machine.bodies.len());
-    let mut watch = Watch::new(t_end, trace.map(|i| (&mut staged, i)), shape);
+    let mut watch = Watch::new(t_end, &mut staged, (trace, events), shape, &ends);
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
             let given = match open_loop {
@@ -266,15 +276,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     watch.finish()?;
     result.summary.warnings.extend(warnings);
 
-    // 3. Files, then the summary.
-    if let Some(i) = events {
-        let ends: Vec<(String, String, String)> = machine
-            .contacts
-            .iter()
-            .map(|c| (c.name.clone(), c.ends.body.clone(), c.ends.against.clone()))
-            .collect();
-        staged.write(i, &events_csv(&result.events, &ends))?;
-    }
+    // 3. The plot, then the summary.
     if let Some(i) = plot {
         let title = format!("host-sim run {} ({how})", args.machine.path.display());
         staged.write(i, &plot_svg(&result.rows, &result.events, &machine, &title))?;
@@ -299,7 +301,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
 /// Watches a run: streams its trace rows to the trace file, shows progress on a
 /// terminal, and ends the run on Ctrl-C.
 struct Watch<'s> {
-    trace: Option<(&'s mut Staged, usize)>,
+    staged: &'s mut Staged,
+    /// The trace's and the events' files among `staged`'s, if asked for.
+    trace: Option<usize>,
+    events: Option<usize>,
+    /// Each contact's `(name, body, against)`, for the events' columns.
+    ends: &'s [(String, String, String)],
     /// The machine's contacts and bodies after the platform (the trace's columns).
     contacts: usize,
     bodies: usize,
@@ -312,8 +319,10 @@ struct Watch<'s> {
 impl<'s> Watch<'s> {
     fn new(
         t_end: f64,
-        trace: Option<(&'s mut Staged, usize)>,
+        staged: &'s mut Staged,
+        (trace, events): (Option<usize>, Option<usize>),
         (contacts, bodies): (usize, usize),
+        ends: &'s [(String, String, String)],
     ) -> Self {
         interrupt::catch();
         // Progress in ms of simulated time, drawn only when stderr is a terminal.
@@ -327,7 +336,10 @@ impl<'s> Watch<'s> {
             progress.set_style(style);
         }
         Watch {
+            staged,
             trace,
+            events,
+            ends,
             contacts,
             bodies,
             line: String::new(),
@@ -345,10 +357,22 @@ impl<'s> Watch<'s> {
 
 impl Observer for Watch<'_> {
     fn row(&mut self, row: &TraceRow) {
-        if let (Some((staged, i)), None) = (&mut self.trace, &self.error) {
+        if let (Some(i), None) = (self.trace, &self.error) {
             self.line.clear();
             trace_line(row, self.contacts, self.bodies, &mut self.line);
-            if let Err(e) = staged.write(*i, &self.line) {
+            if let Err(e) = self.staged.write(i, &self.line) {
+                self.error = Some(e);
+            }
+        }
+    }
+
+    fn events(&mut self, batch: &[EventRow]) {
+        if let (Some(i), None) = (self.events, &self.error) {
+            self.line.clear();
+            for e in batch {
+                event_line(e, self.ends, &mut self.line);
+            }
+            if let Err(e) = self.staged.write(i, &self.line) {
                 self.error = Some(e);
             }
         }

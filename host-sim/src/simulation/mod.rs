@@ -26,7 +26,7 @@ use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::simulation::summary::SummaryBuilder;
-use crate::simulation::trace::{EventRow, Summary, TraceRow};
+use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
 
 /// What drives the windings, asked at every control tick.
 pub trait Driver {
@@ -129,6 +129,9 @@ pub struct RunOptions {
     /// the rows go only to the [`Observer`] and memory stays bounded however long
     /// the run.
     pub keep_rows: bool,
+    /// Keep every event in [`RunResult::events`] (for a plot, for tests). Off,
+    /// the events go only to the [`Observer`], tick by tick.
+    pub keep_events: bool,
 }
 
 impl RunOptions {
@@ -139,6 +142,7 @@ impl RunOptions {
             settings: Settings::default(),
             holds: Holds::default(),
             keep_rows: true,
+            keep_events: true,
         }
     }
 }
@@ -148,6 +152,9 @@ impl RunOptions {
 pub trait Observer {
     /// A trace row, times ascending.
     fn row(&mut self, _row: &TraceRow) {}
+    /// The events of a control tick (the plant's and the driver's), times
+    /// ascending, each batch after the last.
+    fn events(&mut self, _batch: &[EventRow]) {}
     /// After the control tick that ended at `t`, s: `false` ends the run there
     /// (Ctrl-C, say). Goes on by default.
     fn go_on(&mut self, _t: f64) -> bool {
@@ -193,12 +200,56 @@ pub struct RunResult {
     pub last_row: Option<TraceRow>,
     /// The run ended before `t_end` because the observer said so.
     pub stopped_at: Option<f64>,
-    /// Events, in time order.
+    /// Events, in time order (empty unless [`RunOptions::keep_events`]).
     pub events: Vec<EventRow>,
     /// The summary.
     pub summary: Summary,
     /// Accepted integration steps.
     pub steps: u64,
+}
+
+/// The run's events, taken tick by tick: the plant's and the driver's merged in
+/// time order (the plant's first at equal times), counted, passed on, kept if
+/// asked. Every event of a batch is at or after the last batch's.
+struct Events {
+    kept: Vec<EventRow>,
+    keep: bool,
+    impacts: ImpactCount,
+}
+
+impl Events {
+    fn take(&mut self, plant: &mut Plant, driver: &mut dyn Driver, observer: &mut dyn Observer) {
+        let mut batch = std::mem::take(&mut plant.events);
+        batch.extend(driver.events());
+        if batch.is_empty() {
+            return;
+        }
+        batch.sort_by(|a, b| a.t.total_cmp(&b.t));
+        self.impacts.add(&batch);
+        observer.events(&batch);
+        if self.keep {
+            self.kept.extend(batch);
+        }
+    }
+}
+
+/// The number of distinct impact times of events that come in time order
+/// ([`summary::impact_times`] of them all).
+#[derive(Default)]
+struct ImpactCount {
+    count: usize,
+    last: Option<u64>,
+}
+
+impl ImpactCount {
+    fn add(&mut self, events: &[EventRow]) {
+        for e in events.iter().filter(|e| e.kind == EventKind::Impact) {
+            if self.last != Some(e.t.to_bits()) {
+                self.count += 1;
+                self.last = Some(e.t.to_bits());
+            }
+        }
+    }
 }
 
 /// Collects trace rows from the plant's outputs: into the summary, to the
@@ -291,6 +342,11 @@ pub fn simulate_observed(
     };
     let mut tick: u64 = 0;
     let mut stopped_at = None;
+    let mut events = Events {
+        kept: Vec::new(),
+        keep: options.keep_events,
+        impacts: ImpactCount::default(),
+    };
     loop {
         let t = tick as f64 / rate;
         if t >= options.t_end {
@@ -308,6 +364,7 @@ pub fn simulate_observed(
         tick += 1;
         let t_next = (tick as f64 / rate).min(options.t_end);
         plant.advance_to(t_next, &mut |out| rec.take(out));
+        events.take(&mut plant, driver, rec.observer);
         if t_next < options.t_end && !rec.observer.go_on(t_next) {
             stopped_at = Some(t_next);
             break;
@@ -318,12 +375,10 @@ pub fn simulate_observed(
         rec.push(plant.t, &y, &plant.forces_at(&y));
     }
 
-    // 4. Summary, with the driver's events merged in time order.
-    let mut events = plant.events;
-    events.extend(driver.events());
-    events.sort_by(|a, b| a.t.total_cmp(&b.t));
+    // 4. Summary, the last events first.
+    events.take(&mut plant, driver, rec.observer);
     let mut summary = rec.summary.finish(
-        &events,
+        events.impacts.count,
         driver.commanded_offset_deg(),
         &driver.state(),
         driver.faults(),
@@ -334,7 +389,7 @@ pub fn simulate_observed(
         rows: rec.rows,
         last_row: rec.last,
         stopped_at,
-        events,
+        events: events.kept,
         summary,
         steps: plant.steps,
     }

@@ -210,17 +210,17 @@ impl<'m> SummaryBuilder<'m> {
         self.last = Some(*row);
     }
 
-    /// The summary (see [`summarize`]).
+    /// The summary (see [`summarize`]), with `impacts` the number of distinct
+    /// impact times.
     pub fn finish(
         mut self,
-        events: &[EventRow],
+        impacts: usize,
         commanded_offset_deg: Option<f64>,
         state: &str,
         faults: Vec<String>,
         mut warnings: Vec<String>,
     ) -> Summary {
         let machine = self.machine;
-        let impacts = impact_times(events).len();
         let rotors = machine.rotors.len();
         let two = machine.rotors.rotor2().is_some();
         let (Some(first), Some(last)) = (self.first, self.last) else {
@@ -346,7 +346,13 @@ pub fn summarize(
     for r in rows {
         builder.push(r);
     }
-    builder.finish(events, commanded_offset_deg, state, faults, warnings)
+    builder.finish(
+        impact_times(events).len(),
+        commanded_offset_deg,
+        state,
+        faults,
+        warnings,
+    )
 }
 
 #[cfg(test)]
