@@ -77,6 +77,7 @@ pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
     let mut driver = ScenarioDriver::new(scenario)?;
     let mut options = RunOptions::new(scenario.t_end);
     options.keep_rows = false;
+    options.keep_events = false;
     let result = simulate_observed(
         &scenario.machine,
         &mut driver,
