@@ -13,13 +13,13 @@ Usage (from the repository root, a venv with `pip install mujoco numpy`):
   python benchmarks/mujoco/reference_machine.py calibrate examples/vibro-driver.toml
       drop test of one foot: the damping ratio that gives each contact's restitution
   python benchmarks/mujoco/reference_machine.py run examples/vibro-driver.toml \
-          --speed 3000 --offset 90 --step 2e-5 [--t-end 10] [--format table|json]
+          --speed 3000 --offset 90 --step 1e-4 [--t-end 10] [--format table|json]
       one run: mean velocity over the second half, like `host-sim run ... --format json`
   python benchmarks/mujoco/reference_machine.py converge examples/vibro-driver.toml \
           --speed 3000 --offsets 90,120 --steps 1e-4,5e-5,2e-5,1e-5
       the mean travel speed at each time step (pick the largest within ~2 % of the finest)
   python benchmarks/mujoco/reference_machine.py bench examples/vibro-driver.toml \
-          --host-sim target/release/host-sim --step 2e-5 [--repeats 5] [--cpu 1]
+          --host-sim target/release/host-sim --step 1e-4 [--repeats 5] [--cpu 1]
       wall time of host-sim and of MuJoCo, alternating, both pinned to one core
 
 Conventions. The plane of motion (x right, y up) is MuJoCo's x-z plane; angles
@@ -422,8 +422,8 @@ def build_parser():
         sp.add_argument("--kv", type=_positive_float("--kv"), default=None,
                         help="rotor servo damping, N m s/rad (default: critical for kp)")
         if step:
-            sp.add_argument("--step", type=_positive_float("--step"), default=2e-5,
-                            help="MuJoCo time step, s (default 2e-5)")
+            sp.add_argument("--step", type=_positive_float("--step"), default=1e-4,
+                            help="MuJoCo time step, s (default 1e-4: benchmarks/plant.md, \"MuJoCo side by side\")")
 
     sp = sub.add_parser("xml", help="print or write the MJCF")
     common(sp)
