@@ -111,7 +111,7 @@ step_run_main() {
 step_scripts() {
     local dir
     dir="$(mktemp -d)"
-    python3 -c 'import ast, sys; [ast.parse(open(f).read(), f) for f in sys.argv[1:]]' scripts/*.py
+    python3 -c 'import ast, sys; [ast.parse(open(f).read(), f) for f in sys.argv[1:]]' scripts/*.py benchmarks/mujoco/*.py
     cargo run --quiet --release -p host-sim -- run examples/paper-fig8.toml \
         --command right --speed 3000 --t-end 0.5 --format json \
         --out "$dir/trace.csv" --events "$dir/events.csv" >/dev/null
