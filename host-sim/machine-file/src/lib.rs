@@ -219,6 +219,8 @@ pub struct Simulation {
     pub output_step: f64,
     /// Seed of every noise source.
     pub seed: u64,
+    /// The integrator's relative tolerance (docs/plant-model.md, "Integration").
+    pub rtol: f64,
 }
 
 /// A checked machine file.
@@ -418,6 +420,12 @@ pub const DEFAULT_T_END: f64 = 10.0;
 pub const DEFAULT_OUTPUT_STEP: f64 = 1.0e-3;
 /// Default `[simulation].seed`.
 pub const DEFAULT_SEED: i64 = 1;
+/// Default `[simulation].rtol`: the integrator's relative tolerance.
+pub const DEFAULT_RTOL: f64 = 1.0e-8;
+/// The range of `[simulation].rtol`: below 1e-12 the positions' absolute
+/// tolerance (1e-3 rtol m) nears the rounding of f64 coordinates; above 1e-5 the
+/// travel speed's convergence is not measured (benchmarks/plant.md).
+pub const RTOL_RANGE: (f64, f64) = (1.0e-12, 1.0e-5);
 /// How far below the fundament a contact point may lie at `t = 0`, m: far above the
 /// rounding of positions a generator computes on a tilted fundament (1e-17 m at
 /// these sizes), far below any real mistake.
@@ -847,7 +855,8 @@ fn read_controller(s: &Section, dir: &Path) -> Option<ControllerSettings> {
     })
 }
 
-/// `[simulation]`: t_end > 0, output step > 0, seed a non-negative integer.
+/// `[simulation]`: t_end > 0, output step > 0, seed a non-negative integer, rtol
+/// within [`RTOL_RANGE`].
 fn read_simulation(s: &Section) -> Option<Simulation> {
     let t_end = s.number("t_end", Need::Default(DEFAULT_T_END), Limit::Positive);
     let output_step = s.number(
@@ -856,12 +865,18 @@ fn read_simulation(s: &Section) -> Option<Simulation> {
         Limit::Positive,
     );
     let seed = s.integer("seed", Need::Default(DEFAULT_SEED), Limit::NonNegative);
+    let rtol = s.number(
+        "rtol",
+        Need::Default(DEFAULT_RTOL),
+        Limit::Between(RTOL_RANGE.0, RTOL_RANGE.1),
+    );
     s.finish();
     Some(Simulation {
         t_end: t_end?,
         output_step: output_step?,
         // An i64 >= 0 always fits a u64.
         seed: u64::try_from(seed?).ok()?,
+        rtol: rtol?,
     })
 }
 

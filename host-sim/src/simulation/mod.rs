@@ -135,6 +135,14 @@ pub struct RunOptions {
 }
 
 impl RunOptions {
+    /// A run of `machine` to `t_end`: the default settings with the machine
+    /// file's `[simulation].rtol`, nothing held.
+    pub fn of(machine: &Machine, t_end: f64) -> Self {
+        let mut options = RunOptions::new(t_end);
+        options.settings.rtol = machine.simulation.rtol;
+        options
+    }
+
     /// A run to `t_end` with the default settings, nothing held.
     pub fn new(t_end: f64) -> Self {
         RunOptions {
