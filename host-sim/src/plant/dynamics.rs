@@ -401,8 +401,6 @@ pub struct Frame {
     pub mass: [[f64; MAX_DOF]; MAX_DOF],
     /// Where the bodies are.
     pub pose: Pose,
-    /// The configuration.
-    q: Vector,
     /// Coordinates: all, the bodies' (the rotors' follow).
     n: usize,
     nb: usize,
@@ -428,13 +426,11 @@ impl Frame {
     /// by the identity, so that no force or impulse moves them; [`Frame::mass`]
     /// stays the true mass matrix).
     pub fn locked(model: &PlantModel, q: &Vector, locked: &[bool; MAX_DOF]) -> Self {
-        let mut f = Self::new(model, q);
-        f.hold(locked);
-        f
+        Self::assemble(model, q, locked, None).0
     }
 
     /// [`Frame::locked`] with the generalized forces at velocities `v` and motor
-    /// torques `tau` ([`Frame::forces`]), assembled in the same pass.
+    /// torques `tau` ([`Frame::with_forces`]), assembled in the same pass.
     pub fn locked_with_forces(
         model: &PlantModel,
         q: &Vector,
@@ -442,15 +438,13 @@ impl Frame {
         v: &Vector,
         tau: &[f64],
     ) -> (Self, Vector) {
-        let (mut f, forces) = Self::assemble(model, q, Some((v, tau)));
-        f.hold(locked);
-        (f, forces)
+        Self::assemble(model, q, locked, Some((v, tau)))
     }
 
     /// Holds the coordinates marked in `locked` ([`Frame::locked`]).
     fn hold(&mut self, locked: &[bool; MAX_DOF]) {
-        let f = self;
         if locked.iter().any(|l| *l) {
+            let f = self;
             let mut m = f.mass;
             for i in 0..f.n {
                 if locked[i] {
@@ -470,22 +464,31 @@ impl Frame {
 
     /// The configuration-dependent terms at `q`.
     pub fn new(model: &PlantModel, q: &Vector) -> Self {
-        Self::assemble(model, q, None).0
+        Self::assemble(model, q, &[false; MAX_DOF], None).0
     }
 
-    /// [`Frame::new`] with the generalized forces at velocities `v` and motor
-    /// torques `tau` ([`Frame::forces`]), assembled in the same pass over the
-    /// point masses (each one's chain and columns built once).
+    /// [`Frame::new`] with the generalized forces without contacts at velocities
+    /// `v` and motor torques `tau`: gravity, the motor torques (on each `phi_k`,
+    /// N m), the joints' spring-dampers, minus the velocity-product terms,
+    ///
+    /// ```text
+    ///   Q = sum_e J_e^T m_e (g - b_e) + Q_spring + tau on phi
+    /// ```
+    ///
+    /// (on a free root's `x, y`: its tree's weight plus `sum_e m_e (a_e - g)`,
+    /// `a_e = g - b_e`), assembled in the same pass over the point masses as the
+    /// mass matrix (each one's chain and columns built once).
     pub fn with_forces(model: &PlantModel, q: &Vector, v: &Vector, tau: &[f64]) -> (Self, Vector) {
-        Self::assemble(model, q, Some((v, tau)))
+        Self::assemble(model, q, &[false; MAX_DOF], Some((v, tau)))
     }
 
-    /// The frame at `q` and, given `(v, tau)`, the generalized forces (zero
-    /// without). Each sum is taken in the same order as [`Frame::forces`] alone
-    /// takes it, so the numbers are the same to the bit.
+    /// The frame at `q` with the coordinates `locked` held ([`Frame::locked`])
+    /// and, given `(v, tau)`, the generalized forces ([`Frame::with_forces`];
+    /// zero without).
     fn assemble(
         model: &PlantModel,
         q: &Vector,
+        locked: &[bool; MAX_DOF],
         motion: Option<(&Vector, &[f64])>,
     ) -> (Self, Vector) {
         let pose = Pose::new(model, q);
@@ -497,7 +500,6 @@ impl Frame {
         let mut frame = Frame {
             mass: [[0.0; MAX_DOF]; MAX_DOF],
             pose,
-            q: *q,
             n,
             nb,
             factor: [[0.0; MAX_DOF]; MAX_DOF],
@@ -557,6 +559,7 @@ impl Frame {
         if let Some((v, _)) = motion {
             add_spring_forces(model, q, v, &mut forces);
         }
+        frame.hold(locked);
         (frame, forces)
     }
 
@@ -619,25 +622,6 @@ impl Frame {
             return x;
         }
         cholesky_solve(&self.factor, b, n, &self.locked)
-    }
-
-    /// Generalized forces without contacts: gravity, the rotors' motor torques
-    /// `tau` (on each `phi_k`, N m), the joints' spring-dampers, minus the
-    /// velocity-product terms.
-    ///
-    /// `Q = sum_e J_e^T m_e (g - b_e) + Q_spring + tau on phi`; on a free root's
-    /// `x, y` this is its tree's weight plus `sum_e m_e (a_e - g)` with
-    /// `a_e = g - b_e`.
-    pub fn forces(&self, model: &PlantModel, v: &Vector, tau: &[f64]) -> Vector {
-        let mut f = root_weights(model);
-        for i in 0..model.bodies.len() + model.rotors.len() {
-            let e = &element(model, &self.pose, &self.eps, i);
-            let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
-            let nc = e.chain.columns(&mut cols);
-            add_element_forces(model, e, &cols[..nc], v, tau, &mut f);
-        }
-        add_spring_forces(model, &self.q, v, &mut f);
-        f
     }
 
     /// Kinetic energy `q'^T M q' / 2`, J.

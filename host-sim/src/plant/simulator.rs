@@ -182,8 +182,11 @@ pub struct Plant {
     pub model: PlantModel,
     /// Numerical settings.
     pub settings: Settings,
-    /// Coordinates held still.
-    pub holds: Holds,
+    /// Coordinates held still ([`Plant::set_jam`] changes them).
+    holds: Holds,
+    /// The coordinates `holds` holds ([`Holds::mask`]), kept with them: the mass
+    /// matrix's factor and the forces of every evaluation need them.
+    held: [bool; MAX_DOF],
     /// Time, s.
     pub t: f64,
     /// State `(q, q', i)`.
@@ -232,10 +235,12 @@ impl Plant {
             .map(|r| DcMotor::new(r.motor.clone()))
             .collect();
         let n = model.contacts.len();
+        let held = holds.mask(&model);
         let mut plant = Plant {
             model,
             settings,
             holds,
+            held,
             t: 0.0,
             y,
             modes: vec![ContactMode::Open; n],
@@ -357,6 +362,7 @@ impl Plant {
     pub fn set_jam(&mut self, k: usize, jammed: bool) {
         if self.holds.jammed[k] != jammed {
             self.holds.jammed[k] = jammed;
+            self.held = self.holds.mask(&self.model);
             if jammed {
                 self.y[self.model.dof + self.model.rotors[k].phi] = 0.0;
             }
@@ -430,23 +436,13 @@ impl Plant {
 
     /// The configuration terms at `q` with the holds applied.
     fn frame(&self, q: &Vector) -> Frame {
-        let mask = self.holds.mask(&self.model);
-        if mask.contains(&true) {
-            Frame::locked(&self.model, q, &mask)
-        } else {
-            Frame::new(&self.model, q)
-        }
+        Frame::locked(&self.model, q, &self.held)
     }
 
     /// [`Plant::frame`] and the generalized forces at velocities `v` and motor
-    /// torques `tau` ([`Frame::forces`]), in one pass.
+    /// torques `tau` ([`Frame::with_forces`]), in one pass.
     fn frame_with_forces(&self, q: &Vector, v: &Vector, tau: &[f64]) -> (Frame, Vector) {
-        let mask = self.holds.mask(&self.model);
-        if mask.contains(&true) {
-            Frame::locked_with_forces(&self.model, q, &mask, v, tau)
-        } else {
-            Frame::with_forces(&self.model, q, v, tau)
-        }
+        Frame::locked_with_forces(&self.model, q, &self.held, v, tau)
     }
 
     /// Adds a warning once.
@@ -658,9 +654,8 @@ impl Plant {
         let e = self.evaluate(&self.y);
         let mut acc = [0.0; MAX_DOF];
         acc[..n].copy_from_slice(&e.ydot[n..2 * n]);
-        let frame = Frame::new(&self.model, &q);
         let (tau, _) = self.motor_rates(&self.y, &v);
-        let mut f = frame.forces(&self.model, &v, &tau);
+        let (frame, mut f) = Frame::with_forces(&self.model, &q, &v, &tau);
         // Contact forces: J^T lambda.
         for j in 0..self.modes.len() {
             if self.modes[j].closed() {
@@ -670,9 +665,8 @@ impl Plant {
                 }
             }
         }
-        let mask = self.holds.mask(&self.model);
         core::array::from_fn(|i| {
-            if !mask[i] {
+            if !self.held[i] {
                 return 0.0;
             }
             (0..n).map(|j| frame.mass[i][j] * acc[j]).sum::<f64>() - f[i]

@@ -7,7 +7,7 @@
 //! step), located by Illinois false position on the dense output
 //! ([`Plant::locate`]).
 
-use super::super::dynamics::{ContactKinematics, Pose};
+use super::super::dynamics::{ContactKinematics, Pose, Vector};
 use super::super::integrator::Step;
 use super::super::motor::Winding;
 use super::{ContactMode, Plant, NY};
@@ -39,6 +39,15 @@ pub(super) struct Crossing {
     pub(super) t: f64,
     pub(super) y: [f64; NY],
     pub(super) current_only: bool,
+}
+
+/// Where an event function gets its contacts' kinematics: a pose (and the
+/// velocities) its caller built once for all the functions at a state, or built
+/// from the state for the one function asked for.
+#[derive(Clone, Copy)]
+pub(super) enum Kinematics<'a> {
+    Pose(&'a Pose, &'a Vector),
+    FromState,
 }
 
 impl Plant {
@@ -80,22 +89,31 @@ impl Plant {
     pub(super) fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
+        // One pose for every contact's kinematics at `y`.
+        let v = self.model.v(y);
+        let pose = Pose::new(&self.model, &self.model.q(y));
+        let at = Kinematics::Pose(&pose, &v);
         (0..2 * self.modes.len() + self.model.rotors.len())
-            .map(|i| self.event_value(self.watch(i), y, ev.as_ref()))
+            .map(|i| self.event_value(self.watch(i), y, at, ev.as_ref()))
             .collect()
     }
 
-    /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `ev`
-    /// the evaluation at `y` where the caller has it, else the contact forces are
-    /// computed here, and only for the functions that need them (a normal force,
-    /// a cone): locating a gap's or a slip's zero solves no contact problem.
+    /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `at`
+    /// the pose there where the caller has it; `ev` the evaluation at `y` where
+    /// the caller has it, else the contact forces are computed here, and only for
+    /// the functions that need them (a normal force, a cone): locating a gap's or
+    /// a slip's zero solves no contact problem.
     pub(super) fn event_value(
         &self,
         watch: Watch,
         y: &[f64; NY],
+        at: Kinematics<'_>,
         ev: Option<&super::forces::Evaluation>,
     ) -> f64 {
-        let kinematics = |j| self.contact_at(y, j);
+        let kinematics = |j| match at {
+            Kinematics::Pose(pose, v) => pose.contact(&self.model, j, v),
+            Kinematics::FromState => self.contact_at(y, j),
+        };
         let forces = |j: usize| match ev {
             Some(e) => (e.lambda_n[j], e.lambda_t[j]),
             None => {
@@ -165,7 +183,7 @@ impl Plant {
         let mut mid: Option<Vec<f64>> = None;
         for i in 0..ev0.len() {
             let watch = self.watch(i);
-            let f = |y: &[f64; NY]| self.event_value(watch, y, None);
+            let f = |y: &[f64; NY]| self.event_value(watch, y, Kinematics::FromState, None);
             let mut consider = |te: f64| consider_kind(te, false);
             if ev0[i] > 0.0 && ev1[i] <= 0.0 {
                 let te = self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]);

@@ -19,7 +19,7 @@ use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
 use super::super::model::MAX_DOF;
-use super::{ContactMode, Holds, Plant, NY};
+use super::{ContactMode, Plant, NY};
 
 /// An evaluation with the state and modes it was made at.
 pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
@@ -69,11 +69,9 @@ impl Plant {
         let v = self.model.v(y);
         let (tau, di) = self.motor_rates(y, &v);
         let (frame, mut f) = self.frame_with_forces(&q, &v, &tau);
-        if self.holds != Holds::default() {
-            for (i, held) in self.holds.mask(&self.model).iter().enumerate() {
-                if *held {
-                    f[i] = 0.0;
-                }
+        for (fi, held) in f.iter_mut().zip(self.held) {
+            if held {
+                *fi = 0.0;
             }
         }
         let mut acc = frame.solve(&f);
