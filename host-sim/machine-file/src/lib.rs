@@ -543,10 +543,15 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let contacts = contacts.and_then(|list| check_contacts(&root, list));
     let rotors = rotors.and_then(|list| check_rotors(&root, list));
 
-    // Stage 6: the bodies, joints and contact ends together; the geometry at
-    // t = 0; the bridges against the control rate.
+    // Stage 6: the geometry at t = 0 against the fundament; the bridges against
+    // the control rate; the bodies, joints and contact ends together. Each check
+    // runs whatever else is wrong, so that every problem is reported at once.
     let fundament = fundament?;
     let mut contacts = contacts?;
+    check_gaps(&root, &fundament, &contacts);
+    if let (Some(d), Some(c)) = (&drive, &controller) {
+        check_update_rate(&root, d.bridge, c.rate_hz);
+    }
     let (further, joints) = (further?, joints?);
     let rotors = rotors?;
     let mut ends: Vec<ContactEnds> = contacts.iter().map(|c| c.ends.clone()).collect();
@@ -557,10 +562,6 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
         && bodies::check_size_and_motion(&root, platform.as_ref(), &further, &joints, rotors.len());
     for (c, e) in contacts.iter_mut().zip(ends) {
         c.ends = e;
-    }
-    check_gaps(&root, &fundament, &contacts);
-    if let (Some(d), Some(c)) = (&drive, &controller) {
-        check_update_rate(&root, d.bridge, c.rate_hz);
     }
 
     let further = further

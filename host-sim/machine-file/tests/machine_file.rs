@@ -248,6 +248,35 @@ fn a_contact_exactly_on_the_fundament_is_accepted() {
     load(MINIMAL, &["contacts.K1.point=[-0.08, 1e-3]"]).unwrap();
 }
 
+/// Every problem at once: a geometry problem (a foot below the fundament) and a
+/// bridge against the control rate are reported beside a bad rotor and a bad
+/// body, not hidden by them.
+#[test]
+fn problems_of_every_stage_are_reported_together() {
+    let text = reference_text()
+        + "\n[[bodies]]\nname = \"element\"\nmass = -1.0\ninertia = 2e-5\nposition = [0.1, 0.2]\n";
+    let problems = refused(
+        &text,
+        &[
+            "contacts.K1.point=[-0.08, -0.01]",
+            "rotors.left.eccentric_mass=-1",
+            "drive.pwm_hz=100",
+        ],
+    );
+    let text = render(&problems);
+    for key in [
+        "contacts[0].point",
+        "rotors[0].eccentric_mass",
+        "bodies[0].mass",
+        "drive.pwm_hz",
+    ] {
+        assert!(
+            text.contains(&format!("{key}:")),
+            "{key} not reported:\n{text}"
+        );
+    }
+}
+
 // ---------------------------------------------------------------------------------
 // Refusals: each names its key. Every case is checked twice: with the value written in
 // the file, and with the reference file and the value on the command line.
