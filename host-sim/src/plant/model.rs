@@ -510,7 +510,8 @@ impl PlantModel {
     }
 
     /// The trace row of state `y` at `t` with duties `duty` and the contact
-    /// forces `forces` at that state; a rotor the machine does not have reads 0.
+    /// forces `forces` at that state; a rotor the machine does not have reads 0,
+    /// its duty included (the spec's trace keeps its columns).
     pub fn row(&self, t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
         let n = self.dof;
         let [x, yc, angle, vx, vy, omega] = self.body_motion(0, y);
@@ -538,7 +539,7 @@ impl PlantModel {
             i1,
             i2,
             duty1: duty[0],
-            duty2: duty[1],
+            duty2: if self.rotors.len() > 1 { duty[1] } else { 0.0 },
             normal_force: forces.normal,
             tangential_force: forces.tangential,
             bodies,

@@ -134,7 +134,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            rtol: 1e-8,
+            rtol: crate::machine::DEFAULT_RTOL,
             max_step: 1e-3,
             together_gap: 1e-7,
             zeno_velocity: 1e-6,

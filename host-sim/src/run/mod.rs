@@ -234,7 +234,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 2. Simulate, the trace and the events streamed to their files.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
-    let mut options = RunOptions::of(&machine, t_end);
+    let mut options = RunOptions::new(t_end);
     options.keep_rows = plot.is_some();
     options.keep_events = plot.is_some();
     let shape = (contacts, machine.bodies.len());

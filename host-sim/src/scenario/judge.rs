@@ -75,7 +75,7 @@ impl Report {
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
     // 1.-3. Simulate with the scenario's driver.
     let mut driver = ScenarioDriver::new(scenario)?;
-    let mut options = RunOptions::of(&scenario.machine, scenario.t_end);
+    let mut options = RunOptions::new(scenario.t_end);
     options.keep_rows = false;
     options.keep_events = false;
     let result = simulate_observed(

@@ -12,9 +12,10 @@
 //!    and just before and after each event;
 //! 4. summarize ([`crate::simulation::summary`]).
 //!
-//! A machine with one rotor: the plant is called as for two, with rotor 2's
-//! H-bridge always off (`BridgeCommand::Off`); the trace's rotor 2 columns
-//! (`phi2`, `omega2`, `i2`, `duty2`) are written 0 whatever the plant holds there.
+//! A machine with one rotor: its driver commands rotor 2's H-bridge off
+//! (`BridgeCommand::Off`), and the plant, which has no rotor 2, writes the
+//! trace's rotor 2 columns (`phi2`, `omega2`, `i2`, `duty2`) as 0
+//! ([`crate::plant::model::PlantModel::row`]).
 
 pub mod closed_loop;
 pub mod limits;
@@ -121,7 +122,8 @@ impl Driver for OpenLoopDriver {
 pub struct RunOptions {
     /// End time, s.
     pub t_end: f64,
-    /// Numerical settings of the plant.
+    /// Numerical settings of the plant; its `rtol` is the machine file's
+    /// `[simulation].rtol`, like the file's output step and seed.
     pub settings: Settings,
     /// Coordinates held still (tests only; the command holds nothing).
     pub holds: Holds,
@@ -135,14 +137,6 @@ pub struct RunOptions {
 }
 
 impl RunOptions {
-    /// A run of `machine` to `t_end`: the default settings with the machine
-    /// file's `[simulation].rtol`, nothing held.
-    pub fn of(machine: &Machine, t_end: f64) -> Self {
-        let mut options = RunOptions::new(t_end);
-        options.settings.rtol = machine.simulation.rtol;
-        options
-    }
-
     /// A run to `t_end` with the default settings, nothing held.
     pub fn new(t_end: f64) -> Self {
         RunOptions {
@@ -274,8 +268,6 @@ struct Recorder<'r, 'm> {
     /// Index of the next regular output time `k * output_step`.
     next: u64,
     duty: [f64; 2],
-    /// The machine has one rotor: rotor 2's columns are written 0.
-    one_rotor: bool,
 }
 
 impl Recorder<'_, '_> {
@@ -298,11 +290,7 @@ impl Recorder<'_, '_> {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        let mut row = self.model.row(t, y, self.duty, forces);
-        if self.one_rotor {
-            // No rotor 2: its columns stay (the spec's trace has them), as 0.
-            (row.phi2, row.omega2, row.i2, row.duty2) = (0.0, 0.0, 0.0, 0.0);
-        }
+        let row = self.model.row(t, y, self.duty, forces);
         self.summary.push(&row);
         self.observer.row(&row);
         if self.keep_rows {
@@ -327,12 +315,11 @@ pub fn simulate_observed(
 ) -> RunResult {
     // 1. The plant.
     let model = PlantModel::new(machine);
-    let mut plant = Plant::new(
-        model,
-        initial_state(machine),
-        options.settings,
-        options.holds,
-    );
+    let settings = Settings {
+        rtol: machine.simulation.rtol,
+        ..options.settings
+    };
+    let mut plant = Plant::new(model, initial_state(machine), settings, options.holds);
 
     // 2.-3. Tick by tick.
     let rate = machine.controller.rate_hz;
@@ -346,7 +333,6 @@ pub fn simulate_observed(
         output_step: machine.simulation.output_step,
         next: 0,
         duty: [0.0; 2],
-        one_rotor: machine.rotors.rotor2().is_none(),
     };
     let mut tick: u64 = 0;
     let mut stopped_at = None;

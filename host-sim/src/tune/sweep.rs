@@ -222,7 +222,7 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         }
     };
     driver.record_history(true);
-    let mut options = RunOptions::of(machine, t_end);
+    let mut options = RunOptions::new(t_end);
     options.keep_rows = false;
     options.keep_events = false;
     let result = simulate_observed(machine, &mut driver, &options, &mut Interruptible::new());
