@@ -22,8 +22,8 @@ use clap::Args;
 use super::part;
 use super::report::count;
 use super::{
-    conclude, load_machine, progress_bar, refuse_interrupted, table_problems, warning_count,
-    Report, TuneOutputs,
+    conclude, load_machine, progress_bar, read_machine_file, refuse_interrupted, table_problems,
+    warning_count, Report, TuneOutputs,
 };
 use crate::failure::{Console, Failure};
 
@@ -65,10 +65,10 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         .machine
         .clone()
         .unwrap_or_else(|| PathBuf::from(&first.machine.path));
-    let bytes = std::fs::read(&path).map_err(|e| {
+    let (text, sha256) = read_machine_file(&path).map_err(|e| {
         Failure::Usage(format!(
-            "error: {}: cannot read the machine file the parts were made from: {e}{}",
-            path.display(),
+            "{}: the machine file the parts were made from{}",
+            e.trim_end(),
             if args.machine.is_none() {
                 " (give its path with --machine)"
             } else {
@@ -76,7 +76,6 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             }
         ))
     })?;
-    let sha256 = part::sha256_hex(&bytes);
     if sha256 != first.machine.sha256 {
         return Err(Failure::Usage(format!(
             "error: {}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
@@ -84,7 +83,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             first.machine.sha256
         )));
     }
-    let machine = load_machine(&path, &first.sweep.set).map_err(Failure::Usage)?;
+    let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
     let grid = first.sweep.grid();
     if args.output.write.is_some() {
         let problems = table_problems(&grid.speeds_rpm, &first.sweep.speeds);
@@ -100,9 +99,9 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let grid_runs = runs.len();
     let tuning = conclude(&machine, grid, runs, &progress);
     progress.finish_and_clear();
-    refuse_interrupted("the check runs are incomplete")?;
+    refuse_interrupted("merge", "the check runs are incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
-    report.finish(&tuning, &first.sweep.request(&first.machine.path), console)?;
+    report.finish(&tuning, &first.sweep.request(&first.machine), console)?;
     console.note(&format!(
         "merge: {} of {grid_runs} grid runs, {} in {:.1} s on {}{}\n",
         count(first.shard.count, "part"),

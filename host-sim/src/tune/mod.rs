@@ -124,6 +124,8 @@ pub struct TuneOutputs {
 pub struct Request {
     /// The machine file as named on the command line.
     pub machine_path: PathBuf,
+    /// The SHA-256 of the machine file's text that was checked and run.
+    pub machine_sha256: String,
     /// The `--set` overrides, in order.
     pub set: Vec<String>,
     /// `--speeds` as given, or the default range's text.
@@ -172,7 +174,8 @@ pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 /// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
 /// asked for (for the outputs).
 fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
-    let machine = load_machine(&args.machine.path, &args.set.keys)?;
+    let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
+    let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
     let params = match closed_loop::params(&machine) {
         Ok(p) => p,
         Err(problems) => return Err(input::render(&problems)),
@@ -264,6 +267,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
             },
             Request {
                 machine_path: args.machine.path.clone(),
+                machine_sha256,
                 set: args.set.keys.clone(),
                 speeds_text,
                 offsets_text,
@@ -276,8 +280,19 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
 /// The machine of a sweep: `path` with the `--set` overrides, refused when it has
 /// one rotor, its tuning table dropped (the sweep holds explicit offsets, so a
 /// missing or stale table must not stop its own regeneration).
-pub(crate) fn load_machine(path: &Path, set: &[String]) -> Result<Machine, String> {
-    let mut machine = match Machine::load(path, set) {
+/// The machine file's text and the SHA-256 of it: read once, so that the hash a
+/// partial result names is of the very text checked and run.
+pub(crate) fn read_machine_file(path: &Path) -> Result<(String, String), String> {
+    let text = input::read_text(path).map_err(|p| input::render(&[p]))?;
+    let sha256 = part::sha256_hex(text.as_bytes());
+    Ok((text, sha256))
+}
+
+/// The machine of file `path` (its `text`) with the `--set`s `set`, as tune
+/// runs it: two rotors, no tuning table.
+pub(crate) fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, String> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut machine = match Machine::from_text(&path.display().to_string(), text, dir, set) {
         Ok(m) => m,
         Err(problems) => return Err(input::render(&problems)),
     };
@@ -336,7 +351,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let progress = progress_bar("tune", grid.speeds_rpm.len() * grid.offsets_deg.len());
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
-    refuse_interrupted("the sweep is incomplete")?;
+    refuse_interrupted("tune", "the sweep is incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
 
     // 5. Files, then the result.
@@ -363,12 +378,12 @@ pub(crate) fn progress_bar(name: &str, total: usize) -> ProgressBar {
     progress
 }
 
-/// A failure when Ctrl-C stopped the runs (`what` is what that left undone):
-/// nothing is written then.
-pub(crate) fn refuse_interrupted(what: &str) -> Result<(), Failure> {
+/// A failure of `command` (`tune`, `merge`) when Ctrl-C stopped the runs (`what`
+/// is what that left undone): nothing is written then.
+pub(crate) fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
     if crate::interrupt::interrupted() {
         return Err(Failure::Run(format!(
-            "error: tune: interrupted (Ctrl-C): {what}, nothing written"
+            "error: {command}: interrupted (Ctrl-C): {what}, nothing written"
         )));
     }
     Ok(())

@@ -30,7 +30,7 @@ use sha2::{Digest, Sha256};
 use super::sweep::{run_points, Grid, RunOutcome};
 use super::{progress_bar, refuse_interrupted, Request, TuneArgs, MAX_POINTS};
 use crate::failure::{Console, Failure};
-use crate::machine::Machine;
+use crate::machine::{input, Machine};
 use crate::output::file::Staged;
 use crate::output::text;
 
@@ -234,10 +234,12 @@ impl Sweep {
         }
     }
 
-    /// How it was asked for, with the machine file as `tune` named it.
-    pub fn request(&self, machine_path: &str) -> Request {
+    /// How it was asked for, with the machine file as `tune` named it and its
+    /// SHA-256.
+    pub fn request(&self, machine: &MachineFile) -> Request {
         Request {
-            machine_path: PathBuf::from(machine_path),
+            machine_path: PathBuf::from(&machine.path),
+            machine_sha256: machine.sha256.clone(),
             set: self.set.clone(),
             speeds_text: self.speeds.clone(),
             offsets_text: self.offsets.clone(),
@@ -328,12 +330,6 @@ pub(crate) fn run_shard(
     request: &Request,
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
-    let bytes = std::fs::read(&request.machine_path).map_err(|e| {
-        Failure::Usage(format!(
-            "error: {}: cannot read: {e}",
-            request.machine_path.display()
-        ))
-    })?;
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
     let output = staged.add(&out)?;
@@ -345,10 +341,10 @@ pub(crate) fn run_shard(
     let progress = progress_bar("tune", points.len());
     let runs = run_points(machine, &points, grid.t_end, &progress);
     progress.finish_and_clear();
-    refuse_interrupted("the part is incomplete")?;
+    refuse_interrupted("tune", "the part is incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
 
-    let machine_sha256 = sha256_hex(&bytes);
+    let machine_sha256 = request.machine_sha256.clone();
     let sweep = Sweep::new(&grid, request);
     let part = Part {
         format: FORMAT.into(),
@@ -408,8 +404,7 @@ fn not_a_part(path: &Path, why: &str) -> String {
 /// version, its fields, its `sweep_sha256`, its shard, and that its runs are
 /// exactly its grid points.
 pub fn read(path: &Path) -> Result<Part, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("error: {}: cannot read: {e}", path.display()))?;
+    let text = input::read_text(path).map_err(|p| input::render(&[p]).trim_end().to_string())?;
     let value: Value =
         serde_json::from_str(&text).map_err(|e| not_a_part(path, &format!("not JSON ({e})")))?;
     match value.get("format") {
