@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 
 use shared::impact::MAX_CONTACTS;
 
+use crate::machine::MachineContact;
 use crate::simulation::trace::{EventRow, TraceRow};
 
 /// The trace CSV's columns that every machine has (spec `machine.md`, `--out`);
@@ -93,27 +94,17 @@ pub fn trace_line(r: &TraceRow, contacts: usize, bodies: usize, out: &mut String
     out.push('\n');
 }
 
-/// The `--events` CSV: [`EVENTS_HEADER`], then one line per row; `case` empty when
-/// the row has none; `body` and `against` from `ends`, `(contact, body, against)`
-/// per contact (empty for a row naming none of them).
-pub fn events_csv(rows: &[EventRow], ends: &[(String, String, String)]) -> String {
-    let mut out = String::new();
-    out.push_str(EVENTS_HEADER);
-    out.push('\n');
-    for e in rows {
-        event_line(e, ends, &mut out);
-    }
-    out
-}
-
-/// Appends one line of the `--events` CSV ([`events_csv`]) for `e`, its newline
-/// included; `ends` names each contact's body and the body of its face.
-pub fn event_line(e: &EventRow, ends: &[(String, String, String)], out: &mut String) {
+/// Appends one line of the `--events` CSV (after [`EVENTS_HEADER`]) for `e`, its
+/// newline included; `case` empty when the row has none; `body` and `against`
+/// those of the machine's contact it names (empty for a row naming none).
+pub fn event_line(e: &EventRow, contacts: &[MachineContact], out: &mut String) {
     let case = e.case.map(|c| c.to_string()).unwrap_or_default();
-    let (body, against) = ends
+    let (body, against) = contacts
         .iter()
-        .find(|(name, _, _)| *name == e.contact)
-        .map_or(("", ""), |(_, b, a)| (b.as_str(), a.as_str()));
+        .find(|c| c.name == e.contact)
+        .map_or(("", ""), |c| {
+            (c.ends.body.as_str(), c.ends.against.as_str())
+        });
     // Writing to a String cannot fail.
     let _ = writeln!(
         out,
@@ -135,6 +126,15 @@ pub fn event_line(e: &EventRow, ends: &[(String, String, String)], out: &mut Str
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The `--events` CSV of `rows` for a machine with `contacts`.
+    fn events_csv(rows: &[EventRow], contacts: &[MachineContact]) -> String {
+        let mut out = format!("{EVENTS_HEADER}\n");
+        for e in rows {
+            event_line(e, contacts, &mut out);
+        }
+        out
+    }
 
     /// The `--out` trace of a machine whose contacts are named `contacts`:
     /// [`trace_header`], then one line per row ([`trace_line`]).
@@ -248,12 +248,14 @@ mod tests {
                 "overcurrent, rotor \"left\"".to_string(),
             ),
         ];
-        let ends = [(
-            "K1".to_string(),
-            "platform".to_string(),
-            "fundament".to_string(),
-        )];
-        let csv = events_csv(&rows, &ends);
+        let machine = crate::machine::Machine::from_text(
+            "m.toml",
+            include_str!("../../../examples/vibro-driver.toml"),
+            std::path::Path::new("examples"),
+            &[],
+        )
+        .expect("the reference machine");
+        let csv = events_csv(&rows, &machine.contacts);
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(lines[0], EVENTS_HEADER);
         assert_eq!(

@@ -28,7 +28,7 @@ use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
-use crate::machine::Machine;
+use crate::machine::{Machine, MachineContact};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
 use crate::output::text::sig;
@@ -222,11 +222,6 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         )?;
     }
 
-    let ends: Vec<(String, String, String)> = machine
-        .contacts
-        .iter()
-        .map(|c| (c.name.clone(), c.ends.body.clone(), c.ends.against.clone()))
-        .collect();
     if let Some(i) = events {
         staged.write(i, &format!("{EVENTS_HEADER}\n"))?;
     }
@@ -238,7 +233,13 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     options.keep_rows = plot.is_some();
     options.keep_events = plot.is_some();
     let shape = (contacts, machine.bodies.len());
-    let mut watch = Watch::new(t_end, &mut staged, (trace, events), shape, &ends);
+    let mut watch = Watch::new(
+        t_end,
+        &mut staged,
+        (trace, events),
+        shape,
+        &machine.contacts,
+    );
     let (mut result, how) = match &drive {
         Drive::OpenLoop(open_loop) => {
             let given = match open_loop {
@@ -305,8 +306,8 @@ struct Watch<'s> {
     /// The trace's and the events' files among `staged`'s, if asked for.
     trace: Option<usize>,
     events: Option<usize>,
-    /// Each contact's `(name, body, against)`, for the events' columns.
-    ends: &'s [(String, String, String)],
+    /// The machine's contacts (their bodies: the events' columns).
+    machine_contacts: &'s [MachineContact],
     /// The machine's contacts and bodies after the platform (the trace's columns).
     contacts: usize,
     bodies: usize,
@@ -322,7 +323,7 @@ impl<'s> Watch<'s> {
         staged: &'s mut Staged,
         (trace, events): (Option<usize>, Option<usize>),
         (contacts, bodies): (usize, usize),
-        ends: &'s [(String, String, String)],
+        machine_contacts: &'s [MachineContact],
     ) -> Self {
         interrupt::catch();
         // Progress in ms of simulated time, drawn only when stderr is a terminal.
@@ -339,7 +340,7 @@ impl<'s> Watch<'s> {
             staged,
             trace,
             events,
-            ends,
+            machine_contacts,
             contacts,
             bodies,
             line: String::new(),
@@ -370,7 +371,7 @@ impl Observer for Watch<'_> {
         if let (Some(i), None) = (self.events, &self.error) {
             self.line.clear();
             for e in batch {
-                event_line(e, self.ends, &mut self.line);
+                event_line(e, self.machine_contacts, &mut self.line);
             }
             if let Err(e) = self.staged.write(i, &self.line) {
                 self.error = Some(e);
