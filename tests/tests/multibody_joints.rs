@@ -25,6 +25,7 @@ use std::path::Path;
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::{initial_state, Mount, PlantModel};
+use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings, NY};
 use tests::rig::{add, cross, rot, spin, sub};
 
@@ -283,9 +284,9 @@ fn step_allowance(
 ///   theta(t) = A exp(-zeta omega_n t) cos(omega_d t + psi)
 /// ```
 ///
-/// (Meirovitch, *Elements of Vibration Analysis*, 2nd ed., 1986, sec. 1.6 and 1.9:
-/// the free vibration of the damped single-degree-of-freedom system and its
-/// logarithmic decrement). Its velocity is
+/// (Meirovitch, *Elements of Vibration Analysis*, 2nd ed., 1986: the free
+/// vibration of the damped single-degree-of-freedom system and its logarithmic
+/// decrement). Its velocity is
 /// `-A omega_n exp(-zeta omega_n t) sin(omega_d t + psi + beta)` with a constant
 /// `beta`, so its zeros are exactly `pi / omega_d` s apart, and the angle there
 /// (the turning points, alternately either side of the rest angle) shrinks by
@@ -338,14 +339,14 @@ fn a_damped_swing_has_the_damped_period_and_the_logarithmic_decrement() {
     // 1e-3 s (about 180 per period, `omega_n h` = 0.035: the 5th-order method's
     // local error `(omega_n h)^6 ~ 2e-9` of the amplitude, below the controller's
     // bound). A crossing's time moves by the velocity's error over the slope
-    // there, `|omega'| = omega_n^2 A >= 1250 x 0.08 = 100 rad/s^2` (A >= 0.08 rad
-    // over the run): 8e-8 rad/s / 100 rad/s^2 = 8e-10 s per local error, 1e-8 of
+    // there, `|omega'| = omega_n^2 A >= 1250 x 0.065 = 81 rad/s^2` (A >= 0.065 rad
+    // over the run): 8e-8 rad/s / 81 rad/s^2 = 1e-9 s per local error, 1.1e-8 of
     // the half period 0.089 s; the global error is a sum of such local errors
     // carried along (a phase drift over ~1500 steps, a few 1e-7 of the half
     // period at the worst). 1e-6 of the half period bounds the spacing. The
     // turning points' angles do not depend on the crossing time to first order
     // (theta' = 0 there): their error is the angle's, 1e-8 (1 + A) rad per step
-    // carried along, at most a few 1e-6 of A >= 0.08 rad; 1e-5 bounds the ratios.
+    // carried along, at most a few 1e-6 of A >= 0.065 rad; 1e-5 bounds the ratios.
     let mut worst = [0.0f64; 3];
     for w in found.windows(2) {
         let ((t0, y0, _), (t1, y1, _)) = (w[0], w[1]);
@@ -442,16 +443,15 @@ fn newton(f: &dyn Fn(f64) -> f64, df: &dyn Fn(f64) -> f64, mut x: f64) -> f64 {
 ///   `-k (-theta - alpha_0)` on the fundament and its reaction `k (-theta - alpha_0)`
 ///   on the arm, so `-k (theta + alpha_0) - m g d cos theta = 0`
 ///
-/// (the balance of moments about a fixed pivot, Meirovitch, *Elements of
-/// Vibration Analysis*, sec. 1.2; the joint's law from docs/machine-file.md,
-/// "Several bodies"). Each has one root: its derivative `-k + m g d sin theta`
+/// (the balance of moments about a fixed pivot; the joint's law from
+/// docs/machine-file.md, "Several bodies"). Each has one root: its derivative `-k + m g d sin theta`
 /// keeps its sign as `k > m g d`. Solved here by Newton's method to rounding.
 ///
 /// The damper settles the arm there: linearised, `J_h x'' + c x' + k_e x = 0` with
 /// `k_e = k - m g d sin theta*` (1.95 and 2.12 N m/rad), damping ratio
 /// `zeta = c / (2 sqrt(k_e J_h))` ~ 0.5, so the deflection decays as
 /// `exp(-zeta omega_e t)`, `zeta omega_e = c / (2 J_h)` = 11.2 1/s. The arm starts
-/// 0.15 rad (first case) and 0.14 rad (second) from balance; after 3 s the
+/// 0.15 rad (first case) and 0.13 rad (second) from balance; after 3 s the
 /// deflection is below `0.15 x 1.5 x exp(-33) = 1e-15` rad. The integrator
 /// keeps a state whose forces vanish (a Runge-Kutta step maps an equilibrium
 /// onto itself), so the plant's final angle is its balance up to rounding of the
@@ -541,8 +541,8 @@ const FREE_ARM_ANGLE: f64 = 0.4;
 /// the hinge in the platform's frame, and the arm's centre
 /// `c_a = h + R(theta_a) s_a`, `s_a = R(-theta_a0) (c_a0 - h_0)`, with the
 /// velocities `v_h = v_C + theta_p' z x R(theta_p) s_p` and
-/// `v_a = v_h + theta_a' z x R(theta_a) s_a` (rigid-body kinematics, Goldstein,
-/// *Classical Mechanics*, 3rd ed., sec. 4.9).
+/// `v_a = v_h + theta_a' z x R(theta_a) s_a` (the velocity of a point of a rigid
+/// body, Goldstein, *Classical Mechanics*, 3rd ed., ch. 4).
 struct TwoBodies {
     c: [[f64; 2]; 2],
     v: [[f64; 2]; 2],
@@ -571,7 +571,8 @@ fn two_bodies(y: &[f64; NY], n: usize, arm: usize) -> TwoBodies {
 /// A free platform (lifted, no gravity, the rotor inert) with the arm hinged to
 /// it on a spring-damper, started with relative motion: the platform moving and
 /// turning, the arm turning faster, the spring stretched 0.3 rad. Nothing outside
-/// acts (no gravity, no contact: the foot stays 0.9 m and more above the floor), so
+/// acts (no gravity, no contact: the foot stays more than 0.5 m above the floor,
+/// checked), so
 /// (Goldstein, *Classical Mechanics*, 3rd ed., sec. 1.2):
 ///
 /// ```text
@@ -591,8 +592,8 @@ fn two_bodies(y: &[f64; NY], n: usize, arm: usize) -> TwoBodies {
 ///
 /// `E + D` stays constant (the damper's power is `-c alpha'^2`). The joint's torque
 /// acts on the arm and its reaction on the platform: dropping the reaction would
-/// change `L_O` by the spring's torque (up to 1.5 N m) times the run, 1 N m s and
-/// more; the hinge's constraint force, likewise, must be equal and opposite for `P`.
+/// change `L_O` by the spring's torque (1.5 N m at the start) over the run, of
+/// order 1 N m s; the hinge's constraint force, likewise, must be equal and opposite for `P`.
 ///
 /// Tolerances (the integrator's, the approach of `plant_references.rs`' energy
 /// tests): each accepted step may err by its [`step_allowance`] in each of these
@@ -754,4 +755,322 @@ fn a_joint_spring_damper_on_a_free_platform_keeps_momentum_and_the_energy_balanc
         worst[3],
         allowed[3]
     );
+}
+
+// ---------------------------------------------------------------------------------
+// 4: a chain of two joints: the double compound pendulum
+// ---------------------------------------------------------------------------------
+
+/// The upper link: pinned to the fundament at `PIVOT`, its centre of mass `D1`
+/// from the pivot and the lower link's hinge `L1` from it, both along its axis.
+const UPPER: (f64, f64) = (0.3, 1e-3);
+const D1: f64 = 0.1;
+const L1: f64 = 0.2;
+/// The lower link: hinged to the upper one, its centre of mass `D2` from its hinge.
+const LOWER: (f64, f64) = (0.2, 5e-4);
+const D2: f64 = 0.08;
+const PIVOT: [f64; 2] = [0.5, 2.0];
+
+/// The double compound pendulum under gravity `g`, hanging (world angles
+/// `-pi/2 + delta_i`), released at rest at `delta`.
+fn double_pendulum(g: f64, delta: [f64; 2]) -> (Plant, [usize; 2]) {
+    let (a1, a2) = (-PI / 2.0 + delta[0], -PI / 2.0 + delta[1]);
+    let hinge = add(PIVOT, scale(L1, unit(a1)));
+    let extra = format!(
+        "{}{}{}{}",
+        body(
+            "upper",
+            UPPER.0,
+            UPPER.1,
+            add(PIVOT, scale(D1, unit(a1))),
+            a1
+        ),
+        body(
+            "lower",
+            LOWER.0,
+            LOWER.1,
+            add(hinge, scale(D2, unit(a2))),
+            a2
+        ),
+        joint("pin", "fundament", "upper", PIVOT, 0.0, 0.0, None),
+        joint("knee", "upper", "lower", hinge, 0.0, 0.0, None),
+    );
+    let m = machine(g, "", INERT_ROTOR, FRICTIONLESS_MOTOR, &extra);
+    let model = PlantModel::new(&m);
+    assert!(matches!(model.bodies[1].mount, Mount::Pinned { .. }));
+    assert!(matches!(
+        model.bodies[2].mount,
+        Mount::Child { parent: 1, .. }
+    ));
+    assert!(model.springs.is_empty());
+    let angles = [model.bodies[1].angle, model.bodies[2].angle];
+    let plant = Plant::new(
+        model,
+        initial_state(&m),
+        Settings::default(),
+        platform_held(),
+    );
+    (plant, angles)
+}
+
+/// Reference (Meirovitch, *Elements of Vibration Analysis*, 2nd ed., 1986: the
+/// free vibration of two-degree-of-freedom systems, the eigenvalue problem
+/// `det(K - w^2 M) = 0`). With `delta_i` the links' angles from hanging, the
+/// centres of mass are `c_1 = P + d_1 u(theta_1)`, `c_2 = P + l_1 u(theta_1) +
+/// d_2 u(theta_2)`, and Lagrange's function is
+///
+/// ```text
+///   T = (I_1 + m_1 d_1^2 + m_2 l_1^2) delta_1'^2 / 2
+///       + m_2 l_1 d_2 cos(delta_1 - delta_2) delta_1' delta_2'
+///       + (I_2 + m_2 d_2^2) delta_2'^2 / 2                                     (J)
+///   V = -g ((m_1 d_1 + m_2 l_1) cos delta_1 + m_2 d_2 cos delta_2)              (J)
+/// ```
+///
+/// so for small angles `M = [[I_1 + m_1 d_1^2 + m_2 l_1^2, m_2 l_1 d_2],
+/// [m_2 l_1 d_2, I_2 + m_2 d_2^2]]` (kg m^2) and `K = diag(g (m_1 d_1 + m_2 l_1),
+/// g m_2 d_2)` (N m/rad); `det(K - w^2 M) = 0` is a quadratic in `w^2`, each root
+/// with the mode `v = (w^2 M_12, K_11 - w^2 M_11)`, scaled here to a largest
+/// component of 1. Started at rest on `A v`, `A` = 1e-3 rad, the linear system
+/// swings in that mode alone, with the period `2 pi / w`.
+///
+/// The amplitude correction. `L` is even in `(delta, delta')`, so the first
+/// correction comes from its quartic part
+/// `L_4 = (K_11 delta_1^4 + K_22 delta_2^4) / 24 - M_12 (delta_1 - delta_2)^2
+/// delta_1' delta_2' / 2`. Averaged over the linear orbit `delta = A v cos(w t)`
+/// (Whitham's averaged Lagrangian, *Linear and Nonlinear Waves*, 1974; Landau
+/// and Lifshitz, *Mechanics*, sec. 28, for one degree of freedom),
+/// `<L> = A^2 (w^2 v.Mv - v.Kv) / 4 + A^4 B` with
+/// `B = (K_11 v_1^4 + K_22 v_2^4) / 64 - M_12 w^2 (v_1 - v_2)^2 v_1 v_2 / 16`, and
+/// `d<L>/dA = 0` gives `w^2 = w_0^2 (1 - 8 A^2 B / v.Kv)`: the period
+/// `T = T_0 (1 + 4 A^2 B / v.Kv)` to `O(A^4)` ~ 1e-12. For a single pendulum this is
+/// the textbook `T_0 (1 + A^2 / 16)`. Here the correction is 3.3e-8 of the period
+/// in the slow mode and 5.5e-7 in the fast one (the test prints them).
+///
+/// Tolerances. Starting on the linear mode rather than the nonlinear one leaves
+/// the other link off the mode's ratio by `O(A^2)` of the amplitude (1e-6 x `A`
+/// allowed at the turning points, checked below; 1.8e-7 measured). Such a part
+/// `eps A` swinging at the other mode's frequency `w_o` moves a zero of the main
+/// link's speed by at most `eps w_o / w^2`, `eps (w_o / w) / (2 pi)` of a period
+/// (`w_o / w` = 2.4 and 0.41): 3.9e-7 of it, and the period is taken from the first
+/// and the last of about 20 crossings, 19 periods apart or more: `2 x 3.9e-7 / 19` = 4e-8. The
+/// amplitude correction's own error is `O(A^4)` ~ 1e-12 and the integration's
+/// ~1e-10 (the damped swing's crossings: the steps are at most 1e-3 s,
+/// `w h <= 0.015`). The period must agree to 1e-7 of itself, tight enough that the
+/// fast mode's correction (5.5e-7) is itself checked.
+#[test]
+fn a_double_compound_pendulum_swings_in_each_normal_mode_with_its_period() {
+    let g = 9.81;
+    let (m1, i1) = UPPER;
+    let (m2, i2) = LOWER;
+    let mass = [
+        [i1 + m1 * D1 * D1 + m2 * L1 * L1, m2 * L1 * D2],
+        [m2 * L1 * D2, i2 + m2 * D2 * D2],
+    ];
+    let stiffness = [g * (m1 * D1 + m2 * L1), g * m2 * D2];
+    // det(K - w^2 M) = a w^4 + b w^2 + c with K diagonal.
+    let a = mass[0][0] * mass[1][1] - mass[0][1] * mass[1][0];
+    let b = -(stiffness[0] * mass[1][1] + stiffness[1] * mass[0][0]);
+    let c = stiffness[0] * stiffness[1];
+    let disc = (b * b - 4.0 * a * c).sqrt();
+    let amplitude = 1e-3;
+    for w2 in [(-b - disc) / (2.0 * a), (-b + disc) / (2.0 * a)] {
+        let w = w2.sqrt();
+        let raw = [w2 * mass[0][1], stiffness[0] - w2 * mass[0][0]];
+        // The other row of (K - w^2 M) v = 0 holds too.
+        let residual = -w2 * mass[1][0] * raw[0] + (stiffness[1] - w2 * mass[1][1]) * raw[1];
+        assert!(residual.abs() < 1e-12 * stiffness[0] * raw[0].abs().max(raw[1].abs()));
+        let largest = if raw[0].abs() > raw[1].abs() {
+            raw[0]
+        } else {
+            raw[1]
+        };
+        let v = [raw[0] / largest, raw[1] / largest];
+        let vkv = stiffness[0] * v[0] * v[0] + stiffness[1] * v[1] * v[1];
+        let quartic = (stiffness[0] * v[0].powi(4) + stiffness[1] * v[1].powi(4)) / 64.0
+            - mass[0][1] * w2 * (v[0] - v[1]).powi(2) * v[0] * v[1] / 16.0;
+        let correction = 4.0 * amplitude * amplitude * quartic / vkv;
+        let linear = 2.0 * PI / w;
+        let expected = linear * (1.0 + correction);
+
+        let (mut plant, angles) = double_pendulum(g, [amplitude * v[0], amplitude * v[1]]);
+        let n = plant.model.dof;
+        // Downward crossings of the upper link's speed (or the lower's, whichever
+        // moves more in this mode).
+        let which = if v[0].abs() >= v[1].abs() { 0 } else { 1 };
+        let found = crossings(&mut plant, n + angles[which], 20.5 * linear);
+        let down: Vec<f64> = found
+            .iter()
+            .filter(|(_, _, before)| *before > 0.0)
+            .map(|(t, _, _)| *t)
+            .collect();
+        assert!(down.len() >= 19, "{} periods", down.len());
+        let got = (down[down.len() - 1] - down[0]) / (down.len() - 1) as f64;
+        eprintln!(
+            "double pendulum, mode v = [{:.6}, {:.6}], w = {w:.6} rad/s: period {got:.12} s, \
+             linear {linear:.12} s, with the amplitude correction ({correction:.3e}) \
+             {expected:.12} s; relative error {:.3e} (tol 1e-7), without the correction {:.3e}",
+            v[0],
+            v[1],
+            (got - expected).abs() / expected,
+            (got - linear).abs() / linear
+        );
+        assert!(
+            (got - expected).abs() < 1e-7 * expected,
+            "mode {v:?}: period {got} s, reference {expected} s"
+        );
+        // And the other link swings with it in the mode's ratio, to O(A^2) of the
+        // amplitude (the nonlinear terms; A^2 = 1e-6).
+        let other = 1 - which;
+        let mut off_mode: f64 = 0.0;
+        for (t, y, _) in &found {
+            let ratio = y[angles[other]] + PI / 2.0;
+            let main = y[angles[which]] + PI / 2.0;
+            off_mode = off_mode.max((ratio - main * v[other] / v[which]).abs() / amplitude);
+            assert!(
+                (ratio - main * v[other] / v[which]).abs() < 1e-6 * amplitude,
+                "at {t} s: delta = {main}, {ratio}; mode {v:?}"
+            );
+        }
+        eprintln!(
+            "  off the mode at the turning points: {off_mode:.3e} of the amplitude (tol 1e-6)"
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// 5: a rotor on a hinged body
+// ---------------------------------------------------------------------------------
+
+/// The driven rotor's inertia about its axis, kg m^2 (no eccentric mass).
+const DRIVEN_ROTOR_INERTIA: f64 = 1e-4;
+
+/// A 12 V motor with the reference machine's friction (Coulomb and viscous, both
+/// acting between the rotor and the body carrying it).
+const REFERENCE_MOTOR: &str = r#"
+[motor]
+resistance = 2.0
+inductance = 0.5e-3
+torque_constant = 0.02
+coulomb_friction = 1.0e-3
+viscous_friction = 1.0e-6
+current_limit = 2.0
+"#;
+
+/// The arm hinged at `hinge` to `to` (the fundament, or the held platform), no
+/// gravity, no spring, carrying a rotor without eccentric mass 0.15 m from the
+/// hinge, its winding at 6 V from t = 0.
+///
+/// Reference: nothing outside exerts a moment about the hinge, a fixed point (the
+/// hinge's force has no arm about it; the motor's torque and its friction act
+/// between the rotor and the arm and cancel in the sum), so the angular momentum
+/// about the hinge is what it was at rest, zero (Goldstein, *Classical
+/// Mechanics*, 3rd ed., sec. 1.2):
+///
+/// ```text
+///   L_O = J_O theta' + I_k (theta' + phi') = 0                            (N m s)
+///   theta' = -I_k phi' / (J_O + I_k)                                      (rad/s)
+/// ```
+///
+/// `J_O = I_c + m d^2` the arm's inertia about the hinge (kg m^2), `I_k` the
+/// rotor's about its axis, turning at `theta' + phi'` (its axis may sit anywhere
+/// on the arm: without an eccentric mass the rotor adds no mass off the arm's,
+/// only its spin).
+///
+/// Tolerance: rounding. `L_O` is a linear function of the state,
+/// `c . y` with `c` = `J_O + I_k` on `theta'` and `I_k` on `phi'`, and the
+/// equations of motion keep it exactly: the arm's row of `M q'' = Q` is
+/// `(J_O + I_k) theta'' + I_k phi'' = 0` (the motor's torque on `phi` only). A
+/// Runge-Kutta step, and its dense output, is a linear combination of such
+/// derivatives, so it keeps every linear first integral exactly (Hairer, Lubich
+/// and Wanner, *Geometric Numerical Integration*, 2nd ed., 2006, thm. IV.1.5),
+/// whatever the step's error. What remains is rounding: a few units of 1e-16 of
+/// the terms `|J_O theta'| + I_k |theta' + phi'|` per stage, carried from step to
+/// step: at most `steps x 7 stages x 4 x 1.1e-16` of the largest terms (the run
+/// takes ~1000 steps: 3e-12 of them). For `theta'` the same divided by `J_O + I_k`.
+/// (The integrator's own per-step allowance, [`step_allowance`], would allow
+/// 1e-6 N m s here: a plant whose accelerations broke the balance by the
+/// integrator's tolerance would pass that, not this.)
+fn rotor_on_an_arm(to: &str) {
+    let hinge = [0.5, 2.0];
+    let angle0 = 0.3;
+    let axis = add(hinge, scale(0.15, unit(angle0)));
+    let rotor = format!(
+        r#"
+[[rotors]]
+name = "R1"
+body = "arm"
+axis = {}
+eccentric_mass = 0.0
+eccentricity = 0.0
+inertia = {DRIVEN_ROTOR_INERTIA:?}
+sense = "ccw"
+"#,
+        vector(axis)
+    );
+    let extra = format!(
+        "{}{}",
+        arm_at(hinge, angle0),
+        joint("hinge", to, "arm", hinge, 0.0, 0.0, None)
+    );
+    let m = machine(0.0, "", &rotor, REFERENCE_MOTOR, &extra);
+    let model = PlantModel::new(&m);
+    assert_eq!(model.rotors[0].body, 1);
+    let (n, angle, phi) = (model.dof, model.bodies[1].angle, model.rotors[0].phi);
+    let (j_o, i_k) = (ARM_J_HINGE, DRIVEN_ROTOR_INERTIA);
+    let l_o = |y: &[f64; NY]| j_o * y[n + angle] + i_k * (y[n + angle] + y[n + phi]);
+    let mut plant = Plant::new(
+        model,
+        initial_state(&m),
+        Settings::default(),
+        platform_held(),
+    );
+    plant.set_winding([Winding::Voltage(6.0), Winding::Voltage(6.0)]);
+    let mut steps = 0u32;
+    let mut terms: f64 = 0.0;
+    let (mut worst_l, mut worst_rate): (f64, f64) = (0.0, 0.0);
+    let mut tol_l: f64 = 0.0;
+    let (mut fastest, mut turned) = (0.0f64, 0.0f64);
+    plant.advance_to(1.0, &mut |out| {
+        let Output::Dense(step, upto) = out else {
+            panic!("no event expected");
+        };
+        steps += 1;
+        let y = step.at(upto);
+        let (w, w_phi) = (y[n + angle], y[n + phi]);
+        terms = terms.max(j_o * w.abs() + i_k * (w + w_phi).abs());
+        tol_l = f64::from(steps) * 7.0 * 4.0 * 1.1e-16 * terms;
+        let l = l_o(&y);
+        assert!(
+            l.abs() <= tol_l,
+            "{to}: L_O = {l:.3e} N m s at t = {upto} (allowed {tol_l:.3e})"
+        );
+        let expected = -i_k * w_phi / (j_o + i_k);
+        assert!(
+            (w - expected).abs() <= tol_l / (j_o + i_k),
+            "{to}: theta' = {w} rad/s at t = {upto}, -I_k phi' / (J_O + I_k) = {expected}"
+        );
+        worst_l = worst_l.max(l.abs());
+        worst_rate = worst_rate.max((w - expected).abs());
+        fastest = fastest.max(w_phi.abs());
+        turned = turned.max((y[angle] - angle0).abs());
+    });
+    eprintln!(
+        "rotor on the arm hinged to {to}, {steps} steps: phi' up to {fastest:.1} rad/s, the arm \
+         turned {turned:.2} rad; |L_O| up to {worst_l:.3e} N m s (allowed {tol_l:.3e}), \
+         |theta' + I_k phi' / (J_O + I_k)| up to {worst_rate:.3e} rad/s (allowed {:.3e})",
+        tol_l / (j_o + i_k)
+    );
+    // The motor did drive the rotor, and the arm turned back.
+    assert!(fastest > 100.0, "the rotor reached {fastest} rad/s");
+    assert!(turned > 1.0, "the arm turned {turned} rad");
+}
+
+#[test]
+fn a_rotor_driven_on_an_arm_pinned_to_the_fundament_keeps_zero_angular_momentum() {
+    rotor_on_an_arm("fundament");
+}
+
+#[test]
+fn a_rotor_driven_on_an_arm_hinged_to_the_held_platform_keeps_zero_angular_momentum() {
+    rotor_on_an_arm("platform");
 }
