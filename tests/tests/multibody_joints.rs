@@ -187,7 +187,7 @@ fn arm_at(hinge: [f64; 2], angle: f64) -> String {
     )
 }
 
-/// Everything held but the bodies of the joints: the platform.
+/// The platform held (its `x, y, theta`), where it plays no part.
 fn platform_held() -> Holds {
     Holds {
         platform: true,
@@ -572,8 +572,7 @@ fn two_bodies(y: &[f64; NY], n: usize, arm: usize) -> TwoBodies {
 /// it on a spring-damper, started with relative motion: the platform moving and
 /// turning, the arm turning faster, the spring stretched 0.3 rad. Nothing outside
 /// acts (no gravity, no contact: the foot stays more than 0.5 m above the floor,
-/// checked), so
-/// (Goldstein, *Classical Mechanics*, 3rd ed., sec. 1.2):
+/// checked), so (Goldstein, *Classical Mechanics*, 3rd ed., sec. 1.2)
 ///
 /// ```text
 ///   P = sum_b m_b v_b                                         (N s)
@@ -593,7 +592,8 @@ fn two_bodies(y: &[f64; NY], n: usize, arm: usize) -> TwoBodies {
 /// `E + D` stays constant (the damper's power is `-c alpha'^2`). The joint's torque
 /// acts on the arm and its reaction on the platform: dropping the reaction would
 /// change `L_O` by the spring's torque (1.5 N m at the start) over the run, of
-/// order 1 N m s; the hinge's constraint force, likewise, must be equal and opposite for `P`.
+/// order 1 N m s; the hinge's constraint force, likewise, must be equal and
+/// opposite on the two bodies for `P`.
 ///
 /// Tolerances (the integrator's, the approach of `plant_references.rs`' energy
 /// tests): each accepted step may err by its [`step_allowance`] in each of these
