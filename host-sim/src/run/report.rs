@@ -85,7 +85,7 @@ pub fn summary_value(s: &Summary) -> Value {
     fin.insert("angular_velocity".into(), number(f.angular_velocity));
     doc.insert("final".into(), Value::Object(fin));
     doc.insert("warnings".into(), strings(&s.warnings));
-    doc.insert("rotors".into(), Value::from(s.rotors));
+    doc.insert("rotors".into(), Value::from(s.rotors()));
     doc.insert("phase_loop".into(), Value::from(s.phase_loop));
     Value::Object(doc)
 }
@@ -106,7 +106,7 @@ pub fn summary_table(s: &Summary) -> String {
         text::sig(s.t_end),
         s.state
     );
-    if s.rotors == 1 {
+    if s.rotors() == 1 {
         out.push_str(if s.state == "open-loop" {
             ONE_ROTOR_OPEN_LOOP_LINE
         } else {
@@ -191,7 +191,6 @@ mod tests {
             phase_offset_deg: Some(90.25),
             phase_error_deg_rms: 1.5,
             state: "running".to_string(),
-            rotors: 2,
             phase_loop: true,
             faults: vec![],
             final_state: FinalState {
@@ -270,7 +269,6 @@ mod tests {
             rotor_speed_rpm: vec![3000.5],
             phase_offset_deg: None,
             phase_error_deg_rms: 0.0,
-            rotors: 1,
             phase_loop: false,
             ..summary()
         }

@@ -371,14 +371,14 @@ pub fn simulate_observed(
 
     // 4. Summary, the last events first.
     events.take(&mut plant, driver, rec.observer);
-    let mut summary = rec.summary.finish(
+    let summary = rec.summary.finish(
         events.impacts.count,
         driver.commanded_offset_deg(),
+        driver.phase_loop(),
         &driver.state(),
         driver.faults(),
         plant.warnings.clone(),
     );
-    summary.phase_loop = driver.phase_loop();
     RunResult {
         rows: rec.rows,
         last_row: rec.last,

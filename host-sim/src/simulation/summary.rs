@@ -211,11 +211,13 @@ impl<'m> SummaryBuilder<'m> {
     }
 
     /// The summary (see [`summarize`]), with `impacts` the number of distinct
-    /// impact times.
+    /// impact times and `phase_loop` whether the driver held the offset by a
+    /// phase loop.
     pub fn finish(
         mut self,
         impacts: usize,
         commanded_offset_deg: Option<f64>,
+        phase_loop: bool,
         state: &str,
         faults: Vec<String>,
         mut warnings: Vec<String>,
@@ -230,8 +232,8 @@ impl<'m> SummaryBuilder<'m> {
                 impacts,
                 rotor_speed_rpm: vec![0.0; rotors],
                 phase_offset_deg: two.then_some(0.0),
-                rotors,
                 state: state.to_string(),
+                phase_loop,
                 faults,
                 final_state: FinalState {
                     position: p.position,
@@ -296,9 +298,7 @@ impl<'m> SummaryBuilder<'m> {
             phase_offset_deg,
             phase_error_deg_rms,
             state: state.to_string(),
-            rotors,
-            // The driver says (`simulate`).
-            phase_loop: false,
+            phase_loop,
             faults,
             final_state: FinalState {
                 position: [last.x, last.y],
@@ -346,9 +346,11 @@ pub fn summarize(
     for r in rows {
         builder.push(r);
     }
+    // No driver: no phase loop.
     builder.finish(
         impact_times(events).len(),
         commanded_offset_deg,
+        false,
         state,
         faults,
         warnings,
@@ -686,7 +688,7 @@ pub(crate) mod tests {
         );
         assert_eq!(s.phase_offset_deg, None);
         assert_eq!(s.phase_error_deg_rms, 0.0);
-        assert_eq!(s.rotors, 1);
+        assert_eq!(s.rotors(), 1);
         assert_eq!(phase_offset_deg(1.0, 2.0, &m), None);
         // An empty trace too.
         let s = summarize(&[], &[], &m, None, "idle", vec![], vec![]);

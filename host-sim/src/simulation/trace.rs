@@ -165,8 +165,6 @@ pub struct Summary {
     pub phase_error_deg_rms: f64,
     /// Controller state at the end (`open-loop` without it).
     pub state: String,
-    /// The machine's rotors, 1 or 2.
-    pub rotors: usize,
     /// Whether a phase loop held the offset: a controller run on two rotors;
     /// false in open loop, and on one rotor, whose controller holds speed only.
     pub phase_loop: bool,
@@ -176,4 +174,11 @@ pub struct Summary {
     pub final_state: FinalState,
     /// Warnings.
     pub warnings: Vec<String>,
+}
+
+impl Summary {
+    /// The machine's rotors, 1 or 2: one speed each.
+    pub fn rotors(&self) -> usize {
+        self.rotor_speed_rpm.len()
+    }
 }
