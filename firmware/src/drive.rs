@@ -6,8 +6,9 @@
 //!
 //! The decay mode is the machine file's (`[drive] decay`, compiled in as
 //! `MACHINE.bridge`): slow decay by default, the mean winding voltage `duty x V_s`
-//! that the controller assumes (`shared::drive`). A machine with one rotor
-//! (`MACHINE.rotor_count`) leaves motor 2's bridge off in every tick.
+//! that the controller assumes (`shared::drive`). Which bridges are driven is the
+//! controller's word (`Outputs::bridges`): on a machine with one rotor, motor 2's
+//! never is.
 
 use embedded_hal::pwm::SetDutyCycle;
 use shared::drive::{CentreAligned, Decay, HBridge};
@@ -36,14 +37,12 @@ impl<P: SetDutyCycle> Drive<P> {
         }
     }
 
-    /// One tick's inputs: both bridges at their signed duties when `enable`, else
-    /// both coasting; on a one-rotor machine (`MACHINE.rotor_count`) motor 2's
-    /// bridge always coasts (both inputs low: off), whatever its duty
-    /// (`RotorCount::bridges_on`). An input that fails leaves its bridge coasting
-    /// (the driver writes both inputs low on an error); the other bridge is still
-    /// driven. Returns whether every input took its value.
-    pub fn apply(&mut self, duty: [f32; 2], enable: bool) -> bool {
-        let on = crate::machine::MACHINE.rotor_count.bridges_on(enable);
+    /// One tick's inputs: each bridge the controller drives (`Outputs::bridges`:
+    /// both when enabled on two rotors, motor 1's alone on one) at its signed
+    /// duty, the others coasting (both inputs low). An input that fails leaves its
+    /// bridge coasting (the driver writes both inputs low on an error); the other
+    /// bridge is still driven. Returns whether every input took its value.
+    pub fn apply(&mut self, duty: [f32; 2], on: [bool; 2]) -> bool {
         let mut ok = true;
         for ((bridge, d), on) in self.bridges.iter_mut().zip(duty).zip(on) {
             let result = if on { bridge.drive(d) } else { bridge.coast() };

@@ -214,7 +214,7 @@ fn qemu_tick(
     let step = elapsed(before, now());
 
     // Stage 3: the bridges' inputs, then the model for one tick (not counted).
-    drive.apply(out.duty, out.enable && !injected.estop_open);
+    drive.apply(out.duty, out.bridges.map(|on| on && !injected.estop_open));
     let model_start = now();
     plant.step(injected);
     let model = elapsed(model_start, now());
@@ -411,7 +411,7 @@ mod app {
         let out = cx.local.controller.step(&inputs, dt);
 
         // Stage 3: write the outputs (fresh every tick; cut unless enabled).
-        cx.local.motors.apply(out.duty, out.enable);
+        cx.local.motors.apply(out.duty, out.bridges);
 
         // Stage 4: publish the status for the link.
         crate::publish(

@@ -142,15 +142,16 @@ impl MotorOut {
         }
     }
 
-    /// Write one tick's outputs: the signed duties of motors 1 and 2 when `enable`,
-    /// otherwise [`cut`] (and clear a break flag the controller has seen).
+    /// Write one tick's outputs: the signed duties of the `bridges` the controller
+    /// drives (`Outputs::bridges`; the others coast), or, driving none, [`cut`]
+    /// (and clear a break flag the controller has seen).
     ///
     /// Called every control tick with the controller's fresh outputs, so a stale
-    /// duty never survives a tick. MOE is set only when the controller enables, the
-    /// E-stop pins read closed and no break has occurred since the last tick that
-    /// did not enable ([`crate::estop::open`]).
-    pub fn apply(&mut self, duty: [f32; 2], enable: bool) {
-        if !enable {
+    /// duty never survives a tick. MOE is set only when the controller drives a
+    /// bridge, the E-stop pins read closed and no break has occurred since the last
+    /// tick that drove none ([`crate::estop::open`]).
+    pub fn apply(&mut self, duty: [f32; 2], bridges: [bool; 2]) {
+        if !bridges.contains(&true) {
             cut();
             // The compare values through the driver too, so what it last wrote is
             // what the timer holds (a cut from an interrupt zeroes them behind it).
@@ -172,7 +173,7 @@ impl MotorOut {
         // error type is Infallible); for any other output, what failed coasts and
         // the rest is cut too.
         let switching_on = !outputs_enabled();
-        if !self.drive.apply(duty, true) {
+        if !self.drive.apply(duty, bridges) {
             cut();
             return;
         }

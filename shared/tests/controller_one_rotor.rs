@@ -207,6 +207,12 @@ fn one_rotor_holds_the_speed_of_rotor_1_against_a_load() {
     assert_eq!(RotorCount::One.bridges_on(o.enable), [true, false]);
     assert_eq!(RotorCount::Two.bridges_on(o.enable), [true, true]);
     assert_eq!(RotorCount::One.bridges_on(false), [false, false]);
+    // What the firmware and the simulation put on the bridges: the controller's
+    // own word, rotor 2's bridge never driven.
+    assert_eq!(o.bridges, [true, false]);
+    for o in rig.run(200) {
+        assert!(!o.bridges[1], "rotor 2's bridge driven in {:?}", o.state);
+    }
 }
 
 #[test]

@@ -139,6 +139,8 @@ fn check(out: &Outputs, before: Faults, command: Option<Command>, p: &Params) {
     if !out.enable {
         assert_eq!(out.duty, [0.0, 0.0]);
     }
+    // The bridges driven: both exactly when enabled (two rotors), none otherwise.
+    assert_eq!(out.bridges, [out.enable; 2]);
     if !out.faults.is_empty() {
         assert_eq!(out.state, State::Fault);
         assert!(!out.enable);

@@ -198,6 +198,7 @@ fn an_aborted_self_test_does_not_drop_the_stored_result() {
     let outputs = Outputs {
         duty: [0.0; 2],
         enable: false,
+        bridges: [false; 2],
         state: State::Idle,
         faults: Faults::NONE,
         telemetry: no_telemetry(),

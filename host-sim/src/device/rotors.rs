@@ -100,7 +100,7 @@ impl Rotors {
         let mut index = [None; 2];
         for (k, latched) in index.iter_mut().enumerate() {
             let duty = match out {
-                Some(o) if o.enable => f64::from(o.duty[k]).clamp(-1.0, 1.0),
+                Some(o) if o.bridges[k] => f64::from(o.duty[k]).clamp(-1.0, 1.0),
                 _ => f64::NAN,
             };
             for _ in 0..SUBSTEPS {

@@ -258,7 +258,7 @@ impl Driver for ControllerDriver {
 
         // 4. The H-bridges: those the controller drives (rotor 2's never on one
         // rotor), the others off.
-        let on = self.rotor_count.bridges_on(out.enable);
+        let on = out.bridges;
         let duty = [0, 1].map(|k| if on[k] { f64::from(out.duty[k]) } else { 0.0 });
         let commands = [0, 1].map(|k| match (on[k], self.injected.motor_reversed[k]) {
             (false, _) => BridgeCommand::Off,

@@ -223,6 +223,11 @@ pub struct Outputs {
     pub duty: [f32; 2],
     /// Driver enable: false leaves the windings open (the motors coast).
     pub enable: bool,
+    /// The H-bridges driven this tick, at `duty`; the others coast (both inputs
+    /// low). Both when `enable` on two rotors, rotor 1's alone on one
+    /// ([`super::RotorCount::bridges_on`]): what the firmware and the simulation
+    /// put on the bridges, decided here once.
+    pub bridges: [bool; 2],
     /// The state after this tick.
     pub state: State,
     /// Latched faults after this tick (empty unless `state` is [`State::Fault`]).

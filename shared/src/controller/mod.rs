@@ -629,6 +629,7 @@ impl Controller {
         Outputs {
             duty,
             enable,
+            bridges: self.params.rotor_count.bridges_on(enable),
             state: self.state,
             faults: self.faults,
             telemetry: Telemetry {
