@@ -325,3 +325,243 @@ fn slide(v0: f64) {
         t_stick - t_event
     );
 }
+
+// ---------------------------------------------------------------------------------
+// Two plates on one hinge (examples/paper-fig8.toml's actuator and element)
+// ---------------------------------------------------------------------------------
+
+/// The common hinge of the two plates, world, m (paper-fig8.toml's clamp).
+const HINGE: [f64; 2] = [-0.03, 0.06];
+/// The actuator (body 4): mass, kg; inertia about its centre, kg m^2; centre at
+/// angle 0, world, m.
+const ACTUATOR: (f64, f64, [f64; 2]) = (0.4, 6.0e-4, [-0.045, 0.15]);
+/// The element (body 3), likewise.
+const ELEMENT: (f64, f64, [f64; 2]) = (0.15, 1.6e-4, [-0.015, 0.115]);
+/// K3 and K4: heights above the hinge on the actuator's right face, m.
+const HEIGHTS: [f64; 2] = [0.04, 0.10];
+/// Time from the start to the impact, s.
+const T_HIT: f64 = 0.01;
+
+/// `p` turned by `angle` about the hinge.
+fn about_hinge(p: [f64; 2], angle: f64) -> [f64; 2] {
+    let (s, c) = angle.sin_cos();
+    let d = [p[0] - HINGE[0], p[1] - HINGE[1]];
+    [
+        HINGE[0] + c * d[0] - s * d[1],
+        HINGE[1] + s * d[0] + c * d[1],
+    ]
+}
+
+/// Fig. 8's actuator and element, both hinged to the platform at [`HINGE`] without
+/// springs, the actuator's right face and the element's left face through the
+/// hinge, K3 and K4 on the actuator against the element; no gravity, the rotor's
+/// eccentric mass 0. They turn at `w4` and `w3` (rad/s) and are started `T_HIT`
+/// before their faces meet upright: angles `-w T_HIT`, every point turned so.
+fn plates(w4: f64, w3: f64, restitution: f64, friction: f64) -> Machine {
+    let (a4, a3) = (-w4 * T_HIT, -w3 * T_HIT);
+    let body = |name: &str, (mass, inertia, c): (f64, f64, [f64; 2]), angle: f64, w: f64| {
+        let p = about_hinge(c, angle);
+        // v = w z x (p - hinge): the joint's hinge at rest with the held platform.
+        let v = [-w * (p[1] - HINGE[1]), w * (p[0] - HINGE[0])];
+        format!(
+            "[[bodies]]\nname = \"{name}\"\nmass = {mass:?}\ninertia = {inertia:?}\n\
+             position = [{:?}, {:?}]\nangle = {angle:?}\nvelocity = [{:?}, {:?}]\n\
+             angular_velocity = {w:?}\n\n\
+             [[joints]]\nname = \"{name}-hinge\"\nkind = \"revolute\"\n\
+             bodies = [\"platform\", \"{name}\"]\npoint = [{:?}, {:?}]\n\n",
+            p[0], p[1], v[0], v[1], HINGE[0], HINGE[1]
+        )
+    };
+    let (s3, c3) = a3.sin_cos();
+    let normal = [-c3, -s3];
+    let contact = |name: &str, h: f64| {
+        let upright = [HINGE[0], HINGE[1] + h];
+        let point = about_hinge(upright, a4);
+        let face = about_hinge(upright, a3);
+        format!(
+            "[[contacts]]\nname = \"{name}\"\nbody = \"actuator\"\nagainst = \"element\"\n\
+             point = [{:?}, {:?}]\nface = [{:?}, {:?}]\nnormal = [{:?}, {:?}]\n\
+             restitution = {restitution:?}\nfriction = {friction:?}\n\n",
+            point[0], point[1], face[0], face[1], normal[0], normal[1]
+        )
+    };
+    let axis = about_hinge([-0.045, 0.17], a4);
+    let text = format!(
+        r#"[fundament]
+gravity = [0.0, 0.0]
+
+[platform]
+mass = 2.0
+inertia = 0.0102
+position = [0.0, 0.03]
+
+{}{}{}{}[[rotors]]
+body = "actuator"
+axis = [{:?}, {:?}]
+eccentric_mass = 0.0
+eccentricity = 0.0
+inertia = 6.0e-6
+sense = "ccw"
+
+[motor]
+resistance = 2.0
+inductance = 0.5e-3
+torque_constant = 0.02
+coulomb_friction = 0.0
+viscous_friction = 0.0
+current_limit = 2.0
+
+[drive]
+supply_voltage = 12.0
+"#,
+        body("actuator", ACTUATOR, a4, w4),
+        body("element", ELEMENT, a3, w3),
+        contact("K3", HEIGHTS[0]),
+        contact("K4", HEIGHTS[1]),
+        axis[0],
+        axis[1],
+    );
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
+    match Machine::from_text("two-plates.toml", &text, dir, &[]) {
+        Ok(m) => m,
+        Err(e) => panic!("the test machine is refused: {e:?}\n{text}"),
+    }
+}
+
+/// Two plates turning about one fixed hinge, their faces through it, closing at
+/// `w4 < w3`: K3 and K4 (heights `h3`, `h4` above the hinge) meet at once, and the
+/// impact is one of two bodies on a common axis. With `J4`, `J3` their inertias
+/// about the hinge (Steiner: `J = I_c + m |c - hinge|^2`), each contact's impulse
+/// `P_i` normal to the plates, so with the lever `h_i`; the angular impulse `L =
+/// h3 P3 + h4 P4` turns the actuator by `+L / J4` and the element by `-L / J3`.
+/// Poisson's law at both contacts with one `e` (each contact's restitution impulse
+/// `e` times its compression impulse, so their sum too): the compression ends where
+/// the plates turn together, `L_c = J3 J4 / (J3 + J4) (w3 - w4)`, and `L = (1 + e)
+/// L_c` (Stronge, *Impact Mechanics*, 2000, ch. 4, for the effective inertia of two
+/// bodies on one axis), so
+///
+/// ```text
+///   w4' = w4 - (1 + e) J3 / (J3 + J4) (w4 - w3),   w3' = w3 + (1 + e) J4 / (J3 + J4) (w4 - w3)
+///   h3 P3 + h4 P4 = (1 + e) J3 J4 / (J3 + J4) |w4 - w3|
+///   lost energy (1 - e^2) J3 J4 / (J3 + J4) (w4 - w3)^2 / 2
+/// ```
+///
+/// The contacts' normal rows are proportional (`h3` and `h4` times the relative
+/// angle's), so the Delassus matrix has rank 1 and the split between `P3` and `P4`
+/// is the solver's choice (its weights): only the sum above is checked, and each
+/// `P_i >= 0`. The slip at both is zero (the plates' points move normal to them),
+/// so friction takes nothing: the same with friction 0.2.
+///
+/// Platform held, no gravity, no springs: nothing else acts, and the angular
+/// velocities are constant before and after. Tolerance 1e-9 of `|w4 - w3|`: the
+/// event lies within 1e-12 s of the meeting (the angles then differ from 0 by
+/// `|w| 1e-12 s`, which changes nothing to first order: the levers are `h_i` at any
+/// common angle), the rest is rounding.
+#[test]
+fn two_plates_on_one_hinge_strike_as_two_bodies_on_one_axis() {
+    let steiner = |(m, i, c): (f64, f64, [f64; 2])| {
+        i + m * ((c[0] - HINGE[0]).powi(2) + (c[1] - HINGE[1]).powi(2))
+    };
+    let (j4, j3) = (steiner(ACTUATOR), steiner(ELEMENT));
+    for (w4, w3, e, mu) in [
+        (-3.0, 1.0, 0.5, 0.2),
+        (-3.0, 1.0, 0.5, 0.0),
+        (2.0, 6.0, 1.0, 0.2),
+        (-1.0, 0.0, 0.0, 0.2),
+    ] {
+        let case = format!("w4 {w4}, w3 {w3}, e {e}, mu {mu}");
+        let m = plates(w4, w3, e, mu);
+        let model = PlantModel::new(&m);
+        assert_eq!(model.bodies.len(), 3);
+        let (b4, b3) = (1, 2);
+        assert_eq!(model.bodies[b4].name, "actuator");
+        assert_eq!(model.bodies[b3].name, "element");
+        let n = model.dof;
+        let (i4, i3) = (n + model.bodies[b4].angle, n + model.bodies[b3].angle);
+        let holds = Holds {
+            platform: true,
+            ..Holds::default()
+        };
+        let mut plant = Plant::new(model, initial_state(&m), Settings::default(), holds);
+        assert!(plant.modes.iter().all(|m| *m == ContactMode::Open));
+        plant.advance_to(2.0 * T_HIT, &mut |_| {});
+        assert!(plant.warnings.is_empty(), "{case}: {:?}", plant.warnings);
+        let impacts: Vec<_> = plant
+            .events
+            .iter()
+            .filter(|e| e.kind == EventKind::Impact)
+            .collect();
+        assert_eq!(plant.impacts, 1, "{case}: {:?}", plant.events);
+        let names: Vec<&str> = impacts.iter().map(|e| e.contact.as_str()).collect();
+        assert_eq!(names, ["K3", "K4"], "{case}: {:?}", plant.events);
+        check(&format!("{case}: impact time"), impacts[0].t, T_HIT, 1e-10);
+        assert_eq!(impacts[1].t, impacts[0].t);
+
+        let closing = w4 - w3;
+        let tol = 1e-9 * closing.abs();
+        let w4_after = w4 - (1.0 + e) * j3 / (j3 + j4) * closing;
+        let w3_after = w3 + (1.0 + e) * j4 / (j3 + j4) * closing;
+        let (got4, got3) = (plant.y[i4], plant.y[i3]);
+        check(&format!("{case}: w4'"), got4, w4_after, tol);
+        check(&format!("{case}: w3'"), got3, w3_after, tol);
+        let angular_impulse: f64 = impacts
+            .iter()
+            .zip(HEIGHTS)
+            .map(|(e, h)| h * e.normal_impulse)
+            .sum();
+        let j_eff = j3 * j4 / (j3 + j4);
+        let expected = (1.0 + e) * j_eff * closing.abs();
+        check(
+            &format!("{case}: h3 P3 + h4 P4"),
+            angular_impulse,
+            expected,
+            tol * j_eff,
+        );
+        for row in &impacts {
+            assert!(
+                row.normal_impulse >= -tol * j_eff,
+                "{case}: {} P_n {}",
+                row.contact,
+                row.normal_impulse
+            );
+            // Each contact's normal velocity: h_i (w4 - w3) before, -e times it
+            // after.
+            let h = if row.contact == "K3" {
+                HEIGHTS[0]
+            } else {
+                HEIGHTS[1]
+            };
+            check(
+                &format!("{case}: {} u_n before", row.contact),
+                row.normal_velocity_before,
+                h * closing,
+                tol * h,
+            );
+            check(
+                &format!("{case}: {} u_n after", row.contact),
+                row.normal_velocity_after,
+                -e * h * closing,
+                tol * h,
+            );
+        }
+        // Energy: the two plates' kinetic energy about the hinge, J.
+        let lost = 0.5 * j4 * (w4 * w4 - got4 * got4) + 0.5 * j3 * (w3 * w3 - got3 * got3);
+        let scale = j_eff * closing * closing;
+        check(
+            &format!("{case}: energy lost"),
+            lost,
+            0.5 * (1.0 - e * e) * scale,
+            1e-9 * scale,
+        );
+        eprintln!(
+            "{case}: w4' err {:.1e}, w3' err {:.1e}, angular impulse err {:.1e} (tol {:.1e}), \
+             split P3 {:.6e} P4 {:.6e} N s",
+            got4 - w4_after,
+            got3 - w3_after,
+            angular_impulse - expected,
+            tol * j_eff,
+            impacts[0].normal_impulse,
+            impacts[1].normal_impulse
+        );
+    }
+}
