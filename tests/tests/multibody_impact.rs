@@ -16,15 +16,26 @@
 //!   conserved (no external impulse), no energy gained at one contact under
 //!   Poisson (any friction) and any gain at two flagged by the solver, non-negative
 //!   normal impulses inside the friction cone, no approach left.
+//!
+//! The bodies after an impact are `q' + M^-1 J^T P` ([`Pair::after`]), whose rows
+//! give A and B equal and opposite impulses: the total momenta are kept by that
+//! construction, whatever the solver's impulses. What can fail, and is checked
+//! besides: each body's own impulse-momentum balance with the solver's impulses
+//! written as world vectors (`m_B dv_B = sum_i (P_n,i n + P_t,i t)`, `J_B d omega_B =
+//! sum_i r_B,i x (P_n,i n + P_t,i t)`, A's with the opposite; Stronge 2000, ch. 4),
+//! which the Jacobian route must reproduce; and the solver's own outcome
+//! velocities, which it computes apart from the impulses it reports: every
+//! contact's `u_n'` and `u_t'` must be the bodies' after (from the impulses), and
+//! `u' - u = W P` with the Delassus matrix computed here.
 
 // The checks index parallel arrays (components, contacts) with one variable.
 #![allow(clippy::needless_range_loop)]
 
 use shared::impact::{solve, ImpactLaw, ImpactOutcome, InteractionCase, Warnings, MAX_CONTACTS};
-use tests::rig::check;
+use tests::rig::{check, cross};
 use tests::two_bodies::{
     body, central_after, central_pair, law, off_centre_pair, poisson_closed_form, slipping_pair,
-    Body, Contact, Pair, CENTRAL_CASES,
+    tangent, Body, Contact, Pair, CENTRAL_CASES,
 };
 use tests::Rng;
 
@@ -160,6 +171,8 @@ fn generated(rng: &mut Rng) -> (Pair, Vec<Contact>) {
 fn momentum_is_kept_and_any_energy_gain_is_flagged_over_generated_impacts() {
     let mut rng = Rng::new(0x5eed_0012);
     let mut solved_cases = 0;
+    // The worst of the new checks, relative to their tolerances.
+    let mut worst = [0.0f64; 4];
     for case in 0..2000 {
         let (pair, contacts) = generated(&mut rng);
         let problem = pair.problem(&contacts, ImpactLaw::Poisson);
@@ -202,6 +215,86 @@ fn momentum_is_kept_and_any_energy_gain_is_flagged_over_generated_impacts() {
             "the solver's energy change {} against {gained}: {context}",
             out.energy_change
         );
+        // Each body's impulse-momentum balance, the solver's impulses as world
+        // vectors at the contact points: the velocity changes `Pair::after` gives
+        // through the Jacobians against the textbook relations of each body.
+        let speed = 20.0;
+        let (mut pi, mut moment_a, mut moment_b) = ([0.0; 2], 0.0, 0.0);
+        for (c, o) in contacts.iter().zip(&out.contacts[..out.len]) {
+            let t = [-c.normal[1], c.normal[0]];
+            let f = [
+                o.normal_impulse * c.normal[0] + o.tangential_impulse * t[0],
+                o.normal_impulse * c.normal[1] + o.tangential_impulse * t[1],
+            ];
+            pi[0] += f[0];
+            pi[1] += f[1];
+            let r = |x: &Body| [c.point[0] - x.centre[0], c.point[1] - x.centre[1]];
+            moment_a += cross(r(&pair.a), f);
+            moment_b += cross(r(&pair.b), f);
+        }
+        for k in 0..2 {
+            let (a0, a1) = (pair.a.velocity[k], after.a.velocity[k]);
+            let (b0, b1) = (pair.b.velocity[k], after.b.velocity[k]);
+            let tol = REL * speed * pair.a.mass.max(pair.b.mass);
+            worst[0] = worst[0]
+                .max((pair.b.mass * (b1 - b0) - pi[k]).abs() / tol)
+                .max((pair.a.mass * (a1 - a0) + pi[k]).abs() / tol);
+            assert!(
+                (pair.b.mass * (b1 - b0) - pi[k]).abs() <= tol,
+                "B's momentum change {} against the impulse {}: {context}",
+                pair.b.mass * (b1 - b0),
+                pi[k]
+            );
+            assert!(
+                (pair.a.mass * (a1 - a0) + pi[k]).abs() <= tol,
+                "A's momentum change {} against the impulse {}: {context}",
+                pair.a.mass * (a1 - a0),
+                -pi[k]
+            );
+        }
+        // Moments: the impulse (<= m speed) on a lever <= 0.6 m.
+        let tol_l = REL * speed * pair.a.mass.max(pair.b.mass) * 0.6;
+        let db = pair.b.inertia * (after.b.omega - pair.b.omega);
+        let da = pair.a.inertia * (after.a.omega - pair.a.omega);
+        worst[1] = worst[1]
+            .max((db - moment_b).abs() / tol_l)
+            .max((da + moment_a).abs() / tol_l);
+        assert!(
+            (db - moment_b).abs() <= tol_l,
+            "B's angular momentum change {db} against {moment_b}: {context}"
+        );
+        assert!(
+            (da + moment_a).abs() <= tol_l,
+            "A's angular momentum change {da} against {}: {context}",
+            -moment_a
+        );
+        // The solver's outcome velocities against its impulses: u' - u = W P,
+        // normal and tangential rows, W the Delassus matrix built here.
+        for i in 0..out.len {
+            let mut du = [0.0; 2];
+            for j in 0..out.len {
+                let (pn, pt) = (
+                    out.contacts[j].normal_impulse,
+                    out.contacts[j].tangential_impulse,
+                );
+                du[0] += problem.w_nn[i][j] * pn + problem.w_nt[i][j] * pt;
+                du[1] += problem.w_nt[j][i] * pn + problem.w_tt[i][j] * pt;
+            }
+            let c = &out.contacts[i];
+            let reported = [
+                c.normal_velocity_after - problem.u_n[i],
+                c.tangential_velocity_after - problem.u_t[i],
+            ];
+            for k in 0..2 {
+                worst[2] = worst[2].max((reported[k] - du[k]).abs() / (REL * speed));
+                assert!(
+                    (reported[k] - du[k]).abs() <= REL * speed,
+                    "contact {i}, row {k}: the solver's u' - u {} against W P {}: {context}",
+                    reported[k],
+                    du[k]
+                );
+            }
+        }
         for i in 0..out.len {
             let c = &out.contacts[i];
             let tol = REL * (1.0 + c.normal_impulse.abs());
@@ -215,16 +308,29 @@ fn momentum_is_kept_and_any_energy_gain_is_flagged_over_generated_impacts() {
             let row = pair.row(contacts[i].point, contacts[i].normal);
             let q = after.q_dot();
             let u_n: f64 = (0..6).map(|k| row[k] * q[k]).sum();
-            // m/s, above the relative speeds of the generated cases: per body
-            // |v| <= 2.9 and |omega r| <= 10 x 0.6.
-            let speed = 20.0;
+            // `speed` (m/s) is above the relative speeds of the generated cases:
+            // per body |v| <= 2.9 and |omega r| <= 10 x 0.6.
             assert!(
                 (u_n - c.normal_velocity_after).abs() <= REL * speed,
                 "u_n after {u_n} against the solver's {}: {context}",
                 c.normal_velocity_after
             );
             assert!(u_n >= -REL * speed, "still approaching: {u_n}: {context}");
+            // Likewise the slip after.
+            let row = pair.row(contacts[i].point, tangent(contacts[i].normal));
+            let u_t: f64 = (0..6).map(|k| row[k] * q[k]).sum();
+            worst[3] = worst[3].max((u_t - c.tangential_velocity_after).abs() / (REL * speed));
+            assert!(
+                (u_t - c.tangential_velocity_after).abs() <= REL * speed,
+                "u_t after {u_t} against the solver's {}: {context}",
+                c.tangential_velocity_after
+            );
         }
     }
     assert!(solved_cases > 500, "{solved_cases} impacts among the cases");
+    eprintln!(
+        "{solved_cases} impacts; worst error / tolerance: momentum per body {:.1e}, angular \
+         momentum per body {:.1e}, u' - u = W P {:.1e}, u_t' {:.1e}",
+        worst[0], worst[1], worst[2], worst[3]
+    );
 }

@@ -8,10 +8,12 @@
 //!   compound pendulum, period `2 pi sqrt(J_h / (m g d))` for small angles;
 //! - a pendulum hinged to a platform that rests on a frictionless floor, striking a
 //!   stop on the platform: no horizontal external force, so the system's
-//!   horizontal momentum `sum m v_x` (computed here from the bodies' centres of
-//!   mass, finite differences of their positions) stays what it was through every
-//!   impact, and the mechanical energy never grows under Poisson's law with one
-//!   restitution;
+//!   horizontal momentum `sum m v_x` (from the bodies' velocities the plant
+//!   reports) stays zero through every impact, and, independently of those
+//!   velocities, the system's horizontal centre of mass (from the bodies'
+//!   positions alone) stays where it started; the mechanical energy (the rotors'
+//!   spin included) never grows, from one reported state to the next, under
+//!   Poisson's law with one restitution;
 //! - every contact's Jacobian rows and velocity-product terms (a face turning with
 //!   its body among them) against finite differences of its gap and slip along a
 //!   path, and the mass matrix against the kinetic energy summed mass by mass with
@@ -162,8 +164,9 @@ fn a_compound_pendulum_on_the_fundament_swings_with_the_closed_form_period() {
 
 /// A pendulum (the arm, 0.3 kg) hinged 0.25 m above the floor to the platform,
 /// which stands on a frictionless floor; its tip strikes a stop, a vertical face of
-/// the platform at x = 0.03 m, with friction. Rotors without eccentric masses.
-fn pendulum_on_a_sliding_platform() -> Machine {
+/// the platform at x = 0.03 m, with `restitution` and `friction`. Rotors without
+/// eccentric masses.
+fn pendulum_on_a_sliding_platform(restitution: f64, friction: f64) -> Machine {
     let hinge = [0.0, 0.25];
     let a0 = -PI / 2.0 - 0.3;
     let (s, c) = a0.sin_cos();
@@ -177,8 +180,8 @@ against = "platform"
 point = [{}, {}]
 face = [0.03, 0.1]
 normal = [-1.0, 0.0]
-restitution = 0.3
-friction = 0.3
+restitution = {restitution:?}
+friction = {friction:?}
 "#,
         arm("platform", hinge, a0, 0.0),
         hinge[0] + tip * c,
@@ -194,25 +197,76 @@ friction = 0.3
     )
 }
 
+/// The platform's and the arm's mass (kg) and inertia about their centres (kg m^2);
+/// each rotor's inertia about its axis (kg m^2; no eccentric mass).
+const PLATFORM: (f64, f64) = (2.0, 7.3e-3);
+const ARM: (f64, f64) = (0.3, 1e-3);
+const ROTOR_INERTIA: f64 = 6e-6;
+
 /// Horizontal momentum and mechanical energy from a trace row: the platform
-/// (mass 2 kg, inertia 7.3e-3 kg m^2) and the arm (0.3 kg, 1e-3 kg m^2), each
-/// `m v_x`, and `m v^2 / 2 + I omega^2 / 2 + m g y`.
+/// and the arm, each `m v_x`, and `m v^2 / 2 + I omega^2 / 2 + m g y`, and each
+/// rotor's `I_k (theta' + phi_k')^2 / 2`. The rotors matter: an impact leaves their
+/// own spin `theta' + phi'` unchanged while it jolts the platform's, so `phi'`
+/// jumps and the motors' friction then trades energy between rotors and platform
+/// (measured without them: the platform and the arm gain 1.5e-7 J in the 2 ms
+/// after the first impact, 1.7e-8 J between two steps). The velocities are the
+/// row's, the plant's own (`PlantModel::body_motion`: the arm's centre's velocity
+/// through its Jacobian); [`centre_x`] is the independent side.
 fn momentum_and_energy(r: &host_sim::simulation::trace::TraceRow) -> (f64, f64) {
     let g = 9.81;
-    let platform = (2.0, 7.3e-3, [r.x, r.y, r.angle, r.vx, r.vy, r.omega]);
-    let arm = (0.3, 1e-3, r.bodies[0]);
+    let platform = (
+        PLATFORM.0,
+        PLATFORM.1,
+        [r.x, r.y, r.angle, r.vx, r.vy, r.omega],
+    );
+    let arm = (ARM.0, ARM.1, r.bodies[0]);
     let mut p = 0.0;
     let mut e = 0.0;
     for (m, i, b) in [platform, arm] {
         p += m * b[3];
         e += 0.5 * m * (b[3] * b[3] + b[4] * b[4]) + 0.5 * i * b[5] * b[5] + m * g * b[1];
     }
+    // Each rotor's own spin, at theta' + phi'.
+    for w in [r.omega + r.omega1, r.omega + r.omega2] {
+        e += 0.5 * ROTOR_INERTIA * w * w;
+    }
     (p, e)
 }
 
-#[test]
-fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
-    let m = pendulum_on_a_sliding_platform();
+/// The machine's horizontal centre of mass from a trace row's positions alone,
+/// `(m_p x_p + m_a x_a) / (m_p + m_a)`, m (the rotors carry no eccentric mass).
+fn centre_x(r: &host_sim::simulation::trace::TraceRow) -> f64 {
+    (PLATFORM.0 * r.x + ARM.0 * r.bodies[0][0]) / (PLATFORM.0 + ARM.0)
+}
+
+/// One reported state of a swing: what kind, when, and what it says.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    /// A step's end (dense output), or the state just before or just after an
+    /// event.
+    kind: Kind,
+    t: f64,
+    /// The plant's momentum (N s) and the energy (J), [`momentum_and_energy`].
+    momentum: f64,
+    energy: f64,
+    /// [`centre_x`], m.
+    centre: f64,
+    /// The platform's velocity along x, m/s.
+    platform_vx: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Step,
+    Before,
+    After,
+}
+
+/// The pendulum on the sliding platform, its stop at `restitution` and
+/// `friction`, run to `t_end` s: every step's end and every event's states, and
+/// the plant.
+fn swing(restitution: f64, friction: f64, t_end: f64) -> (Vec<Seen>, Plant) {
+    let m = pendulum_on_a_sliding_platform(restitution, friction);
     let model = PlantModel::new(&m);
     let row_model = model.clone();
     let mut plant = Plant::new(
@@ -222,32 +276,87 @@ fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
         Holds::default(),
     );
     let forces = Default::default();
-    let row =
-        |t: f64, y: &[f64; host_sim::plant::model::NY]| row_model.row(t, y, [0.0; 2], &forces);
-    let (p0, e0) = momentum_and_energy(&row(0.0, &plant.y));
+    let seen_at = |kind: Kind, t: f64, y: &[f64; host_sim::plant::model::NY]| {
+        let r = row_model.row(t, y, [0.0; 2], &forces);
+        let (momentum, energy) = momentum_and_energy(&r);
+        Seen {
+            kind,
+            t,
+            momentum,
+            energy,
+            centre: centre_x(&r),
+            platform_vx: r.vx,
+        }
+    };
+    let mut seen = vec![seen_at(Kind::Step, 0.0, &plant.y)];
+    plant.advance_to(t_end, &mut |out| match out {
+        Output::Dense(step, upto) => seen.push(seen_at(Kind::Step, upto, &step.at(upto))),
+        Output::Before(at) => seen.push(seen_at(Kind::Before, at.t, at.y)),
+        Output::After(at) => seen.push(seen_at(Kind::After, at.t, at.y)),
+    });
+    (seen, plant)
+}
+
+/// The pendulum strikes the stop (restitution 0.3, friction 0.3) and the
+/// platform slides on its frictionless feet, rocking as the blows lift a foot.
+///
+/// - Momentum: no horizontal external force, so `p_x = 0` throughout. At an event
+///   the impulses and the projections onto the contacts are internal (equal and
+///   opposite at each contact, mass-weighted), exact up to rounding, `1e-16` of
+///   the impulses (0.1 N s) at each of some 30 events: 3e-15 N s. In flight the
+///   equations keep `p_x` (`Q_x = 0`) and the integrator does up to its local
+///   error, which falls with `rtol`: measured over the run 4.4e-15 N s at 1000
+///   times the default `rtol` (1e-5; 2.1e-14 N s with an elastic frictionless
+///   stop), 7.8e-16 N s at the default. One tolerance
+///   for both, 1e-13 N s (1e-12 of the swing's momentum `m v` = 0.12 N s), checked
+///   twice: on the plant's velocities ([`momentum_and_energy`]), and independently
+///   of them on the positions alone: the machine's horizontal centre of mass
+///   [`centre_x`], whose rate is `p_x / M`, stays where it started, to
+///   `1e-13 N s x 1.5 s / 2.3 kg` = 7e-14 m, 1e-13 m.
+/// - Energy: nothing adds any (no spring, no motor drive; impacts, the stop's
+///   friction and the motors' friction take), so it never rises: not above the
+///   start, never at an event, and never from one reported state to the next
+///   (a gain in flight smaller than the impacts' losses would pass the first).
+///   The allowance between two states: rounding, 2 ulp of the 1 J sum (4.4e-16
+///   J, measured), and the integrator's local error on a smooth flight, O((w
+///   h)^6) of the swing's energy (0.05 J) with `w h <= 8 rad/s x 1e-3 s` (the
+///   largest step): 1.3e-14 J. 1e-12 J leaves a margin of 75 over both, and lies
+///   1e4 below the 1.7e-8 J a step that an energy without the rotors gains.
+#[test]
+fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
+    let (seen, plant) = swing(0.3, 0.3, 1.5);
+    let (p0, e0, x0) = (seen[0].momentum, seen[0].energy, seen[0].centre);
     assert_eq!(p0, 0.0);
     let mut impacts = 0;
     let mut worst_p: f64 = 0.0;
     let mut highest_e = f64::NEG_INFINITY;
     let mut before_e = f64::NAN;
     let mut gained: f64 = 0.0;
-    let mut platform_speed: f64 = 0.0;
-    plant.advance_to(1.5, &mut |out| match out {
-        Output::Dense(step, upto) => {
-            let r = row(upto, &step.at(upto));
-            platform_speed = platform_speed.max(r.vx.abs());
-            let (p, e) = momentum_and_energy(&r);
-            worst_p = worst_p.max(p.abs());
-            highest_e = highest_e.max(e);
+    let (mut worst_rise, mut worst_centre) = (f64::NEG_INFINITY, 0.0f64);
+    for (k, s) in seen.iter().enumerate() {
+        match s.kind {
+            Kind::Step => highest_e = highest_e.max(s.energy),
+            Kind::Before => before_e = s.energy,
+            Kind::After => {
+                gained = gained.max(s.energy - before_e);
+                impacts += 1;
+            }
         }
-        Output::Before(at) => before_e = momentum_and_energy(&row(at.t, at.y)).1,
-        Output::After(at) => {
-            let (p, e) = momentum_and_energy(&row(at.t, at.y));
-            worst_p = worst_p.max(p.abs());
-            gained = gained.max(e - before_e);
-            impacts += 1;
+        worst_p = worst_p.max(s.momentum.abs());
+        worst_centre = worst_centre.max((s.centre - x0).abs());
+        // From one state to the next, events apart (those are `gained`).
+        if k > 0 && s.kind != Kind::After {
+            let rise = s.energy - seen[k - 1].energy;
+            assert!(
+                rise <= 1e-12,
+                "the energy rose by {rise} J from t = {} to {} s",
+                seen[k - 1].t,
+                s.t
+            );
+            worst_rise = worst_rise.max(rise);
         }
-    });
+    }
+    let platform_speed = seen.iter().fold(0.0f64, |m, s| m.max(s.platform_vx.abs()));
     let stop_impacts = plant
         .events
         .iter()
@@ -269,6 +378,15 @@ fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
         worst_p < 1e-7,
         "horizontal momentum reached {worst_p} N s ({impacts} events)"
     );
+    // The tolerance derived above, on the plant's velocities and on the positions.
+    assert!(
+        worst_p <= 1e-13,
+        "horizontal momentum reached {worst_p} N s ({impacts} events)"
+    );
+    assert!(
+        worst_centre <= 1e-13,
+        "the centre of mass moved by {worst_centre} m along x"
+    );
     // Energy: never above the start (no spring, no motor; impacts and friction
     // only take), to the integrator's tolerance.
     let scale = e0.abs().max(1.0);
@@ -277,6 +395,13 @@ fn a_pendulum_striking_a_stop_on_a_frictionless_platform_keeps_the_momentum() {
         "energy rose from {e0} J to {highest_e} J"
     );
     assert!(gained <= 1e-9 * scale, "an event gained {gained} J");
+    eprintln!(
+        "{} states, {impacts} events: |p_x| <= {worst_p:.1e} N s, |X - X0| <= \
+         {worst_centre:.1e} m, largest rise between states {worst_rise:.1e} J, at an \
+         event {gained:.1e} J, E {e0} -> {} J",
+        seen.len(),
+        seen[seen.len() - 1].energy
+    );
 }
 
 /// The reference machine with an arm hinged to the platform (striking a stop on
