@@ -87,18 +87,6 @@ pub struct ContactEnds {
     pub normal: Option<[f64; 2]>,
 }
 
-impl ContactEnds {
-    /// The platform against the fundament: every contact of a one-body machine.
-    pub fn platform_on_fundament() -> Self {
-        ContactEnds {
-            body: PLATFORM.to_string(),
-            against: FUNDAMENT.to_string(),
-            face: None,
-            normal: None,
-        }
-    }
-}
-
 /// One `[[bodies]]` table (default name `B{i+1}`): a name and `[platform]`'s keys.
 pub fn read_body(index: usize, s: &Section) -> Named<Body> {
     let (given, name) = read_name(s, index, "B");

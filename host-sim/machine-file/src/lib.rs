@@ -311,7 +311,8 @@ impl Machine {
 
     /// What the machine asks beyond a single platform on the fundament (further
     /// bodies, joints, contacts between bodies, rotors elsewhere), one item a
-    /// line: empty for the machines the plant simulates today.
+    /// line: what the firmware's build refuses (its controller constants are a
+    /// single platform's); empty for a single platform.
     pub fn beyond_the_platform(&self) -> Vec<String> {
         let ends: Vec<ContactEnds> = self.contacts.iter().map(|c| c.ends.clone()).collect();
         let rotor_bodies: Vec<String> = self.rotors.iter().map(|r| r.body.clone()).collect();
@@ -369,11 +370,7 @@ fn read_all<T>(list: Vec<Option<Section>>, read: fn(usize, &Section) -> Named<T>
         .enumerate()
         .map(|(i, s)| match s {
             Some(s) => read(i, s),
-            None => Named {
-                given: false,
-                name: None,
-                value: None,
-            },
+            None => refused_element(),
         })
         .collect()
 }
@@ -475,28 +472,12 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let platform = root
         .section("platform", Need::Required)
         .and_then(|s| read_platform(&s));
-    let contacts = root.sections("contacts").map(|list| {
-        list.iter()
-            .enumerate()
-            .map(|(i, s)| match s {
-                Some(s) => read_contact(i, s),
-                None => refused_element(),
-            })
-            .collect::<Vec<_>>()
-    });
-    let rotors = root.sections("rotors").map(|list| {
-        list.iter()
-            .enumerate()
-            .map(|(i, s)| match s {
-                Some(s) => read_rotor(i, s),
-                None => Named {
-                    given: false,
-                    name: None,
-                    value: None,
-                },
-            })
-            .collect::<Vec<_>>()
-    });
+    let contacts = root
+        .sections("contacts")
+        .map(|list| read_all(list, read_contact));
+    let rotors = root
+        .sections("rotors")
+        .map(|list| read_all(list, read_rotor));
     let further = root
         .sections("bodies")
         .map(|list| read_all(list, bodies::read_body));

@@ -7,7 +7,7 @@
 //! (spec `machine.md`, `host-sim tune`; docs/tuning.md).
 //!
 //! A machine with one rotor has no phase offset and its controller no tuning
-//! table to use: `tune` refuses it (exit 2, [`one_rotor_refusal`]).
+//! table to use: `tune` refuses it (exit 2, `one_rotor_refusal`).
 //!
 //! Stages of [`run`]:
 //! 1. read and check the machine file with the `--set` overrides, and the options
@@ -326,7 +326,7 @@ pub(crate) fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
 /// Why `tune` refuses a one-rotor machine: it sweeps the phase offset between two
 /// rotors and writes the offsets of the tuning table, and a single rotor has
 /// neither (its controller holds speed only).
-pub fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
+fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
     format!(
         "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
         path.display(),
