@@ -481,3 +481,48 @@ fn the_integrators_tolerance_is_a_machine_key() {
     let r = run(&["run", m.to_str().unwrap(), "--set", "simulation.rtol=1e-4"]);
     r.refused("simulation.rtol: must be in [1e-12, 1e-5] (got 0.0001)");
 }
+
+/// Two outputs streamed into one stream would interleave their lines: refused
+/// before the run, exit 2, nothing written.
+#[test]
+fn two_outputs_into_one_stream_are_refused() {
+    let m = machine();
+    for (out, events) in [("-", "-"), ("/dev/stdout", "-")] {
+        let r = run(&[
+            "run",
+            m.to_str().unwrap(),
+            "--command",
+            "right",
+            "--t-end",
+            "0.1",
+            "--out",
+            out,
+            "--events",
+            events,
+        ]);
+        r.refused(&format!(
+            "error: cannot write -: it is the stream {out} is written to already: give each output its own stream"
+        ));
+        assert!(r.stdout.is_empty(), "{}", r.stdout);
+    }
+}
+
+/// A controller that cannot be built (its tuning table does not parse) is refused
+/// before any output is opened: not a trace header on stdout first.
+#[test]
+fn a_bad_tuning_table_writes_nothing() {
+    let dir = scratch("bad-table");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.toml"), "garbage = [").unwrap();
+    let text = std::fs::read_to_string(machine())
+        .unwrap()
+        .replace(
+            "tuning_table = \"vibro-driver.tuning.toml\"",
+            "tuning_table = \"bad.toml\"",
+        );
+    let file = dir.join("m.toml");
+    std::fs::write(&file, text).unwrap();
+    let r = run(&["run", file.to_str().unwrap(), "--command", "right", "--out", "-"]);
+    r.refused("bad.toml:1:12: TOML syntax");
+    assert!(r.stdout.is_empty(), "{}", r.stdout);
+}

@@ -176,21 +176,25 @@ impl Staged {
     pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
         let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
         // Two outputs into one file would share its temporary file and replace it
-        // with a mix of both.
-        if let Target::Regular(p) = &target {
-            let here = canonical(p);
-            if let Some(other) = self.pending.iter().find(|o| match &o.target {
-                Target::Regular(q) => canonical(q) == here,
-                _ => false,
-            }) {
-                return Err(cannot_write(
-                    path,
-                    format!(
-                        "it is the file {} is written to already: give each output its own file",
-                        other.named.display()
-                    ),
-                ));
-            }
+        // with a mix of both; two into stdout (or stderr), streamed as the run
+        // goes, would interleave their lines.
+        let here = match &target {
+            Target::Regular(p) => Some(canonical(p)),
+            _ => None,
+        };
+        if let Some(other) = self.pending.iter().find(|o| match (&o.target, &target) {
+            (Target::Regular(q), Target::Regular(_)) => Some(canonical(q)) == here,
+            (Target::Stdout, Target::Stdout) | (Target::Stderr, Target::Stderr) => true,
+            _ => false,
+        }) {
+            let what = if here.is_some() { "file" } else { "stream" };
+            return Err(cannot_write(
+                path,
+                format!(
+                    "it is the {what} {} is written to already: give each output its own {what}",
+                    other.named.display()
+                ),
+            ));
         }
         let (temporary, sink): (Option<PathBuf>, Box<dyn Write>) = match &target {
             Target::Stdout => (None, Box::new(io::stdout())),

@@ -35,7 +35,7 @@ use crate::output::text::sig;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
-    limits, simulate_observed, Observer, OpenLoop, OpenLoopDriver, RunOptions,
+    limits, simulate_observed, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
 };
 use plot::plot_svg;
 use report::{summary_json, summary_table};
@@ -198,6 +198,37 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         return Err(Failure::Usage(problems.join("\n")));
     }
 
+    // What drives the motors, built before any output is opened: a controller
+    // that cannot be built (its tuning table) is refused with nothing written.
+    let supply = machine.drive.supply_voltage;
+    let mut warnings = Vec::new();
+    let (mut driver, how): (Box<dyn Driver>, String) = match &drive {
+        Drive::OpenLoop(open_loop) => {
+            let given = match open_loop {
+                OpenLoop::Voltages(v) => Some((format!("{},{}", v[0], v[1]), v.to_vec())),
+                OpenLoop::Voltage(v) => Some((format!("{v}"), vec![*v])),
+                OpenLoop::Coast => None,
+            };
+            if let Some((text, v)) = given {
+                if v.iter().any(|u| u.abs() > supply) {
+                    warnings.push(format!(
+                        "--open-loop {text}: clamped to the supply of {supply} V"
+                    ));
+                }
+            }
+            let how = match open_loop {
+                OpenLoop::Coast => "open loop, coast".to_string(),
+                OpenLoop::Voltages(v) => format!("open loop, {} V, {} V", v[0], v[1]),
+                OpenLoop::Voltage(v) => format!("open loop, {v} V, one rotor"),
+            };
+            (Box::new(OpenLoopDriver::new(*open_loop, supply)), how)
+        }
+        Drive::Controller(schedule) => (
+            Box::new(ControllerDriver::new(&machine, schedule.clone())?),
+            describe_command(args, &machine),
+        ),
+    };
+
     // The output files, checked and opened before the run: a path that cannot be
     // written is refused at once and nothing is left behind.
     let mut staged = Staged::new();
@@ -227,8 +258,6 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
 
     // 2. Simulate, the trace and the events streamed to their files.
-    let supply = machine.drive.supply_voltage;
-    let mut warnings = Vec::new();
     let mut options = RunOptions::new(t_end);
     options.keep_rows = plot.is_some();
     options.keep_events = plot.is_some();
@@ -240,40 +269,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         shape,
         &machine.contacts,
     );
-    let (mut result, how) = match &drive {
-        Drive::OpenLoop(open_loop) => {
-            let given = match open_loop {
-                OpenLoop::Voltages(v) => Some((format!("{},{}", v[0], v[1]), v.to_vec())),
-                OpenLoop::Voltage(v) => Some((format!("{v}"), vec![*v])),
-                OpenLoop::Coast => None,
-            };
-            if let Some((text, v)) = given {
-                if v.iter().any(|u| u.abs() > supply) {
-                    warnings.push(format!(
-                        "--open-loop {text}: clamped to the supply of {supply} V"
-                    ));
-                }
-            }
-            let mut driver = OpenLoopDriver::new(*open_loop, supply);
-            let how = match open_loop {
-                OpenLoop::Coast => "open loop, coast".to_string(),
-                OpenLoop::Voltages(v) => format!("open loop, {} V, {} V", v[0], v[1]),
-                OpenLoop::Voltage(v) => format!("open loop, {v} V, one rotor"),
-            };
-            (
-                simulate_observed(&machine, &mut driver, &options, &mut watch),
-                how,
-            )
-        }
-        Drive::Controller(schedule) => {
-            let mut driver = ControllerDriver::new(&machine, schedule.clone())?;
-            let how = describe_command(args, &machine);
-            (
-                simulate_observed(&machine, &mut driver, &options, &mut watch),
-                how,
-            )
-        }
-    };
+    let mut result = simulate_observed(&machine, &mut *driver, &options, &mut watch);
     watch.finish()?;
     result.summary.warnings.extend(warnings);
 
