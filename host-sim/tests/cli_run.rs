@@ -514,15 +514,20 @@ fn a_bad_tuning_table_writes_nothing() {
     let dir = scratch("bad-table");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("bad.toml"), "garbage = [").unwrap();
-    let text = std::fs::read_to_string(machine())
-        .unwrap()
-        .replace(
-            "tuning_table = \"vibro-driver.tuning.toml\"",
-            "tuning_table = \"bad.toml\"",
-        );
+    let text = std::fs::read_to_string(machine()).unwrap().replace(
+        "tuning_table = \"vibro-driver.tuning.toml\"",
+        "tuning_table = \"bad.toml\"",
+    );
     let file = dir.join("m.toml");
     std::fs::write(&file, text).unwrap();
-    let r = run(&["run", file.to_str().unwrap(), "--command", "right", "--out", "-"]);
+    let r = run(&[
+        "run",
+        file.to_str().unwrap(),
+        "--command",
+        "right",
+        "--out",
+        "-",
+    ]);
     r.refused("bad.toml:1:12: TOML syntax");
     assert!(r.stdout.is_empty(), "{}", r.stdout);
 }

@@ -22,57 +22,7 @@ use shared::controller::{
 use std::f64::consts::TAU;
 
 mod support;
-use support::rig::{B, DT, GRAVITY_TORQUE, I_MAX, J, K, N, R, SUBSTEPS, TAU_C, V};
-
-/// One rotor of the rig.
-#[derive(Clone, Copy, Debug)]
-struct Rotor {
-    /// Encoder angle `theta`, rad (driven sense), not wrapped.
-    theta: f64,
-    /// Speed, rad/s.
-    omega: f64,
-    /// Winding current, A.
-    current: f64,
-    /// Constant load torque, N m.
-    disturbance: f64,
-    /// Phase of the eccentric's weight torque, rad.
-    gravity_phase: f64,
-    /// Held at rest (a jammed rotor).
-    blocked: bool,
-}
-
-impl Rotor {
-    fn new(theta: f64) -> Self {
-        Rotor {
-            theta,
-            omega: 0.0,
-            current: 0.0,
-            disturbance: 0.0,
-            gravity_phase: 0.0,
-            blocked: false,
-        }
-    }
-
-    /// Advance by `h` s with duty `d` (driver enabled or not).
-    fn advance(&mut self, duty: f64, enable: bool, h: f64) {
-        let drive = if enable {
-            ((duty * V - K * self.omega) / R).clamp(-I_MAX, I_MAX)
-        } else {
-            0.0
-        };
-        self.current = drive;
-        if self.blocked {
-            self.omega = 0.0;
-            return;
-        }
-        // Coulomb friction smoothed over 1 rad/s so that rest is reachable.
-        let friction = TAU_C * (self.omega / 1.0).clamp(-1.0, 1.0);
-        let gravity = GRAVITY_TORQUE * (self.theta + self.gravity_phase).cos();
-        let torque = K * drive - B * self.omega - friction - gravity - self.disturbance;
-        self.omega += torque / J * h;
-        self.theta += self.omega * h;
-    }
-}
+use support::rig::{Rotor, DT, N, SUBSTEPS};
 
 /// The controller in the loop with two rotors.
 struct Rig {

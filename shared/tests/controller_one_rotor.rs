@@ -25,7 +25,7 @@ use shared::controller::{
 use std::f64::consts::TAU;
 
 mod support;
-use support::rig::{B, DT, GRAVITY_TORQUE, I_MAX, J, K, N, R, SUBSTEPS, TAU_C, V};
+use support::rig::{Rotor, DT, N, SUBSTEPS, V};
 
 /// The reference machine's parameters with `rotors` rotors.
 fn params(rotors: RotorCount) -> Params {
@@ -49,11 +49,8 @@ enum Rotor2 {
 /// Rotor 1 in the loop, rotor 2's inputs as `rotor2`.
 struct Rig {
     ctl: Controller,
-    theta: f64,
-    omega: f64,
-    current: f64,
-    /// Load torque, N m.
-    disturbance: f64,
+    /// Rotor 1 (load torque: its `disturbance`).
+    rotor: Rotor,
     rotor2: Rotor2,
     /// xorshift state for rotor 2's garbage.
     noise: u32,
@@ -67,10 +64,7 @@ impl Rig {
     fn new(rotors: RotorCount, rotor2: Rotor2) -> Rig {
         Rig {
             ctl: Controller::new(&params(rotors), ResetCause::PowerOn),
-            theta: 0.3,
-            omega: 0.0,
-            current: 0.0,
-            disturbance: 0.0,
+            rotor: Rotor::new(0.3),
             rotor2,
             noise: 0x1234_5678,
             counter2: 0,
@@ -90,7 +84,7 @@ impl Rig {
     }
 
     fn count(&self) -> u32 {
-        ((self.theta * f64::from(N) / TAU).floor() as i64) as u32
+        ((self.rotor.theta * f64::from(N) / TAU).floor() as i64) as u32
     }
 
     /// One tick: sample, control, then integrate rotor 1 over the tick (rotor 2's
@@ -108,7 +102,7 @@ impl Rig {
         let inputs = Inputs {
             encoder: [self.count(), self.counter2],
             index: [self.pending_index, index2],
-            current: [self.current as f32, current2],
+            current: [self.rotor.current as f32, current2],
             supply_voltage: V as f32,
             command,
             ..Inputs::default()
@@ -117,23 +111,12 @@ impl Rig {
         if self.ctl.params().rotor_count == RotorCount::One {
             assert_eq!(out.duty[1].to_bits(), 0.0f32.to_bits(), "rotor 2 driven");
         }
-        let before = self.theta;
+        let before = self.rotor.theta;
         let h = f64::from(DT) / SUBSTEPS as f64;
         for _ in 0..SUBSTEPS {
-            let drive = if out.enable {
-                ((f64::from(out.duty[0]) * V - K * self.omega) / R).clamp(-I_MAX, I_MAX)
-            } else {
-                0.0
-            };
-            self.current = drive;
-            // Coulomb friction smoothed over 1 rad/s so that rest is reachable.
-            let friction = TAU_C * self.omega.clamp(-1.0, 1.0);
-            let gravity = GRAVITY_TORQUE * self.theta.cos();
-            let torque = K * drive - B * self.omega - friction - gravity - self.disturbance;
-            self.omega += torque / J * h;
-            self.theta += self.omega * h;
+            self.rotor.advance(f64::from(out.duty[0]), out.enable, h);
         }
-        let (m0, m1) = ((before / TAU).floor(), (self.theta / TAU).floor());
+        let (m0, m1) = ((before / TAU).floor(), (self.rotor.theta / TAU).floor());
         self.pending_index = (m0 != m1).then(|| ((m0.max(m1) as i64) * i64::from(N)) as u32);
         self.ticks += 1;
         out
@@ -144,7 +127,7 @@ impl Rig {
     }
 
     fn speed_rpm(&self) -> f64 {
-        self.omega * 60.0 / TAU
+        self.rotor.omega * 60.0 / TAU
     }
 }
 
@@ -182,7 +165,7 @@ fn one_rotor_holds_the_speed_of_rotor_1_against_a_load() {
     }
     // A load of 5e-3 N m (1.7 times the eccentric's weight torque) comes on: the
     // speed dips, and the integral brings it back within 0.5 % in 0.3 s.
-    rig.disturbance = 5.0e-3;
+    rig.rotor.disturbance = 5.0e-3;
     let dip = rig
         .run(300)
         .iter()
