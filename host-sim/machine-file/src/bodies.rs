@@ -21,7 +21,7 @@
 //! ([`beyond_the_platform`] names what).
 
 use crate::input::{check_names, number, read_name, vector, Limit, Named, Need, Section};
-use crate::{read_platform, Platform};
+use crate::{read_platform, MachineContact, Platform};
 
 /// The first body's name.
 pub const PLATFORM: &str = "platform";
@@ -130,7 +130,13 @@ pub fn read_ends(s: &Section) -> Option<ContactEnds> {
     let against = s.string("against", Need::Default(FUNDAMENT.to_string()));
     let face = s.vec2("face", Need::Optional, Limit::Any);
     let face_given = s.has("face");
-    let normal = s.vec2("normal", Need::Optional, Limit::Any);
+    let normal = s.vec2("normal", Need::Optional, Limit::Any).and_then(|n| {
+        s.unit_vector(
+            "normal",
+            n,
+            "the face's normal, from `against` towards `body`",
+        )
+    });
     let normal_given = s.has("normal");
     Some(ContactEnds {
         body: body?,
@@ -141,14 +147,12 @@ pub fn read_ends(s: &Section) -> Option<ContactEnds> {
 }
 
 /// Checks the bodies, joints, contact ends and rotor bodies together (the module
-/// doc's rules); normalises the contacts' normals. `false` when a problem was
-/// recorded.
+/// doc's rules). `false` when a problem was recorded.
 pub fn check(
     root: &Section,
     bodies: &[Named<Body>],
     joints: &[Named<Joint>],
-    contacts: &mut [ContactEnds],
-    contact_points: &[(String, [f64; 2])],
+    contacts: &[MachineContact],
     rotor_bodies: &[String],
 ) -> bool {
     let mut ok = check_names(root, "bodies", "body", bodies);
@@ -232,7 +236,8 @@ pub fn check(
 
     // Contacts: the point on a moving body, the face on another body or the
     // fundament, not behind the face at t = 0.
-    for (i, (ends, (name, point))) in contacts.iter_mut().zip(contact_points).enumerate() {
+    for (i, c) in contacts.iter().enumerate() {
+        let (ends, name, point) = (&c.ends, &c.name, &c.point);
         let key = |k: &str| format!("contacts[{i}].{k}");
         if !moving(&ends.body) {
             let why = if ends.body == FUNDAMENT {
@@ -279,7 +284,7 @@ pub fn check(
             }
             continue;
         }
-        let Some(n) = ends.normal else {
+        let Some(unit) = ends.normal else {
             root.problem(
                 &key("normal"),
                 format!("missing; required against a body ({:?}): the face's normal, from it towards {:?}", ends.against, ends.body),
@@ -287,18 +292,8 @@ pub fn check(
             ok = false;
             continue;
         };
-        let length = n[0].hypot(n[1]);
-        if !(length > 0.0 && length.is_finite()) {
-            root.problem(
-                &key("normal"),
-                format!("must not be zero (got {})", vector(n)),
-            );
-            ok = false;
-            continue;
-        }
-        let unit = [n[0] / length, n[1] / length];
-        ends.normal = Some(unit);
-        let face = *ends.face.get_or_insert(*point);
+        // The face through the point unless given ([`read_ends`]'s caller).
+        let face = ends.face.unwrap_or(*point);
         let gap = unit[0] * (point[0] - face[0]) + unit[1] * (point[1] - face[1]);
         if gap < -GAP_TOLERANCE {
             root.problem(

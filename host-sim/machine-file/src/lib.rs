@@ -528,22 +528,16 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     // the control rate; the bodies, joints and contact ends together. Each check
     // runs whatever else is wrong, so that every problem is reported at once.
     let fundament = fundament?;
-    let mut contacts = contacts?;
+    let contacts = contacts?;
     check_gaps(&root, &fundament, &contacts);
     if let (Some(d), Some(c)) = (&drive, &controller) {
         check_update_rate(&root, d.bridge, c.rate_hz);
     }
     let (further, joints) = (further?, joints?);
     let rotors = rotors?;
-    let mut ends: Vec<ContactEnds> = contacts.iter().map(|c| c.ends.clone()).collect();
-    let points: Vec<(String, [f64; 2])> =
-        contacts.iter().map(|c| (c.name.clone(), c.point)).collect();
     let rotor_bodies: Vec<String> = rotors.iter().map(|r| r.body.clone()).collect();
-    let bodies_ok = bodies::check(&root, &further, &joints, &mut ends, &points, &rotor_bodies)
+    let bodies_ok = bodies::check(&root, &further, &joints, &contacts, &rotor_bodies)
         && bodies::check_size_and_motion(&root, platform.as_ref(), &further, &joints, rotors.len());
-    for (c, e) in contacts.iter_mut().zip(ends) {
-        c.ends = e;
-    }
 
     let further = further
         .into_iter()
@@ -666,13 +660,18 @@ fn read_contact(index: usize, s: &Section) -> Named<MachineContact> {
     let ends = bodies::read_ends(s);
     s.finish();
     let value = (|| {
+        let (point, mut ends) = (point?, ends?);
+        // Against a body, the face passes through the point unless given.
+        if ends.against != bodies::FUNDAMENT {
+            ends.face.get_or_insert(point);
+        }
         Some(MachineContact {
             name: name.clone()?,
-            point: point?,
+            point,
             restitution: restitution?,
             friction: friction?,
             weight: weight?,
-            ends: ends?,
+            ends,
         })
     })();
     Named { given, name, value }
