@@ -136,4 +136,10 @@ fn the_controller_holds_the_fig8_rotor_at_speed() {
     let rpm = v["rotor_speed_rpm"][0].as_f64().unwrap();
     assert!((rpm - 3000.0).abs() < 30.0, "rotor at {rpm} rpm");
     assert!(v["mean_velocity"].as_f64().unwrap() > 0.0, "{v}");
+    // The controller's constants are a single platform's: said.
+    let warned = v["warnings"].as_array().unwrap().iter().any(|w| {
+        w.as_str()
+            .is_some_and(|w| w.starts_with("the controller's constants"))
+    });
+    assert!(warned, "{v}");
 }

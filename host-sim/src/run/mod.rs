@@ -32,7 +32,7 @@ use crate::machine::{Machine, MachineContact};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
 use crate::output::text::sig;
-use crate::simulation::closed_loop::ControllerDriver;
+use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
     limits, simulate_observed, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
@@ -223,10 +223,13 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             };
             (Box::new(OpenLoopDriver::new(*open_loop, supply)), how)
         }
-        Drive::Controller(schedule) => (
-            Box::new(ControllerDriver::new(&machine, schedule.clone())?),
-            describe_command(args, &machine),
-        ),
+        Drive::Controller(schedule) => {
+            warnings.extend(closed_loop::constants_warning(&machine));
+            (
+                Box::new(ControllerDriver::new(&machine, schedule.clone())?),
+                describe_command(args, &machine),
+            )
+        }
     };
 
     // The output files, checked and opened before the run: a path that cannot be

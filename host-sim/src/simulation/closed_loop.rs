@@ -99,6 +99,20 @@ pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
     Ok(p)
 }
 
+/// What the controller's constants leave out on a machine of several bodies:
+/// its lift-off band and resonance are computed from the platform and the
+/// eccentrics alone ([`machine_constants`]), as the firmware's build, which
+/// refuses such a machine, says. `None` for a single platform.
+pub fn constants_warning(m: &Machine) -> Option<String> {
+    let beyond = m.beyond_the_platform();
+    (!beyond.is_empty()).then(|| {
+        format!(
+            "the controller's constants (lift-off band, resonance) are a single platform's, computed from the platform and the eccentrics alone; this machine has more: {} (the firmware's build refuses it)",
+            beyond.join(", ")
+        )
+    })
+}
+
 impl ControllerDriver {
     /// The controller for `machine`, powered on, with `schedule` commands.
     pub fn new(machine: &Machine, schedule: Vec<(f64, Command)>) -> Result<Self, Vec<Problem>> {
