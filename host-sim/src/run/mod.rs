@@ -122,13 +122,13 @@ pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Str
     let rotors = machine.rotors.len();
     match open_loop.rotors() {
         Some(n) if n != rotors => {
-            let (given, want) = match open_loop {
-                OpenLoop::Voltage(v) => (format!("{v}"), "two winding voltages `V1,V2`"),
-                OpenLoop::Voltages(v) => (format!("{},{}", v[0], v[1]), "one winding voltage `V`"),
-                OpenLoop::Coast => ("coast".to_string(), ""),
+            let want = if rotors == 1 {
+                "one winding voltage `V`"
+            } else {
+                "two winding voltages `V1,V2`"
             };
             Err(format!(
-                "error: --open-loop {given}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
+                "error: --open-loop {open_loop}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
                 if n == 1 { "" } else { "s" },
                 if rotors == 1 { "" } else { "s" },
             ))
@@ -204,17 +204,10 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let mut warnings = Vec::new();
     let (mut driver, how): (Box<dyn Driver>, String) = match &drive {
         Drive::OpenLoop(open_loop) => {
-            let given = match open_loop {
-                OpenLoop::Voltages(v) => Some((format!("{},{}", v[0], v[1]), v.to_vec())),
-                OpenLoop::Voltage(v) => Some((format!("{v}"), vec![*v])),
-                OpenLoop::Coast => None,
-            };
-            if let Some((text, v)) = given {
-                if v.iter().any(|u| u.abs() > supply) {
-                    warnings.push(format!(
-                        "--open-loop {text}: clamped to the supply of {supply} V"
-                    ));
-                }
+            if open_loop.volts().iter().any(|u| u.abs() > supply) {
+                warnings.push(format!(
+                    "--open-loop {open_loop}: clamped to the supply of {supply} V"
+                ));
             }
             let how = match open_loop {
                 OpenLoop::Coast => "open loop, coast".to_string(),

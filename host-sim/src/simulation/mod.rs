@@ -81,6 +81,26 @@ impl OpenLoop {
             OpenLoop::Coast => None,
         }
     }
+
+    /// Its winding voltages, V (none for [`OpenLoop::Coast`]).
+    pub fn volts(&self) -> &[f64] {
+        match self {
+            OpenLoop::Voltages(v) => v,
+            OpenLoop::Voltage(v) => std::slice::from_ref(v),
+            OpenLoop::Coast => &[],
+        }
+    }
+}
+
+/// As `--open-loop` takes it: `V1,V2`, `V` or `coast`.
+impl std::fmt::Display for OpenLoop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            OpenLoop::Coast => write!(f, "coast"),
+            OpenLoop::Voltages([a, b]) => write!(f, "{a},{b}"),
+            OpenLoop::Voltage(v) => write!(f, "{v}"),
+        }
+    }
 }
 
 /// The open-loop driver.
