@@ -460,6 +460,22 @@ impl Controller {
         }
         let dt = self.dt_constants.dt;
 
+        // One rotor: rotor 2's inputs are not read; every stage sees it at rest
+        // (its counter standing at 0, no index pulse, no current), so none of them
+        // needs its own exception.
+        let one_rotor_inputs;
+        let inputs = if self.one_rotor {
+            one_rotor_inputs = Inputs {
+                encoder: [inputs.encoder[0], 0],
+                index: [inputs.index[0], None],
+                current: [inputs.current[0], 0.0],
+                ..*inputs
+            };
+            &one_rotor_inputs
+        } else {
+            inputs
+        };
+
         // 2. Measure.
         let m = self.measure(inputs, dt);
         let phase_error_deg = match (self.phase_closed, m.offset_deg) {
@@ -485,12 +501,7 @@ impl Controller {
             Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
             other => other,
         });
-        // One rotor: rotor 2's current is not read (0: no over-current from it).
-        let current = if self.one_rotor {
-            [inputs.current[0], 0.0]
-        } else {
-            inputs.current
-        };
+        let current = inputs.current;
         let obs = Observation {
             state: self.state,
             duty: self.last_duty,
@@ -668,16 +679,7 @@ impl Controller {
         let max_counts = self.dt_constants.max_counts;
         let [e1, e2] = &mut self.encoders;
         let s1 = e1.update(inputs.encoder[0], inputs.index[0], dt, max_counts);
-        // One rotor: rotor 2's encoder is not read (no speed, no angle, no anomaly).
-        let s2 = if self.one_rotor {
-            EncoderSample {
-                speed_rad_s: 0.0,
-                angle_counts: None,
-                anomaly: None,
-            }
-        } else {
-            e2.update(inputs.encoder[1], inputs.index[1], dt, max_counts)
-        };
+        let s2 = e2.update(inputs.encoder[1], inputs.index[1], dt, max_counts);
         let s = [s1, s2];
         let speed_rad_s = map2(s, |s| s.speed_rad_s);
         let anomaly = map2(s, |s| s.anomaly);
@@ -709,9 +711,7 @@ impl Controller {
         };
         let [i1, i2] = &mut self.current_filtered;
         filter(i1, inputs.current[0]);
-        if !self.one_rotor {
-            filter(i2, inputs.current[1]);
-        }
+        filter(i2, inputs.current[1]);
 
         Measurement {
             speed_rad_s,
