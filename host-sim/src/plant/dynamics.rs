@@ -429,18 +429,6 @@ impl Frame {
         Self::assemble(model, q, locked, None).0
     }
 
-    /// [`Frame::locked`] with the generalized forces at velocities `v` and motor
-    /// torques `tau` ([`Frame::with_forces`]), assembled in the same pass.
-    pub fn locked_with_forces(
-        model: &PlantModel,
-        q: &Vector,
-        locked: &[bool; MAX_DOF],
-        v: &Vector,
-        tau: &[f64],
-    ) -> (Self, Vector) {
-        Self::assemble(model, q, locked, Some((v, tau)))
-    }
-
     /// Holds the coordinates marked in `locked` ([`Frame::locked`]).
     fn hold(&mut self, locked: &[bool; MAX_DOF]) {
         if locked.iter().any(|l| *l) {
@@ -491,23 +479,48 @@ impl Frame {
         locked: &[bool; MAX_DOF],
         motion: Option<(&Vector, &[f64])>,
     ) -> (Self, Vector) {
-        let pose = Pose::new(model, q);
-        let (n, nb) = (model.dof, model.body_dof);
-        let mut eps = [[0.0; 2]; MAX_ROTORS];
-        for (k, e) in eps.iter_mut().enumerate().take(model.rotors.len()) {
-            *e = eccentric_offset(model, k, q);
-        }
-        let mut frame = Frame {
+        let mut frame = Frame::empty(model);
+        let forces = frame.assemble_into(model, q, locked, motion);
+        (frame, forces)
+    }
+
+    /// A frame of `model` with every term zero, to be filled by
+    /// [`Frame::assemble_into`].
+    pub fn empty(model: &PlantModel) -> Self {
+        Frame {
             mass: [[0.0; MAX_DOF]; MAX_DOF],
-            pose,
-            n,
-            nb,
+            pose: Pose::new(model, &[0.0; MAX_DOF]),
+            n: model.dof,
+            nb: model.body_dof,
             factor: [[0.0; MAX_DOF]; MAX_DOF],
             schur_inv: [[0.0; 3]; 3],
-            eps,
+            eps: [[0.0; 2]; MAX_ROTORS],
             locked: [false; MAX_DOF],
             any_locked: false,
-        };
+        }
+    }
+
+    /// Fills this frame of `model` (made by [`Frame::empty`] for the same
+    /// model) at `q` as [`Frame::assemble`] does, in place: only the machine's
+    /// `n x n` block is written, nothing of the capacity is zeroed or copied (this
+    /// runs at every evaluation of the equations of motion). Returns the
+    /// generalized forces (zero without `motion`).
+    pub fn assemble_into(
+        &mut self,
+        model: &PlantModel,
+        q: &Vector,
+        locked: &[bool; MAX_DOF],
+        motion: Option<(&Vector, &[f64])>,
+    ) -> Vector {
+        let frame = self;
+        let (n, nb) = (model.dof, model.body_dof);
+        debug_assert!(frame.n == n && frame.nb == nb, "a frame of another model");
+        frame.pose = Pose::new(model, q);
+        for k in 0..model.rotors.len() {
+            frame.eps[k] = eccentric_offset(model, k, q);
+        }
+        frame.locked = [false; MAX_DOF];
+        frame.any_locked = false;
 
         // M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T), upper triangle, then mirrored;
         // the forces element by element alongside.
@@ -516,6 +529,9 @@ impl Frame {
             forces = root_weights(model);
         }
         let m = &mut frame.mass;
+        for row in m.iter_mut().take(n) {
+            row[..n].fill(0.0);
+        }
         for i in 0..model.bodies.len() + model.rotors.len() {
             let e = &element(model, &frame.pose, &frame.eps, i);
             let mut cols: Columns = [(0, [0.0; 2]); MAX_BODIES + 2];
@@ -560,7 +576,7 @@ impl Frame {
             add_spring_forces(model, q, v, &mut forces);
         }
         frame.hold(locked);
-        (frame, forces)
+        forces
     }
 
     /// The bodies' Schur complement `S = A - B D^-1 B^T` of

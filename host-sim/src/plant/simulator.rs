@@ -220,6 +220,8 @@ pub struct Plant {
     last_evaluation: std::cell::RefCell<Option<CachedEvaluation>>,
     /// The windings of the last evaluation.
     last_winding: std::cell::Cell<[Winding; 2]>,
+    /// The mass matrix and contact problem every evaluation fills in place.
+    scratch: std::cell::RefCell<Box<forces::Scratch>>,
     /// `(integral i dt, duration)` of the winding currents over the current (or
     /// last) `advance_to`, A s and s.
     current_integral: ([f64; 2], f64),
@@ -236,6 +238,7 @@ impl Plant {
             .collect();
         let n = model.contacts.len();
         let held = holds.mask(&model);
+        let scratch = std::cell::RefCell::new(Box::new(forces::Scratch::new(&model)));
         let mut plant = Plant {
             model,
             settings,
@@ -258,6 +261,7 @@ impl Plant {
             ev_cache: None,
             last_evaluation: std::cell::RefCell::new(None),
             last_winding: std::cell::Cell::new([Winding::Open, Winding::Open]),
+            scratch,
             current_integral: ([0.0; 2], 0.0),
         };
         plant.settle();
@@ -437,12 +441,6 @@ impl Plant {
     /// The configuration terms at `q` with the holds applied.
     fn frame(&self, q: &Vector) -> Frame {
         Frame::locked(&self.model, q, &self.held)
-    }
-
-    /// [`Plant::frame`] and the generalized forces at velocities `v` and motor
-    /// torques `tau` ([`Frame::with_forces`]), in one pass.
-    fn frame_with_forces(&self, q: &Vector, v: &Vector, tau: &[f64]) -> (Frame, Vector) {
-        Frame::locked_with_forces(&self.model, q, &self.held, v, tau)
     }
 
     /// Adds a warning once.

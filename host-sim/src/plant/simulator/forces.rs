@@ -34,7 +34,9 @@ pub(super) struct Evaluation {
     pub(super) lambda_t: [f64; MAX_CONTACTS],
 }
 
-/// A contact problem assembled for a set of contacts.
+/// A contact problem assembled for a set of contacts (the first
+/// `problem.len` rows of each array; the rest is left from earlier problems).
+#[derive(Clone)]
 pub(super) struct ContactSystem {
     pub(super) problem: ImpactProblem<f64, MAX_CONTACTS>,
     pub(super) minv_jn: [Vector; MAX_CONTACTS],
@@ -42,6 +44,37 @@ pub(super) struct ContactSystem {
     pub(super) kin: [ContactKinematics; MAX_CONTACTS],
     pub(super) base_n: [f64; MAX_CONTACTS],
     pub(super) base_t: [f64; MAX_CONTACTS],
+}
+
+impl ContactSystem {
+    /// An empty problem under `law`.
+    pub(super) fn new(law: shared::impact::ImpactLaw) -> Self {
+        ContactSystem {
+            problem: ImpactProblem::new(law),
+            minv_jn: [[0.0; MAX_DOF]; MAX_CONTACTS],
+            minv_jt: [[0.0; MAX_DOF]; MAX_CONTACTS],
+            kin: [ContactKinematics::default(); MAX_CONTACTS],
+            base_n: [0.0; MAX_CONTACTS],
+            base_t: [0.0; MAX_CONTACTS],
+        }
+    }
+}
+
+/// What every evaluation fills and reads, kept from one to the next so that
+/// nothing of the capacity (12 coordinates, 8 contacts: 8 KB) is zeroed or copied
+/// at each of the integrator's stages.
+pub(super) struct Scratch {
+    frame: Frame,
+    system: ContactSystem,
+}
+
+impl Scratch {
+    pub(super) fn new(model: &super::super::model::PlantModel) -> Self {
+        Scratch {
+            frame: Frame::empty(model),
+            system: ContactSystem::new(model.law),
+        }
+    }
 }
 
 impl Plant {
@@ -68,7 +101,9 @@ impl Plant {
         let q = self.model.q(y);
         let v = self.model.v(y);
         let (tau, di) = self.motor_rates(y, &v);
-        let (frame, mut f) = self.frame_with_forces(&q, &v, &tau);
+        let scratch = &mut *self.scratch.borrow_mut();
+        let frame = &mut scratch.frame;
+        let mut f = frame.assemble_into(&self.model, &q, &self.held, Some((&v, &tau)));
         for (fi, held) in f.iter_mut().zip(self.held) {
             if held {
                 *fi = 0.0;
@@ -90,7 +125,8 @@ impl Plant {
         }
         let closed = &closed_buf[..n_closed];
         if !closed.is_empty() {
-            let sys = self.contact_system(&frame, &v, closed, Some(&acc));
+            let sys = &mut scratch.system;
+            self.fill_contact_system(frame, &v, closed, Some(&acc), sys);
             let mut active = [false; MAX_CONTACTS];
             let mut mode = [SlipState::Stick; MAX_CONTACTS];
             for (r, &j) in closed.iter().enumerate() {
@@ -109,7 +145,7 @@ impl Plant {
                 Some(&zeros),
                 None,
             ) {
-                let (x, y) = self.share_within_cones(closed, modes, &sys, &d, how);
+                let (x, y) = self.share_within_cones(closed, modes, sys, &d, how);
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
@@ -192,14 +228,20 @@ impl Plant {
         set: &[usize],
         acc_free: Option<&Vector>,
     ) -> ContactSystem {
-        let mut sys = ContactSystem {
-            problem: ImpactProblem::new(self.model.law),
-            minv_jn: [[0.0; MAX_DOF]; MAX_CONTACTS],
-            minv_jt: [[0.0; MAX_DOF]; MAX_CONTACTS],
-            kin: [ContactKinematics::default(); MAX_CONTACTS],
-            base_n: [0.0; MAX_CONTACTS],
-            base_t: [0.0; MAX_CONTACTS],
-        };
+        let mut sys = ContactSystem::new(self.model.law);
+        self.fill_contact_system(frame, v, set, acc_free, &mut sys);
+        sys
+    }
+
+    /// [`Plant::contact_system`] written into `sys`: its first `set.len()` rows.
+    pub(super) fn fill_contact_system(
+        &self,
+        frame: &Frame,
+        v: &Vector,
+        set: &[usize],
+        acc_free: Option<&Vector>,
+        sys: &mut ContactSystem,
+    ) {
         sys.problem.len = set.len();
         for (r, &j) in set.iter().enumerate() {
             let k = frame.contact(&self.model, j, v);
@@ -208,10 +250,12 @@ impl Plant {
             sys.problem.u_n[r] = k.u_n;
             sys.problem.u_t[r] = k.u_t;
             sys.problem.contacts[r] = self.model.contacts[j].law;
-            if let Some(a) = acc_free {
-                sys.base_n[r] = row_dot(&k.j_n, a) + k.bias_n;
-                sys.base_t[r] = row_dot(&k.j_t, a) + k.bias_t;
-            }
+            let (base_n, base_t) = match acc_free {
+                Some(a) => (row_dot(&k.j_n, a) + k.bias_n, row_dot(&k.j_t, a) + k.bias_t),
+                None => (0.0, 0.0),
+            };
+            sys.base_n[r] = base_n;
+            sys.base_t[r] = base_t;
             sys.kin[r] = k;
         }
         for r in 0..set.len() {
@@ -222,6 +266,5 @@ impl Plant {
                 sys.problem.w_tt[r][c] = row_dot(jt, &sys.minv_jt[c]);
             }
         }
-        sys
     }
 }
