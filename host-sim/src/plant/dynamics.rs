@@ -282,6 +282,29 @@ impl Pose {
         chain
     }
 
+    /// The gap of contact `j` along its face's normal, m (negative: penetration):
+    /// [`ContactKinematics::gap`] without the Jacobian rows and velocities, in the
+    /// same operations.
+    pub fn gap(&self, model: &PlantModel, j: usize) -> f64 {
+        let c = &model.contacts[j];
+        let point = self.point(model, c.body, c.point);
+        match c.face {
+            Face::Fundament => {
+                let (n, g) = (model.normal, model.ground_point);
+                dot(n, [point.p[0] - g[0], point.p[1] - g[1]])
+            }
+            Face::Body {
+                body: a,
+                point: f,
+                normal,
+            } => {
+                let n = rotate(self.cs[a], normal);
+                let face = self.point(model, a, f);
+                dot(n, [point.p[0] - face.p[0], point.p[1] - face.p[1]])
+            }
+        }
+    }
+
     /// The kinematics of contact `j` at velocities `v` (this pose's `q`).
     pub fn contact(&self, model: &PlantModel, j: usize, v: &Vector) -> ContactKinematics {
         let c = &model.contacts[j];

@@ -114,6 +114,10 @@ impl Plant {
             Kinematics::Pose(pose, v) => pose.contact(&self.model, j, v),
             Kinematics::FromState => self.contact_at(y, j),
         };
+        let gap = |j| match at {
+            Kinematics::Pose(pose, _) => pose.gap(&self.model, j),
+            Kinematics::FromState => self.gap_at(y, j),
+        };
         let forces = |j: usize| match ev {
             Some(e) => (e.lambda_n[j], e.lambda_t[j]),
             None => {
@@ -123,7 +127,7 @@ impl Plant {
         };
         let eps_f = self.force_tolerance();
         match watch {
-            Watch::Gap(j) => kinematics(j).gap,
+            Watch::Gap(j) => gap(j),
             Watch::NormalForce(j) => forces(j).0 + eps_f,
             Watch::Cone(j) => {
                 let (ln, lt) = forces(j);
@@ -262,7 +266,7 @@ impl Plant {
         g0: f64,
         g1: f64,
     ) -> Option<f64> {
-        let gap = |y: &[f64; NY]| self.contact_at(y, j).gap;
+        let gap = |y: &[f64; NY]| self.gap_at(y, j);
         let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
         let (u0, u1) = (un(&step.y0), un(&step.y1));
         if g0 > 0.0 && g1 > 0.0 {
@@ -327,6 +331,11 @@ impl Plant {
         let g = self.model.gravity;
         let g = (g[0] * g[0] + g[1] * g[1]).sqrt().max(1.0);
         self.settings.force_tolerance * self.model.total_mass() * g
+    }
+
+    /// Contact `j`'s gap at state `y`, m ([`Pose::gap`]).
+    pub(super) fn gap_at(&self, y: &[f64; NY], j: usize) -> f64 {
+        Pose::new(&self.model, &self.model.q(y)).gap(&self.model, j)
     }
 
     /// Contact `j`'s kinematics at state `y`.

@@ -64,7 +64,7 @@ impl ContactSystem {
 /// nothing of the capacity (12 coordinates, 8 contacts: 8 KB) is zeroed or copied
 /// at each of the integrator's stages.
 pub(super) struct Scratch {
-    frame: Frame,
+    pub(super) frame: Frame,
     system: ContactSystem,
 }
 

@@ -3,7 +3,7 @@
 //! state onto the closed contacts' constraints.
 
 use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
-use shared::impact::linalg::{solve_weighted, DIM};
+use shared::impact::linalg::{solve_weighted_in, DIM};
 use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
@@ -14,19 +14,28 @@ use crate::simulation::trace::{EventKind, EventRow};
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
 pub(super) fn least_change(rows: &[(Vector, Vector, f64)]) -> Option<Vector> {
-    let n = rows.len().min(DIM);
-    if n == 0 {
-        return None;
+    // Storage sized to the rows (two contacts' projection fits 4 x 4): the same
+    // arithmetic as in `DIM x DIM`, without its zero fills.
+    match rows.len() {
+        0 => None,
+        1..=4 => least_change_in::<4>(rows),
+        5..=8 => least_change_in::<8>(rows),
+        _ => least_change_in::<DIM>(rows),
     }
-    let mut w = [[0.0; DIM]; DIM];
-    let mut b = [0.0f64; DIM];
+}
+
+/// [`least_change`] in storage of `D x D`.
+fn least_change_in<const D: usize>(rows: &[(Vector, Vector, f64)]) -> Option<Vector> {
+    let n = rows.len().min(D);
+    let mut w = [[0.0; D]; D];
+    let mut b = [0.0f64; D];
     for r in 0..n {
         for c in 0..n {
             w[r][c] = row_dot(&rows[r].0, &rows[c].1);
         }
         b[r] = -rows[r].2;
     }
-    let (x, _) = solve_weighted(&w, &b, &[1.0; DIM], n)?;
+    let (x, _) = solve_weighted_in(&w, &b, &[1.0; D], n)?;
     let mut dx = [0.0; MAX_DOF];
     for r in 0..n {
         for i in 0..MAX_DOF {
@@ -241,16 +250,21 @@ impl Plant {
         }
         let q = self.q();
         let v = self.v();
-        let frame = self.frame(&q);
         let mut vel_rows = Vec::new();
         let mut pos_rows = Vec::new();
-        for &j in &closed {
-            let k = frame.contact(&self.model, j, &v);
-            let minv_n = frame.solve(&k.j_n);
-            vel_rows.push((k.j_n, minv_n, k.u_n));
-            pos_rows.push((k.j_n, minv_n, k.gap));
-            if self.modes[j] == ContactMode::Stick {
-                vel_rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
+        {
+            // The frame in the evaluations' scratch (this runs after every step
+            // with a closed contact).
+            let frame = &mut self.scratch.borrow_mut().frame;
+            frame.assemble_into(&self.model, &q, &self.held, None);
+            for &j in &closed {
+                let k = frame.contact(&self.model, j, &v);
+                let minv_n = frame.solve(&k.j_n);
+                vel_rows.push((k.j_n, minv_n, k.u_n));
+                pos_rows.push((k.j_n, minv_n, k.gap));
+                if self.modes[j] == ContactMode::Stick {
+                    vel_rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
+                }
             }
         }
         self.project_rows(&vel_rows);
