@@ -343,15 +343,15 @@ impl Pose {
                 let (vp, vf) = (point.velocity(v), face.velocity(v));
                 let rel = [vp[0] - vf[0], vp[1] - vf[1]];
                 let wa = v[model.bodies[a].angle];
-                let u_n = row_dot(&k.j_n, v);
+                let u_n = row_dot(&k.j_n, v, model.dof);
                 k.bias_n = point.bias_along(n, v) - face.bias_along(n, v) + 2.0 * wa * dot(t, rel)
                     - wa * wa * k.gap;
                 k.bias_t =
                     point.bias_along(t, v) - face.bias_along(t, v) - wa * dot(n, rel) - wa * u_n;
             }
         }
-        k.u_n = row_dot(&k.j_n, v);
-        k.u_t = row_dot(&k.j_t, v);
+        k.u_n = row_dot(&k.j_n, v, model.dof);
+        k.u_t = row_dot(&k.j_t, v, model.dof);
         k
     }
 }
@@ -366,12 +366,13 @@ fn eccentric_offset(model: &PlantModel, k: usize, q: &Vector) -> [f64; 2] {
     [e * c, e * s]
 }
 
-/// `j . v` over the machine's coordinates (the rest of both are zero).
+/// `j . v` over the first `n` coordinates, the machine's (the rest of both are
+/// zero and would add only zeros).
 #[inline]
-pub fn row_dot(j: &Vector, v: &Vector) -> f64 {
+pub fn row_dot(j: &Vector, v: &Vector, n: usize) -> f64 {
     let mut s = 0.0;
-    for i in 0..MAX_DOF {
-        s += j[i] * v[i];
+    for (ji, vi) in j[..n].iter().zip(&v[..n]) {
+        s += ji * vi;
     }
     s
 }

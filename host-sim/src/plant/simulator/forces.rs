@@ -242,6 +242,7 @@ impl Plant {
         acc_free: Option<&Vector>,
         sys: &mut ContactSystem,
     ) {
+        let dof = self.model.dof;
         sys.problem.len = set.len();
         for (r, &j) in set.iter().enumerate() {
             let k = frame.contact(&self.model, j, v);
@@ -251,7 +252,10 @@ impl Plant {
             sys.problem.u_t[r] = k.u_t;
             sys.problem.contacts[r] = self.model.contacts[j].law;
             let (base_n, base_t) = match acc_free {
-                Some(a) => (row_dot(&k.j_n, a) + k.bias_n, row_dot(&k.j_t, a) + k.bias_t),
+                Some(a) => (
+                    row_dot(&k.j_n, a, dof) + k.bias_n,
+                    row_dot(&k.j_t, a, dof) + k.bias_t,
+                ),
                 None => (0.0, 0.0),
             };
             sys.base_n[r] = base_n;
@@ -261,9 +265,9 @@ impl Plant {
         for r in 0..set.len() {
             for c in 0..set.len() {
                 let (jn, jt) = (&sys.kin[r].j_n, &sys.kin[r].j_t);
-                sys.problem.w_nn[r][c] = row_dot(jn, &sys.minv_jn[c]);
-                sys.problem.w_nt[r][c] = row_dot(jn, &sys.minv_jt[c]);
-                sys.problem.w_tt[r][c] = row_dot(jt, &sys.minv_jt[c]);
+                sys.problem.w_nn[r][c] = row_dot(jn, &sys.minv_jn[c], dof);
+                sys.problem.w_nt[r][c] = row_dot(jn, &sys.minv_jt[c], dof);
+                sys.problem.w_tt[r][c] = row_dot(jt, &sys.minv_jt[c], dof);
             }
         }
     }

@@ -130,7 +130,7 @@ impl Plant {
         set.iter()
             .map(|&j| {
                 let k = frame.contact(&self.model, j, &v);
-                row_dot(&k.j_n, &acc) + k.bias_n
+                row_dot(&k.j_n, &acc, self.model.dof) + k.bias_n
             })
             .fold(f64::NEG_INFINITY, f64::max)
     }

@@ -31,7 +31,7 @@ fn least_change_in<const D: usize>(rows: &[(Vector, Vector, f64)]) -> Option<Vec
     let mut b = [0.0f64; D];
     for r in 0..n {
         for c in 0..n {
-            w[r][c] = row_dot(&rows[r].0, &rows[c].1);
+            w[r][c] = row_dot(&rows[r].0, &rows[c].1, MAX_DOF);
         }
         b[r] = -rows[r].2;
     }
