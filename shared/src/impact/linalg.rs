@@ -73,27 +73,49 @@ pub fn solve_weighted_in<T: Real, const D: usize>(
     n: usize,
 ) -> Option<([T; D], Solved)> {
     let mut x = [T::ZERO; D];
+    let how = solve_weighted_into(a, b, weights, n, &mut x)?;
+    Some((x, how))
+}
+
+/// [`solve_weighted_in`] into `x`: writes `x[..n]` only (the rest is left as it
+/// is), so that the caller's storage is not copied back and forth. On `None`,
+/// `x[..n]` is unspecified.
+pub fn solve_weighted_into<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    b: &[T; D],
+    weights: &[T; D],
+    n: usize,
+    x: &mut [T; D],
+) -> Option<Solved> {
     if n == 0 {
-        return Some((x, Solved::Unique));
+        return Some(Solved::Unique);
     }
     let scale = max_abs(a, n);
     if scale == T::ZERO {
         // A = 0: consistent only for b = 0, and then x = 0 is the minimum norm.
         return if b[..n].iter().all(|v| *v == T::ZERO) {
-            Some((x, Solved::MinimumNorm))
+            x[..n].fill(T::ZERO);
+            Some(Solved::MinimumNorm)
         } else {
             None
         };
     }
-    let lu = Lu::factor(a, b, n, scale)?;
+    let mut lu = Lu {
+        m: *a,
+        rhs: *b,
+        col_of: [0usize; D],
+        n,
+        rank: 0,
+    };
+    lu.factor(scale)?;
     if lu.rank == n {
-        lu.back_substitute(&mut x);
+        lu.back_substitute(x);
         return x[..n]
             .iter()
             .all(|v| v.is_finite())
-            .then_some((x, Solved::Unique));
+            .then_some(Solved::Unique);
     }
-    lu.minimum_norm(weights, &mut x)?;
+    lu.minimum_norm(weights, x)?;
     // Accept only a consistent system: the residual must vanish to the tolerance.
     let b_scale = b[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
     let x_scale = x[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
@@ -107,7 +129,7 @@ pub fn solve_weighted_in<T: Real, const D: usize>(
             return None;
         }
     }
-    Some((x, Solved::MinimumNorm))
+    Some(Solved::MinimumNorm)
 }
 
 /// Largest `|a_ij|` of the leading block.
@@ -136,40 +158,34 @@ struct Lu<T, const D: usize> {
 }
 
 impl<T: Real, const D: usize> Lu<T, D> {
-    /// Factors the leading `n x n` block, stopping at the first pivot at or below
-    /// `rank_tolerance * scale`. `None` on a non-finite pivot.
-    fn factor(a: &[[T; D]; D], b: &[T; D], n: usize, scale: T) -> Option<Self> {
-        let mut lu = Lu {
-            m: *a,
-            rhs: *b,
-            col_of: [0usize; D],
-            n,
-            rank: 0,
-        };
-        for (k, c) in lu.col_of[..n].iter_mut().enumerate() {
+    /// Factors the leading `n x n` block in place, stopping at the first pivot at or
+    /// below `rank_tolerance * scale`. `None` on a non-finite pivot.
+    fn factor(&mut self, scale: T) -> Option<()> {
+        let n = self.n;
+        for (k, c) in self.col_of[..n].iter_mut().enumerate() {
             *c = k;
         }
         let tol = rank_tolerance::<T>() * scale;
         for k in 0..n {
-            let (pr, pc, best) = largest_entry(&lu.m, k, n);
+            let (pr, pc, best) = largest_entry(&self.m, k, n);
             if !best.is_finite() {
                 return None;
             }
             if best <= tol {
                 break;
             }
-            lu.m.swap(k, pr);
-            lu.rhs.swap(k, pr);
+            self.m.swap(k, pr);
+            self.rhs.swap(k, pr);
             if pc != k {
-                for row in &mut lu.m[..n] {
+                for row in &mut self.m[..n] {
                     row.swap(k, pc);
                 }
-                lu.col_of.swap(k, pc);
+                self.col_of.swap(k, pc);
             }
-            eliminate_below(&mut lu.m, &mut lu.rhs, k, n);
-            lu.rank = k + 1;
+            eliminate_below(&mut self.m, &mut self.rhs, k, n);
+            self.rank = k + 1;
         }
-        Some(lu)
+        Some(())
     }
 
     /// The unique solution of a full-rank block: back substitution, then the
@@ -192,7 +208,7 @@ impl<T: Real, const D: usize> Lu<T, D> {
     /// The weighted minimum-norm solution of `U x' = c` (module docs):
     /// `H = U D' U^T` (`r x r`), `H = R R^T` by Cholesky, `H z = c`,
     /// `x' = D' U^T z`. `None` on a non-positive or non-finite Cholesky pivot.
-    fn minimum_norm(&self, weights: &[T; D], x: &mut [T; D]) -> Option<()> {
+    fn minimum_norm(&mut self, weights: &[T; D], x: &mut [T; D]) -> Option<()> {
         let (u, n, r) = (&self.m, self.n, self.rank);
         let mut w = [T::ZERO; D];
         for (wk, c) in w[..n].iter_mut().zip(&self.col_of[..n]) {
@@ -211,8 +227,9 @@ impl<T: Real, const D: usize> Lu<T, D> {
             }
         }
         cholesky_in_place(&mut h, r)?;
-        let mut z = self.rhs;
-        cholesky_solve(&h, r, &mut z);
+        // z in place of c (the factors are not used again).
+        let z = &mut self.rhs;
+        cholesky_solve(&h, r, z);
         // x' = D' U^T z; x[col_of[j]] = x'_j.
         for j in 0..n {
             let mut s = T::ZERO;
