@@ -90,7 +90,8 @@ pub fn solve_weighted_into<T: Real, const D: usize>(
     if n == 0 {
         return Some(Solved::Unique);
     }
-    let scale = max_abs(a, n);
+    // The scale and the first pivot in one pass over the block.
+    let (scale, first_pivot) = scale_and_pivot(a, n);
     if scale == T::ZERO {
         // A = 0: consistent only for b = 0, and then x = 0 is the minimum norm.
         return if b[..n].iter().all(|v| *v == T::ZERO) {
@@ -107,7 +108,7 @@ pub fn solve_weighted_into<T: Real, const D: usize>(
         n,
         rank: 0,
     };
-    lu.factor(scale)?;
+    lu.factor(scale, first_pivot)?;
     if lu.rank == n {
         lu.back_substitute(x);
         return x[..n]
@@ -132,15 +133,37 @@ pub fn solve_weighted_into<T: Real, const D: usize>(
     Some(Solved::MinimumNorm)
 }
 
-/// Largest `|a_ij|` of the leading block.
-fn max_abs<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> T {
+/// Largest `|a_ij|` of the leading block (folded as `m.max(|a_ij|)`, row by row),
+/// and the full pivot of the first step ([`largest_entry`] at `k = 0`): one pass.
+fn scale_and_pivot<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> (T, Pivot<T>) {
     let mut m = T::ZERO;
-    for row in &a[..n] {
-        for v in &row[..n] {
-            m = m.max(v.abs());
+    let mut pivot = Pivot {
+        row: 0,
+        col: 0,
+        size: T::ZERO,
+    };
+    for (i, row) in a[..n].iter().enumerate() {
+        for (j, v) in row[..n].iter().enumerate() {
+            let v = v.abs();
+            m = m.max(v);
+            if v > pivot.size {
+                pivot = Pivot {
+                    row: i,
+                    col: j,
+                    size: v,
+                };
+            }
         }
     }
-    m
+    (m, pivot)
+}
+
+/// A full pivot: its row, column and magnitude.
+#[derive(Clone, Copy)]
+struct Pivot<T> {
+    row: usize,
+    col: usize,
+    size: T,
 }
 
 /// Gaussian elimination with full pivoting, stopped at the numerical rank.
@@ -159,15 +182,22 @@ struct Lu<T, const D: usize> {
 
 impl<T: Real, const D: usize> Lu<T, D> {
     /// Factors the leading `n x n` block in place, stopping at the first pivot at or
-    /// below `rank_tolerance * scale`. `None` on a non-finite pivot.
-    fn factor(&mut self, scale: T) -> Option<()> {
+    /// below `rank_tolerance * scale`; `pivot` is the first step's. Each step's
+    /// elimination finds the next step's pivot as it writes the rows (the same
+    /// entries in the same order as a separate search). `None` on a non-finite
+    /// pivot.
+    fn factor(&mut self, scale: T, mut pivot: Pivot<T>) -> Option<()> {
         let n = self.n;
         for (k, c) in self.col_of[..n].iter_mut().enumerate() {
             *c = k;
         }
         let tol = rank_tolerance::<T>() * scale;
         for k in 0..n {
-            let (pr, pc, best) = largest_entry(&self.m, k, n);
+            let Pivot {
+                row: pr,
+                col: pc,
+                size: best,
+            } = pivot;
             if !best.is_finite() {
                 return None;
             }
@@ -182,7 +212,7 @@ impl<T: Real, const D: usize> Lu<T, D> {
                 }
                 self.col_of.swap(k, pc);
             }
-            eliminate_below(&mut self.m, &mut self.rhs, k, n);
+            pivot = eliminate_below(&mut self.m, &mut self.rhs, k, n);
             self.rank = k + 1;
         }
         Some(())
@@ -290,7 +320,9 @@ fn cholesky_solve<T: Real, const D: usize>(h: &[[T; D]; D], r: usize, z: &mut [T
 }
 
 /// The full pivot of step `k`: the largest `|m_ij|` with `i, j` in `k..n` (the
-/// first one met, row by row), as (row, column, magnitude).
+/// first one met, row by row), as (row, column, magnitude). The reference for the
+/// search that [`eliminate_below`] does as it goes (tests).
+#[cfg(test)]
 fn largest_entry<T: Real, const D: usize>(
     m: &[[T; D]; D],
     k: usize,
@@ -310,19 +342,30 @@ fn largest_entry<T: Real, const D: usize>(
 }
 
 /// Eliminates column `k` below the pivot `m_kk` from the rows `k+1..n` and the
-/// right-hand side.
+/// right-hand side, and returns the pivot of step `k + 1`: the largest `|m_ij|`
+/// with `i, j` in `k+1..n`, the first one met row by row (each row is searched
+/// once it is written).
 fn eliminate_below<T: Real, const D: usize>(
     m: &mut [[T; D]; D],
     rhs: &mut [T; D],
     k: usize,
     n: usize,
-) {
+) -> Pivot<T> {
+    let mut pivot = Pivot {
+        row: k + 1,
+        col: k + 1,
+        size: T::ZERO,
+    };
     let (upper, lower) = m.split_at_mut(k + 1);
     let pivot_row = &upper[k];
-    let pivot = pivot_row[k];
+    let pk = pivot_row[k];
     let rk = rhs[k];
-    for (row, ri) in lower[..n - k - 1].iter_mut().zip(&mut rhs[k + 1..n]) {
-        let f = row[k] / pivot;
+    for (i, (row, ri)) in lower[..n - k - 1]
+        .iter_mut()
+        .zip(&mut rhs[k + 1..n])
+        .enumerate()
+    {
+        let f = row[k] / pk;
         if f != T::ZERO {
             for (mij, mkj) in row[k + 1..n].iter_mut().zip(&pivot_row[k + 1..n]) {
                 *mij -= f * *mkj;
@@ -330,7 +373,18 @@ fn eliminate_below<T: Real, const D: usize>(
             *ri -= f * rk;
         }
         row[k] = T::ZERO;
+        for (j, v) in row[k + 1..n].iter().enumerate() {
+            let v = v.abs();
+            if v > pivot.size {
+                pivot = Pivot {
+                    row: k + 1 + i,
+                    col: k + 1 + j,
+                    size: v,
+                };
+            }
+        }
     }
+    pivot
 }
 
 #[cfg(test)]
@@ -388,6 +442,56 @@ mod tests {
         for i in 0..3 {
             assert!((x[i] - w[i] * l[i] * c / s).abs() < 1e-12, "{x:?}");
         }
+    }
+
+    /// The pivots found along the elimination and in the first pass are the ones a
+    /// separate search finds (the same entry, ties to the first met).
+    #[test]
+    fn fused_pivot_search_matches_a_separate_search() {
+        let mut a = [[0.0; DIM]; DIM];
+        let n = 7;
+        let mut v = 0.37f64;
+        for (i, row) in a.iter_mut().enumerate().take(n) {
+            for (j, x) in row.iter_mut().enumerate().take(n) {
+                v = (v * 3.7 + 0.11).fract();
+                // Ties: repeat some magnitudes with both signs.
+                *x = if (i + j) % 3 == 0 { 0.5 } else { v - 0.5 };
+                if (i * j) % 4 == 1 {
+                    *x = -0.5;
+                }
+            }
+        }
+        let (scale, first) = scale_and_pivot(&a, n);
+        assert_eq!(scale, max_abs_reference(&a, n));
+        assert_eq!((first.row, first.col, first.size), largest_entry(&a, 0, n));
+        let mut m = a;
+        let mut rhs = [0.0; DIM];
+        let mut pivot = first;
+        for k in 0..n - 1 {
+            let (pr, pc) = (pivot.row, pivot.col);
+            m.swap(k, pr);
+            if pc != k {
+                for row in &mut m[..n] {
+                    row.swap(k, pc);
+                }
+            }
+            pivot = eliminate_below(&mut m, &mut rhs, k, n);
+            assert_eq!(
+                (pivot.row, pivot.col, pivot.size),
+                largest_entry(&m, k + 1, n),
+                "step {k}"
+            );
+        }
+    }
+
+    fn max_abs_reference(a: &Matrix<f64>, n: usize) -> f64 {
+        let mut m = 0.0f64;
+        for row in &a[..n] {
+            for v in &row[..n] {
+                m = Real::max(m, v.abs());
+            }
+        }
+        m
     }
 
     #[test]
