@@ -30,10 +30,10 @@
 //! every cone ([`super::split`]), so that several sticking contacts share their
 //! friction as the cones allow rather than one cone at a time.
 
-use super::linalg::{solve_weighted_in, Solved, Vector, DIM};
+use super::linalg::{solve_weighted_into, Solved, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
-use super::split::within_cones;
+use super::split::{within_cones, Split};
 use crate::real::Real;
 
 /// Most candidate (active set, friction states) pairs tried for one direction.
@@ -114,6 +114,23 @@ struct Candidate<const N: usize> {
     mode: [SlipState; N],
 }
 
+impl<T: Real, const N: usize> Default for Direction<T, N> {
+    /// No rates, every contact sticking and inactive, not consistent: storage for
+    /// the `_into` functions, which write every field.
+    fn default() -> Self {
+        Direction {
+            x: [T::ZERO; N],
+            y: [T::ZERO; N],
+            du_n: [T::ZERO; N],
+            du_t: [T::ZERO; N],
+            mode: [SlipState::Stick; N],
+            active: [false; N],
+            ends_at_one: false,
+            consistent: false,
+        }
+    }
+}
+
 /// Finds the direction of the next piece from the current contact velocities.
 ///
 /// `u_n`, `u_t` are the values the rates add to (in an impact, the contact
@@ -128,6 +145,22 @@ pub fn find_direction<T: Real, const N: usize>(
     rule: NormalRule<'_, T, N>,
     tol: &Tolerances<T>,
 ) -> Direction<T, N> {
+    let mut d = Direction::default();
+    find_direction_into(p, u_n, u_t, slip, rule, tol, &mut d);
+    d
+}
+
+/// [`find_direction`] written into `out` (every field), so that the candidates
+/// are solved in place rather than passed up by value.
+pub fn find_direction_into<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    slip: &[T; N],
+    rule: NormalRule<'_, T, N>,
+    tol: &Tolerances<T>,
+    out: &mut Direction<T, N>,
+) {
     let mut budget = CANDIDATE_BUDGET;
     let all = matches!(rule, NormalRule::TargetAll(_));
     let base = Base {
@@ -137,10 +170,10 @@ pub fn find_direction<T: Real, const N: usize>(
         all,
     };
     match rule {
-        NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget),
+        NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget, out),
         NormalRule::Target(g) | NormalRule::TargetAll(g) => {
-            if let Some(d) = complementary_direction(p, &base, g, tol, &mut budget) {
-                return d;
+            if complementary_direction(p, &base, g, tol, &mut budget, out) {
+                return;
             }
             // No consistent proportion with the states the slips impose: take the
             // slips within `zero_slip` as zero (their states then chosen), if any.
@@ -158,8 +191,8 @@ pub fn find_direction<T: Real, const N: usize>(
                     slip: &loose,
                     ..base
                 };
-                if let Some(d) = complementary_direction(p, &base, g, tol, &mut budget) {
-                    return d;
+                if complementary_direction(p, &base, g, tol, &mut budget, out) {
+                    return;
                 }
             }
             // No complementary proportion (jamming: a slipping contact whose normal
@@ -173,9 +206,8 @@ pub fn find_direction<T: Real, const N: usize>(
                 }
             }
             let mut budget = CANDIDATE_BUDGET;
-            let mut d = fixed_direction(p, &base, &x, tol, &mut budget);
-            d.ends_at_one = false;
-            d
+            fixed_direction(p, &base, &x, tol, &mut budget, out);
+            out.ends_at_one = false;
         }
     }
 }
@@ -193,14 +225,16 @@ fn kinematic_state<T: Real>(u_t: T, tol: T) -> Option<SlipState> {
 }
 
 /// The complementarity problem of a `Target` rule, by enumeration of active sets
-/// from the largest. Returns `None` when no consistent solution exists.
+/// from the largest, into `out`. Returns false when no consistent solution exists
+/// (`out` then unspecified).
 fn complementary_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     g: &[T; N],
     tol: &Tolerances<T>,
     budget: &mut u32,
-) -> Option<Direction<T, N>> {
+    out: &mut Direction<T, N>,
+) -> bool {
     let n = p.len;
     // Only contacts at or below their target can take impulse; a contact above it
     // (separating) joins when its normal velocity comes down to the target, which
@@ -211,8 +245,12 @@ fn complementary_direction<T: Real, const N: usize>(
             candidate_mask |= 1 << i;
         }
     }
+    // The candidates after the first of a size are solved here, and copied to
+    // `out` only when better.
+    let mut scratch: Option<Direction<T, N>> = None;
     for size in (0..=candidate_mask.count_ones() as usize).rev() {
-        let mut best: Option<(T, Direction<T, N>)> = None;
+        // The weighted norm of the best candidate of this size, held in `out`.
+        let mut best: Option<T> = None;
         for mask in 0u32..(1u32 << n) {
             if mask & !candidate_mask != 0 || mask.count_ones() as usize != size {
                 continue;
@@ -221,99 +259,98 @@ fn complementary_direction<T: Real, const N: usize>(
             for (i, a) in active.iter_mut().enumerate().take(n) {
                 *a = mask & (1 << i) != 0;
             }
-            let Some((score, d, how)) =
-                first_consistent_states(p, base, &active, Some(g), None, tol, budget)
+            let first = best.is_none();
+            let d = if first {
+                &mut *out
+            } else {
+                scratch.get_or_insert_with(Direction::default)
+            };
+            let Some((score, how)) =
+                first_consistent_states(p, base, &active, Some(g), None, tol, budget, d)
             else {
                 if *budget == 0 {
-                    return None;
+                    return false;
                 }
                 continue;
             };
             // A unique solution of a full-rank system is the answer; where the
             // system was singular, keep the weighted minimum norm of this size.
-            if how == Solved::Unique && best.is_none() {
-                return Some(d);
+            if how == Solved::Unique && first {
+                return true;
             }
-            if best.as_ref().is_none_or(|(s, _)| score < *s) {
-                best = Some((score, d));
+            if best.is_none_or(|s| score < s) {
+                if !first {
+                    if let Some(d) = &scratch {
+                        *out = *d;
+                    }
+                }
+                best = Some(score);
             }
         }
-        if let Some((_, d)) = best {
-            return Some(d);
+        if best.is_some() {
+            return true;
         }
     }
-    None
+    false
 }
 
-/// The direction of a `Fixed` rule: friction states only.
+/// The direction of a `Fixed` rule: friction states only, into `out`.
 fn fixed_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     x: &[T; N],
     tol: &Tolerances<T>,
     budget: &mut u32,
-) -> Direction<T, N> {
+    out: &mut Direction<T, N>,
+) {
     let mut active = [false; N];
     for i in 0..p.len {
         active[i] = x[i] > T::ZERO;
     }
-    if let Some((_, d, _)) = first_consistent_states(p, base, &active, None, Some(x), tol, budget) {
-        return d;
+    if first_consistent_states(p, base, &active, None, Some(x), tol, budget, out).is_some() {
+        return;
     }
     // No consistent friction states: take every undecided contact as sticking,
     // with its force clipped to the cone (the closest admissible), and say so.
-    let mut cand = Candidate {
-        active,
-        mode: [SlipState::Stick; N],
-    };
+    let mut mode = [SlipState::Stick; N];
     for i in 0..p.len {
         if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
-            cand.mode[i] = s;
+            mode[i] = s;
         }
     }
-    let mut d = match solve_states(
-        p,
-        base.u_n,
-        base.u_t,
-        &cand.active,
-        &cand.mode,
-        None,
-        Some(x),
-    ) {
-        Some((_, d, _)) => d,
-        None => zero_direction(p, x),
-    };
+    if solve_states_into(p, base.u_n, base.u_t, &active, &mode, None, Some(x), out).is_none() {
+        zero_direction(p, x, out);
+    }
     for i in 0..p.len {
-        if cand.mode[i] == SlipState::Stick {
-            let limit = p.contacts[i].friction * d.x[i];
-            d.y[i] = d.y[i].max(-limit).min(limit);
+        if mode[i] == SlipState::Stick {
+            let limit = p.contacts[i].friction * out.x[i];
+            out.y[i] = out.y[i].max(-limit).min(limit);
         }
     }
-    let (du_n, du_t) = p.velocity_change(&d.x, &d.y);
-    d.du_n = du_n;
-    d.du_t = du_t;
+    let d = out;
+    p.velocity_change_into(&d.x, &d.y, &mut d.du_n, &mut d.du_t);
     d.consistent = false;
-    d
 }
 
-/// A direction with normal rates `x` and no friction.
-fn zero_direction<T: Real, const N: usize>(p: &ImpactProblem<T, N>, x: &[T; N]) -> Direction<T, N> {
-    let y = [T::ZERO; N];
-    let (du_n, du_t) = p.velocity_change(x, &y);
-    Direction {
-        x: *x,
-        y,
-        du_n,
-        du_t,
-        mode: [SlipState::Stick; N],
-        active: core::array::from_fn(|i| i < p.len && x[i] > T::ZERO),
-        ends_at_one: false,
-        consistent: false,
-    }
+/// A direction with normal rates `x` and no friction, into `d`.
+fn zero_direction<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    x: &[T; N],
+    d: &mut Direction<T, N>,
+) {
+    d.x = *x;
+    d.y = [T::ZERO; N];
+    p.velocity_change_into(&d.x, &d.y, &mut d.du_n, &mut d.du_t);
+    d.mode = [SlipState::Stick; N];
+    d.active = core::array::from_fn(|i| i < p.len && x[i] > T::ZERO);
+    d.ends_at_one = false;
+    d.consistent = false;
 }
 
 /// For one active set, tries the friction states of the contacts at zero slip
-/// (stick first) and returns the first consistent solution with its weighted norm.
+/// (stick first) and returns the weighted norm of the first consistent solution
+/// and how its system was solved, the solution in `d`; `None` (with `d`
+/// unspecified) where no state is consistent.
 #[allow(clippy::too_many_arguments)]
 fn first_consistent_states<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
@@ -323,7 +360,8 @@ fn first_consistent_states<T: Real, const N: usize>(
     fixed: Option<&[T; N]>,
     tol: &Tolerances<T>,
     budget: &mut u32,
-) -> Option<(T, Direction<T, N>, Solved)> {
+    d: &mut Direction<T, N>,
+) -> Option<(T, Solved)> {
     let n = p.len;
     let mut cand = Candidate {
         active: *active,
@@ -356,7 +394,7 @@ fn first_consistent_states<T: Real, const N: usize>(
             };
             c /= 3;
         }
-        let Some((score, mut d, how)) = solve_states(
+        let Some((score, how)) = solve_states_into(
             p,
             base.u_n,
             base.u_t,
@@ -364,17 +402,15 @@ fn first_consistent_states<T: Real, const N: usize>(
             &cand.mode,
             target,
             fixed,
+            d,
         ) else {
             continue;
         };
-        if admissible(p, base, &cand, target, fixed.is_none(), how, &mut d, tol) {
-            // The split may have moved along the internal forces: its norm.
-            let score = if how == Solved::Unique {
-                score
-            } else {
-                weighted_norm(p, &cand.active, &d.x, &d.y)
-            };
-            return Some((score, d, how));
+        match admissible(p, base, &cand, target, fixed.is_none(), how, d, tol) {
+            // The split moved along the internal forces: its norm.
+            Some(Split::Moved) => return Some((weighted_norm(p, &cand.active, &d.x, &d.y), how)),
+            Some(_) => return Some((score, how)),
+            None => {}
         }
     }
     None
@@ -396,79 +432,86 @@ pub fn solve_states<T: Real, const N: usize>(
     target: Option<&[T; N]>,
     fixed: Option<&[T; N]>,
 ) -> Option<(T, Direction<T, N>, Solved)> {
-    let cand = Candidate {
-        active: *active,
-        mode: *mode,
-    };
-    let cand = &cand;
+    let mut d = Direction::default();
+    let (score, how) = solve_states_into(p, u_n, u_t, active, mode, target, fixed, &mut d)?;
+    Some((score, d, how))
+}
+
+/// [`solve_states`] with the direction written into `d` (every field; unspecified
+/// on `None`): the weighted norm of the rates and how the system was solved.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_states_into<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    u_n: &[T; N],
+    u_t: &[T; N],
+    active: &[bool; N],
+    mode: &[SlipState; N],
+    target: Option<&[T; N]>,
+    fixed: Option<&[T; N]>,
+    d: &mut Direction<T, N>,
+) -> Option<(T, Solved)> {
     let n = p.len;
-    // Index lists: normal unknowns (when not fixed) and stick unknowns.
+    // Index lists: normal unknowns (when not fixed) and stick unknowns; the
+    // friction coupling of every contact, y_j = -mu_j s_j x_j when slipping.
     let mut xs = [0usize; N];
     let mut nx = 0;
     let mut ks = [0usize; N];
     let mut nk = 0;
+    let mut coeff = [T::ZERO; N];
     for i in 0..n {
-        if !cand.active[i] {
+        coeff[i] = slip_coeff(p, mode, i);
+        if !active[i] {
             continue;
         }
         if fixed.is_none() {
             xs[nx] = i;
             nx += 1;
         }
-        if cand.mode[i] == SlipState::Stick {
+        if mode[i] == SlipState::Stick {
             ks[nk] = i;
             nk += 1;
         }
     }
-    let fixed_x = fixed.copied().unwrap_or([T::ZERO; N]);
+    let zeros = [T::ZERO; N];
     let system = System {
         p,
         u_n,
         u_t,
-        cand,
+        active,
+        coeff: &coeff,
         xs: &xs[..nx],
         ks: &ks[..nk],
         target,
-        fixed_x: &fixed_x,
+        fixed_x: fixed.unwrap_or(&zeros),
     };
     // Storage sized to the system (a 4-contact problem fits 8 x 8): the same
-    // arithmetic, a quarter of the copies of the largest size.
-    let (sol, how) = match nx + nk {
-        0..=4 => system.solve::<4>()?,
-        5..=8 => system.solve::<8>()?,
-        _ => system.solve::<DIM>()?,
+    // arithmetic, a quarter of the copies of the largest size. The solution goes
+    // straight into the rates.
+    let how = match nx + nk {
+        0..=4 => system.solve::<4>(&mut d.x, &mut d.y)?,
+        5..=8 => system.solve::<8>(&mut d.x, &mut d.y)?,
+        _ => system.solve::<DIM>(&mut d.x, &mut d.y)?,
     };
+    let score = weighted_norm(p, active, &d.x, &d.y);
+    p.velocity_change_into(&d.x, &d.y, &mut d.du_n, &mut d.du_t);
+    d.mode = *mode;
+    d.active = *active;
+    d.ends_at_one = target.is_some();
+    d.consistent = true;
+    Some((score, how))
+}
 
-    // Assemble the full rates.
-    let mut x = fixed_x;
-    for (r, &i) in xs.iter().enumerate().take(nx) {
-        x[i] = sol[r];
+/// Friction coupling of contact `j` in state `mode[j]`: `y_j = -mu_j s_j x_j`
+/// when slipping, 0 when sticking.
+fn slip_coeff<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    mode: &[SlipState; N],
+    j: usize,
+) -> T {
+    match mode[j] {
+        SlipState::Stick => T::ZERO,
+        s => -p.contacts[j].friction * s.sign::<T>(),
     }
-    let mut y = [T::ZERO; N];
-    for j in 0..n {
-        if cand.active[j] {
-            y[j] = system.slip_coeff(j) * x[j];
-        }
-    }
-    for (q, &k) in ks.iter().enumerate().take(nk) {
-        y[k] = sol[nx + q];
-    }
-    let score = weighted_norm(p, &cand.active, &x, &y);
-    let (du_n, du_t) = p.velocity_change(&x, &y);
-    Some((
-        score,
-        Direction {
-            x,
-            y,
-            du_n,
-            du_t,
-            mode: cand.mode,
-            active: cand.active,
-            ends_at_one: target.is_some(),
-            consistent: true,
-        },
-        how,
-    ))
 }
 
 /// The equations of one candidate's states (see [`solve_states`]): unknowns the
@@ -477,7 +520,9 @@ struct System<'a, T, const N: usize> {
     p: &'a ImpactProblem<T, N>,
     u_n: &'a [T; N],
     u_t: &'a [T; N],
-    cand: &'a Candidate<N>,
+    active: &'a [bool; N],
+    /// [`slip_coeff`] of every contact.
+    coeff: &'a [T; N],
     xs: &'a [usize],
     ks: &'a [usize],
     target: Option<&'a [T; N]>,
@@ -485,18 +530,12 @@ struct System<'a, T, const N: usize> {
 }
 
 impl<T: Real, const N: usize> System<'_, T, N> {
-    /// Friction coupling of a slipping contact j: y_j = -mu_j s_j x_j.
-    fn slip_coeff(&self, j: usize) -> T {
-        match self.cand.mode[j] {
-            SlipState::Stick => T::ZERO,
-            s => -self.p.contacts[j].friction * s.sign::<T>(),
-        }
-    }
-
-    /// Builds the system in `D x D` storage and solves it; the solution in the
-    /// order of the unknowns, padded to [`DIM`].
-    fn solve<const D: usize>(&self) -> Option<(Vector<T>, Solved)> {
-        let (p, xs, ks) = (self.p, self.xs, self.ks);
+    /// Builds the system in `D x D` storage, solves it and assembles the full
+    /// rates: `x` the fixed rates with the normal unknowns, `y` the slipping
+    /// contacts' `-mu s x` with the stick unknowns. `None` where the system is
+    /// inconsistent (`x`, `y` then unspecified).
+    fn solve<const D: usize>(&self, x: &mut [T; N], y: &mut [T; N]) -> Option<Solved> {
+        let (p, xs, ks, coeff) = (self.p, self.xs, self.ks, self.coeff);
         let (nx, nk) = (xs.len(), ks.len());
         let w_tn = |k: usize, j: usize| p.w_nt[j][k];
         let mut a = [[T::ZERO; D]; D];
@@ -504,11 +543,12 @@ impl<T: Real, const N: usize> System<'_, T, N> {
         let mut wts = [T::ONE; D];
         // Normal rows: (W_nn + W_nt S) x + W_nt,K y_K = g - u_n.
         for (r, &i) in xs.iter().enumerate() {
+            let row = &mut a[r];
             for (c, &j) in xs.iter().enumerate() {
-                a[r][c] = p.w_nn[i][j] + p.w_nt[i][j] * self.slip_coeff(j);
+                row[c] = p.w_nn[i][j] + p.w_nt[i][j] * coeff[j];
             }
             for (q, &k) in ks.iter().enumerate() {
-                a[r][nx + q] = p.w_nt[i][k];
+                row[nx + q] = p.w_nt[i][k];
             }
             let g = self.target.map_or(T::ZERO, |g| g[i]);
             b[r] = g - self.u_n[i];
@@ -517,25 +557,39 @@ impl<T: Real, const N: usize> System<'_, T, N> {
         // Stick rows: (W_tn + W_tt S) x + W_tt,KK y_K = -u_t.
         for (q, &k) in ks.iter().enumerate() {
             let r = nx + q;
+            let row = &mut a[r];
             for (c, &j) in xs.iter().enumerate() {
-                a[r][c] = w_tn(k, j) + p.w_tt[k][j] * self.slip_coeff(j);
+                row[c] = w_tn(k, j) + p.w_tt[k][j] * coeff[j];
             }
             for (q2, &k2) in ks.iter().enumerate() {
-                a[r][nx + q2] = p.w_tt[k][k2];
+                row[nx + q2] = p.w_tt[k][k2];
             }
             let mut rhs = -self.u_t[k];
             for j in 0..p.len {
                 if self.fixed_x[j] != T::ZERO {
-                    rhs -= (w_tn(k, j) + p.w_tt[k][j] * self.slip_coeff(j)) * self.fixed_x[j];
+                    rhs -= (w_tn(k, j) + p.w_tt[k][j] * coeff[j]) * self.fixed_x[j];
                 }
             }
             b[r] = rhs;
             wts[r] = p.contacts[k].weight;
         }
-        let (sol, how) = solve_weighted_in(&a, &b, &wts, nx + nk)?;
-        let mut out = [T::ZERO; DIM];
-        out[..nx + nk].copy_from_slice(&sol[..nx + nk]);
-        Some((out, how))
+        let mut sol = [T::ZERO; D];
+        let how = solve_weighted_into(&a, &b, &wts, nx + nk, &mut sol)?;
+        // The full rates.
+        *x = *self.fixed_x;
+        for (r, &i) in xs.iter().enumerate() {
+            x[i] = sol[r];
+        }
+        *y = [T::ZERO; N];
+        for (j, yj) in y.iter_mut().enumerate().take(p.len) {
+            if self.active[j] {
+                *yj = coeff[j] * x[j];
+            }
+        }
+        for (q, &k) in ks.iter().enumerate() {
+            y[k] = sol[nx + q];
+        }
+        Some(how)
     }
 }
 
@@ -557,6 +611,7 @@ fn weighted_norm<T: Real, const N: usize>(
 
 /// Checks a candidate's solution: non-negative normal rates, released contacts
 /// reaching their targets, sticking forces inside the cones, slips moving their way.
+/// `None` when it fails; else whether the rates were moved ([`Split::Moved`]).
 ///
 /// Where the candidate's system was singular and it has a sticking contact, the
 /// normal rates and the sticking forces are checked on the best split of the
@@ -564,6 +619,7 @@ fn weighted_norm<T: Real, const N: usize>(
 /// sticking contact while another has friction to spare. When a split inside every
 /// cone exists, `d` takes it (its velocity rates are unchanged: internal forces
 /// change no contact velocity). `normals_free`: the normal rates were unknowns.
+/// `d`'s rates are unspecified when it fails.
 #[allow(clippy::too_many_arguments)]
 fn admissible<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
@@ -574,26 +630,24 @@ fn admissible<T: Real, const N: usize>(
     how: Solved,
     d: &mut Direction<T, N>,
     tol: &Tolerances<T>,
-) -> bool {
+) -> Option<Split> {
     let sticking = (0..p.len).any(|i| cand.active[i] && cand.mode[i] == SlipState::Stick);
+    let mut split = Split::Inside;
     if how == Solved::MinimumNorm && sticking {
-        let (mut x, mut y) = (d.x, d.y);
-        let split = within_cones(
+        split = within_cones(
             p,
             &cand.active,
             &cand.mode,
             normals_free,
-            &mut x,
-            &mut y,
+            &mut d.x,
+            &mut d.y,
             tol.impulse,
         );
         if !split.feasible() {
-            return false;
+            return None;
         }
-        d.x = x;
-        d.y = y;
     }
-    admissible_as_is(p, base, cand, target, d, tol)
+    admissible_as_is(p, base, cand, target, d, tol).then_some(split)
 }
 
 /// [`admissible`] on the rates as they are.

@@ -73,27 +73,50 @@ pub fn solve_weighted_in<T: Real, const D: usize>(
     n: usize,
 ) -> Option<([T; D], Solved)> {
     let mut x = [T::ZERO; D];
+    let how = solve_weighted_into(a, b, weights, n, &mut x)?;
+    Some((x, how))
+}
+
+/// [`solve_weighted_in`] into `x`: writes `x[..n]` only (the rest is left as it
+/// is), so that the caller's storage is not copied back and forth. On `None`,
+/// `x[..n]` is unspecified.
+pub fn solve_weighted_into<T: Real, const D: usize>(
+    a: &[[T; D]; D],
+    b: &[T; D],
+    weights: &[T; D],
+    n: usize,
+    x: &mut [T; D],
+) -> Option<Solved> {
     if n == 0 {
-        return Some((x, Solved::Unique));
+        return Some(Solved::Unique);
     }
-    let scale = max_abs(a, n);
+    // The scale and the first pivot in one pass over the block.
+    let (scale, first_pivot) = scale_and_pivot(a, n);
     if scale == T::ZERO {
         // A = 0: consistent only for b = 0, and then x = 0 is the minimum norm.
         return if b[..n].iter().all(|v| *v == T::ZERO) {
-            Some((x, Solved::MinimumNorm))
+            x[..n].fill(T::ZERO);
+            Some(Solved::MinimumNorm)
         } else {
             None
         };
     }
-    let lu = Lu::factor(a, b, n, scale)?;
+    let mut lu = Lu {
+        m: *a,
+        rhs: *b,
+        col_of: [0usize; D],
+        n,
+        rank: 0,
+    };
+    lu.factor(scale, first_pivot)?;
     if lu.rank == n {
-        lu.back_substitute(&mut x);
+        lu.back_substitute(x);
         return x[..n]
             .iter()
             .all(|v| v.is_finite())
-            .then_some((x, Solved::Unique));
+            .then_some(Solved::Unique);
     }
-    lu.minimum_norm(weights, &mut x)?;
+    lu.minimum_norm(weights, x)?;
     // Accept only a consistent system: the residual must vanish to the tolerance.
     let b_scale = b[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
     let x_scale = x[..n].iter().fold(T::ZERO, |m, v| m.max(v.abs()));
@@ -107,18 +130,40 @@ pub fn solve_weighted_in<T: Real, const D: usize>(
             return None;
         }
     }
-    Some((x, Solved::MinimumNorm))
+    Some(Solved::MinimumNorm)
 }
 
-/// Largest `|a_ij|` of the leading block.
-fn max_abs<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> T {
+/// Largest `|a_ij|` of the leading block (folded as `m.max(|a_ij|)`, row by row),
+/// and the full pivot of the first step ([`largest_entry`] at `k = 0`): one pass.
+fn scale_and_pivot<T: Real, const D: usize>(a: &[[T; D]; D], n: usize) -> (T, Pivot<T>) {
     let mut m = T::ZERO;
-    for row in &a[..n] {
-        for v in &row[..n] {
-            m = m.max(v.abs());
+    let mut pivot = Pivot {
+        row: 0,
+        col: 0,
+        size: T::ZERO,
+    };
+    for (i, row) in a[..n].iter().enumerate() {
+        for (j, v) in row[..n].iter().enumerate() {
+            let v = v.abs();
+            m = m.max(v);
+            if v > pivot.size {
+                pivot = Pivot {
+                    row: i,
+                    col: j,
+                    size: v,
+                };
+            }
         }
     }
-    m
+    (m, pivot)
+}
+
+/// A full pivot: its row, column and magnitude.
+#[derive(Clone, Copy)]
+struct Pivot<T> {
+    row: usize,
+    col: usize,
+    size: T,
 }
 
 /// Gaussian elimination with full pivoting, stopped at the numerical rank.
@@ -136,40 +181,41 @@ struct Lu<T, const D: usize> {
 }
 
 impl<T: Real, const D: usize> Lu<T, D> {
-    /// Factors the leading `n x n` block, stopping at the first pivot at or below
-    /// `rank_tolerance * scale`. `None` on a non-finite pivot.
-    fn factor(a: &[[T; D]; D], b: &[T; D], n: usize, scale: T) -> Option<Self> {
-        let mut lu = Lu {
-            m: *a,
-            rhs: *b,
-            col_of: [0usize; D],
-            n,
-            rank: 0,
-        };
-        for (k, c) in lu.col_of[..n].iter_mut().enumerate() {
+    /// Factors the leading `n x n` block in place, stopping at the first pivot at or
+    /// below `rank_tolerance * scale`; `pivot` is the first step's. Each step's
+    /// elimination finds the next step's pivot as it writes the rows (the same
+    /// entries in the same order as a separate search). `None` on a non-finite
+    /// pivot.
+    fn factor(&mut self, scale: T, mut pivot: Pivot<T>) -> Option<()> {
+        let n = self.n;
+        for (k, c) in self.col_of[..n].iter_mut().enumerate() {
             *c = k;
         }
         let tol = rank_tolerance::<T>() * scale;
         for k in 0..n {
-            let (pr, pc, best) = largest_entry(&lu.m, k, n);
+            let Pivot {
+                row: pr,
+                col: pc,
+                size: best,
+            } = pivot;
             if !best.is_finite() {
                 return None;
             }
             if best <= tol {
                 break;
             }
-            lu.m.swap(k, pr);
-            lu.rhs.swap(k, pr);
+            self.m.swap(k, pr);
+            self.rhs.swap(k, pr);
             if pc != k {
-                for row in &mut lu.m[..n] {
+                for row in &mut self.m[..n] {
                     row.swap(k, pc);
                 }
-                lu.col_of.swap(k, pc);
+                self.col_of.swap(k, pc);
             }
-            eliminate_below(&mut lu.m, &mut lu.rhs, k, n);
-            lu.rank = k + 1;
+            pivot = eliminate_below(&mut self.m, &mut self.rhs, k, n);
+            self.rank = k + 1;
         }
-        Some(lu)
+        Some(())
     }
 
     /// The unique solution of a full-rank block: back substitution, then the
@@ -192,7 +238,7 @@ impl<T: Real, const D: usize> Lu<T, D> {
     /// The weighted minimum-norm solution of `U x' = c` (module docs):
     /// `H = U D' U^T` (`r x r`), `H = R R^T` by Cholesky, `H z = c`,
     /// `x' = D' U^T z`. `None` on a non-positive or non-finite Cholesky pivot.
-    fn minimum_norm(&self, weights: &[T; D], x: &mut [T; D]) -> Option<()> {
+    fn minimum_norm(&mut self, weights: &[T; D], x: &mut [T; D]) -> Option<()> {
         let (u, n, r) = (&self.m, self.n, self.rank);
         let mut w = [T::ZERO; D];
         for (wk, c) in w[..n].iter_mut().zip(&self.col_of[..n]) {
@@ -211,8 +257,9 @@ impl<T: Real, const D: usize> Lu<T, D> {
             }
         }
         cholesky_in_place(&mut h, r)?;
-        let mut z = self.rhs;
-        cholesky_solve(&h, r, &mut z);
+        // z in place of c (the factors are not used again).
+        let z = &mut self.rhs;
+        cholesky_solve(&h, r, z);
         // x' = D' U^T z; x[col_of[j]] = x'_j.
         for j in 0..n {
             let mut s = T::ZERO;
@@ -273,7 +320,9 @@ fn cholesky_solve<T: Real, const D: usize>(h: &[[T; D]; D], r: usize, z: &mut [T
 }
 
 /// The full pivot of step `k`: the largest `|m_ij|` with `i, j` in `k..n` (the
-/// first one met, row by row), as (row, column, magnitude).
+/// first one met, row by row), as (row, column, magnitude). The reference for the
+/// search that [`eliminate_below`] does as it goes (tests).
+#[cfg(test)]
 fn largest_entry<T: Real, const D: usize>(
     m: &[[T; D]; D],
     k: usize,
@@ -293,19 +342,30 @@ fn largest_entry<T: Real, const D: usize>(
 }
 
 /// Eliminates column `k` below the pivot `m_kk` from the rows `k+1..n` and the
-/// right-hand side.
+/// right-hand side, and returns the pivot of step `k + 1`: the largest `|m_ij|`
+/// with `i, j` in `k+1..n`, the first one met row by row (each row is searched
+/// once it is written).
 fn eliminate_below<T: Real, const D: usize>(
     m: &mut [[T; D]; D],
     rhs: &mut [T; D],
     k: usize,
     n: usize,
-) {
+) -> Pivot<T> {
+    let mut pivot = Pivot {
+        row: k + 1,
+        col: k + 1,
+        size: T::ZERO,
+    };
     let (upper, lower) = m.split_at_mut(k + 1);
     let pivot_row = &upper[k];
-    let pivot = pivot_row[k];
+    let pk = pivot_row[k];
     let rk = rhs[k];
-    for (row, ri) in lower[..n - k - 1].iter_mut().zip(&mut rhs[k + 1..n]) {
-        let f = row[k] / pivot;
+    for (i, (row, ri)) in lower[..n - k - 1]
+        .iter_mut()
+        .zip(&mut rhs[k + 1..n])
+        .enumerate()
+    {
+        let f = row[k] / pk;
         if f != T::ZERO {
             for (mij, mkj) in row[k + 1..n].iter_mut().zip(&pivot_row[k + 1..n]) {
                 *mij -= f * *mkj;
@@ -313,7 +373,18 @@ fn eliminate_below<T: Real, const D: usize>(
             *ri -= f * rk;
         }
         row[k] = T::ZERO;
+        for (j, v) in row[k + 1..n].iter().enumerate() {
+            let v = v.abs();
+            if v > pivot.size {
+                pivot = Pivot {
+                    row: k + 1 + i,
+                    col: k + 1 + j,
+                    size: v,
+                };
+            }
+        }
     }
+    pivot
 }
 
 #[cfg(test)]
@@ -371,6 +442,56 @@ mod tests {
         for i in 0..3 {
             assert!((x[i] - w[i] * l[i] * c / s).abs() < 1e-12, "{x:?}");
         }
+    }
+
+    /// The pivots found along the elimination and in the first pass are the ones a
+    /// separate search finds (the same entry, ties to the first met).
+    #[test]
+    fn fused_pivot_search_matches_a_separate_search() {
+        let mut a = [[0.0; DIM]; DIM];
+        let n = 7;
+        let mut v = 0.37f64;
+        for (i, row) in a.iter_mut().enumerate().take(n) {
+            for (j, x) in row.iter_mut().enumerate().take(n) {
+                v = (v * 3.7 + 0.11).fract();
+                // Ties: repeat some magnitudes with both signs.
+                *x = if (i + j) % 3 == 0 { 0.5 } else { v - 0.5 };
+                if (i * j) % 4 == 1 {
+                    *x = -0.5;
+                }
+            }
+        }
+        let (scale, first) = scale_and_pivot(&a, n);
+        assert_eq!(scale, max_abs_reference(&a, n));
+        assert_eq!((first.row, first.col, first.size), largest_entry(&a, 0, n));
+        let mut m = a;
+        let mut rhs = [0.0; DIM];
+        let mut pivot = first;
+        for k in 0..n - 1 {
+            let (pr, pc) = (pivot.row, pivot.col);
+            m.swap(k, pr);
+            if pc != k {
+                for row in &mut m[..n] {
+                    row.swap(k, pc);
+                }
+            }
+            pivot = eliminate_below(&mut m, &mut rhs, k, n);
+            assert_eq!(
+                (pivot.row, pivot.col, pivot.size),
+                largest_entry(&m, k + 1, n),
+                "step {k}"
+            );
+        }
+    }
+
+    fn max_abs_reference(a: &Matrix<f64>, n: usize) -> f64 {
+        let mut m = 0.0f64;
+        for row in &a[..n] {
+            for v in &row[..n] {
+                m = Real::max(m, v.abs());
+            }
+        }
+        m
     }
 
     #[test]

@@ -117,16 +117,53 @@ impl<T: Real, const N: usize> ImpactProblem<T, N> {
     pub fn velocity_change(&self, p_n: &[T; N], p_t: &[T; N]) -> ([T; N], [T; N]) {
         let mut du_n = [T::ZERO; N];
         let mut du_t = [T::ZERO; N];
-        for i in 0..self.len {
-            let mut a = T::ZERO;
-            let mut b = T::ZERO;
-            for j in 0..self.len {
-                a += self.w_nn[i][j] * p_n[j] + self.w_nt[i][j] * p_t[j];
-                b += self.w_nt[j][i] * p_n[j] + self.w_tt[i][j] * p_t[j];
-            }
+        self.velocity_change_into(p_n, p_t, &mut du_n, &mut du_t);
+        (du_n, du_t)
+    }
+
+    /// [`ImpactProblem::velocity_change`] written into `du_n`, `du_t` (entries from
+    /// `len` on set to zero), without the arrays returned by value.
+    pub fn velocity_change_into(
+        &self,
+        p_n: &[T; N],
+        p_t: &[T; N],
+        du_n: &mut [T; N],
+        du_t: &mut [T; N],
+    ) {
+        let n = self.len;
+        for i in 0..n {
+            let (a, b) = self.row_times(i, p_n, p_t);
             du_n[i] = a;
             du_t[i] = b;
         }
-        (du_n, du_t)
+        du_n[n..].fill(T::ZERO);
+        du_t[n..].fill(T::ZERO);
+    }
+
+    /// The contact velocities after the impulses `p_n`, `p_t` from the velocities
+    /// before: `u = u0 + W P` (the same sums as [`ImpactProblem::velocity_change`]),
+    /// for the first `len` contacts.
+    pub fn velocities_after(&self, p_n: &[T; N], p_t: &[T; N], u_n: &mut [T; N], u_t: &mut [T; N]) {
+        for i in 0..self.len {
+            let (a, b) = self.row_times(i, p_n, p_t);
+            u_n[i] = self.u_n[i] + a;
+            u_t[i] = self.u_t[i] + b;
+        }
+    }
+
+    /// Row `i` of `W P`: the changes of contact `i`'s normal and tangential
+    /// velocities, summed over the contacts in order.
+    #[inline(always)]
+    fn row_times(&self, i: usize, p_n: &[T; N], p_t: &[T; N]) -> (T, T) {
+        let n = self.len;
+        let (p_n, p_t) = (&p_n[..n], &p_t[..n]);
+        let (w_nn, w_nt, w_tt) = (&self.w_nn[i][..n], &self.w_nt[i][..n], &self.w_tt[i][..n]);
+        let mut a = T::ZERO;
+        let mut b = T::ZERO;
+        for j in 0..n {
+            a += w_nn[j] * p_n[j] + w_nt[j] * p_t[j];
+            b += self.w_nt[j][i] * p_n[j] + w_tt[j] * p_t[j];
+        }
+        (a, b)
     }
 }

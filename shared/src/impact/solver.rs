@@ -20,7 +20,7 @@
 //! reaching zero, a target reached, a work target reached) are located exactly
 //! as roots of linear or quadratic functions.
 
-use super::lcp::{find_direction, Direction, NormalRule, Tolerances};
+use super::lcp::{find_direction_into, Direction, NormalRule, Tolerances};
 use super::outcome::{
     ContactOutcome, ImpactOutcome, InteractionCase, Phase, Segment, SlipState, Warnings,
 };
@@ -55,12 +55,32 @@ fn relative_tolerance<T: Real>() -> T {
 }
 
 /// Solves one impact. See the module documentation for the stages.
+#[inline]
 pub fn solve<T: Real, const N: usize>(
     problem: &ImpactProblem<T, N>,
 ) -> Result<ImpactOutcome<T, N>, ImpactError> {
     const { assert!(N <= MAX_CONTACTS, "at most MAX_CONTACTS contacts") };
     check(problem)?;
-    let mut run = Run::new(problem);
+    // The outcome is built in the value returned and the contacts' histories
+    // written into it, not moved out of the solver's state (5.9 kB in f64).
+    let mut result = Ok(ImpactOutcome {
+        len: problem.len,
+        contacts: core::array::from_fn(|_| ContactOutcome::default()),
+        energy_change: T::ZERO,
+        warnings: Warnings::default(),
+    });
+    if let Ok(outcome) = &mut result {
+        integrate(problem, outcome)?;
+    }
+    result
+}
+
+/// The stages of [`solve`] on a checked problem, into `outcome`.
+fn integrate<T: Real, const N: usize>(
+    problem: &ImpactProblem<T, N>,
+    outcome: &mut ImpactOutcome<T, N>,
+) -> Result<(), ImpactError> {
+    let mut run = Run::new(problem, &mut outcome.contacts);
     if (0..problem.len).all(|i| problem.u_n[i] >= -run.tol.velocity) {
         return Err(ImpactError::NoApproach);
     }
@@ -80,7 +100,10 @@ pub fn solve<T: Real, const N: usize>(
     run.drive_to_target(&[T::ZERO; N])?;
 
     // 4. Report.
-    Ok(run.report())
+    let (energy, warnings) = run.report();
+    outcome.energy_change = energy;
+    outcome.warnings = warnings;
+    Ok(())
 }
 
 /// Refuses malformed problems.
@@ -126,13 +149,13 @@ struct Run<'a, T, const N: usize> {
     p_c_n: [T; N],
     p_c_t: [T; N],
     work_c: [T; N],
-    out: [ContactOutcome<T>; N],
+    out: &'a mut [ContactOutcome<T>; N],
     warnings: Warnings,
     pieces: u32,
 }
 
 impl<'a, T: Real, const N: usize> Run<'a, T, N> {
-    fn new(p: &'a ImpactProblem<T, N>) -> Self {
+    fn new(p: &'a ImpactProblem<T, N>, out: &'a mut [ContactOutcome<T>; N]) -> Self {
         let rel = relative_tolerance::<T>();
         // Scales: the largest contact speed and the impulse that changes it.
         let mut v_scale = T::ZERO;
@@ -165,7 +188,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
             p_c_n: [T::ZERO; N],
             p_c_t: [T::ZERO; N],
             work_c: [T::ZERO; N],
-            out: core::array::from_fn(|_| ContactOutcome::default()),
+            out,
             warnings: Warnings::default(),
             pieces: 0,
         }
@@ -174,17 +197,22 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
     /// Pieces of the complementarity rule toward the normal velocities `g`, until
     /// every contact's normal velocity is at or above its target.
     fn drive_to_target(&mut self, g: &[T; N]) -> Result<(), ImpactError> {
+        if (0..self.p.len).all(|i| self.u_n[i] >= g[i] - self.tol.velocity) {
+            return Ok(());
+        }
+        let mut d = Direction::default();
         loop {
             if (0..self.p.len).all(|i| self.u_n[i] >= g[i] - self.tol.velocity) {
                 return Ok(());
             }
-            let d = find_direction(
+            find_direction_into(
                 self.p,
                 &self.u_n,
                 &self.u_t,
                 &self.u_t,
                 NormalRule::Target(g),
                 &self.tol,
+                &mut d,
             );
             if !d.consistent {
                 self.warnings.insert(Warnings::INCONSISTENT);
@@ -313,11 +341,8 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
 
     /// `u = u0 + W P` for every contact.
     fn refresh_velocities(&mut self) {
-        let (du_n, du_t) = self.p.velocity_change(&self.p_n, &self.p_t);
-        for i in 0..self.p.len {
-            self.u_n[i] = self.p.u_n[i] + du_n[i];
-            self.u_t[i] = self.p.u_t[i] + du_t[i];
-        }
+        self.p
+            .velocities_after(&self.p_n, &self.p_t, &mut self.u_n, &mut self.u_t);
     }
 
     /// Appends a piece to contact `i`'s history, merging it with the last segment
@@ -385,6 +410,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
         for (i, t) in target.iter_mut().enumerate().take(self.p.len) {
             *t = self.p.contacts[i].restitution * self.p_c_n[i];
         }
+        let mut d = Direction::default();
         loop {
             let mut remaining = [T::ZERO; N];
             let mut any = false;
@@ -398,7 +424,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
             if !any {
                 return Ok(());
             }
-            let d = self.fixed_direction(&remaining);
+            self.fixed_direction(&remaining, &mut d);
             let lambda = self.next_event(&d, Some(T::ONE), None).unwrap_or(T::ONE);
             self.advance(&d, lambda)?;
             if lambda >= T::ONE {
@@ -436,6 +462,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
             target[i] = r * r * self.work_c[i].abs();
             ended[i] = !(r > T::ZERO && self.p_c_n[i] > self.tol.impulse);
         }
+        let mut d = Direction::default();
         loop {
             if ended.iter().take(n).all(|e| *e) {
                 return Ok(());
@@ -446,7 +473,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
                     x[i] = self.p.contacts[i].restitution * self.p_c_n[i];
                 }
             }
-            let d = self.fixed_direction(&x);
+            self.fixed_direction(&x, &mut d);
             // Earliest work event.
             let mut work_at = [None; N];
             let mut lambda: Option<T> = None;
@@ -520,23 +547,24 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
     }
 
     /// A fixed-rate direction, flagging inconsistent friction states.
-    fn fixed_direction(&mut self, x: &[T; N]) -> Direction<T, N> {
-        let d = find_direction(
+    fn fixed_direction(&mut self, x: &[T; N], d: &mut Direction<T, N>) {
+        find_direction_into(
             self.p,
             &self.u_n,
             &self.u_t,
             &self.u_t,
             NormalRule::Fixed(x),
             &self.tol,
+            d,
         );
         if !d.consistent {
             self.warnings.insert(Warnings::INCONSISTENT);
         }
-        d
     }
 
-    /// Totals, cases, energy and warnings.
-    fn report(mut self) -> ImpactOutcome<T, N> {
+    /// Totals and cases into the contacts' outcomes; the energy change and the
+    /// warnings.
+    fn report(&mut self) -> (T, Warnings) {
         let half = T::from_f64(0.5);
         let mut energy = T::ZERO;
         let mut energy_scale = T::ZERO;
@@ -564,12 +592,7 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
         if energy > self.rel * T::from_f64(10.0) * energy_scale {
             self.warnings.insert(Warnings::ENERGY_GAINED);
         }
-        ImpactOutcome {
-            len: self.p.len,
-            contacts: self.out,
-            energy_change: energy,
-            warnings: self.warnings,
-        }
+        (energy, self.warnings)
     }
 }
 

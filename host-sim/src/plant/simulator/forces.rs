@@ -12,7 +12,7 @@
 //!    cone ([`Plant::share_within_cones`], `shared::impact::split`);
 //! 5. `q'' = a_0 + M^-1 J^T lambda`.
 
-use shared::impact::lcp::{solve_states, Direction};
+use shared::impact::lcp::{solve_states_into, Direction};
 use shared::impact::linalg::Solved;
 use shared::impact::split::within_cones;
 use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
@@ -136,7 +136,8 @@ impl Plant {
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
             // mode is re-decided at the next event).
-            if let Some((_, d, how)) = solve_states(
+            let mut d = Direction::default();
+            if let Some((_, how)) = solve_states_into(
                 &sys.problem,
                 &sys.base_n,
                 &sys.base_t,
@@ -144,6 +145,7 @@ impl Plant {
                 &mode,
                 Some(&zeros),
                 None,
+                &mut d,
             ) {
                 let (x, y) = self.share_within_cones(closed, modes, sys, &d, how);
                 for (r, &j) in closed.iter().enumerate() {
