@@ -3,7 +3,8 @@
 # Cortex-M4F, in f32 (hardware FPU) and f64 (soft-float), counted in QEMU's
 # netduinoplus2 (STM32F405). benchmarks/impact.md has the results and the method.
 #
-#   bash benchmarks/impact-m4/run.sh
+#   bash benchmarks/impact-m4/run.sh            # count, check
+#   bash benchmarks/impact-m4/run.sh --profile  # and the instructions by function
 #
 # 1. Builds the program (thumbv7em-none-eabihf, the firmware's release profile)
 #    and runs it under `-icount shift=0`: its SysTick counts give instructions
@@ -12,13 +13,24 @@
 #    exec,nochain`, one log line per executed instruction) and counts the lines
 #    between the markers trace_begin and trace_end: one impact of each type,
 #    exactly, less the markers around nothing.
-# 3. Builds the same program for the host and checks that the target's outcomes
+# 3. Builds the same program for the host (dev profile) and checks that the target's outcomes
 #    (energy change, impulses, cases) are the host's to the last bit.
+#
+# --profile also prints, from the trace, the functions that executed most of each
+# impact's instructions (by the symbol of each instruction's address: inlined code
+# counts to the function it was inlined into), demangled by c++filt if present.
 #
 # Needs the thumbv7em-none-eabihf target and qemu-system-arm (7.2);
 # scripts/test-all.sh's setup installs both. Exits non-zero if a build or a run
 # fails, a run takes more than 60 s, or the outcomes differ.
 set -euo pipefail
+
+PROFILE=0
+case "${1:-}" in
+    --profile) PROFILE=1 ;;
+    "") ;;
+    *) echo "usage: $0 [--profile]" >&2; exit 2 ;;
+esac
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cd "$HERE"
@@ -68,8 +80,28 @@ awk -v b="$begin" -v e="$end" '
         printf "trace: f64: %d instructions for one impact\n", stop[3] - start[3] - empty
     }' "$WORK/exec.log"
 
-# 3. The same outcomes on the host, to the last bit.
-cargo run --quiet --release --locked --target "$HOST" >"$WORK/host.txt"
+if [[ $PROFILE -eq 1 ]]; then
+    demangle=(cat)
+    if command -v c++filt >/dev/null; then
+        demangle=(c++filt)
+    fi
+    for stretch in 2:f32 3:f64; do
+        echo "profile ${stretch#*:}: instructions, share, function"
+        awk -v b="$begin" -v e="$end" -v want="${stretch%%:*}" '
+            { split($4, f, "/"); pc = f[2] }
+            pc == b { n++ }
+            pc == e && n == want { n = -1 }
+            n == want { count[$5]++; total++ }
+            END {
+                for (s in count) printf "%9d %5.1f %% %s\n", count[s], 100 * count[s] / total, s
+            }' "$WORK/exec.log" | sort -rn | head -n 15 | "${demangle[@]}"
+    done
+fi
+
+# 3. The same outcomes on the host, to the last bit. Built in the dev profile
+#    (quicker): Rust does not fuse or reorder floating-point operations at any
+#    optimisation level, so the host's bits do not depend on it.
+cargo run --quiet --locked --target "$HOST" >"$WORK/host.txt"
 grep '^outcome ' "$WORK/run.txt" >"$WORK/target-outcome.txt"
 if ! diff -u --label host "$WORK/host.txt" --label target "$WORK/target-outcome.txt"; then
     echo "error: the target's outcomes differ from the host's" >&2
