@@ -11,8 +11,8 @@
 //!
 //! 1. solves the impact once in `f32` and once in `f64`, each between the
 //!    markers `trace_begin` and `trace_end` (and the markers once around nothing),
-//!    for an instruction trace (`run.sh --trace`); with `trace` on the semihosting
-//!    command line it prints the markers' addresses and exits there;
+//!    for an instruction trace (`run.sh`'s second run); with `trace` on the
+//!    semihosting command line it prints the markers' addresses and exits there;
 //! 2. calibrates SysTick against a loop of known length (instructions per count);
 //! 3. times `RUNS_F32` impacts in `f32` (hardware FPU), `RUNS_F64` in `f64`
 //!    (soft-float calls on this single-precision FPU) and an empty loop of each
