@@ -200,7 +200,7 @@ step_firmware_qemu_device() {
 # prints are not checked (benchmarks/impact.md records them). Its clippy gate
 # (about 17 s cold) is left to whoever changes it (docs/development.md).
 step_impact_m4() {
-    (cd benchmarks/impact-m4 && cargo fmt --check)
+    (cd benchmarks/impact-m4 && cargo fmt --check && cargo clippy --release -- -D warnings)
     bash benchmarks/impact-m4/run.sh
 }
 
