@@ -112,7 +112,7 @@ step_run_main() {
 step_scripts() {
     local dir
     dir="$(mktemp -d)"
-    python3 -c 'import ast, sys; [ast.parse(open(f).read(), f) for f in sys.argv[1:]]' scripts/*.py benchmarks/mujoco/*.py
+    python3 -c 'import ast, sys; [ast.parse(open(f).read(), f) for f in sys.argv[1:]]' scripts/*.py benchmarks/*.py benchmarks/mujoco/*.py
     cargo run --quiet --release -p host-sim -- run examples/paper-fig8.toml \
         --command right --speed 3000 --t-end 0.5 --format json \
         --out "$dir/trace.csv" --events "$dir/events.csv" >/dev/null
@@ -120,6 +120,16 @@ step_scripts() {
         --from 0.3 --to 0.5
     grep -q '<polyline' "$dir/fig9.svg"
     python3 scripts/paper-fig8-sweep.py --voltages x 2>/dev/null && return 1
+    # The benchmark scripts: the contacts' scaling on a short run (its variants
+    # removed afterwards), the tolerance sweep's refusal of a bad argument.
+    python3 benchmarks/contacts_scaling.py target/release/host-sim examples/vibro-driver.toml \
+        --feet 2,3 --t-end 0.2 --repeats 1 >"$dir/scaling.md"
+    grep -q '^| 3 |' "$dir/scaling.md"
+    if ls examples/.contacts-scaling-* 2>/dev/null; then return 1; fi
+    local rc=0
+    python3 benchmarks/rtol_sweep.py target/release/host-sim examples/vibro-driver.toml \
+        --rtols x 2>/dev/null || rc=$?
+    [ "$rc" -eq 2 ] || return 1
     rm -rf "$dir"
 }
 

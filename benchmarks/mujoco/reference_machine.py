@@ -19,7 +19,8 @@ Usage (from the repository root, a venv with `pip install mujoco numpy`):
           --speed 3000 --offsets 90,120 --steps 1e-4,5e-5,2e-5,1e-5
       the mean travel speed at each time step (pick the largest within ~2 % of the finest)
   python benchmarks/mujoco/reference_machine.py bench examples/vibro-driver.toml \
-          --host-sim target/release/host-sim --step 1e-4 [--repeats 5] [--cpu 1]
+          --host-sim target/release/host-sim --step 1e-4 [--repeats 5] [--cpu 1] \
+          [--host-sim-set simulation.rtol=1e-3]
       wall time of host-sim and of MuJoCo, alternating, both pinned to one core
 
 Conventions. The plane of motion (x right, y up) is MuJoCo's x-z plane; angles
@@ -450,6 +451,9 @@ def build_parser():
     sp = sub.add_parser("bench", help="time host-sim and MuJoCo alternately on one core")
     common(sp)
     sp.add_argument("--host-sim", required=True, help="path of the host-sim binary")
+    sp.add_argument("--host-sim-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="passed to host-sim as --set KEY=VALUE (repeatable), e.g. "
+                         "simulation.rtol=1e-3")
     sp.add_argument("--speed", type=_positive_float("--speed"), default=None, help="rpm")
     sp.add_argument("--offset", type=float, default=90.0, help="phase offset, degrees")
     sp.add_argument("--t-end", type=_positive_float("--t-end"), default=10.0)
@@ -588,6 +592,8 @@ def cmd_bench(args, m):
     r = make_runner(args, m, args.step)
     cmd = [args.host_sim, "run", args.machine, "--command", "right", "--speed", f"{args.speed:g}",
            "--offset", f"{args.offset:g}", "--t-end", f"{args.t_end:g}", "--format", "json"]
+    for kv in args.host_sim_set:
+        cmd += ["--set", kv]
     hs, mj, mjp = [], [], []
     hs_v = mj_v = mjp_v = None
     for i in range(args.repeats):
@@ -610,7 +616,7 @@ def cmd_bench(args, m):
               f"(per-step loop {mjp[-1]:.3f} s)", file=sys.stderr, flush=True)
     summary = {
         "cpu": cpu, "t_end": args.t_end, "speed_rpm": args.speed, "offset_deg": args.offset,
-        "mujoco_step": args.step, "repeats": args.repeats,
+        "mujoco_step": args.step, "repeats": args.repeats, "host_sim_set": args.host_sim_set,
         "host_sim": {"wall_s": hs, "median_s": float(np.median(hs)),
                      "rtf": args.t_end / float(np.median(hs)),
                      "mean_velocity": hs_v["mean_velocity"],
@@ -631,7 +637,8 @@ def cmd_bench(args, m):
           f"{args.offset:g} deg, {args.repeats} alternating repeats, median wall time")
     print("| engine | wall (s), median | real-time factor | mean velocity (mm/s) |")
     print("|---|---|---|---|")
-    for name, key in (("host-sim run --command right", "host_sim"),
+    host_sim = " ".join(["host-sim run --command right"] + [f"--set {kv}" for kv in args.host_sim_set])
+    for name, key in ((host_sim, "host_sim"),
                       (f"MuJoCo, step {args.step:g} s, mj_step(nstep) per 1 ms tick", "mujoco"),
                       (f"MuJoCo, step {args.step:g} s, Python loop of mj_step", "mujoco_per_step_loop")):
         s = summary[key]
