@@ -525,10 +525,11 @@ impl Frame {
     }
 
     /// Fills this frame of `model` (made by [`Frame::empty`] for the same
-    /// model) at `q` as [`Frame::assemble`] does, in place: only the machine's
-    /// `n x n` block is written, nothing of the capacity is zeroed or copied (this
-    /// runs at every evaluation of the equations of motion). Returns the
-    /// generalized forces (zero without `motion`).
+    /// model) at `q` with the coordinates `locked` held, as [`Frame::locked`] and
+    /// [`Frame::with_forces`] make theirs, in place: only the machine's `n x n`
+    /// block is written, nothing of the capacity is zeroed or copied (this runs at
+    /// every evaluation of the equations of motion). Returns the generalized forces
+    /// at `motion = (v, tau)` (zero without).
     pub fn assemble_into(
         &mut self,
         model: &PlantModel,
