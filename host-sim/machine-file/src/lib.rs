@@ -38,6 +38,7 @@ pub mod input;
 pub mod rotors;
 pub mod set;
 pub mod tuning_file;
+pub mod uncertainty;
 
 pub use rotors::Rotors;
 
@@ -297,6 +298,10 @@ impl Machine {
         // Stages 3 to 6.
         let problems = Problems::new(file);
         let machine = check(&table, &problems, dir);
+        // Stage 6b: `[uncertainty]`, each range's ends against the whole machine.
+        if machine.is_some() && problems.is_empty() {
+            uncertainty::check(&table, &problems, dir);
+        }
         match problems.into_result(machine) {
             Ok(m) if set_problems.is_empty() => Ok(m),
             Ok(_) => Err(set_problems),
@@ -464,7 +469,7 @@ struct RotorKeys {
 }
 
 /// Stages 3 to 6; `None` when some problem was recorded.
-fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
+pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
     let root = Section::root(table, problems);
     // An omitted optional section reads as this empty table: every key takes its
     // default from the same `Need::Default` a present section uses.
@@ -518,6 +523,9 @@ fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Machine> {
         ImpactLaw::from_name(law?)
     });
     let simulation = optional(&root, "simulation", &empty).and_then(|s| read_simulation(&s));
+    // `[uncertainty]` is checked against the whole machine once it passed
+    // (`uncertainty::check`, from `Machine::from_text`).
+    root.has(uncertainty::SECTION);
     root.finish();
 
     // Stage 4: each rotor's motor, `[motor]` with the rotor's own keys over it.
@@ -1089,6 +1097,11 @@ mod tests {
                 .unwrap_or_else(|| panic!("no problem at {key}: {list:?}"));
             let allowed = p.message.split("allowed here: ").nth(1).unwrap();
             let mut read: Vec<&str> = allowed.trim_end_matches(')').split(", ").collect();
+            if path.is_empty() {
+                // `[uncertainty]` holds ranges of the other keys, not a key of its
+                // own that --set could set.
+                read.retain(|k| *k != uncertainty::SECTION);
+            }
             let mut keys = keys;
             read.sort_unstable();
             keys.sort_unstable();
