@@ -28,12 +28,18 @@
 //! ([`part`]); `host-sim merge` ([`merge`]) reads the N parts back into the whole
 //! grid's outcomes and goes on with stages 3 to 5 through the same functions
 //! ([`conclude`], [`Report`]), so its output is the unsharded one byte for byte.
+//!
+//! With `--robust` ([`robust`]) stage 2 runs every point on the machines the
+//! file's `[uncertainty]` allows, from three starts each, and stages 3 to 5 are
+//! [`robust::conclude`] and its outputs: the offsets that travel their way on all
+//! of them with the best 10th percentile.
 
 pub mod best;
 pub mod merge;
 pub mod part;
 pub mod plot;
 pub mod report;
+pub mod robust;
 pub mod sweep;
 
 use std::path::{Path, PathBuf};
@@ -99,6 +105,28 @@ pub struct TuneArgs {
     /// [default: -].
     #[arg(long, value_name = "FILE.json", requires = "shard")]
     pub out_part: Option<PathBuf>,
+    /// Evaluate every point on machines drawn from the file's `[uncertainty]`, from
+    /// three starts each, and choose the offsets that travel their way on all of
+    /// them with the best 10th percentile (see docs/tuning.md, "Robust tuning").
+    #[arg(long, conflicts_with = "shard")]
+    pub robust: bool,
+    /// Machines of `--robust`: the nominal one and N - 1 drawn [default: 8].
+    #[arg(long, value_name = "N", requires = "robust", value_parser = parse_samples)]
+    pub samples: Option<usize>,
+    /// Seed of `--robust`'s draw [default: 1].
+    #[arg(long, value_name = "S", requires = "robust")]
+    pub seed: Option<u64>,
+}
+
+/// `--samples N`: a count from 1 to [`robust::MAX_SAMPLES`].
+fn parse_samples(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=robust::MAX_SAMPLES).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "expected a count of machines from 1 to {} (got {text:?})",
+            robust::MAX_SAMPLES
+        )),
+    }
 }
 
 /// The outputs of a sweep, the same for `tune` and `merge`.
@@ -173,7 +201,7 @@ pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 
 /// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
 /// asked for (for the outputs).
-fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
+fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), String> {
     let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
     let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
     let params = match closed_loop::params(&machine) {
@@ -272,6 +300,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request), String> {
                 speeds_text,
                 offsets_text,
             },
+            text,
         )),
         _ => Err(problems.join("\n") + "\n"),
     }
@@ -338,7 +367,10 @@ fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
 /// Runs the command (stages of the module doc).
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
-    let (machine, grid, request) = read_options(args).map_err(Failure::Usage)?;
+    let (machine, grid, request, text) = read_options(args).map_err(Failure::Usage)?;
+    if args.robust {
+        return robust::run(args, &text, grid, &request, console);
+    }
     if let Some(shard) = args.shard {
         return part::run_shard(args, shard, &machine, grid, &request, console);
     }

@@ -1,0 +1,615 @@
+//! `host-sim tune MACHINE --robust [--samples N] [--seed S]`: the sweep over the
+//! machines the file's `[uncertainty]` allows (issue 14, section 1; docs/tuning.md,
+//! "Robust tuning").
+//!
+//! Every grid point runs on `N` machines (the nominal one, then `N - 1` of a Latin
+//! hypercube of the ranges, [`Uncertainty::draw`]) from [`STARTS`] initial
+//! conditions each (the platform at rest; rotor 1's start angle turned by 0, 120
+//! and 240 degrees from the file's), so on `3 N` runs. Per point: the nominal run
+//! (the nominal machine from the file's start, the plain sweep's number), the mean,
+//! the 10th and 90th percentiles (nearest rank), the extremes, and the share of runs
+//! going each way. The best offset at a speed is, rightward, the one with the
+//! highest 10th percentile among the points whose every run goes right (leftward:
+//! the lowest 90th percentile among those whose every run goes left); a speed
+//! with no such point has none, and says so. A point whose runs on one machine,
+//! from its different starts, settle at speeds further apart than
+//! [`multistable_margin`] is **multistable** there, flagged with the speeds found.
+//!
+//! The best offsets are grid offsets: the plain sweep's parabola through three
+//! neighbours does not apply to a percentile of a gait that can change from one
+//! offset to the next.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+
+use super::report::count;
+use super::sweep::{run_point, Grid, RunOutcome};
+use super::{load_machine, Request, TuneArgs};
+use crate::args::Format;
+use crate::failure::{Console, Failure};
+use crate::machine::input;
+use crate::machine::tuning_file;
+use crate::machine::uncertainty::Uncertainty;
+use crate::machine::Machine;
+use crate::output::file::Staged;
+use crate::output::text;
+
+/// Default `--samples`: the nominal machine and seven drawn (24 runs a point with
+/// the three starts).
+pub const DEFAULT_SAMPLES: usize = 8;
+/// Most `--samples`.
+pub const MAX_SAMPLES: usize = 1000;
+/// Default `--seed`.
+pub const DEFAULT_SEED: u64 = 1;
+/// Initial conditions per machine: rotor 1's start angle turned by `k 360 / STARTS`
+/// degrees from the file's (the offset the controller starts from, which decides
+/// a multistable gait).
+pub const STARTS: usize = 3;
+
+/// How far apart the speeds from different starts on one machine may settle before
+/// the point is multistable there, m/s: 1 mm/s plus 10 % of the faster (a gait
+/// change, issue 14's 45 against 20 mm/s, is far beyond; the mean over the
+/// second half of a run wanders by less on a stable gait).
+pub fn multistable_margin(speeds: &[f64]) -> f64 {
+    let fastest = speeds.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    1e-3 + 0.1 * fastest
+}
+
+/// One grid point over every machine and start.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointStats {
+    /// Rotor speed, rpm.
+    pub speed_rpm: f64,
+    /// Phase offset, degrees.
+    pub offset_deg: f64,
+    /// The nominal machine from the file's start, m/s.
+    pub nominal: f64,
+    /// Mean over the runs, m/s.
+    pub mean: f64,
+    /// 10th percentile (nearest rank), m/s.
+    pub p10: f64,
+    /// 90th percentile (nearest rank), m/s.
+    pub p90: f64,
+    /// Slowest (most leftward) run, m/s.
+    pub min: f64,
+    /// Fastest (most rightward) run, m/s.
+    pub max: f64,
+    /// Share of runs going left (`v < 0`).
+    pub left_share: f64,
+    /// Share of runs going right (`v > 0`).
+    pub right_share: f64,
+    /// Runs that did not hold their offset (not counted as travelling either way).
+    pub not_held: usize,
+    /// Machines (0: nominal) on which the starts settled apart: the speeds, m/s.
+    pub multistable: Vec<(usize, Vec<f64>)>,
+    /// Every run's mean velocity, machine by machine and start by start within
+    /// (`NaN` where the offset was not held), m/s.
+    pub speeds: Vec<f64>,
+}
+
+/// A best offset at one speed, one way.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobustBest {
+    /// The point's statistics.
+    pub point: PointStats,
+    /// The percentile it was chosen by, m/s: the 10th rightward, the 90th leftward.
+    pub by: f64,
+}
+
+/// The whole robust sweep.
+#[derive(Clone, Debug)]
+pub struct Robust {
+    /// The grid.
+    pub grid: Grid,
+    /// The ranges, and the seed and count of the machines drawn.
+    pub uncertainty: Uncertainty,
+    /// Machines drawn (the nominal one included).
+    pub samples: usize,
+    /// Seed of the draw.
+    pub seed: u64,
+    /// Per grid point, in [`Grid::points`] order.
+    pub points: Vec<PointStats>,
+    /// Best rightward offset per speed that has one.
+    pub right: Vec<RobustBest>,
+    /// Best leftward offset per speed that has one.
+    pub left: Vec<RobustBest>,
+    /// What the sweep found that a user must know.
+    pub warnings: Vec<String>,
+}
+
+/// The machines of a robust sweep: `(sample, start, machine)`, sample by sample
+/// (0: the nominal machine), its starts next to each other.
+pub type Machines = Vec<(usize, usize, Machine)>;
+
+/// The machines a robust sweep runs ([`Machines`]), with the ranges they come from.
+pub fn machines(
+    path: &Path,
+    text: &str,
+    sets: &[String],
+    samples: usize,
+    seed: u64,
+) -> Result<(Uncertainty, Machines), String> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let file = path.display().to_string();
+    let uncertainty = Uncertainty::from_text(&file, text, dir, sets)
+        .map_err(|problems| input::render(&problems))?;
+    if uncertainty.ranges.is_empty() {
+        return Err(format!(
+            "error: {file}: tune --robust: the machine file has no [uncertainty] ranges to draw machines from; add e.g.\n  [uncertainty]\n  \"contacts.*.restitution\" = [0.2, 0.45]\n(docs/machine-file.md)\n"
+        ));
+    }
+    let nominal = load_machine(path, text, sets)?;
+    let angle0 = nominal.rotors[0].angle;
+    let mut out = Vec::new();
+    for (i, drawn) in uncertainty.draw(samples, seed).into_iter().enumerate() {
+        for s in 0..STARTS {
+            let mut all = sets.to_vec();
+            all.extend(drawn.iter().cloned());
+            let turn = s as f64 * std::f64::consts::TAU / STARTS as f64;
+            if s > 0 {
+                all.push(format!("rotors.0.angle={:?}", angle0 + turn));
+            }
+            out.push((i, s, load_machine(path, text, &all)?));
+        }
+    }
+    Ok((uncertainty, out))
+}
+
+/// Runs every grid point on every machine, in parallel; the outcomes by machine,
+/// then by point.
+pub fn sweep(
+    machines: &[(usize, usize, Machine)],
+    grid: &Grid,
+    progress: &ProgressBar,
+) -> Vec<Vec<RunOutcome>> {
+    let points = grid.points();
+    let jobs: Vec<(usize, usize)> = (0..machines.len())
+        .flat_map(|m| (0..points.len()).map(move |p| (m, p)))
+        .collect();
+    let outcomes: Vec<RunOutcome> = jobs
+        .par_iter()
+        .map(|&(m, p)| {
+            let (speed, offset) = points[p];
+            let o = run_point(&machines[m].2, speed, offset, grid.t_end);
+            progress.inc(1);
+            o
+        })
+        .collect();
+    outcomes.chunks(points.len()).map(<[_]>::to_vec).collect()
+}
+
+/// The value at nearest rank `ceil(q n)` of the sorted `v` (`q` in (0, 1]).
+fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
+    let n = sorted.len();
+    let rank = ((q * n as f64).ceil() as usize).clamp(1, n);
+    sorted[rank - 1]
+}
+
+/// The statistics of point `p` over every machine's outcomes `runs` (machine by
+/// machine, `sample[m]` the drawn machine that machine `m` is, its starts next to
+/// each other).
+fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointStats {
+    let first = &runs[0][p];
+    let held: Vec<f64> = runs
+        .iter()
+        .map(|r| &r[p])
+        .filter(|o| o.not_held.is_none() && o.mean_velocity.is_finite())
+        .map(|o| o.mean_velocity)
+        .collect();
+    let n = runs.len();
+    let mut sorted = held.clone();
+    sorted.sort_by(f64::total_cmp);
+    let (mean, p10, p90, min, max) = if sorted.is_empty() {
+        (f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN)
+    } else {
+        (
+            sorted.iter().sum::<f64>() / sorted.len() as f64,
+            nearest_rank(&sorted, 0.1),
+            nearest_rank(&sorted, 0.9),
+            sorted[0],
+            sorted[sorted.len() - 1],
+        )
+    };
+    // Multistable: the starts of one machine apart.
+    let mut multistable = Vec::new();
+    let mut i = 0;
+    while i < sample.len() {
+        let this = sample[i];
+        let mut speeds = Vec::new();
+        while i < sample.len() && sample[i] == this {
+            let o = &runs[i][p];
+            if o.not_held.is_none() && o.mean_velocity.is_finite() {
+                speeds.push(o.mean_velocity);
+            }
+            i += 1;
+        }
+        let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = speeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if speeds.len() > 1 && hi - lo > multistable_margin(&speeds) {
+            multistable.push((this, speeds));
+        }
+    }
+    PointStats {
+        speed_rpm: first.speed_rpm,
+        offset_deg: first.offset_deg,
+        nominal: first.mean_velocity,
+        mean,
+        p10,
+        p90,
+        min,
+        max,
+        left_share: held.iter().filter(|v| **v < 0.0).count() as f64 / n as f64,
+        right_share: held.iter().filter(|v| **v > 0.0).count() as f64 / n as f64,
+        not_held: n - held.len(),
+        multistable,
+        speeds: runs
+            .iter()
+            .map(|r| match r[p].not_held {
+                None => r[p].mean_velocity,
+                Some(_) => f64::NAN,
+            })
+            .collect(),
+    }
+}
+
+/// The statistics, the best offsets and the warnings of a robust sweep.
+pub fn conclude(
+    grid: Grid,
+    uncertainty: Uncertainty,
+    seed: u64,
+    machines: &[(usize, usize, Machine)],
+    runs: &[Vec<RunOutcome>],
+) -> Robust {
+    let samples = machines.len() / STARTS;
+    let sample: Vec<usize> = machines.iter().map(|m| m.0).collect();
+    let points: Vec<PointStats> = (0..grid.points().len())
+        .map(|p| point_stats(&sample, runs, p))
+        .collect();
+    let mut right = Vec::new();
+    let mut left = Vec::new();
+    let mut warnings = Vec::new();
+    for &speed in &grid.speeds_rpm {
+        let at: Vec<&PointStats> = points.iter().filter(|s| s.speed_rpm == speed).collect();
+        let always = |share: fn(&PointStats) -> f64| {
+            at.iter()
+                .filter(move |s| s.not_held == 0 && share(s) == 1.0)
+                .copied()
+        };
+        match always(|s| s.right_share).max_by(|a, b| a.p10.total_cmp(&b.p10)) {
+            Some(b) => right.push(RobustBest {
+                point: b.clone(),
+                by: b.p10,
+            }),
+            None => warnings.push(format!(
+                "{} rpm: no offset travels right on every machine from every start",
+                text::sig(speed)
+            )),
+        }
+        match always(|s| s.left_share).min_by(|a, b| a.p90.total_cmp(&b.p90)) {
+            Some(b) => left.push(RobustBest {
+                point: b.clone(),
+                by: b.p90,
+            }),
+            None => warnings.push(format!(
+                "{} rpm: no offset travels left on every machine from every start",
+                text::sig(speed)
+            )),
+        }
+    }
+    let multistable = points.iter().filter(|s| !s.multistable.is_empty()).count();
+    if multistable > 0 {
+        let (what, verb) = if multistable == 1 {
+            ("point", "is")
+        } else {
+            ("points", "are")
+        };
+        warnings.push(format!(
+            "{multistable} {what} {verb} multistable: runs from different starts on one machine settle apart (see the multistable points)"
+        ));
+    }
+    Robust {
+        grid,
+        uncertainty,
+        samples,
+        seed,
+        points,
+        right,
+        left,
+        warnings,
+    }
+}
+
+/// `tune --robust`: the machines, the sweep, the outputs (`text`: the machine
+/// file's, as checked).
+pub fn run(
+    args: &TuneArgs,
+    text_in: &str,
+    grid: Grid,
+    request: &Request,
+    console: &mut Console<'_>,
+) -> Result<(), Failure> {
+    let (path, sets, output) = (&args.machine.path, &args.set.keys, &args.output);
+    let samples = args.samples.unwrap_or(DEFAULT_SAMPLES);
+    let seed = args.seed.unwrap_or(DEFAULT_SEED);
+    if output.plot.file.is_some() {
+        return Err(Failure::Usage(
+            "error: tune --robust --plot: the plot of the band is not made yet; leave --plot out (the JSON holds every point's statistics)\n".into(),
+        ));
+    }
+    let (uncertainty, machines) =
+        machines(path, text_in, sets, samples, seed).map_err(Failure::Usage)?;
+    let mut staged = Staged::new();
+    let write = match &output.write {
+        Some(p) => Some((staged.add(p)?, p.clone())),
+        None => None,
+    };
+    let started = std::time::Instant::now();
+    let progress = super::progress_bar("tune --robust", machines.len() * grid.points().len());
+    let runs = sweep(&machines, &grid, &progress);
+    progress.finish_and_clear();
+    super::refuse_interrupted("tune", "the sweep is incomplete")?;
+    let robust = conclude(grid, uncertainty, seed, &machines, &runs);
+    if let Some((i, p)) = &write {
+        let text = table_file(&robust, request, p).ok_or_else(|| {
+            Failure::Run(
+                "error: --write: no speed has a best offset both ways on every machine: nothing to write\n".into(),
+            )
+        })?;
+        staged.write(*i, &text)?;
+    }
+    staged.commit()?;
+    console.print(&match output.format.format {
+        Format::Json => json(&robust),
+        Format::Table => table(&robust, path),
+    });
+    console.note(&format!(
+        "tune --robust: {} runs ({} machines x {STARTS} starts x {} points) in {:.1} s on {}{}\n",
+        machines.len() * robust.points.len(),
+        robust.samples,
+        robust.points.len(),
+        started.elapsed().as_secs_f64(),
+        count(rayon::current_num_threads(), "thread"),
+        if robust.warnings.is_empty() {
+            String::new()
+        } else {
+            format!(", {}", count(robust.warnings.len(), "warning"))
+        }
+    ));
+    Ok(())
+}
+
+/// The speeds with a best offset both ways.
+fn rows(r: &Robust) -> Vec<(&RobustBest, &RobustBest)> {
+    r.right
+        .iter()
+        .filter_map(|a| {
+            r.left
+                .iter()
+                .find(|b| b.point.speed_rpm == a.point.speed_rpm)
+                .map(|b| (a, b))
+        })
+        .collect()
+}
+
+/// The tuning table file (`--write`), `None` when no speed has a best offset both
+/// ways.
+pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String> {
+    let both = rows(r);
+    if both.is_empty() {
+        return None;
+    }
+    let mut command = format!(
+        "host-sim tune {} --speeds {} --offsets {} --t-end {} --robust --samples {} --seed {}",
+        request.machine_path.display(),
+        request.speeds_text,
+        request.offsets_text,
+        text::sig(r.grid.t_end),
+        r.samples,
+        r.seed
+    );
+    for s in &request.set {
+        let _ = write!(command, " --set {s}");
+    }
+    let _ = write!(command, " --write {}", write.display());
+    let mut header = format!(
+        "Tuning table: the best phase offset for rightward and leftward travel per rotor speed,\n\
+         robust over the machine file's [uncertainty]. Written by `host-sim tune --robust`\n\
+         (see docs/tuning.md); regenerate with\n  {command}\n\
+         Each offset travels its way on all {} machines from all {STARTS} starts and has the best\n\
+         10th percentile of the speed there. 10th percentile (mean), m/s:\n",
+        r.samples
+    );
+    for (a, b) in &both {
+        let _ = writeln!(
+            header,
+            "  {} rpm: right {:.1} deg {} ({}), left {:.1} deg {} ({})",
+            text::sig(a.point.speed_rpm),
+            a.point.offset_deg,
+            text::signed(a.by),
+            text::signed(a.point.mean),
+            b.point.offset_deg,
+            text::signed(b.by),
+            text::signed(b.point.mean)
+        );
+    }
+    let rows: Vec<tuning_file::Row> = both
+        .iter()
+        .map(|(a, b)| (a.point.speed_rpm, a.point.offset_deg, b.point.offset_deg))
+        .collect();
+    Some(tuning_file::write(&rows, header.trim_end()))
+}
+
+/// `--format table`.
+pub fn table(r: &Robust, path: &Path) -> String {
+    let mut out = format!(
+        "tune --robust {}: {} machines (the nominal, then a Latin hypercube, seed {}) x {STARTS} starts, {} s runs\n",
+        path.display(),
+        r.samples,
+        r.seed,
+        text::sig(r.grid.t_end)
+    );
+    for range in &r.uncertainty.ranges {
+        let _ = writeln!(
+            out,
+            "  {} in [{}, {}]",
+            range.key,
+            text::sig(range.low),
+            text::sig(range.high)
+        );
+    }
+    out.push_str("\nbest offsets (every run travelling that way), mm/s:\n");
+    out.push_str("speed_rpm  way    offset_deg  p10/p90    mean     nominal\n");
+    for &speed in &r.grid.speeds_rpm {
+        for (way, list) in [("right", &r.right), ("left", &r.left)] {
+            match list.iter().find(|b| b.point.speed_rpm == speed) {
+                Some(b) => {
+                    let _ = writeln!(
+                        out,
+                        "{:<10} {:<6} {:<11.1} {:<10.3} {:<8.3} {:.3}",
+                        text::sig(speed),
+                        way,
+                        b.point.offset_deg,
+                        b.by * 1e3,
+                        b.point.mean * 1e3,
+                        b.point.nominal * 1e3
+                    );
+                }
+                None => {
+                    let _ = writeln!(out, "{:<10} {:<6} none", text::sig(speed), way);
+                }
+            }
+        }
+    }
+    let flagged: Vec<&PointStats> = r
+        .points
+        .iter()
+        .filter(|s| !s.multistable.is_empty())
+        .collect();
+    if !flagged.is_empty() {
+        out.push_str("\nmultistable points (machine: speeds from the starts, mm/s):\n");
+        for s in flagged {
+            let machines: Vec<String> = s
+                .multistable
+                .iter()
+                .map(|(m, v)| {
+                    let v: Vec<String> = v.iter().map(|x| format!("{:+.2}", x * 1e3)).collect();
+                    format!("{m}: {}", v.join(" "))
+                })
+                .collect();
+            let _ = writeln!(
+                out,
+                "  {} rpm {:.1} deg: {}",
+                text::sig(s.speed_rpm),
+                s.offset_deg,
+                machines.join("; ")
+            );
+        }
+    }
+    for w in &r.warnings {
+        let _ = writeln!(out, "warning: {w}");
+    }
+    out
+}
+
+/// `--format json`: the plain sweep's `grid` and `best` (the nominal run's speed as
+/// `mean_velocity`) with the robust statistics added.
+pub fn json(r: &Robust) -> String {
+    use serde_json::{json, Value};
+    let stats = |s: &PointStats| {
+        json!({
+            "mean": s.mean, "p10": s.p10, "p90": s.p90, "min": s.min, "max": s.max,
+            "right_share": s.right_share, "left_share": s.left_share,
+            "not_held": s.not_held,
+            "speeds": s.speeds.iter().map(|v| if v.is_finite() { json!(v) } else { Value::Null }).collect::<Vec<Value>>(),
+            "multistable": s.multistable.iter().map(|(m, v)| json!({"machine": m, "speeds": v})).collect::<Vec<Value>>(),
+        })
+    };
+    let grid: Vec<Value> = r
+        .points
+        .iter()
+        .map(|s| {
+            json!({"speed_rpm": s.speed_rpm, "offset_deg": s.offset_deg,
+                   "mean_velocity": s.nominal, "robust": stats(s)})
+        })
+        .collect();
+    let best = |list: &[RobustBest]| -> Vec<Value> {
+        list.iter()
+            .map(|b| {
+                json!({"speed_rpm": b.point.speed_rpm, "offset_deg": b.point.offset_deg,
+                       "mean_velocity": b.point.nominal, "by": b.by, "robust": stats(&b.point)})
+            })
+            .collect()
+    };
+    let ranges: Vec<Value> = r
+        .uncertainty
+        .ranges
+        .iter()
+        .map(|x| json!({"key": x.key, "low": x.low, "high": x.high}))
+        .collect();
+    let doc = json!({
+        "grid": grid,
+        "best": {"right": best(&r.right), "left": best(&r.left)},
+        "robust": {"samples": r.samples, "seed": r.seed, "starts": STARTS, "ranges": ranges},
+        "warnings": r.warnings,
+    });
+    let mut s = serde_json::to_string_pretty(&doc).unwrap_or_default();
+    s.push('\n');
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(v: f64) -> RunOutcome {
+        RunOutcome {
+            speed_rpm: 3000.0,
+            offset_deg: 90.0,
+            mean_velocity: v,
+            not_held: None,
+            plant_warnings: Vec::new(),
+        }
+    }
+
+    /// Two machines of three starts each at one point: the statistics by hand.
+    #[test]
+    fn statistics_of_one_point() {
+        let speeds = [0.030, 0.031, 0.032, 0.010, 0.011, 0.045];
+        let runs: Vec<Vec<RunOutcome>> = speeds.iter().map(|v| vec![outcome(*v)]).collect();
+        let s = point_stats(&[0, 0, 0, 1, 1, 1], &runs, 0);
+        assert_eq!(s.nominal, 0.030);
+        assert!((s.mean - 0.159 / 6.0).abs() < 1e-15);
+        // Nearest rank: ceil(0.1 * 6) = 1st and ceil(0.9 * 6) = 6th of the sorted.
+        assert_eq!((s.p10, s.p90, s.min, s.max), (0.010, 0.045, 0.010, 0.045));
+        assert_eq!((s.right_share, s.left_share, s.not_held), (1.0, 0.0, 0));
+        // Machine 0's starts agree within 1 mm/s + 10 %; machine 1's do not.
+        assert_eq!(s.multistable, vec![(1, vec![0.010, 0.011, 0.045])]);
+        assert_eq!(s.speeds, speeds.to_vec());
+    }
+
+    /// A run that did not hold its offset counts for neither way and keeps the
+    /// point out of the best offsets; one going the other way shows in the shares.
+    #[test]
+    fn runs_not_held_and_the_wrong_way() {
+        let mut runs: Vec<Vec<RunOutcome>> = [0.02, -0.001, 0.02]
+            .iter()
+            .map(|v| vec![outcome(*v)])
+            .collect();
+        runs[2][0].not_held = Some("fault".into());
+        let s = point_stats(&[0, 0, 0], &runs, 0);
+        assert_eq!(s.not_held, 1);
+        assert!((s.right_share - 1.0 / 3.0).abs() < 1e-15);
+        assert!((s.left_share - 1.0 / 3.0).abs() < 1e-15);
+        assert!(s.speeds[2].is_nan());
+        assert_eq!((s.min, s.max), (-0.001, 0.02));
+    }
+
+    #[test]
+    fn the_margin_of_multistability() {
+        assert!((multistable_margin(&[0.0, 0.0]) - 1e-3).abs() < 1e-15);
+        assert!((multistable_margin(&[0.02, -0.045]) - 5.5e-3).abs() < 1e-15);
+    }
+}

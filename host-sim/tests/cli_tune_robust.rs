@@ -1,0 +1,183 @@
+//! `host-sim tune --robust` through the real binary on a small grid: the nominal
+//! run is the plain sweep's to the bit, a start's run is `host-sim run`'s from that
+//! start to the bit, the statistics follow from the runs listed, the best offsets
+//! travel their way on every run, `--write` reads back, and refusals (exit 2).
+
+use std::path::PathBuf;
+
+use host_sim::machine::tuning_file;
+use serde_json::Value;
+
+mod common;
+use common::{run, Run};
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("cli-tune-robust", name)
+}
+
+/// The reference machine with `[uncertainty]` (its tuning table from `examples/`).
+fn uncertain_machine() -> PathBuf {
+    let text = std::fs::read_to_string(common::machine()).unwrap().replace(
+        "tuning_table = \"vibro-driver.tuning.toml\"",
+        &format!(
+            "tuning_table = {:?}",
+            common::root().join("examples/vibro-driver.tuning.toml")
+        ),
+    );
+    let path = scratch("uncertain.toml");
+    std::fs::write(
+        &path,
+        format!("{text}\n[uncertainty]\n\"contacts.*.restitution\" = [0.25, 0.4]\n\"motor.resistance\" = [1.8, 2.4]\n"),
+    )
+    .unwrap();
+    path
+}
+
+/// The grid of these tests: 3000 rpm, four offsets, 3 s (the reference machine's
+/// offsets are held from about 1.2 s), the loosest tolerance (benchmarks/plant.md:
+/// the same table as 1e-8).
+const GRID: [&str; 8] = [
+    "--speeds",
+    "3000",
+    "--offsets",
+    "0:270:90",
+    "--t-end",
+    "3",
+    "--set",
+    "simulation.rtol=1e-3",
+];
+
+fn tune(machine: &str, extra: &[&str]) -> Run {
+    let mut args = vec!["tune", machine];
+    args.extend_from_slice(&GRID);
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
+fn json(r: &Run) -> Value {
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    serde_json::from_str(&r.stdout).unwrap()
+}
+
+#[test]
+fn a_robust_sweep_on_two_machines_from_three_starts() {
+    let m = uncertain_machine();
+    let m = m.to_str().unwrap();
+    let write = scratch("robust.tuning.toml");
+    let robust = json(&tune(
+        m,
+        &[
+            "--robust",
+            "--samples",
+            "2",
+            "--seed",
+            "3",
+            "--format",
+            "json",
+            "--write",
+            write.to_str().unwrap(),
+        ],
+    ));
+    let plain = json(&tune(m, &["--format", "json"]));
+
+    let grid = robust["grid"].as_array().unwrap();
+    assert_eq!(grid.len(), 4);
+    for (g, p) in grid.iter().zip(plain["grid"].as_array().unwrap()) {
+        // The nominal run is the plain sweep's run.
+        assert_eq!(g["offset_deg"], p["offset_deg"]);
+        assert_eq!(g["mean_velocity"], p["mean_velocity"], "{g}");
+        let r = &g["robust"];
+        let speeds: Vec<f64> = r["speeds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert_eq!(speeds.len(), 6, "2 machines x 3 starts");
+        assert_eq!(speeds[0], g["mean_velocity"].as_f64().unwrap());
+        // The statistics from the runs listed (nearest rank of 6: 1st and 6th).
+        let mut sorted = speeds.clone();
+        sorted.sort_by(f64::total_cmp);
+        let f = |k: &str| r[k].as_f64().unwrap();
+        assert_eq!(
+            (f("min"), f("p10"), f("p90"), f("max")),
+            (sorted[0], sorted[0], sorted[5], sorted[5])
+        );
+        let mean = speeds.iter().sum::<f64>() / 6.0;
+        assert!((f("mean") - mean).abs() <= 1e-15, "{} {mean}", f("mean"));
+        let right = speeds.iter().filter(|v| **v > 0.0).count() as f64 / 6.0;
+        assert_eq!(f("right_share"), right);
+    }
+
+    // Rotor 1 started a third of a turn on: `host-sim run` from that start holds
+    // the same offset and gives the same run, to the bit.
+    let turn = format!("rotors.0.angle={:?}", std::f64::consts::TAU / 3.0);
+    let alone = json(&run(&[
+        "run",
+        m,
+        "--command",
+        "right",
+        "--speed",
+        "3000",
+        "--offset",
+        "90",
+        "--t-end",
+        "3",
+        "--set",
+        "simulation.rtol=1e-3",
+        "--set",
+        &turn,
+        "--format",
+        "json",
+    ]));
+    assert_eq!(grid[1]["offset_deg"].as_f64(), Some(90.0));
+    assert_eq!(grid[1]["robust"]["speeds"][1], alone["mean_velocity"]);
+
+    // The best offsets travel their way on every run; right at 90, left at 270
+    // (the reference machine's best grid offsets at 3000 rpm).
+    let right = &robust["best"]["right"][0];
+    let left = &robust["best"]["left"][0];
+    assert_eq!(
+        (right["offset_deg"].as_f64(), left["offset_deg"].as_f64()),
+        (Some(90.0), Some(270.0))
+    );
+    assert!(right["robust"]["min"].as_f64().unwrap() > 0.0);
+    assert!(left["robust"]["max"].as_f64().unwrap() < 0.0);
+    assert_eq!(right["by"], right["robust"]["p10"]);
+    assert_eq!(left["by"], left["robust"]["p90"]);
+    assert_eq!(robust["robust"]["samples"], 2);
+    assert_eq!(robust["robust"]["starts"], 3);
+
+    // --write: the table of those offsets, readable by the controller.
+    let text = std::fs::read_to_string(&write).unwrap();
+    let rows = tuning_file::parse("robust.tuning.toml", &text).unwrap();
+    assert!(tuning_file::table(&rows).is_ok());
+    assert_eq!(rows, vec![(3000.0, 90.0, 270.0)]);
+}
+
+#[test]
+fn robust_refusals() {
+    let m = uncertain_machine();
+    let m = m.to_str().unwrap();
+    let plain = common::machine();
+    tune(plain.to_str().unwrap(), &["--robust"]).refused("no [uncertainty] ranges");
+    tune(m, &["--robust", "--samples", "0"]).refused("expected a count of machines from 1 to 1000");
+    tune(m, &["--samples", "4"]).refused("--robust");
+    tune(m, &["--robust", "--shard", "1/2"]).refused("cannot be used with");
+    tune(
+        m,
+        &["--robust", "--plot", scratch("x.svg").to_str().unwrap()],
+    )
+    .refused("the plot of the band is not made yet");
+    // A bad range is the machine file's problem, for tune as for every command.
+    let bad = scratch("bad.toml");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(m)
+            .unwrap()
+            .replace("[0.25, 0.4]", "[0.25, 1.4]"),
+    )
+    .unwrap();
+    tune(bad.to_str().unwrap(), &["--robust"])
+        .refused("uncertainty.\"contacts.*.restitution\": at HIGH = 1.4: contacts[0].restitution: must be in [0, 1]");
+}
