@@ -1,7 +1,8 @@
 //! `host-sim tune --robust` through the real binary on a small grid: the nominal
 //! run is the plain sweep's to the bit, a start's run is `host-sim run`'s from that
 //! start to the bit, the statistics follow from the runs listed, the best offsets
-//! travel their way on every run, `--write` reads back, and refusals (exit 2).
+//! travel their way on every run, `--write` reads back, `--plot` draws the band,
+//! and refusals (exit 2).
 
 use std::path::PathBuf;
 
@@ -64,6 +65,7 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
     let m = uncertain_machine();
     let m = m.to_str().unwrap();
     let write = scratch("robust.tuning.toml");
+    let plot = scratch("robust.svg");
     let robust = json(&tune(
         m,
         &[
@@ -76,6 +78,8 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
             "json",
             "--write",
             write.to_str().unwrap(),
+            "--plot",
+            plot.to_str().unwrap(),
         ],
     ));
     let plain = json(&tune(m, &["--format", "json"]));
@@ -153,6 +157,17 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
     let rows = tuning_file::parse("robust.tuning.toml", &text).unwrap();
     assert!(tuning_file::table(&rows).is_ok());
     assert_eq!(rows, vec![(3000.0, 90.0, 270.0)]);
+
+    // --plot: the nominal line over its band, the best offsets marked.
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(
+        svg.contains("10th-90th percentile") && svg.contains("best right"),
+        "{svg}"
+    );
+    assert_eq!(
+        svg.matches(r#"fill-opacity="0.15" stroke="none""#).count(),
+        1
+    );
 }
 
 #[test]
@@ -164,11 +179,6 @@ fn robust_refusals() {
     tune(m, &["--robust", "--samples", "0"]).refused("expected a count of machines from 1 to 1000");
     tune(m, &["--samples", "4"]).refused("--robust");
     tune(m, &["--robust", "--shard", "1/2"]).refused("cannot be used with");
-    tune(
-        m,
-        &["--robust", "--plot", scratch("x.svg").to_str().unwrap()],
-    )
-    .refused("the plot of the band is not made yet");
     // A bad range is the machine file's problem, for tune as for every command.
     let bad = scratch("bad.toml");
     std::fs::write(

@@ -70,6 +70,13 @@ fn triangle(x: f64, y: f64, up: bool) -> String {
 
 /// The figure of a sweep, with `title` on top. Returns a complete SVG document.
 pub fn plot_svg(t: &Tuning, title: &str) -> String {
+    plot_with_band(t, title, None)
+}
+
+/// [`plot_svg`] with, under each speed's line, a band from `band[i].0` to
+/// `band[i].1` (m/s) at grid point `i` ([`super::sweep::Grid::points`] order):
+/// `tune --robust`'s 10th to 90th percentiles around the nominal machine's line.
+pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> String {
     let g = &t.grid;
     let n = g.offsets_deg.len();
     let (left, right) = (LEFT, WIDTH - RIGHT);
@@ -82,6 +89,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
         .iter()
         .map(|r| r.mean_velocity)
         .chain(t.right.iter().chain(&t.left).map(|b| b.mean_velocity))
+        .chain(band.unwrap_or(&[]).iter().flat_map(|(a, b)| [*a, *b]))
         .map(|v| v * 1e3);
     let ((lo, hi), step) = value_axis(values);
     let y_of = |v: f64| map(v * 1e3, (lo, hi), (bottom, top));
@@ -149,6 +157,35 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
             ""
         };
         let row = &t.runs[k * n..(k + 1) * n];
+        if let Some(band) = band {
+            // The band: its upper edge left to right, its lower edge back, in
+            // pieces where both edges are finite.
+            let mut edges: Vec<(f64, (f64, f64))> = row
+                .iter()
+                .zip(&band[k * n..(k + 1) * n])
+                .map(|(r, b)| (r.offset_deg, *b))
+                .collect();
+            if circular {
+                edges.push((360.0, band[k * n]));
+            }
+            for piece in edges.split(|(_, (a, b))| !(a.is_finite() && b.is_finite())) {
+                if piece.len() < 2 {
+                    continue;
+                }
+                let mut pts = Vec::new();
+                for (o, (_, hi)) in piece {
+                    pts.push(format!("{:.1},{:.1}", x_of(*o), y_of(*hi)));
+                }
+                for (o, (lo, _)) in piece.iter().rev() {
+                    pts.push(format!("{:.1},{:.1}", x_of(*o), y_of(*lo)));
+                }
+                let _ = writeln!(
+                    svg,
+                    r#"<polygon points="{}" fill="{colour}" fill-opacity="0.15" stroke="none"/>"#,
+                    pts.join(" ")
+                );
+            }
+        }
         let mut points: Vec<(f64, f64)> = row
             .iter()
             .map(|r| (r.offset_deg, r.mean_velocity))
@@ -242,6 +279,15 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
         );
         ly += 18.0;
     }
+    if band.is_some() {
+        let _ = writeln!(
+            svg,
+            r##"<rect x="{lx:.1}" y="{:.1}" width="20" height="10" fill="#444" fill-opacity="0.15"/><text x="{:.1}" y="{ly:.1}" font-size="12">10th-90th percentile</text>"##,
+            ly - 9.0,
+            lx + 26.0
+        );
+        ly += 18.0;
+    }
     if t.runs.iter().any(|r| r.not_held.is_some()) {
         let _ = writeln!(
             svg,
@@ -331,6 +377,34 @@ mod tests {
         let svg = plot_svg(&t, "all gaps");
         roxmltree::Document::parse(&svg).expect("well-formed XML");
         assert!(!svg.contains("NaN"));
+    }
+
+    #[test]
+    fn a_band_is_drawn_under_each_line_and_widens_the_axis() {
+        let t = tuning(|s, o| s * 1e-5 * o.to_radians().sin());
+        let band: Vec<(f64, f64)> = t
+            .runs
+            .iter()
+            .map(|r| (r.mean_velocity - 0.05, r.mean_velocity + 0.05))
+            .collect();
+        let svg = plot_with_band(&t, "band", Some(&band));
+        roxmltree::Document::parse(&svg).expect("well-formed XML");
+        assert!(svg.contains("10th-90th percentile"));
+        // Two bands and the four marks of plot_svg.
+        assert_eq!(svg.matches("<polygon").count(), 6);
+        assert_eq!(
+            svg.matches(r#"fill-opacity="0.15" stroke="none""#).count(),
+            2
+        );
+        // The band reaches 80 mm/s: the axis goes there.
+        let ((_, hi), step) = value_axis(band.iter().flat_map(|b| [b.0 * 1e3, b.1 * 1e3]));
+        assert!(hi >= 80.0, "{hi}");
+        assert!(
+            svg.contains(&format!(">{}<", tick_label(hi, step))),
+            "axis to {hi}"
+        );
+        // Without a band, the figure is plot_svg's.
+        assert_eq!(plot_with_band(&t, "band", None), plot_svg(&t, "band"));
     }
 
     #[test]

@@ -25,6 +25,8 @@ use std::path::Path;
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
+use super::best::{Best, Refinement, Tuning};
+use super::plot;
 use super::report::count;
 use super::sweep::{run_point, Grid, RunOutcome};
 use super::{load_machine, Request, TuneArgs};
@@ -334,11 +336,6 @@ pub fn run(
     let (path, sets, output) = (&args.machine.path, &args.set.keys, &args.output);
     let samples = args.samples.unwrap_or(DEFAULT_SAMPLES);
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
-    if output.plot.file.is_some() {
-        return Err(Failure::Usage(
-            "error: tune --robust --plot: the plot of the band is not made yet; leave --plot out (the JSON holds every point's statistics)\n".into(),
-        ));
-    }
     let (uncertainty, machines) =
         machines(path, text_in, sets, samples, seed).map_err(Failure::Usage)?;
     let mut staged = Staged::new();
@@ -346,6 +343,12 @@ pub fn run(
         Some(p) => Some((staged.add(p)?, p.clone())),
         None => None,
     };
+    let plot = output
+        .plot
+        .file
+        .as_deref()
+        .map(|p| staged.add(p))
+        .transpose()?;
     let started = std::time::Instant::now();
     let progress = super::progress_bar("tune --robust", machines.len() * grid.points().len());
     let runs = sweep(&machines, &grid, &progress);
@@ -359,6 +362,10 @@ pub fn run(
             )
         })?;
         staged.write(*i, &text)?;
+    }
+    if let Some(i) = plot {
+        let title = format!("host-sim tune --robust {}", path.display());
+        staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
     }
     staged.commit()?;
     console.print(&match output.format.format {
@@ -379,6 +386,30 @@ pub fn run(
         }
     ));
     Ok(())
+}
+
+/// `--plot`: the plain sweep's figure of the nominal runs (`nominal`, the nominal
+/// machine from the file's start), the robust best offsets marked, over the band
+/// from each point's 10th to its 90th percentile.
+pub fn plot_svg(r: &Robust, nominal: &[RunOutcome], title: &str) -> String {
+    let best = |b: &RobustBest| Best {
+        speed_rpm: b.point.speed_rpm,
+        offset_deg: b.point.offset_deg,
+        mean_velocity: b.point.nominal,
+        grid_offset_deg: b.point.offset_deg,
+        grid_mean_velocity: b.point.nominal,
+        refinement: Refinement::Degenerate("a robust best offset is a grid offset".into()),
+    };
+    let tuning = Tuning {
+        grid: r.grid.clone(),
+        runs: nominal.to_vec(),
+        right: r.right.iter().map(best).collect(),
+        left: r.left.iter().map(best).collect(),
+        warnings: r.warnings.clone(),
+        run_count: r.points.len() * r.samples * STARTS,
+    };
+    let band: Vec<(f64, f64)> = r.points.iter().map(|s| (s.p10, s.p90)).collect();
+    plot::plot_with_band(&tuning, title, Some(&band))
 }
 
 /// The speeds with a best offset both ways.
