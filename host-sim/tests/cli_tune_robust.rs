@@ -164,10 +164,7 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
         svg.contains("10th-90th percentile") && svg.contains("best right"),
         "{svg}"
     );
-    assert_eq!(
-        svg.matches(r#"fill-opacity="0.15" stroke="none""#).count(),
-        1
-    );
+    assert_eq!(svg.matches(r#"class="band""#).count(), 1);
 }
 
 #[test]

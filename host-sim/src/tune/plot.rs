@@ -54,6 +54,18 @@ fn map(v: f64, from: (f64, f64), to: (f64, f64)) -> f64 {
     (to.0 + (v - from.0) / (from.1 - from.0) * (to.1 - to.0)).clamp(-1e5, 1e5)
 }
 
+/// `colour` (`#rrggbb`) a quarter of the way from white: a band's fill.
+fn tint(colour: &str) -> String {
+    let channel = |i: usize| {
+        let c = colour
+            .get(i..i + 2)
+            .and_then(|h| u8::from_str_radix(h, 16).ok())
+            .unwrap_or(0x80);
+        255 - (255 - u16::from(c)) / 4
+    };
+    format!("#{:02x}{:02x}{:02x}", channel(1), channel(3), channel(5))
+}
+
 /// A triangle marker centred at `(x, y)`: pointing up (`up`) or down.
 fn triangle(x: f64, y: f64, up: bool) -> String {
     let (tip, base) = if up { (-6.0, 4.0) } else { (6.0, -4.0) };
@@ -146,20 +158,13 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> S
 
     // One line per speed, closed at 360 when the offsets go round the turn.
     let circular = g.circular() && g.offsets_deg.first() == Some(&0.0);
-    let mut rings = String::new();
-    // The best offsets are drawn last, over every line.
-    let mut bests = String::new();
-    for (k, speed) in g.speeds_rpm.iter().enumerate() {
-        let colour = COLORS[k % COLORS.len()];
-        let dash = if k >= COLORS.len() {
-            r#" stroke-dasharray="6 3""#
-        } else {
-            ""
-        };
-        let row = &t.runs[k * n..(k + 1) * n];
-        if let Some(band) = band {
-            // The band: its upper edge left to right, its lower edge back, in
-            // pieces where both edges are finite.
+    // The bands first, every line over them: each its upper edge left to right,
+    // its lower edge back, in pieces where both edges are finite; a light tint of
+    // the line's colour, solid (the same in every SVG renderer).
+    if let Some(band) = band {
+        for k in 0..g.speeds_rpm.len() {
+            let tint = tint(COLORS[k % COLORS.len()]);
+            let row = &t.runs[k * n..(k + 1) * n];
             let mut edges: Vec<(f64, (f64, f64))> = row
                 .iter()
                 .zip(&band[k * n..(k + 1) * n])
@@ -181,11 +186,23 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> S
                 }
                 let _ = writeln!(
                     svg,
-                    r#"<polygon points="{}" fill="{colour}" fill-opacity="0.15" stroke="none"/>"#,
+                    r#"<polygon points="{}" fill="{tint}" stroke="none" class="band"/>"#,
                     pts.join(" ")
                 );
             }
         }
+    }
+    let mut rings = String::new();
+    // The best offsets are drawn last, over every line.
+    let mut bests = String::new();
+    for (k, speed) in g.speeds_rpm.iter().enumerate() {
+        let colour = COLORS[k % COLORS.len()];
+        let dash = if k >= COLORS.len() {
+            r#" stroke-dasharray="6 3""#
+        } else {
+            ""
+        };
+        let row = &t.runs[k * n..(k + 1) * n];
         let mut points: Vec<(f64, f64)> = row
             .iter()
             .map(|r| (r.offset_deg, r.mean_velocity))
@@ -282,8 +299,9 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> S
     if band.is_some() {
         let _ = writeln!(
             svg,
-            r##"<rect x="{lx:.1}" y="{:.1}" width="20" height="10" fill="#444" fill-opacity="0.15"/><text x="{:.1}" y="{ly:.1}" font-size="12">10th-90th percentile</text>"##,
+            r##"<rect x="{lx:.1}" y="{:.1}" width="20" height="10" fill="{}"/><text x="{:.1}" y="{ly:.1}" font-size="12">10th-90th percentile</text>"##,
             ly - 9.0,
+            tint("#444444"),
             lx + 26.0
         );
         ly += 18.0;
@@ -392,10 +410,8 @@ mod tests {
         assert!(svg.contains("10th-90th percentile"));
         // Two bands and the four marks of plot_svg.
         assert_eq!(svg.matches("<polygon").count(), 6);
-        assert_eq!(
-            svg.matches(r#"fill-opacity="0.15" stroke="none""#).count(),
-            2
-        );
+        assert_eq!(svg.matches(r#"class="band""#).count(), 2);
+        assert_eq!(tint("#1f77b4"), "#c7dded");
         // The band reaches 80 mm/s: the axis goes there.
         let ((_, hi), step) = value_axis(band.iter().flat_map(|b| [b.0 * 1e3, b.1 * 1e3]));
         assert!(hi >= 80.0, "{hi}");
