@@ -461,12 +461,12 @@ pub fn conclude(
 /// Stage 5: the outputs of a sweep, opened before its runs ([`Report::open`]) and
 /// written after them ([`Report::finish`]).
 pub struct Report {
-    staged: Staged,
+    pub(crate) staged: Staged,
     /// The tuning table's output and path (`--write`).
-    table: Option<(usize, PathBuf)>,
+    pub(crate) table: Option<(usize, PathBuf)>,
     /// The plot's output (`--plot`).
-    plot: Option<usize>,
-    format: Format,
+    pub(crate) plot: Option<usize>,
+    pub(crate) format: Format,
 }
 
 impl Report {

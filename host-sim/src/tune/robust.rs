@@ -29,14 +29,13 @@ use super::best::{Best, Refinement, Tuning};
 use super::plot;
 use super::report::count;
 use super::sweep::{run_point, Grid, RunOutcome};
-use super::{load_machine, Request, TuneArgs};
+use super::{load_machine, Report, Request, TuneArgs};
 use crate::args::Format;
 use crate::failure::{Console, Failure};
 use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
-use crate::output::file::Staged;
 use crate::output::text;
 
 /// Default `--samples`: the nominal machine and seven drawn (24 runs a point with
@@ -338,17 +337,13 @@ pub fn run(
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
     let (uncertainty, machines) =
         machines(path, text_in, sets, samples, seed).map_err(Failure::Usage)?;
-    let mut staged = Staged::new();
-    let write = match &output.write {
-        Some(p) => Some((staged.add(p)?, p.clone())),
-        None => None,
-    };
-    let plot = output
-        .plot
-        .file
-        .as_deref()
-        .map(|p| staged.add(p))
-        .transpose()?;
+    // The output files, checked and opened before the sweep, as the plain one's.
+    let Report {
+        mut staged,
+        table: write,
+        plot,
+        format,
+    } = Report::open(output)?;
     let started = std::time::Instant::now();
     let progress = super::progress_bar("tune --robust", machines.len() * grid.points().len());
     let runs = sweep(&machines, &grid, &progress);
@@ -368,7 +363,7 @@ pub fn run(
         staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
     }
     staged.commit()?;
-    console.print(&match output.format.format {
+    console.print(&match format {
         Format::Json => json(&robust),
         Format::Table => table(&robust, path),
     });
