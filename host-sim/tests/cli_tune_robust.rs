@@ -188,3 +188,85 @@ fn robust_refusals() {
     tune(bad.to_str().unwrap(), &["--robust"])
         .refused("uncertainty.\"contacts.*.restitution\": at HIGH = 1.4: contacts[0].restitution: must be in [0, 1]");
 }
+
+/// The nominal reference machine at 3500 rpm has two gaits (issue 14: a second,
+/// independent rigid-body method found a high gait near 45 mm/s, airborne most of
+/// the time, and a low one at 18-26 mm/s): from the three starts at 90 and at 270
+/// degrees, runs settle on both, and the point is flagged multistable in every
+/// output.
+#[test]
+fn two_gaits_from_the_starts_are_flagged_in_every_output() {
+    let m = uncertain_machine();
+    let (write, plot) = (scratch("gaits.tuning.toml"), scratch("gaits.svg"));
+    let args = |format: &'static str| {
+        vec![
+            "tune".to_string(),
+            m.to_str().unwrap().to_string(),
+            "--robust".into(),
+            "--samples".into(),
+            "1".into(),
+            "--speeds".into(),
+            "3500".into(),
+            "--offsets".into(),
+            "90:270:180".into(),
+            "--t-end".into(),
+            "5".into(),
+            "--set".into(),
+            "simulation.rtol=1e-3".into(),
+            "--format".into(),
+            format.into(),
+            "--write".into(),
+            write.to_str().unwrap().into(),
+            "--plot".into(),
+            plot.to_str().unwrap().into(),
+        ]
+    };
+    let (json_args, table_args) = (args("json"), args("table"));
+    let out = json(&run(&strs(&json_args)));
+    for (g, sign) in out["grid"].as_array().unwrap().iter().zip([1.0, -1.0]) {
+        let flagged = g["robust"]["multistable"].as_array().unwrap();
+        assert_eq!(flagged.len(), 1, "{g}");
+        assert_eq!(flagged[0]["machine"], 0, "the nominal machine");
+        let speeds: Vec<f64> = flagged[0]["speeds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| sign * v.as_f64().unwrap() * 1e3)
+            .collect();
+        assert!(
+            speeds.iter().any(|v| (40.0..50.0).contains(v)),
+            "high gait: {speeds:?}"
+        );
+        assert!(
+            speeds.iter().any(|v| (15.0..30.0).contains(v)),
+            "low gait: {speeds:?}"
+        );
+    }
+    assert!(out["warnings"][0]
+        .as_str()
+        .unwrap()
+        .contains("2 points are multistable"));
+    let header = std::fs::read_to_string(&write).unwrap();
+    assert!(
+        header.contains("Multistable (runs from different starts on one machine settle apart): 3500 rpm 90.0 deg, 3500 rpm 270.0 deg."),
+        "{header}"
+    );
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert_eq!(svg.matches(r#"class="multistable""#).count(), 2);
+    let table = run(&strs(&table_args));
+    assert_eq!(table.status, 0, "{}", table.stderr);
+    assert!(
+        table.stdout.contains("multistable points"),
+        "{}",
+        table.stdout
+    );
+    assert!(
+        table.stdout.contains("3500 rpm 90.0 deg: 0: "),
+        "{}",
+        table.stdout
+    );
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}

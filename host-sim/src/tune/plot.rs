@@ -66,6 +66,21 @@ fn tint(colour: &str) -> String {
     format!("#{:02x}{:02x}{:02x}", channel(1), channel(3), channel(5))
 }
 
+/// A diamond marker centred at `(x, y)`, 7 px from its centre to each corner.
+fn diamond(x: f64, y: f64) -> String {
+    format!(
+        "{:.1},{:.1} {:.1},{:.1} {:.1},{:.1} {:.1},{:.1}",
+        x,
+        y - 7.0,
+        x + 7.0,
+        y,
+        x,
+        y + 7.0,
+        x - 7.0,
+        y
+    )
+}
+
 /// A triangle marker centred at `(x, y)`: pointing up (`up`) or down.
 fn triangle(x: f64, y: f64, up: bool) -> String {
     let (tip, base) = if up { (-6.0, 4.0) } else { (6.0, -4.0) };
@@ -85,10 +100,20 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
     plot_with_band(t, title, None)
 }
 
-/// [`plot_svg`] with, under each speed's line, a band from `band[i].0` to
-/// `band[i].1` (m/s) at grid point `i` ([`super::sweep::Grid::points`] order):
-/// `tune --robust`'s 10th to 90th percentiles around the nominal machine's line.
-pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> String {
+/// What `tune --robust` draws besides the plain sweep's figure, per grid point
+/// ([`super::sweep::Grid::points`] order).
+pub struct Band<'a> {
+    /// The band under the line, `(low, high)`, m/s: the 10th to 90th percentiles.
+    pub range: &'a [(f64, f64)],
+    /// Points flagged multistable: a dark red diamond around the point.
+    pub multistable: &'a [bool],
+}
+
+/// [`plot_svg`] with, under each speed's line, the band of `band` and its
+/// multistable points marked.
+pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> String {
+    let flags = band.map(|b| b.multistable);
+    let band = band.map(|b| b.range);
     let g = &t.grid;
     let n = g.offsets_deg.len();
     let (left, right) = (LEFT, WIDTH - RIGHT);
@@ -229,8 +254,18 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> S
                 r#"<polyline points="{pts}" fill="none" stroke="{colour}" stroke-width="1.6" stroke-linejoin="round"{dash}/>"#
             );
         }
-        for r in row.iter().filter(|r| r.mean_velocity.is_finite()) {
+        for (i, r) in row.iter().enumerate() {
+            if !r.mean_velocity.is_finite() {
+                continue;
+            }
             let (px, py) = (x_of(r.offset_deg), y_of(r.mean_velocity));
+            if flags.is_some_and(|f| f[k * n + i]) {
+                let _ = writeln!(
+                    rings,
+                    r##"<polygon points="{}" fill="none" stroke="#8b0000" stroke-width="1.5" class="multistable"/>"##,
+                    diamond(px, py)
+                );
+            }
             if r.not_held.is_some() {
                 let _ = writeln!(
                     rings,
@@ -302,6 +337,15 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&[(f64, f64)]>) -> S
             r##"<rect x="{lx:.1}" y="{:.1}" width="20" height="10" fill="{}"/><text x="{:.1}" y="{ly:.1}" font-size="12">10th-90th percentile</text>"##,
             ly - 9.0,
             tint("#444444"),
+            lx + 26.0
+        );
+        ly += 18.0;
+    }
+    if flags.is_some_and(|f| f.contains(&true)) {
+        let _ = writeln!(
+            svg,
+            r##"<polygon points="{}" fill="none" stroke="#8b0000" stroke-width="1.5"/><text x="{:.1}" y="{ly:.1}" font-size="12">multistable</text>"##,
+            diamond(lx + 10.0, ly - 4.0),
             lx + 26.0
         );
         ly += 18.0;
@@ -405,11 +449,22 @@ mod tests {
             .iter()
             .map(|r| (r.mean_velocity - 0.05, r.mean_velocity + 0.05))
             .collect();
-        let svg = plot_with_band(&t, "band", Some(&band));
+        let flags: Vec<bool> = (0..band.len()).map(|i| i == 3).collect();
+        let svg = plot_with_band(
+            &t,
+            "band",
+            Some(&Band {
+                range: &band,
+                multistable: &flags,
+            }),
+        );
         roxmltree::Document::parse(&svg).expect("well-formed XML");
         assert!(svg.contains("10th-90th percentile"));
-        // Two bands and the four marks of plot_svg.
-        assert_eq!(svg.matches("<polygon").count(), 6);
+        // Two bands, the four marks of plot_svg, one multistable point and its
+        // legend.
+        assert_eq!(svg.matches("<polygon").count(), 8);
+        assert_eq!(svg.matches(r#"class="multistable""#).count(), 1);
+        assert!(svg.contains(">multistable<"));
         assert_eq!(svg.matches(r#"class="band""#).count(), 2);
         assert_eq!(tint("#1f77b4"), "#c7dded");
         // The band reaches 80 mm/s: the axis goes there.

@@ -368,10 +368,10 @@ pub fn run(
         Format::Table => table(&robust, path),
     });
     console.note(&format!(
-        "tune --robust: {} runs ({} machines x {STARTS} starts x {} points) in {:.1} s on {}{}\n",
+        "tune --robust: {} runs ({} x {STARTS} starts x {}) in {:.1} s on {}{}\n",
         machines.len() * robust.points.len(),
-        robust.samples,
-        robust.points.len(),
+        count(robust.samples, "machine"),
+        count(robust.points.len(), "point"),
         started.elapsed().as_secs_f64(),
         count(rayon::current_num_threads(), "thread"),
         if robust.warnings.is_empty() {
@@ -403,7 +403,12 @@ pub fn plot_svg(r: &Robust, nominal: &[RunOutcome], title: &str) -> String {
         warnings: r.warnings.clone(),
         run_count: r.points.len() * r.samples * STARTS,
     };
-    let band: Vec<(f64, f64)> = r.points.iter().map(|s| (s.p10, s.p90)).collect();
+    let range: Vec<(f64, f64)> = r.points.iter().map(|s| (s.p10, s.p90)).collect();
+    let multistable: Vec<bool> = r.points.iter().map(|s| !s.multistable.is_empty()).collect();
+    let band = plot::Band {
+        range: &range,
+        multistable: &multistable,
+    };
     plot::plot_with_band(&tuning, title, Some(&band))
 }
 
@@ -459,6 +464,19 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
             b.point.offset_deg,
             text::signed(b.by),
             text::signed(b.point.mean)
+        );
+    }
+    let flagged: Vec<String> = both
+        .iter()
+        .flat_map(|(a, b)| [&a.point, &b.point])
+        .filter(|p| !p.multistable.is_empty())
+        .map(|p| format!("{} rpm {:.1} deg", text::sig(p.speed_rpm), p.offset_deg))
+        .collect();
+    if !flagged.is_empty() {
+        let _ = writeln!(
+            header,
+            "Multistable (runs from different starts on one machine settle apart): {}.",
+            flagged.join(", ")
         );
     }
     let rows: Vec<tuning_file::Row> = both
