@@ -75,13 +75,15 @@ impl Uncertainty {
         dir: &Path,
         sets: &[String],
     ) -> Result<Uncertainty, Vec<Problem>> {
-        // The machine first: its problems are the user's first concern.
+        // The machine's checks, `[uncertainty]`'s included (`check`, from
+        // `Machine::from_text`); then the ranges they passed, read again without
+        // checking their ends twice.
         crate::Machine::from_text(file, text, dir, sets)?;
         let mut table = crate::input::parse(file, text).map_err(|p| vec![p])?;
         let _ = set::apply(&mut table, sets);
         let problems = Problems::new(file);
-        let u = check(&table, &problems, dir);
-        problems.into_result(Some(u))
+        let ranges = read(&table, &problems);
+        problems.into_result(Some(Uncertainty { ranges }))
     }
 
     /// The `--set` arguments that put every range at the fraction `u[i]` of its way
@@ -155,9 +157,35 @@ impl SplitMix64 {
 const ARRAYS: [&str; 4] = ["contacts", "rotors", "bodies", "joints"];
 
 /// Checks `[uncertainty]` of the parsed machine file `table` (which passed the
-/// machine's checks), recording problems in `problems`; the ranges that passed.
-pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Uncertainty {
-    let mut out = Uncertainty::default();
+/// machine's checks), recording problems in `problems`: each range as
+/// [`read`] reads it, then its ends against the whole machine.
+pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) {
+    for range in read(table, problems) {
+        let at = format!("{SECTION}.\"{}\"", range.key);
+        for (end, x) in [("LOW", range.low), ("HIGH", range.high)] {
+            let sets: Vec<String> = range.targets.iter().map(|t| format!("{t}={x:?}")).collect();
+            let mut varied = table.clone();
+            // The keys were applied by `read`: nothing is refused here.
+            let _ = set::apply(&mut varied, &sets);
+            let file_problems = Problems::new("");
+            let _ = crate::check(&varied, &file_problems, dir);
+            for p in file_problems.into_vec() {
+                let place = match &p.location {
+                    Location::Key(k) => format!("{k}: "),
+                    _ => String::new(),
+                };
+                problems.at(&at, format!("at {end} = {x}: {place}{}", p.message));
+            }
+        }
+    }
+}
+
+/// The ranges of `[uncertainty]` in `table` whose form and keys are right (two
+/// numbers, a key `--set` takes, `*` where it may stand, one range a key); the
+/// others recorded in `problems`. Their ends are not checked against the machine
+/// ([`check`] does that).
+fn read(table: &Table, problems: &Problems) -> Vec<Range> {
+    let mut out = Vec::new();
     let Some(section) = table.get(SECTION) else {
         return out;
     };
@@ -190,46 +218,28 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Uncertain
                 continue;
             }
         };
-        let mut fine = true;
-        for (end, x) in [("LOW", low), ("HIGH", high)] {
-            let sets: Vec<String> = targets.iter().map(|t| format!("{t}={x:?}")).collect();
-            let mut varied = table.clone();
-            let (applied, refused) = set::apply(&mut varied, &sets);
-            if let Some(p) = refused.first() {
-                // The key itself (`--set` refuses it the same way at either end).
-                problems.at(&at, p.message.clone());
-                fine = false;
-                break;
-            }
-            if end == "LOW" {
-                for a in &applied {
-                    match varied_by.iter().find(|(path, _)| *path == a.key_path) {
-                        Some((path, other)) => {
-                            problems.at(
-                                &at,
-                                format!(
-                                    "varies {path}, which \"{other}\" varies too: one range a key"
-                                ),
-                            );
-                            fine = false;
-                        }
-                        None => varied_by.push((a.key_path.clone(), key.clone())),
-                    }
+        let sets: Vec<String> = targets.iter().map(|t| format!("{t}={low:?}")).collect();
+        let (applied, refused) = set::apply(&mut table.clone(), &sets);
+        if let Some(p) = refused.first() {
+            // The key itself, as `--set` refuses it.
+            problems.at(&at, p.message.clone());
+            continue;
+        }
+        let mut alone = true;
+        for a in &applied {
+            match varied_by.iter().find(|(path, _)| *path == a.key_path) {
+                Some((path, other)) => {
+                    problems.at(
+                        &at,
+                        format!("varies {path}, which \"{other}\" varies too: one range a key"),
+                    );
+                    alone = false;
                 }
-            }
-            let file_problems = Problems::new("");
-            let _ = crate::check(&varied, &file_problems, dir);
-            for p in file_problems.into_vec() {
-                let place = match &p.location {
-                    Location::Key(k) => format!("{k}: "),
-                    _ => String::new(),
-                };
-                problems.at(&at, format!("at {end} = {x}: {place}{}", p.message));
-                fine = false;
+                None => varied_by.push((a.key_path.clone(), key.clone())),
             }
         }
-        if fine {
-            out.ranges.push(Range {
+        if alone {
+            out.push(Range {
                 key: key.clone(),
                 targets,
                 low,

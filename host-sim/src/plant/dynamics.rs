@@ -283,15 +283,15 @@ impl Pose {
     }
 
     /// The gap of contact `j` along its face's normal, m (negative: penetration):
-    /// [`ContactKinematics::gap`] without the Jacobian rows and velocities, in the
-    /// same operations.
+    /// [`ContactKinematics::gap`] without the Jacobian rows and velocities
+    /// (`gap_along`, the same formula).
     pub fn gap(&self, model: &PlantModel, j: usize) -> f64 {
         let c = &model.contacts[j];
         let point = self.point(model, c.body, c.point);
         match c.face {
             Face::Fundament => {
                 let (n, g) = (model.normal, model.ground_point);
-                dot(n, [point.p[0] - g[0], point.p[1] - g[1]])
+                gap_along(n, point.p, g)
             }
             Face::Body {
                 body: a,
@@ -300,7 +300,7 @@ impl Pose {
             } => {
                 let n = rotate(self.cs[a], normal);
                 let face = self.point(model, a, f);
-                dot(n, [point.p[0] - face.p[0], point.p[1] - face.p[1]])
+                gap_along(n, point.p, face.p)
             }
         }
     }
@@ -316,7 +316,7 @@ impl Pose {
                 point.add_row(n, 1.0, &mut k.j_n);
                 point.add_row(t, 1.0, &mut k.j_t);
                 let g = model.ground_point;
-                k.gap = dot(n, [point.p[0] - g[0], point.p[1] - g[1]]);
+                k.gap = gap_along(n, point.p, g);
                 k.bias_n = point.bias_along(n, v);
                 k.bias_t = point.bias_along(t, v);
             }
@@ -339,7 +339,7 @@ impl Pose {
                 coincident.add_row(n, -1.0, &mut k.j_n);
                 point.add_row(t, 1.0, &mut k.j_t);
                 coincident.add_row(t, -1.0, &mut k.j_t);
-                k.gap = dot(n, [point.p[0] - face.p[0], point.p[1] - face.p[1]]);
+                k.gap = gap_along(n, point.p, face.p);
                 let (vp, vf) = (point.velocity(v), face.velocity(v));
                 let rel = [vp[0] - vf[0], vp[1] - vf[1]];
                 let wa = v[model.bodies[a].angle];
@@ -354,6 +354,13 @@ impl Pose {
         k.u_t = row_dot(&k.j_t, v, model.dof);
         k
     }
+}
+
+/// The gap of point `p` to the face through `f` with unit normal `n`,
+/// `n . (p - f)`, m: one formula for [`Pose::gap`] and [`Pose::contact`].
+#[inline]
+fn gap_along(n: [f64; 2], p: [f64; 2], f: [f64; 2]) -> f64 {
+    dot(n, [p[0] - f[0], p[1] - f[1]])
 }
 
 /// Rotor `k`'s eccentric at `q`, from its axis (world, m):

@@ -105,7 +105,7 @@ pub struct RobustBest {
 pub struct Robust {
     /// The grid.
     pub grid: Grid,
-    /// The ranges, and the seed and count of the machines drawn.
+    /// The ranges the machines were drawn from.
     pub uncertainty: Uncertainty,
     /// Machines drawn (the nominal one included).
     pub samples: usize,

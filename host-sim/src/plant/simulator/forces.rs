@@ -36,7 +36,6 @@ pub(super) struct Evaluation {
 
 /// A contact problem assembled for a set of contacts (the first
 /// `problem.len` rows of each array; the rest is left from earlier problems).
-#[derive(Clone)]
 pub(super) struct ContactSystem {
     pub(super) problem: ImpactProblem<f64, MAX_CONTACTS>,
     pub(super) minv_jn: [Vector; MAX_CONTACTS],
