@@ -108,6 +108,19 @@ pub struct TelemetryArgs {
     /// end, or to stdout with `-` instead of the readable lines.
     #[arg(long, value_name = "FILE|-")]
     pub csv: Option<PathBuf>,
+    /// Serve a live page of the stream at http://ADDR/ instead of printing it
+    /// (default 127.0.0.1:8321; port 0: any free port); its one command is Stop.
+    #[arg(
+        long,
+        value_name = "ADDR",
+        num_args = 0..=1,
+        default_missing_value = "127.0.0.1:8321",
+        conflicts_with_all = ["csv", "count"]
+    )]
+    pub serve: Option<String>,
+    /// Let `--serve` listen on an address other machines can reach.
+    #[arg(long, requires = "serve")]
+    pub allow_remote: bool,
 }
 
 /// Arguments of `host-sim device self-test`.

@@ -20,7 +20,7 @@ use super::client::{Client, LinkError};
 use super::port::PortSpec;
 use super::report;
 use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
-use super::telemetry;
+use super::{live, telemetry};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::tuning_file;
@@ -122,6 +122,9 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
             if let Some(path) = &a.csv {
                 file = staged(path)?;
             }
+            if let Some(addr) = &a.serve {
+                live::listen_address(addr, a.allow_remote)?;
+            }
             if a.count == Some(0) {
                 return Err(Failure::Usage(
                     "error: --count: must be at least 1 frame (got 0)".into(),
@@ -171,7 +174,9 @@ fn run_on(
                 report::faults_text(s.faults)
             ));
         }
-        DeviceCommand::Telemetry(a) => telemetry::run(client, a, file, out)?,
+        DeviceCommand::Telemetry(a) => {
+            telemetry::run(client, a, args.port.as_deref().unwrap_or(""), file, out)?
+        }
         DeviceCommand::SelfTest(a) => self_test(client, a, out)?,
         DeviceCommand::Table(TableCommand::Read { out: path }) => {
             table_read(client, path.as_deref().zip(file), out)?

@@ -9,6 +9,7 @@
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
 //! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
+//! - [`live`]: `host-sim device telemetry --serve`, the stream on a live web page;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
@@ -19,6 +20,7 @@
 pub mod args;
 pub mod client;
 pub mod commands;
+pub mod live;
 pub mod pipe;
 pub mod port;
 #[cfg(unix)]

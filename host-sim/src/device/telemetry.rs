@@ -1,7 +1,8 @@
 //! `host-sim device telemetry`: the device's telemetry stream turned on, each frame
-//! printed (readable lines or CSV) as it comes, a heartbeat every 50 ms (twice
-//! per heartbeat period), the stream watched for silence, and turned off at the end
-//! (`--count`, `--duration`, Ctrl-C, or a failure).
+//! handed to a [`Sink`] as it comes (printed as readable lines or CSV here, served
+//! to a live page by [`super::live`]), a heartbeat every 50 ms (twice per heartbeat
+//! period), the stream watched for silence, and turned off at the end (`--count`,
+//! `--duration`, Ctrl-C, or a failure).
 //!
 //! A stream that goes silent ends the run: no frame for [`silence_limit`] (five
 //! periods, at least a second) is the device's failure, whether it never sent one
@@ -12,15 +13,19 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::protocol::Request;
+use shared::protocol::{Request, StatusReport};
 
 use super::args::TelemetryArgs;
 use super::client::Client;
-use super::report;
 use super::requests::{command, HEARTBEAT_EVERY};
+use super::{live, report};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::output::file::Staged;
+
+/// The longest the link is read without the [`Sink`] being asked for requests of
+/// its own ([`Sink::between`]).
+const POLL: Duration = Duration::from_millis(20);
 
 /// The longest a stream at `period_ms` may go without a frame: five periods (a
 /// few frames lost in a row on a noisy line are no silence), and at least 1 s (a
@@ -39,93 +44,141 @@ fn silent(quiet_s: f64, period_ms: u16, frames: u64) -> Failure {
     ))
 }
 
-/// Runs `host-sim device telemetry`: readable lines on `out` as the frames come,
-/// and with `--csv` the frames as CSV rows into `csv` (staged, committed at the
-/// end; `--csv -` is stdout, and then no readable lines).
-pub fn run(
-    client: &mut Client,
-    a: &TelemetryArgs,
-    mut csv: Option<(Staged, usize)>,
-    out: &mut Console<'_>,
-) -> Result<(), Failure> {
-    let lines = a.csv.as_deref() != Some(Path::new("-"));
-    if let Some((set, i)) = &mut csv {
-        set.write(*i, &format!("{}\n", report::CSV_HEADER))?;
+/// Where the frames of a [`stream`] go.
+pub trait Sink {
+    /// A frame came; `Ok(false)` ends the stream (enough frames).
+    fn frame(&mut self, report: &StatusReport) -> Result<bool, Failure>;
+
+    /// Between reads of the link, at least every 20 ms: requests of the sink's
+    /// own through `client` (the live page's Stop).
+    fn between(&mut self, _client: &mut Client) -> Result<(), Failure> {
+        Ok(())
     }
+}
+
+/// Streams telemetry every `period_ms` into `sink` until it has enough, for
+/// `duration_s` seconds, or until Ctrl-C; the frames it got. The stream is turned
+/// off at the end whatever ended it (tried even after a failure).
+pub fn stream(
+    client: &mut Client,
+    period_ms: u16,
+    duration_s: Option<f64>,
+    sink: &mut dyn Sink,
+) -> Result<u64, Failure> {
     interrupt::catch();
-    command(
-        client,
-        &Request::StreamTelemetry {
-            period_ms: a.period,
-        },
-    )?;
+    command(client, &Request::StreamTelemetry { period_ms })?;
+    let result = watch(client, period_ms, duration_s, sink);
+    let off = command(client, &Request::StreamTelemetry { period_ms: 0 });
+    let frames = result?;
+    off?;
+    Ok(frames)
+}
+
+/// The stream after it was turned on: heartbeats, frames into `sink`, the
+/// silence watch.
+fn watch(
+    client: &mut Client,
+    period_ms: u16,
+    duration_s: Option<f64>,
+    sink: &mut dyn Sink,
+) -> Result<u64, Failure> {
     let started = Instant::now();
-    let end = a
-        .duration
-        .map(|d| (d, started + Duration::from_secs_f64(d)));
-    let silence = silence_limit(a.period);
+    let end = duration_s.map(|d| (d, started + Duration::from_secs_f64(d)));
+    let silence = silence_limit(period_ms);
     // When the last frame came (the stream's start until the first).
     let mut last_frame = started;
     let mut frames: u64 = 0;
-    let mut result = Ok(());
-    'stream: loop {
+    loop {
         if interrupt::interrupted() {
-            break;
+            return Ok(frames);
         }
         if let Some((duration_s, _)) = end.filter(|(_, e)| Instant::now() >= *e) {
             // A run too short for the watch that saw no frame, though it lasted
             // two periods.
-            if frames == 0 && duration_s * 1000.0 >= 2.0 * f64::from(a.period) {
-                result = Err(silent(duration_s, a.period, frames));
+            if frames == 0 && duration_s * 1000.0 >= 2.0 * f64::from(period_ms) {
+                return Err(silent(duration_s, period_ms, frames));
             }
-            break;
+            return Ok(frames);
         }
         // A heartbeat, then frames until the next one is due.
-        if let Err(e) = client.request(&Request::Heartbeat) {
-            result = Err(Failure::from(e));
-            break;
-        }
+        client.request(&Request::Heartbeat)?;
         let next = Instant::now() + HEARTBEAT_EVERY;
         loop {
             for (at, report) in client.take_telemetry() {
                 frames += 1;
                 last_frame = last_frame.max(at);
-                if lines {
-                    out.print(&format!("{}\n", report::telemetry_line(&report)));
-                }
-                if let Some((set, i)) = &mut csv {
-                    if let Err(e) = set.write(*i, &format!("{}\n", report::csv_row(&report))) {
-                        result = Err(e);
-                        break 'stream;
-                    }
-                }
-                if a.count.is_some_and(|n| frames >= n) {
-                    break 'stream;
+                if !sink.frame(&report)? {
+                    return Ok(frames);
                 }
             }
+            sink.between(client)?;
             let now = Instant::now();
             if now.saturating_duration_since(last_frame) >= silence {
-                result = Err(silent(silence.as_secs_f64(), a.period, frames));
-                break 'stream;
+                return Err(silent(silence.as_secs_f64(), period_ms, frames));
             }
             if now >= next || interrupt::interrupted() {
                 break;
             }
-            let wait = next - now;
+            let wait = (next - now).min(POLL);
             let wait = end.map_or(wait, |(_, e)| wait.min(e.saturating_duration_since(now)));
             if wait.is_zero() {
                 break;
             }
-            if let Err(e) = client.pump(wait) {
-                result = Err(Failure::from(e));
-                break 'stream;
-            }
+            client.pump(wait)?;
         }
     }
-    // The stream off, whatever ended it (tried even after a failure).
-    let off = command(client, &Request::StreamTelemetry { period_ms: 0 });
-    result?;
-    off?;
+}
+
+/// The frames printed: readable lines on the console, CSV rows into a staged
+/// file, until `--count`.
+struct Printed<'a, 'c> {
+    lines: bool,
+    csv: Option<&'a mut (Staged, usize)>,
+    count: Option<u64>,
+    frames: u64,
+    out: &'a mut Console<'c>,
+}
+
+impl Sink for Printed<'_, '_> {
+    fn frame(&mut self, report: &StatusReport) -> Result<bool, Failure> {
+        self.frames += 1;
+        if self.lines {
+            self.out
+                .print(&format!("{}\n", report::telemetry_line(report)));
+        }
+        if let Some((set, i)) = &mut self.csv {
+            set.write(*i, &format!("{}\n", report::csv_row(report)))?;
+        }
+        Ok(self.count.is_none_or(|n| self.frames < n))
+    }
+}
+
+/// Runs `host-sim device telemetry`: readable lines on `out` as the frames come,
+/// and with `--csv` the frames as CSV rows into `csv` (staged, committed at the
+/// end; `--csv -` is stdout, and then no readable lines); with `--serve` the live
+/// page of the device at `--port` `device` instead ([`live::run`]).
+pub fn run(
+    client: &mut Client,
+    a: &TelemetryArgs,
+    device: &str,
+    mut csv: Option<(Staged, usize)>,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
+    if let Some(addr) = &a.serve {
+        return live::run(client, a, addr, device, out);
+    }
+    let lines = a.csv.as_deref() != Some(Path::new("-"));
+    if let Some((set, i)) = &mut csv {
+        set.write(*i, &format!("{}\n", report::CSV_HEADER))?;
+    }
+    let mut printed = Printed {
+        lines,
+        csv: csv.as_mut(),
+        count: a.count,
+        frames: 0,
+        out,
+    };
+    let frames = stream(client, a.period, a.duration, &mut printed)?;
     if let Some((set, _)) = csv {
         set.commit()?;
         if lines {
