@@ -6,8 +6,8 @@
 #
 # On a fresh machine it needs only what CI has: the Rust toolchain through rustup,
 # gcc, python3 and apt (as root). It installs the firmware target, the rustfmt and
-# clippy components, flip-link and defmt-print (cargo install) and
-# qemu-system-arm (apt) itself, each only when missing. CI runs it through .ci/run (see docs/development.md).
+# clippy components, flip-link and defmt-print (cargo install),
+# qemu-system-arm and chromium (apt) itself, each only when missing. CI runs it through .ci/run (see docs/development.md).
 #
 # To add a gate: write a function `step_NAME` below and add NAME to STEPS.
 set -euo pipefail
@@ -70,18 +70,27 @@ step_setup() {
             cargo install --locked "$tool"
         fi
     done
-    if command -v qemu-system-arm >/dev/null; then
-        echo "qemu-system-arm: installed"
-    else
+    # qemu-system-arm for the firmware's QEMU steps; chromium (headless) for the
+    # browser tests of `cargo test` (host-sim/tests/browser).
+    local missing=()
+    for tool in qemu-system-arm chromium; do
+        if command -v "$tool" >/dev/null; then
+            echo "$tool: installed"
+        else
+            missing+=("$tool")
+        fi
+    done
+    if [[ ${#missing[@]} -gt 0 ]]; then
         # apt needs root: sudo when not root and sudo is there.
         local as_root=()
         if [[ $(id -u) -ne 0 ]] && command -v sudo >/dev/null; then
             as_root=(sudo)
         fi
         "${as_root[@]}" apt-get update
-        "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y qemu-system-arm
+        "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y "${missing[@]}"
     fi
     qemu-system-arm --version | head -n 1
+    chromium --version 2>/dev/null | head -n 1 || true
 }
 
 step_fmt() {

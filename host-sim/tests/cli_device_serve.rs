@@ -333,6 +333,7 @@ fn a_network_address_with_allow_remote_warns_on_the_page() {
 }
 
 /// The canvas `id`'s pixels as a data URL (to compare two drawings).
+#[cfg(unix)]
 fn canvas(id: &str) -> String {
     format!("document.getElementById('{id}').toDataURL()")
 }
