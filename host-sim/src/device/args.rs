@@ -176,7 +176,7 @@ pub struct DeviceTuneArgs {
     )]
     pub settle: f64,
     /// Give up on a point (stop, exit 1) when its offset is not held S seconds
-    /// after the hold was sent, or the rotors not idle S seconds after the stop.
+    /// after the hold was sent, or the rotors not at rest S seconds after the stop.
     #[arg(
         long,
         value_name = "S",
