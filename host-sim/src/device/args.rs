@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand, ValueEnum};
 
 use super::client::DEFAULT_RETRIES;
+use crate::tune::sweep::{parse_offsets, parse_speeds, Range};
 
 /// Arguments of `host-sim device`.
 #[derive(Debug, Args)]
@@ -45,6 +46,10 @@ pub enum DeviceCommand {
     /// --write`).
     #[command(subcommand)]
     Table(TableCommand),
+    /// Sweep speed and offset on the machine: hold each grid point for `--for` S,
+    /// ask the operator the distance travelled, append it to a measured file;
+    /// `--write` makes the tuning table from it.
+    Tune(DeviceTuneArgs),
 }
 
 /// A travel direction on the command line.
@@ -152,6 +157,60 @@ pub enum TableCommand {
         #[arg(value_name = "FILE.toml")]
         file: PathBuf,
     },
+}
+
+/// How `device tune` measures the travel of a point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MeasureArg {
+    /// Ask the operator for the distance travelled (a line on stdin).
+    Prompt,
+}
+
+/// Arguments of `host-sim device tune`.
+#[derive(Debug, Args)]
+#[command(group(clap::ArgGroup::new("file").required(true).args(["out", "resume"])))]
+pub struct DeviceTuneArgs {
+    /// Rotor speeds, rpm: `A:B:STEP` from A to B, both included, or one value.
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true, value_parser = parse_speeds)]
+    pub speeds: Range,
+    /// Phase offsets, degrees: `A:B:STEP` from A to B, both included (360 is 0
+    /// and runs once), or one value.
+    #[arg(long, value_name = "A:B:STEP", allow_hyphen_values = true, value_parser = parse_offsets)]
+    pub offsets: Range,
+    /// Measure each point over S seconds of holding it (velocity = distance / S).
+    #[arg(long = "for", value_name = "S", allow_negative_numbers = true)]
+    pub for_s: f64,
+    /// Seconds to let the gait settle once the offset is held, before the mark.
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 2.0,
+        allow_negative_numbers = true
+    )]
+    pub settle: f64,
+    /// Give up on a point (stop, exit 1) when its offset is not held S seconds
+    /// after the hold was sent, or the rotors not at rest S seconds after the stop.
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 10.0,
+        allow_negative_numbers = true
+    )]
+    pub timeout: f64,
+    /// How the travel is measured.
+    #[arg(long, value_enum, value_name = "prompt", default_value = "prompt")]
+    pub measure: MeasureArg,
+    /// The measured file to start (it must not exist): a header, then a row per
+    /// answer, appended at once.
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: Option<PathBuf>,
+    /// A measured file to continue: its grid points already measured are skipped.
+    #[arg(long, value_name = "FILE.csv", conflicts_with = "out")]
+    pub resume: Option<PathBuf>,
+    /// Make the tuning table from all the file's measurements after the sweep
+    /// (the peak fit of `host-sim tune`), written whole.
+    #[arg(long, value_name = "TABLE.toml")]
+    pub write: Option<PathBuf>,
 }
 
 /// Arguments of `host-sim device-sim`.

@@ -20,7 +20,7 @@ use super::client::{Client, LinkError};
 use super::port::PortSpec;
 use super::report;
 use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
-use super::{live, telemetry};
+use super::{live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::tuning_file;
@@ -43,13 +43,18 @@ impl From<LinkError> for Failure {
 /// Runs `host-sim device`: its lines go out as they come (what was printed before
 /// a failure stays printed).
 pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> {
-    let Checked { port, table, file } = check(args)?;
+    let Checked {
+        port,
+        table,
+        file,
+        tune,
+    } = check(args)?;
     // A port that cannot be opened is a bad --port, as a missing file is.
     let port = port
         .open()
         .map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
     let mut client = Client::new(port, args.retries);
-    run_on(&mut client, args, table, file, console)
+    run_on(&mut client, args, table, file, tune, console)
 }
 
 /// What [`check`] found: the port, the table to write, and the output file staged
@@ -59,6 +64,8 @@ struct Checked {
     port: PortSpec,
     table: Option<TuningTable>,
     file: Option<(Staged, usize)>,
+    /// `tune`'s grid, measured file and table output.
+    tune: Option<tune::Prepared>,
 }
 
 /// `path` staged as the command's one output file.
@@ -90,6 +97,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
     };
     let mut table = None;
     let mut file = None;
+    let mut tune = None;
     match &args.command {
         DeviceCommand::Travel(a) => {
             positive("--speed", f64::from(a.speed), "rpm")?;
@@ -136,12 +144,18 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
             table = Some(tuning_file::read_table(file)?);
         }
         DeviceCommand::Table(TableCommand::Read { out: Some(path) }) => file = staged(path)?,
+        DeviceCommand::Tune(a) => tune = Some(tune::prepare(a)?),
         DeviceCommand::Table(TableCommand::Read { out: None })
         | DeviceCommand::Status
         | DeviceCommand::Stop
         | DeviceCommand::Reset => {}
     }
-    Ok(Checked { port, table, file })
+    Ok(Checked {
+        port,
+        table,
+        file,
+        tune,
+    })
 }
 
 /// The command's requests through `client`.
@@ -150,6 +164,7 @@ fn run_on(
     args: &DeviceArgs,
     table: Option<TuningTable>,
     file: Option<(Staged, usize)>,
+    tune: Option<tune::Prepared>,
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
     match &args.command {
@@ -176,6 +191,11 @@ fn run_on(
         }
         DeviceCommand::Telemetry(a) => {
             telemetry::run(client, a, args.port.as_deref().unwrap_or(""), file, out)?
+        }
+        DeviceCommand::Tune(a) => {
+            if let Some(prepared) = tune {
+                tune::run(client, a, prepared, out)?;
+            }
         }
         DeviceCommand::SelfTest(a) => self_test(client, a, out)?,
         DeviceCommand::Table(TableCommand::Read { out: path }) => {

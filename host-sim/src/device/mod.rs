@@ -10,6 +10,9 @@
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
 //! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
 //! - [`live`]: `host-sim device telemetry --serve`, the stream on a live web page;
+//! - [`tune`]: `host-sim device tune`, the tuning sweep on the machine, answers
+//!   from the operator appended to a [`measured`] file, the table made by
+//!   [`tune_table`];
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
@@ -21,6 +24,7 @@ pub mod args;
 pub mod client;
 pub mod commands;
 pub mod live;
+pub mod measured;
 pub mod pipe;
 pub mod port;
 #[cfg(unix)]
@@ -32,3 +36,5 @@ pub mod serial;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;
+pub mod tune;
+pub mod tune_table;

@@ -4,7 +4,7 @@
 
 use indicatif::ProgressBar;
 use rayon::prelude::*;
-use shared::controller::{Command, Outputs, State};
+use shared::controller::{Command, Outputs, State, Telemetry};
 
 use super::DEFAULT_SPEED_SPAN_RPM;
 use super::DEFAULT_SPEED_STEP_RPM;
@@ -198,6 +198,16 @@ pub(crate) fn default_speeds(nominal: f64, lo: f64, hi: f64) -> (Vec<f64>, Strin
     (speeds, text)
 }
 
+/// Whether a controller in `state` with telemetry `t` holds its offset: running,
+/// the phase loop closed, the ramped offset reference at the target (within
+/// 1e-3 degrees). The same test for a simulated run ([`run_point`]) and for the
+/// device's status reports (`host-sim device tune`).
+pub fn offset_held(state: State, t: &Telemetry) -> bool {
+    state == State::Running
+        && t.phase_loop_closed
+        && wrap_deg_180(f64::from(t.commanded_offset_deg - t.target_offset_deg)).abs() < 1e-3
+}
+
 /// One closed-loop run of `machine` to `t_end` with the controller holding
 /// `offset_deg` at `speed_rpm` from `t = 0`. The offset counts as held when the
 /// controller ends `running`, got there by `T/2`, and its phase error over the
@@ -230,14 +240,8 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
     outcome.mean_velocity = s.mean_velocity;
     outcome.plant_warnings = s.warnings.clone();
 
-    // Was the offset held over the second half? Settled: running, the phase loop
-    // closed, the ramped offset reference at the held offset, from then on.
-    let settled = |o: &Outputs| {
-        let t = &o.telemetry;
-        o.state == State::Running
-            && t.phase_loop_closed
-            && wrap_deg_180(f64::from(t.commanded_offset_deg - t.target_offset_deg)).abs() < 1e-3
-    };
+    // Was the offset held over the second half? Settled from then on.
+    let settled = |o: &Outputs| offset_held(o.state, &o.telemetry);
     let history = &driver.history;
     let settled_at = match history.iter().rposition(|(_, o)| !settled(o)) {
         None => history.first().map(|(t, _)| *t),
