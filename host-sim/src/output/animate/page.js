@@ -48,22 +48,28 @@
 
   function finite(v, fallback) { return isFinite(v) ? v : fallback; }
 
-  // The platform's `s` averaged over 0.2 s around each frame: the camera follows
-  // it, and the magnification acts about it (the travel is not magnified).
+  // The platform's `s` averaged over 0.2 s around each frame (less near the ends,
+  // where the window shrinks to stay centred, so that a steady travel averages
+  // to itself): the camera follows it, and the magnification acts about it (the
+  // travel is not magnified).
   var SBAR = new Float64Array(N);
   (function () {
     var X = poseCols[0].x, Y = poseCols[0].y;
-    var s = new Float64Array(N), sum = new Float64Array(N + 1), last = 0;
+    var sum = new Float64Array(N + 1), last = 0;
     for (var i = 0; i < N; i++) {
       last = finite(along([X[i], Y[i]]), last);
-      s[i] = last;
-      sum[i + 1] = sum[i] + s[i];
+      sum[i + 1] = sum[i] + last;
     }
-    var lo = 0, hi = 0;
+    // The first frame at or after t.
+    function from(t) {
+      var lo = 0, hi = N;
+      while (lo < hi) { var mid = (lo + hi) >> 1; if (T[mid] < t) lo = mid + 1; else hi = mid; }
+      return lo;
+    }
     for (var k = 0; k < N; k++) {
-      while (T[lo] < T[k] - 0.1) lo++;
-      while (hi + 1 < N && T[hi + 1] <= T[k] + 0.1) hi++;
-      SBAR[k] = (sum[hi + 1] - sum[lo]) / (hi + 1 - lo);
+      var h = Math.min(0.1, T[k] - T0, T1 - T[k]);
+      var a = Math.min(from(T[k] - h), k), b = Math.max(from(T[k] + h + 1e-12) - 1, k);
+      SBAR[k] = (sum[b + 1] - sum[a]) / (b + 1 - a);
     }
   })();
 
@@ -320,8 +326,8 @@
         sc.strokeStyle = "rgba(214,39,40," + (1 - age).toFixed(3) + ")"; sc.lineWidth = 3;
         sc.beginPath(); sc.arc(foot[0], foot[1], 8 + 14 * age, 0, 2 * Math.PI); sc.stroke();
       }
-      sc.fillStyle = "#222"; sc.font = "12px sans-serif"; sc.textAlign = "center";
-      sc.fillText(c.name, foot[0], foot[1] + 30);
+      sc.fillStyle = "#222"; sc.font = "12px sans-serif"; sc.textAlign = "left";
+      sc.fillText(c.name, foot[0] + 7, foot[1] - 7);
     });
 
     // The numbers.
