@@ -11,7 +11,7 @@
 #    themselves near 180 degrees (the vertical force), so it barely travels.
 # 3. The paper's Fig. 5 impact, solved by `host-sim impact`.
 #
-# Writes out/ (traces, events, plots) and prints the summaries.
+# Writes out/ (traces, events, plots, animations) and prints the summaries.
 # Needs only cargo; the first run compiles host-sim (well under a minute).
 set -euo pipefail
 
@@ -34,15 +34,16 @@ mkdir -p "$OUT"
 echo "==== host-sim run $MACHINE --command right ===="
 cargo run --quiet --release -p host-sim -- run "$MACHINE" --command right \
     --out "$OUT/vibro-driver-right.csv" --events "$OUT/vibro-driver-right-events.csv" \
-    --plot "$OUT/vibro-driver-right.svg"
-echo "wrote $OUT/vibro-driver-right.{csv,svg} and the events (open the SVG in a browser)"
+    --plot "$OUT/vibro-driver-right.svg" --animate "$OUT/vibro-driver-right.html"
+echo "wrote $OUT/vibro-driver-right.{csv,svg,html} and the events (open the SVG, and the"
+echo "HTML page that plays the run, in a browser)"
 
 echo
 echo "==== host-sim run $MACHINE --open-loop 12,12 ===="
 cargo run --quiet --release -p host-sim -- run "$MACHINE" --open-loop 12,12 \
     --out "$OUT/vibro-driver-open-loop.csv" --events "$OUT/vibro-driver-open-loop-events.csv" \
-    --plot "$OUT/vibro-driver-open-loop.svg"
-echo "wrote $OUT/vibro-driver-open-loop.{csv,svg} and the events"
+    --plot "$OUT/vibro-driver-open-loop.svg" --animate "$OUT/vibro-driver-open-loop.html"
+echo "wrote $OUT/vibro-driver-open-loop.{csv,svg,html} and the events"
 
 echo
 echo "==== host-sim impact $CASE ===="

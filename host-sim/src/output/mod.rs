@@ -1,10 +1,12 @@
 //! What commands write: whole files, CSV, SVG pieces, text for people.
 //!
+//! - [`animate`]: a run as a self-contained HTML page that plays it;
 //! - [`file`](mod@file): a file written whole or not at all;
 //! - [`csv`]: the trace and the events as CSV;
 //! - [`svg`]: the SVG figures' common pieces;
 //! - [`text`]: numbers and aligned tables for people.
 
+pub mod animate;
 pub mod csv;
 pub mod file;
 pub mod svg;

@@ -1,6 +1,7 @@
 //! `host-sim run MACHINE [--command right|left|stop] [--speed RPM] [--offset DEG]
 //! [--open-loop V1,V2|V|coast] [--t-end T] [--out FILE.csv]
-//! [--events FILE.csv] [--plot FILE.svg] [--format table|json] [--set KEY=VALUE]...`
+//! [--events FILE.csv] [--plot FILE.svg] [--animate FILE.html] [--format table|json]
+//! [--set KEY=VALUE]...`
 //!
 //! A machine with one rotor: `--open-loop V` takes one voltage (`V1,V2` is for two
 //! rotors, `coast` for both kinds); `--command` runs the controller, which holds
@@ -11,8 +12,8 @@
 //! 1. read and check the machine file with the `--set` overrides
 //!    ([`crate::machine`]), and the options: every problem at once, exit 2;
 //! 2. simulate ([`crate::simulation`]);
-//! 3. write the files asked for, each whole or not at all, then the summary on
-//!    stdout as a table or JSON.
+//! 3. write the files asked for, each whole or not at all (the animation:
+//!    [`crate::output::animate`]), then the summary on stdout as a table or JSON.
 
 pub mod plot;
 pub mod report;
@@ -29,6 +30,7 @@ use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::{Machine, MachineContact};
+use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
 use crate::output::text::sig;
@@ -76,6 +78,9 @@ pub struct RunArgs {
     /// The plot.
     #[command(flatten)]
     pub plot: PlotArg,
+    /// Write the run as an HTML page that plays it (self-contained; at most 600 s).
+    #[arg(long, value_name = "FILE.html")]
+    pub animate: Option<PathBuf>,
     /// Output format.
     #[command(flatten)]
     pub format: FormatArg,
@@ -181,6 +186,14 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             "error: --t-end {t_end}: must be a positive number of seconds"
         ));
     }
+    if args.animate.is_some() {
+        let origin = if args.t_end.seconds.is_some() {
+            "--t-end"
+        } else {
+            "simulation.t_end"
+        };
+        problems.extend(animate::check_duration(t_end, origin));
+    }
     let Some(drive) = drive.filter(|_| problems.is_empty()) else {
         return Err(Failure::Usage(problems.join("\n")));
     };
@@ -236,6 +249,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         .as_deref()
         .map(|p| staged.add(p))
         .transpose()?;
+    let animation = args.animate.as_deref().map(|p| staged.add(p)).transpose()?;
     let contacts = machine.contacts.len();
     if let Some(i) = trace {
         let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
@@ -265,14 +279,22 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         shape,
         &machine.contacts,
     );
-    let mut result = simulate_observed(&machine, &mut *driver, &options, &mut watch);
+    let mut film = Film {
+        frames: animation.map(|_| Frames::new(&machine)),
+        inner: &mut watch,
+    };
+    let mut result = simulate_observed(&machine, &mut *driver, &options, &mut film);
+    let frames = film.frames;
     watch.finish()?;
     result.summary.warnings.extend(warnings);
 
-    // 3. The plot, then the summary.
+    // 3. The plot and the animation, then the summary.
+    let title = format!("host-sim run {} ({how})", args.machine.path.display());
     if let Some(i) = plot {
-        let title = format!("host-sim run {} ({how})", args.machine.path.display());
         staged.write(i, &plot_svg(&result.rows, &result.events, &machine, &title))?;
+    }
+    if let (Some(i), Some(mut frames)) = (animation, frames) {
+        staged.write(i, &animate::page(&title, &machine, &mut frames))?;
     }
     if let Some(t) = result.stopped_at {
         // Ctrl-C: what was simulated is written whole; no summary of half a run.

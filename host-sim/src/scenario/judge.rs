@@ -13,7 +13,7 @@ use super::file::When;
 use super::file::TIME_EPS;
 use crate::machine::input::Problem;
 use crate::output::text::sig;
-use crate::simulation::{simulate_observed, Driver, Interruptible, RunOptions};
+use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions};
 
 /// How one expectation came out.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,17 +73,21 @@ impl Report {
 /// Runs `scenario` (stages of the module doc). Fails only if the controller's
 /// parameters cannot be built (the tuning table changed since [`super::file::load`]).
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
+    run_observed(scenario, &mut Interruptible::new())
+}
+
+/// [`run`] with `observer` watching the simulation (the animation's frames) and
+/// deciding whether it goes on.
+pub fn run_observed(
+    scenario: &Scenario,
+    observer: &mut dyn Observer,
+) -> Result<Report, Vec<Problem>> {
     // 1.-3. Simulate with the scenario's driver.
     let mut driver = ScenarioDriver::new(scenario)?;
     let mut options = RunOptions::new(scenario.t_end);
     options.keep_rows = false;
     options.keep_events = false;
-    let result = simulate_observed(
-        &scenario.machine,
-        &mut driver,
-        &options,
-        &mut Interruptible::new(),
-    );
+    let result = simulate_observed(&scenario.machine, &mut driver, &options, observer);
     let mut samples: Vec<(f64, f64)> = driver.ticks.iter().map(|k| (k.t, k.x)).collect();
     if let Some(row) = result.last_row {
         if samples.last().is_none_or(|s| s.0 < row.t) {

@@ -1,13 +1,14 @@
-//! `host-sim scenario FILE [--format table|json]`: runs one scenario file
-//! (`docs/scenarios.md`) and reports every expectation, PASS or FAIL, with what was
-//! expected and what was measured.
+//! `host-sim scenario FILE [--format table|json] [--animate FILE.html]`: runs one
+//! scenario file (`docs/scenarios.md`) and reports every expectation, PASS or FAIL,
+//! with what was expected and what was measured.
 //!
 //! Stages:
 //! 1. read and check the scenario and its machine ([`file::load`]): every
 //!    problem at once with its key path, exit 2;
-//! 2. run it ([`judge::run`]);
-//! 3. write the report as a table or JSON; exit 0 when every expectation holds, 1
-//!    when any fails.
+//! 2. run it ([`judge::run`]), filmed for `--animate`;
+//! 3. write the animation (whole or not at all, [`crate::output::animate`]; also
+//!    when an expectation fails), then the report as a table or JSON; exit 0 when
+//!    every expectation holds, 1 when any fails.
 
 pub mod driver;
 pub mod file;
@@ -21,7 +22,9 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::FormatArg;
 use crate::failure::{Console, Failure};
-use crate::simulation::limits;
+use crate::output::animate::{self, frames::Frames, Film};
+use crate::output::file::Staged;
+use crate::simulation::{limits, Interruptible};
 
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
@@ -33,6 +36,9 @@ pub struct ScenarioArgs {
     /// Output format.
     #[command(flatten)]
     pub format: FormatArg,
+    /// Write the run as an HTML page that plays it (self-contained; at most 600 s).
+    #[arg(long, value_name = "FILE.html")]
+    pub animate: Option<PathBuf>,
 }
 
 /// Runs the command (stages of the module doc). Expectations that do not hold are
@@ -42,21 +48,45 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     let scenario = file::load(&args.scenario)?;
 
     let t_end_key = format!("{}: t_end", args.scenario.display());
-    let problems = limits::check(&scenario.machine, scenario.t_end, &t_end_key);
+    let mut problems = limits::check(&scenario.machine, scenario.t_end, &t_end_key);
+    if args.animate.is_some() {
+        problems.extend(animate::check_duration(scenario.t_end, &t_end_key));
+    }
     if !problems.is_empty() {
         return Err(Failure::Usage(problems.join("\n")));
     }
 
-    // 2. Run.
-    let report = judge::run(&scenario)?;
+    // 2. Run, the animation's file opened first (refused before the run).
+    let mut staged = Staged::new();
+    let animation = args.animate.as_deref().map(|p| staged.add(p)).transpose()?;
+    let mut film = Film {
+        frames: animation.map(|_| Frames::new(&scenario.machine)),
+        inner: &mut Interruptible::new(),
+    };
+    let report = judge::run_observed(&scenario, &mut film)?;
+
+    // 3. The animation, then the report.
+    if let (Some(i), Some(mut frames)) = (animation, film.frames) {
+        let title = format!(
+            "host-sim scenario {} (machine {})",
+            args.scenario.display(),
+            scenario.machine_file.display()
+        );
+        staged.write(i, &animate::page(&title, &scenario.machine, &mut frames))?;
+    }
+    staged.commit()?;
     if let Some(t) = report.stopped_at {
         return Err(Failure::Run(format!(
-            "error: scenario: interrupted at t = {} s (Ctrl-C): nothing judged",
-            crate::output::text::sig(t)
+            "error: scenario: interrupted at t = {} s (Ctrl-C): nothing judged{}",
+            crate::output::text::sig(t),
+            if args.animate.is_some() {
+                "; the animation holds the run up to there"
+            } else {
+                ""
+            }
         )));
     }
 
-    // 3. Report.
     console.print(&match args.format.format {
         Format::Table => report::table(&report),
         Format::Json => report::json(&report),
