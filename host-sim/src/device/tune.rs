@@ -8,10 +8,12 @@
 //!    target) and the target is the point's offset; `--timeout` bounds the wait;
 //! 2. `--settle` seconds more, so the gait settles;
 //! 3. the mark line (`mark: ...`) on stdout: the operator marks the platform's
-//!    position; the point is held `--for` seconds;
+//!    position; the point is held `--for` seconds; then the end line (`end:
+//!    ...`): the operator marks the position again, so the distance measured
+//!    is that of the held gait alone, without the ramp down;
 //! 4. `Stop`, and the status polled until `idle` with both rotors at rest
 //!    (below `WRITE_MAX_SPEED_RPM`, 10 rpm);
-//! 5. the prompt: the distance travelled since the mark, mm. A number is
+//! 5. the prompt: the distance between the two marks, mm. A number is
 //!    appended to the file at once as `velocity = distance / S` (m/s); an empty
 //!    line runs the point again; `s` skips it; `q` (or the end of stdin) ends the
 //!    sweep with what was measured; anything else is explained and asked again.
@@ -48,7 +50,7 @@ use crate::tune::sweep::{offset_held, wrap_offsets, Grid};
 use crate::tune::table_problems;
 
 /// The prompt after each point.
-pub const PROMPT: &str = "distance travelled since the mark, mm (+ right, - left); Enter repeats the point, s skips it, q stops and ends: ";
+pub const PROMPT: &str = "distance between the two marks, mm (+ right, - left); Enter repeats the point, s skips it, q stops and ends: ";
 
 /// How close the device's target offset must be to the point's, degrees: the
 /// offset crosses the link as an `f32` (7 significant digits: 4e-5 deg at 360).
@@ -382,6 +384,9 @@ fn run_point(
         text::sig(timing.for_s)
     ));
     hold_for(rig, op, &here, "measuring", timing.for_s, running)?;
+    op.tell(&format!(
+        "end: {here}: mark the platform's position again now; stopping\n"
+    ));
     // 4. Stop, until at rest: idle, both rotors below the controller's own
     // "at rest" (what a table write requires), so the platform has stopped too.
     rig.stop()?;

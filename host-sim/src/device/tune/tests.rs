@@ -191,6 +191,11 @@ fn every_answer_does_what_the_prompt_says() {
     );
     let told = &op.told;
     assert_eq!(told.matches("mark: ").count(), 4, "{told}");
+    assert_eq!(told.matches("end: ").count(), 4, "{told}");
+    assert!(
+        told.contains("end: 3000 rpm, 0 deg: mark the platform's position again now; stopping\n"),
+        "{told}"
+    );
     assert!(
         told.contains(
             "mark: 3000 rpm, 0 deg: mark the platform's position now; measuring for 0.02 s\n"
