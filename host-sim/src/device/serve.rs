@@ -398,3 +398,59 @@ fn open_pty() -> Result<Endpoint, String> {
 fn open_pty() -> Result<Endpoint, String> {
     Err("error: pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0".into())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Holds the loop up once, for `stall`, at tick 10, then serves 100 more ticks.
+    struct Stall {
+        stall: Duration,
+        ticks: u64,
+        skipped: Vec<Duration>,
+    }
+
+    impl Watch for Stall {
+        fn go_on(&mut self) -> bool {
+            self.ticks < 110
+        }
+
+        fn ticked(&mut self, _device: &SimDevice) -> bool {
+            self.ticks += 1;
+            if self.ticks == 10 {
+                std::thread::sleep(self.stall);
+            }
+            true
+        }
+
+        fn fell_behind(&mut self, skipped: Duration) {
+            self.skipped.push(skipped);
+        }
+    }
+
+    /// A loop held up for 500 ticks' time at tick 10 catches up 200 ticks at once
+    /// ([`MAX_CATCH_UP_TICKS`]) and reports the rest as skipped, never a silent
+    /// drift: 10 ms + 500 ms due, 10 + 200 run, about 300 ms skipped. The sleep
+    /// lasts at least its 500 ms, so at least 290 ms (10 ms for rounding); a busy
+    /// machine may delay the loop further, up to 150 ms allowed, but without the
+    /// catch-up all 500 ms would be skipped.
+    #[test]
+    fn falling_behind_is_caught_up_then_reported() {
+        let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
+        let mut device = SimDevice::new(None, Noise::default());
+        let mut watch = Stall {
+            stall: Duration::from_millis(500),
+            ticks: 0,
+            skipped: Vec::new(),
+        };
+        let served = serve_watched(&mut endpoint, &mut device, &mut watch);
+        assert!(!watch.skipped.is_empty());
+        let skipped: Duration = watch.skipped.iter().sum();
+        assert_eq!(served.skipped, skipped);
+        assert!(
+            skipped >= Duration::from_millis(290) && skipped <= Duration::from_millis(450),
+            "{:?}",
+            watch.skipped
+        );
+    }
+}
