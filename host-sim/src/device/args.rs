@@ -221,8 +221,17 @@ pub struct DeviceSimArgs {
     /// `host-sim device`.
     #[arg(long, value_name = "tcp:HOST:PORT")]
     pub listen: Option<String>,
-    /// The tuning table the device starts with (default: 90 deg right, 270 left
-    /// at every speed).
+    /// The machine behind the link: its whole plant (platform, contacts, motors,
+    /// sensors, as `host-sim run` simulates it) and its controller parameters and
+    /// tuning table, instead of the reference controller on two simple rotors.
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub machine: Option<PathBuf>,
+    /// Stream the platform's true pose to FILE.csv as the device runs: a row
+    /// `t,x,y,angle` every 10 ms of uptime, flushed (needs `--machine`).
+    #[arg(long, value_name = "FILE.csv", requires = "machine")]
+    pub truth: Option<PathBuf>,
+    /// The tuning table the device starts with (default: the machine's, else 90
+    /// deg right, 270 left at every speed).
     #[arg(long, value_name = "FILE.toml")]
     pub table: Option<PathBuf>,
     /// Corrupt the line: flip one bit of every Nth byte, either way.

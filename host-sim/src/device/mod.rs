@@ -15,8 +15,11 @@
 //!   [`tune_table`];
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
+//! - [`mechanics`]: what the simulated device drives and senses, a tick at a time;
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
+//! - [`plant`]: a machine file's whole plant with its sensors (`--machine`);
 //! - [`sim`]: the simulated device: the firmware's control tick and link task;
+//! - [`truth`]: the platform's true pose streamed to a CSV file (`--truth`);
 //! - [`serve`]: `host-sim device-sim`, the simulated device in real time behind a
 //!   pseudo-terminal or a TCP port.
 
@@ -25,7 +28,9 @@ pub mod client;
 pub mod commands;
 pub mod live;
 pub mod measured;
+pub mod mechanics;
 pub mod pipe;
+pub mod plant;
 pub mod port;
 #[cfg(unix)]
 pub mod pty;
@@ -38,3 +43,4 @@ pub mod sim;
 pub mod telemetry;
 pub mod tune;
 pub mod tune_table;
+pub mod truth;

@@ -12,6 +12,9 @@ use std::f64::consts::TAU;
 
 use shared::controller::{MachineConstants, Outputs};
 
+use super::mechanics::Mechanics;
+use crate::simulation::board::Readings;
+
 /// Integration sub-steps per control tick.
 const SUBSTEPS: u32 = 20;
 
@@ -137,5 +140,24 @@ impl Rotors {
             }
         }
         index
+    }
+}
+
+impl Mechanics for Rotors {
+    fn advance(&mut self, out: Option<&Outputs>, dt: f64) -> Readings {
+        let index = Rotors::advance(self, out, dt);
+        Readings {
+            encoder: self.counts(),
+            index,
+            current: self.currents(),
+        }
+    }
+
+    fn supply(&self) -> f32 {
+        Rotors::supply(self)
+    }
+
+    fn speeds_rpm(&self) -> [f64; 2] {
+        Rotors::speeds_rpm(self)
     }
 }

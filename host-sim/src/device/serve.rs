@@ -1,26 +1,34 @@
 //! `host-sim device-sim`: a [`SimDevice`] in real time behind a pseudo-terminal
 //! (the default; its path is printed) or a TCP port (`--listen`), for
-//! `host-sim device` to talk to without hardware.
+//! `host-sim device` to talk to without hardware; on the simple rotors, or on a
+//! machine file's whole plant (`--machine`), its platform's true pose streamed to
+//! a file (`--truth`, [`super::truth`]).
 //!
 //! The loop: read what the host sent (waiting at most a millisecond), run the
 //! control ticks due by the wall clock, run the link task, write its frames. A TCP
 //! device takes one connection at a time and keeps its state across connections,
-//! as a powered board keeps its state while hosts come and go.
+//! as a powered board keeps its state while hosts come and go. A loop that falls
+//! behind the clock catches up, up to [`MAX_CATCH_UP_TICKS`] at once; beyond that
+//! it skips the time and says so ([`Watch::fell_behind`]), so the device's uptime
+//! never drifts from the wall clock unnoticed.
 
 use std::io;
 use std::net::TcpListener;
 use std::time::{Duration, Instant};
 
 use super::args::DeviceSimArgs;
+use super::mechanics::PlatformPose;
 use super::port::{Port, PortSpec, TcpPort};
 use super::sim::{Noise, SimDevice};
+use super::truth::TruthFile;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
-use crate::machine::tuning_file;
+use crate::machine::{tuning_file, Machine};
+use crate::simulation::closed_loop::constants_warning;
 
 /// Ticks the simulator runs at most in one go when it fell behind the clock
 /// (a suspended process); beyond that it drops the time.
-const MAX_CATCH_UP_TICKS: u64 = 200;
+pub const MAX_CATCH_UP_TICKS: u64 = 200;
 
 /// Where the simulated device listens.
 pub enum Endpoint {
@@ -111,31 +119,146 @@ impl Endpoint {
     }
 }
 
+/// What watches a device while it is served.
+pub trait Watch {
+    /// Whether to go on serving; asked between reads of the port.
+    fn go_on(&mut self) -> bool;
+
+    /// After every control tick; `false` ends the serving. Goes on by default.
+    fn ticked(&mut self, _device: &SimDevice) -> bool {
+        true
+    }
+
+    /// The loop fell more than [`MAX_CATCH_UP_TICKS`] behind the wall clock and
+    /// skipped `skipped` of it: the device's uptime lags the clock by that much
+    /// more. Nothing by default.
+    fn fell_behind(&mut self, _skipped: Duration) {}
+}
+
+/// A [`Watch`] that serves while a closure says so.
+struct While<F>(F);
+
+impl<F: FnMut() -> bool> Watch for While<F> {
+    fn go_on(&mut self) -> bool {
+        (self.0)()
+    }
+}
+
+/// How a device was served: its real-time budget.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Served {
+    /// Control ticks run.
+    pub ticks: u64,
+    /// Wall-clock time served.
+    pub wall: Duration,
+    /// Wall-clock time spent in the control ticks (the simulated mechanics and
+    /// the controller), the link task left out.
+    pub busy: Duration,
+    /// Wall-clock time skipped because the loop fell too far behind.
+    pub skipped: Duration,
+}
+
 /// Run `device` in real time behind `endpoint` while `go()` holds.
-pub fn serve(endpoint: &mut Endpoint, device: &mut SimDevice, mut go: impl FnMut() -> bool) {
+pub fn serve(endpoint: &mut Endpoint, device: &mut SimDevice, go: impl FnMut() -> bool) -> Served {
+    serve_watched(endpoint, device, &mut While(go))
+}
+
+/// Run `device` in real time behind `endpoint`, as `watch` says.
+pub fn serve_watched(
+    endpoint: &mut Endpoint,
+    device: &mut SimDevice,
+    watch: &mut dyn Watch,
+) -> Served {
     let tick = Duration::from_millis(u64::from(device.tick_ms()));
-    let mut origin = Instant::now();
-    let mut ticks: u64 = 0;
+    let start = Instant::now();
+    let mut origin = start;
+    let mut served = Served::default();
     let mut buf = [0u8; 1024];
-    while go() {
+    'serving: while watch.go_on() {
         let n = endpoint.read(&mut buf, Duration::from_millis(1));
         device.push_rx(&buf[..n]);
         let mut due = (origin.elapsed().as_nanos() / tick.as_nanos().max(1)) as u64;
-        if due > ticks + MAX_CATCH_UP_TICKS {
-            // Fell far behind (a suspended process): drop the time.
-            let dropped = due - ticks - MAX_CATCH_UP_TICKS;
-            origin += tick * u32::try_from(dropped).unwrap_or(u32::MAX);
-            due = ticks + MAX_CATCH_UP_TICKS;
+        if due > served.ticks + MAX_CATCH_UP_TICKS {
+            // Fell far behind (a suspended process, a machine too slow to
+            // simulate in real time): skip the time, and say so.
+            let dropped = due - served.ticks - MAX_CATCH_UP_TICKS;
+            let skipped = tick * u32::try_from(dropped).unwrap_or(u32::MAX);
+            origin += skipped;
+            served.skipped += skipped;
+            watch.fell_behind(skipped);
+            due = served.ticks + MAX_CATCH_UP_TICKS;
         }
-        while ticks < due {
+        while served.ticks < due {
+            let busy = Instant::now();
             device.tick();
-            ticks += 1;
+            served.busy += busy.elapsed();
+            served.ticks += 1;
             // The link task runs between ticks, as on the board.
             let out = device.receive();
             endpoint.write(&out);
+            if !watch.ticked(device) {
+                break 'serving;
+            }
         }
         let out = device.receive();
         endpoint.write(&out);
+    }
+    served.wall = start.elapsed();
+    served
+}
+
+/// `host-sim device-sim`'s watch: Ctrl-C and `--duration` end it, the truth file
+/// takes its rows, falling behind is said on stderr.
+struct DeviceSimWatch<'c, 'w> {
+    console: &'c mut Console<'w>,
+    end: Option<Instant>,
+    truth: Option<TruthFile>,
+    /// Why the truth file could not be written on.
+    failed: Option<String>,
+    /// Device time skipped so far.
+    skipped: Duration,
+}
+
+impl Watch for DeviceSimWatch<'_, '_> {
+    fn go_on(&mut self) -> bool {
+        !interrupt::interrupted() && self.end.is_none_or(|e| Instant::now() < e)
+    }
+
+    fn ticked(&mut self, device: &SimDevice) -> bool {
+        let (Some(truth), Some(pose)) = (self.truth.as_mut(), device.platform()) else {
+            return true;
+        };
+        match truth.record(u64::from(device.uptime_ms()), pose) {
+            Ok(()) => true,
+            Err(e) => {
+                self.failed = Some(e);
+                false
+            }
+        }
+    }
+
+    fn fell_behind(&mut self, skipped: Duration) {
+        self.skipped += skipped;
+        self.console.note(&format!(
+            "device-sim: fell behind the wall clock (the simulation too slow, or the process held up): skipped {:.3} s; the device's uptime now lags the clock by {:.3} s\n",
+            skipped.as_secs_f64(),
+            self.skipped.as_secs_f64()
+        ));
+    }
+}
+
+/// Whether a machine's control tick is a whole number of milliseconds: the link
+/// counts the device's uptime in them.
+fn check_whole_ms_tick(machine: &Machine, path: &std::path::Path) -> Result<(), Failure> {
+    let rate = machine.controller.rate_hz;
+    let tick_ms = 1000.0 / rate;
+    if tick_ms.round() >= 1.0 && (tick_ms - tick_ms.round()).abs() <= 1e-9 * tick_ms {
+        Ok(())
+    } else {
+        Err(Failure::Usage(format!(
+            "error: {}: controller.rate_hz: device-sim runs control ticks of whole milliseconds of uptime, as the link counts time: 1000 Hz, 500, 250, 200, ... (got {rate})",
+            path.display()
+        )))
     }
 }
 
@@ -162,6 +285,32 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             )));
         }
     }
+    // The machine, if any, and its controller, built before any port is opened.
+    let noise = Noise {
+        flip_every: args.flip_every,
+        garbage_every: args.garbage_every,
+    };
+    let (mut device, what) = match &args.machine {
+        None => (
+            SimDevice::new(table, noise),
+            "the reference controller at 1000 Hz on simulated rotors".to_string(),
+        ),
+        Some(path) => {
+            let machine = Machine::load(path, &[])?;
+            check_whole_ms_tick(&machine, path)?;
+            if let Some(w) = constants_warning(&machine) {
+                console.note(&format!("warning: {}: {w}\n", path.display()));
+            }
+            (
+                SimDevice::with_machine(&machine, table, noise)?,
+                format!(
+                    "{}'s controller at {} Hz on its whole plant (platform, contacts, motors, sensors)",
+                    path.display(),
+                    machine.controller.rate_hz
+                ),
+            )
+        }
+    };
     let endpoint = match &args.listen {
         None => open_pty(),
         Some(spec) => match PortSpec::parse(spec) {
@@ -176,31 +325,68 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     };
     // A port in use or not ours to take is the user's to change.
     let mut endpoint = endpoint.map_err(Failure::Usage)?;
-    let noise = Noise {
-        flip_every: args.flip_every,
-        garbage_every: args.garbage_every,
+    let truth = match &args.truth {
+        None => None,
+        Some(path) => Some(TruthFile::create(path)?),
     };
-    let mut device = SimDevice::new(table, noise);
     let port = endpoint.port_name();
     // The port first, alone on its line, at once: scripts read it.
     console.print(&format!("port: {port}\n"));
     console.note(&format!(
-        "device-sim: the reference controller at {} Hz on simulated rotors, a simulated flash; \
-         try `host-sim device --port {port} status`; Ctrl-C ends it\n",
-        1000 / device.tick_ms()
+        "device-sim: {what}, a simulated flash; \
+         try `host-sim device --port {port} status`; Ctrl-C ends it\n"
     ));
     interrupt::catch();
-    let end = args
-        .duration
-        .map(|d| Instant::now() + Duration::from_secs_f64(d));
-    serve(&mut endpoint, &mut device, || {
-        !interrupt::interrupted() && end.is_none_or(|e| Instant::now() < e)
-    });
-    console.note(&format!(
-        "device-sim: stopped after {:.1} s of device time\n",
-        f64::from(device.uptime_ms()) / 1000.0
-    ));
-    Ok(())
+    let start = device.platform();
+    let mut watch = DeviceSimWatch {
+        console,
+        end: args
+            .duration
+            .map(|d| Instant::now() + Duration::from_secs_f64(d)),
+        truth,
+        failed: None,
+        skipped: Duration::ZERO,
+    };
+    // The truth at power-on, then after every tick.
+    watch.ticked(&device);
+    let served = serve_watched(&mut endpoint, &mut device, &mut watch);
+    // The truth at the last tick, where the stop fell between two rows.
+    let mut failed = watch.failed.take();
+    if let (Some(truth), Some(pose), None) = (watch.truth.as_mut(), device.platform(), &failed) {
+        failed = truth.finish(u64::from(device.uptime_ms()), pose).err();
+    }
+    console.note(&stopped_note(&device, &served, start));
+    for w in device.warnings() {
+        console.note(&format!("device-sim: warning: {w}\n"));
+    }
+    match failed {
+        Some(e) => Err(Failure::Run(e)),
+        None => Ok(()),
+    }
+}
+
+/// The last line on stderr: device time, how fast the simulation ran against the
+/// clock, and the platform's travel from `start` if there is a platform.
+fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>) -> String {
+    let uptime = f64::from(device.uptime_ms()) / 1000.0;
+    let mut note = format!("device-sim: stopped after {uptime:.1} s of device time");
+    let busy = served.busy.as_secs_f64();
+    if busy > 0.0 {
+        // Real-time factor: device time per second of wall time the ticks took.
+        note += &format!(
+            " (the control ticks took {busy:.2} s of it: {:.1}x real time)",
+            uptime / busy
+        );
+    }
+    if let (Some(a), Some(b)) = (start, device.platform()) {
+        note += &format!(
+            "; the platform travelled {:+.4} m (x from {:.4} to {:.4} m)",
+            b.x - a.x,
+            a.x,
+            b.x
+        );
+    }
+    note + "\n"
 }
 
 #[cfg(unix)]
@@ -211,4 +397,60 @@ fn open_pty() -> Result<Endpoint, String> {
 #[cfg(not(unix))]
 fn open_pty() -> Result<Endpoint, String> {
     Err("error: pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0".into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Holds the loop up once, for `stall`, at tick 10, then serves 100 more ticks.
+    struct Stall {
+        stall: Duration,
+        ticks: u64,
+        skipped: Vec<Duration>,
+    }
+
+    impl Watch for Stall {
+        fn go_on(&mut self) -> bool {
+            self.ticks < 110
+        }
+
+        fn ticked(&mut self, _device: &SimDevice) -> bool {
+            self.ticks += 1;
+            if self.ticks == 10 {
+                std::thread::sleep(self.stall);
+            }
+            true
+        }
+
+        fn fell_behind(&mut self, skipped: Duration) {
+            self.skipped.push(skipped);
+        }
+    }
+
+    /// A loop held up for 500 ticks' time at tick 10 catches up 200 ticks at once
+    /// ([`MAX_CATCH_UP_TICKS`]) and reports the rest as skipped, never a silent
+    /// drift: 10 ms + 500 ms due, 10 + 200 run, about 300 ms skipped. The sleep
+    /// lasts at least its 500 ms, so at least 290 ms (10 ms for rounding); a busy
+    /// machine may delay the loop further, up to 150 ms allowed, but without the
+    /// catch-up all 500 ms would be skipped.
+    #[test]
+    fn falling_behind_is_caught_up_then_reported() {
+        let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
+        let mut device = SimDevice::new(None, Noise::default());
+        let mut watch = Stall {
+            stall: Duration::from_millis(500),
+            ticks: 0,
+            skipped: Vec::new(),
+        };
+        let served = serve_watched(&mut endpoint, &mut device, &mut watch);
+        assert!(!watch.skipped.is_empty());
+        let skipped: Duration = watch.skipped.iter().sum();
+        assert_eq!(served.skipped, skipped);
+        assert!(
+            skipped >= Duration::from_millis(290) && skipped <= Duration::from_millis(450),
+            "{:?}",
+            watch.skipped
+        );
+    }
 }

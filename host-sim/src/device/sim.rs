@@ -1,10 +1,12 @@
 //! A device without hardware: the firmware's control task and link task, as
-//! `firmware/src/main.rs` runs them, on simulated rotors and a simulated flash.
+//! `firmware/src/main.rs` runs them, on simulated [`Mechanics`] (the simple
+//! [`Rotors`] of the reference machine, or a machine file's whole plant,
+//! [`PlantMechanics`]) and a simulated flash.
 //!
-//! - control tick ([`SimDevice::tick`], at the controller's rate): take the
-//!   command, a new tuning table and a self-test request from the [`LinkState`],
-//!   step the [`Controller`] on the sensors of [`Rotors`], publish the status and
-//!   the self-test's report;
+//! - control tick ([`SimDevice::tick`], at the controller's rate): advance the
+//!   mechanics one tick under the last outputs, take the command, a new tuning
+//!   table and a self-test request from the [`LinkState`], step the [`Controller`]
+//!   on the sensors' readings, publish the status and the self-test's report;
 //! - link ([`SimDevice::receive`]): the received bytes through the firmware's
 //!   [`Link`] (decode, answer, telemetry, flash writes on a [`SimFlash`]).
 //!
@@ -13,11 +15,16 @@
 
 use std::collections::VecDeque;
 
-use shared::controller::{Controller, Inputs, Params, ResetCause, TuningTable};
+use shared::controller::{Controller, Inputs, MachineConstants, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, Link, LinkState};
 use shared::storage::{self, SimFlash};
 
+use super::mechanics::{Mechanics, PlatformPose};
+use super::plant::PlantMechanics;
 use super::rotors::Rotors;
+use crate::machine::input::Problem;
+use crate::machine::Machine;
+use crate::simulation::closed_loop::params;
 
 /// Deterministic corruption of the line.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -86,7 +93,7 @@ impl NoiseState {
 /// The simulated device.
 pub struct SimDevice {
     controller: Controller,
-    rotors: Rotors,
+    mechanics: Box<dyn Mechanics>,
     link: Link,
     state: LinkState,
     flash: SimFlash,
@@ -100,9 +107,35 @@ pub struct SimDevice {
 
 impl SimDevice {
     /// The reference machine's controller with `tuning` (a stored table in flash
-    /// wins, as on the board; none is stored at first), rotors at rest.
+    /// wins, as on the board; none is stored at first), the simple [`Rotors`] at
+    /// rest.
     pub fn new(tuning: Option<TuningTable>, noise: Noise) -> SimDevice {
-        let mut params = Params::reference();
+        let rotors = Rotors::new(&MachineConstants::REFERENCE);
+        SimDevice::on(Params::reference(), tuning, Box::new(rotors), noise)
+    }
+
+    /// `machine`'s controller (its parameters and tuning table, as `host-sim run`
+    /// builds it), its table replaced by `tuning` if given (a stored table in
+    /// flash wins over both, as on the board), on the machine's whole plant at its
+    /// start state. Problems: the machine's tuning table file.
+    pub fn with_machine(
+        machine: &Machine,
+        tuning: Option<TuningTable>,
+        noise: Noise,
+    ) -> Result<SimDevice, Vec<Problem>> {
+        let params = params(machine)?;
+        let plant = PlantMechanics::new(machine);
+        Ok(SimDevice::on(params, tuning, Box::new(plant), noise))
+    }
+
+    /// The controller of `params` (its table replaced by `tuning` if given, a
+    /// stored table winning) on `mechanics`.
+    fn on(
+        mut params: Params,
+        tuning: Option<TuningTable>,
+        mechanics: Box<dyn Mechanics>,
+        noise: Noise,
+    ) -> SimDevice {
         if let Some(t) = tuning {
             params.tuning = t;
         }
@@ -113,7 +146,7 @@ impl SimDevice {
         let state = LinkState::at_start(&controller, stored.as_ref());
         let tick_ms = (params.tick_s() * 1000.0).round().max(1.0) as u32;
         SimDevice {
-            rotors: Rotors::new(&shared::controller::MachineConstants::REFERENCE),
+            mechanics,
             controller,
             link: Link::new(),
             state,
@@ -160,21 +193,32 @@ impl SimDevice {
     /// The rotor speeds, rpm (the simulation's truth, not the controller's
     /// estimate).
     pub fn speeds_rpm(&self) -> [f64; 2] {
-        self.rotors.speeds_rpm()
+        self.mechanics.speeds_rpm()
+    }
+
+    /// The platform's pose (the simulation's truth), if the mechanics have a
+    /// platform (a machine's plant).
+    pub fn platform(&self) -> Option<PlatformPose> {
+        self.mechanics.platform()
+    }
+
+    /// What the simulation warned about so far.
+    pub fn warnings(&self) -> Vec<String> {
+        self.mechanics.warnings()
     }
 
     /// One control tick, as the firmware's control task.
     pub fn tick(&mut self) {
         self.uptime_ms = self.uptime_ms.wrapping_add(self.tick_ms);
         let dt = f64::from(self.tick_ms) / 1000.0;
-        let index = self.rotors.advance(self.last.as_ref(), dt);
+        let readings = self.mechanics.advance(self.last.as_ref(), dt);
         // The firmware's control-task glue, as on the board.
         let command = self.state.take_for_tick(&mut self.controller).command;
         let inputs = Inputs {
-            encoder: self.rotors.counts(),
-            index,
-            current: self.rotors.currents(),
-            supply_voltage: self.rotors.supply(),
+            encoder: readings.encoder,
+            index: readings.index,
+            current: readings.current,
+            supply_voltage: self.mechanics.supply(),
             estop: false,
             command,
             timing: Default::default(),
@@ -288,5 +332,95 @@ mod tests {
         }
         let stored = storage::load(dev.flash()).expect("a record");
         assert_eq!(stored.record.self_test, Some(result));
+    }
+
+    /// The reference machine file, with its tuning table.
+    fn reference_machine() -> Machine {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/vibro-driver.toml");
+        Machine::load(std::path::Path::new(path), &[]).expect("the reference machine")
+    }
+
+    /// The platform's `x` after `ms` more of device time (heartbeats as [`run`]),
+    /// and the largest move of `x` in one tick on the way, m.
+    fn travel(dev: &mut SimDevice, ms: u32) -> (f64, f64) {
+        let mut x = dev.platform().expect("a platform").x;
+        let mut step: f64 = 0.0;
+        for _ in 0..ms / dev.tick_ms() {
+            run(dev, dev.tick_ms());
+            let next = dev.platform().expect("a platform").x;
+            step = step.max((next - x).abs());
+            x = next;
+        }
+        (x, step)
+    }
+
+    /// The device on the reference machine's whole plant holds 3000 rpm and 90
+    /// degrees and travels right at the speed `host-sim run` (tune's `run_point`,
+    /// the same plant and controller in the loop) finds for that point. The one
+    /// difference is the start: the device takes the command at its first tick,
+    /// after a tick of the plant with the windings open, one tick later than the
+    /// run; on the same gait that shifts each end of the window of the mean
+    /// velocity, `(x(T) - x(T/2)) / (T/2)`, by at most the platform's largest
+    /// move in a tick, `d`: |v_device - v_run| <= 2 d / (T/2). The integrator's
+    /// own error (rtol 1e-8) is orders of magnitude below that.
+    #[test]
+    fn the_whole_plant_travels_as_host_sim_run_finds() {
+        let machine = reference_machine();
+        let (speed, offset, t_end) = (3000.0, 90.0, 4.0);
+        let expected = crate::tune::sweep::run_point(&machine, speed, offset, t_end);
+        assert_eq!(expected.not_held, None);
+        assert!(expected.mean_velocity > 0.01, "{expected:?}");
+
+        let mut dev = SimDevice::with_machine(&machine, None, Noise::default()).unwrap();
+        dev.state.command = Some(Command::HoldOffset {
+            speed_rpm: speed as f32,
+            offset_deg: offset as f32,
+        });
+        let half_ms = (t_end * 500.0) as u32;
+        let (start, _) = travel(&mut dev, half_ms);
+        let (end, d) = travel(&mut dev, half_ms);
+        let v = (end - start) / (t_end / 2.0);
+        let tolerance = 2.0 * d / (t_end / 2.0);
+        assert!(
+            (v - expected.mean_velocity).abs() <= tolerance,
+            "device {v} m/s, run {} m/s, tolerance {tolerance}",
+            expected.mean_velocity
+        );
+
+        // At speed, the offset held, no fault: what the host's status shows.
+        let s = dev.link_state().status;
+        assert_eq!(s.state, State::Running, "{s:?}");
+        assert!(s.faults.is_empty(), "{s:?}");
+        assert!(s.telemetry.phase_loop_closed, "{s:?}");
+        assert!(s.telemetry.phase_error_deg.abs() < 5.0, "{s:?}");
+        for v in dev.speeds_rpm() {
+            assert!((v - speed).abs() < 30.0, "{v} rpm");
+        }
+    }
+
+    /// With a machine, the controller is the machine's: its tuning table's offset
+    /// for travel (81.1 degrees right at 3000 rpm in the reference machine's
+    /// table), not the default table's 90 degrees.
+    #[test]
+    fn a_machine_brings_its_own_tuning_table() {
+        let machine = reference_machine();
+        let table_offset = params(&machine)
+            .unwrap()
+            .tuning
+            .offset(Direction::Right, 3000.0);
+        assert!((table_offset - 90.0).abs() > 1.0, "{table_offset}");
+        let mut dev = SimDevice::with_machine(&machine, None, Noise::default()).unwrap();
+        dev.state.command = Some(Command::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        });
+        // Running by 1.5 s (the ramp to 3000 rpm takes about 0.7 s).
+        run(&mut dev, 1500);
+        assert_eq!(dev.link_state().status.state, State::Running);
+        let target = dev.link_state().status.telemetry.target_offset_deg;
+        assert!(
+            (target - table_offset).abs() < 1e-3,
+            "{target} vs {table_offset}"
+        );
     }
 }

@@ -14,6 +14,9 @@
 //!    disables its outputs;
 //! 5. record the controller's state changes and faults as events.
 //!
+//! Steps 1 and 4 are [`super::board`]'s, which `host-sim device-sim --machine`
+//! shares.
+//!
 //! A machine with one rotor ([`RotorCount::One`], from its machine file): only
 //! rotor 1's encoder and current are sampled (`Plant::rotor_angle(0)` and
 //! `mean_currents()[0]`); the controller gets rotor 2's inputs at rest (counter 0,
@@ -32,8 +35,8 @@ use crate::machine::input::Problem;
 use crate::machine::tuning_file;
 use crate::machine::{machine_constants, Machine};
 use crate::plant::bridge::BridgeCommand;
-use crate::plant::sensors::{CurrentSensor, Encoder};
 use crate::plant::simulator::Plant;
+use crate::simulation::board::{bridge_commands, BoardSensors};
 use crate::simulation::trace::{EventKind, EventRow};
 use crate::simulation::Driver;
 
@@ -67,11 +70,8 @@ pub struct ControllerDriver {
     controller: Controller,
     /// One rotor or two (the machine's, as the controller's parameters say).
     rotor_count: RotorCount,
-    /// The encoders of the rotors there are (rotor 1's, then rotor 2's).
-    encoders: Vec<Encoder>,
-    frozen_count: [Option<u32>; 2],
-    /// The current sensors of the rotors there are.
-    currents: Vec<CurrentSensor>,
+    /// The encoders and current sensors of the rotors there are.
+    sensors: BoardSensors,
     supply: f64,
     dt: f32,
     /// Commands still to send: (time, command), in time order.
@@ -117,22 +117,10 @@ impl ControllerDriver {
     /// The controller for `machine`, powered on, with `schedule` commands.
     pub fn new(machine: &Machine, schedule: Vec<(f64, Command)>) -> Result<Self, Vec<Problem>> {
         let params = params(machine)?;
-        let seed = machine.simulation.seed;
-        let encoders = machine
-            .rotors
-            .iter()
-            .enumerate()
-            .map(|(k, r)| Encoder::for_rotor(k, r, &machine.sensors, seed))
-            .collect();
-        let currents = (0..machine.rotors.len())
-            .map(|k| CurrentSensor::for_rotor(k, &machine.sensors, seed))
-            .collect();
         Ok(ControllerDriver {
             rotor_count: params.rotor_count,
             controller: Controller::new(&params, ResetCause::PowerOn),
-            encoders,
-            frozen_count: [None; 2],
-            currents,
+            sensors: BoardSensors::new(machine),
             supply: machine.drive.supply_voltage,
             dt: (1.0 / machine.controller.rate_hz) as f32,
             schedule,
@@ -190,30 +178,7 @@ impl Driver for ControllerDriver {
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
         // 1. Sensors.
-        // The currents averaged over the tick just ended, as the firmware's ADC
-        // buffer gives them (`Inputs::current`).
-        let i = plant.mean_currents();
-        let mut encoder = [0u32; 2];
-        let mut index = [None; 2];
-        let mut current = [0.0f32; 2];
-        for (k, e) in self.encoders.iter_mut().enumerate() {
-            let (phi, phi_dot) = plant.rotor_angle(k);
-            let mut r = e.sample(t, phi, phi_dot);
-            if self.injected.encoder_reversed[k] {
-                r.count = r.count.wrapping_neg();
-                r.index_count = r.index_count.map(u32::wrapping_neg);
-            }
-            if self.injected.encoder_dropout[k] {
-                encoder[k] = *self.frozen_count[k].get_or_insert(r.count);
-            } else {
-                self.frozen_count[k] = None;
-                encoder[k] = r.count;
-                index[k] = r.index_count;
-            }
-        }
-        for (k, sensor) in self.currents.iter_mut().enumerate() {
-            current[k] = (sensor.measure(i[k]) + self.injected.current_offset[k]) as f32;
-        }
+        let readings = self.sensors.read(t, plant, &self.injected);
         let supply = self.injected.supply_voltage.unwrap_or(self.supply);
 
         // 2. Commands due, else a heartbeat.
@@ -240,9 +205,9 @@ impl Driver for ControllerDriver {
             self.self_test_started = Some((t, started));
         }
         let inputs = Inputs {
-            encoder,
-            index,
-            current,
+            encoder: readings.encoder,
+            index: readings.index,
+            current: readings.current,
             supply_voltage: supply as f32,
             estop: self.injected.estop,
             command,
@@ -272,14 +237,7 @@ impl Driver for ControllerDriver {
 
         // 4. The H-bridges: those the controller drives (rotor 2's never on one
         // rotor), the others off.
-        let on = out.bridges;
-        let duty = [0, 1].map(|k| if on[k] { f64::from(out.duty[k]) } else { 0.0 });
-        let commands = [0, 1].map(|k| match (on[k], self.injected.motor_reversed[k]) {
-            (false, _) => BridgeCommand::Off,
-            (true, false) => BridgeCommand::Duty(duty[k]),
-            (true, true) => BridgeCommand::Duty(-duty[k]),
-        });
-        (commands, duty)
+        bridge_commands(&out, self.injected.motor_reversed)
     }
 
     fn state(&self) -> String {

@@ -17,6 +17,7 @@
 //! trace's rotor 2 columns (`phi2`, `omega2`, `i2`, `duty2`) as 0
 //! ([`crate::plant::model::PlantModel::row`]).
 
+pub mod board;
 pub mod closed_loop;
 pub mod limits;
 pub mod summary;

@@ -1,0 +1,108 @@
+//! The whole machine behind the simulated device (`host-sim device-sim
+//! --machine`): the plant of `host-sim run` (platform, contacts and impacts,
+//! motors, H-bridges as wired) with the board's sensors, stepped one control tick
+//! at a time.
+//!
+//! A tick ([`Mechanics::advance`]), the stages of `host-sim run`'s loop in the
+//! firmware's order (the outputs of the last step act over the tick, the sensors
+//! are read at its end for the next step):
+//! 1. the controller's last outputs on the H-bridges
+//!    ([`crate::simulation::board::bridge_commands`]; open windings before the
+//!    first step);
+//! 2. the plant integrated to the tick's end, `t_k = k / rate_hz`; its events dropped
+//!    (nobody records them here, and a long run must not pile them up);
+//! 3. the sensors read there ([`BoardSensors::read`]): encoders, index pulses and
+//!    currents averaged over the tick, with the machine's noise and seed.
+
+use shared::controller::Outputs;
+
+use super::mechanics::{Mechanics, PlatformPose};
+use crate::machine::Machine;
+use crate::plant::bridge::BridgeCommand;
+use crate::plant::model::{initial_state, PlantModel};
+use crate::plant::simulator::{Holds, Plant, Settings};
+use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
+use crate::simulation::closed_loop::Injected;
+
+/// A machine file's plant with its board's sensors.
+pub struct PlantMechanics {
+    plant: Plant,
+    sensors: BoardSensors,
+    /// Control ticks integrated so far.
+    ticks: u64,
+    /// The machine's control rate, Hz: tick `k` ends at `k / rate_hz`, the
+    /// times `host-sim run` stops its plant at.
+    rate_hz: f64,
+    /// Nominal supply voltage, V.
+    supply: f64,
+}
+
+impl PlantMechanics {
+    /// `machine` at its start state (`t = 0`), windings open, integrated at the
+    /// machine file's `[simulation].rtol`.
+    pub fn new(machine: &Machine) -> Self {
+        let settings = Settings {
+            rtol: machine.simulation.rtol,
+            ..Settings::default()
+        };
+        let plant = Plant::new(
+            PlantModel::new(machine),
+            initial_state(machine),
+            settings,
+            Holds::default(),
+        );
+        PlantMechanics {
+            plant,
+            sensors: BoardSensors::new(machine),
+            ticks: 0,
+            rate_hz: machine.controller.rate_hz,
+            supply: machine.drive.supply_voltage,
+        }
+    }
+
+    /// Simulated time, s.
+    pub fn t(&self) -> f64 {
+        self.plant.t
+    }
+}
+
+impl Mechanics for PlantMechanics {
+    /// `dt` is the machine's control period, `1 / rate_hz` (the device's tick).
+    fn advance(&mut self, out: Option<&Outputs>, dt: f64) -> Readings {
+        debug_assert!((dt * self.rate_hz - 1.0).abs() < 1e-9, "dt {dt}");
+        // 1. The bridges.
+        let commands = out.map_or([BridgeCommand::Off; 2], |o| {
+            bridge_commands(o, [false; 2]).0
+        });
+        self.plant.set_bridges(commands);
+        // 2. To the tick's end.
+        self.ticks += 1;
+        let t = self.ticks as f64 / self.rate_hz;
+        self.plant.advance_to(t, &mut |_| {});
+        self.plant.events.clear();
+        // 3. The sensors.
+        self.sensors.read(t, &self.plant, &Injected::default())
+    }
+
+    fn supply(&self) -> f32 {
+        self.supply as f32
+    }
+
+    fn speeds_rpm(&self) -> [f64; 2] {
+        // In the driven sense, s_k dphi_k/dt; rad/s to rpm: x 60 / (2 pi).
+        let rotors = &self.plant.model.rotors;
+        [0, 1].map(|k| match rotors.get(k) {
+            Some(r) => r.sense * self.plant.rotor_angle(k).1 * 60.0 / std::f64::consts::TAU,
+            None => 0.0,
+        })
+    }
+
+    fn platform(&self) -> Option<PlatformPose> {
+        let [x, y, angle, ..] = self.plant.platform_motion();
+        Some(PlatformPose { x, y, angle })
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.plant.warnings.clone()
+    }
+}

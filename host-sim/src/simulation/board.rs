@@ -1,0 +1,101 @@
+//! The board's two ends on the plant, as the firmware's control task sees them:
+//! the sensors sampled into the controller's inputs ([`BoardSensors::read`]) and
+//! the controller's outputs put on the H-bridges ([`bridge_commands`]). The
+//! controller in the loop of `host-sim run` ([`super::closed_loop`]) and the
+//! simulated device of `host-sim device-sim --machine` share them.
+//!
+//! A machine with one rotor: only rotor 1's encoder and current sensor exist;
+//! rotor 2 reads at rest (counter 0, no index, 0 A), and its bridge stays off as
+//! long as the controller does not drive it (it never does on one rotor).
+
+use shared::controller::Outputs;
+
+use crate::machine::Machine;
+use crate::plant::bridge::BridgeCommand;
+use crate::plant::sensors::{CurrentSensor, Encoder};
+use crate::plant::simulator::Plant;
+use crate::simulation::closed_loop::Injected;
+
+/// What the sensors read at a control tick: the controller's
+/// [`shared::controller::Inputs`] from the plant.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Readings {
+    /// The encoder counters (wrapping 32-bit).
+    pub encoder: [u32; 2],
+    /// The counter latched at the last index pulse since the previous reading.
+    pub index: [Option<u32>; 2],
+    /// The winding currents, A, averaged over the tick just ended.
+    pub current: [f32; 2],
+}
+
+/// The encoders and current sensors of a machine's rotors (rotor 1's, then rotor
+/// 2's, as many as it has), their noise from the machine's seed.
+#[derive(Clone, Debug)]
+pub struct BoardSensors {
+    encoders: Vec<Encoder>,
+    /// The counter where a lost encoder stopped.
+    frozen_count: [Option<u32>; 2],
+    currents: Vec<CurrentSensor>,
+}
+
+impl BoardSensors {
+    /// The sensors of `machine` at its start angles.
+    pub fn new(machine: &Machine) -> Self {
+        let seed = machine.simulation.seed;
+        BoardSensors {
+            encoders: machine
+                .rotors
+                .iter()
+                .enumerate()
+                .map(|(k, r)| Encoder::for_rotor(k, r, &machine.sensors, seed))
+                .collect(),
+            frozen_count: [None; 2],
+            currents: (0..machine.rotors.len())
+                .map(|k| CurrentSensor::for_rotor(k, &machine.sensors, seed))
+                .collect(),
+        }
+    }
+
+    /// The readings at time `t`, s, of `plant` (its state at `t`), with the
+    /// sensor faults of `injected` (encoder reversed or lost, current offset).
+    pub fn read(&mut self, t: f64, plant: &Plant, injected: &Injected) -> Readings {
+        let mut r = Readings::default();
+        // The encoders: quantised, wrapping, index pulses, edge jitter.
+        for (k, e) in self.encoders.iter_mut().enumerate() {
+            let (phi, phi_dot) = plant.rotor_angle(k);
+            let mut reading = e.sample(t, phi, phi_dot);
+            if injected.encoder_reversed[k] {
+                reading.count = reading.count.wrapping_neg();
+                reading.index_count = reading.index_count.map(u32::wrapping_neg);
+            }
+            if injected.encoder_dropout[k] {
+                r.encoder[k] = *self.frozen_count[k].get_or_insert(reading.count);
+            } else {
+                self.frozen_count[k] = None;
+                r.encoder[k] = reading.count;
+                r.index[k] = reading.index_count;
+            }
+        }
+        // The currents averaged over the tick just ended, as the firmware's ADC
+        // buffer gives them (`Inputs::current`).
+        let i = plant.mean_currents();
+        for (k, sensor) in self.currents.iter_mut().enumerate() {
+            r.current[k] = (sensor.measure(i[k]) + injected.current_offset[k]) as f32;
+        }
+        r
+    }
+}
+
+/// The H-bridge commands for the controller's outputs `out`: the duty on the
+/// bridges it drives (negated where the motor's leads are swapped,
+/// `motor_reversed`), the others off; and the duties to record (0 where off).
+pub fn bridge_commands(out: &Outputs, motor_reversed: [bool; 2]) -> ([BridgeCommand; 2], [f64; 2]) {
+    let on = out.bridges;
+    let duty = [0, 1].map(|k| if on[k] { f64::from(out.duty[k]) } else { 0.0 });
+    let commands = [0, 1].map(|k| match (on[k], motor_reversed[k]) {
+        (false, _) => BridgeCommand::Off,
+        (true, false) => BridgeCommand::Duty(duty[k]),
+        (true, true) => BridgeCommand::Duty(-duty[k]),
+    });
+    (commands, duty)
+}

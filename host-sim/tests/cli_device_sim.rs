@@ -1,0 +1,268 @@
+//! `host-sim device-sim --machine M.toml --truth FILE.csv` through the real
+//! binaries: the reference machine's whole plant behind the link, driven by
+//! `host-sim device` (status, hold, travel, stop through `--for`), its platform's
+//! true pose read from the truth file while the device runs; and its refusals of
+//! bad input (exit 2, nothing served).
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::PathBuf;
+use std::process::{Child, Stdio};
+use std::thread::JoinHandle;
+
+mod common;
+use common::Run;
+
+fn host_sim(args: &[&str]) -> Run {
+    let mut cmd = common::host_sim();
+    cmd.args(args).stdin(Stdio::null());
+    common::finish(cmd)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("cli-device-sim", name)
+}
+
+/// A `host-sim device-sim` process this test started, killed by its handle if
+/// the test ends early.
+struct DeviceSim {
+    child: Child,
+    port: String,
+    stderr: Option<JoinHandle<String>>,
+}
+
+impl DeviceSim {
+    /// `host-sim device-sim --listen tcp:127.0.0.1:0 args...`, its port read.
+    fn start(args: &[&str]) -> DeviceSim {
+        let mut child = common::host_sim()
+            .args(["device-sim", "--listen", "tcp:127.0.0.1:0"])
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("device-sim runs");
+        let mut err = child.stderr.take().expect("piped");
+        let stderr = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = err.read_to_string(&mut s);
+            s
+        });
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().expect("piped"))
+            .read_line(&mut first)
+            .expect("the port line");
+        let port = first
+            .trim()
+            .strip_prefix("port: ")
+            .unwrap_or_else(|| panic!("first line {first:?}"))
+            .to_string();
+        DeviceSim {
+            child,
+            port,
+            stderr: Some(stderr),
+        }
+    }
+
+    /// `host-sim device --port PORT args...`, which must succeed.
+    fn device(&self, args: &[&str]) -> String {
+        let mut all = vec!["device", "--port", &self.port];
+        all.extend_from_slice(args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 0, "{args:?}: {}{}", r.stdout, r.stderr);
+        r.stdout
+    }
+
+    /// The device's uptime, s, from `status`.
+    fn uptime(&self) -> f64 {
+        let status = self.device(&["status"]);
+        let line = status
+            .lines()
+            .find(|l| l.starts_with("uptime"))
+            .unwrap_or_else(|| panic!("{status}"));
+        line.trim_start_matches("uptime")
+            .trim()
+            .trim_end_matches(" s")
+            .parse()
+            .unwrap_or_else(|e| panic!("{line}: {e}"))
+    }
+
+    /// Ctrl-C to the process this test started, by its id; its exit status and
+    /// stderr.
+    fn interrupt(mut self) -> (i32, String) {
+        let pid = nix::unistd::Pid::from_raw(i32::try_from(self.child.id()).unwrap());
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
+        let status = self.child.wait().expect("ends");
+        let stderr = self.stderr.take().unwrap().join().unwrap();
+        (status.code().unwrap_or(-1), stderr)
+    }
+}
+
+impl Drop for DeviceSim {
+    fn drop(&mut self) {
+        if self.stderr.is_some() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// The truth file's rows `(t, x, y, angle)` so far, the header checked.
+fn truth_rows(path: &PathBuf) -> Vec<[f64; 4]> {
+    let text = std::fs::read_to_string(path).expect("the truth file");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,x,y,angle"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|f| f.parse().expect(l)).collect();
+            assert_eq!(v.len(), 4, "{l}");
+            [v[0], v[1], v[2], v[3]]
+        })
+        .collect()
+}
+
+/// `x` at the last row at or before `t`.
+fn x_at(rows: &[[f64; 4]], t: f64) -> f64 {
+    rows.iter()
+        .take_while(|r| r[0] <= t)
+        .last()
+        .unwrap_or_else(|| panic!("no row by {t} s"))[1]
+}
+
+/// Hold 90 degrees at 3000 rpm for 4 s (the link kept alive by `--for`), then
+/// travel left at 3000 rpm (the machine's table's offset) for 4 s: the truth file
+/// shows the platform going right, then left, by about what `host-sim run` finds
+/// at those points: 33.3 mm/s right at 90 degrees, 31.9 mm/s left with the table
+/// (`host-sim run examples/vibro-driver.toml --command right --offset 90` and
+/// `--command left`, 4 s). Each hold reaches speed and its offset within 1.7 s
+/// (the speed ramp, then the offset reference at 180 deg/s), so at least 2.3 s of
+/// each 4 s are steady travel, about 73 mm: at least 40 mm each way leaves room
+/// for the host's start-up and the ramps' own travel either way. The file is
+/// read while the device runs: its last row is no older than 50 ms (a row every
+/// 10 ms, each flushed).
+#[cfg(unix)]
+#[test]
+fn the_truth_shows_the_platform_travel_right_then_left() {
+    let truth = scratch("truth.csv");
+    let machine = common::machine();
+    let dev = DeviceSim::start(&[
+        "--machine",
+        machine.to_str().unwrap(),
+        "--truth",
+        truth.to_str().unwrap(),
+        "--duration",
+        "40",
+    ]);
+    let t0 = dev.uptime();
+    let hold = dev.device(&["hold", "--offset", "90", "--speed", "3000", "--for", "4"]);
+    assert!(hold.contains("stop: accepted"), "{hold}");
+    let t1 = dev.uptime();
+    let left = dev.device(&["travel", "left", "--speed", "3000", "--for", "4"]);
+    assert!(left.contains("stop: accepted"), "{left}");
+    let t2 = dev.uptime();
+
+    // Fresh: read while the device runs.
+    let rows = truth_rows(&truth);
+    let last = rows.last().expect("rows")[0];
+    assert!(last >= t2 - 0.05, "last row at {last} s, uptime {t2} s");
+    // A row every 10 ms from 0.
+    for (k, r) in rows.iter().enumerate() {
+        assert!((r[0] - k as f64 * 0.01).abs() < 1e-9, "row {k}: {r:?}");
+    }
+    let right = x_at(&rows, t1) - x_at(&rows, t0);
+    let leftward = x_at(&rows, t2) - x_at(&rows, t1);
+    assert!(right > 0.040, "right: {right} m from {t0} to {t1} s");
+    assert!(leftward < -0.040, "left: {leftward} m from {t1} to {t2} s");
+    // Standing on the floor: the centre of mass near its 30 mm, level.
+    for r in &rows {
+        assert!((r[2] - 0.03).abs() < 0.005 && r[3].abs() < 0.1, "{r:?}");
+    }
+
+    // Ctrl-C ends it cleanly; the last note says how far the platform went.
+    let (status, stderr) = dev.interrupt();
+    assert_eq!(status, 0, "{stderr}");
+    let end = truth_rows(&truth);
+    let travelled = end.last().unwrap()[1] - end[0][1];
+    let note = format!("the platform travelled {travelled:+.4} m");
+    assert!(stderr.contains(&note), "{note:?} not in {stderr}");
+    assert!(stderr.contains("x real time"), "{stderr}");
+}
+
+/// Bad input is refused before anything is served: exit 2, a line naming the
+/// option or file, no port printed, no truth file left where none could be.
+#[test]
+fn bad_input_is_refused_before_serving() {
+    let machine = common::machine();
+    let machine = machine.to_str().unwrap();
+    let dir = std::env::temp_dir();
+    let missing_dir = scratch("no-such-dir").join("truth.csv");
+    // A machine whose control tick is not a whole number of milliseconds.
+    let text = std::fs::read_to_string(machine)
+        .unwrap()
+        .replace("rate_hz = 1000", "rate_hz = 1500")
+        .replace(
+            "tuning_table = \"vibro-driver.tuning.toml\"",
+            &format!(
+                "tuning_table = {:?}",
+                common::root().join("examples/vibro-driver.tuning.toml")
+            ),
+        );
+    let fast = scratch("fast.toml");
+    std::fs::write(&fast, text).unwrap();
+    let cases: Vec<(Vec<&str>, String)> = vec![
+        (
+            vec!["--machine", machine, "--truth", dir.to_str().unwrap()],
+            format!("error: --truth: cannot write {}: is a directory", dir.display()),
+        ),
+        (
+            vec!["--machine", machine, "--truth", missing_dir.to_str().unwrap()],
+            format!("error: --truth: cannot write {}: ", missing_dir.display()),
+        ),
+        (
+            vec!["--truth", "t.csv"],
+            "--machine <MACHINE.toml>".to_string(),
+        ),
+        (
+            vec!["--machine", "no-such-machine.toml"],
+            "no-such-machine.toml".to_string(),
+        ),
+        (
+            vec!["--machine", fast.to_str().unwrap()],
+            format!(
+                "error: {}: controller.rate_hz: device-sim runs control ticks of whole milliseconds",
+                fast.display()
+            ),
+        ),
+    ];
+    for (args, expect) in cases {
+        let mut all = vec![
+            "device-sim",
+            "--listen",
+            "tcp:127.0.0.1:0",
+            "--duration",
+            "5",
+        ];
+        all.extend_from_slice(&args);
+        let r = host_sim(&all);
+        r.refused(&expect);
+        assert_eq!(r.stdout, "", "{args:?}");
+        // Ours are one line (the argument parser's usage error has its own form).
+        if expect.starts_with("error: ") {
+            assert_eq!(r.stderr.lines().count(), 1, "{args:?}: {}", r.stderr);
+        }
+    }
+    assert!(!missing_dir.exists());
+}
+
+/// Without `--machine`, `device-sim` is the simple rotors' as before: no
+/// platform, so no travel in its last note (the simple-rotor tests of
+/// `cli_device.rs` cover the rest).
+#[cfg(unix)]
+#[test]
+fn without_a_machine_the_simple_rotors_serve() {
+    let dev = DeviceSim::start(&["--duration", "20"]);
+    assert!(dev.uptime() >= 0.0);
+    let (status, stderr) = dev.interrupt();
+    assert_eq!(status, 0, "{stderr}");
+    assert!(stderr.contains("on simulated rotors"), "{stderr}");
+    assert!(!stderr.contains("travelled"), "{stderr}");
+}
