@@ -2,12 +2,17 @@
 //! binary: the page is written whole, self-contained and byte-identical for the same
 //! run; its frames are the trace's rows (to the page's rounding) every 2 ms with
 //! every impact; a 60 s run stays under the documented size; a refused run writes
-//! nothing.
+//! nothing. In a headless chromium (`browser`): no console error, the clock
+//! advancing by the rate while playing and standing when paused, the slider
+//! showing the traced pose (at frames, an impact, between frames) and moving the
+//! drawing, the fragment's settings; screenshots in `target/browser/animation-*.png`.
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
-use serde_json::Value;
+use serde_json::{json, Value};
 
+mod browser;
 mod common;
 use common::{root, run, run_machine};
 
@@ -23,9 +28,12 @@ const SIZE_60_S: u64 = 5_000_000;
 const FRAME_STEP: f64 = 2e-3;
 
 /// The reference machine travelling right for `t_end` s at rtol 1e-3 (fast),
-/// writing the animation to `page` and the trace and events when given.
+/// writing the animation to `page` and the trace and events when given. The
+/// machine file is named from the repository root, as the page's title shows it.
 fn travel(t_end: &str, page: &Path, trace: Option<(&Path, &Path)>) -> common::Run {
     let mut args = vec![
+        "run",
+        "examples/vibro-driver.toml",
         "--command",
         "right",
         "--t-end",
@@ -39,7 +47,7 @@ fn travel(t_end: &str, page: &Path, trace: Option<(&Path, &Path)>) -> common::Ru
         args.extend(["--out", out.to_str().unwrap()]);
         args.extend(["--events", events.to_str().unwrap()]);
     }
-    run_machine("run", &args)
+    run(&args)
 }
 
 /// The JSON the page embeds (`<script type="application/json" id="data">`).
@@ -268,4 +276,249 @@ fn scenario_animate_writes_the_scenario_run() {
     let r = animate_scenario(&long, &page);
     r.refused("an animation holds at most 600 s");
     assert!(!page.exists());
+}
+
+// --- in a real browser ---------------------------------------------------------
+
+/// The platform's pose columns of the trace, with their rates (for the bound on
+/// interpolating between frames).
+const POSE: [(&str, &str); 3] = [("x", "vx"), ("y", "vy"), ("angle", "omega")];
+
+/// The trace as rows of numbers, with the index of each column name.
+struct Trace {
+    header: Vec<String>,
+    rows: Vec<Vec<f64>>,
+}
+
+impl Trace {
+    fn read(path: &Path) -> Trace {
+        let (header, rows) = read_csv(path);
+        let rows = rows
+            .iter()
+            .map(|r| r.iter().map(|v| v.parse().unwrap()).collect())
+            .collect();
+        Trace { header, rows }
+    }
+
+    fn col(&self, name: &str) -> usize {
+        self.header.iter().position(|h| h == name).unwrap()
+    }
+
+    /// The first row at or after `t`, with the page's nanosecond of slack (the
+    /// row of the frame at `t` when `t` is a multiple of 2 ms): a row at `t`.
+    fn at(&self, t: f64) -> &[f64] {
+        let row = self
+            .rows
+            .iter()
+            .find(|r| r[0] >= t - 1e-9)
+            .unwrap_or_else(|| panic!("no trace row after {t}"));
+        assert!(
+            (row[0] - t).abs() <= 1e-9,
+            "no trace row at {t}: {}",
+            row[0]
+        );
+        row
+    }
+
+    /// The time of the highest hop (the largest |y - y(0)|) within 50 ms of
+    /// `around`, among the rows at whole milliseconds: even ones (a frame's time)
+    /// when `frame`, else odd ones (halfway between two frames).
+    fn hop_top(&self, around: f64, frame: bool) -> f64 {
+        let y = self.col("y");
+        let y0 = self.rows[0][y];
+        let ms = self
+            .rows
+            .iter()
+            .filter(|r| (r[0] - around).abs() <= 0.05)
+            .filter(|r| {
+                let ms = r[0] * 1e3;
+                (ms - ms.round()).abs() < 1e-6 && (ms.round() as i64 % 2 == 0) == frame
+            })
+            .max_by(|p, q| (p[y] - y0).abs().total_cmp(&(q[y] - y0).abs()))
+            .map(|r| (r[0] * 1e3).round())
+            .unwrap_or_else(|| panic!("no rows near {around} s"));
+        ms / 1e3
+    }
+
+    /// The largest |value| of column `name` over the run.
+    fn max_abs(&self, name: &str) -> f64 {
+        let c = self.col(name);
+        self.rows.iter().map(|r| r[c].abs()).fold(0.0, f64::max)
+    }
+}
+
+/// The canvas `id`'s pixels as a data URL (to compare two drawings).
+fn canvas(id: &str) -> String {
+    format!("document.getElementById('{id}').toDataURL()")
+}
+
+/// Move the time slider to `t` as a user does: its value set, an `input` event.
+fn slide(b: &mut browser::Browser, t: f64) {
+    b.eval(&format!(
+        "(() => {{ const s = document.getElementById('time'); s.value = '{t}';
+          s.dispatchEvent(new Event('input', {{ bubbles: true }})); }})()"
+    ));
+}
+
+/// A screenshot `name` in the browser tests' folder.
+fn shoot(b: &mut browser::Browser, name: &str) {
+    let png = browser::output_dir().join(name);
+    b.screenshot(&png);
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "not a PNG");
+}
+
+#[test]
+fn the_page_in_a_browser_plays_and_its_slider_shows_the_traced_pose() {
+    let Some(mut b) = browser::Browser::launch() else {
+        return;
+    };
+    let (page, out, events) = (
+        scratch("browser.html"),
+        scratch("browser.csv"),
+        scratch("browser-events.csv"),
+    );
+    let r = travel("3", &page, Some((&out, &events)));
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let trace = Trace::read(&out);
+    let url = format!("file://{}", page.canonicalize().unwrap().display());
+    b.navigate(&url);
+    b.wait_for("window.vibro !== undefined", Duration::from_secs(10));
+    assert_eq!(b.console_errors(), Vec::<String>::new(), "after loading");
+
+    // The run's span: frames every 2 ms from the first row to the last.
+    let (t0, t1) = (trace.rows[0][0], trace.rows.last().unwrap()[0]);
+    let duration = b.eval("vibro.duration").as_f64().unwrap();
+    assert!((duration - t1).abs() <= 0.5e-6, "{duration} s, traced {t1}");
+    let frames = ((t1 - t0) / FRAME_STEP + 1e-9).floor() as u64 + 1;
+    assert_eq!(b.eval("vibro.frames").as_u64(), Some(frames));
+
+    // Playing advances the clock by the rate times the wall-clock time. A probe
+    // counts the animation frames: the player moves the time at each by the wall
+    // time since the one before, so what it can miss is the time from play to
+    // its first frame and from its last to the reading, each at most the
+    // largest gap G between frames the probe saw (play and reading included).
+    let probe = "(() => { const g = window.probe = { max: 0, n: 0, last: performance.now() };
+        (function f(ts) { g.max = Math.max(g.max, ts - g.last); g.last = ts; g.n++;
+          if (!g.stop) requestAnimationFrame(f); })(g.last); })()";
+    b.eval(probe);
+    // The play button clicked in the same script as the clock is read.
+    let before = b.eval(
+        "(() => { const read = [performance.now(), vibro.t()];
+           document.getElementById('play').click(); return read; })()",
+    );
+    assert_eq!(b.eval("vibro.playing()"), json!(true));
+    std::thread::sleep(Duration::from_secs(1));
+    let after = b.eval(
+        "(() => { probe.stop = true;
+           const now = performance.now();
+           return [now, vibro.t(), Math.max(probe.max, now - probe.last), probe.n]; })()",
+    );
+    b.click("#play");
+    assert_eq!(b.eval("vibro.playing()"), json!(false));
+    let rate = b.eval("vibro.rate()").as_f64().unwrap();
+    assert_eq!(
+        b.eval("Number(document.getElementById('rate').value)")
+            .as_f64(),
+        Some(rate),
+        "the rate shown"
+    );
+    let f = |v: &Value, k: usize| v[k].as_f64().unwrap();
+    let wall = (f(&after, 0) - f(&before, 0)) / 1e3;
+    let gap = f(&after, 2) / 1e3;
+    let advanced = f(&after, 1) - f(&before, 1);
+    assert!(advanced > 0.0, "the clock stood while playing");
+    assert!(
+        (advanced - rate * wall).abs() <= rate * 2.0 * gap,
+        "{advanced} s in {wall} s at rate {rate}; frames up to {gap} s apart ({} frames)",
+        after[3]
+    );
+    // Paused, the clock stands.
+    let paused = b.eval("vibro.t()");
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(b.eval("vibro.t()"), paused, "the clock moved while paused");
+
+    // The slider shows the traced pose, at the top of a hop (the platform aloft,
+    // pitched) near 0.75, 1.25 and 2.25 s, at an impact, and at a hop's top
+    // halfway between two frames near 2.75 s. At a frame's time (a multiple of
+    // 2 ms): that frame, the trace's row to the page's rounding (half of 1e-9 m
+    // or rad, relative 1e-12 for reading both files' decimals). Between frames:
+    // the trace's two frames interpolated, to the same rounding; and the trace's
+    // own row at that time within what linear interpolation over a frame can
+    // miss, |f(t) - L(t)| <= 2 V min(t - a, b - t) for f of slope at most V
+    // between frames a and b, V the run's largest rate of that coordinate in the
+    // trace (its rows every 1 ms and at every event).
+    let (header, rows) = read_csv(&events);
+    let kind = header.iter().position(|h| h == "kind").unwrap();
+    let impact: f64 = rows
+        .iter()
+        .filter(|r| r[kind] == "impact")
+        .map(|r| r[0].parse().unwrap())
+        .find(|&t: &f64| t > 1.6)
+        .expect("an impact after 1.6 s");
+    let mut drawn = Vec::new();
+    let times = [
+        trace.hop_top(0.75, true),
+        trace.hop_top(1.25, true),
+        impact,
+        trace.hop_top(2.25, true),
+        trace.hop_top(2.75, false),
+    ];
+    for t in times {
+        slide(&mut b, t);
+        // Chromium's range input keeps 15 significant digits of its value.
+        let now = b.eval("vibro.t()").as_f64().unwrap();
+        assert!((now - t).abs() <= 1e-14 * t, "the slider at {t}: {now}");
+        let pose = b.eval("vibro.pose()");
+        // The frames either side: a = the last multiple of 2 ms at or before t.
+        let k = (t / FRAME_STEP + 1e-9).floor();
+        let (a, b_) = (k * FRAME_STEP, (k + 1.0) * FRAME_STEP);
+        let s = (t - a) / FRAME_STEP;
+        for (name, rate) in POSE {
+            let c = trace.col(name);
+            let shown = pose[name].as_f64().unwrap();
+            let (fa, fb) = (trace.at(a)[c], trace.at(b_)[c]);
+            let framed = if s < 1e-9 { fa } else { fa + (fb - fa) * s };
+            assert!(
+                (shown - framed).abs() <= 0.5e-9 + 1e-12 * framed.abs(),
+                "t = {t}: {name} {shown} shown, {framed} from the trace's frames"
+            );
+            let traced = trace.at(t)[c];
+            let miss = 2.0 * trace.max_abs(rate) * (t - a).min(b_ - t);
+            assert!(
+                (shown - traced).abs() <= miss + 0.5e-9 + 1e-12 * traced.abs(),
+                "t = {t}: {name} {shown} shown, {traced} traced (interpolation: {miss})"
+            );
+        }
+        drawn.push(b.eval(&canvas("scene")));
+    }
+    // The picture moves with the slider, not only the numbers.
+    for w in drawn.windows(2) {
+        assert_ne!(w[0], w[1], "the scene did not change");
+    }
+
+    // Screenshots at a few times, magnified (the page's first choice, on the
+    // scene and in its menu).
+    let mag = b.eval("vibro.magnification()").as_f64().unwrap();
+    assert!(mag > 1.0, "magnification {mag}");
+    assert_eq!(
+        b.eval("Number(document.getElementById('mag').value)")
+            .as_f64(),
+        Some(mag)
+    );
+    for t in [0.75, 1.5] {
+        slide(&mut b, t);
+        shoot(&mut b, &format!("animation-t{t}.png"));
+    }
+    // The address's fragment sets the start: reopened with one, the page shows
+    // that time, magnification, rate and span of the traces.
+    b.navigate("about:blank");
+    b.navigate(&format!("{url}#t=2.514&mag=100&rate=0.1&span=0.1"));
+    let settings = b.eval(
+        "[vibro.t(), vibro.magnification(), vibro.rate(),
+          Number(document.getElementById('span').value)]",
+    );
+    assert_eq!(settings, json!([2.514, 100, 0.1, 0.1]));
+    shoot(&mut b, "animation-t2.514.png");
+    assert_eq!(b.console_errors(), Vec::<String>::new());
 }
