@@ -4,12 +4,11 @@
 //! true pose read from the truth file while the device runs; and its refusals of
 //! bad input (exit 2, nothing served).
 
-use std::io::{BufRead, BufReader, Read};
 use std::path::PathBuf;
-use std::process::{Child, Stdio};
-use std::thread::JoinHandle;
+use std::process::Stdio;
 
 mod common;
+use common::device_sim::{truth_rows, x_at, DeviceSim};
 use common::Run;
 
 fn host_sim(args: &[&str]) -> Run {
@@ -20,112 +19,6 @@ fn host_sim(args: &[&str]) -> Run {
 
 fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-device-sim", name)
-}
-
-/// A `host-sim device-sim` process this test started, killed by its handle if
-/// the test ends early.
-struct DeviceSim {
-    child: Child,
-    port: String,
-    stderr: Option<JoinHandle<String>>,
-}
-
-impl DeviceSim {
-    /// `host-sim device-sim --listen tcp:127.0.0.1:0 args...`, its port read.
-    fn start(args: &[&str]) -> DeviceSim {
-        let mut child = common::host_sim()
-            .args(["device-sim", "--listen", "tcp:127.0.0.1:0"])
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("device-sim runs");
-        let mut err = child.stderr.take().expect("piped");
-        let stderr = std::thread::spawn(move || {
-            let mut s = String::new();
-            let _ = err.read_to_string(&mut s);
-            s
-        });
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().expect("piped"))
-            .read_line(&mut first)
-            .expect("the port line");
-        let port = first
-            .trim()
-            .strip_prefix("port: ")
-            .unwrap_or_else(|| panic!("first line {first:?}"))
-            .to_string();
-        DeviceSim {
-            child,
-            port,
-            stderr: Some(stderr),
-        }
-    }
-
-    /// `host-sim device --port PORT args...`, which must succeed.
-    fn device(&self, args: &[&str]) -> String {
-        let mut all = vec!["device", "--port", &self.port];
-        all.extend_from_slice(args);
-        let r = host_sim(&all);
-        assert_eq!(r.status, 0, "{args:?}: {}{}", r.stdout, r.stderr);
-        r.stdout
-    }
-
-    /// The device's uptime, s, from `status`.
-    fn uptime(&self) -> f64 {
-        let status = self.device(&["status"]);
-        let line = status
-            .lines()
-            .find(|l| l.starts_with("uptime"))
-            .unwrap_or_else(|| panic!("{status}"));
-        line.trim_start_matches("uptime")
-            .trim()
-            .trim_end_matches(" s")
-            .parse()
-            .unwrap_or_else(|e| panic!("{line}: {e}"))
-    }
-
-    /// Ctrl-C to the process this test started, by its id; its exit status and
-    /// stderr.
-    fn interrupt(mut self) -> (i32, String) {
-        let pid = nix::unistd::Pid::from_raw(i32::try_from(self.child.id()).unwrap());
-        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
-        let status = self.child.wait().expect("ends");
-        let stderr = self.stderr.take().unwrap().join().unwrap();
-        (status.code().unwrap_or(-1), stderr)
-    }
-}
-
-impl Drop for DeviceSim {
-    fn drop(&mut self) {
-        if self.stderr.is_some() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-}
-
-/// The truth file's rows `(t, x, y, angle)` so far, the header checked.
-fn truth_rows(path: &PathBuf) -> Vec<[f64; 4]> {
-    let text = std::fs::read_to_string(path).expect("the truth file");
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("t,x,y,angle"));
-    lines
-        .map(|l| {
-            let v: Vec<f64> = l.split(',').map(|f| f.parse().expect(l)).collect();
-            assert_eq!(v.len(), 4, "{l}");
-            [v[0], v[1], v[2], v[3]]
-        })
-        .collect()
-}
-
-/// `x` at the last row at or before `t`.
-fn x_at(rows: &[[f64; 4]], t: f64) -> f64 {
-    rows.iter()
-        .take_while(|r| r[0] <= t)
-        .last()
-        .unwrap_or_else(|| panic!("no row by {t} s"))[1]
 }
 
 /// Hold 90 degrees at 3000 rpm for 4 s (the link kept alive by `--for`), then

@@ -41,6 +41,6 @@ pub mod serial;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;
+pub mod truth;
 pub mod tune;
 pub mod tune_table;
-pub mod truth;
