@@ -274,7 +274,7 @@ impl Limit {
     }
 
     /// What is allowed, as in `must be > 0`.
-    fn describe(self) -> String {
+    pub fn describe(self) -> String {
         match self {
             Limit::Any => "a finite number".to_string(),
             Limit::Positive => "> 0".to_string(),

@@ -198,7 +198,7 @@ fn resolve_one(
                     return Err(format!(
                         "error: {file}: --fit {key}: {} must be {} and has no finite range to search: give its range in the file's [uncertainty], e.g. \"{key}\" = [{}, {}] (docs/calibration.md)",
                         n.key_path,
-                        describe(n.limit),
+                        n.limit.describe(),
                         text::sig(example_range(n.value).0),
                         text::sig(example_range(n.value).1),
                     ));
@@ -225,17 +225,6 @@ fn resolve_one(
         bound,
         nominal,
     })
-}
-
-/// What a limit allows, for a message.
-fn describe(limit: Limit) -> String {
-    match limit {
-        Limit::Any => "any finite number".into(),
-        Limit::Positive => "> 0".into(),
-        Limit::NonNegative => ">= 0".into(),
-        Limit::Between(lo, hi) => format!("in [{}, {}]", text::sig(lo), text::sig(hi)),
-        Limit::AtLeast(lo) => format!(">= {}", text::sig(lo)),
-    }
 }
 
 /// A range to suggest around `value`: half to one and a half times it (or -1 to 1
