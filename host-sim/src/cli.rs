@@ -13,6 +13,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use crate::calibrate::CalibrateArgs;
 use crate::device::args::{DeviceArgs, DeviceSimArgs};
 use crate::failure::{Console, Failure, EXIT_OK};
 use crate::impact::ImpactArgs;
@@ -20,7 +21,7 @@ use crate::run::RunArgs;
 use crate::scenario::ScenarioArgs;
 use crate::tune::merge::MergeArgs;
 use crate::tune::TuneArgs;
-use crate::{device, impact, run, scenario, tune};
+use crate::{calibrate, device, impact, run, scenario, tune};
 
 /// The vibro driver's host simulator, impact analysis and tuning tool.
 #[derive(Debug, Parser)]
@@ -47,6 +48,9 @@ pub enum Command {
     /// Combine the partial results of `tune --shard I/N` into the whole sweep's
     /// output, as `tune` without `--shard` gives it (see docs/scale-out.md).
     Merge(MergeArgs),
+    /// Fit keys of the machine file to travel speeds measured on the real machine
+    /// (see docs/calibration.md).
+    Calibrate(CalibrateArgs),
     /// Talk to the board over its UART (a serial port or tcp:HOST:PORT): status,
     /// travel, stop, hold, reset, telemetry, self-test, tuning table (see
     /// docs/cli-device.md).
@@ -77,6 +81,7 @@ pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
         Command::Scenario(args) => scenario::run(&args, console),
         Command::Tune(args) => tune::run(&args, console),
         Command::Merge(args) => tune::merge::run(&args, console),
+        Command::Calibrate(args) => calibrate::run(&args, console),
         Command::Device(args) => device::commands::run(&args, console),
         Command::DeviceSim(args) => device::serve::run(&args, console),
     };

@@ -12,13 +12,15 @@
 //! - [`output`]: whole files, CSV, SVG pieces and text for people;
 //! - the commands: [`impact`] (one impact from a case file), [`run`] (a machine file
 //!   simulated), [`scenario`] (timed commands, injected faults, judged
-//!   expectations), [`tune`] (the sweep of speed and phase offset), [`device`] (the
-//!   UART link to a board, and a simulated board);
+//!   expectations), [`tune`] (the sweep of speed and phase offset), [`calibrate`]
+//!   (machine keys fitted to measured travel), [`device`] (the UART link to a
+//!   board, and a simulated board);
 //! - [`cli`]: the top-level command line, the arguments commands share, and the one
 //!   place that turns a command's result into output and an exit status.
 #![warn(missing_docs)]
 
 pub mod args;
+pub mod calibrate;
 pub mod cli;
 pub mod device;
 pub mod failure;

@@ -18,20 +18,10 @@ fn scratch(name: &str) -> PathBuf {
 
 /// The reference machine with `[uncertainty]` (its tuning table from `examples/`).
 fn uncertain_machine() -> PathBuf {
-    let text = std::fs::read_to_string(common::machine()).unwrap().replace(
-        "tuning_table = \"vibro-driver.tuning.toml\"",
-        &format!(
-            "tuning_table = {:?}",
-            common::root().join("examples/vibro-driver.tuning.toml")
-        ),
-    );
-    let path = scratch("uncertain.toml");
-    std::fs::write(
-        &path,
-        format!("{text}\n[uncertainty]\n\"contacts.*.restitution\" = [0.25, 0.4]\n\"motor.resistance\" = [1.8, 2.4]\n"),
+    common::uncertain_machine(
+        "cli-tune-robust",
+        "\"contacts.*.restitution\" = [0.25, 0.4]\n\"motor.resistance\" = [1.8, 2.4]\n",
     )
-    .unwrap();
-    path
 }
 
 /// The grid of these tests: 3000 rpm, four offsets, 3 s (the reference machine's

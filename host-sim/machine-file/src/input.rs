@@ -80,11 +80,27 @@ pub fn render(problems: &[Problem]) -> String {
     out
 }
 
-/// The problems found so far in one file. Shared by every [`Section`] of the file.
+/// The problems found so far in one file. Shared by every [`Section`] of the file,
+/// which also records here every number it read with the limit it was checked
+/// against ([`Problems::numbers`]).
 #[derive(Debug)]
 pub struct Problems {
     file: String,
     list: RefCell<Vec<Problem>>,
+    numbers: RefCell<Vec<NumberRead>>,
+}
+
+/// A number [`Section::number`] read and accepted: where, its value (or the
+/// default it took) and the range it was checked against, as the reader declares
+/// it (so a caller needing a key's valid range asks the reader, not a copy).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NumberRead {
+    /// The key path, elements numbered from 0 (`contacts[0].restitution`).
+    pub key_path: String,
+    /// The value read, or the default taken for a missing key.
+    pub value: f64,
+    /// The range it was checked against.
+    pub limit: Limit,
 }
 
 impl Problems {
@@ -93,7 +109,14 @@ impl Problems {
         Problems {
             file: file.into(),
             list: RefCell::new(Vec::new()),
+            numbers: RefCell::new(Vec::new()),
         }
+    }
+
+    /// Every number read so far with [`Section::number`] and accepted, in the
+    /// order read.
+    pub fn numbers(&self) -> Vec<NumberRead> {
+        self.numbers.borrow().clone()
     }
 
     /// The file's name.
@@ -251,7 +274,7 @@ impl Limit {
     }
 
     /// What is allowed, as in `must be > 0`.
-    fn describe(self) -> String {
+    pub fn describe(self) -> String {
         match self {
             Limit::Any => "a finite number".to_string(),
             Limit::Positive => "> 0".to_string(),
@@ -416,13 +439,21 @@ impl<'a> Section<'a> {
             Limit::Any => "a number".to_string(),
             l => format!("a number {}", l.describe()),
         };
-        self.number_by(key, need, &what, |x| {
+        let read = self.number_by(key, need, &what, |x| {
             if limit.admits(x) {
                 Ok(())
             } else {
                 Err(limit.describe())
             }
-        })
+        });
+        if let Some(value) = read {
+            self.problems.numbers.borrow_mut().push(NumberRead {
+                key_path: self.key_path(key),
+                value,
+                limit,
+            });
+        }
+        read
     }
 
     /// A finite number that `rule` accepts: `rule(x)` is `Err(requirement)` for a

@@ -314,6 +314,25 @@ impl Machine {
         }
     }
 
+    /// Every number of the machine file `file` (its `text` with the `--set`s
+    /// `sets`, which must pass every check, as [`Machine::from_text`]) as the
+    /// reader read it: its key path, value (or default) and the range it was
+    /// checked against. The valid range of a key, for callers that vary it
+    /// (`host-sim calibrate`), from the one place that declares it.
+    pub fn numbers(
+        file: &str,
+        text: &str,
+        dir: &Path,
+        sets: &[String],
+    ) -> Result<Vec<input::NumberRead>, Vec<Problem>> {
+        Machine::from_text(file, text, dir, sets)?;
+        let mut table = input::parse(file, text).map_err(|p| vec![p])?;
+        let _ = set::apply(&mut table, sets);
+        let problems = Problems::new(file);
+        let _ = check(&table, &problems, dir);
+        Ok(problems.numbers())
+    }
+
     /// What the machine asks beyond a single platform on the fundament (further
     /// bodies, joints, contacts between bodies, rotors elsewhere), one item a
     /// line: what the firmware's build refuses (its controller constants are a
@@ -1120,6 +1139,30 @@ mod tests {
             Some(Path::new("examples").join("vibro-driver.tuning.toml"))
         );
         assert!((m.total_mass() - 2.02).abs() < 1e-12);
+    }
+
+    #[test]
+    fn numbers_come_with_the_limits_the_reader_checked() {
+        let sets = ["contacts.K2.friction=0.5".to_string()];
+        let numbers = Machine::numbers("m.toml", REFERENCE, Path::new(""), &sets).unwrap();
+        let at = |k: &str| numbers.iter().find(|n| n.key_path == k).unwrap();
+        assert_eq!(
+            at("contacts[0].restitution").limit,
+            Limit::Between(0.0, 1.0)
+        );
+        assert_eq!(at("contacts[0].restitution").value, 0.3);
+        assert_eq!(at("contacts[1].friction").limit, Limit::NonNegative);
+        assert_eq!(at("contacts[1].friction").value, 0.5);
+        assert_eq!(at("motor.resistance").limit, Limit::Positive);
+        assert_eq!(
+            at("simulation.rtol").limit,
+            Limit::Between(RTOL_RANGE.0, RTOL_RANGE.1)
+        );
+        // A default counts as read.
+        assert_eq!(at("simulation.rtol").value, DEFAULT_RTOL);
+        // A file the reader refuses gives its problems.
+        let bad = ["contacts.K2.friction=-1".to_string()];
+        assert!(Machine::numbers("m.toml", REFERENCE, Path::new(""), &bad).is_err());
     }
 
     #[test]

@@ -269,9 +269,10 @@ fn bounds(value: &Value) -> Option<(f64, f64)> {
     }
 }
 
-/// The `--set` keys `key` stands for: itself, or with its `*` segment replaced by
-/// the index of every element of the array before it.
-fn expand(table: &Table, key: &str) -> Result<Vec<String>, String> {
+/// The `--set` keys `key` stands for in the parsed machine file `table`: itself,
+/// or with its `*` segment replaced by the index of every element of the array
+/// before it. `Err`: why `*` cannot stand there.
+pub fn expand(table: &Table, key: &str) -> Result<Vec<String>, String> {
     let segments: Vec<&str> = key.split('.').collect();
     let stars: Vec<usize> = (0..segments.len())
         .filter(|&i| segments[i] == "*")

@@ -108,7 +108,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         count(tuning.run_count - grid_runs, "check run"),
         seconds,
         count(rayon::current_num_threads(), "thread"),
-        warning_count(&tuning)
+        warning_count(&tuning.warnings)
     ));
     Ok(())
 }

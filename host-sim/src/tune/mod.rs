@@ -393,7 +393,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         tuning.run_count,
         seconds,
         count(rayon::current_num_threads(), "thread"),
-        warning_count(&tuning)
+        warning_count(&tuning.warnings)
     ));
     Ok(())
 }
@@ -422,11 +422,11 @@ pub(crate) fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failur
 }
 
 /// `, 2 warnings` for the summary line on stderr, empty without warnings.
-pub(crate) fn warning_count(tuning: &Tuning) -> String {
-    if tuning.warnings.is_empty() {
+pub(crate) fn warning_count(warnings: &[String]) -> String {
+    if warnings.is_empty() {
         String::new()
     } else {
-        format!(", {}", count(tuning.warnings.len(), "warning"))
+        format!(", {}", count(warnings.len(), "warning"))
     }
 }
 

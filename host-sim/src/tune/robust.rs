@@ -374,11 +374,7 @@ pub fn run(
         count(robust.points.len(), "point"),
         started.elapsed().as_secs_f64(),
         count(rayon::current_num_threads(), "thread"),
-        if robust.warnings.is_empty() {
-            String::new()
-        } else {
-            format!(", {}", count(robust.warnings.len(), "warning"))
-        }
+        super::warning_count(&robust.warnings)
     ));
     Ok(())
 }

@@ -34,6 +34,22 @@ pub const TINY_GRID: [&str; 6] = [
     "4",
 ];
 
+/// The reference machine with `ranges` appended as its `[uncertainty]` (its
+/// tuning table from `examples/`), written as `uncertain.toml` in the scratch
+/// directory `tag`.
+pub fn uncertain_machine(tag: &str, ranges: &str) -> PathBuf {
+    let text = std::fs::read_to_string(machine()).unwrap().replace(
+        "tuning_table = \"vibro-driver.tuning.toml\"",
+        &format!(
+            "tuning_table = {:?}",
+            root().join("examples/vibro-driver.tuning.toml")
+        ),
+    );
+    let path = scratch(tag, "uncertain.toml");
+    std::fs::write(&path, format!("{text}\n[uncertainty]\n{ranges}")).unwrap();
+    path
+}
+
 /// A path `name` in a scratch directory of this test binary (`tag` names it).
 pub fn scratch(tag: &str, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("host-sim-{tag}-{}", std::process::id()));

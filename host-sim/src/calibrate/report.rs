@@ -1,0 +1,394 @@
+//! The outputs of `host-sim calibrate`: the warnings, the table and the JSON
+//! document (the fitted keys with their standard errors, the search, every row's
+//! residual), and the machine file with the fitted values (`--write`).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde_json::{json, Value};
+use toml_edit::{DocumentMut, Item, Table};
+
+use super::fit::Fit;
+use super::keys::FitKey;
+use super::precision::{Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
+use super::{CalibrateArgs, Calibration, NOT_HELD_RESIDUAL_MPS};
+use crate::machine::input;
+use crate::machine::Machine;
+use crate::output::text::{self, Align};
+use crate::tune::sweep::RunOutcome;
+
+/// Whether key `i` is identified: a standard error, within
+/// [`UNIDENTIFIED_SHARE`] of its range, and not in a near-singular direction.
+pub fn identified(c: &Calibration, i: usize) -> bool {
+    !c.precision.weak.contains(&i)
+        && c.std_error[i].is_some_and(|s| s <= UNIDENTIFIED_SHARE * c.keys[i].width())
+}
+
+/// What a user must know of a fit.
+pub fn warnings(
+    keys: &[FitKey],
+    fit: &Fit,
+    precision: &Precision,
+    std_error: &[Option<f64>],
+    simulated: &[RunOutcome],
+    refused: &[String],
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let n = fit.residuals.len();
+    if precision.dof <= 0 {
+        out.push(format!(
+            "{} for {}: no standard error (it needs more rows than keys)",
+            super::count(n, "row"),
+            super::count(keys.len(), "key")
+        ));
+    }
+    // Keys the measurements do not move, or cannot tell apart.
+    let zero: Vec<&str> = (0..keys.len())
+        .filter(|&i| precision.column_norm[i] == 0.0)
+        .map(|i| keys[i].key.as_str())
+        .collect();
+    for k in &zero {
+        out.push(format!(
+            "{k}: not identified: no simulated speed changes over a step of 1/16 of its range (the measurements do not depend on it)"
+        ));
+    }
+    let tangled: Vec<&str> = precision
+        .weak
+        .iter()
+        .filter(|&&i| precision.column_norm[i] > 0.0)
+        .map(|&i| keys[i].key.as_str())
+        .collect();
+    if !tangled.is_empty() {
+        out.push(format!(
+            "{}: not identified apart: their effects on the speeds are nearly proportional (condition number {} of the scaled J^T J, above {})",
+            tangled.join(", "),
+            text::sig(precision.condition),
+            text::sig(MAX_CONDITION)
+        ));
+    }
+    for (k, s) in keys.iter().zip(std_error) {
+        if let Some(s) = s {
+            if *s > UNIDENTIFIED_SHARE * k.width() {
+                out.push(format!(
+                    "{}: not identified: standard error {} is more than a quarter of its range [{}, {}]",
+                    k.key,
+                    text::sig(*s),
+                    text::sig(k.low),
+                    text::sig(k.high)
+                ));
+            }
+        }
+    }
+    // A fit on a face of the box.
+    for (k, u) in keys.iter().zip(&fit.u) {
+        if *u <= 0.0 || *u >= 1.0 {
+            out.push(format!(
+                "{}: the fit lies at the {} end of its range ({}): the best value may lie beyond; the standard error assumes a minimum inside",
+                k.key,
+                if *u <= 0.0 { "low" } else { "high" },
+                text::sig(k.value_at(*u))
+            ));
+        }
+    }
+    // Runs not held at the fit.
+    for o in simulated {
+        if let Some(why) = &o.not_held {
+            let w = format!(
+                "{} rpm {} deg: the simulated run did not hold its offset at the fit ({why}); its rows count with the residual {} m/s",
+                text::sig(o.speed_rpm),
+                text::sig(o.offset_deg),
+                text::sig(NOT_HELD_RESIDUAL_MPS)
+            );
+            if !out.contains(&w) {
+                out.push(w);
+            }
+        }
+    }
+    // The search that gave the fit stopped early (another's early stop is
+    // harmless: it ended higher).
+    let best = fit
+        .searches
+        .iter()
+        .filter(|s| s.u == fit.u)
+        .all(|s| !s.converged);
+    if best && !fit.searches.is_empty() {
+        out.push(
+            "the local search that gave the fit stopped at its budget of evaluations before its last step: the fit is coarser than its resolution".into(),
+        );
+    }
+    if let Some(first) = refused.first() {
+        out.push(format!(
+            "{} of the search refused by the machine reader (counted as infinitely bad); the first: {first}",
+            super::count(refused.len(), "point")
+        ));
+    }
+    out
+}
+
+/// The rows' cells, for the table and JSON: the measured and simulated speeds and
+/// the residual (not weighted), m/s; `None` simulated where not held.
+fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
+    c.rows
+        .iter()
+        .zip(&c.simulated)
+        .map(|(r, o)| match o.not_held {
+            None => (
+                r.velocity_mps,
+                Some(o.mean_velocity),
+                o.mean_velocity - r.velocity_mps,
+            ),
+            Some(_) => (r.velocity_mps, None, NOT_HELD_RESIDUAL_MPS),
+        })
+        .collect()
+}
+
+/// `--format table`.
+pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
+    let n = c.rows.len();
+    let mut out = format!(
+        "calibrate {}: {} from {}, {}, runs of {} s\n\n",
+        args.machine.path.display(),
+        super::count(n, "row"),
+        args.measured.display(),
+        super::count(c.keys.len(), "key"),
+        text::sig(c.t_end)
+    );
+    let mut keys = text::Table::new(&[
+        ("key", Align::Left),
+        ("range", Align::Left),
+        ("from", Align::Left),
+        ("nominal", Align::Right),
+        ("fitted", Align::Right),
+        ("std_error", Align::Right),
+        ("resolution", Align::Right),
+        ("identified", Align::Left),
+    ]);
+    for (i, k) in c.keys.iter().enumerate() {
+        keys.row(vec![
+            k.key.clone(),
+            format!("[{}, {}]", text::sig(k.low), text::sig(k.high)),
+            k.bound.name().into(),
+            text::sig(k.nominal),
+            text::sig(c.fitted[i]),
+            c.std_error[i].map_or("-".into(), text::sig),
+            c.resolution[i].map_or("-".into(), text::sig),
+            if identified(c, i) { "yes" } else { "no" }.into(),
+        ]);
+    }
+    out.push_str(&keys.render());
+    let p = &c.precision;
+    let _ = writeln!(
+        out,
+        "\nfit: weighted sum of squares {} m^2/s^2 over {} (n - p = {}), s = {} mm/s, condition number {}",
+        text::sig(c.fit.ssr),
+        super::count(n, "row"),
+        p.dof,
+        p.s2.map_or("-".into(), |s2| text::sig(s2.sqrt() * 1e3)),
+        text::sig(p.condition)
+    );
+    let from: Vec<String> = c
+        .fit
+        .searches
+        .iter()
+        .map(|s| {
+            format!(
+                "start {} ({} -> {} in {})",
+                s.start,
+                text::sig(s.from),
+                text::sig(s.to),
+                super::count(s.polls, "poll")
+            )
+        })
+        .collect();
+    let _ = writeln!(
+        out,
+        "search: {} (0: the file's values), local searches from {}; {}, {}",
+        super::count(c.fit.starts.len(), "start"),
+        from.join(", "),
+        super::count(c.fit.evaluations, "evaluation"),
+        super::count(c.runs, "run")
+    );
+    out.push_str("\nrows, mm/s (residual = simulated - measured):\n");
+    let mut rows = text::Table::new(&[
+        ("line", Align::Right),
+        ("speed_rpm", Align::Right),
+        ("offset_deg", Align::Right),
+        ("weight", Align::Right),
+        ("measured", Align::Right),
+        ("simulated", Align::Right),
+        ("residual", Align::Right),
+    ]);
+    for (r, (m, s, e)) in c.rows.iter().zip(row_values(c)) {
+        rows.row(vec![
+            r.line.to_string(),
+            text::sig(r.speed_rpm),
+            text::sig(r.offset_deg),
+            text::sig(r.weight),
+            format!("{:.3}", m * 1e3),
+            s.map_or("not held".into(), |s| format!("{:.3}", s * 1e3)),
+            format!("{:+.3}", e * 1e3),
+        ]);
+    }
+    out.push_str(&rows.render());
+    for w in &c.warnings {
+        let _ = writeln!(out, "warning: {w}");
+    }
+    out
+}
+
+/// `--format json`.
+pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
+    let finite = |x: f64| if x.is_finite() { json!(x) } else { Value::Null };
+    let keys: Vec<Value> = c
+        .keys
+        .iter()
+        .enumerate()
+        .map(|(i, k)| {
+            json!({
+                "key": k.key, "targets": k.targets, "low": k.low, "high": k.high,
+                "range_from": k.bound.name(), "nominal": k.nominal, "fitted": c.fitted[i],
+                "std_error": c.std_error[i], "resolution": c.resolution[i],
+                "identified": identified(c, i),
+            })
+        })
+        .collect();
+    let rows: Vec<Value> = c
+        .rows
+        .iter()
+        .zip(row_values(c))
+        .zip(&c.simulated)
+        .map(|((r, (m, s, e)), o)| {
+            json!({
+                "line": r.line, "speed_rpm": r.speed_rpm, "offset_deg": r.offset_deg,
+                "weight": r.weight, "measured_mps": m, "simulated_mps": s,
+                "residual_mps": e, "not_held": o.not_held,
+            })
+        })
+        .collect();
+    let p = &c.precision;
+    let doc = json!({
+        "machine": args.machine.path.display().to_string(),
+        "measured": args.measured.display().to_string(),
+        "t_end": c.t_end,
+        "keys": keys,
+        "rows": rows,
+        "fit": {
+            "ssr": c.fit.ssr, "n": c.rows.len(), "p": c.keys.len(), "dof": p.dof,
+            "s": p.s2.map(f64::sqrt), "condition": finite(p.condition),
+            "evaluations": c.fit.evaluations, "runs": c.runs,
+            "starts": c.fit.starts.iter().map(|(u, s)| json!({"u": u, "ssr": finite(*s)})).collect::<Vec<Value>>(),
+            "searches": c.fit.searches.iter().map(|s| json!({
+                "start": s.start, "u": s.u, "from": s.from, "to": s.to,
+                "polls": s.polls, "converged": s.converged})).collect::<Vec<Value>>(),
+        },
+        "warnings": c.warnings,
+    });
+    let mut s = serde_json::to_string_pretty(&doc).unwrap_or_default();
+    s.push('\n');
+    s
+}
+
+/// `--write`: the text of the machine file `path` (`text`) with every target of
+/// every fitted key at its fitted value, each value's comment kept, nothing else
+/// changed; checked to read back with those values (`out`: where it goes, whose
+/// directory a relative tuning table is resolved against).
+pub fn machine_file(
+    path: &Path,
+    text: &str,
+    c: &Calibration,
+    out: &Path,
+) -> Result<String, String> {
+    let internal = |why: String| {
+        format!(
+            "error: --write {}: {why} (an internal error)",
+            out.display()
+        )
+    };
+    let mut doc: DocumentMut = text
+        .parse()
+        .map_err(|e| internal(format!("{} does not parse again: {e}", path.display())))?;
+    for (k, x) in c.keys.iter().zip(&c.fitted) {
+        for p in &k.key_paths {
+            set_value(doc.as_table_mut(), p, *x).map_err(|why| internal(format!("{p}: {why}")))?;
+        }
+    }
+    let written = doc.to_string();
+    // It reads back, with the fitted values.
+    let name = out.display().to_string();
+    let dir = out.parent().unwrap_or(Path::new(""));
+    let numbers = Machine::numbers(&name, &written, dir, &[]).map_err(|p| {
+        internal(format!(
+            "the file written does not read back: {}",
+            input::render(&p).trim_end()
+        ))
+    })?;
+    for (k, x) in c.keys.iter().zip(&c.fitted) {
+        for p in &k.key_paths {
+            if !numbers.iter().any(|n| n.key_path == *p && n.value == *x) {
+                return Err(internal(format!("{p} does not read back as {x}")));
+            }
+        }
+    }
+    Ok(written)
+}
+
+/// Sets the key at the reader's key path `key_path` (`contacts[0].restitution`) of
+/// `root` to `x`, keeping the old value's comment and spacing; creates the key
+/// (and a missing table on the way) when the file gives none.
+fn set_value(root: &mut Table, key_path: &str, x: f64) -> Result<(), String> {
+    let segments: Vec<&str> = key_path.split('.').collect();
+    let Some((last, path)) = segments.split_last() else {
+        return Err("an empty key path".into());
+    };
+    let mut here: &mut dyn toml_edit::TableLike = root;
+    for seg in path {
+        let (name, index) = match seg.split_once('[') {
+            Some((n, i)) => (n, i.trim_end_matches(']').parse::<usize>().ok()),
+            None => (*seg, None),
+        };
+        if here.get(name).is_none() {
+            here.insert(name, Item::Table(Table::new()));
+        }
+        let item = here.get_mut(name).ok_or("a table vanished")?;
+        here = match index {
+            Some(i) => item
+                .as_array_of_tables_mut()
+                .and_then(|a| a.get_mut(i))
+                .map(|t| t as &mut dyn toml_edit::TableLike)
+                .ok_or_else(|| format!("{name}[{i}] is not a table of an array"))?,
+            None => item
+                .as_table_like_mut()
+                .ok_or_else(|| format!("{name} is not a table"))?,
+        };
+    }
+    match here.get_mut(last).and_then(Item::as_value_mut) {
+        Some(v) => {
+            let decor = v.decor().clone();
+            *v = toml_edit::Value::from(x);
+            *v.decor_mut() = decor;
+        }
+        None => {
+            here.insert(last, toml_edit::value(x));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_change_and_nothing_else() {
+        let text = "# top\n[[contacts]]\nname = \"K1\"\nrestitution = 0.3   # guess\n\n[[contacts]]\nrestitution = 0.3\n[motor]\nresistance = 2 # ohm\n";
+        let mut doc: DocumentMut = text.parse().unwrap();
+        set_value(doc.as_table_mut(), "contacts[1].restitution", 0.41).unwrap();
+        set_value(doc.as_table_mut(), "motor.resistance", 2.25).unwrap();
+        set_value(doc.as_table_mut(), "contacts[0].friction", 0.5).unwrap();
+        set_value(doc.as_table_mut(), "simulation.rtol", 1e-3).unwrap();
+        assert_eq!(
+            doc.to_string(),
+            "# top\n[[contacts]]\nname = \"K1\"\nrestitution = 0.3   # guess\nfriction = 0.5\n\n[[contacts]]\nrestitution = 0.41\n[motor]\nresistance = 2.25 # ohm\n\n[simulation]\nrtol = 0.001\n"
+        );
+    }
+}
