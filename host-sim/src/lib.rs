@@ -6,6 +6,8 @@
 //!   values (every problem with its key path), `--set` overrides, the checked TOML
 //!   reader the other files use: the `machine-file` crate, which the firmware's
 //!   build script reads the same files with;
+//! - [`measured`]: the measured travel file, one row per run on the real machine,
+//!   which `device tune` writes and `calibrate` reads;
 //! - [`plant`]: the simulated platform, rotors, motors, contacts and sensors;
 //! - [`simulation`]: a whole run, tick by tick, with the `shared` controller in the
 //!   loop, its trace, events and summary statistics;
@@ -27,6 +29,7 @@ pub mod failure;
 pub mod impact;
 pub mod interrupt;
 pub use machine_file as machine;
+pub mod measured;
 pub mod output;
 pub mod plant;
 pub mod run;

@@ -272,7 +272,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ),
         &write,
     )
-    .refused("header.csv:1: header: unknown column `speed`");
+    .refused("header.csv: line 1: header: unknown column `speed`");
     calibrate(
         m,
         &with(
@@ -281,7 +281,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ),
         &write,
     )
-    .refused("nan.csv:2: velocity_mps: must be a finite number (got \"fast\")");
+    .refused("nan.csv: line 2: velocity_mps: must be a finite number (got \"fast\")");
     calibrate(
         m,
         &with(
@@ -290,7 +290,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ),
         &write,
     )
-    .refused("weight.csv:2: weight: must be > 0 (got -2)");
+    .refused("weight.csv: line 2: weight: must be > 0 (got -2)");
     calibrate(
         m,
         &with(
@@ -299,7 +299,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ),
         &write,
     )
-    .refused("fast.csv:2: speed_rpm: 9000 is outside the controller's speed range");
+    .refused("fast.csv: line 2: speed_rpm: must be within the controller's speed range");
 
     let fit = |keys: &str| {
         let mut args = vec!["calibrate", m, "--measured", good, "--fit", keys];

@@ -1,9 +1,9 @@
 //! `host-sim device tune` through the real binary against `host-sim device-sim`
 //! over TCP, the answers typed by the test on stdin: every kind of answer, the
-//! measured file (rows, resume skipping the points in it, an existing `--out`
-//! refused), `--write` making a table the device takes, Ctrl-C and a lost link
-//! stopping the sweep with the rows kept, and bad input refused before the
-//! device is asked anything.
+//! measured file (rows, resume skipping the points in it, a file in its own
+//! column order continued in it, an existing `--out` refused), `--write` making
+//! a table the device takes, Ctrl-C and a lost link stopping the sweep with the
+//! rows kept, and bad input refused before the device is asked anything.
 //!
 //! The grid is one speed and three offsets, held 1 s after 0.5 s of settling: a
 //! point takes about 3.5 s on the simulator (the offset held 0.7 to 1.2 s after the
@@ -206,6 +206,32 @@ fn answers_are_recorded_resumed_and_made_into_a_table() {
     );
 }
 
+#[test]
+fn a_file_in_its_own_column_order_is_resumed_and_continued_in_it() {
+    let dev = DeviceSim::start();
+    let csv = scratch("reordered.csv");
+    // A file as `calibrate` reads it, written by hand: a comment, the columns in
+    // another order with weights, 0 deg and -270 deg (90 deg) measured.
+    let rows = "# bench, 2 May\nvelocity_mps,weight,speed_rpm,offset_deg\n0.012,2,3000,0\n\n0.03,1,3000,-270\n";
+    std::fs::write(&csv, rows).unwrap();
+    let args = grid_and(&["--resume", s(&csv)]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let r = dev.run(&args, "-6\n");
+    assert_eq!(r.status, 0, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stdout
+            .contains("device tune: 1 point to measure (2 of the grid already in"),
+        "{}",
+        r.stdout
+    );
+    assert_eq!(marks(&r.stdout), ["3000 rpm, 180 deg"], "{}", r.stdout);
+    // -6 mm in 1 s, in the file's own column order, weight 1.
+    assert_eq!(
+        std::fs::read_to_string(&csv).unwrap(),
+        format!("{rows}-0.006,1,3000,180\n")
+    );
+}
+
 /// Starts a sweep resuming `csv`, waits for its first mark line, calls `then`,
 /// and returns the run.
 fn interrupt_after_mark(port: &str, csv: &Path, then: impl FnOnce(&mut Child)) -> Run {
@@ -318,14 +344,14 @@ fn bad_input_is_refused_before_the_device_is_asked() {
         (
             vec!["--resume", s(&bad_header)],
             format!(
-                "error: {}: line 1: the header must be `speed_rpm,offset_deg,velocity_mps` or `speed_rpm,offset_deg,velocity_mps,weight` (got \"speed,offset,v\")",
+                "error: {}: line 1: header: unknown column `speed` (allowed: speed_rpm, offset_deg, velocity_mps, weight)",
                 bad_header.display()
             ),
         ),
         (
             vec!["--resume", s(&bad_row)],
             format!(
-                "error: {}: row 2 (line 3): velocity_mps: must be a finite number of m/s (got \"fast\")",
+                "error: {}: line 3: velocity_mps: must be a finite number (got \"fast\")",
                 bad_row.display()
             ),
         ),

@@ -22,7 +22,6 @@
 
 pub mod fit;
 pub mod keys;
-pub mod measured;
 pub mod precision;
 pub mod report;
 
@@ -36,6 +35,7 @@ use rayon::prelude::*;
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::machine::input;
+use crate::measured::{self, Row};
 use crate::output::file::Staged;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
@@ -44,7 +44,6 @@ use crate::tune::sweep::{run_point, RunOutcome};
 use crate::tune::{load_machine, progress_bar, read_machine_file, warning_count, DEFAULT_T_END};
 use fit::Settings;
 use keys::FitKey;
-use measured::Row;
 
 /// Arguments of `host-sim calibrate`.
 #[derive(Debug, Args)]
@@ -116,7 +115,19 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
         f64::from(params.min_speed_rpm),
         f64::from(params.max_speed_rpm),
     );
-    let rows = measured::read(&args.measured, speeds)
+    let rows = measured::read(&args.measured, Some(speeds))
+        .and_then(|(_, rows)| {
+            // A file with a header alone (a sweep stopped before its first
+            // answer) is well formed, but there is nothing to fit.
+            if rows.is_empty() {
+                Err(format!(
+                    "error: {}: no rows after the header: one row per measured run\n",
+                    args.measured.display()
+                ))
+            } else {
+                Ok(rows)
+            }
+        })
         .map_err(|e| problems.push(e))
         .ok();
     let t_end = args.t_end.seconds.unwrap_or(DEFAULT_T_END);

@@ -1,11 +1,10 @@
-//! The measured file of `host-sim device tune` (issue 14, section 2): CSV with the
-//! header `speed_rpm,offset_deg,velocity_mps` or `speed_rpm,offset_deg,velocity_mps,weight`,
-//! then one row per run: rotor speed (rpm, > 0), phase offset (degrees, any finite
-//! angle), mean platform velocity (m/s, + right), and an optional weight (> 0,
-//! default 1).
+//! The measured file of `host-sim device tune` (issue 14, section 2) open for
+//! appending; its format, reader and row formatting are [`crate::measured`]'s, the
+//! one `host-sim calibrate` reads with.
 //!
-//! [`MeasuredFile::create`] starts a file (the header, synced); [`MeasuredFile::resume`]
-//! reads an existing one, every row checked; [`MeasuredFile::append`] adds a row
+//! [`MeasuredFile::create`] starts a file (the header, synced);
+//! [`MeasuredFile::resume`] reads an existing one, every row checked, and keeps its
+//! header's column order for the rows appended; [`MeasuredFile::append`] adds a row
 //! and syncs it to disk before returning, so that a sweep cut short at any moment
 //! keeps every answer given.
 
@@ -14,52 +13,25 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::failure::Failure;
+use crate::measured::{self, Header, Row};
 use crate::output::csv::csv_number;
-use crate::simulation::summary::wrap_deg_180;
-
-/// The columns of every row.
-pub const HEADER: &str = "speed_rpm,offset_deg,velocity_mps";
-
-/// The columns with the optional weight.
-pub const HEADER_WEIGHTED: &str = "speed_rpm,offset_deg,velocity_mps,weight";
-
-/// Two speeds (rpm) or offsets (degrees) closer than this are the same point.
-pub const SAME_POINT: f64 = 1e-6;
-
-/// One row: a run at a grid point and the velocity measured.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Measured {
-    /// Rotor speed, rpm.
-    pub speed_rpm: f64,
-    /// Phase offset, degrees (as written; not wrapped).
-    pub offset_deg: f64,
-    /// Mean platform velocity, m/s (+ right).
-    pub velocity_mps: f64,
-    /// Weight of the row among repeated ones (1 without the column).
-    pub weight: f64,
-}
-
-impl Measured {
-    /// Whether the row is at `speed_rpm` and `offset_deg` (offsets compared
-    /// around the turn).
-    pub fn is_at(&self, speed_rpm: f64, offset_deg: f64) -> bool {
-        (self.speed_rpm - speed_rpm).abs() <= SAME_POINT
-            && wrap_deg_180(self.offset_deg - offset_deg).abs() <= SAME_POINT
-    }
-}
+use crate::simulation::summary::wrap_deg_360;
 
 /// A measured file open for appending.
 #[derive(Debug)]
 pub struct MeasuredFile {
     path: PathBuf,
     file: File,
-    /// The file has the weight column: appended rows carry a weight of 1.
-    weighted: bool,
+    /// The file's columns: appended rows follow their order (weight 1 when the
+    /// weight column is there).
+    header: Header,
     /// The file ends without a line break (a row cut short by a crash is
     /// refused; a whole last row without one gets it before the next).
     needs_newline: bool,
+    /// The line the next row appended is on, from 1.
+    next_line: usize,
     /// Every row, those read and those appended.
-    pub rows: Vec<Measured>,
+    pub rows: Vec<Row>,
 }
 
 /// "error: FILE: what", the user's to fix.
@@ -90,24 +62,28 @@ impl MeasuredFile {
                 std::io::ErrorKind::AlreadyExists => exists(path),
                 _ => usage(path, format!("--out: cannot create the file: {e}")),
             })?;
-        file.write_all(format!("{HEADER}\n").as_bytes())
+        let header = Header::default();
+        file.write_all(format!("{}\n", header.line()).as_bytes())
             .and_then(|()| file.sync_all())
             .map_err(|e| usage(path, format!("--out: cannot write the header: {e}")))?;
         Ok(MeasuredFile {
             path: path.to_path_buf(),
             file,
-            weighted: false,
+            header,
             needs_newline: false,
+            next_line: 2,
             rows: Vec::new(),
         })
     }
 
     /// Opens the existing file at `path` to continue it: its header and every
-    /// row checked ([`parse`]).
+    /// row checked ([`measured::parse`]; speeds above 0, as `--speeds`'), every
+    /// problem at once.
     pub fn resume(path: &Path) -> Result<MeasuredFile, Failure> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| usage(path, format!("--resume: cannot read the file: {e}")))?;
-        let (rows, weighted) = parse(&text).map_err(|why| usage(path, why))?;
+        let (header, rows) =
+            measured::parse(&path.display().to_string(), &text, None).map_err(Failure::Usage)?;
         let file = OpenOptions::new().append(true).open(path).map_err(|e| {
             usage(
                 path,
@@ -117,8 +93,9 @@ impl MeasuredFile {
         Ok(MeasuredFile {
             path: path.to_path_buf(),
             file,
-            weighted,
+            header,
             needs_newline: !text.ends_with('\n'),
+            next_line: text.lines().count() + 1,
             rows,
         })
     }
@@ -133,8 +110,9 @@ impl MeasuredFile {
         self.rows.iter().any(|r| r.is_at(speed_rpm, offset_deg))
     }
 
-    /// Appends `row` (weight 1) and syncs it to disk before returning. A
-    /// failure here is the run's (the disk full, the file removed): exit 1.
+    /// Appends the row (weight 1 when the file has the column), in the file's
+    /// column order, and syncs it to disk before returning. A failure here is the
+    /// run's (the disk full, the file removed): exit 1.
     pub fn append(
         &mut self,
         speed_rpm: f64,
@@ -145,15 +123,7 @@ impl MeasuredFile {
         if self.needs_newline {
             line.push('\n');
         }
-        line.push_str(&format!(
-            "{},{},{}",
-            csv_number(speed_rpm),
-            csv_number(offset_deg),
-            csv_number(velocity_mps)
-        ));
-        if self.weighted {
-            line.push_str(",1");
-        }
+        line.push_str(&self.header.row(speed_rpm, offset_deg, velocity_mps));
         line.push('\n');
         self.file
             .write_all(line.as_bytes())
@@ -167,133 +137,34 @@ impl MeasuredFile {
                 ))
             })?;
         self.needs_newline = false;
-        self.rows.push(Measured {
+        self.rows.push(Row {
+            line: self.next_line,
             speed_rpm,
-            offset_deg,
+            offset_deg: wrap_deg_360(offset_deg) + 0.0,
             velocity_mps,
             weight: 1.0,
         });
+        self.next_line += 1;
         Ok(())
     }
-}
-
-/// The rows of a measured file's `text` and whether it has the weight column, or
-/// what is wrong: the header, or a row (numbered from 1 after the header, with
-/// its line and column), and what is allowed. Empty lines are skipped.
-pub fn parse(text: &str) -> Result<(Vec<Measured>, bool), String> {
-    let mut lines = text.lines().enumerate();
-    let header = lines.next().map_or("", |(_, l)| l.trim());
-    let weighted = match header {
-        HEADER => false,
-        HEADER_WEIGHTED => true,
-        _ => {
-            return Err(format!(
-                "line 1: the header must be `{HEADER}` or `{HEADER_WEIGHTED}` (got {header:?})"
-            ))
-        }
-    };
-    let columns: Vec<&str> = header.split(',').collect();
-    let mut rows = Vec::new();
-    for (i, line) in lines {
-        let line = line.trim();
-        if line.is_empty() {
-            continue;
-        }
-        let at = format!("row {} (line {})", rows.len() + 1, i + 1);
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != columns.len() {
-            return Err(format!(
-                "{at}: {} fields, the header has {} ({})",
-                fields.len(),
-                columns.len(),
-                columns.join(",")
-            ));
-        }
-        let mut values = [1.0; 4];
-        for (k, (field, column)) in fields.iter().zip(&columns).enumerate() {
-            let v = field.parse::<f64>().ok().filter(|v| v.is_finite());
-            let ok = match (*column, v) {
-                (_, None) => false,
-                ("speed_rpm" | "weight", Some(v)) => v > 0.0,
-                (_, Some(_)) => true,
-            };
-            if !ok {
-                let allowed = match *column {
-                    "speed_rpm" => "a number of rpm above 0",
-                    "weight" => "a number above 0",
-                    "offset_deg" => "a finite number of degrees",
-                    _ => "a finite number of m/s",
-                };
-                return Err(format!("{at}: {column}: must be {allowed} (got {field:?})"));
-            }
-            values[k] = v.unwrap_or(1.0);
-        }
-        rows.push(Measured {
-            speed_rpm: values[0],
-            offset_deg: values[1],
-            velocity_mps: values[2],
-            weight: values[3],
-        });
-    }
-    Ok((rows, weighted))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn rows_read_with_and_without_weights() {
-        let (rows, weighted) =
-            parse("speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n\n3000,-30,-1e-3\n").unwrap();
-        assert!(!weighted);
-        assert_eq!(rows.len(), 2);
-        assert_eq!(rows[1].offset_deg, -30.0);
-        assert_eq!(rows[1].weight, 1.0);
-        assert!(rows[1].is_at(3000.0, 330.0));
-        let (rows, weighted) =
-            parse("speed_rpm,offset_deg,velocity_mps,weight\n2500,0,0.01,2\n").unwrap();
-        assert!(weighted);
-        assert_eq!(rows[0].weight, 2.0);
-    }
-
-    #[test]
-    fn bad_files_name_the_row_and_the_column() {
-        for (text, expect) in [
-            ("", "line 1: the header must be"),
-            ("speed,offset,v\n", "line 1: the header must be"),
-            (
-                "speed_rpm,offset_deg,velocity_mps\n3000,90\n",
-                "row 1 (line 2): 2 fields, the header has 3",
-            ),
-            (
-                "speed_rpm,offset_deg,velocity_mps\n3000,90,0.1\n0,90,0.1\n",
-                "row 2 (line 3): speed_rpm: must be a number of rpm above 0 (got \"0\")",
-            ),
-            (
-                "speed_rpm,offset_deg,velocity_mps\n3000,x,0.1\n",
-                "row 1 (line 2): offset_deg: must be a finite number of degrees",
-            ),
-            (
-                "speed_rpm,offset_deg,velocity_mps\n3000,1,NaN\n",
-                "velocity_mps: must be a finite number of m/s",
-            ),
-            (
-                "speed_rpm,offset_deg,velocity_mps,weight\n3000,1,0,-1\n",
-                "weight: must be a number above 0",
-            ),
-        ] {
-            let e = parse(text).unwrap_err();
-            assert!(e.contains(expect), "{text:?}: {e}");
-        }
+    /// A scratch path `name`, no file there.
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("host-sim-measured-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        let _ = std::fs::remove_file(&path);
+        path
     }
 
     #[test]
     fn appended_rows_read_back_and_a_file_is_never_overwritten() {
-        let dir = std::env::temp_dir().join(format!("host-sim-measured-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("m.csv");
-        let _ = std::fs::remove_file(&path);
+        let path = scratch("m.csv");
         let mut f = MeasuredFile::create(&path).unwrap();
         f.append(3000.0, 90.0, 0.0125).unwrap();
         drop(f);
@@ -314,6 +185,47 @@ mod tests {
             std::fs::read_to_string(&path).unwrap(),
             "speed_rpm,offset_deg,velocity_mps\n3000,90,0.0125\n3000,180,-0.5\n3000,0,-0.002\n"
         );
-        let _ = std::fs::remove_dir_all(&dir);
+        let lines: Vec<usize> = f.rows.iter().map(|r| r.line).collect();
+        assert_eq!(lines, [2, 3, 4]);
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn a_file_in_its_own_column_order_is_continued_in_it() {
+        let path = scratch("reordered.csv");
+        let text = "# bench, 2 May\nweight,offset_deg,velocity_mps,speed_rpm\n2,-90,-0.03,3000\n# cut here";
+        std::fs::write(&path, text).unwrap();
+        let mut f = MeasuredFile::resume(&path).unwrap();
+        assert!(f.has(3000.0, 270.0) && !f.has(3000.0, 90.0));
+        f.append(3000.0, 90.0, 0.0125).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            format!("{text}\n1,90,0.0125,3000\n")
+        );
+        assert_eq!(f.rows[1].line, 5);
+        // Read back as a new resume (and calibrate) reads it: the same rows.
+        let again = MeasuredFile::resume(&path).unwrap();
+        assert_eq!(again.rows, f.rows);
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn a_bad_file_is_refused_with_every_problem() {
+        let path = scratch("bad.csv");
+        std::fs::write(
+            &path,
+            "speed_rpm,offset_deg,velocity_mps\n0,90,0.1\n3000,x,0.1\n",
+        )
+        .unwrap();
+        let e = MeasuredFile::resume(&path).unwrap_err();
+        let file = path.display();
+        assert_eq!(
+            e,
+            Failure::Usage(format!(
+                "error: {file}: line 2: speed_rpm: must be > 0 (got 0)\n\
+                 error: {file}: line 3: offset_deg: must be a finite number (got \"x\")\n"
+            ))
+        );
+        let _ = std::fs::remove_file(&path);
     }
 }

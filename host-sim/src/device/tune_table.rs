@@ -12,8 +12,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::measured::{Measured, SAME_POINT};
 use crate::machine::tuning_file;
+use crate::measured::{Row, SAME_POINT};
 use crate::output::text;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::tune::best::{candidates, mm_s, Way};
@@ -58,7 +58,7 @@ type Sums = (f64, f64, f64, usize);
 
 /// The rows grouped by speed (ascending) and, within a speed, by offset
 /// (wrapped to [0, 360), ascending), each group averaged by weight.
-pub fn averages(rows: &[Measured]) -> Vec<(f64, Vec<OffsetMean>)> {
+pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
     let mut speeds: Vec<(f64, Vec<Sums>)> = Vec::new();
     for r in rows {
         let i = match speeds
@@ -149,7 +149,7 @@ fn fit(speed_rpm: f64, points: Vec<OffsetMean>) -> SpeedFit {
 }
 
 /// The fits of every speed of `rows`, or the speeds with too few offsets.
-pub fn fits(rows: &[Measured]) -> Result<Vec<SpeedFit>, Vec<String>> {
+pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
     let mut problems = Vec::new();
     let mut out = Vec::new();
     for (speed, points) in averages(rows) {
@@ -231,8 +231,9 @@ pub fn table_file(fits: &[SpeedFit], source: &Path, rows: usize) -> Result<Strin
 mod tests {
     use super::*;
 
-    fn row(speed_rpm: f64, offset_deg: f64, velocity_mps: f64, weight: f64) -> Measured {
-        Measured {
+    fn row(speed_rpm: f64, offset_deg: f64, velocity_mps: f64, weight: f64) -> Row {
+        Row {
+            line: 0,
             speed_rpm,
             offset_deg,
             velocity_mps,

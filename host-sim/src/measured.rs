@@ -1,0 +1,363 @@
+//! The measured travel file: one row per run on the real machine (spec
+//! `machine.md`, "Additions"; docs/calibration.md, "The measured travel file").
+//! `host-sim device tune` writes it ([`crate::device::measured`] appends to it),
+//! `host-sim calibrate` reads it; both with this one reader.
+//!
+//! ```text
+//! # measured on the bench, 2 May
+//! speed_rpm,offset_deg,velocity_mps,weight
+//! 3000,0,0.0012,1
+//! 3000,90,0.0301,1
+//! 3000,90,0.0297,1
+//! ```
+//!
+//! - the first line that is not blank nor a `#` comment is the header: the columns
+//!   `speed_rpm`, `offset_deg`, `velocity_mps` and optionally `weight`, each once,
+//!   in any order, nothing else;
+//! - every other line (blank lines and `#` comments skipped) is one run: the
+//!   header's number of fields; the speed, rpm, above 0 (and within the
+//!   controller's speed range when the reader is given it); the offset, degrees,
+//!   any finite value (wrapped to [0, 360)); the mean travel velocity, m/s
+//!   (positive rightward), finite; the weight, > 0, 1 when the column is absent;
+//! - repeated rows (the same speed and offset) are separate measurements;
+//! - a file may have no rows yet (a sweep started and stopped before its first
+//!   answer).
+//!
+//! Every problem at once, one line each: `error: FILE: line N: COLUMN: what is
+//! wrong (got ...)`.
+
+use std::path::Path;
+
+use crate::machine::input;
+use crate::output::csv::csv_number;
+use crate::output::text;
+use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
+
+/// The columns every file has, in the order a new file is written.
+pub const COLUMNS: [&str; 3] = ["speed_rpm", "offset_deg", "velocity_mps"];
+/// The optional column.
+pub const WEIGHT: &str = "weight";
+
+/// Every column, the optional one last: a [`Header`] holds indices into this.
+const ALL: [&str; 4] = [COLUMNS[0], COLUMNS[1], COLUMNS[2], WEIGHT];
+
+/// Two speeds (rpm) or offsets (degrees) closer than this are the same point.
+pub const SAME_POINT: f64 = 1e-6;
+
+/// One measured run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// Line number in the file, from 1 (for messages and reports).
+    pub line: usize,
+    /// Rotor speed, rpm.
+    pub speed_rpm: f64,
+    /// Phase offset held, degrees in [0, 360).
+    pub offset_deg: f64,
+    /// Measured mean travel velocity, m/s (positive rightward).
+    pub velocity_mps: f64,
+    /// Weight of the row (> 0; 1 without the column): its variance is taken as
+    /// `sigma^2 / weight`, and repeated rows average by it.
+    pub weight: f64,
+}
+
+impl Row {
+    /// Whether the row is at `speed_rpm` and `offset_deg` within [`SAME_POINT`]
+    /// (offsets compared around the turn: `-90` is `270`).
+    pub fn is_at(&self, speed_rpm: f64, offset_deg: f64) -> bool {
+        (self.speed_rpm - speed_rpm).abs() <= SAME_POINT
+            && wrap_deg_180(self.offset_deg - offset_deg).abs() <= SAME_POINT
+    }
+}
+
+/// A file's columns in its header's order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Header {
+    /// Per field, its column: an index into `speed_rpm, offset_deg,
+    /// velocity_mps, weight`.
+    order: Vec<usize>,
+}
+
+impl Default for Header {
+    /// The header of a new file: [`COLUMNS`], no weight.
+    fn default() -> Self {
+        Header {
+            order: (0..COLUMNS.len()).collect(),
+        }
+    }
+}
+
+impl Header {
+    /// The header line (without its line break).
+    pub fn line(&self) -> String {
+        let names: Vec<&str> = self.order.iter().map(|&k| ALL[k]).collect();
+        names.join(",")
+    }
+
+    /// Whether the file has the weight column.
+    pub fn weighted(&self) -> bool {
+        self.order.contains(&3)
+    }
+
+    /// One row in this header's column order (without its line break): the
+    /// shortest decimals that read back the same, weight 1 when the column is
+    /// there.
+    pub fn row(&self, speed_rpm: f64, offset_deg: f64, velocity_mps: f64) -> String {
+        let cell = |k: usize| match k {
+            0 => csv_number(speed_rpm),
+            1 => csv_number(offset_deg),
+            2 => csv_number(velocity_mps),
+            _ => "1".to_string(),
+        };
+        let cells: Vec<String> = self.order.iter().map(|&k| cell(k)).collect();
+        cells.join(",")
+    }
+}
+
+/// Reads and checks the file at `path` ([`parse`]).
+pub fn read(path: &Path, speed_range: Option<(f64, f64)>) -> Result<(Header, Vec<Row>), String> {
+    let text = input::read_text(path).map_err(|p| input::render(&[p]))?;
+    parse(&path.display().to_string(), &text, speed_range)
+}
+
+/// The header and rows of the text of a measured file named `file`, or every
+/// problem, one line each. `speed_range`, when given, is the controller's
+/// `[min_speed_rpm, max_speed_rpm]`, rpm; without it a speed need only be above 0.
+pub fn parse(
+    file: &str,
+    text: &str,
+    speed_range: Option<(f64, f64)>,
+) -> Result<(Header, Vec<Row>), String> {
+    let mut problems = Vec::new();
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+
+    // The header: which column each field holds.
+    let Some((header_line, header)) = lines.next() else {
+        return Err(format!(
+            "error: {file}: no header: expected the line `{},{WEIGHT}` (weight optional), then one row per run\n",
+            COLUMNS.join(",")
+        ));
+    };
+    let mut order = Vec::new();
+    for name in header.split(',').map(str::trim) {
+        match ALL.iter().position(|c| *c == name) {
+            Some(k) if !order.contains(&k) => order.push(k),
+            Some(_) => problems.push(format!(
+                "error: {file}: line {header_line}: header: column `{name}` twice"
+            )),
+            None => problems.push(format!(
+                "error: {file}: line {header_line}: header: unknown column `{name}` (allowed: {})",
+                ALL.join(", ")
+            )),
+        }
+    }
+    for (k, c) in COLUMNS.iter().enumerate() {
+        if !order.contains(&k) {
+            problems.push(format!(
+                "error: {file}: line {header_line}: header: missing column `{c}` (expected {},{WEIGHT}; weight optional)",
+                COLUMNS.join(",")
+            ));
+        }
+    }
+    if !problems.is_empty() {
+        return Err(problems.join("\n") + "\n");
+    }
+    let header = Header { order };
+
+    // The rows.
+    let mut rows = Vec::new();
+    for (line, l) in lines {
+        let cells: Vec<&str> = l.split(',').map(str::trim).collect();
+        if cells.len() != header.order.len() {
+            problems.push(format!(
+                "error: {file}: line {line}: {} fields, the header has {} ({})",
+                cells.len(),
+                header.order.len(),
+                header.line()
+            ));
+            continue;
+        }
+        // Per column, its value when allowed.
+        let mut values = [None, None, None, Some(1.0)];
+        for (&k, cell) in header.order.iter().zip(&cells) {
+            let Some(v) = cell.parse::<f64>().ok().filter(|v| v.is_finite()) else {
+                problems.push(format!(
+                    "error: {file}: line {line}: {}: must be a finite number (got {cell:?})",
+                    ALL[k]
+                ));
+                continue;
+            };
+            let refused = match (k, speed_range) {
+                (0, Some((lo, hi))) if !(v > 0.0 && v >= lo && v <= hi) => Some(format!(
+                    "within the controller's speed range [{}, {}] rpm",
+                    text::sig(lo),
+                    text::sig(hi)
+                )),
+                (0 | 3, _) if v <= 0.0 => Some("> 0".to_string()),
+                _ => None,
+            };
+            match refused {
+                Some(allowed) => problems.push(format!(
+                    "error: {file}: line {line}: {}: must be {allowed} (got {cell})",
+                    ALL[k]
+                )),
+                None => values[k] = Some(v),
+            }
+        }
+        if let [Some(speed_rpm), Some(offset), Some(velocity_mps), Some(weight)] = values {
+            rows.push(Row {
+                line,
+                speed_rpm,
+                offset_deg: wrap_deg_360(offset) + 0.0,
+                velocity_mps,
+                weight,
+            });
+        }
+    }
+    if problems.is_empty() {
+        Ok((header, rows))
+    } else {
+        Err(problems.join("\n") + "\n")
+    }
+}
+
+/// The distinct points `(speed, offset)` of `rows` in the order first met, and
+/// for each row the index of its point: the runs one evaluation needs.
+pub fn points(rows: &[Row]) -> (Vec<(f64, f64)>, Vec<usize>) {
+    let mut points: Vec<(f64, f64)> = Vec::new();
+    let mut of_row = Vec::new();
+    for r in rows {
+        let key = (r.speed_rpm, r.offset_deg);
+        let i = match points.iter().position(|p| *p == key) {
+            Some(i) => i,
+            None => {
+                points.push(key);
+                points.len() - 1
+            }
+        };
+        of_row.push(i);
+    }
+    (points, of_row)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const RANGE: Option<(f64, f64)> = Some((500.0, 4500.0));
+
+    fn rows(text: &str) -> Vec<Row> {
+        parse("m.csv", text, RANGE).unwrap().1
+    }
+
+    fn err(text: &str) -> String {
+        parse("m.csv", text, RANGE).unwrap_err()
+    }
+
+    #[test]
+    fn rows_read_with_and_without_weights() {
+        let rows =
+            rows("# measured\nspeed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n\n3000,-90,-0.03\n");
+        assert_eq!(rows.len(), 2);
+        assert_eq!(rows[1].line, 5);
+        assert_eq!(rows[1].offset_deg, 270.0);
+        assert_eq!(rows[0].weight, 1.0);
+        assert!(rows[1].is_at(3000.0, -90.0) && !rows[1].is_at(3000.0, 90.0));
+        let (header, rows) = parse(
+            "m.csv",
+            "weight, velocity_mps,offset_deg,speed_rpm\n2,0.03,360,3000\n",
+            RANGE,
+        )
+        .unwrap();
+        assert_eq!(
+            rows[0],
+            Row {
+                line: 2,
+                speed_rpm: 3000.0,
+                offset_deg: 0.0,
+                velocity_mps: 0.03,
+                weight: 2.0
+            }
+        );
+        assert!(header.weighted());
+        assert_eq!(header.line(), "weight,velocity_mps,offset_deg,speed_rpm");
+    }
+
+    #[test]
+    fn a_header_alone_is_a_file_with_no_rows_yet() {
+        let (header, rows) = parse("m.csv", "speed_rpm,offset_deg,velocity_mps\n", None).unwrap();
+        assert!(rows.is_empty());
+        assert_eq!(header, Header::default());
+        assert!(!header.weighted());
+    }
+
+    #[test]
+    fn rows_are_written_in_the_header_order_and_read_back() {
+        let header = Header::default();
+        assert_eq!(header.line(), "speed_rpm,offset_deg,velocity_mps");
+        assert_eq!(header.row(3000.0, 90.0, 0.0125), "3000,90,0.0125");
+        let (header, _) =
+            parse("m.csv", "velocity_mps,weight,speed_rpm,offset_deg\n", None).unwrap();
+        let text = format!("{}\n{}\n", header.line(), header.row(2500.0, 270.5, -3e-5));
+        assert_eq!(
+            text,
+            "velocity_mps,weight,speed_rpm,offset_deg\n-3e-5,1,2500,270.5\n"
+        );
+        let (_, rows) = parse("m.csv", &text, None).unwrap();
+        assert_eq!(
+            (
+                rows[0].speed_rpm,
+                rows[0].offset_deg,
+                rows[0].velocity_mps,
+                rows[0].weight
+            ),
+            (2500.0, 270.5, -3e-5, 1.0)
+        );
+    }
+
+    #[test]
+    fn every_problem_with_its_line_and_column() {
+        assert_eq!(
+            err("speed_rpm,offset,velocity_mps\n"),
+            "error: m.csv: line 1: header: unknown column `offset` (allowed: speed_rpm, offset_deg, velocity_mps, weight)\n\
+             error: m.csv: line 1: header: missing column `offset_deg` (expected speed_rpm,offset_deg,velocity_mps,weight; weight optional)\n"
+        );
+        assert!(err("# c\nspeed_rpm,offset_deg,velocity_mps,speed_rpm\n")
+            .contains("error: m.csv: line 2: header: column `speed_rpm` twice"));
+        assert!(err("").starts_with("error: m.csv: no header"));
+        assert!(err("# only a comment\n\n").starts_with("error: m.csv: no header"));
+        let e = err(
+            "speed_rpm,offset_deg,velocity_mps,weight\n3000,90,fast,1\n3000,90,0.03,-1\n9000,90,0.03,1\n3000,90\n3000,nan,0.1,1\n",
+        );
+        assert_eq!(
+            e,
+            "error: m.csv: line 2: velocity_mps: must be a finite number (got \"fast\")\n\
+             error: m.csv: line 3: weight: must be > 0 (got -1)\n\
+             error: m.csv: line 4: speed_rpm: must be within the controller's speed range [500, 4500] rpm (got 9000)\n\
+             error: m.csv: line 5: 2 fields, the header has 4 (speed_rpm,offset_deg,velocity_mps,weight)\n\
+             error: m.csv: line 6: offset_deg: must be a finite number (got \"nan\")\n"
+        );
+    }
+
+    #[test]
+    fn without_the_controller_a_speed_need_only_be_above_0() {
+        let text = "speed_rpm,offset_deg,velocity_mps\n9000,90,0.03\n0,90,0.1\n";
+        assert_eq!(
+            parse("m.csv", text, None).unwrap_err(),
+            "error: m.csv: line 3: speed_rpm: must be > 0 (got 0)\n"
+        );
+        assert!(err(text).contains("line 3: speed_rpm: must be within"));
+    }
+
+    #[test]
+    fn repeated_rows_share_one_point() {
+        let rows =
+            rows("speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n3000,0,0.01\n3000,450,0.031\n");
+        let (points, of_row) = points(&rows);
+        assert_eq!(points, vec![(3000.0, 90.0), (3000.0, 0.0)]);
+        assert_eq!(of_row, vec![0, 1, 0]);
+    }
+}
