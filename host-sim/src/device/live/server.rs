@@ -116,10 +116,7 @@ impl Server {
         let thread = std::thread::spawn(move || {
             while !stop.load(Ordering::SeqCst) {
                 match listener.accept() {
-                    Ok((stream, _)) => {
-                        let shared = shared.clone();
-                        std::thread::spawn(move || connection(stream, &shared));
-                    }
+                    Ok((stream, _)) => admit(stream, &shared),
                     Err(_) => std::thread::sleep(ACCEPT_POLL),
                 }
             }
@@ -145,24 +142,44 @@ impl Server {
     }
 }
 
-/// One connection: one request, one answer (an event stream lasts).
-fn connection(mut stream: TcpStream, shared: &Shared) {
+/// A connection accepted: served on a thread of its own, or, beyond
+/// [`MAX_CONNECTIONS`] open (or when no thread can be had), answered 503 at once
+/// without waiting for its request, so that clients that never finish theirs
+/// cannot make threads without bound.
+fn admit(mut stream: TcpStream, shared: &Arc<Shared>) {
     let open = shared.connections.fetch_add(1, Ordering::SeqCst);
-    let _ = serve(&mut stream, shared, open);
-    shared.connections.fetch_sub(1, Ordering::SeqCst);
-}
-
-/// The request read and answered; an error is the connection's end.
-fn serve(stream: &mut TcpStream, shared: &Shared, open: usize) -> io::Result<()> {
-    stream.set_nonblocking(false)?;
-    stream.set_read_timeout(Some(REQUEST_TIMEOUT))?;
-    let _ = stream.set_nodelay(true);
-    let Some(request) = http::read_request(stream)? else {
-        return http::respond_text(stream, 400, "", "not an HTTP/1.1 request");
+    let refuse = |mut stream: TcpStream| {
+        shared.connections.fetch_sub(1, Ordering::SeqCst);
+        // Best effort, never waiting: the socket's buffer takes the answer or not.
+        let _ = stream.set_nonblocking(true);
+        let _ = http::respond_text(&mut stream, 503, "", "too many connections");
     };
     if open >= MAX_CONNECTIONS {
-        return http::respond_text(stream, 503, "", "too many connections");
+        return refuse(stream);
     }
+    let Ok(again) = stream.try_clone() else {
+        return refuse(stream);
+    };
+    let mine = shared.clone();
+    let spawned = std::thread::Builder::new().spawn(move || {
+        let _ = serve(&mut stream, &mine);
+        mine.connections.fetch_sub(1, Ordering::SeqCst);
+    });
+    if spawned.is_err() {
+        refuse(again);
+    }
+}
+
+/// The request read (within [`REQUEST_TIMEOUT`] in all) and answered; an error
+/// is the connection's end.
+fn serve(stream: &mut TcpStream, shared: &Shared) -> io::Result<()> {
+    stream.set_nonblocking(false)?;
+    // A page that stops reading its stream is given up after this long.
+    stream.set_write_timeout(Some(REQUEST_TIMEOUT))?;
+    let _ = stream.set_nodelay(true);
+    let Some(request) = http::read_request(&mut Deadline::new(stream, REQUEST_TIMEOUT))? else {
+        return http::respond_text(stream, 400, "", "not an HTTP/1.1 request");
+    };
     if !shared.remote && !loopback_host(request.header("host")) {
         return http::respond_text(
             stream,
@@ -184,6 +201,33 @@ fn serve(stream: &mut TcpStream, shared: &Shared, open: usize) -> io::Result<()>
         ("/" | "/events", _) => http::respond_text(stream, 405, "Allow: GET\r\n", "GET only"),
         ("/stop", _) => http::respond_text(stream, 405, "Allow: POST\r\n", "POST only"),
         _ => http::respond_text(stream, 404, "", "no such page: the page is at /"),
+    }
+}
+
+/// A connection read with one deadline for all its reads: a client that sends
+/// a byte now and then cannot keep it open past the deadline.
+struct Deadline<'s> {
+    stream: &'s mut TcpStream,
+    until: Instant,
+}
+
+impl<'s> Deadline<'s> {
+    fn new(stream: &'s mut TcpStream, within: Duration) -> Self {
+        Deadline {
+            stream,
+            until: Instant::now() + within,
+        }
+    }
+}
+
+impl io::Read for Deadline<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let left = self.until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::ErrorKind::TimedOut.into());
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        io::Read::read(self.stream, buf)
     }
 }
 
@@ -254,6 +298,7 @@ fn stop(stream: &mut TcpStream, shared: &Shared, request: &Request) -> io::Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::io::Read;
 
     #[test]
     fn loopback_hosts() {
@@ -278,6 +323,64 @@ mod tests {
             assert!(!loopback_host(Some(bad)), "{bad}");
         }
         assert!(!loopback_host(None));
+    }
+
+    /// A server on a free loopback port, and its address.
+    fn started() -> (Server, std::net::SocketAddr, super::super::hub::LinkEnd) {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        let (link, pages) = super::super::hub::hub();
+        let page = Page {
+            device: "sim".into(),
+            period_ms: 100,
+            remote: false,
+        };
+        (Server::start(listener, &page, pages).unwrap(), addr, link)
+    }
+
+    #[test]
+    fn beyond_the_cap_a_silent_connection_is_refused_at_once() {
+        let (server, addr, _link) = started();
+        // Clients that open a connection and never send their request.
+        let idle: Vec<TcpStream> = (0..MAX_CONNECTIONS)
+            .map(|_| TcpStream::connect(addr).unwrap())
+            .collect();
+        // The accepting thread counts them within a few polls.
+        std::thread::sleep(ACCEPT_POLL * 10);
+        let mut more = TcpStream::connect(addr).unwrap();
+        // Refused without waiting for a request: well within REQUEST_TIMEOUT.
+        more.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+        let mut answer = String::new();
+        more.read_to_string(&mut answer).unwrap();
+        assert!(answer.starts_with("HTTP/1.1 503 "), "{answer:?}");
+        drop(idle);
+        server.finish(Duration::ZERO);
+    }
+
+    #[test]
+    fn a_request_dribbled_a_byte_at_a_time_is_cut_at_the_deadline() {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap();
+        let dribble = std::thread::spawn(move || {
+            let mut c = TcpStream::connect(addr).unwrap();
+            // One byte every 20 ms, never a whole head: each read alone is quick.
+            for _ in 0..100 {
+                if c.write_all(b"G").is_err() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        });
+        let (mut stream, _) = listener.accept().unwrap();
+        let within = Duration::from_millis(200);
+        let started = Instant::now();
+        let read = http::read_request(&mut Deadline::new(&mut stream, within));
+        let took = started.elapsed();
+        assert_eq!(read.unwrap_err().kind(), io::ErrorKind::TimedOut);
+        // The deadline and at most one read's wait (20 ms) and scheduling after.
+        assert!(took < within + Duration::from_millis(150), "{took:?}");
+        drop(stream);
+        dribble.join().unwrap();
     }
 
     #[test]
