@@ -75,22 +75,29 @@ impl Sink for Served<'_, '_> {
     }
 
     fn between(&mut self, client: &mut Client) -> Result<(), Failure> {
-        for reply in self.link.stop_requests() {
-            // A refused or unanswered Stop is the page's to show; the stream goes
-            // on (its own watch ends a link that is gone).
-            let answer = match command(client, &Request::Stop) {
-                Ok(()) => Ok("stop: accepted".to_string()),
-                Err(f) => Err(f
-                    .message()
-                    .trim_end()
-                    .trim_start_matches("error: ")
-                    .to_string()),
-            };
-            self.out.print(&match &answer {
-                Ok(a) => format!("{a} (from the page)\n"),
-                Err(e) => format!("stop (from the page): {e}\n"),
-            });
-            let _ = reply.send(answer);
+        // The Stops that came since the last look are one Stop to the device,
+        // its answer to each: however many pages press it at once, the link
+        // spends one request's time on them, not one each, between heartbeats.
+        let replies = self.link.stop_requests();
+        if replies.is_empty() {
+            return Ok(());
+        }
+        // A refused or unanswered Stop is the page's to show; the stream goes
+        // on (its own watch ends a link that is gone).
+        let answer = match command(client, &Request::Stop) {
+            Ok(()) => Ok("stop: accepted".to_string()),
+            Err(f) => Err(f
+                .message()
+                .trim_end()
+                .trim_start_matches("error: ")
+                .to_string()),
+        };
+        self.out.print(&match &answer {
+            Ok(a) => format!("{a} (from the page)\n"),
+            Err(e) => format!("stop (from the page): {e}\n"),
+        });
+        for reply in replies {
+            let _ = reply.send(answer.clone());
         }
         Ok(())
     }
