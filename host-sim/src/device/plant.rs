@@ -10,7 +10,10 @@
 //!    ([`crate::simulation::board::bridge_commands`]; open windings before the
 //!    first step);
 //! 2. the plant integrated to the tick's end, `t_k = k / rate_hz`; its events dropped
-//!    (nobody records them here, and a long run must not pile them up);
+//!    (nobody records them here, and a long run must not pile them up), its
+//!    warnings taken into a list of at most [`MAX_WARNINGS`] and a count of the
+//!    rest (the plant's each name their time, so a run of hours could pile up a
+//!    warning a tick);
 //! 3. the sensors read there ([`BoardSensors::read`]): encoders, index pulses and
 //!    currents averaged over the tick, with the machine's noise and seed.
 
@@ -24,9 +27,16 @@ use crate::plant::simulator::{Holds, Plant, Settings};
 use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
 use crate::simulation::closed_loop::Injected;
 
+/// The plant's warnings kept word for word; those after are only counted.
+pub const MAX_WARNINGS: usize = 20;
+
 /// A machine file's plant with its board's sensors.
 pub struct PlantMechanics {
     plant: Plant,
+    /// The plant's first [`MAX_WARNINGS`] warnings.
+    warnings: Vec<String>,
+    /// The plant's warnings after those.
+    more_warnings: u64,
     sensors: BoardSensors,
     /// Control ticks integrated so far.
     ticks: u64,
@@ -53,10 +63,26 @@ impl PlantMechanics {
         );
         PlantMechanics {
             plant,
+            warnings: Vec::new(),
+            more_warnings: 0,
             sensors: BoardSensors::new(machine),
             ticks: 0,
             rate_hz: machine.controller.rate_hz,
             supply: machine.drive.supply_voltage,
+        }
+    }
+
+    /// The plant's new warnings into the bounded list, the plant's own emptied.
+    fn take_warnings(&mut self) {
+        for w in self.plant.warnings.drain(..) {
+            if self.warnings.contains(&w) {
+                continue;
+            }
+            if self.warnings.len() < MAX_WARNINGS {
+                self.warnings.push(w);
+            } else {
+                self.more_warnings += 1;
+            }
         }
     }
 
@@ -80,6 +106,7 @@ impl Mechanics for PlantMechanics {
         let t = self.ticks as f64 / self.rate_hz;
         self.plant.advance_to(t, &mut |_| {});
         self.plant.events.clear();
+        self.take_warnings();
         // 3. The sensors.
         self.sensors.read(t, &self.plant, &Injected::default())
     }
@@ -103,6 +130,43 @@ impl Mechanics for PlantMechanics {
     }
 
     fn warnings(&self) -> Vec<String> {
-        self.plant.warnings.clone()
+        let mut all = self.warnings.clone();
+        if self.more_warnings > 0 {
+            all.push(format!(
+                "{} more warnings of the plant after these",
+                self.more_warnings
+            ));
+        }
+        all
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_warning_a_tick_for_a_long_run_keeps_a_bounded_list() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/vibro-driver.toml");
+        let machine = Machine::load(std::path::Path::new(path), &[]).expect("the machine");
+        let mut m = PlantMechanics::new(&machine);
+        let dt = 1.0 / m.rate_hz;
+        let ticks = 200;
+        for k in 0..ticks {
+            // As the plant words them: each names its time, so none repeats.
+            m.plant.warnings.push(format!("warning at tick {k}"));
+            m.advance(None, dt);
+            assert!(m.plant.warnings.is_empty(), "the plant's own list grows");
+        }
+        let w = m.warnings();
+        assert_eq!(w.len(), MAX_WARNINGS + 1);
+        assert_eq!(w[0], "warning at tick 0");
+        assert_eq!(
+            w[MAX_WARNINGS],
+            format!(
+                "{} more warnings of the plant after these",
+                ticks - MAX_WARNINGS
+            )
+        );
     }
 }
