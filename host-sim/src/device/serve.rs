@@ -30,6 +30,10 @@ use crate::simulation::closed_loop::constants_warning;
 /// (a suspended process); beyond that it drops the time.
 pub const MAX_CATCH_UP_TICKS: u64 = 200;
 
+/// The longest a write to a TCP host may wait for room: a host that stops
+/// reading loses bytes, as on a UART, and never holds up the ticks.
+const WRITE_WAIT: Duration = Duration::from_millis(1);
+
 /// Where the simulated device listens.
 pub enum Endpoint {
     /// A pseudo-terminal's master side.
@@ -82,6 +86,7 @@ impl Endpoint {
                 if conn.is_none() {
                     if let Ok((stream, _)) = listener.accept() {
                         let _ = stream.set_nonblocking(false);
+                        let _ = stream.set_write_timeout(Some(WRITE_WAIT));
                         *conn = Some(TcpPort::from_stream(stream));
                     } else {
                         std::thread::sleep(timeout);
@@ -110,8 +115,15 @@ impl Endpoint {
             Endpoint::Pty(p) => p.write_or_drop(bytes),
             Endpoint::Tcp { conn, .. } => {
                 if let Some(c) = conn {
-                    if c.write_all(bytes).is_err() {
-                        *conn = None;
+                    match c.write_all(bytes) {
+                        // No room within WRITE_WAIT: the rest is dropped.
+                        Err(e)
+                            if matches!(
+                                e.kind(),
+                                io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
+                            ) => {}
+                        Err(_) => *conn = None,
+                        Ok(()) => {}
                     }
                 }
             }
@@ -402,6 +414,49 @@ fn open_pty() -> Result<Endpoint, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tcp_host_that_does_not_read_loses_bytes_and_holds_nothing_up() {
+        let mut endpoint = Endpoint::tcp("127.0.0.1:0").unwrap();
+        let addr = endpoint.port_name().trim_start_matches("tcp:").to_string();
+        let host = std::net::TcpStream::connect(&addr).unwrap();
+        let mut buf = [0u8; 16];
+        while !matches!(&endpoint, Endpoint::Tcp { conn: Some(_), .. }) {
+            endpoint.read(&mut buf, Duration::from_millis(1));
+        }
+        // 32 MB, more than the kernel's buffers hold for a host that never reads
+        // (checked below: not all of it arrives).
+        let (done, finished) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let chunk = vec![0x55u8; 64 * 1024];
+            for _ in 0..512 {
+                endpoint.write(&chunk);
+            }
+            let _ = done.send(matches!(endpoint, Endpoint::Tcp { conn: Some(_), .. }));
+        });
+        // Each write waits about WRITE_WAIT once the buffers are full (a few ms
+        // at the kernel's timer granularity): seconds for the 512 writes, where
+        // before they waited for ever.
+        let still_connected = finished
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the writes waited for the host to read");
+        assert!(still_connected, "the host was dropped for not reading");
+        // Some bytes were dropped: the test filled the buffers.
+        let mut host = host;
+        host.set_nonblocking(true).unwrap();
+        let mut got = 0usize;
+        let mut big = vec![0u8; 1 << 20];
+        while let Ok(n) = std::io::Read::read(&mut host, &mut big) {
+            if n == 0 {
+                break;
+            }
+            got += n;
+        }
+        assert!(
+            got < 512 * 64 * 1024,
+            "all {got} bytes arrived: nothing filled"
+        );
+    }
 
     /// Holds the loop up once, for `stall`, at tick 10, then serves 100 more ticks.
     struct Stall {
