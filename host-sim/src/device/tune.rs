@@ -690,6 +690,9 @@ fn write_table(
         count(file.rows.len(), "row"),
         file.path().display()
     ));
+    for w in tune_table::warnings(&fits) {
+        out.note(&format!("warning: {w}\n"));
+    }
     Ok(())
 }
 
