@@ -11,6 +11,7 @@
 //! 3000,90,0.0297,1
 //! ```
 //!
+//! - a leading byte order mark (a spreadsheet's UTF-8 CSV) is skipped;
 //! - the first line that is not blank nor a `#` comment is the header: the columns
 //!   `speed_rpm`, `offset_deg`, `velocity_mps` and optionally `weight`, each once,
 //!   in any order, nothing else;
@@ -128,6 +129,9 @@ pub fn parse(
     speed_range: Option<(f64, f64)>,
 ) -> Result<(Header, Vec<Row>), String> {
     let mut problems = Vec::new();
+    // A spreadsheet's "CSV UTF-8" starts with a byte order mark: not part of the
+    // header's first name.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut lines = text
         .lines()
         .enumerate()
@@ -284,6 +288,12 @@ mod tests {
         );
         assert!(header.weighted());
         assert_eq!(header.line(), "weight,velocity_mps,offset_deg,speed_rpm");
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_part_of_the_header() {
+        let rows = rows("\u{feff}speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n");
+        assert_eq!((rows.len(), rows[0].line), (1, 2));
     }
 
     #[test]

@@ -51,7 +51,7 @@ pub const WEAK_COMPONENT: f64 = 0.3;
 #[derive(Clone, Debug, PartialEq)]
 pub struct Precision {
     /// Standard error of each key, normalised (`None`: not estimable: no degrees
-    /// of freedom, or a zero column).
+    /// of freedom, or a column zero or not a number).
     pub std_error_u: Vec<Option<f64>>,
     /// How far the search's end may lie from the least-squares point, normalised
     /// (`None` where `J^T J` is singular): see the module doc.
@@ -86,7 +86,9 @@ pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
         }
     }
     let column_norm: Vec<f64> = (0..p).map(|i| a[i][i].sqrt()).collect();
-    let live: Vec<usize> = (0..p).filter(|&i| column_norm[i] > 0.0).collect();
+    // A column not a number (a difference to a point the machine reader refused)
+    // says as little as a zero one.
+    let live: Vec<usize> = (0..p).filter(|&i| informative(column_norm[i])).collect();
     // The scaled matrix of the columns that are not zero.
     let c: Vec<Vec<f64>> = live
         .iter()
@@ -141,7 +143,7 @@ pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
         );
     }
     // The keys of the weakest direction, when it is weak.
-    let mut weak: Vec<usize> = (0..p).filter(|&i| column_norm[i] == 0.0).collect();
+    let mut weak: Vec<usize> = (0..p).filter(|&i| !informative(column_norm[i])).collect();
     if condition > MAX_CONDITION && live.len() == p {
         if let Some(m) = (0..values.len()).min_by(|&x, &y| values[x].total_cmp(&values[y])) {
             weak.extend(
@@ -161,6 +163,11 @@ pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
         column_norm,
         weak,
     }
+}
+
+/// Whether a column of norm `norm` carries information: above 0 and finite.
+pub fn informative(norm: f64) -> bool {
+    norm > 0.0 && norm.is_finite()
 }
 
 /// Eigenvalues and eigenvectors (columns: `vectors[i][m]` is component `i` of
@@ -247,6 +254,14 @@ mod tests {
         );
         assert!(p.condition > MAX_CONDITION);
         assert_eq!(p.weak, vec![0, 1]);
+        // A difference to a refused point (not a number) is no information.
+        let p = precision(
+            &[vec![1.0, f64::NAN], vec![2.0, 1.0], vec![3.0, 0.5]],
+            1.0,
+            0.1,
+        );
+        assert_eq!(p.weak, vec![1]);
+        assert_eq!(p.std_error_u[1], None);
         let p = precision(&[vec![1.0, 0.0], vec![0.0, 1.0]], 1.0, 0.1);
         assert_eq!((p.s2, p.std_error_u.clone()), (None, vec![None, None]));
     }

@@ -10,7 +10,7 @@ use toml_edit::{DocumentMut, Item, Table};
 
 use super::fit::Fit;
 use super::keys::FitKey;
-use super::precision::{Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
+use super::precision::{informative, Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
 use super::{CalibrateArgs, Calibration, NOT_HELD_RESIDUAL_MPS};
 use crate::machine::input;
 use crate::machine::Machine;
@@ -52,10 +52,19 @@ pub fn warnings(
             "{k}: not identified: no simulated speed changes over a step of 1/16 of its range (the measurements do not depend on it)"
         ));
     }
+    for i in (0..keys.len()).filter(|&i| {
+        let norm = precision.column_norm[i];
+        norm != 0.0 && !informative(norm)
+    }) {
+        out.push(format!(
+            "{}: not identified: its effect on the speeds is unknown (a value 1/16 of its range from the fit was refused by the machine reader)",
+            keys[i].key
+        ));
+    }
     let tangled: Vec<&str> = precision
         .weak
         .iter()
-        .filter(|&&i| precision.column_norm[i] > 0.0)
+        .filter(|&&i| informative(precision.column_norm[i]))
         .map(|&i| keys[i].key.as_str())
         .collect();
     if !tangled.is_empty() {

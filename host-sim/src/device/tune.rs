@@ -13,7 +13,9 @@
 //!    is that of the held gait alone, without the ramp down;
 //! 4. `Stop`, and the status polled until `idle` with both rotors at rest
 //!    (below `WRITE_MAX_SPEED_RPM`, 10 rpm);
-//! 5. the prompt: the distance between the two marks, mm. A number is
+//! 5. the prompt: the distance between the two marks, mm. At a terminal, lines
+//!    typed while the point ran are ignored (and said so): a stray Enter must
+//!    not start the machine again beside the operator. A number is
 //!    appended to the file at once as `velocity = distance / S` (m/s); an empty
 //!    line runs the point again; `s` skips it; `q` (or the end of stdin) ends the
 //!    sweep with what was measured; anything else is explained and asked again.
@@ -26,9 +28,9 @@
 //! The machine is behind [`Rig`] and the operator behind [`Operator`], so the
 //! unit tests drive the sweep with a fake of each.
 
-use std::io::BufRead;
+use std::io::{BufRead, IsTerminal};
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
 use shared::controller::{State, WRITE_MAX_SPEED_RPM};
@@ -119,19 +121,31 @@ pub trait Operator {
     fn reply(&mut self) -> Reply;
     /// Whether the operator pressed Ctrl-C.
     fn interrupted(&mut self) -> bool;
+    /// Forgets the lines typed before the prompt (while the point ran) and
+    /// returns them: at a terminal an answer counts only once the prompt asks
+    /// for it. A script's lines piped ahead are kept (none returned).
+    fn forget_typed_ahead(&mut self) -> Vec<String>;
 }
 
 /// The operator at the terminal: lines on stdout (through the console),
 /// answers from stdin, read on a thread so that Ctrl-C ends the wait.
-/// Lines typed ahead are answers in order (a script may pipe them all at once).
+/// Lines piped ahead are answers in order (a script may pipe them all at once);
+/// at a terminal (`interactive`), lines typed while a point runs are forgotten.
 pub struct Terminal<'c, 'w> {
     console: &'c mut Console<'w>,
     lines: Receiver<Option<String>>,
+    interactive: bool,
+    /// The input ended while lines were being forgotten.
+    ended: bool,
 }
 
 impl<'c, 'w> Terminal<'c, 'w> {
-    /// Reads `input` on a thread from now on.
-    pub fn new(console: &'c mut Console<'w>, input: impl BufRead + Send + 'static) -> Self {
+    /// Reads `input` on a thread from now on; `interactive`: it is a terminal.
+    pub fn new(
+        console: &'c mut Console<'w>,
+        input: impl BufRead + Send + 'static,
+        interactive: bool,
+    ) -> Self {
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
             for line in input.lines() {
@@ -142,7 +156,12 @@ impl<'c, 'w> Terminal<'c, 'w> {
             }
             let _ = tx.send(None);
         });
-        Terminal { console, lines }
+        Terminal {
+            console,
+            lines,
+            interactive,
+            ended: false,
+        }
     }
 }
 
@@ -152,6 +171,9 @@ impl Operator for Terminal<'_, '_> {
     }
 
     fn reply(&mut self) -> Reply {
+        if self.ended {
+            return Reply::End;
+        }
         loop {
             if interrupt::interrupted() {
                 return Reply::Interrupted;
@@ -166,6 +188,18 @@ impl Operator for Terminal<'_, '_> {
 
     fn interrupted(&mut self) -> bool {
         interrupt::interrupted()
+    }
+
+    fn forget_typed_ahead(&mut self) -> Vec<String> {
+        let mut typed = Vec::new();
+        while self.interactive && !self.ended {
+            match self.lines.try_recv() {
+                Ok(Some(line)) => typed.push(line.trim_end_matches('\r').to_string()),
+                Ok(None) | Err(TryRecvError::Disconnected) => self.ended = true,
+                Err(TryRecvError::Empty) => break,
+            }
+        }
+        typed
     }
 }
 
@@ -249,6 +283,15 @@ pub fn sweep(
             // The machine stopped whatever went wrong; the link may be gone.
             let stop = rig.stop();
             return Err(stopped(f, &here, stop));
+        }
+        let typed = op.forget_typed_ahead();
+        if !typed.is_empty() {
+            let quoted: Vec<String> = typed.iter().map(|l| format!("{l:?}")).collect();
+            op.tell(&format!(
+                "ignored: {} typed while the point ran ({}): answer at the prompt\n",
+                count(typed.len(), "line"),
+                quoted.join(", ")
+            ));
         }
         loop {
             op.tell(PROMPT);
@@ -577,7 +620,8 @@ pub fn run(
     ));
     interrupt::catch();
     let result = {
-        let mut op = Terminal::new(out, std::io::BufReader::new(std::io::stdin()));
+        let interactive = std::io::stdin().is_terminal();
+        let mut op = Terminal::new(out, std::io::BufReader::new(std::io::stdin()), interactive);
         sweep(rig, &mut op, &mut file, &todo, timing)
     };
     let kept = format!(
@@ -646,6 +690,9 @@ fn write_table(
         count(file.rows.len(), "row"),
         file.path().display()
     ));
+    for w in tune_table::warnings(&fits) {
+        out.note(&format!("warning: {w}\n"));
+    }
     Ok(())
 }
 

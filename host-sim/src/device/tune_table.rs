@@ -175,6 +175,29 @@ pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
     }
 }
 
+/// The speeds where no offset measured travels one way (as `tune` warns): the
+/// table's offset that way is the least bad, and drives the platform the other
+/// way or not at all.
+pub fn warnings(fits: &[SpeedFit]) -> Vec<String> {
+    let mut out = Vec::new();
+    for f in fits {
+        for (pick, way, travels) in [
+            (&f.right, "right", f.right.grid.1 > 0.0),
+            (&f.left, "left", f.left.grid.1 < 0.0),
+        ] {
+            if !travels {
+                out.push(format!(
+                    "{} rpm: no offset travels {way}: the best is {} deg at {} mm/s",
+                    text::sig(f.speed_rpm),
+                    text::sig(pick.grid.0),
+                    mm_s(pick.grid.1)
+                ));
+            }
+        }
+    }
+    out
+}
+
 /// How a pick was found, for the file's header.
 fn describe(p: &Pick) -> String {
     match &p.degenerate {
@@ -279,6 +302,7 @@ mod tests {
         assert_eq!(f[0].right.grid, (90.0, 0.030));
         assert_eq!(f[0].left.offset_deg, 180.0);
         assert!(f[0].left.degenerate.is_some());
+        assert!(warnings(&f).is_empty());
         let text = table_file(&f, Path::new("m.csv"), 3).unwrap();
         let read = tuning_file::parse("t", &text).unwrap();
         assert_eq!(read, vec![(3000.0, 75.0, 180.0)]);
@@ -297,6 +321,22 @@ mod tests {
         assert_eq!(
             e,
             vec!["3000 rpm has 2 offsets (0, 90 deg): the peak fit needs at least 3 (the best and its two neighbours)"]
+        );
+    }
+
+    /// A speed where every offset measured travels right: its left pick travels
+    /// right too, and is said so.
+    #[test]
+    fn a_way_no_offset_travels_is_a_warning() {
+        let rows = [
+            row(3000.0, 0.0, 0.012, 1.0),
+            row(3000.0, 90.0, 0.030, 1.0),
+            row(3000.0, 180.0, 0.006, 1.0),
+        ];
+        let f = fits(&rows).unwrap();
+        assert_eq!(
+            warnings(&f),
+            ["3000 rpm: no offset travels left: the best is 180 deg at +6.0 mm/s"]
         );
     }
 }

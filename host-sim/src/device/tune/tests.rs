@@ -101,12 +101,14 @@ impl Rig for FakeRig {
 }
 
 /// An operator reading answers from a script (then the end of input), keeping
-/// what it was told; Ctrl-C pressed at the `ctrl_c_at`-th look, if given.
+/// what it was told; Ctrl-C pressed at the `ctrl_c_at`-th look, if given;
+/// `typed`: lines typed while the first point runs.
 struct Script {
     answers: VecDeque<Reply>,
     told: String,
     looks: usize,
     ctrl_c_at: Option<usize>,
+    typed: Vec<String>,
 }
 
 impl Script {
@@ -116,6 +118,7 @@ impl Script {
             told: String::new(),
             looks: 0,
             ctrl_c_at: None,
+            typed: Vec::new(),
         }
     }
 }
@@ -132,6 +135,10 @@ impl Operator for Script {
     fn interrupted(&mut self) -> bool {
         self.looks += 1;
         self.ctrl_c_at.is_some_and(|n| self.looks >= n)
+    }
+
+    fn forget_typed_ahead(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.typed)
     }
 }
 
@@ -336,4 +343,52 @@ fn a_lost_link_names_the_point_and_the_failed_stop() {
         "error: 3000 rpm, 0 deg: the port failed: closed; the stop failed too (the port failed: closed): \
          the device stops the motors itself 0.5 s after its last request (fault link_lost)\n"
     );
+}
+
+/// Lines typed while a point runs are not answers: the sweep says it ignored
+/// them and asks; a stray Enter does not start the machine again.
+#[test]
+fn lines_typed_while_a_point_runs_are_ignored() {
+    let (mut file, path) = scratch_file("typed.csv");
+    let mut rig = FakeRig::new(None);
+    let mut op = Script::new(&["4", "q"]);
+    op.typed = vec!["".into(), "12".into()];
+    let tally = sweep(&mut rig, &mut op, &mut file, &POINTS, TIMING).unwrap();
+    assert_eq!((tally.measured, tally.repeated), (1, 0));
+    assert!(
+        op.told.contains(
+            "ignored: 2 lines typed while the point ran (\"\", \"12\"): answer at the prompt\n"
+        ),
+        "{}",
+        op.told
+    );
+    // 4 mm / 0.02 s = 0.2 m/s, not the 12 typed ahead.
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        "speed_rpm,offset_deg,velocity_mps\n3000,0,0.2\n"
+    );
+}
+
+/// The terminal forgets the lines waiting when it is a terminal, keeping the
+/// end of the input; piped lines are answers in order.
+#[test]
+fn a_terminal_forgets_lines_typed_ahead_and_a_pipe_keeps_them() {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let mut console = Console::new(&mut out, &mut err);
+    let input = || std::io::Cursor::new(b"\n5\r\n".to_vec());
+    let mut t = Terminal::new(&mut console, input(), true);
+    let mut typed = Vec::new();
+    let start = Instant::now();
+    while !t.ended && start.elapsed() < Duration::from_secs(5) {
+        typed.extend(t.forget_typed_ahead());
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(typed, ["", "5"]);
+    assert_eq!(t.reply(), Reply::End);
+    let mut t = Terminal::new(&mut console, input(), false);
+    std::thread::sleep(Duration::from_millis(50));
+    assert!(t.forget_typed_ahead().is_empty());
+    assert_eq!(t.reply(), Reply::Line("".into()));
+    assert_eq!(t.reply(), Reply::Line("5".into()));
+    assert_eq!(t.reply(), Reply::End);
 }
