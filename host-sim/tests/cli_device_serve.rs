@@ -17,42 +17,11 @@ use serde_json::{json, Value};
 
 mod browser;
 mod common;
+use common::device_sim::DeviceSim;
 
 use host_sim::device::report::CSV_HEADER;
 
-/// `host-sim device-sim --listen tcp:127.0.0.1:0`, killed when dropped.
-struct DeviceSim {
-    child: Child,
-    port: String,
-}
-
 impl DeviceSim {
-    fn start() -> DeviceSim {
-        let mut child = common::host_sim()
-            .args([
-                "device-sim",
-                "--listen",
-                "tcp:127.0.0.1:0",
-                "--duration",
-                "60",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("device-sim runs");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().expect("piped"))
-            .read_line(&mut line)
-            .expect("device-sim prints its port");
-        let port = line
-            .strip_prefix("port: ")
-            .unwrap_or_else(|| panic!("no port in {line:?}"))
-            .trim()
-            .to_string();
-        DeviceSim { child, port }
-    }
-
     /// `host-sim device --port PORT args...` to its end.
     fn run(&self, args: &[&str]) -> common::Run {
         let mut cmd = common::host_sim();
@@ -90,13 +59,6 @@ impl DeviceSim {
             url,
             stderr: lines,
         }
-    }
-}
-
-impl Drop for DeviceSim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -215,7 +177,7 @@ fn a_network_address_needs_allow_remote_and_a_bad_one_is_refused() {
 
 #[test]
 fn the_routes_over_plain_http() {
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     // At a frame every 50 ms; 4 s covers the requests below with time to spare.
     let served = dev.serve(&["127.0.0.1:0", "--period", "50", "--duration", "4"]);
     let addr = served.addr().to_string();
@@ -312,7 +274,7 @@ fn the_routes_over_plain_http() {
 
 #[test]
 fn a_network_address_with_allow_remote_warns_on_the_page() {
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     let served = dev.serve(&["0.0.0.0:0", "--allow-remote", "--duration", "1.5"]);
     // The line after the address.
     let warning = served.stderr.recv_timeout(Duration::from_secs(5));
@@ -345,7 +307,7 @@ fn the_live_page_in_a_browser_shows_the_stream_and_its_stop_stops_the_device() {
     let Some(mut b) = browser::Browser::launch() else {
         return;
     };
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     // The travel returns at once; the page's server takes over the link within
     // the controller's 0.5 s link timeout (a process start, a connection).
     let t = dev.run(&["travel", "right", "--speed", "3000"]);

@@ -15,56 +15,17 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 mod common;
+use common::device_sim::DeviceSim;
 use common::Run;
 
 use host_sim::machine::tuning_file;
 
-/// `host-sim device-sim --listen tcp:127.0.0.1:0`, ended (by its handle) when
-/// dropped.
-struct DeviceSim {
-    child: Child,
-    port: String,
-}
-
 impl DeviceSim {
-    fn start() -> DeviceSim {
-        let mut child = common::host_sim()
-            .args([
-                "device-sim",
-                "--listen",
-                "tcp:127.0.0.1:0",
-                "--duration",
-                "60",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("device-sim runs");
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().expect("piped"))
-            .read_line(&mut first)
-            .expect("device-sim prints its port");
-        let port = first
-            .trim()
-            .strip_prefix("port: ")
-            .unwrap_or_else(|| panic!("first line {first:?}"))
-            .to_string();
-        DeviceSim { child, port }
-    }
-
     /// `host-sim device --port PORT args...` with `stdin` as its input.
     fn run(&self, args: &[&str], stdin: &str) -> Run {
         let mut cmd = common::host_sim();
         cmd.args(["device", "--port", &self.port]).args(args);
         with_stdin(cmd, stdin)
-    }
-}
-
-impl Drop for DeviceSim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -130,7 +91,7 @@ fn marks(stdout: &str) -> Vec<&str> {
 
 #[test]
 fn answers_are_recorded_resumed_and_made_into_a_table() {
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     let csv = scratch("sweep.csv");
     let table = scratch("sweep.toml");
 
@@ -208,7 +169,7 @@ fn answers_are_recorded_resumed_and_made_into_a_table() {
 
 #[test]
 fn a_file_in_its_own_column_order_is_resumed_and_continued_in_it() {
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     let csv = scratch("reordered.csv");
     // A file as `calibrate` reads it, written by hand: a comment, the columns in
     // another order with weights, 0 deg and -270 deg (90 deg) measured.
@@ -280,7 +241,7 @@ fn one_row(name: &str) -> (PathBuf, &'static str) {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
-    let dev = DeviceSim::start();
+    let dev = DeviceSim::start(&["--duration", "60"]);
     let (csv, rows) = one_row("ctrl-c.csv");
     let r = interrupt_after_mark(&dev.port, &csv, |child| {
         // Ctrl-C to the child this test started, by its id.
@@ -309,12 +270,12 @@ fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
 
 #[test]
 fn a_lost_link_ends_the_sweep_with_the_rows_kept() {
-    let mut dev = DeviceSim::start();
+    let mut dev = DeviceSim::start(&["--duration", "60"]);
     let (csv, rows) = one_row("lost.csv");
     // The device dies while the point is measured.
     let port = dev.port.clone();
     let r = interrupt_after_mark(&port, &csv, |_| {
-        let _ = dev.child.kill();
+        dev.kill();
     });
     assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
     assert!(r.stderr.starts_with("error: "), "{}", r.stderr);

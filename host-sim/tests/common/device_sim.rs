@@ -79,6 +79,11 @@ impl DeviceSim {
             .unwrap_or_else(|e| panic!("{line}: {e}"))
     }
 
+    /// The board dies: its process killed (the link lost at once).
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+    }
+
     /// Ctrl-C to the process this test started, by its id; its exit status and
     /// stderr.
     pub fn interrupt(mut self) -> (i32, String) {
