@@ -227,7 +227,12 @@ impl io::Read for Deadline<'_> {
             return Err(io::ErrorKind::TimedOut.into());
         }
         self.stream.set_read_timeout(Some(left))?;
-        io::Read::read(self.stream, buf)
+        // A read that waits out the socket's timeout fails with `WouldBlock` on
+        // Unix (EAGAIN) and `TimedOut` on Windows: either way the deadline passed.
+        io::Read::read(self.stream, buf).map_err(|e| match e.kind() {
+            io::ErrorKind::WouldBlock => io::ErrorKind::TimedOut.into(),
+            _ => e,
+        })
     }
 }
 
