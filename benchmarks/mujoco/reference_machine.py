@@ -29,7 +29,7 @@ about -y. The platform body's frame is its centre of mass (the platform without
 the eccentric masses); the rotor joints' angles are the eccentric angles phi in
 the platform frame (docs/plant-model.md). The phase offset is
 theta_1 - theta_2 with theta_k = s_k (phi_k - index_angle_k), s = +1 ccw, -1 cw
-(shared/spec/machine.md). Each rotor follows
+(docs/machine-file.md, "The phase convention"). Each rotor follows
 theta_k(t) = integral of omega(t) dt +- offset / 2, omega ramped from 0 to the
 speed over --ramp seconds, by a PD servo on its joint (a position actuator whose
 reference is an integrator activation, plus a velocity actuator).

@@ -39,10 +39,10 @@ fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-device-loop", name)
 }
 
-/// The reference machine's text with both feet's restitution and friction
-/// replaced, and `extra` appended.
+/// The reference machine's text without its `[uncertainty]`, both feet's
+/// restitution and friction replaced, and `extra` appended.
 fn machine_text(restitution: &str, friction: &str, extra: &str) -> String {
-    let text = std::fs::read_to_string(common::machine()).expect("the reference machine");
+    let text = common::reference_without_uncertainty();
     let (e, mu) = ("restitution = 0.3\n", "friction = 0.4\n");
     assert_eq!(text.matches(e).count(), 2, "both feet's restitution");
     assert_eq!(text.matches(mu).count(), 2, "both feet's friction");

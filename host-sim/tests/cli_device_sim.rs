@@ -24,7 +24,7 @@ fn scratch(name: &str) -> PathBuf {
 /// Hold 90 degrees at 3000 rpm for 4 s (the link kept alive by `--for`), then
 /// travel left at 3000 rpm (the machine's table's offset) for 4 s: the truth file
 /// shows the platform going right, then left, by about what `host-sim run` finds
-/// at those points: 33.3 mm/s right at 90 degrees, 31.9 mm/s left with the table
+/// at those points: 33.3 mm/s right at 90 degrees, 33.3 mm/s left with the table (270)
 /// (`host-sim run examples/vibro-driver.toml --command right --offset 90` and
 /// `--command left`, 4 s). Each hold reaches speed and its offset within 1.7 s
 /// (the speed ramp, then the offset reference at 180 deg/s), so at least 2.3 s of

@@ -161,7 +161,7 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
 fn robust_refusals() {
     let m = uncertain_machine();
     let m = m.to_str().unwrap();
-    let plain = common::machine();
+    let plain = common::uncertain_machine("cli-tune-robust-plain", "");
     tune(plain.to_str().unwrap(), &["--robust"]).refused("no [uncertainty] ranges");
     tune(m, &["--robust", "--samples", "0"]).refused("expected a count of machines from 1 to 1000");
     tune(m, &["--samples", "4"]).refused("--robust");

@@ -1,7 +1,7 @@
-//! The impact model against the reference paper's closed forms
-//! (`shared/paper/collisions-at-several-points.md`), for many random parameter sets.
+//! The impact model against the reference paper's closed forms (*Mechanism motion
+//! studies with collisions at several points*), for many random parameter sets.
 //!
-//! Geometry (spec `impact-case.md`, "Geometry of the paper's examples"): the body is
+//! Geometry (docs/impact-model.md, "The paper's examples: their geometry"): the body is
 //! pinned at O = (0, 0), the contact point is K = (-d, h) with d, h > 0, the obstacle
 //! normal is n = (1, 0), so the tangent is t = (-n_y, n_x) = (0, 1), and omega_0 > 0.
 //! The paper's `JO` is about O: `JO = Jc + m (xc^2 + yc^2)` (parallel axis).

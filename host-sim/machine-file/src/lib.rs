@@ -3,10 +3,10 @@
 //! controller's constants, so the firmware compiles in exactly what the simulator
 //! runs and tunes.
 //!
-//! - [`Machine::load`]: the machine file (`../shared/spec/machine.md`), the vibro
+//! - [`Machine::load`]: the machine file (`docs/machine-file.md`), the vibro
 //!   driver that host-sim simulates, checked into plain values. All positions are
-//!   world coordinates at `t = 0`, SI units, radians. `docs/machine-file.md` lists
-//!   every key, default and message;
+//!   world coordinates at `t = 0`, SI units, radians; the doc lists every key,
+//!   default and message;
 //! - [`set`]: the `--set KEY=VALUE` overrides;
 //! - [`tuning_file`]: the tuning table file, read with the controller's own rule for
 //!   its rows, and written;

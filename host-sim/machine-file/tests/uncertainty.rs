@@ -7,17 +7,18 @@ mod common;
 
 use std::path::Path;
 
-use common::assert_problem;
+use common::{assert_problem, reference_without_uncertainty};
 use machine_file::input::render;
 use machine_file::uncertainty::{latin_hypercube, Uncertainty};
 use machine_file::Machine;
 
-const REFERENCE: &str = include_str!("../../../examples/vibro-driver.toml");
-
-/// The reference machine with `section` appended (its tuning table read from
-/// `examples/`).
+/// The reference machine with `section` as its `[uncertainty]` (its tuning table
+/// read from `examples/`).
 fn with(section: &str) -> String {
-    format!("{REFERENCE}\n[uncertainty]\n{section}")
+    format!(
+        "{}\n[uncertainty]\n{section}",
+        reference_without_uncertainty()
+    )
 }
 
 fn dir() -> &'static Path {
@@ -217,4 +218,33 @@ fn the_machines_drawn_start_with_the_nominal_and_stay_within_the_ranges() {
         Uncertainty::default().draw(5, 1),
         vec![Vec::<String>::new()]
     );
+}
+
+/// The reference machine says what it does not know: the ranges its comments
+/// give for its estimates (the feet's restitution and friction, the motor's
+/// resistance and torque constant), each around the file's own value, so that
+/// `tune --robust` and `calibrate --fit` of those keys run on it as the README
+/// shows them.
+#[test]
+fn the_reference_machine_gives_the_ranges_of_its_estimates() {
+    let path = dir().join("vibro-driver.toml");
+    let u = Uncertainty::load(&path, &[]).unwrap_or_else(|p| panic!("{}", render(&p)));
+    let m = Machine::load(&path, &[]).unwrap_or_else(|p| panic!("{}", render(&p)));
+    let motor = &m.rotors[0].motor;
+    let nominal = [
+        ("contacts.*.restitution", m.contacts[0].restitution),
+        ("contacts.*.friction", m.contacts[0].friction),
+        ("motor.resistance", motor.resistance),
+        ("motor.torque_constant", motor.torque_constant),
+    ];
+    let keys: Vec<&str> = u.ranges.iter().map(|r| r.key.as_str()).collect();
+    assert_eq!(keys, nominal.map(|(k, _)| k));
+    for (r, (key, value)) in u.ranges.iter().zip(nominal) {
+        assert!(
+            r.low < value && value < r.high,
+            "{key}: the file's {value} outside [{}, {}]",
+            r.low,
+            r.high
+        );
+    }
 }

@@ -399,7 +399,7 @@ mod tests {
     }
 
     /// With a machine, the controller is the machine's: its tuning table's offset
-    /// for travel (81.1 degrees right at 3000 rpm in the reference machine's
+    /// for travel (77.2 degrees right at 3250 rpm in the reference machine's
     /// table), not the default table's 90 degrees.
     #[test]
     fn a_machine_brings_its_own_tuning_table() {
@@ -407,14 +407,14 @@ mod tests {
         let table_offset = params(&machine)
             .unwrap()
             .tuning
-            .offset(Direction::Right, 3000.0);
+            .offset(Direction::Right, 3250.0);
         assert!((table_offset - 90.0).abs() > 1.0, "{table_offset}");
         let mut dev = SimDevice::with_machine(&machine, None, Noise::default()).unwrap();
         dev.state.command = Some(Command::Travel {
             direction: Direction::Right,
-            speed_rpm: 3000.0,
+            speed_rpm: 3250.0,
         });
-        // Running by 1.5 s (the ramp to 3000 rpm takes about 0.7 s).
+        // Running by 1.5 s (the ramp to 3250 rpm takes about 0.8 s).
         run(&mut dev, 1500);
         assert_eq!(dev.link_state().status.state, State::Running);
         let target = dev.link_state().status.telemetry.target_offset_deg;

@@ -34,19 +34,36 @@ pub const TINY_GRID: [&str; 6] = [
     "4",
 ];
 
-/// The reference machine with `ranges` appended as its `[uncertainty]` (its
-/// tuning table from `examples/`), written as `uncertain.toml` in the scratch
-/// directory `tag`.
-pub fn uncertain_machine(tag: &str, ranges: &str) -> PathBuf {
-    let text = std::fs::read_to_string(machine()).unwrap().replace(
+/// The reference machine's text without its own `[uncertainty]` (the file's last
+/// section), its tuning table named by its absolute path (`examples/`), so that
+/// the text may be written anywhere.
+pub fn reference_without_uncertainty() -> String {
+    let text = std::fs::read_to_string(machine()).unwrap();
+    let (machine, ranges) = text
+        .split_once("\n[uncertainty]\n")
+        .expect("the reference machine's [uncertainty]");
+    assert!(!ranges.contains("\n["), "[uncertainty] is the last section");
+    machine.replace(
         "tuning_table = \"vibro-driver.tuning.toml\"",
         &format!(
             "tuning_table = {:?}",
             root().join("examples/vibro-driver.tuning.toml")
         ),
-    );
+    )
+}
+
+/// The reference machine with `ranges` as its `[uncertainty]` (its tuning table
+/// from `examples/`), written as `uncertain.toml` in the scratch directory `tag`;
+/// with `ranges` empty, a machine without `[uncertainty]`.
+pub fn uncertain_machine(tag: &str, ranges: &str) -> PathBuf {
+    let text = reference_without_uncertainty();
     let path = scratch(tag, "uncertain.toml");
-    std::fs::write(&path, format!("{text}\n[uncertainty]\n{ranges}")).unwrap();
+    let section = if ranges.is_empty() {
+        String::new()
+    } else {
+        format!("\n[uncertainty]\n{ranges}")
+    };
+    std::fs::write(&path, text + &section).unwrap();
     path
 }
 

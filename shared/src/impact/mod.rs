@@ -1,5 +1,6 @@
 //! The impact model: impacts at one or several points at once, with per-contact
-//! restitution and Coulomb friction (the reference paper, `../shared/paper/`).
+//! restitution and Coulomb friction (the reference paper, *Mechanism motion studies
+//! with collisions at several points*; docs/impact-model.md).
 //!
 //! Layers, from numerics to mechanics:
 //! - [`problem`]: the impact problem in contact coordinates: the Delassus matrix
