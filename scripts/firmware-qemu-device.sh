@@ -7,9 +7,16 @@
 #
 #   status (idle), table write + table read (the example table, then one with the
 #   right offsets +5 deg: read back equal), self-test (done, both rotors pass, 4096
-#   counts per rev), travel right 3000 rpm --for 3 (running at the written table's
-#   offset), travel + telemetry --csv (running, speeds, target offset), stop, status
-#   until idle.
+#   counts per rev), travel right 3000 rpm --for 3 (accepted, no fault, stopped),
+#   travel + telemetry --count 40 --csv (40 frames in order, no fault, ending at
+#   the steady state: speeds, the written table's offset), stop, status until idle.
+#
+# Every check holds at any load of the host: QEMU's clock follows the host's, but
+# the firmware counts its time in control ticks, and a tick QEMU could not run in
+# time is skipped, so under load the firmware's time runs slower than the host's.
+# The checks therefore count frames and ticks of the firmware, never seconds of
+# the host (docs/firmware-qemu.md, "Time"; docs/development.md says how to run
+# the whole CI under load).
 #
 #   bash scripts/firmware-qemu-device.sh
 #
@@ -98,11 +105,12 @@ fi
 DEVICE=(--port "tcp:127.0.0.1:$PORT")
 
 # USART1 is the first -serial, USART2 the second. No -icount: QEMU's virtual clock
-# (SysTick, hence the firmware's uptime and the link's timeouts) then follows real
-# time, as the host's 100 ms answer timeout and 50 ms heartbeats do. The timeout
-# only bounds a run whose trap never came.
+# (SysTick, hence the firmware's control ticks, uptime and link timeout) then
+# follows real time, as the host's 100 ms answer timeout and 50 ms heartbeats do,
+# except that ticks QEMU cannot run in time are skipped (the firmware's clock falls
+# behind, never ahead). The timeout only bounds a run whose trap never came.
 FAILED_STEP="start QEMU"
-timeout 300 qemu-system-arm \
+timeout 600 qemu-system-arm \
     -machine netduinoplus2 \
     -display none -monitor none \
     -serial null \
@@ -195,73 +203,94 @@ table_round_trip table-shifted "$WORK/shifted.toml"
 TARGET="$(awk -v s="$SPEED" '/^speed_rpm/ { v = $3 } /^right_offset_deg/ && v == s { printf "%.1f", $3 }' "$WORK/shifted.toml")"
 [[ -n "$TARGET" ]] || fail "no row at $SPEED rpm in $TABLE"
 
-# 3. The self-test on the rotor model.
-run self-test self-test --timeout 20
+# 3. The self-test on the rotor model. --timeout only bounds a hung run: the
+#    test takes about 1.5 s of firmware time.
+run self-test self-test --timeout 120
 expect self-test '^self-test +done$' "the self-test done"
 count self-test '^rotor [12] +PASS$' 2 "both rotors pass"
 count self-test '^ +counts per rev +4096$' 2 "4096 counts per rev on both rotors"
 count self-test '^ +index offset +[0-9]+ counts$' 2 "an index offset on both rotors"
 
-# within VALUE REF TOL: |VALUE - REF| <= TOL.
-within() {
-    awk -v v="$1" -v r="$2" -v t="$3" 'BEGIN { d = v - r; if (d < 0) d = -d; exit !(v != "" && d <= t) }'
-}
-
-# 4. Travel for 3 s (heartbeats, then the last status and a stop).
+# 4. Travel for 3 s (heartbeats, then the last status and a stop). How far the
+#    start has gone after 3 s of the host's clock depends on how much of the
+#    host QEMU got (see "Time" above), so only what holds at any pace is checked:
+#    the travel accepted, a status line with no fault in state starting or
+#    running, the stop accepted. The steady state is step 5's, counted in frames.
 run travel-for travel right --speed "$SPEED" --for 3
 expect travel-for "^travel right at $SPEED rpm: accepted$" "the travel accepted"
+expect travel-for '^after 3\.0 s: +[0-9.]+ s +(starting|running) .* faults none$' \
+    "a status after 3 s, starting or running, no fault"
 expect travel-for '^stop: accepted$' "the stop at the end accepted"
-line="$(grep -E '^after 3\.0 s: ' "$WORK/travel-for.out" || true)"
-read -r s1 s2 offset target faults < <(sed -E 's/.* running +speed +([-0-9.]+) +([-0-9.]+) rpm +offset +([-0-9.]+) deg \(target +([-0-9.]+)\).* faults (.*)$/\1 \2 \3 \4 \5/;t;s/.*/- - - - -/' <<<"$line")
-within "$s1" "$SPEED" 30 && within "$s2" "$SPEED" 30 ||
-    fail "expected running at $SPEED rpm (+-30) on both rotors after 3 s, got: $line"
-within "$target" "$TARGET" 0.05 || fail "expected the target offset $TARGET deg (the written table's), got: $line"
-within "$offset" "$TARGET" 5 || fail "expected the phase offset within 5 deg of $TARGET, got: $line"
-[[ "$faults" == "none" ]] || fail "expected no fault, got: $line"
 
-# 5. Travel, kept alive by the telemetry stream (every 100 ms, heartbeats), CSV.
+# 5. Travel, kept alive by the telemetry stream (every 100 ms of firmware time,
+#    heartbeats), 40 frames to CSV: 4 s of firmware time, whatever the host's
+#    load, and the start takes under 1.5 s of it.
+FRAMES=40
 run travel travel right --speed "$SPEED"
 expect travel "^travel right at $SPEED rpm: accepted$" "the travel accepted"
-run telemetry telemetry --duration 2 --csv "$WORK/telemetry.csv"
-expect telemetry '^telemetry: [0-9]+ frames written to ' "the CSV written"
+run telemetry telemetry --count "$FRAMES" --csv "$WORK/telemetry.csv"
+expect telemetry "^telemetry: $FRAMES frames written to " "the CSV written"
 FAILED_STEP="telemetry-csv"
-# Columns: 1 uptime_ms, 2 state, 3 faults, 4-5 speeds, 12 target offset. At least
-# 15 frames of the 20 (period 100 ms for 2 s), 100 ms apart within one control
-# tick (the link sends when 100 ms of its own clock have passed, and the frame
-# carries the status of the last control tick, stamped up to a tick earlier: a
-# loaded host saw 101, 99, 101 ms); the last 5 running at the speed and offset,
-# no fault in any.
-awk -F, -v speed="$SPEED" -v target="$TARGET" '
-    NR == 1 { if ($1 != "uptime_ms" || $2 != "state") { print "bad header: " $0; bad = 1 }; next }
-    { n++; up[n] = $1; st[n] = $2; f[n] = $3; s1[n] = $4; s2[n] = $5; tg[n] = $12 }
+# Columns: 1 uptime_ms, 2 state, 3 faults, 4-5 speeds, 9 phase_loop_closed,
+# 10 phase offset, 12 target offset. Checked in the firmware's own time (uptime,
+# counted in control ticks), so the same at any load:
+# - exactly FRAMES frames, uptimes strictly increasing;
+# - the period: a frame is due when 100 ms of the link's clock have passed since
+#   the last, and carries the status of the latest control tick, which may be a
+#   tick or two later than that clock's reading. So one gap can be 98 ms, but the
+#   frames' span is at least 100 ms a gap less the first frame's lead (under a
+#   tick): the mean gap is at least 99 ms. No gap is over two periods (no frame
+#   missing);
+# - no fault in any frame; the states starting (only at first), then running;
+# - from some frame on, every frame at the steady state (running, phase loop
+#   closed, both speeds within 30 rpm of SPEED, the phase offset within 5 deg of
+#   the target, the target the written table's), and at least 10 such frames.
+awk -F, -v speed="$SPEED" -v target="$TARGET" -v frames="$FRAMES" '
+    NR == 1 { if ($1 != "uptime_ms" || $2 != "state" || $9 != "phase_loop_closed" || $12 != "target_offset_deg") { print "bad header: " $0; bad = 1 }; next }
+    { n++; up[n] = $1; st[n] = $2; f[n] = $3; s1[n] = $4; s2[n] = $5; lc[n] = $9; off[n] = $10; tg[n] = $12 }
     function abs(x) { return x < 0 ? -x : x }
+    function wrap(d) { while (d > 180) d -= 360; while (d < -180) d += 360; return d }
+    function steady(i) {
+        return st[i] == "running" && lc[i] == 1 && abs(s1[i] - speed) <= 30 && abs(s2[i] - speed) <= 30 &&
+            abs(wrap(off[i] - target)) <= 5 && abs(tg[i] - target) <= 0.05
+    }
     END {
-        if (n < 15) { print "only " n " frames"; bad = 1 }
+        if (n != frames) { print "expected " frames " frames, got " n; bad = 1 }
+        running = 0
         for (i = 1; i <= n; i++) {
             if (f[i] != "") { print "frame " i ": faults " f[i]; bad = 1 }
-            if (i > 1 && up[i] - up[i - 1] < 99) { print "frames " i - 1 " and " i " less than 99 ms apart"; bad = 1 }
+            if (st[i] == "running") running = 1
+            else if (st[i] != "starting" || running) { print "frame " i ": state " st[i] " (expected starting, then running)"; bad = 1 }
+            if (i > 1 && up[i] <= up[i - 1]) { print "frames " i - 1 " and " i ": uptime " up[i - 1] " then " up[i] " ms"; bad = 1 }
+            if (i > 1 && up[i] - up[i - 1] > 200) { print "frames " i - 1 " and " i ": " up[i] - up[i - 1] " ms apart (over two periods)"; bad = 1 }
         }
-        for (i = (n > 5 ? n - 4 : 1); i <= n; i++) {
-            if (st[i] != "running" || abs(s1[i] - speed) > 30 || abs(s2[i] - speed) > 30 || abs(tg[i] - target) > 0.05) {
-                print "frame " i ": " st[i] " at " s1[i] " / " s2[i] " rpm, target " tg[i] " deg"; bad = 1
-            }
+        if (n > 1 && (up[n] - up[1]) / (n - 1) < 99) { printf "mean gap %.1f ms, under 99\n", (up[n] - up[1]) / (n - 1); bad = 1 }
+        from = n + 1
+        while (from > 1 && steady(from - 1)) from--
+        if (n - from + 1 < 10) {
+            print "only " n - from + 1 " frames at the end at the steady state (at least 10); the last: " st[n] " at " s1[n] " / " s2[n] " rpm, offset " off[n] " deg, loop closed " lc[n] ", target " tg[n] " deg"
+            bad = 1
         }
-        printf "telemetry CSV: %d frames, last: %s at %s / %s rpm, target %s deg\n", n, st[n], s1[n], s2[n], tg[n]
+        printf "telemetry CSV: %d frames over %d ms of firmware time (mean gap %.1f ms), steady from frame %d: %s at %s / %s rpm, offset %s deg, target %s deg\n",
+            n, up[n] - up[1], (n > 1 ? (up[n] - up[1]) / (n - 1) : 0), from, st[n], s1[n], s2[n], off[n], tg[n]
         exit bad
     }' "$WORK/telemetry.csv" ||
-    fail "expected the last telemetry frames running at $SPEED rpm (+-30), target $TARGET deg, no fault (CSV above)"
+    fail "expected $FRAMES frames in order, no fault, ending in at least 10 at the steady state ($SPEED rpm +-30, offset $TARGET deg +-5) (CSV above)"
 
-# 6. Stop, then idle (the ramp down takes about 0.7 s of firmware time).
+# 6. Stop, then idle with both rotors at rest (below 10 rpm). The controller is
+#    idle once its ramp is down (about 0.7 s of firmware time); the rotors then
+#    coast to rest, so a status can read idle at 18 rpm. Polled until both hold;
+#    the bound of 120 polls, about a minute, is only against a hang.
 run stop stop
 expect stop '^stop: accepted$' "the stop accepted"
-for i in $(seq 20); do
+for i in $(seq 120); do
     run "status-end-$i" status
-    if grep -Eq '^state +idle$' "$WORK/status-end-$i.out"; then
-        expect "status-end-$i" '^faults +none$' "no fault"
-        expect "status-end-$i" '^speed +-?[0-9]\.[0-9] / -?[0-9]\.[0-9] rpm' "both rotors at rest (below 10 rpm)"
+    expect "status-end-$i" '^faults +none$' "no fault"
+    if grep -Eq '^state +idle$' "$WORK/status-end-$i.out" &&
+        grep -Eq '^speed +-?[0-9]\.[0-9] / -?[0-9]\.[0-9] rpm' "$WORK/status-end-$i.out"; then
         break
     fi
-    [[ $i -lt 20 ]] || fail "expected state idle within 10 s after the stop"
+    [[ $i -lt 120 ]] || fail "expected state idle with both rotors below 10 rpm within 120 polls after the stop"
     sleep 0.5
 done
 
