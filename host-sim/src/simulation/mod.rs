@@ -18,6 +18,7 @@
 //! ([`crate::plant::model::PlantModel::row`]).
 
 pub mod board;
+pub mod breach;
 pub mod closed_loop;
 pub mod limits;
 pub mod summary;

@@ -16,6 +16,7 @@
 use std::f64::consts::PI;
 
 use crate::machine::{Machine, Rotor};
+use crate::simulation::breach::{Breach, BreachWatch};
 use crate::simulation::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
@@ -164,6 +165,8 @@ pub struct SummaryBuilder<'m> {
     at_half: Option<(f64, f64, f64)>,
     last: Option<TraceRow>,
     offsets: SecondHalf,
+    /// Every body kept off the fundament and upright, row by row.
+    breaches: BreachWatch,
 }
 
 impl<'m> SummaryBuilder<'m> {
@@ -177,11 +180,19 @@ impl<'m> SummaryBuilder<'m> {
             at_half: None,
             last: None,
             offsets: SecondHalf::default(),
+            breaches: BreachWatch::new(machine),
         }
     }
 
     /// Takes the next row (times ascending).
     pub fn push(&mut self, row: &TraceRow) {
+        self.breaches.row(row.t, |b| match b {
+            0 => [row.x, row.y, row.angle],
+            _ => {
+                let m = row.bodies[b - 1];
+                [m[0], m[1], m[2]]
+            }
+        });
         let p = Point::of(row);
         self.first.get_or_insert(p);
         if p.t <= self.half {
@@ -223,6 +234,8 @@ impl<'m> SummaryBuilder<'m> {
         mut warnings: Vec<String>,
     ) -> Summary {
         let machine = self.machine;
+        let breaches = self.breaches.finish();
+        warnings.extend(breaches.iter().map(Breach::warning));
         let rotors = machine.rotors.len();
         let two = machine.rotors.rotor2().is_some();
         let (Some(first), Some(last)) = (self.first, self.last) else {
@@ -307,6 +320,7 @@ impl<'m> SummaryBuilder<'m> {
                 angular_velocity: last.omega,
             },
             warnings,
+            breaches,
         }
     }
 }
