@@ -67,6 +67,33 @@ pub fn impact_times(events: &[EventRow]) -> Vec<f64> {
     times
 }
 
+/// The impact instants of impacts that come in time order, counted as they come:
+/// the impacts of one simultaneous impact share their `t` (to the bit), so each
+/// instant counts once ([`impact_times`] of them all). The summary's `impacts`,
+/// and the animation's.
+#[derive(Clone, Debug, Default)]
+pub struct ImpactInstants {
+    count: usize,
+    last: Option<u64>,
+}
+
+impl ImpactInstants {
+    /// Takes an impact at `t`, s (at or after the last): the number of instants
+    /// so far, this one's included.
+    pub fn add(&mut self, t: f64) -> usize {
+        if self.last != Some(t.to_bits()) {
+            self.count += 1;
+            self.last = Some(t.to_bits());
+        }
+        self.count
+    }
+
+    /// The number of instants so far.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+}
+
 /// The second half's phase offset samples `(t, offset_deg)`: the interpolated value
 /// at `half`, then every row after it (16 bytes a row, not the whole trace row).
 #[derive(Clone, Debug, Default)]
@@ -570,6 +597,10 @@ pub(crate) mod tests {
         );
         assert_eq!(s.impacts, 3);
         assert_eq!(impact_times(&events), [0.1, 0.25, 0.4]);
+        // Counted as they come: the same instants.
+        let mut instants = ImpactInstants::default();
+        let so_far: Vec<usize> = [0.1, 0.1, 0.25, 0.4].map(|t| instants.add(t)).to_vec();
+        assert_eq!((so_far, instants.count()), (vec![1, 1, 2, 3], 3));
     }
 
     #[test]
