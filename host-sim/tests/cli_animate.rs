@@ -31,6 +31,16 @@ const FRAME_STEP: f64 = 2e-3;
 /// writing the animation to `page` and the trace and events when given. The
 /// machine file is named from the repository root, as the page's title shows it.
 fn travel(t_end: &str, page: &Path, trace: Option<(&Path, &Path)>) -> common::Run {
+    let mut extra = Vec::new();
+    if let Some((out, events)) = trace {
+        extra.extend(["--out", out.to_str().unwrap()]);
+        extra.extend(["--events", events.to_str().unwrap()]);
+    }
+    travel_with(t_end, page, &extra)
+}
+
+/// [`travel`] with the options `extra`.
+fn travel_with(t_end: &str, page: &Path, extra: &[&str]) -> common::Run {
     let mut args = vec![
         "run",
         "examples/vibro-driver.toml",
@@ -43,10 +53,7 @@ fn travel(t_end: &str, page: &Path, trace: Option<(&Path, &Path)>) -> common::Ru
         "--animate",
         page.to_str().unwrap(),
     ];
-    if let Some((out, events)) = trace {
-        args.extend(["--out", out.to_str().unwrap()]);
-        args.extend(["--events", events.to_str().unwrap()]);
-    }
+    args.extend_from_slice(extra);
     run(&args)
 }
 
@@ -520,5 +527,188 @@ fn the_page_in_a_browser_plays_and_its_slider_shows_the_traced_pose() {
     );
     assert_eq!(settings, json!([2.514, 100, 0.1, 0.1]));
     shoot(&mut b, "animation-t2.514.png");
+    assert_eq!(b.console_errors(), Vec::<String>::new());
+}
+
+/// The reference machine travelling right for 3 s at rtol 1e-3, writing the
+/// animation to `page` and the events to `events`: its JSON summary.
+fn travel_with_summary(page: &Path, events: &Path) -> Value {
+    let events = events.to_str().unwrap();
+    let r = travel_with("3", page, &["--events", events, "--format", "json"]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    serde_json::from_str(&r.stdout).expect("the summary")
+}
+
+/// Issue 23: the page counted 14 112 impacts (one per foot at each impact) where
+/// the summary counted 9 402 (one per instant). Its data now carries the
+/// summary's count at every impact; the impulses at each foot are the events'.
+#[test]
+fn the_page_counts_impacts_as_the_summary_does() {
+    let (page, events) = (scratch("count.html"), scratch("count-events.csv"));
+    let summary = travel_with_summary(&page, &events);
+    let data = embedded(&std::fs::read_to_string(&page).unwrap());
+    let instants: Vec<u64> = data["events"]["impacts"]["instant"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    let (header, rows) = read_csv(&events);
+    let kind = header.iter().position(|h| h == "kind").unwrap();
+    let rows: Vec<&Vec<String>> = rows.iter().filter(|r| r[kind] == "impact").collect();
+    // One entry per impulse at a foot; the last carries the summary's count,
+    // fewer: the feet of one instant count once.
+    assert_eq!(instants.len(), rows.len());
+    assert_eq!(instants.last().copied(), summary["impacts"].as_u64());
+    assert!(
+        instants.len() as u64 > instants[instants.len() - 1],
+        "{}",
+        instants.len()
+    );
+    // Counted by the events' exact times: a new instant where the time changes.
+    for (k, w) in rows.windows(2).enumerate() {
+        let new = u64::from(w[1][0] != w[0][0]);
+        assert_eq!(instants[k + 1], instants[k] + new, "impact {}", k + 1);
+    }
+}
+
+#[test]
+fn the_page_in_a_browser_shows_the_summary_count_and_true_shapes_magnified() {
+    let Some(mut b) = browser::Browser::launch() else {
+        return;
+    };
+    let (page, events) = (scratch("mag.html"), scratch("mag-events.csv"));
+    let summary = travel_with_summary(&page, &events);
+    let data = embedded(&std::fs::read_to_string(&page).unwrap());
+    let url = format!("file://{}", page.canonicalize().unwrap().display());
+    b.navigate(&url);
+    b.wait_for("window.vibro !== undefined", Duration::from_secs(10));
+    assert_eq!(b.console_errors(), Vec::<String>::new(), "after loading");
+
+    // At the end: the summary's impacts, and the events' impulses by foot.
+    b.eval("vibro.seek(vibro.duration)");
+    let (header, rows) = read_csv(&events);
+    let (kind, contact) = (
+        header.iter().position(|h| h == "kind").unwrap(),
+        header.iter().position(|h| h == "contact").unwrap(),
+    );
+    let by_foot = |name: &str| {
+        rows.iter()
+            .filter(|r| r[kind] == "impact" && r[contact] == name)
+            .count()
+    };
+    assert_eq!(
+        b.eval("vibro.impacts()"),
+        json!({"instants": summary["impacts"], "impulses": {"K1": by_foot("K1"), "K2": by_foot("K2")}})
+    );
+    let note = b.eval("document.getElementById('note').textContent");
+    let said = format!(
+        "; {} impacts (instants, as the run's summary counts them)",
+        summary["impacts"]
+    );
+    assert!(note.as_str().unwrap().contains(&said), "{note}");
+
+    // Each magnification's largest change of a drawn shape's size, from the
+    // page's own frames: |A| - 1 with A = 1 - M + M e^(i (angle - angle_0)); the
+    // ones beyond 5 % not offered (disabled in the menu).
+    let angle = column(&data, "angle");
+    let mags = b.eval("vibro.magnifications()");
+    let mags = mags.as_array().unwrap();
+    assert_eq!(mags.len(), 7);
+    let mut largest = 1.0;
+    for (k, g) in mags.iter().enumerate() {
+        let m = g["mag"].as_f64().unwrap();
+        let err = angle
+            .iter()
+            .map(|a| {
+                let d = a - angle[0];
+                ((1.0 - m + m * d.cos()).hypot(m * d.sin()) - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        let shown = g["size_error"].as_f64().unwrap();
+        assert!((shown - err).abs() <= 1e-12, "x{m}: {shown} vs {err}");
+        let offered = err <= 0.05;
+        assert_eq!(g["offered"], json!(offered), "x{m}: {err}");
+        let disabled = b.eval(&format!(
+            "document.getElementById('mag').options[{k}].disabled"
+        ));
+        assert_eq!(disabled, json!(!offered), "x{m}");
+        if offered {
+            largest = m;
+        }
+    }
+    // This run's pitch (some 0.03 degrees) puts x1000 beyond 5 % and x300
+    // within it.
+    assert_eq!(largest, 300.0, "{mags:?}");
+    // The fragment cannot ask for one not offered: the page keeps its choice.
+    b.navigate("about:blank");
+    b.navigate(&format!("{url}#mag=1000"));
+    let first = b.eval("vibro.magnification()").as_f64().unwrap();
+    assert!((1.0..1000.0).contains(&first), "{first}");
+    b.navigate("about:blank");
+    b.navigate(&format!("{url}#mag=300"));
+    assert_eq!(b.eval("vibro.magnification()"), json!(300));
+
+    // Magnified x300, every point's displacement from its start (the travel
+    // taken out) is multiplied: a foot on the floor is drawn on it, a foot in
+    // the air 300 times as high as it is. Its true height from the page's frame:
+    // y + R(angle) p along the normal (the floor y = 0), p = [+-0.08, -0.03] from
+    // the centre of mass.
+    let (t, y, fns) = (
+        column(&data, "t"),
+        column(&data, "y"),
+        [column(&data, "fn_K1"), column(&data, "fn_K2")],
+    );
+    let foot = [[-0.08, -0.03], [0.08, -0.03]];
+    let (mut on, mut off) = (0, 0);
+    for i in (t.len() / 2..t.len()).step_by(7) {
+        b.eval(&format!("vibro.seek({})", t[i]));
+        let drawn = b.eval("vibro.feet()");
+        for (c, p) in foot.iter().enumerate() {
+            let (s, co) = angle[i].sin_cos();
+            let h = y[i] + s * p[0] + co * p[1];
+            let shown = drawn[c]["h"].as_f64().unwrap();
+            // The page's rounding (1e-9 m and rad) magnified.
+            let slack = 300.0 * 1.5e-9;
+            if fns[c][i] > 0.5 {
+                assert!(
+                    shown.abs() <= slack,
+                    "t = {}: {} on the floor drawn {shown} m up",
+                    t[i],
+                    c
+                );
+                on += 1;
+            } else if h > 2e-6 {
+                assert!(
+                    (shown - 300.0 * h).abs() <= slack,
+                    "t = {}: foot {c} {h} m up drawn {shown}",
+                    t[i]
+                );
+                off += 1;
+            }
+        }
+    }
+    assert!(
+        on > 20 && off > 20,
+        "feet on the floor {on}, in the air {off}"
+    );
+    shoot(&mut b, "animation-x300.png");
+
+    // The floor's ticks: numbered in true mm at x1 only; magnified, their true
+    // spacing drawn M times as far apart (the legend says so).
+    let ticks = b.eval("vibro.ticks()");
+    assert_eq!(ticks["numbered"], json!(false));
+    let (step, apart) = (
+        ticks["step"].as_f64().unwrap(),
+        ticks["apart"].as_f64().unwrap(),
+    );
+    assert!((apart - 300.0 * step).abs() <= 1e-12 * apart, "{ticks}");
+    b.eval(
+        "(() => { const m = document.getElementById('mag'); m.value = '1';
+        m.dispatchEvent(new Event('change')); })()",
+    );
+    assert_eq!(b.eval("vibro.magnification()"), json!(1));
+    assert_eq!(b.eval("vibro.ticks().numbered"), json!(true));
+    shoot(&mut b, "animation-x1.png");
     assert_eq!(b.console_errors(), Vec::<String>::new());
 }

@@ -544,3 +544,75 @@ fn a_bad_tuning_table_writes_nothing() {
     r.refused("bad.toml:1:12: TOML syntax");
     assert!(r.stdout.is_empty(), "{}", r.stdout);
 }
+
+/// Issue 23: the reference machine without its right foot
+/// (`tests/fixtures/one-foot-machine.toml`) tips over and sinks through the floor;
+/// the summary printed "mean velocity -13.4 mm/s" and "warnings: none". Now the
+/// table and the JSON give no travel, say why, and the warnings say what went
+/// through, where first and how deep.
+#[test]
+fn a_machine_through_the_floor_has_no_travel() {
+    let one_foot = common::root().join("tests/fixtures/one-foot-machine.toml");
+    let one_foot = one_foot.to_str().unwrap();
+    // The command docs/cli-run.md shows, and the lines it quotes.
+    let r = run(&["run", one_foot, "--command", "right"]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let t = &r.stdout;
+    for quoted in [
+        "mean velocity (second half)              not a travel",
+        "distance                                 not a travel",
+        "final angle                    -2.01167 (-115.26 deg)  rad",
+        "  - platform went through the fundament (only contact points meet it): first its outline's lower right corner, more than 1 mm below at t = 0.015 s; deepest 139.284 mm below (its outline's upper right corner, t = 9.66353 s)",
+        "  - platform tipped over: first turned more than simulation.max_tilt = 60 deg from its angle at t = 0 at t = 0.166 s; furthest -171.898 deg (t = 0.394 s)",
+    ] {
+        assert!(t.lines().any(|l| l == quoted), "no line {quoted:?} in\n{t}");
+    }
+    let line = |start: &str| {
+        t.lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no {start} line in\n{t}"))
+    };
+    assert_eq!(
+        t.lines().nth(1),
+        Some("not a travel: platform went through the fundament at t = 0.015 s (the warnings say more)"),
+        "{t}"
+    );
+    assert!(line("mean velocity").ends_with("not a travel"), "{t}");
+    assert!(line("distance").ends_with("not a travel"), "{t}");
+    assert!(!t.contains("warnings: none"), "{t}");
+
+    let r = run(&[
+        "run",
+        one_foot,
+        "--command",
+        "right",
+        "--t-end",
+        "1",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
+    assert_eq!(keys(&v), SUMMARY_KEYS);
+    assert!(
+        v["mean_velocity"].is_null() && v["distance"].is_null(),
+        "{v}"
+    );
+    assert_eq!(
+        v["not_a_travel"],
+        "platform went through the fundament at t = 0.015 s"
+    );
+    assert_eq!(v["warnings"].as_array().unwrap().len(), 2, "{v}");
+    // The final state is still the run's: the platform lies below the floor.
+    assert!(v["final"]["position"][1].as_f64().unwrap() < -0.05, "{v}");
+
+    // The reference machine, on both feet: a travel, `not_a_travel` null.
+    let r = run_machine(
+        "run",
+        &["--command", "right", "--t-end", "1", "--format", "json"],
+    );
+    let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
+    assert!(v["mean_velocity"].as_f64().unwrap() > 0.01, "{v}");
+    assert!(v["not_a_travel"].is_null(), "{v}");
+    assert_eq!(v["warnings"], serde_json::json!([]));
+}

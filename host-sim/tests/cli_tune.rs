@@ -243,3 +243,49 @@ fn bad_options_exit_2_naming_the_option() {
     let r = run_on(None, &["tune", "no-such-machine.toml"]);
     r.refused("no-such-machine.toml");
 }
+
+/// Issue 23: a machine that sinks through the floor (the reference machine without
+/// its right foot) gave a grid of travel speeds and best offsets from them. Each
+/// run is now a point not held, with no mean velocity, and no best offset is
+/// taken from it.
+#[test]
+fn runs_through_the_floor_are_no_travel() {
+    let one_foot = common::root().join("tests/fixtures/one-foot-machine.toml");
+    let r = run_on(
+        Some(1),
+        &[
+            "tune",
+            one_foot.to_str().unwrap(),
+            "--speeds",
+            "3000",
+            "--offsets",
+            "0:360:180",
+            "--t-end",
+            "1",
+            "--format",
+            "json",
+        ],
+    );
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&r.stdout).expect("JSON");
+    let grid = doc["grid"].as_array().unwrap();
+    assert_eq!(grid.len(), 2, "{doc}");
+    for p in grid {
+        assert!(p["mean_velocity"].is_null(), "{doc}");
+    }
+    for way in ["right", "left"] {
+        assert_eq!(doc["best"][way], serde_json::json!([]), "{doc}");
+    }
+    let warnings: Vec<&str> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    for offset in ["0", "180"] {
+        let not_held = format!(
+            "3000 rpm, {offset} deg: offset not held: not a travel: platform went through the fundament at t = 0.015 s"
+        );
+        assert!(warnings.contains(&not_held.as_str()), "{warnings:#?}");
+    }
+}

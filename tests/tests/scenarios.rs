@@ -56,6 +56,7 @@ scenarios! {
     lost_commands => "lost-commands.toml",
     estop => "estop.toml",
     starved_loop => "starved-loop.toml",
+    one_foot => "one-foot.toml",
 }
 
 #[test]

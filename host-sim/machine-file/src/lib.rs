@@ -222,6 +222,9 @@ pub struct Simulation {
     pub seed: u64,
     /// The integrator's relative tolerance (docs/plant-model.md, "Integration").
     pub rtol: f64,
+    /// How far a free body (the platform, a body not hinged to anything) may turn
+    /// from its angle at t = 0 before the run says it tipped over, rad.
+    pub max_tilt: f64,
 }
 
 /// A checked machine file.
@@ -443,6 +446,11 @@ pub const DEFAULT_OUTPUT_STEP: f64 = 1.0e-3;
 pub const DEFAULT_SEED: i64 = 1;
 /// Default `[simulation].rtol`: the integrator's relative tolerance.
 pub const DEFAULT_RTOL: f64 = 1.0e-8;
+/// Default `[simulation].max_tilt`, rad: 60 degrees. A gait rocks a platform by
+/// hundredths of a degree; the reference machine's centre of mass passes over a
+/// foot at `atan(0.08 m / 0.03 m)` = 69 degrees, so a platform turned by 60 has
+/// tipped over or is about to.
+pub const DEFAULT_MAX_TILT: f64 = std::f64::consts::FRAC_PI_3;
 /// The range of `[simulation].rtol`: below 1e-12 the positions' absolute
 /// tolerance (1e-3 rtol m) nears the rounding of f64 coordinates; up to 1e-3 the
 /// reference machine's tuning sweep gives the same table and every grid point's
@@ -867,7 +875,7 @@ fn read_controller(s: &Section, dir: &Path) -> Option<ControllerSettings> {
 }
 
 /// `[simulation]`: t_end > 0, output step > 0, seed a non-negative integer, rtol
-/// within [`RTOL_RANGE`].
+/// within [`RTOL_RANGE`], max_tilt > 0.
 fn read_simulation(s: &Section) -> Option<Simulation> {
     let t_end = s.number("t_end", Need::Default(DEFAULT_T_END), Limit::Positive);
     let output_step = s.number(
@@ -881,6 +889,7 @@ fn read_simulation(s: &Section) -> Option<Simulation> {
         Need::Default(DEFAULT_RTOL),
         Limit::Between(RTOL_RANGE.0, RTOL_RANGE.1),
     );
+    let max_tilt = s.number("max_tilt", Need::Default(DEFAULT_MAX_TILT), Limit::Positive);
     s.finish();
     Some(Simulation {
         t_end: t_end?,
@@ -888,6 +897,7 @@ fn read_simulation(s: &Section) -> Option<Simulation> {
         // An i64 >= 0 always fits a u64.
         seed: u64::try_from(seed?).ok()?,
         rtol: rtol?,
+        max_tilt: max_tilt?,
     })
 }
 

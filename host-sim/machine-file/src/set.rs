@@ -180,6 +180,7 @@ pub const SCHEMA: &[(&str, Node)] = &[
             ("output_step", Node::Value),
             ("seed", Node::Value),
             ("rtol", Node::Value),
+            ("max_tilt", Node::Value),
         ]),
     ),
 ];
@@ -659,13 +660,14 @@ mod tests {
         assert!(paths.contains(&"rotors.NAME.motor.current_limit".to_string()));
         assert!(paths.contains(&"simulation.seed".to_string()));
         assert!(paths.contains(&"simulation.rtol".to_string()));
+        assert!(paths.contains(&"simulation.max_tilt".to_string()));
         assert!(paths.contains(&"joints.NAME.stiffness".to_string()));
         assert!(paths.contains(&"bodies.NAME.mass".to_string()));
         // fundament, platform, bodies, joints, contacts, rotors (with their motor),
         // motor, drive, sensors, controller, impact, simulation.
         assert_eq!(
             paths.len(),
-            3 + 6 + 7 + 7 + 9 + 9 + 6 + 6 + 3 + 3 + 3 + 1 + 4
+            3 + 6 + 7 + 7 + 9 + 9 + 6 + 6 + 3 + 3 + 3 + 1 + 5
         );
     }
 }

@@ -7,7 +7,8 @@
 //! - [`motor`]: the brushed DC motors and their driver;
 //! - [`integrator`]: Dormand-Prince 5(4) with dense output;
 //! - [`simulator`]: the hybrid simulation (modes, events, impacts, Zeno, Painleve);
-//! - [`sensors`]: encoders with index pulses, current measurement.
+//! - [`sensors`]: encoders with index pulses, current measurement;
+//! - [`outline`]: every body's outline (drawn, and kept off the fundament).
 // Numeric kernels index several parallel arrays with one loop variable.
 #![allow(clippy::needless_range_loop)]
 pub mod bridge;
@@ -15,5 +16,6 @@ pub mod dynamics;
 pub mod integrator;
 pub mod model;
 pub mod motor;
+pub mod outline;
 pub mod sensors;
 pub mod simulator;

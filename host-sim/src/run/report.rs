@@ -5,6 +5,11 @@
 //! project's additions (`rotors`, `phase_loop`); a number that is not finite is
 //! written `null`, so the document always parses.
 //!
+//! A run in which a body went through the fundament or tipped over
+//! ([`crate::simulation::breach`]) has no travel: `mean_velocity` and `distance`
+//! are `null` and `not_a_travel` says why (it is `null` otherwise); the table says
+//! `not a travel: ...` in their place. The warnings say what happened.
+//!
 //! A machine with one rotor (issue 12): `rotor_speed_rpm` has one entry,
 //! `phase_offset_deg` is `null`, `rotors` is 1 and `phase_loop` false; the table
 //! says in a line of its own that the controller holds the rotor's speed only.
@@ -15,9 +20,10 @@ use crate::output::text::{self, Align, Table};
 use crate::simulation::trace::Summary;
 
 /// The keys of the summary document: the spec's, in its order, then the
-/// project's additions: `rotors` (1 or 2) and `phase_loop` (whether a phase loop
-/// held the offset: a controller run on two rotors).
-pub const SUMMARY_KEYS: [&str; 13] = [
+/// project's additions: `rotors` (1 or 2), `phase_loop` (whether a phase loop
+/// held the offset: a controller run on two rotors) and `not_a_travel` (why
+/// `mean_velocity` and `distance` are `null`, or `null`).
+pub const SUMMARY_KEYS: [&str; 14] = [
     "t_end",
     "mean_velocity",
     "distance",
@@ -31,6 +37,7 @@ pub const SUMMARY_KEYS: [&str; 13] = [
     "warnings",
     "rotors",
     "phase_loop",
+    "not_a_travel",
 ];
 
 /// The table's line for a one-rotor machine run by the controller.
@@ -39,6 +46,11 @@ pub const ONE_ROTOR_LINE: &str =
 
 /// The table's line for a one-rotor machine in open loop.
 pub const ONE_ROTOR_OPEN_LOOP_LINE: &str = "one rotor: no phase offset";
+
+/// What the table shows for the mean velocity and the distance of a run in which
+/// a body went through the fundament or tipped over, and how its line on why
+/// begins.
+pub const NOT_A_TRAVEL: &str = "not a travel";
 
 /// The keys of the summary's `final` object, in the spec's order.
 pub const FINAL_KEYS: [&str; 4] = ["position", "angle", "velocity", "angular_velocity"];
@@ -62,9 +74,14 @@ fn strings(list: &[String]) -> Value {
 /// The spec's JSON document of a run's summary, keys in the spec's order.
 pub fn summary_value(s: &Summary) -> Value {
     let mut doc = Map::new();
+    let not_a_travel = s.not_a_travel();
+    let travel = |x: f64| match not_a_travel {
+        None => number(x),
+        Some(_) => Value::Null,
+    };
     doc.insert("t_end".into(), number(s.t_end));
-    doc.insert("mean_velocity".into(), number(s.mean_velocity));
-    doc.insert("distance".into(), number(s.distance));
+    doc.insert("mean_velocity".into(), travel(s.mean_velocity));
+    doc.insert("distance".into(), travel(s.distance));
     doc.insert("impacts".into(), Value::from(s.impacts));
     doc.insert(
         "rotor_speed_rpm".into(),
@@ -87,6 +104,7 @@ pub fn summary_value(s: &Summary) -> Value {
     doc.insert("warnings".into(), strings(&s.warnings));
     doc.insert("rotors".into(), Value::from(s.rotors()));
     doc.insert("phase_loop".into(), Value::from(s.phase_loop));
+    doc.insert("not_a_travel".into(), Value::from(not_a_travel));
     Value::Object(doc)
 }
 
@@ -114,6 +132,9 @@ pub fn summary_table(s: &Summary) -> String {
         });
         out.push('\n');
     }
+    if let Some(why) = s.not_a_travel() {
+        out.push_str(&format!("{NOT_A_TRAVEL}: {why} (the warnings say more)\n"));
+    }
     out.push('\n');
     let mut t = Table::new(&[
         ("quantity", Align::Left),
@@ -123,12 +144,20 @@ pub fn summary_table(s: &Summary) -> String {
     let mut row = |name: &str, value: String, unit: &str| {
         t.row(vec![name.to_string(), value, unit.to_string()]);
     };
-    row(
-        "mean velocity (second half)",
-        text::signed(s.mean_velocity),
-        "m/s",
-    );
-    row("distance", text::signed(s.distance), "m");
+    match s.not_a_travel() {
+        None => {
+            row(
+                "mean velocity (second half)",
+                text::signed(s.mean_velocity),
+                "m/s",
+            );
+            row("distance", text::signed(s.distance), "m");
+        }
+        Some(_) => {
+            row("mean velocity (second half)", NOT_A_TRAVEL.to_string(), "");
+            row("distance", NOT_A_TRAVEL.to_string(), "");
+        }
+    }
     row("impacts", s.impacts.to_string(), "");
     for (k, w) in s.rotor_speed_rpm.iter().enumerate() {
         row(
@@ -179,6 +208,7 @@ pub fn summary_table(s: &Summary) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simulation::breach::{Breach, BreachKind};
     use crate::simulation::trace::FinalState;
 
     fn summary() -> Summary {
@@ -200,6 +230,7 @@ mod tests {
                 angular_velocity: 2.0,
             },
             warnings: vec!["w1".to_string()],
+            breaches: vec![],
         }
     }
 
@@ -261,6 +292,56 @@ mod tests {
         assert!(line("impacts").contains("42"), "{t}");
         assert!(t.contains("faults:\n  - overcurrent\n"), "{t}");
         assert!(t.contains("warnings:\n  - w1\n"), "{t}");
+    }
+
+    /// [`summary`] with the platform through the fundament at 0.25 s.
+    fn through_the_floor() -> Summary {
+        let breach = Breach {
+            body: "platform".to_string(),
+            t: 0.25,
+            kind: BreachKind::Fundament {
+                first: "its centre of mass".to_string(),
+                deepest: 0.085,
+                deepest_what: "its centre of mass".to_string(),
+                deepest_t: 9.5,
+            },
+        };
+        let mut s = summary();
+        s.warnings.push(breach.warning());
+        s.breaches.push(breach);
+        s
+    }
+
+    #[test]
+    fn no_travel_is_shown_where_a_body_went_through_the_floor() {
+        // JSON: the spec's keys then the additions; no number for the travel, the
+        // reason beside it.
+        let doc: Value = serde_json::from_str(&summary_json(&through_the_floor())).unwrap();
+        assert_eq!(keys(&doc), SUMMARY_KEYS);
+        assert!(doc["mean_velocity"].is_null(), "{doc}");
+        assert!(doc["distance"].is_null(), "{doc}");
+        assert_eq!(
+            doc["not_a_travel"],
+            "platform went through the fundament at t = 0.25 s"
+        );
+        assert_eq!(doc["final"]["position"][0], 0.25);
+        assert_eq!(doc["warnings"].as_array().unwrap().len(), 2);
+        // A run that kept off the floor: its numbers, `not_a_travel` null.
+        let doc: Value = serde_json::from_str(&summary_json(&summary())).unwrap();
+        assert_eq!(doc["mean_velocity"], 0.0125);
+        assert!(doc["not_a_travel"].is_null());
+        // The table: no bare number, the reason in its place.
+        let t = summary_table(&through_the_floor());
+        let line = |start: &str| t.lines().find(|l| l.starts_with(start)).unwrap_or_default();
+        assert_eq!(
+            t.lines().nth(1),
+            Some("not a travel: platform went through the fundament at t = 0.25 s (the warnings say more)"),
+            "{t}"
+        );
+        assert!(line("mean velocity").ends_with("not a travel"), "{t}");
+        assert!(line("distance").ends_with("not a travel"), "{t}");
+        assert!(!t.contains("+0.0125"), "{t}");
+        assert!(t.contains("  - platform went through the fundament"), "{t}");
     }
 
     /// The summary of a one-rotor machine's controller run.

@@ -61,8 +61,16 @@ pub const FAULT_KINDS: [&str; 7] = [
     "late_ticks",
 ];
 /// The kinds of expectation, as written in the file.
-pub const EXPECT_KINDS: [&str; 7] = [
-    "state", "travel", "speed", "phase", "fault", "no_fault", "safe",
+pub const EXPECT_KINDS: [&str; 9] = [
+    "state",
+    "travel",
+    "speed",
+    "phase",
+    "fault",
+    "no_fault",
+    "safe",
+    "through_fundament",
+    "tipped_over",
 ];
 /// The controller's states, as [`State::name`] writes them.
 pub const STATES: [&str; 5] = ["idle", "starting", "running", "stopping", "fault"];
@@ -272,6 +280,17 @@ pub enum Expectation {
         /// The window, s.
         between: [f64; 2],
     },
+    /// A body went through the fundament (`through_fundament`), or a free body
+    /// tipped over (`tipped_over`), first found at a trace row in the window
+    /// ([`crate::simulation::breach`]).
+    Breach {
+        /// Through the fundament, else tipped over.
+        fundament: bool,
+        /// The body, by name; any body when `None`.
+        body: Option<String>,
+        /// The window, s (the whole run when `None`).
+        within: Option<[f64; 2]>,
+    },
 }
 
 impl Expectation {
@@ -285,6 +304,10 @@ impl Expectation {
             Expectation::Fault { .. } => "fault",
             Expectation::NoFault { .. } => "no_fault",
             Expectation::Safe { .. } => "safe",
+            Expectation::Breach {
+                fundament: true, ..
+            } => "through_fundament",
+            Expectation::Breach { .. } => "tipped_over",
         }
     }
 }
@@ -784,6 +807,19 @@ fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
             }
             Some(RawExpect::Ready(Expectation::NoFault { between }))
         }
+        "through_fundament" | "tipped_over" => {
+            let has = (s.has("body"), s.has("within"));
+            let body = s.string("body", Need::Optional);
+            let within = read_window(s, "within", Need::Optional);
+            if (has.0 && body.is_none()) || (has.1 && within.is_none()) {
+                return None;
+            }
+            Some(RawExpect::Ready(Expectation::Breach {
+                fundament: kind == "through_fundament",
+                body,
+                within,
+            }))
+        }
         _ => {
             let has = (s.has("from"), s.has("between"));
             let from = s.number("from", Need::Optional, Limit::NonNegative);
@@ -982,10 +1018,25 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
                     | Expectation::Safe { between } => ("between", *between),
                     Expectation::Fault { within, .. } => ("within", *within),
                     Expectation::NoFault { between } => ("between", between.unwrap_or([0.0, 0.0])),
+                    Expectation::Breach { within, .. } => ("within", within.unwrap_or([0.0, 0.0])),
                 };
                 (e, name, w)
             }
         };
+        if let (
+            Expectation::Breach {
+                fundament,
+                body: Some(body),
+                ..
+            },
+            Some(m),
+        ) = (&e, m)
+        {
+            if let Err(why) = breach_body(m, body, *fundament) {
+                problems.at(&format!("{key}.body"), why);
+                continue;
+            }
+        }
         if w[1] > t_end + TIME_EPS {
             let got = if window_key == "from" {
                 sig(w[0])
@@ -1018,6 +1069,35 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
         faults,
         expectations,
     })
+}
+
+/// Whether `body` names a body of `m` that a `through_fundament` (`fundament`)
+/// or `tipped_over` expectation can judge: any body goes through the fundament,
+/// only a free one (no joint to the fundament or to a parent) tips over.
+fn breach_body(m: &Machine, body: &str, fundament: bool) -> Result<(), String> {
+    let model = crate::plant::model::PlantModel::new(m);
+    let names: Vec<&str> = model.bodies.iter().map(|b| b.name.as_str()).collect();
+    let Some(b) = model.bodies.iter().find(|b| b.name == body) else {
+        return Err(format!(
+            "no body named {body:?} (bodies: {})",
+            names.join(", ")
+        ));
+    };
+    let free = matches!(b.mount, crate::plant::model::Mount::Free { .. });
+    if fundament || free {
+        Ok(())
+    } else {
+        Err(format!(
+            "{body:?} is held by a joint: only a free body is judged for tipping over (free bodies: {})",
+            model
+                .bodies
+                .iter()
+                .filter(|b| matches!(b.mount, crate::plant::model::Mount::Free { .. }))
+                .map(|b| b.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
+    }
 }
 
 /// `[t0, t1] s`.

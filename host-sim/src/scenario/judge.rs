@@ -13,6 +13,7 @@ use super::file::When;
 use super::file::TIME_EPS;
 use crate::machine::input::Problem;
 use crate::output::text::sig;
+use crate::simulation::breach::Breach;
 use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions};
 
 /// How one expectation came out.
@@ -61,6 +62,9 @@ pub struct Report {
     pub final_state: String,
     /// The run was ended early by Ctrl-C at this time, s (nothing judged).
     pub stopped_at: Option<f64>,
+    /// The run's warnings (`host-sim run`'s): a body through the fundament, a
+    /// Painleve configuration, ...
+    pub warnings: Vec<String>,
 }
 
 impl Report {
@@ -101,7 +105,13 @@ pub fn run_observed(
         .expectations
         .iter()
         .map(|(key, e)| {
-            let (pass, expected, measured) = judge(e, ticks, &samples, scenario.t_end);
+            let run = Run {
+                ticks,
+                samples: &samples,
+                breaches: &result.summary.breaches,
+                t_end: scenario.t_end,
+            };
+            let (pass, expected, measured) = judge(e, &run);
             Outcome {
                 key: key.clone(),
                 kind: e.kind(),
@@ -129,6 +139,7 @@ pub fn run_observed(
         detections,
         final_state: driver.state(),
         stopped_at: result.stopped_at,
+        warnings: result.summary.warnings,
     })
 }
 
@@ -182,15 +193,28 @@ fn first_latch_after(ticks: &[Tick], t0: f64) -> Option<(Vec<String>, f64)> {
 /// What an expectation asks and what the run did: (pass, expected, measured).
 type Verdict = (bool, String, String);
 
-/// Judges one expectation on the ticks and the platform's `x` samples.
-fn judge(e: &Expectation, ticks: &[Tick], samples: &[(f64, f64)], t_end: f64) -> Verdict {
+/// What the expectations are judged on.
+struct Run<'r> {
+    /// The control ticks.
+    ticks: &'r [Tick],
+    /// The platform's `x` at every tick and at the end, `(t, x)`.
+    samples: &'r [(f64, f64)],
+    /// The bodies through the fundament or tipped over, by time.
+    breaches: &'r [Breach],
+    /// End time, s.
+    t_end: f64,
+}
+
+/// Judges one expectation on the run.
+fn judge(e: &Expectation, run: &Run<'_>) -> Verdict {
+    let (ticks, t_end) = (run.ticks, run.t_end);
     match e {
         Expectation::State { state, when } => judge_state(*state, when, ticks),
         Expectation::Travel {
             direction,
             between,
             min_speed,
-        } => judge_travel(*direction, *between, *min_speed, samples),
+        } => judge_travel(*direction, *between, *min_speed, run),
         Expectation::Speed {
             rotors,
             range_rpm,
@@ -204,6 +228,16 @@ fn judge(e: &Expectation, ticks: &[Tick], samples: &[(f64, f64)], t_end: f64) ->
         } => judge_fault(*fault, name, *within, ticks, t_end),
         Expectation::NoFault { between } => judge_no_fault(between.unwrap_or([0.0, t_end]), ticks),
         Expectation::Safe { between } => judge_safe(*between, ticks),
+        Expectation::Breach {
+            fundament,
+            body,
+            within,
+        } => judge_breach(
+            *fundament,
+            body.as_deref(),
+            within.unwrap_or([0.0, t_end]),
+            run.breaches,
+        ),
     }
 }
 
@@ -238,13 +272,10 @@ fn judge_state(state: State, when: &When, ticks: &[Tick]) -> Verdict {
     (pass, expected, measured)
 }
 
-/// The sign and size of the mean velocity over the window.
-fn judge_travel(
-    direction: Direction,
-    between: [f64; 2],
-    min_speed: f64,
-    samples: &[(f64, f64)],
-) -> Verdict {
+/// The sign and size of the mean velocity over the window; none if a body went
+/// through the fundament or tipped over by the window's end.
+fn judge_travel(direction: Direction, between: [f64; 2], min_speed: f64, run: &Run<'_>) -> Verdict {
+    let samples = run.samples;
     let (name, sign) = match direction {
         Direction::Right => ("right", 1.0),
         Direction::Left => ("left", -1.0),
@@ -255,9 +286,53 @@ fn judge_travel(
         sig(min_speed * 1e3),
         window(between)
     );
+    if let Some(b) = run.breaches.first().filter(|b| b.t <= between[1]) {
+        return (false, expected, format!("not a travel: {}", b.short()));
+    }
     let v = (x_at(samples, between[1]) - x_at(samples, between[0])) / (between[1] - between[0]);
     let pass = v * sign >= min_speed && v * sign > 0.0;
     (pass, expected, format!("{:+.2} mm/s", v * 1e3))
+}
+
+/// A body (`body`, or any) through the fundament (`fundament`) or tipped over,
+/// first found in the window.
+fn judge_breach(
+    fundament: bool,
+    body: Option<&str>,
+    within: [f64; 2],
+    breaches: &[Breach],
+) -> Verdict {
+    let what = if fundament {
+        "through the fundament"
+    } else {
+        "tipped over (turned past simulation.max_tilt)"
+    };
+    let who = body.map_or("a body".to_string(), str::to_string);
+    let expected = format!(
+        "{who} {what}, first at some trace row in {}",
+        window(within)
+    );
+    let mut found = breaches
+        .iter()
+        .filter(|b| b.through_fundament() == fundament && body.is_none_or(|n| b.body == n));
+    let (pass, measured) = match found.clone().find(|b| in_window(b.t, within)) {
+        Some(b) => (true, b.short()),
+        None => match found.next() {
+            Some(b) => (false, format!("{} (outside the window)", b.short())),
+            None => (
+                false,
+                format!(
+                    "none: no {}",
+                    if fundament {
+                        "body went through the fundament"
+                    } else {
+                        "free body tipped over"
+                    }
+                ),
+            ),
+        },
+    };
+    (pass, expected, measured)
 }
 
 /// The rotors' measured speeds at every tick of the window.

@@ -61,6 +61,12 @@ pub fn table(r: &Report) -> String {
         }
         out.push_str(&t.render());
     }
+    if !r.warnings.is_empty() {
+        out.push_str("\nwarnings of the run:\n");
+        for w in &r.warnings {
+            out.push_str(&format!("  - {w}\n"));
+        }
+    }
     let passed = r.outcomes.iter().filter(|o| o.pass).count();
     out.push_str(&format!(
         "\n{}: {passed} of {} expectations hold\n",
@@ -73,7 +79,8 @@ pub fn table(r: &Report) -> String {
 /// The report as one JSON document:
 /// `{"scenario", "machine", "t_end", "pass", "final_state", "expectations": [{"key",
 /// "kind", "pass", "expected", "measured"}], "injections": [{"key", "injected", "t",
-/// "latched": [names] | null, "latched_at": s | null, "delay": s | null}]}`.
+/// "latched": [names] | null, "latched_at": s | null, "delay": s | null}],
+/// "warnings": [the run's warnings]}`.
 pub fn json(r: &Report) -> String {
     let mut doc = Map::new();
     doc.insert("scenario".into(), Value::from(r.scenario.as_str()));
@@ -122,6 +129,10 @@ pub fn json(r: &Report) -> String {
         })
         .collect();
     doc.insert("injections".into(), Value::Array(injections));
+    doc.insert(
+        "warnings".into(),
+        Value::Array(r.warnings.iter().map(|w| Value::from(w.as_str())).collect()),
+    );
     let mut text = serde_json::to_string_pretty(&Value::Object(doc))
         .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     text.push('\n');

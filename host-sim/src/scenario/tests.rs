@@ -155,6 +155,14 @@ fn x_is_interpolated_between_samples() {
     assert_eq!(x_at(&s, -1.0), 0.0);
 }
 
+/// Each expectation's verdict and what was measured.
+fn measured(r: &Report) -> Vec<(bool, &str)> {
+    r.outcomes
+        .iter()
+        .map(|o| (o.pass, o.measured.as_str()))
+        .collect()
+}
+
 /// Expectations of every kind that this short run breaks, and some it keeps:
 /// each is judged, none panics, and the failures say what was measured.
 #[test]
@@ -172,15 +180,13 @@ fn every_kind_of_expectation_can_fail() {
          [[expect]]\nkind = \"no_fault\"\n\
          [[expect]]\nkind = \"safe\"\nfrom = 0.5\n\
          [[expect]]\nkind = \"fault\"\nfault = \"estop\"\nwithin = [0.9, 0.9]\n\
-         [[expect]]\nkind = \"no_fault\"\nbetween = [0.0, 0.899]\n",
+         [[expect]]\nkind = \"no_fault\"\nbetween = [0.0, 0.899]\n\
+         [[expect]]\nkind = \"through_fundament\"\n\
+         [[expect]]\nkind = \"tipped_over\"\nbody = \"platform\"\n",
     )
     .unwrap();
     let r = judge::run(&s).unwrap();
-    let got: Vec<(bool, &str)> = r
-        .outcomes
-        .iter()
-        .map(|o| (o.pass, o.measured.as_str()))
-        .collect();
+    let got = measured(&r);
     let expected = [
         (false, "not reached; states in the window: starting (0 s)"),
         (false, "running at 0.71 s"),
@@ -195,6 +201,8 @@ fn every_kind_of_expectation_can_fail() {
         (false, "starting at 0.5 s: enable true, duty [0.491, 0.478]"),
         (true, "latched at 0.9 s, safe to the end (1 s)"),
         (true, "none"),
+        (false, "none: no body went through the fundament"),
+        (false, "none: no free body tipped over"),
     ];
     assert_eq!(got.len(), expected.len());
     for ((pass, measured), (want_pass, want)) in got.iter().zip(expected) {
@@ -203,6 +211,111 @@ fn every_kind_of_expectation_can_fail() {
     }
     assert!(!r.passed());
     assert_eq!(r.detections[0].latched, Some((vec!["estop".into()], 0.9)));
+}
+
+/// A scenario on the one-foot machine (`tests/fixtures/one-foot-machine.toml`,
+/// which sinks through the floor at once) with `body` appended.
+fn one_foot(body: &str) -> Result<Scenario, Vec<String>> {
+    let text = format!("machine = \"one-foot-machine.toml\"\nt_end = 0.5\n{body}");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures");
+    from_text("s.toml", &text, &dir).map_err(|ps| ps.iter().map(|p| p.to_string()).collect())
+}
+
+#[test]
+fn a_body_through_the_floor_is_judged_and_is_no_travel() {
+    let s = one_foot(
+        "[[commands]]\nt = 0.0\ncommand = \"right\"\n\
+         [[expect]]\nkind = \"travel\"\ndirection = \"left\"\nbetween = [0.2, 0.5]\n\
+         [[expect]]\nkind = \"travel\"\ndirection = \"right\"\nbetween = [0.2, 0.5]\n\
+         [[expect]]\nkind = \"through_fundament\"\n\
+         [[expect]]\nkind = \"through_fundament\"\nwithin = [0.2, 0.5]\n\
+         [[expect]]\nkind = \"tipped_over\"\nbody = \"platform\"\nwithin = [0.0, 0.5]\n",
+    )
+    .unwrap();
+    let r = judge::run(&s).unwrap();
+    let got = measured(&r);
+    // The platform sinks first at the row of 0.015 s and turns past 60 degrees
+    // at 0.166 s: whichever way, the platform's x is no travel.
+    let sank = "platform went through the fundament at t = 0.015 s";
+    assert_eq!(
+        got,
+        [
+            (false, format!("not a travel: {sank}").as_str()),
+            (false, format!("not a travel: {sank}").as_str()),
+            (true, sank),
+            (false, format!("{sank} (outside the window)").as_str()),
+            (
+                true,
+                "platform turned past simulation.max_tilt = 60 deg at t = 0.166 s"
+            ),
+        ]
+    );
+    assert!(
+        r.warnings[0].starts_with("platform went through the fundament"),
+        "{:?}",
+        r.warnings
+    );
+    let table = report::table(&r);
+    assert!(
+        table.contains("warnings of the run:\n  - platform went through"),
+        "{table}"
+    );
+}
+
+#[test]
+fn a_breach_expectation_names_a_body_there_is() {
+    // The reference machine has the platform alone.
+    let e = parse(
+        "[[expect]]\nkind = \"through_fundament\"\nbody = \"plattform\"\n\
+         [[expect]]\nkind = \"tipped_over\"\nbody = 3\n",
+    )
+    .unwrap_err();
+    assert_eq!(e.len(), 2, "{e:#?}");
+    assert!(
+        e[0].ends_with("expect[1].body: must be a string (got 3)"),
+        "{e:#?}"
+    );
+    assert_eq!(
+        e[1],
+        "error: s.toml: expect[0].body: no body named \"plattform\" (bodies: platform)"
+    );
+    // With the arm (hinged to the platform) and the loose block of
+    // tests/fixtures/three-bodies.toml.
+    let bodies = include_str!("../../../tests/fixtures/three-bodies.toml");
+    let text = std::fs::read_to_string(examples().join("vibro-driver.toml")).unwrap() + bodies;
+    let dir = machine_dir(&text);
+    let e = from_text(
+        "s.toml",
+        "machine = \"m.toml\"\n\
+         [[expect]]\nkind = \"tipped_over\"\nbody = \"arm\"\n\
+         [[expect]]\nkind = \"tipped_over\"\nbody = \"block\"\nwithin = [0.0, 11.0]\n\
+         [[expect]]\nkind = \"through_fundament\"\nbody = \"arm\"\n",
+        &dir,
+    )
+    .map_err(|ps| ps.iter().map(|p| p.to_string()).collect::<Vec<_>>())
+    .unwrap_err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(
+        e,
+        [
+            "error: s.toml: expect[0].body: \"arm\" is held by a joint: only a free body is judged for tipping over (free bodies: platform, block)",
+            "error: s.toml: expect[1].within: must lie within the run, [0, 10] s (t_end = 10 s, the machine's simulation.t_end; got [0, 11] s)",
+        ]
+    );
+}
+
+/// A directory holding `text` as `m.toml`, the reference machine's tuning table
+/// beside it.
+fn machine_dir(text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-sim-scenario-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.toml"), text).unwrap();
+    std::fs::copy(
+        examples().join("vibro-driver.tuning.toml"),
+        dir.join("vibro-driver.tuning.toml"),
+    )
+    .unwrap();
+    dir
 }
 
 proptest! {

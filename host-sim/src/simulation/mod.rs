@@ -18,6 +18,7 @@
 //! ([`crate::plant::model::PlantModel::row`]).
 
 pub mod board;
+pub mod breach;
 pub mod closed_loop;
 pub mod limits;
 pub mod summary;
@@ -27,7 +28,7 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
-use crate::simulation::summary::SummaryBuilder;
+use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
 use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
 
 /// What drives the windings, asked at every control tick.
@@ -237,7 +238,7 @@ pub struct RunResult {
 struct Events {
     kept: Vec<EventRow>,
     keep: bool,
-    impacts: ImpactCount,
+    impacts: ImpactInstants,
 }
 
 impl Events {
@@ -248,29 +249,12 @@ impl Events {
             return;
         }
         batch.sort_by(|a, b| a.t.total_cmp(&b.t));
-        self.impacts.add(&batch);
+        for e in batch.iter().filter(|e| e.kind == EventKind::Impact) {
+            self.impacts.add(e.t);
+        }
         observer.events(&batch);
         if self.keep {
             self.kept.extend(batch);
-        }
-    }
-}
-
-/// The number of distinct impact times of events that come in time order
-/// ([`summary::impact_times`] of them all).
-#[derive(Default)]
-struct ImpactCount {
-    count: usize,
-    last: Option<u64>,
-}
-
-impl ImpactCount {
-    fn add(&mut self, events: &[EventRow]) {
-        for e in events.iter().filter(|e| e.kind == EventKind::Impact) {
-            if self.last != Some(e.t.to_bits()) {
-                self.count += 1;
-                self.last = Some(e.t.to_bits());
-            }
         }
     }
 }
@@ -360,7 +344,7 @@ pub fn simulate_observed(
     let mut events = Events {
         kept: Vec::new(),
         keep: options.keep_events,
-        impacts: ImpactCount::default(),
+        impacts: ImpactInstants::default(),
     };
     loop {
         let t = tick as f64 / rate;
@@ -393,7 +377,7 @@ pub fn simulate_observed(
     // 4. Summary, the last events first.
     events.take(&mut plant, driver, rec.observer);
     let summary = rec.summary.finish(
-        events.impacts.count,
+        events.impacts.count(),
         driver.commanded_offset_deg(),
         driver.phase_loop(),
         &driver.state(),

@@ -16,6 +16,7 @@
 use std::f64::consts::PI;
 
 use crate::machine::{Machine, Rotor};
+use crate::simulation::breach::{Breach, BreachWatch};
 use crate::simulation::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
@@ -64,6 +65,33 @@ pub fn impact_times(events: &[EventRow]) -> Vec<f64> {
     times.sort_by(f64::total_cmp);
     times.dedup_by(|a, b| a.to_bits() == b.to_bits());
     times
+}
+
+/// The impact instants of impacts that come in time order, counted as they come:
+/// the impacts of one simultaneous impact share their `t` (to the bit), so each
+/// instant counts once ([`impact_times`] of them all). The summary's `impacts`,
+/// and the animation's.
+#[derive(Clone, Debug, Default)]
+pub struct ImpactInstants {
+    count: usize,
+    last: Option<u64>,
+}
+
+impl ImpactInstants {
+    /// Takes an impact at `t`, s (at or after the last): the number of instants
+    /// so far, this one's included.
+    pub fn add(&mut self, t: f64) -> usize {
+        if self.last != Some(t.to_bits()) {
+            self.count += 1;
+            self.last = Some(t.to_bits());
+        }
+        self.count
+    }
+
+    /// The number of instants so far.
+    pub fn count(&self) -> usize {
+        self.count
+    }
 }
 
 /// The second half's phase offset samples `(t, offset_deg)`: the interpolated value
@@ -164,6 +192,8 @@ pub struct SummaryBuilder<'m> {
     at_half: Option<(f64, f64, f64)>,
     last: Option<TraceRow>,
     offsets: SecondHalf,
+    /// Every body kept off the fundament and upright, row by row.
+    breaches: BreachWatch,
 }
 
 impl<'m> SummaryBuilder<'m> {
@@ -177,11 +207,19 @@ impl<'m> SummaryBuilder<'m> {
             at_half: None,
             last: None,
             offsets: SecondHalf::default(),
+            breaches: BreachWatch::new(machine),
         }
     }
 
     /// Takes the next row (times ascending).
     pub fn push(&mut self, row: &TraceRow) {
+        self.breaches.row(row.t, |b| match b {
+            0 => [row.x, row.y, row.angle],
+            _ => {
+                let m = row.bodies[b - 1];
+                [m[0], m[1], m[2]]
+            }
+        });
         let p = Point::of(row);
         self.first.get_or_insert(p);
         if p.t <= self.half {
@@ -223,6 +261,8 @@ impl<'m> SummaryBuilder<'m> {
         mut warnings: Vec<String>,
     ) -> Summary {
         let machine = self.machine;
+        let breaches = self.breaches.finish();
+        warnings.extend(breaches.iter().map(Breach::warning));
         let rotors = machine.rotors.len();
         let two = machine.rotors.rotor2().is_some();
         let (Some(first), Some(last)) = (self.first, self.last) else {
@@ -307,6 +347,7 @@ impl<'m> SummaryBuilder<'m> {
                 angular_velocity: last.omega,
             },
             warnings,
+            breaches,
         }
     }
 }
@@ -556,6 +597,10 @@ pub(crate) mod tests {
         );
         assert_eq!(s.impacts, 3);
         assert_eq!(impact_times(&events), [0.1, 0.25, 0.4]);
+        // Counted as they come: the same instants.
+        let mut instants = ImpactInstants::default();
+        let so_far: Vec<usize> = [0.1, 0.1, 0.25, 0.4].map(|t| instants.add(t)).to_vec();
+        assert_eq!((so_far, instants.count()), (vec![1, 1, 2, 3], 3));
     }
 
     #[test]

@@ -3,6 +3,7 @@
 use shared::impact::MAX_CONTACTS;
 
 use crate::machine::bodies::MAX_BODIES;
+use crate::simulation::breach::Breach;
 
 /// One row of the `--out` trace. On a machine with one rotor, rotor 2's columns
 /// (`phi2`, `omega2`, `i2`, `duty2`) stay, as 0 (the spec's columns are fixed).
@@ -172,11 +173,20 @@ pub struct Summary {
     pub faults: Vec<String>,
     /// The final state.
     pub final_state: FinalState,
-    /// Warnings.
+    /// Warnings (each [`Summary::breaches`]' among them).
     pub warnings: Vec<String>,
+    /// The bodies that went through the fundament or tipped over, by time
+    /// ([`crate::simulation::breach`]).
+    pub breaches: Vec<Breach>,
 }
 
 impl Summary {
+    /// Why the run's `mean_velocity` and `distance` are no travel, if they are
+    /// not: the first breach ([`crate::simulation::breach`]), in a few words.
+    pub fn not_a_travel(&self) -> Option<String> {
+        self.breaches.first().map(Breach::short)
+    }
+
     /// The machine's rotors, 1 or 2: one speed each.
     pub fn rotors(&self) -> usize {
         self.rotor_speed_rpm.len()

@@ -57,11 +57,12 @@ pub struct RunOutcome {
     pub speed_rpm: f64,
     /// Phase offset held, degrees in [0, 360).
     pub offset_deg: f64,
-    /// `(x_C(T) - x_C(T/2)) / (T/2)`, m/s (the run's summary).
+    /// `(x_C(T) - x_C(T/2)) / (T/2)`, m/s (the run's summary); NaN when the run
+    /// was no travel (a body through the fundament or tipped over).
     pub mean_velocity: f64,
     /// Why the offset was not held over the second half, if it was not: the
     /// controller faulted or never reached `running` in time, or the phase error
-    /// was large.
+    /// was large; or why the run was no travel.
     pub not_held: Option<String>,
     /// Warnings of the plant (e.g. a Painleve configuration).
     pub plant_warnings: Vec<String>,
@@ -211,7 +212,9 @@ pub fn offset_held(state: State, t: &Telemetry) -> bool {
 /// One closed-loop run of `machine` to `t_end` with the controller holding
 /// `offset_deg` at `speed_rpm` from `t = 0`. The offset counts as held when the
 /// controller ends `running`, got there by `T/2`, and its phase error over the
-/// second half is within [`HELD_ERROR_DEG_RMS`].
+/// second half is within [`HELD_ERROR_DEG_RMS`]. A run in which a body went
+/// through the fundament or tipped over ([`crate::simulation::breach`]) is not
+/// held and has no mean velocity (NaN): it is no travel.
 pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64) -> RunOutcome {
     let command = Command::HoldOffset {
         speed_rpm: speed_rpm as f32,
@@ -237,7 +240,13 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
     options.keep_events = false;
     let result = simulate_observed(machine, &mut driver, &options, &mut Interruptible::new());
     let s = &result.summary;
-    outcome.mean_velocity = s.mean_velocity;
+    // A body through the fundament or tipped over: no travel to count (the
+    // run's own summary gives no number either).
+    let not_a_travel = s.not_a_travel();
+    outcome.mean_velocity = match not_a_travel {
+        None => s.mean_velocity,
+        Some(_) => f64::NAN,
+    };
     outcome.plant_warnings = s.warnings.clone();
 
     // Was the offset held over the second half? Settled from then on.
@@ -247,7 +256,9 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         None => history.first().map(|(t, _)| *t),
         Some(i) => history.get(i + 1).map(|(t, _)| *t),
     };
-    outcome.not_held = if s.state == "starting" {
+    outcome.not_held = if let Some(why) = not_a_travel {
+        Some(format!("not a travel: {why}"))
+    } else if s.state == "starting" {
         Some(
             "the controller was still `starting` at the end (speed ramp or phase lock unfinished): raise --t-end"
                 .to_string(),

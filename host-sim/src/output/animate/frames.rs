@@ -6,7 +6,9 @@
 //! around every event, so with the default 1 ms output step the frames are every
 //! second regular row), and the run's last row. Frames are trace rows, never
 //! interpolated: the page interpolates between them as it plays. Every impact is
-//! kept (its time and contact), whatever the frames.
+//! kept (its time and contact, one entry per contact), whatever the frames, with
+//! the number of impact instants up to it: the summary's count
+//! ([`ImpactInstants`]), which counts the contacts of one simultaneous impact once.
 //!
 //! **Columns** (one number per frame, `null` for one that is not finite), rounded
 //! to what the eye can use, decimals fixed so that the same run gives the same bytes:
@@ -28,7 +30,7 @@ use serde_json::Value;
 use shared::impact::MAX_CONTACTS;
 
 use crate::machine::Machine;
-use crate::simulation::summary::phase_offset_deg;
+use crate::simulation::summary::{phase_offset_deg, ImpactInstants};
 use crate::simulation::trace::{EventKind, EventRow, TraceRow};
 
 /// Simulated time between frames, s: ten frames per period of a 50 Hz hop.
@@ -56,8 +58,10 @@ pub struct Frames {
     count: usize,
     /// The last row seen, and whether it became a frame.
     last: Option<(TraceRow, bool)>,
-    /// Impacts: time (s), contact index (file order).
-    impacts: Vec<(f64, usize)>,
+    /// Impacts: time (s), contact index (file order), the instants up to it.
+    impacts: Vec<(f64, usize, usize)>,
+    /// The impact instants so far.
+    instants: ImpactInstants,
     /// Controller events: time (s), kind (`state`, `fault`), detail.
     controller: Vec<(f64, &'static str, String)>,
     /// Contact names, for the impacts' indices.
@@ -125,6 +129,7 @@ impl Frames {
             count: 0,
             last: None,
             impacts: Vec::new(),
+            instants: ImpactInstants::default(),
             controller: Vec::new(),
             names: machine.contacts.iter().map(|c| c.name.clone()).collect(),
         }
@@ -152,8 +157,9 @@ impl Frames {
         for e in batch {
             match e.kind {
                 EventKind::Impact => {
+                    let instants = self.instants.add(e.t);
                     if let Some(c) = self.names.iter().position(|n| *n == e.contact) {
-                        self.impacts.push((e.t, c));
+                        self.impacts.push((e.t, c, instants));
                     }
                 }
                 EventKind::State | EventKind::Fault => {
@@ -215,12 +221,13 @@ impl Frames {
         out
     }
 
-    /// The events as JSON: `{"impacts": {"t": [...], "contact": [...]},
-    /// "controller": [[t, kind, detail], ...]}` (s, to 1e-6; contact index in file
-    /// order; kind `state` or `fault`, detail its name). An impact of several
-    /// contacts at once is one entry per contact.
+    /// The events as JSON: `{"impacts": {"t": [...], "contact": [...], "instant":
+    /// [...]}, "controller": [[t, kind, detail], ...]}` (s, to 1e-6; contact index
+    /// in file order; the number of impact instants up to and with this impact;
+    /// kind `state` or `fault`, detail its name). An impact of several contacts at
+    /// once is one entry per contact, all with the same `instant`.
     pub fn events_json(&self) -> String {
-        let join = |f: &dyn Fn(&(f64, usize)) -> String| {
+        let join = |f: &dyn Fn(&(f64, usize, usize)) -> String| {
             self.impacts.iter().map(f).collect::<Vec<_>>().join(",")
         };
         let controller: Vec<String> = self
@@ -236,9 +243,10 @@ impl Frames {
             })
             .collect();
         format!(
-            r#"{{"impacts":{{"t":[{}],"contact":[{}]}},"controller":[{}]}}"#,
+            r#"{{"impacts":{{"t":[{}],"contact":[{}],"instant":[{}]}},"controller":[{}]}}"#,
             join(&|i| fixed(i.0, 6)),
             join(&|i| i.1.to_string()),
+            join(&|i| i.2.to_string()),
             controller.join(",")
         )
     }
@@ -299,14 +307,21 @@ mod tests {
             contact: contact.to_string(),
             ..EventRow::controller(t, EventKind::Impact, String::new())
         };
-        frames.events(&[impact(1e-4, "K1"), impact(1e-4, "K2"), impact(1.5e-4, "K2")]);
+        // Two feet at one instant, one a nanosecond later (one microsecond in
+        // the page's rounding of times): three foot impacts, two instants, as
+        // the summary counts them.
+        frames.events(&[
+            impact(1e-4, "K1"),
+            impact(1e-4, "K2"),
+            impact(1.001e-4, "K2"),
+        ]);
         frames.events(&[
             EventRow::controller(0.2, EventKind::State, "running".into()),
             EventRow::controller(0.25, EventKind::Liftoff, String::new()),
         ]);
         assert_eq!(
             frames.events_json(),
-            r#"{"impacts":{"t":[0.0001,0.0001,0.00015],"contact":[0,1,1]},"controller":[[0.2,"state","running"]]}"#
+            r#"{"impacts":{"t":[0.0001,0.0001,0.0001],"contact":[0,1,1],"instant":[1,1,2]},"controller":[[0.2,"state","running"]]}"#
         );
     }
 

@@ -35,6 +35,16 @@
   var FT = S.contacts.map(function (c) { return column("ft_" + c.name); });
   var IMPACT_T = D.events.impacts.t;
   var IMPACT_C = D.events.impacts.contact;
+  // The impact instants up to each impact: the run summary's count, which counts
+  // the feet of one simultaneous impact once.
+  var IMPACT_I = D.events.impacts.instant;
+  // The impulses at each foot among the first q impact entries (one entry per
+  // foot on its face at an impact, striking or not): FOOT_IMPACTS[c][q].
+  var FOOT_IMPACTS = S.contacts.map(function (c, k) {
+    var a = new Int32Array(IMPACT_T.length + 1);
+    for (var q = 0; q < IMPACT_T.length; q++) a[q + 1] = a[q] + (IMPACT_C[q] === k ? 1 : 0);
+    return a;
+  });
   var CONTROLLER = D.events.controller;
 
   // The fundament's frame: `n` its normal, `u = (n_y, -n_x)` along it (+x on a
@@ -157,16 +167,31 @@
   var camS = 0.5 * (extent.s0 + extent.s1) - START[0].s;
   var camH = 0.5 * (extent.h0 + extent.h1);
 
-  // The magnified pose of body k: `s` about the camera's, `h` and the angle about
-  // the first frame's; the shape keeps its true size.
+  // The magnification acts on every point's displacement: a point of body k
+  // whose true position is w(t) and whose reference is where it was at the first
+  // frame, carried along the floor as far as the camera moved (D(t)), is drawn at
+  // ref + M (w(t) - ref). For a rigid body (centre c, angle theta, a point p of
+  // its centre-of-mass frame: w = c + R(theta) p) that is its centre drawn so, and
+  // p mapped by R(theta_0) A with A = (1 - M) I + M R(theta - theta_0): a turn by
+  // arg(A) and a scale |A|, the complex number 1 - M + M e^(i (theta - theta_0)).
+  // So a foot that starts on the floor is drawn on the floor whenever it touches
+  // it, and the shape stays a true shape, |A| times its size.
+  function scaleTurn(d, M) {
+    var re = 1 - M + M * Math.cos(d), im = M * Math.sin(d);
+    return { k: Math.hypot(re, im), turn: Math.atan2(im, re) };
+  }
+
+  // Body k's drawn frame at snap: its centre (s, h), angle and scale.
   function shown(snap, k) {
     var b = snap.bodies[k], st = START[k], M = state.mag;
     var w = [b.x, b.y];
     var ref = snap.sbar + st.s - START[0].s;
+    var A = scaleTurn(b.a - st.a, M);
     return {
       s: ref + M * (along(w) - ref),
       h: st.h + M * (height(w) - st.h),
-      a: st.a + M * (b.a - st.a)
+      a: st.a + A.turn,
+      k: A.k
     };
   }
 
@@ -176,12 +201,19 @@
     return [W / 2 + (w[0] - c[0]) * scale, H / 2 - (w[1] - c[1]) * scale];
   }
 
-  // A point of body k (its centre-of-mass frame) on screen, and that frame's angle.
-  function bodyPoint(pose, p, cs) {
-    var c = Math.cos(pose.a), sn = Math.sin(pose.a);
+  // A point p of a body (its centre-of-mass frame) drawn in the body's drawn
+  // frame `pose` ([`shown`]), in the fundament's (s, h).
+  function drawnPoint(pose, p) {
+    var c = pose.k * Math.cos(pose.a), sn = pose.k * Math.sin(pose.a);
     var cw = world(pose.s, pose.h);
     var w = [cw[0] + c * p[0] - sn * p[1], cw[1] + sn * p[0] + c * p[1]];
-    return screenOf(along(w), height(w), cs);
+    return [along(w), height(w)];
+  }
+
+  // The same point on screen.
+  function bodyPoint(pose, p, cs) {
+    var d = drawnPoint(pose, p);
+    return screenOf(d[0], d[1], cs);
   }
 
   function arrow(ctx, from, dx, dy, colour, width) {
@@ -214,8 +246,12 @@
     sc.fillStyle = "#fff"; sc.fillRect(0, 0, W, H);
     sc.lineJoin = "round";
 
-    // The fundament: its line, shaded below, and ticks at true positions along
-    // it, spread by the magnification like every displacement.
+    // The fundament: its line, shaded below, and ticks along it, at true floor
+    // positions spread by the magnification about the camera, so that a foot
+    // that sticks stays by its tick and one that slides passes the ticks at its
+    // true distance. Magnified, a tick's position is no position of what stands
+    // on it (the shapes keep their size): the ticks then carry no numbers, and a
+    // legend gives their true spacing.
     var left = screenOf(cs + camS - W / scale, 0, cs), right = screenOf(cs + camS + W / scale, 0, cs);
     var down = [-n[0] * 2 * H, n[1] * 2 * H];
     sc.fillStyle = "#eee";
@@ -224,14 +260,18 @@
     sc.closePath(); sc.fill();
     sc.strokeStyle = "#555"; sc.lineWidth = 1.5;
     sc.beginPath(); sc.moveTo(left[0], left[1]); sc.lineTo(right[0], right[1]); sc.stroke();
-    var step = niceStep(70 / (scale * M));
+    var step = tickStep(M);
     var half = W / (scale * M);
     sc.font = "11px sans-serif"; sc.fillStyle = "#555"; sc.textAlign = "center";
     for (var k = Math.ceil((cs - half) / step); k * step <= cs + half; k++) {
       var s = k * step, p = screenOf(cs + M * (s - cs), 0, cs);
       sc.beginPath(); sc.moveTo(p[0], p[1]); sc.lineTo(p[0] - 8 * n[0] - 6 * u[0], p[1] + 8 * n[1] + 6 * u[1]); sc.stroke();
-      sc.fillText(fmt(s * 1e3, Math.max(0, -Math.floor(Math.log10(step * 1e3 + 1e-30)))) + " mm", p[0], p[1] + 16);
+      if (M === 1) sc.fillText(fmt(s * 1e3, Math.max(0, -Math.floor(Math.log10(step * 1e3 + 1e-30)))) + " mm", p[0], p[1] + 16);
     }
+    sc.textAlign = "left";
+    sc.fillText(M === 1 ? "floor: position, mm (true scale)"
+      : "floor ticks every " + (step * 1e3).toPrecision(3).replace(/\.?0+$/, "") + " mm of true floor, drawn " +
+        M + " times as far apart (the motion's scale, not the shapes')", 10, H - 10);
 
     var poses = [];
     for (var b = 0; b < nBodies; b++) poses.push(shown(snap, b));
@@ -275,18 +315,18 @@
       var pose = poses[r.body];
       var ax = bodyPoint(pose, r.axis, cs);
       var a = pose.a + snap.phi[k];
-      var e = r.eccentricity;
+      var e = r.eccentricity, ke = pose.k * e;
       var ex = bodyPoint(pose, [r.axis[0] + e * Math.cos(snap.phi[k]), r.axis[1] + e * Math.sin(snap.phi[k])], cs);
       sc.strokeStyle = "#bbb"; sc.lineWidth = 1;
-      sc.beginPath(); sc.arc(ax[0], ax[1], e * scale, 0, 2 * Math.PI); sc.stroke();
+      sc.beginPath(); sc.arc(ax[0], ax[1], ke * scale, 0, 2 * Math.PI); sc.stroke();
       if (isFinite(a)) {
         sc.strokeStyle = "#ff7f0e"; sc.lineWidth = 3;
         sc.beginPath(); sc.moveTo(ax[0], ax[1]); sc.lineTo(ex[0], ex[1]); sc.stroke();
-        sc.fillStyle = "#ff7f0e"; sc.beginPath(); sc.arc(ex[0], ex[1], Math.max(4, 0.25 * e * scale), 0, 2 * Math.PI); sc.fill();
+        sc.fillStyle = "#ff7f0e"; sc.beginPath(); sc.arc(ex[0], ex[1], Math.max(4, 0.25 * ke * scale), 0, 2 * Math.PI); sc.fill();
       }
       sc.fillStyle = "#222"; sc.beginPath(); sc.arc(ax[0], ax[1], 3, 0, 2 * Math.PI); sc.fill();
       sc.font = "11px sans-serif"; sc.textAlign = "center";
-      sc.fillText(r.name + (r.sense > 0 ? " (ccw)" : " (cw)"), ax[0], ax[1] - e * scale - 6);
+      sc.fillText(r.name + (r.sense > 0 ? " (ccw)" : " (cw)"), ax[0], ax[1] - ke * scale - 6);
     });
 
     // The contacts: the foot, its face, its friction cone while closed, the
@@ -340,23 +380,38 @@
     if (OFFSET) lines.push("phase offset: " + fmt(snap.offset, 1) + " deg");
     var st = controllerAt(snap.t);
     if (st) lines.push("controller: " + st);
-    lines.push("impacts so far: " + firstImpactAfter(snap.t + 1e-12));
+    var im = impactsAt(snap.t);
+    lines.push("impacts so far: " + im.instants + " (instants, as the summary counts); impulses: " +
+      S.contacts.map(function (c, k) { return c.name + " " + im.feet[k]; }).join(", "));
     lines.forEach(function (l, k) { sc.fillText(l, 10, 20 + 18 * k); });
     sc.textAlign = "right";
     sc.font = "bold 15px sans-serif";
     sc.fillText("displacement \u00d7" + M, W - 10, 20);
     sc.font = "12px sans-serif";
-    sc.fillText(M === 1 ? "true scale" : "motion magnified " + M + " times, shapes true size", W - 10, 38);
+    sc.fillText(M === 1 ? "true scale" : "every point's displacement magnified " + M + " times (not the travel)", W - 10, 38);
+    if (M !== 1) sc.fillText(sizeNote(M), W - 10, 86);
     sc.fillText("playback " + rateText(state.rate) + " real time", W - 10, 54);
     sc.fillText("force arrows: weight = 70 px; dashed: friction cone", W - 10, 70);
     // A 20 mm bar of true size.
     var bar = 0.02 * scale;
     sc.strokeStyle = "#222"; sc.lineWidth = 2;
     sc.beginPath(); sc.moveTo(W - 10 - bar, H - 14); sc.lineTo(W - 10, H - 14); sc.stroke();
-    sc.fillText("20 mm (shapes)", W - 14 - bar, H - 10);
+    sc.fillText("20 mm (shapes, true size)", W - 14 - bar, H - 10);
   }
 
   function rateText(r) { return r >= 1 ? String(r) : "1/" + Math.round(1 / r); }
+
+  // The floor ticks' true spacing at magnification M, m: about 70 px apart drawn.
+  function tickStep(M) { return niceStep(70 / (scale * M)); }
+
+  // The impact instants (the summary's count) and the impulses at each foot up to t.
+  function impactsAt(t) {
+    var q = firstImpactAfter(t + 1e-12);
+    return {
+      instants: q > 0 ? IMPACT_I[q - 1] : 0,
+      feet: FOOT_IMPACTS.map(function (a) { return a[q]; })
+    };
+  }
 
   // Index of the first impact after t.
   function firstImpactAfter(t) {
@@ -401,7 +456,7 @@
     }) }
   ];
   if (OFFSET) PANELS.push({ title: "phase offset", unit: "deg", series: [{ label: "offset", data: OFFSET }], fixed: [0, 360], wrap: 360 });
-  PANELS.push({ title: "normal contact force (ticks: impacts)", unit: "N", series: S.contacts.map(function (c, k) {
+  PANELS.push({ title: "normal contact force (ticks: impulses at the feet)", unit: "N", series: S.contacts.map(function (c, k) {
     return { label: "fn_" + c.name, data: FN[k] };
   }), impacts: true });
 
@@ -512,7 +567,33 @@
   var spanSelect = document.getElementById("span");
   slider.min = String(T0); slider.max = String(T1);
 
-  // The largest listed magnification that keeps the platform's largest
+  // Each listed magnification's largest change of a drawn shape's size over the
+  // run, |(|A| - 1)| ([`shown`]): the turn of a body, magnified, draws it larger.
+  // One that would draw a body more than MAX_SIZE_ERROR off its size does not
+  // show the true shape and is not offered (its entry says why).
+  var MAX_SIZE_ERROR = 0.05;
+  var MAGS = Array.prototype.map.call(magSelect.options, function (o) {
+    var m = Number(o.value), err = 0;
+    poseCols.forEach(function (c, k) {
+      for (var i = 0; i < N; i++) {
+        var e = Math.abs(scaleTurn(c.a[i] - START[k].a, m).k - 1);
+        if (isFinite(e) && e > err) err = e;
+      }
+    });
+    var offered = err <= MAX_SIZE_ERROR;
+    if (!offered) {
+      o.disabled = true;
+      o.textContent += " (" + (100 * err).toFixed(0) + " % off)";
+      o.title = "not offered: it would draw a shape " + (100 * err).toFixed(0) + " % off its true size";
+    }
+    return { mag: m, offered: offered, size_error: err };
+  });
+  function sizeNote(m) {
+    var g = MAGS.filter(function (x) { return x.mag === m; })[0];
+    return "shapes drawn within " + (100 * g.size_error).toFixed(1) + " % of their true size (turns magnified)";
+  }
+
+  // The largest offered magnification that keeps the platform's largest
   // displacement from its start (the hop, the pitch at its ends; not the travel)
   // within a quarter of its height.
   (function () {
@@ -523,9 +604,8 @@
       if (isFinite(d) && d > dev) dev = d;
     }
     var best = 1;
-    Array.prototype.forEach.call(magSelect.options, function (o) {
-      var m = Number(o.value);
-      if (m * dev <= 0.25 * size) best = Math.max(best, m);
+    MAGS.forEach(function (g) {
+      if (g.offered && g.mag * dev <= 0.25 * size) best = Math.max(best, g.mag);
     });
     state.mag = best;
     magSelect.value = String(best);
@@ -592,7 +672,9 @@
   // Settings in the address's fragment: #t=1.25&mag=100&rate=0.01&span=0.1.
   (function () {
     var pick = function (select, v) {
-      Array.prototype.forEach.call(select.options, function (o) { if (Number(o.value) === Number(v)) select.value = o.value; });
+      Array.prototype.forEach.call(select.options, function (o) {
+        if (Number(o.value) === Number(v) && !o.disabled) select.value = o.value;
+      });
       return Number(select.value);
     };
     location.hash.replace(/^#/, "").split("&").forEach(function (kv) {
@@ -606,9 +688,17 @@
     state.rate = Number(rateSelect.value);
   })();
 
+  var all = impactsAt(T1);
   document.getElementById("note").textContent = S.outline_note + ". " + N + " frames, one every " +
-    (D.frame_step * 1e3) + " ms of simulated time (interpolated in between); " + IMPACT_T.length +
-    " impacts. Space or the button plays and pauses; a click on the traces moves the time there.";
+    (D.frame_step * 1e3) + " ms of simulated time (interpolated in between); " + all.instants +
+    " impacts (instants, as the run's summary counts them); " + IMPACT_T.length +
+    " impulses at the feet (" + S.contacts.map(function (c, k) {
+      return c.name + " " + all.feet[k];
+    }).join(", ") + ": every foot on its face at an impact takes one, striking or not; each is a red " +
+    "ring and a tick on the force trace). Magnified, every point's displacement is multiplied (the travel along the floor " +
+    "is not): a foot that starts on the floor is drawn on it whenever it touches it, and a body's magnified " +
+    "turn draws it larger; a magnification that would draw a shape more than " + (100 * MAX_SIZE_ERROR) +
+    " % off its size is not offered. Space or the button plays and pauses; a click on the traces moves the time there.";
 
   draw();
 
@@ -626,6 +716,24 @@
     pose: function () {
       var b = lastDrawn.bodies[0];
       return { x: b.x, y: b.y, angle: b.a };
+    },
+    impacts: function () {
+      var im = impactsAt(state.t), impulses = {};
+      S.contacts.forEach(function (c, k) { impulses[c.name] = im.feet[k]; });
+      return { instants: im.instants, impulses: impulses };
+    },
+    feet: function () {
+      return S.contacts.map(function (c) {
+        var d = drawnPoint(shown(lastDrawn, c.body), c.point);
+        return { name: c.name, s: d[0], h: d[1] };
+      });
+    },
+    magnifications: function () {
+      return MAGS.map(function (g) { return { mag: g.mag, offered: g.offered, size_error: g.size_error }; });
+    },
+    ticks: function () {
+      var M = state.mag, step = tickStep(M);
+      return { step: step, apart: M * step, numbered: M === 1 };
     }
   });
 })();
