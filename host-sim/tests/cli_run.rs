@@ -561,7 +561,7 @@ fn a_machine_through_the_floor_has_no_travel() {
     for quoted in [
         "mean velocity (second half)              not a travel",
         "distance                                 not a travel",
-        "final angle                    -1.97317 (-113.055 deg)  rad",
+        "final angle                   -1.97317 (-113.055 deg)  rad",
         "  - platform went through the fundament (only contact points meet it): first its outline's lower right corner, more than 1 mm below at t = 0.015 s; deepest 139.284 mm below (its outline's upper right corner, t = 1.67852 s)",
         "  - platform tipped over: first turned more than simulation.max_tilt = 60 deg from its angle at t = 0 at t = 0.166 s; furthest -171.898 deg (t = 0.394 s)",
     ] {
