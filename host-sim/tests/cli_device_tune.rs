@@ -299,6 +299,14 @@ fn bad_input_is_refused_before_the_device_is_asked() {
         "speed_rpm,offset_deg,velocity_mps\n3000,0,0.01\n3000,90,fast\n",
     )
     .unwrap();
+    // Rows a float reads but no measurement gives (issue 23: they made a wrong
+    // table, exit 0): refused with their lines and columns.
+    let huge = scratch("huge.csv");
+    std::fs::write(
+        &huge,
+        "speed_rpm,offset_deg,velocity_mps,weight\n3000,90,0.03,1e308\n3000,135,1e308,1\n",
+    )
+    .unwrap();
     let missing = scratch("missing.csv");
     let out = scratch("new.csv");
     let cases: Vec<(Vec<&str>, String)> = vec![
@@ -314,6 +322,14 @@ fn bad_input_is_refused_before_the_device_is_asked() {
             format!(
                 "error: {}: line 3: velocity_mps: must be a finite number (got \"fast\")",
                 bad_row.display()
+            ),
+        ),
+        (
+            vec!["--resume", s(&huge), "--write", "t.toml"],
+            format!(
+                "error: {0}: line 2: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got 1e308)\n\
+                 error: {0}: line 3: velocity_mps: must be within [-10, 10] m/s (got 1e308)",
+                huge.display()
             ),
         ),
         (

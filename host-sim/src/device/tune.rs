@@ -44,6 +44,7 @@ use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use super::tune_table;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
+use crate::measured::velocity_refusal;
 use crate::output::file::Staged;
 use crate::output::text;
 use crate::simulation::summary::wrap_deg_180;
@@ -311,6 +312,16 @@ pub fn sweep(
                 Some(Answer::Distance(mm)) => {
                     // velocity = distance / S, m/s.
                     let v = mm * 1e-3 / timing.for_s;
+                    // A row the file's reader would refuse is not appended.
+                    if let Some(why) = velocity_refusal(v) {
+                        op.tell(&format!(
+                            "not a distance: {} mm in {} s is {} m/s, and a measured velocity {why}; give the distance in mm\n",
+                            text::sig(mm),
+                            text::sig(timing.for_s),
+                            text::sig(v)
+                        ));
+                        continue;
+                    }
                     file.append(speed, offset, v)?;
                     tally.measured += 1;
                     op.tell(&format!(

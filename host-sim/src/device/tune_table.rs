@@ -53,13 +53,30 @@ pub struct SpeedFit {
 /// velocity, m/s; rows averaged).
 pub type OffsetMean = (f64, f64, usize);
 
-/// The running sums of an offset: (offset, `sum w v`, `sum w`, rows).
-type Sums = (f64, f64, f64, usize);
+/// The rows of one offset at a speed: (offset, degrees in [0, 360); their
+/// velocities, m/s, and weights).
+type Group = (f64, Vec<(f64, f64)>);
+
+/// The weighted mean `sum(w_i v_i) / sum(w_i)` of `(v, w)` pairs, the weights
+/// first divided by the largest (the mean is the same, and no sum can overflow
+/// whatever weights the file holds: each term is at most `|v|`, the sum of
+/// weights at most the number of rows).
+pub fn weighted_mean(rows: &[(f64, f64)]) -> f64 {
+    let most = rows.iter().fold(0.0f64, |m, r| m.max(r.1));
+    let (mut wv, mut w) = (0.0, 0.0);
+    for &(v, weight) in rows {
+        let u = weight / most;
+        wv += u * v;
+        w += u;
+    }
+    wv / w
+}
 
 /// The rows grouped by speed (ascending) and, within a speed, by offset
-/// (wrapped to [0, 360), ascending), each group averaged by weight.
+/// (wrapped to [0, 360), ascending), each group averaged by weight
+/// ([`weighted_mean`]).
 pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
-    let mut speeds: Vec<(f64, Vec<Sums>)> = Vec::new();
+    let mut speeds: Vec<(f64, Vec<Group>)> = Vec::new();
     for r in rows {
         let i = match speeds
             .iter()
@@ -72,21 +89,13 @@ pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
             }
         };
         let offsets = &mut speeds[i].1;
+        let measured = (r.velocity_mps, r.weight);
         match offsets
             .iter_mut()
-            .find(|(o, ..)| wrap_deg_180(o - r.offset_deg).abs() <= SAME_POINT)
+            .find(|(o, _)| wrap_deg_180(o - r.offset_deg).abs() <= SAME_POINT)
         {
-            Some(g) => {
-                g.1 += r.weight * r.velocity_mps;
-                g.2 += r.weight;
-                g.3 += 1;
-            }
-            None => offsets.push((
-                wrap_deg_360(r.offset_deg) + 0.0,
-                r.weight * r.velocity_mps,
-                r.weight,
-                1,
-            )),
+            Some(g) => g.1.push(measured),
+            None => offsets.push((wrap_deg_360(r.offset_deg) + 0.0, vec![measured])),
         }
     }
     speeds.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -98,7 +107,7 @@ pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
                 s,
                 offsets
                     .into_iter()
-                    .map(|(o, wv, w, n)| (o, wv / w, n))
+                    .map(|(o, runs)| (o, weighted_mean(&runs), runs.len()))
                     .collect(),
             )
         })
@@ -279,6 +288,24 @@ mod tests {
         assert_eq!((a[1].1[0].0, a[1].1[0].2), (0.0, 1));
         assert_eq!((a[1].1[1].0, a[1].1[1].2), (90.0, 2));
         assert!((a[1].1[1].1 - 0.05).abs() < 1e-15);
+    }
+
+    /// The weights are divided by the largest before they are summed: rows of
+    /// weight 1e308 (beyond the reader's bound, so only built here) average as
+    /// rows of weight 1 do, not to infinity over infinity.
+    #[test]
+    fn the_weighted_mean_does_not_overflow() {
+        let a = averages(&[
+            row(3000.0, 90.0, 0.030, 1e308),
+            row(3000.0, 90.0, 0.0303, 1e308),
+            row(3000.0, 90.0, 0.1, 1e-300),
+        ]);
+        let mean = a[0].1[0].1;
+        assert!((mean - 0.03015).abs() < 1e-15, "{mean}");
+        assert_eq!(
+            weighted_mean(&[(0.03, 1.0), (0.06, 2.0)]),
+            weighted_mean(&[(0.03, 1e-6), (0.06, 2e-6)])
+        );
     }
 
     #[test]

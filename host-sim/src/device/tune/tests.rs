@@ -313,6 +313,32 @@ fn an_offset_never_held_is_a_timeout_naming_the_point() {
     assert_eq!(rig.log, ["hold 3000 0", "stop"]);
 }
 
+/// A distance whose velocity the measured file's reader would refuse is asked
+/// again, not appended (the file would not read back).
+#[test]
+fn a_distance_beyond_the_files_bound_is_asked_again() {
+    let (mut file, path) = scratch_file("huge.csv");
+    let mut rig = FakeRig::new(None);
+    // 1e308 mm, then 250 mm (in 0.02 s: 12.5 m/s, beyond 10 m/s), then 3 mm.
+    let mut op = Script::new(&["1e308", "250", "3", "q"]);
+    let tally = sweep(&mut rig, &mut op, &mut file, &POINTS, TIMING).unwrap();
+    assert_eq!(tally.measured, 1);
+    assert!(
+        op.told.contains("not a distance: 1e308 mm in 0.02 s is 5e306 m/s, and a measured velocity must be within [-10, 10] m/s; give the distance in mm\n"),
+        "{}",
+        op.told
+    );
+    assert!(
+        op.told
+            .contains("not a distance: 250 mm in 0.02 s is 12.5 m/s"),
+        "{}",
+        op.told
+    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text, "speed_rpm,offset_deg,velocity_mps\n3000,0,0.15\n");
+    assert!(crate::measured::parse("huge.csv", &text, None).is_ok());
+}
+
 #[test]
 fn answers_are_numbers_enter_s_or_q() {
     assert_eq!(answer(" 12.5 "), Some(Answer::Distance(12.5)));
