@@ -162,6 +162,62 @@ fn one_point_prints_a_table_and_warns_when_the_run_is_too_short() {
     }
 }
 
+/// Frictionless feet: nothing to push on, so no travel, and every run's mean
+/// velocity is what the sideways sway leaves (micrometres per second). Neither
+/// way is travel: each is warned of, and `--write` writes the least bad offsets,
+/// as for any speed without travel one way (issue 23: a right offset was written
+/// from +1.8e-9 m/s without a word).
+#[test]
+fn frictionless_feet_travel_no_way_and_say_so() {
+    let m = machine();
+    let write = scratch("frictionless.tuning.toml");
+    let r = run_on(
+        None,
+        &[
+            "tune",
+            m.to_str().unwrap(),
+            "--set",
+            "contacts.K1.friction=0",
+            "--set",
+            "contacts.K2.friction=0",
+            "--set",
+            "simulation.rtol=1e-3",
+            "--speeds",
+            "3000",
+            "--offsets",
+            "0:360:90",
+            "--t-end",
+            "3",
+            "--format",
+            "json",
+            "--write",
+            write.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&r.stdout).expect("JSON");
+    // The premise: no run travels.
+    for p in doc["grid"].as_array().unwrap() {
+        let v = p["mean_velocity"].as_f64().unwrap();
+        assert!(v.abs() < 1e-4, "{p}");
+    }
+    let warnings: Vec<&str> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    for way in ["right", "left"] {
+        let says = format!("3000 rpm: no offset travels {way} faster than 0.5 mm/s: the best is ");
+        assert!(
+            warnings.iter().any(|w| w.starts_with(&says)),
+            "{says:?} not in {warnings:?}"
+        );
+    }
+    let rows = tuning_file::parse("t", &std::fs::read_to_string(&write).unwrap()).unwrap();
+    assert_eq!(rows.len(), 1);
+}
+
 #[test]
 fn bad_options_exit_2_naming_the_option() {
     let m = machine();

@@ -16,7 +16,7 @@ use crate::machine::tuning_file;
 use crate::measured::{Row, SAME_POINT};
 use crate::output::text;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
-use crate::tune::best::{candidates, mm_s, Way};
+use crate::tune::best::{candidates, mm_s, no_travel, Way};
 use crate::tune::report::count;
 use crate::tune::sweep::{Grid, RunOutcome};
 
@@ -184,23 +184,15 @@ pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
     }
 }
 
-/// The speeds where no offset measured travels one way (as `tune` warns): the
-/// table's offset that way is the least bad, and drives the platform the other
-/// way or not at all.
+/// The speeds where no offset measured travels one way faster than
+/// [`crate::tune::best::MIN_TRAVEL_MPS`] (as `tune` warns): the table's offset that way is the
+/// least bad, and drives the platform the other way or hardly at all.
 pub fn warnings(fits: &[SpeedFit]) -> Vec<String> {
     let mut out = Vec::new();
     for f in fits {
-        for (pick, way, travels) in [
-            (&f.right, "right", f.right.grid.1 > 0.0),
-            (&f.left, "left", f.left.grid.1 < 0.0),
-        ] {
-            if !travels {
-                out.push(format!(
-                    "{} rpm: no offset travels {way}: the best is {} deg at {} mm/s",
-                    text::sig(f.speed_rpm),
-                    text::sig(pick.grid.0),
-                    mm_s(pick.grid.1)
-                ));
+        for (pick, way) in [(&f.right, Way::Right), (&f.left, Way::Left)] {
+            if !way.travels(pick.grid.1) {
+                out.push(no_travel(f.speed_rpm, way, pick.grid.0, pick.grid.1));
             }
         }
     }
@@ -363,7 +355,34 @@ mod tests {
         let f = fits(&rows).unwrap();
         assert_eq!(
             warnings(&f),
-            ["3000 rpm: no offset travels left: the best is 180 deg at +6.0 mm/s"]
+            ["3000 rpm: no offset travels left faster than 0.5 mm/s: the best is 180 deg at +6.0 mm/s"]
         );
+    }
+
+    /// Measured speeds below `MIN_TRAVEL_MPS` either way are no travel
+    /// (issue 23: a best left of -3.4e-6 m/s was written without a word).
+    #[test]
+    fn a_speed_below_the_threshold_is_no_travel() {
+        let rows = [
+            row(3000.0, 0.0, 0.0004, 1.0),
+            row(3000.0, 90.0, 0.0001, 1.0),
+            row(3000.0, 180.0, -3.4e-6, 1.0),
+            row(3000.0, 270.0, -0.0002, 1.0),
+        ];
+        let f = fits(&rows).unwrap();
+        assert_eq!(
+            warnings(&f),
+            [
+                "3000 rpm: no offset travels right faster than 0.5 mm/s: the best is 0 deg at +0.4 mm/s",
+                "3000 rpm: no offset travels left faster than 0.5 mm/s: the best is 270 deg at -0.2 mm/s"
+            ]
+        );
+        // Just above the threshold is travel.
+        let rows = [
+            row(3000.0, 0.0, 0.0006, 1.0),
+            row(3000.0, 90.0, 0.0001, 1.0),
+            row(3000.0, 180.0, -0.0006, 1.0),
+        ];
+        assert!(warnings(&fits(&rows).unwrap()).is_empty());
     }
 }

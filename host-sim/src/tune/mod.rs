@@ -492,16 +492,22 @@ impl Report {
         })
     }
 
-    /// Writes the files (all or none), then the result on stdout.
+    /// Writes the files (all or none), then the result on stdout; the result
+    /// is printed too when the table cannot be made.
     pub fn finish(
         mut self,
         tuning: &Tuning,
         request: &Request,
         console: &mut Console<'_>,
     ) -> Result<(), Failure> {
+        let result = match self.format {
+            Format::Json => tuning_json(tuning),
+            Format::Table => tuning_table(tuning, &request.machine_path),
+        };
         if let Some((i, path)) = &self.table {
             if tuning.right.is_empty() || tuning.left.is_empty() {
-                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
+                console.print(&result);
+                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above".into()));
             }
             let text = table_file(tuning, request, path);
             // What is written must read back as a table the controller takes.
@@ -521,10 +527,7 @@ impl Report {
             self.staged.write(i, &plot::plot_svg(tuning, &title))?;
         }
         self.staged.commit()?;
-        console.print(&match self.format {
-            Format::Json => tuning_json(tuning),
-            Format::Table => tuning_table(tuning, &request.machine_path),
-        });
+        console.print(&result);
         Ok(())
     }
 }
