@@ -21,7 +21,6 @@ pub mod report;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shared::controller::{Command, Direction};
 use shared::impact::MAX_CONTACTS;
 
@@ -33,6 +32,7 @@ use crate::machine::{Machine, MachineContact};
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
+use crate::output::progress::Progress;
 use crate::output::text::sig;
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
@@ -328,7 +328,7 @@ struct Watch<'s> {
     line: String,
     /// The first write error: the run stops there.
     error: Option<Failure>,
-    progress: ProgressBar,
+    progress: Progress,
 }
 
 impl<'s> Watch<'s> {
@@ -340,16 +340,8 @@ impl<'s> Watch<'s> {
         machine_contacts: &'s [MachineContact],
     ) -> Self {
         interrupt::catch();
-        // Progress in ms of simulated time, drawn only when stderr is a terminal.
-        let progress = ProgressBar::with_draw_target(
-            Some((t_end * 1e3).ceil() as u64),
-            ProgressDrawTarget::stderr(),
-        );
-        if let Ok(style) =
-            ProgressStyle::with_template("run {bar:40} {pos}/{len} ms simulated, ~{eta} left")
-        {
-            progress.set_style(style);
-        }
+        // Progress in ms of simulated time: a bar on a terminal, else lines.
+        let progress = Progress::new("run", (t_end * 1e3).ceil() as u64, "ms simulated");
         Watch {
             staged,
             trace,

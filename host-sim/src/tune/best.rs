@@ -2,13 +2,12 @@
 //! a parabola through it and its two neighbours and checked by one more run
 //! ([`best_offsets`]); warnings for offsets not held and speeds without travel.
 
-use indicatif::ProgressBar;
-
 use super::sweep::run_points;
 use super::sweep::Grid;
 use super::sweep::RunOutcome;
 use super::OFFSET_RESOLUTION_DEG;
 use crate::machine::Machine;
+use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::summary::wrap_deg_360;
 
@@ -243,6 +242,13 @@ pub(crate) fn candidates(grid: &Grid, runs: &[RunOutcome], way: Way) -> Vec<Cand
     out
 }
 
+/// Most check runs of `grid`'s best offsets: one per speed and direction. A
+/// sweep's progress counts them all from the start; [`best_offsets`] counts
+/// those it does not need as done.
+pub fn most_checks(grid: &Grid) -> usize {
+    2 * grid.speeds_rpm.len()
+}
+
 /// Stage 3: the best offsets of both directions, checking each refined offset by
 /// a run (in parallel). A refined offset is kept when its run held the offset and
 /// travelled at least as fast as the best grid point; otherwise the grid point
@@ -251,7 +257,7 @@ pub fn best_offsets(
     machine: &Machine,
     grid: &Grid,
     runs: &[RunOutcome],
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> (Vec<Best>, Vec<Best>, usize) {
     let plans: Vec<(Way, Candidate)> = [Way::Right, Way::Left]
         .into_iter()
@@ -266,7 +272,7 @@ pub fn best_offsets(
             _ => None,
         })
         .collect();
-    progress.inc_length(checks.len() as u64);
+    progress.inc(most_checks(grid).saturating_sub(checks.len()) as u64);
     let checked = run_points(machine, &checks, grid.t_end, progress);
     let mut checked = checked.into_iter();
 

@@ -26,7 +26,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::best::{mm_s, Best, Refinement, Tuning, Way, MIN_TRAVEL_MPS};
@@ -40,6 +39,7 @@ use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
+use crate::output::progress::Progress;
 use crate::output::text;
 
 /// Default `--samples`: the nominal machine and seven drawn (24 runs a point with
@@ -220,7 +220,7 @@ pub fn machines(
 pub fn sweep(
     machines: &[(usize, usize, Machine)],
     grid: &Grid,
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> Vec<Vec<RunOutcome>> {
     let points = grid.points();
     let jobs: Vec<(usize, usize)> = (0..machines.len())
