@@ -33,7 +33,7 @@ use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
 use crate::output::progress::Progress;
-use crate::output::text::sig;
+use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
@@ -287,6 +287,11 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let frames = film.frames;
     watch.finish()?;
     result.summary.warnings.extend(warnings);
+    result.summary.warnings.extend(one_rotor_direction(
+        args.command,
+        &machine,
+        result.summary.mean_velocity,
+    ));
 
     // 3. The plot and the animation, then the summary.
     let title = format!("host-sim run {} ({how})", args.machine.path.display());
@@ -455,6 +460,37 @@ fn controller_schedule(
         },
     };
     Ok(vec![(0.0, command)])
+}
+
+/// The warning of `--command right|left` on a one-rotor machine (`None`
+/// otherwise): it has no direction to choose, its controller runs the rotor at
+/// the speed and ignores the direction, and the platform goes where its rotor
+/// and feet take it, here at `mean_velocity`, m/s.
+fn one_rotor_direction(
+    command: Option<CommandArg>,
+    machine: &Machine,
+    mean_velocity: f64,
+) -> Option<String> {
+    let asked = match command {
+        Some(CommandArg::Right) => "right",
+        Some(CommandArg::Left) => "left",
+        _ => return None,
+    };
+    if machine.rotors.len() != 1 {
+        return None;
+    }
+    let went = if mean_velocity > 0.0 {
+        "right"
+    } else if mean_velocity < 0.0 {
+        "left"
+    } else {
+        "nowhere"
+    };
+    Some(format!(
+        "--command {asked}: the machine has one rotor ({:?}): it has no direction to choose; the controller runs the rotor at the speed and ignores `{asked}`, and the platform goes where its rotor and feet take it: this run went {went} ({} m/s over the second half)",
+        machine.rotors[0].name,
+        signed(mean_velocity)
+    ))
 }
 
 /// The plot title's description of a controller run.
