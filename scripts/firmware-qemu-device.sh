@@ -8,8 +8,8 @@
 #   status (idle), table write + table read (the example table, then one with the
 #   right offsets +5 deg: read back equal), self-test (done, both rotors pass, 4096
 #   counts per rev), travel right 3000 rpm --for 3 (running at the written table's
-#   offset), travel + telemetry --csv (running, speeds, target offset), stop, status
-#   until idle.
+#   offset, at rest when it returns), travel + telemetry --csv (running, speeds,
+#   target offset), stop, status until idle.
 #
 #   bash scripts/firmware-qemu-device.sh
 #
@@ -211,6 +211,7 @@ within() {
 run travel-for travel right --speed "$SPEED" --for 3
 expect travel-for "^travel right at $SPEED rpm: accepted$" "the travel accepted"
 expect travel-for '^stop: accepted$' "the stop at the end accepted"
+expect travel-for '^stop: at rest after [0-9.]+ s \(state idle, ' "at rest when the command returned"
 line="$(grep -E '^after 3\.0 s: ' "$WORK/travel-for.out" || true)"
 read -r s1 s2 offset target faults < <(sed -E 's/.* running +speed +([-0-9.]+) +([-0-9.]+) rpm +offset +([-0-9.]+) deg \(target +([-0-9.]+)\).* faults (.*)$/\1 \2 \3 \4 \5/;t;s/.*/- - - - -/' <<<"$line")
 within "$s1" "$SPEED" 30 && within "$s2" "$SPEED" 30 ||
