@@ -7,7 +7,8 @@
 #
 #   status (idle), table write + table read (the example table, then one with the
 #   right offsets +5 deg: read back equal), self-test (done, both rotors pass, 4096
-#   counts per rev), travel right 3000 rpm --for 3 (accepted, no fault, stopped),
+#   counts per rev), travel right 3000 rpm --for 3 (accepted, no fault, at rest
+#   when it returns),
 #   travel + telemetry --count 40 --csv (40 frames in order, no fault, ending at
 #   the steady state: speeds, the written table's offset), stop, status until idle.
 #
@@ -221,6 +222,7 @@ expect travel-for "^travel right at $SPEED rpm: accepted$" "the travel accepted"
 expect travel-for '^after 3\.0 s: +[0-9.]+ s +(starting|running) .* faults none$' \
     "a status after 3 s, starting or running, no fault"
 expect travel-for '^stop: accepted$' "the stop at the end accepted"
+expect travel-for '^stop: at rest after [0-9.]+ s \(state idle, ' "at rest when the command returned"
 
 # 5. Travel, kept alive by the telemetry stream (every 100 ms of firmware time,
 #    heartbeats), 40 frames to CSV: 4 s of firmware time, whatever the host's

@@ -16,10 +16,12 @@
 //!   `speed_rpm`, `offset_deg`, `velocity_mps` and optionally `weight`, each once,
 //!   in any order, nothing else;
 //! - every other line (blank lines and `#` comments skipped) is one run: the
-//!   header's number of fields; the speed, rpm, above 0 (and within the
-//!   controller's speed range when the reader is given it); the offset, degrees,
-//!   any finite value (wrapped to [0, 360)); the mean travel velocity, m/s
-//!   (positive rightward), finite; the weight, > 0, 1 when the column is absent;
+//!   header's number of fields, each a finite number within its bound: the speed,
+//!   rpm, within the controller's speed range when the reader is given it, else
+//!   in (0, [`MAX_SPEED_RPM`]]; the offset, degrees, within one turn either way
+//!   ([`MAX_OFFSET_DEG`], wrapped to [0, 360)); the mean travel velocity, m/s
+//!   (positive rightward), within [`MAX_VELOCITY_MPS`] either way; the weight in
+//!   [[`MIN_WEIGHT`], [`MAX_WEIGHT`]], 1 when the column is absent;
 //! - repeated rows (the same speed and offset) are separate measurements;
 //! - a file may have no rows yet (a sweep started and stopped before its first
 //!   answer).
@@ -44,6 +46,72 @@ const ALL: [&str; 4] = [COLUMNS[0], COLUMNS[1], COLUMNS[2], WEIGHT];
 
 /// Two speeds (rpm) or offsets (degrees) closer than this are the same point.
 pub const SAME_POINT: f64 = 1e-6;
+
+/// Highest speed of a row when the reader has no controller to ask, rpm: 1000
+/// turns a second, ten times the no-load speed of the small DC motors that
+/// drive unbalance rotors (the reference machine's 12 V motor: 5730 rpm). A
+/// larger number is another column's or another unit's, and as an `f32` on the
+/// link it could be infinite.
+pub const MAX_SPEED_RPM: f64 = 60_000.0;
+
+/// Largest offset of a row either way, degrees: one turn. An offset is an angle
+/// between two rotors; a number beyond a turn is another column's (a speed of
+/// 3000 in the offset column would wrap to 120 deg unnoticed).
+pub const MAX_OFFSET_DEG: f64 = 360.0;
+
+/// Fastest travel of a row either way, m/s: the eccentric's own speed at 60 000
+/// rpm and 2 cm is 126 m/s, but travel by impacts is a small part of it (the
+/// reference machine: 20 to 50 mm/s); 10 m/s is 200 times that, and catches
+/// mm/s written as m/s (30 for 0.03).
+pub const MAX_VELOCITY_MPS: f64 = 10.0;
+
+/// Smallest and largest weight of a row. Weights are relative (the weighted
+/// mean and the fit's estimates do not change when every weight is multiplied
+/// by one number), so a file can always be scaled into these; a ratio of up to
+/// 1e12 between rows keeps every weighted sum far from overflow.
+pub const MIN_WEIGHT: f64 = 1e-6;
+/// See [`MIN_WEIGHT`].
+pub const MAX_WEIGHT: f64 = 1e6;
+
+/// Why the value `v` of column `k` (an index into `speed_rpm, offset_deg,
+/// velocity_mps, weight`) is refused: what is allowed. `speed_range` as for
+/// [`parse`].
+fn refusal(k: usize, v: f64, speed_range: Option<(f64, f64)>) -> Option<String> {
+    let within = |lo: f64, hi: f64, unit: &str| {
+        (!(lo..=hi).contains(&v))
+            .then(|| format!("within [{}, {}]{unit}", text::sig(lo), text::sig(hi)))
+    };
+    match (k, speed_range) {
+        (0, Some((lo, hi))) if !(v > 0.0 && v >= lo && v <= hi) => Some(format!(
+            "within the controller's speed range [{}, {}] rpm",
+            text::sig(lo),
+            text::sig(hi)
+        )),
+        (0, Some(_)) => None,
+        (0, None) => (!(v > 0.0 && v <= MAX_SPEED_RPM))
+            .then(|| format!("> 0 and at most {} rpm", text::sig(MAX_SPEED_RPM))),
+        (1, _) => within(
+            -MAX_OFFSET_DEG,
+            MAX_OFFSET_DEG,
+            " degrees (one turn either way)",
+        ),
+        (2, _) => within(-MAX_VELOCITY_MPS, MAX_VELOCITY_MPS, " m/s"),
+        _ => within(
+            MIN_WEIGHT,
+            MAX_WEIGHT,
+            " (weights are relative: scale them)",
+        ),
+    }
+}
+
+/// Why the velocity `v`, m/s, cannot be a row of a measured file, if it cannot
+/// (the bound of [`parse`]): for the rows `device tune` appends.
+pub fn velocity_refusal(v: f64) -> Option<String> {
+    if !v.is_finite() {
+        return Some("must be a finite number".to_string());
+    }
+    refusal(2, v, None).map(|allowed| format!("must be {allowed}"))
+}
 
 /// One measured run.
 #[derive(Clone, Debug, PartialEq)]
@@ -194,16 +262,7 @@ pub fn parse(
                 ));
                 continue;
             };
-            let refused = match (k, speed_range) {
-                (0, Some((lo, hi))) if !(v > 0.0 && v >= lo && v <= hi) => Some(format!(
-                    "within the controller's speed range [{}, {}] rpm",
-                    text::sig(lo),
-                    text::sig(hi)
-                )),
-                (0 | 3, _) if v <= 0.0 => Some("> 0".to_string()),
-                _ => None,
-            };
-            match refused {
+            match refusal(k, v, speed_range) {
                 Some(allowed) => problems.push(format!(
                     "error: {file}: line {line}: {}: must be {allowed} (got {cell})",
                     ALL[k]
@@ -345,7 +404,7 @@ mod tests {
         assert_eq!(
             e,
             "error: m.csv: line 2: velocity_mps: must be a finite number (got \"fast\")\n\
-             error: m.csv: line 3: weight: must be > 0 (got -1)\n\
+             error: m.csv: line 3: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got -1)\n\
              error: m.csv: line 4: speed_rpm: must be within the controller's speed range [500, 4500] rpm (got 9000)\n\
              error: m.csv: line 5: 2 fields, the header has 4 (speed_rpm,offset_deg,velocity_mps,weight)\n\
              error: m.csv: line 6: offset_deg: must be a finite number (got \"nan\")\n"
@@ -357,15 +416,51 @@ mod tests {
         let text = "speed_rpm,offset_deg,velocity_mps\n9000,90,0.03\n0,90,0.1\n";
         assert_eq!(
             parse("m.csv", text, None).unwrap_err(),
-            "error: m.csv: line 3: speed_rpm: must be > 0 (got 0)\n"
+            "error: m.csv: line 3: speed_rpm: must be > 0 and at most 60000 rpm (got 0)\n"
         );
         assert!(err(text).contains("line 3: speed_rpm: must be within"));
+    }
+
+    /// Rows a float reads but no measurement gives: each refused with its line,
+    /// column and bound (issue 23: weights of 1e308 overflowed the weighted mean,
+    /// velocities of 1e308 made a table).
+    #[test]
+    fn numbers_beyond_their_bounds_are_refused() {
+        let text = "speed_rpm,offset_deg,velocity_mps,weight\n\
+                    3000,90,0.03,1e308\n\
+                    3000,135,1e308,1\n\
+                    1e308,90,0.03,1\n\
+                    3000,1e300,0.03,1\n\
+                    3000,90,-10.5,1e-7\n\
+                    60000,-360,-10,1e-6\n\
+                    3000,360,10,1e6\n";
+        assert_eq!(
+            parse("m.csv", text, None).unwrap_err(),
+            "error: m.csv: line 2: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got 1e308)\n\
+             error: m.csv: line 3: velocity_mps: must be within [-10, 10] m/s (got 1e308)\n\
+             error: m.csv: line 4: speed_rpm: must be > 0 and at most 60000 rpm (got 1e308)\n\
+             error: m.csv: line 5: offset_deg: must be within [-360, 360] degrees (one turn either way) (got 1e300)\n\
+             error: m.csv: line 6: velocity_mps: must be within [-10, 10] m/s (got -10.5)\n\
+             error: m.csv: line 6: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got 1e-7)\n"
+        );
+        // The bounds themselves are allowed.
+        let ok = "speed_rpm,offset_deg,velocity_mps,weight\n60000,-360,-10,1e-6\n3000,360,10,1e6\n";
+        assert_eq!(parse("m.csv", ok, None).unwrap().1.len(), 2);
+        assert_eq!(velocity_refusal(0.03), None);
+        assert_eq!(
+            velocity_refusal(1e305).as_deref(),
+            Some("must be within [-10, 10] m/s")
+        );
+        assert_eq!(
+            velocity_refusal(f64::INFINITY).as_deref(),
+            Some("must be a finite number")
+        );
     }
 
     #[test]
     fn repeated_rows_share_one_point() {
         let rows =
-            rows("speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n3000,0,0.01\n3000,450,0.031\n");
+            rows("speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n3000,0,0.01\n3000,-270,0.031\n");
         let (points, of_row) = points(&rows);
         assert_eq!(points, vec![(3000.0, 90.0), (3000.0, 0.0)]);
         assert_eq!(of_row, vec![0, 1, 0]);

@@ -290,7 +290,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ),
         &write,
     )
-    .refused("weight.csv: line 2: weight: must be > 0 (got -2)");
+    .refused("weight.csv: line 2: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got -2)");
     calibrate(
         m,
         &with(

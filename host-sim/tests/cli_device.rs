@@ -200,7 +200,17 @@ fn status_travel_stop_hold_and_reset() {
     );
     assert!(out.contains("running"), "{out}");
     assert!(out.contains("(target 120.0)"), "{out}");
-    assert!(out.ends_with("stop: accepted\n"), "{out}");
+    assert!(
+        out.contains("stop: accepted\nstop: at rest after "),
+        "{out}"
+    );
+    assert!(out.contains(" (state idle, rotors at "), "{out}");
+    // It returned at rest, so a table write right after it is taken (issue 23:
+    // it returned while the rotors ran down, and the write was refused).
+    let at_rest = scratch("at-rest.toml");
+    std::fs::write(&at_rest, tuning_file::write(&[(3000.0, 90.0, 270.0)], "t")).unwrap();
+    let w = dev.run(&["table", "write", at_rest.to_str().unwrap()]);
+    assert!(w.ok().starts_with("table write: 1 rows"), "{}", w.stdout);
 
     // Travel without heartbeats: the controller latches link_lost; reset clears it.
     dev.run(&["travel", "left", "--speed", "3000"]).ok();
@@ -338,6 +348,28 @@ fn a_noisy_line_still_gives_the_right_answers() {
     dev.finish();
 }
 
+/// A line so noisy that no status report crosses it whole (a bit flipped in
+/// every 12th byte): bytes came, so the hint is the line's, not the port's
+/// (issue 23: "is the port right, the device powered" for a noisy line).
+#[test]
+fn a_line_too_noisy_for_an_answer_says_so() {
+    let dev = Device::start(Noise {
+        flip_every: Some(12),
+        garbage_every: None,
+    });
+    let r = dev.run(&["--retries", "2", "status"]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr
+            .contains("no answer from the device to GetStatus after 3 tries of 100 ms, though ")
+            && r.stderr.contains("a noisy line"),
+        "{}",
+        r.stderr
+    );
+    assert!(!r.stderr.contains("is the port right"), "{}", r.stderr);
+    dev.finish();
+}
+
 #[test]
 fn a_device_that_never_answers_is_a_clear_timeout() {
     let listener = TcpListener::bind("127.0.0.1:0").unwrap();
@@ -353,8 +385,9 @@ fn a_device_that_never_answers_is_a_clear_timeout() {
     let r = host_sim(&["device", "--port", &port, "--retries", "2", "status"]);
     assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
     assert!(
-        r.stderr
-            .contains("no answer from the device to GetStatus after 3 tries of 100 ms"),
+        r.stderr.contains(
+            "no answer from the device to GetStatus after 3 tries of 100 ms, and no byte at all (is the port right"
+        ),
         "{}",
         r.stderr
     );

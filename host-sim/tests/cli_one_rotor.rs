@@ -197,3 +197,55 @@ between = [0.5, 1.0]
     assert!(!r.stderr.contains("faults[1]"), "{}", r.stderr);
     assert!(!r.stderr.contains("expect[2]"), "{}", r.stderr);
 }
+
+/// A one-rotor machine has no direction: `--command left` runs its rotor and
+/// the platform goes where rotor and feet take it (right, on this machine). The
+/// run says so, naming the way it went (issue 23: no word of it).
+#[test]
+fn a_direction_given_to_one_rotor_is_said_to_be_ignored() {
+    let r = run_one_rotor(&["--command", "left", "--speed", "3000"]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
+    let went = if v["mean_velocity"].as_f64().unwrap() > 0.0 {
+        "right"
+    } else {
+        "left"
+    };
+    let warnings = v["warnings"].to_string();
+    assert!(
+        warnings.contains("--command left: the machine has one rotor (\\\"centre\\\"): it has no direction to choose; the controller runs the rotor at the speed and ignores `left`"),
+        "{warnings}"
+    );
+    assert!(
+        warnings.contains(&format!("this run went {went} (")),
+        "{warnings}"
+    );
+}
+
+/// The same through the link: `device travel left --for` on a simulated
+/// one-rotor board warns that the direction is ignored, from the status
+/// (rotor 2's speed reference 0 while rotor 1 is driven).
+#[cfg(unix)]
+#[test]
+fn a_one_rotor_device_says_the_direction_is_ignored() {
+    let one = one_rotor();
+    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&one), "--duration", "30"]);
+    let r = run(&[
+        "device", "--port", &dev.port, "travel", "left", "--speed", "3000", "--for", "1",
+    ]);
+    assert_eq!(r.status, 0, "{}{}", r.stdout, r.stderr);
+    assert!(
+        r.stderr.contains("warning: the device drives one rotor (rotor 2's speed reference is 0 while rotor 1's is ")
+            && r.stderr.contains("`left` is ignored"),
+        "{}",
+        r.stderr
+    );
+    // A two-rotor board says nothing of the kind.
+    let two = common::machine();
+    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&two), "--duration", "30"]);
+    let r = run(&[
+        "device", "--port", &dev.port, "travel", "left", "--speed", "3000", "--for", "1",
+    ]);
+    assert_eq!(r.status, 0, "{}{}", r.stdout, r.stderr);
+    assert!(!r.stderr.contains("one rotor"), "{}", r.stderr);
+}

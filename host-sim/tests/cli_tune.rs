@@ -162,6 +162,104 @@ fn one_point_prints_a_table_and_warns_when_the_run_is_too_short() {
     }
 }
 
+/// One speed, four offsets, 3 s (offsets held from about 1.2 s), the loosest
+/// tolerance: 4 grid runs and at most 2 checks.
+const ONE_SPEED: [&str; 8] = [
+    "--speeds",
+    "3000",
+    "--offsets",
+    "0:360:90",
+    "--t-end",
+    "3",
+    "--set",
+    "simulation.rtol=1e-3",
+];
+
+/// Frictionless feet: nothing to push on, so no travel, and every run's mean
+/// velocity is what the sideways sway leaves (micrometres per second). Neither
+/// way is travel: each is warned of, and `--write` writes the least bad offsets,
+/// as for any speed without travel one way (issue 23: a right offset was written
+/// from +1.8e-9 m/s without a word).
+#[test]
+fn frictionless_feet_travel_no_way_and_say_so() {
+    let m = machine();
+    let write = scratch("frictionless.tuning.toml");
+    let r = run_on(
+        None,
+        &[
+            ["tune", m.to_str().unwrap()].as_slice(),
+            &ONE_SPEED,
+            &[
+                "--set",
+                "contacts.K1.friction=0",
+                "--set",
+                "contacts.K2.friction=0",
+                "--format",
+                "json",
+                "--write",
+                write.to_str().unwrap(),
+            ],
+        ]
+        .concat(),
+    );
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let doc: Value = serde_json::from_str(&r.stdout).expect("JSON");
+    // The premise: no run travels.
+    for p in doc["grid"].as_array().unwrap() {
+        let v = p["mean_velocity"].as_f64().unwrap();
+        assert!(v.abs() < 1e-4, "{p}");
+    }
+    let warnings: Vec<&str> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    for way in ["right", "left"] {
+        let says = format!("3000 rpm: no offset travels {way} faster than 0.5 mm/s: the best is ");
+        assert!(
+            warnings.iter().any(|w| w.starts_with(&says)),
+            "{says:?} not in {warnings:?}"
+        );
+    }
+    let rows = tuning_file::parse("t", &std::fs::read_to_string(&write).unwrap()).unwrap();
+    assert_eq!(rows.len(), 1);
+}
+
+/// Off a terminal the progress is a line every few seconds;
+/// `VIBRO_PROGRESS_EVERY=0` makes it a line at every run, so that the test waits
+/// on no clock. The total counts the check runs (two a speed) from the first
+/// line on (issue 23: nothing was printed off a terminal, and the bar's total
+/// grew when the checks were added).
+#[test]
+fn progress_off_a_terminal_is_lines_with_a_fixed_total() {
+    let m = machine();
+    let mut cmd = common::host_sim();
+    cmd.args(["tune", m.to_str().unwrap()])
+        .args(ONE_SPEED)
+        .env("VIBRO_PROGRESS_EVERY", "0");
+    let r = common::finish(cmd);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    // "tune: 3/6 runs, 0 s elapsed, ~1 s left": 4 grid runs and 2 checks.
+    let counts: Vec<(u64, u64)> = r
+        .stderr
+        .lines()
+        .filter(|l| l.contains(" elapsed"))
+        .map(|l| {
+            let counts = l
+                .strip_prefix("tune: ")
+                .and_then(|l| l.split(" runs, ").next())
+                .unwrap_or_else(|| panic!("{l}"));
+            let (done, total) = counts.split_once('/').unwrap();
+            (done.parse().unwrap(), total.parse().unwrap())
+        })
+        .collect();
+    assert!(counts.len() >= 5, "{}", r.stderr);
+    assert!(counts.iter().all(|c| c.1 == 6), "{counts:?}");
+    assert!(counts.windows(2).all(|w| w[0].0 <= w[1].0), "{counts:?}");
+    assert_eq!(counts.last(), Some(&(6, 6)));
+}
+
 #[test]
 fn bad_options_exit_2_naming_the_option() {
     let m = machine();

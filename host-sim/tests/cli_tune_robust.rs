@@ -7,6 +7,7 @@
 use std::path::PathBuf;
 
 use host_sim::machine::tuning_file;
+use host_sim::tune::best::MIN_TRAVEL_MPS;
 use serde_json::Value;
 
 mod common;
@@ -99,7 +100,7 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
         );
         let mean = speeds.iter().sum::<f64>() / 6.0;
         assert!((f("mean") - mean).abs() <= 1e-15, "{} {mean}", f("mean"));
-        let right = speeds.iter().filter(|v| **v > 0.0).count() as f64 / 6.0;
+        let right = speeds.iter().filter(|v| **v > MIN_TRAVEL_MPS).count() as f64 / 6.0;
         assert_eq!(f("right_share"), right);
     }
 
@@ -155,6 +156,109 @@ fn a_robust_sweep_on_two_machines_from_three_starts() {
         "{svg}"
     );
     assert_eq!(svg.matches(r#"class="band""#).count(), 1);
+}
+
+/// At 3000 rpm on 0 and 90 degrees no offset travels left (0 degrees goes
+/// nowhere, by micrometres per second either sign): the least bad is written
+/// for left, marked and warned of, beside the robust right (issue 23: 63 s of
+/// runs, then exit 1, nothing on stdout, no plot).
+#[test]
+fn a_way_without_a_robust_offset_writes_the_least_bad_and_the_sweep() {
+    let m = uncertain_machine();
+    let (write, plot) = (scratch("one-way.tuning.toml"), scratch("one-way.svg"));
+    let r = run(&[
+        "tune",
+        m.to_str().unwrap(),
+        "--speeds",
+        "3000",
+        "--offsets",
+        "0:90:90",
+        "--t-end",
+        "3",
+        "--set",
+        "simulation.rtol=1e-3",
+        "--robust",
+        "--samples",
+        "2",
+        "--format",
+        "json",
+        "--write",
+        write.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    let doc = json(&r);
+    let (right, left) = (&doc["best"]["right"][0], &doc["best"]["left"][0]);
+    assert_eq!(
+        (right["offset_deg"].as_f64(), right["every_run"].as_bool()),
+        (Some(90.0), Some(true))
+    );
+    assert_eq!(
+        (left["offset_deg"].as_f64(), left["every_run"].as_bool()),
+        (Some(0.0), Some(false))
+    );
+    // The premise: 0 degrees goes nowhere on any run.
+    for v in left["robust"]["speeds"].as_array().unwrap() {
+        assert!(v.as_f64().unwrap().abs() < MIN_TRAVEL_MPS, "{left}");
+    }
+    assert!(
+        doc["warnings"][0].as_str().unwrap().starts_with(
+            "3000 rpm: no offset travels left faster than 0.5 mm/s on every machine from every start: the least bad is 0 deg, 90th percentile"
+        ),
+        "{}",
+        doc["warnings"]
+    );
+    let text = std::fs::read_to_string(&write).unwrap();
+    assert_eq!(
+        tuning_file::parse("t", &text).unwrap(),
+        [(3000.0, 90.0, 0.0)]
+    );
+    assert!(
+        text.contains(
+            "Not travelling its way on every run (the least bad; see the warnings): 3000 rpm left."
+        ),
+        "{text}"
+    );
+    // The plot is written too.
+    assert!(std::fs::read_to_string(&plot)
+        .unwrap()
+        .contains("10th-90th percentile"));
+}
+
+/// A sweep where no run holds its offset has no table to write; the sweep is
+/// printed all the same, and nothing is written (exit 1).
+#[test]
+fn no_table_still_prints_the_sweep() {
+    let m = uncertain_machine();
+    let write = scratch("none.tuning.toml");
+    let r = run(&[
+        "tune",
+        m.to_str().unwrap(),
+        "--speeds",
+        "3000",
+        "--offsets",
+        "90",
+        "--t-end",
+        "0.5",
+        "--set",
+        "simulation.rtol=1e-3",
+        "--robust",
+        "--samples",
+        "1",
+        "--write",
+        write.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(r.stdout.starts_with("tune --robust "), "{}", r.stdout);
+    assert!(r.stdout.contains("no run held its offset"), "{}", r.stdout);
+    assert!(
+        r.stderr
+            .contains("error: --write: no speed has a best offset both ways")
+            && r.stderr.contains("the sweep is above"),
+        "{}",
+        r.stderr
+    );
+    assert!(!write.exists());
 }
 
 #[test]

@@ -231,7 +231,7 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
 struct Trials<'a> {
     args: &'a CalibrateArgs,
     inputs: &'a Inputs,
-    progress: indicatif::ProgressBar,
+    progress: crate::output::progress::Progress,
     /// The runs of every point evaluated, by the bits of its coordinates.
     outcomes: HashMap<Vec<u64>, Vec<RunOutcome>>,
     /// The reader's refusal of each trial point it refused.

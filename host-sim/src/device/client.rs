@@ -36,6 +36,9 @@ pub enum LinkError {
         tries: u32,
         /// Wait after each, ms.
         timeout_ms: u32,
+        /// What came back meanwhile: nothing at all (a silent line: the port,
+        /// the power, the firmware) or bytes that made no answer (a noisy line).
+        heard: Heard,
     },
     /// The answer at the request's sequence number answers something else (an
     /// Ack for another request, a report that was not asked for).
@@ -56,10 +59,30 @@ impl fmt::Display for LinkError {
                 request,
                 tries,
                 timeout_ms,
+                heard,
+            } if heard.bytes == 0 => write!(
+                f,
+                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms, \
+                 and no byte at all (is the port right, the device powered, its firmware running \
+                 at 115200 baud?)"
+            ),
+            LinkError::NoAnswer {
+                request,
+                tries,
+                timeout_ms,
+                heard,
             } => write!(
                 f,
-                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms \
-                 (is the port right, the device powered, its firmware running at 115200 baud?)"
+                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms, \
+                 though {} bytes came back ({} rejected as corrupt{}): a noisy line (a loose, \
+                 long or unshielded cable, interference, or another baud rate than 115200; \
+                 more --retries may get through)",
+                heard.bytes,
+                count(heard.rejected, "frame"),
+                match heard.stale {
+                    0 => String::new(),
+                    n => format!(", {} to an earlier request", count(n, "answer")),
+                }
             ),
             LinkError::WrongAnswer { request, answer } => write!(
                 f,
@@ -68,6 +91,26 @@ impl fmt::Display for LinkError {
             ),
             LinkError::Io(e) => write!(f, "the port failed: {e}"),
         }
+    }
+}
+
+/// What came back while a request waited for its answer in vain.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Heard {
+    /// Bytes read.
+    pub bytes: u64,
+    /// Frames and candidates the decoder rejected (corrupt).
+    pub rejected: u32,
+    /// Intact frames that answer another sequence number.
+    pub stale: u32,
+}
+
+/// `1 frame`, `3 frames`.
+fn count(n: u32, what: &str) -> String {
+    if n == 1 {
+        format!("1 {what}")
+    } else {
+        format!("{n} {what}s")
     }
 }
 
@@ -92,6 +135,8 @@ pub struct Client {
     /// Telemetry frames received, oldest first, with when they came.
     telemetry: VecDeque<(Instant, StatusReport)>,
     stats: ClientStats,
+    /// Bytes read since the client was made.
+    bytes: u64,
 }
 
 /// The name of a request for messages.
@@ -193,6 +238,7 @@ impl Client {
             retries,
             telemetry: VecDeque::new(),
             stats: ClientStats::default(),
+            bytes: 0,
         }
     }
 
@@ -222,6 +268,7 @@ impl Client {
             ANSWER_TIMEOUT_MS
         };
         let tries = 1 + self.retries;
+        let before = (self.bytes, self.stats);
         for attempt in 0..tries {
             if attempt > 0 {
                 self.stats.retries += 1;
@@ -247,6 +294,11 @@ impl Client {
             request: request_name(request),
             tries,
             timeout_ms,
+            heard: Heard {
+                bytes: self.bytes - before.0,
+                rejected: self.stats.rejected - before.1.rejected,
+                stale: self.stats.stale - before.1.stale,
+            },
         })
     }
 
@@ -286,6 +338,7 @@ impl Client {
             .port
             .read_timeout(&mut buf, wait.min(Duration::from_millis(20)))
             .map_err(LinkError::Io)?;
+        self.bytes += n as u64;
         let mut input = &buf[..n];
         let mut answer = None;
         while let Some(event) = self.decoder.decode(&mut input) {
@@ -385,6 +438,60 @@ mod tests {
         let stats = c.stats();
         assert!(stats.retries >= 3, "{stats:?}");
         assert!(stats.rejected >= 3, "{stats:?}");
+    }
+
+    /// A line so noisy that no status report (74 bytes) arrives whole: a bit
+    /// flipped in every 12th byte. The bytes came, so the message says the line
+    /// is noisy, not that the port may be wrong (issue 23).
+    #[test]
+    fn a_noisy_line_is_not_a_silent_one() {
+        let mut c = client(
+            Noise {
+                flip_every: Some(12),
+                garbage_every: None,
+            },
+            1,
+        );
+        let e = c.request(&Request::GetStatus).unwrap_err();
+        let LinkError::NoAnswer { heard, .. } = &e else {
+            panic!("{e:?}");
+        };
+        assert!(heard.bytes > 0 && heard.rejected > 0, "{heard:?}");
+        let text = e.to_string();
+        assert!(
+            text.starts_with(
+                "no answer from the device to GetStatus after 2 tries of 100 ms, though "
+            ),
+            "{text}"
+        );
+        assert!(text.contains("a noisy line"), "{text}");
+        assert!(!text.contains("is the port right"), "{text}");
+    }
+
+    /// A port that never sends a byte.
+    struct Silent;
+
+    impl Port for Silent {
+        fn read_timeout(&mut self, _: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            std::thread::sleep(timeout.min(Duration::from_millis(5)));
+            Ok(0)
+        }
+
+        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_silent_line_asks_for_the_port_and_the_power() {
+        let e = Client::new(Box::new(Silent), 0)
+            .request(&Request::GetStatus)
+            .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "no answer from the device to GetStatus after 1 tries of 100 ms, and no byte at all \
+             (is the port right, the device powered, its firmware running at 115200 baud?)"
+        );
     }
 
     #[test]

@@ -20,6 +20,7 @@ use super::client::{Client, LinkError};
 use super::port::PortSpec;
 use super::report;
 use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
+use super::rest::{await_rest, Poll, REST_TIMEOUT_S};
 use super::{live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
@@ -169,7 +170,7 @@ fn run_on(
 ) -> Result<(), Failure> {
     match &args.command {
         DeviceCommand::Status => {
-            let s = status(client)?;
+            let s = client.status()?;
             out.print(&report::status_text(&s));
         }
         DeviceCommand::Travel(a) => travel(client, a, out)?,
@@ -182,7 +183,7 @@ fn run_on(
             command(client, &Request::ResetFaults)?;
             // The controller clears the faults at its next tick.
             std::thread::sleep(Duration::from_millis(20));
-            let s = status(client)?;
+            let s = client.status()?;
             out.print(&format!(
                 "reset: accepted; state {}, faults {}\n",
                 s.state.name(),
@@ -214,13 +215,6 @@ fn run_on(
     Ok(())
 }
 
-fn status(client: &mut Client) -> Result<StatusReport, Failure> {
-    match ask(client, &Request::GetStatus)? {
-        Response::Status(s) => Ok(s),
-        other => Err(unexpected(&Request::GetStatus, &other)),
-    }
-}
-
 fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     let (direction, name) = match a.direction {
         DirectionArg::Right => (Direction::Right, "right"),
@@ -234,7 +228,21 @@ fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<
         },
     )?;
     out.print(&format!("travel {name} at {} rpm: accepted\n", a.speed));
-    keep_alive(client, a.for_s, out)
+    keep_alive(client, a.for_s, Some(name), out)
+}
+
+/// The warning for a direction (`name`) sent to a one-rotor device, if `s`
+/// shows one: rotor 1 driven (its speed reference not 0) and rotor 2's
+/// reference 0, which only a one-rotor controller reports while driving (two
+/// rotors share the ramp).
+fn one_rotor_direction(s: &StatusReport, name: &str) -> Option<String> {
+    let r = s.telemetry.speed_ref_rpm;
+    (r[0] != 0.0 && r[1] == 0.0).then(|| {
+        format!(
+            "the device drives one rotor (rotor 2's speed reference is 0 while rotor 1's is {:.0} rpm): a one-rotor machine has no direction, `{name}` is ignored; it travels the way its rotor and feet take it",
+            r[0]
+        )
+    })
 }
 
 fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), Failure> {
@@ -249,14 +257,19 @@ fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), 
         "hold offset {} deg at {} rpm: accepted\n",
         a.offset, a.speed
     ));
-    keep_alive(client, a.for_s, out)
+    keep_alive(client, a.for_s, None, out)
 }
 
 /// After a motion command: return at once (`None`), or keep the link alive for
-/// `for_s` seconds (Ctrl-C ends it early), then stop.
+/// `for_s` seconds (Ctrl-C ends it early), say so if the status then shows a
+/// one-rotor device given a direction (`direction`: `travel`'s), then stop and
+/// ask the status until
+/// the rotors are at rest ([`await_rest`], at most [`REST_TIMEOUT_S`]), so that
+/// a `table write` may follow at once; not at rest by then is a failure.
 fn keep_alive(
     client: &mut Client,
     for_s: Option<f64>,
+    direction: Option<&str>,
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
     let Some(for_s) = for_s else {
@@ -268,13 +281,24 @@ fn keep_alive(
         client.request(&Request::Heartbeat)?;
         client.pump(HEARTBEAT_EVERY.min(end.saturating_duration_since(Instant::now())))?;
     }
-    let s = status(client)?;
+    let s = client.status()?;
     command(client, &Request::Stop)?;
     out.print(&format!(
         "after {:.1} s: {}\nstop: accepted\n",
         for_s,
         report::telemetry_line(&s).trim_start()
     ));
+    if let Some(w) = direction.and_then(|d| one_rotor_direction(&s, d)) {
+        out.note(&format!("warning: {w}\n"));
+    }
+    let rest = await_rest(client, REST_TIMEOUT_S)?;
+    if !rest.reached {
+        return Err(Failure::Device(format!(
+            "error: stop: accepted, but {}; stop it by hand (E-stop) or again with `host-sim device --port PORT stop`, and ask `host-sim device --port PORT status` until state idle with both rotors below 10 rpm (a table write and the self-test need that)",
+            rest.describe()
+        )));
+    }
+    out.print(&format!("stop: {}\n", rest.describe()));
     Ok(())
 }
 

@@ -222,7 +222,7 @@ mod tests {
         assert_eq!(
             e,
             Failure::Usage(format!(
-                "error: {file}: line 2: speed_rpm: must be > 0 (got 0)\n\
+                "error: {file}: line 2: speed_rpm: must be > 0 and at most 60000 rpm (got 0)\n\
                  error: {file}: line 3: offset_deg: must be a finite number (got \"x\")\n"
             ))
         );

@@ -14,6 +14,7 @@
 //!   from the operator appended to a [`measured`] file, the table made by
 //!   [`tune_table`];
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
+//! - [`rest`]: the machine at rest after a stop, as its status says;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
 //! - [`mechanics`]: what the simulated device drives and senses, a tick at a time;
 //! - [`rotors`]: the simulator's two motors and rotors with their sensors;
@@ -36,6 +37,7 @@ pub mod port;
 pub mod pty;
 pub mod report;
 pub mod requests;
+pub mod rest;
 pub mod rotors;
 pub mod serial;
 pub mod serve;

@@ -22,8 +22,10 @@
 //!
 //! While a point runs, every status is watched: a latched fault (the E-stop is
 //! one), a state other than the expected, a refused command, the link lost
-//! (no answer), and Ctrl-C stop the machine (a best-effort `Stop`) and end the
-//! sweep with exit 1; the rows already appended stay.
+//! (no answer), and Ctrl-C stop the machine (a best-effort `Stop`, then the
+//! status asked until it is at rest, within `--timeout`: [`super::rest`]) and end
+//! the sweep with exit 1, saying what the status said; the rows already appended
+//! stay.
 //!
 //! The machine is behind [`Rig`] and the operator behind [`Operator`], so the
 //! unit tests drive the sweep with a fake of each.
@@ -33,17 +35,19 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use shared::controller::{State, WRITE_MAX_SPEED_RPM};
-use shared::protocol::{Request, Response, StatusReport};
+use shared::controller::State;
+use shared::protocol::{Request, StatusReport};
 
 use super::args::DeviceTuneArgs;
 use super::client::Client;
 use super::measured::{self, MeasuredFile};
 use super::report::faults_text;
-use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
+use super::requests::{command, HEARTBEAT_EVERY};
+use super::rest::{at_rest, await_rest, motion, Poll};
 use super::tune_table;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
+use crate::measured::velocity_refusal;
 use crate::output::file::Staged;
 use crate::output::text;
 use crate::simulation::summary::wrap_deg_180;
@@ -63,16 +67,13 @@ const TARGET_MATCH_DEG: f64 = 0.01;
 /// may be that of the tick before, and a retried request takes 100 ms more.
 const TAKE_S: f64 = 0.3;
 
-/// The machine as the sweep uses it.
-pub trait Rig {
+/// The machine as the sweep uses it: commanded, and its status asked
+/// ([`Poll`]; asking keeps the link alive).
+pub trait Rig: Poll {
     /// Hold `offset_deg` at `speed_rpm` (accepted, or the failure).
     fn hold(&mut self, speed_rpm: f64, offset_deg: f64) -> Result<(), Failure>;
-    /// Ramp down to rest.
+    /// Ramp down to rest (accepted, or the failure).
     fn stop(&mut self) -> Result<(), Failure>;
-    /// The latest status; asking for it keeps the link alive.
-    fn status(&mut self) -> Result<StatusReport, Failure>;
-    /// Let `wait` pass (reading the line meanwhile).
-    fn wait(&mut self, wait: Duration) -> Result<(), Failure>;
 }
 
 impl Rig for Client {
@@ -88,17 +89,6 @@ impl Rig for Client {
 
     fn stop(&mut self) -> Result<(), Failure> {
         command(self, &Request::Stop)
-    }
-
-    fn status(&mut self) -> Result<StatusReport, Failure> {
-        match ask(self, &Request::GetStatus)? {
-            Response::Status(s) => Ok(s),
-            other => Err(unexpected(&Request::GetStatus, &other)),
-        }
-    }
-
-    fn wait(&mut self, wait: Duration) -> Result<(), Failure> {
-        self.pump(wait).map_err(Failure::from)
     }
 }
 
@@ -281,8 +271,7 @@ pub fn sweep(
         ));
         if let Err(f) = run_point(rig, op, speed, offset, timing) {
             // The machine stopped whatever went wrong; the link may be gone.
-            let stop = rig.stop();
-            return Err(stopped(f, &here, stop));
+            return Err(stopped(f, &here, rig, timing.timeout_s));
         }
         let typed = op.forget_typed_ahead();
         if !typed.is_empty() {
@@ -303,7 +292,7 @@ pub fn sweep(
                 }
                 Reply::Interrupted => {
                     return Err(Failure::Run(format!(
-                        "error: interrupted (Ctrl-C) at the prompt of {here}: the machine is stopped; that point is not recorded"
+                        "error: interrupted (Ctrl-C) at the prompt of {here}: the machine was at rest before the prompt; that point is not recorded"
                     )))
                 }
             };
@@ -311,6 +300,16 @@ pub fn sweep(
                 Some(Answer::Distance(mm)) => {
                     // velocity = distance / S, m/s.
                     let v = mm * 1e-3 / timing.for_s;
+                    // A row the file's reader would refuse is not appended.
+                    if let Some(why) = velocity_refusal(v) {
+                        op.tell(&format!(
+                            "not a distance: {} mm in {} s is {} m/s, and a measured velocity {why}; give the distance in mm\n",
+                            text::sig(mm),
+                            text::sig(timing.for_s),
+                            text::sig(v)
+                        ));
+                        continue;
+                    }
                     file.append(speed, offset, v)?;
                     tally.measured += 1;
                     op.tell(&format!(
@@ -351,15 +350,25 @@ pub fn sweep(
     Ok(tally)
 }
 
-/// The failure `f` of the point `here`, naming it, with the outcome of the stop
-/// sent after it.
-fn stopped(f: Failure, here: &str, stop: Result<(), Failure>) -> Failure {
-    let stop = match stop {
-        Ok(()) => "the machine is stopped".to_string(),
-        Err(e) => format!(
-            "the stop failed too ({}): the device stops the motors itself 0.5 s after its last request (fault link_lost)",
-            e.message().trim().trim_start_matches("error: ")
+/// Stops `rig` after the failure `f` of the point `here` and asks its status
+/// until it is at rest (at most `timeout_s`): the failure, naming the point,
+/// with what the status says. "The machine is stopped" only when the status
+/// says so: a device may acknowledge the stop and run on.
+fn stopped(f: Failure, here: &str, rig: &mut dyn Rig, timeout_s: f64) -> Failure {
+    let cause = |e: Failure| e.message().trim().trim_start_matches("error: ").to_string();
+    let link_lost =
+        "the device stops the motors itself 0.5 s after its last request (fault link_lost)";
+    let stop = match rig.stop().map(|()| await_rest(rig, timeout_s)) {
+        Ok(Ok(rest)) if rest.reached => format!("the machine is stopped: {}", rest.describe()),
+        Ok(Ok(rest)) => format!(
+            "the stop was accepted, but the machine is {}: stop it by hand (E-stop) or with `host-sim device --port PORT stop`, and check with `host-sim device --port PORT status`",
+            rest.describe()
         ),
+        Ok(Err(e)) => format!(
+            "the stop was accepted, but the status after it could not be read ({}): {link_lost}",
+            cause(e)
+        ),
+        Err(e) => format!("the stop failed too ({}): {link_lost}", cause(e)),
     };
     let tell = |m: String| {
         let m = m.trim_end().trim_start_matches("error: ");
@@ -433,25 +442,16 @@ fn run_point(
     // 4. Stop, until at rest: idle, both rotors below the controller's own
     // "at rest" (what a table write requires), so the platform has stopped too.
     rig.stop()?;
-    watch(rig, op, &here, "stopping", |s, elapsed| {
-        let rest = s
-            .telemetry
-            .speed_rpm
-            .iter()
-            .all(|v| v.abs() < WRITE_MAX_SPEED_RPM);
-        match s.state {
-            State::Idle if rest => Ok(true),
-            State::Running if elapsed < TAKE_S => Ok(false),
-            State::Idle | State::Stopping if elapsed < timing.timeout_s => Ok(false),
-            State::Idle | State::Stopping => Err(format!(
-                "not at rest {} s after the stop (--timeout): state {}, rotors at {:.0} and {:.0} rpm",
-                text::sig(timing.timeout_s),
-                s.state.name(),
-                s.telemetry.speed_rpm[0],
-                s.telemetry.speed_rpm[1]
-            )),
-            other => Err(format!("the controller is {} after the stop", other.name())),
-        }
+    watch(rig, op, &here, "stopping", |s, elapsed| match s.state {
+        State::Idle if at_rest(s) => Ok(true),
+        State::Running if elapsed < TAKE_S => Ok(false),
+        State::Idle | State::Stopping if elapsed < timing.timeout_s => Ok(false),
+        State::Idle | State::Stopping => Err(format!(
+            "not at rest {} s after the stop (--timeout): {}",
+            text::sig(timing.timeout_s),
+            motion(s)
+        )),
+        other => Err(format!("the controller is {} after the stop", other.name())),
     })
 }
 

@@ -16,7 +16,7 @@ use crate::machine::tuning_file;
 use crate::measured::{Row, SAME_POINT};
 use crate::output::text;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
-use crate::tune::best::{candidates, mm_s, Way};
+use crate::tune::best::{candidates, mm_s, no_travel, Way};
 use crate::tune::report::count;
 use crate::tune::sweep::{Grid, RunOutcome};
 
@@ -53,13 +53,30 @@ pub struct SpeedFit {
 /// velocity, m/s; rows averaged).
 pub type OffsetMean = (f64, f64, usize);
 
-/// The running sums of an offset: (offset, `sum w v`, `sum w`, rows).
-type Sums = (f64, f64, f64, usize);
+/// The rows of one offset at a speed: (offset, degrees in [0, 360); their
+/// velocities, m/s, and weights).
+type Group = (f64, Vec<(f64, f64)>);
+
+/// The weighted mean `sum(w_i v_i) / sum(w_i)` of `(v, w)` pairs, the weights
+/// first divided by the largest (the mean is the same, and no sum can overflow
+/// whatever weights the file holds: each term is at most `|v|`, the sum of
+/// weights at most the number of rows).
+pub fn weighted_mean(rows: &[(f64, f64)]) -> f64 {
+    let most = rows.iter().fold(0.0f64, |m, r| m.max(r.1));
+    let (mut wv, mut w) = (0.0, 0.0);
+    for &(v, weight) in rows {
+        let u = weight / most;
+        wv += u * v;
+        w += u;
+    }
+    wv / w
+}
 
 /// The rows grouped by speed (ascending) and, within a speed, by offset
-/// (wrapped to [0, 360), ascending), each group averaged by weight.
+/// (wrapped to [0, 360), ascending), each group averaged by weight
+/// ([`weighted_mean`]).
 pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
-    let mut speeds: Vec<(f64, Vec<Sums>)> = Vec::new();
+    let mut speeds: Vec<(f64, Vec<Group>)> = Vec::new();
     for r in rows {
         let i = match speeds
             .iter()
@@ -72,21 +89,13 @@ pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
             }
         };
         let offsets = &mut speeds[i].1;
+        let measured = (r.velocity_mps, r.weight);
         match offsets
             .iter_mut()
-            .find(|(o, ..)| wrap_deg_180(o - r.offset_deg).abs() <= SAME_POINT)
+            .find(|(o, _)| wrap_deg_180(o - r.offset_deg).abs() <= SAME_POINT)
         {
-            Some(g) => {
-                g.1 += r.weight * r.velocity_mps;
-                g.2 += r.weight;
-                g.3 += 1;
-            }
-            None => offsets.push((
-                wrap_deg_360(r.offset_deg) + 0.0,
-                r.weight * r.velocity_mps,
-                r.weight,
-                1,
-            )),
+            Some(g) => g.1.push(measured),
+            None => offsets.push((wrap_deg_360(r.offset_deg) + 0.0, vec![measured])),
         }
     }
     speeds.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -98,7 +107,7 @@ pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
                 s,
                 offsets
                     .into_iter()
-                    .map(|(o, wv, w, n)| (o, wv / w, n))
+                    .map(|(o, runs)| (o, weighted_mean(&runs), runs.len()))
                     .collect(),
             )
         })
@@ -175,23 +184,15 @@ pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
     }
 }
 
-/// The speeds where no offset measured travels one way (as `tune` warns): the
-/// table's offset that way is the least bad, and drives the platform the other
-/// way or not at all.
+/// The speeds where no offset measured travels one way faster than
+/// [`crate::tune::best::MIN_TRAVEL_MPS`] (as `tune` warns): the table's offset that way is the
+/// least bad, and drives the platform the other way or hardly at all.
 pub fn warnings(fits: &[SpeedFit]) -> Vec<String> {
     let mut out = Vec::new();
     for f in fits {
-        for (pick, way, travels) in [
-            (&f.right, "right", f.right.grid.1 > 0.0),
-            (&f.left, "left", f.left.grid.1 < 0.0),
-        ] {
-            if !travels {
-                out.push(format!(
-                    "{} rpm: no offset travels {way}: the best is {} deg at {} mm/s",
-                    text::sig(f.speed_rpm),
-                    text::sig(pick.grid.0),
-                    mm_s(pick.grid.1)
-                ));
+        for (pick, way) in [(&f.right, Way::Right), (&f.left, Way::Left)] {
+            if !way.travels(pick.grid.1) {
+                out.push(no_travel(f.speed_rpm, way, pick.grid.0, pick.grid.1));
             }
         }
     }
@@ -281,6 +282,24 @@ mod tests {
         assert!((a[1].1[1].1 - 0.05).abs() < 1e-15);
     }
 
+    /// The weights are divided by the largest before they are summed: rows of
+    /// weight 1e308 (beyond the reader's bound, so only built here) average as
+    /// rows of weight 1 do, not to infinity over infinity.
+    #[test]
+    fn the_weighted_mean_does_not_overflow() {
+        let a = averages(&[
+            row(3000.0, 90.0, 0.030, 1e308),
+            row(3000.0, 90.0, 0.0303, 1e308),
+            row(3000.0, 90.0, 0.1, 1e-300),
+        ]);
+        let mean = a[0].1[0].1;
+        assert!((mean - 0.03015).abs() < 1e-15, "{mean}");
+        assert_eq!(
+            weighted_mean(&[(0.03, 1.0), (0.06, 2.0)]),
+            weighted_mean(&[(0.03, 1e-6), (0.06, 2e-6)])
+        );
+    }
+
     #[test]
     fn the_fit_is_the_parabola_through_the_best_and_its_neighbours() {
         // 12, 30, -6 mm/s at 0, 90, 180 deg: by hand, d01 = 0.2, d12 = -0.4
@@ -336,7 +355,34 @@ mod tests {
         let f = fits(&rows).unwrap();
         assert_eq!(
             warnings(&f),
-            ["3000 rpm: no offset travels left: the best is 180 deg at +6.0 mm/s"]
+            ["3000 rpm: no offset travels left faster than 0.5 mm/s: the best is 180 deg at +6.0 mm/s"]
         );
+    }
+
+    /// Measured speeds below `MIN_TRAVEL_MPS` either way are no travel
+    /// (issue 23: a best left of -3.4e-6 m/s was written without a word).
+    #[test]
+    fn a_speed_below_the_threshold_is_no_travel() {
+        let rows = [
+            row(3000.0, 0.0, 0.0004, 1.0),
+            row(3000.0, 90.0, 0.0001, 1.0),
+            row(3000.0, 180.0, -3.4e-6, 1.0),
+            row(3000.0, 270.0, -0.0002, 1.0),
+        ];
+        let f = fits(&rows).unwrap();
+        assert_eq!(
+            warnings(&f),
+            [
+                "3000 rpm: no offset travels right faster than 0.5 mm/s: the best is 0 deg at +0.4 mm/s",
+                "3000 rpm: no offset travels left faster than 0.5 mm/s: the best is 270 deg at -0.2 mm/s"
+            ]
+        );
+        // Just above the threshold is travel.
+        let rows = [
+            row(3000.0, 0.0, 0.0006, 1.0),
+            row(3000.0, 90.0, 0.0001, 1.0),
+            row(3000.0, 180.0, -0.0006, 1.0),
+        ];
+        assert!(warnings(&fits(&rows).unwrap()).is_empty());
     }
 }

@@ -3,11 +3,14 @@
 //! - [`animate`]: a run as a self-contained HTML page that plays it;
 //! - [`file`](mod@file): a file written whole or not at all;
 //! - [`csv`]: the trace and the events as CSV;
+//! - [`progress`]: a long command's progress on stderr (a bar, or lines off a
+//!   terminal);
 //! - [`svg`]: the SVG figures' common pieces;
 //! - [`text`]: numbers and aligned tables for people.
 
 pub mod animate;
 pub mod csv;
 pub mod file;
+pub mod progress;
 pub mod svg;
 pub mod text;

@@ -21,7 +21,6 @@ pub mod report;
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use shared::controller::{Command, Direction};
 use shared::impact::MAX_CONTACTS;
 
@@ -33,7 +32,8 @@ use crate::machine::{Machine, MachineContact};
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::csv::{event_line, trace_header, trace_line, EVENTS_HEADER};
 use crate::output::file::Staged;
-use crate::output::text::sig;
+use crate::output::progress::Progress;
+use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
@@ -287,6 +287,11 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let frames = film.frames;
     watch.finish()?;
     result.summary.warnings.extend(warnings);
+    result.summary.warnings.extend(one_rotor_direction(
+        args.command,
+        &machine,
+        result.summary.mean_velocity,
+    ));
 
     // 3. The plot and the animation, then the summary.
     let title = format!("host-sim run {} ({how})", args.machine.path.display());
@@ -328,7 +333,7 @@ struct Watch<'s> {
     line: String,
     /// The first write error: the run stops there.
     error: Option<Failure>,
-    progress: ProgressBar,
+    progress: Progress,
 }
 
 impl<'s> Watch<'s> {
@@ -340,16 +345,8 @@ impl<'s> Watch<'s> {
         machine_contacts: &'s [MachineContact],
     ) -> Self {
         interrupt::catch();
-        // Progress in ms of simulated time, drawn only when stderr is a terminal.
-        let progress = ProgressBar::with_draw_target(
-            Some((t_end * 1e3).ceil() as u64),
-            ProgressDrawTarget::stderr(),
-        );
-        if let Ok(style) =
-            ProgressStyle::with_template("run {bar:40} {pos}/{len} ms simulated, ~{eta} left")
-        {
-            progress.set_style(style);
-        }
+        // Progress in ms of simulated time: a bar on a terminal, else lines.
+        let progress = Progress::new("run", (t_end * 1e3).ceil() as u64, "ms simulated");
         Watch {
             staged,
             trace,
@@ -463,6 +460,37 @@ fn controller_schedule(
         },
     };
     Ok(vec![(0.0, command)])
+}
+
+/// The warning of `--command right|left` on a one-rotor machine (`None`
+/// otherwise): it has no direction to choose, its controller runs the rotor at
+/// the speed and ignores the direction, and the platform goes where its rotor
+/// and feet take it, here at `mean_velocity`, m/s.
+fn one_rotor_direction(
+    command: Option<CommandArg>,
+    machine: &Machine,
+    mean_velocity: f64,
+) -> Option<String> {
+    let asked = match command {
+        Some(CommandArg::Right) => "right",
+        Some(CommandArg::Left) => "left",
+        _ => return None,
+    };
+    if machine.rotors.len() != 1 {
+        return None;
+    }
+    let went = if mean_velocity > 0.0 {
+        "right"
+    } else if mean_velocity < 0.0 {
+        "left"
+    } else {
+        "nowhere"
+    };
+    Some(format!(
+        "--command {asked}: the machine has one rotor ({:?}): it has no direction to choose; the controller runs the rotor at the speed and ignores `{asked}`, and the platform goes where its rotor and feet take it: this run went {went} ({} m/s over the second half)",
+        machine.rotors[0].name,
+        signed(mean_velocity)
+    ))
 }
 
 /// The plot title's description of a controller run.

@@ -2,13 +2,12 @@
 //! a parabola through it and its two neighbours and checked by one more run
 //! ([`best_offsets`]); warnings for offsets not held and speeds without travel.
 
-use indicatif::ProgressBar;
-
 use super::sweep::run_points;
 use super::sweep::Grid;
 use super::sweep::RunOutcome;
 use super::OFFSET_RESOLUTION_DEG;
 use crate::machine::Machine;
+use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::summary::wrap_deg_360;
 
@@ -41,6 +40,36 @@ pub struct Best {
     pub refinement: Refinement,
 }
 
+/// The slowest mean velocity that counts as travel, m/s: a best offset slower
+/// than this one way (or going the other way) "travels no way" there, with a
+/// warning, in `tune`, `tune --robust` and `device tune --write` alike.
+///
+/// Why 0.5 mm/s. A machine that cannot travel still shows a mean velocity: with
+/// frictionless feet (nothing to push on) the reference machine's runs give up
+/// to 0.15 mm/s at the default `--t-end` of 5 s, and up to 0.33 mm/s at
+/// `--t-end 2`, either sign (`host-sim tune examples/vibro-driver.toml --set
+/// contacts.K1.friction=0 --set contacts.K2.friction=0 --offsets 0:360:30`):
+/// the platform sways sideways with the eccentrics (about 0.2 mm), and a second
+/// half that is not a whole number of turns keeps part of a sway in
+/// `x(T) - x(T/2)`. Where it is a whole number (3000 rpm: 125 turns) what is
+/// left is 1e-6 m/s and less. The reference machine's best offsets travel 21 to
+/// 50 mm/s, 40 to 100 times this; an operator's marks 1 mm apart over a 10 s
+/// hold are 0.1 mm/s.
+pub const MIN_TRAVEL_MPS: f64 = 0.5e-3;
+
+/// The warning for a speed where no offset travels `way`: the best found,
+/// `offset_deg` at `velocity` m/s, does not reach [`MIN_TRAVEL_MPS`] that way.
+pub fn no_travel(speed_rpm: f64, way: Way, offset_deg: f64, velocity: f64) -> String {
+    format!(
+        "{} rpm: no offset travels {} faster than {} mm/s: the best is {} deg at {} mm/s",
+        text::sig(speed_rpm),
+        way.name(),
+        text::sig(MIN_TRAVEL_MPS * 1e3),
+        text::sig(offset_deg),
+        mm_s(velocity)
+    )
+}
+
 /// Travel direction, for the search of the extreme.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Way {
@@ -65,6 +94,12 @@ impl Way {
             Way::Right => v,
             Way::Left => -v,
         }
+    }
+
+    /// Whether a mean velocity `v`, m/s, travels this way: faster than
+    /// [`MIN_TRAVEL_MPS`] (NaN does not).
+    pub fn travels(self, v: f64) -> bool {
+        self.score(v) > MIN_TRAVEL_MPS
     }
 }
 
@@ -207,6 +242,13 @@ pub(crate) fn candidates(grid: &Grid, runs: &[RunOutcome], way: Way) -> Vec<Cand
     out
 }
 
+/// Most check runs of `grid`'s best offsets: one per speed and direction. A
+/// sweep's progress counts them all from the start; [`best_offsets`] counts
+/// those it does not need as done.
+pub fn most_checks(grid: &Grid) -> usize {
+    2 * grid.speeds_rpm.len()
+}
+
 /// Stage 3: the best offsets of both directions, checking each refined offset by
 /// a run (in parallel). A refined offset is kept when its run held the offset and
 /// travelled at least as fast as the best grid point; otherwise the grid point
@@ -215,7 +257,7 @@ pub fn best_offsets(
     machine: &Machine,
     grid: &Grid,
     runs: &[RunOutcome],
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> (Vec<Best>, Vec<Best>, usize) {
     let plans: Vec<(Way, Candidate)> = [Way::Right, Way::Left]
         .into_iter()
@@ -230,7 +272,7 @@ pub fn best_offsets(
             _ => None,
         })
         .collect();
-    progress.inc_length(checks.len() as u64);
+    progress.inc(most_checks(grid).saturating_sub(checks.len()) as u64);
     let checked = run_points(machine, &checks, grid.t_end, progress);
     let mut checked = checked.into_iter();
 
@@ -302,14 +344,8 @@ pub(crate) fn warnings(
     }
     for (list, way) in [(right, Way::Right), (left, Way::Left)] {
         for b in list {
-            if way.score(b.mean_velocity) <= 0.0 {
-                out.push(format!(
-                    "{} rpm: no offset travels {}: the best is {} deg at {} mm/s",
-                    text::sig(b.speed_rpm),
-                    way.name(),
-                    text::sig(b.offset_deg),
-                    mm_s(b.mean_velocity)
-                ));
+            if !way.travels(b.mean_velocity) {
+                out.push(no_travel(b.speed_rpm, way, b.offset_deg, b.mean_velocity));
             }
         }
     }

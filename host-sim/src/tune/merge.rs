@@ -95,7 +95,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 3. As `tune` from its runs on.
     let report = Report::open(&args.output)?;
     let started = Instant::now();
-    let progress = progress_bar("merge", 0);
+    let progress = progress_bar("merge", super::best::most_checks(&grid));
     let grid_runs = runs.len();
     let tuning = conclude(&machine, grid, runs, &progress);
     progress.finish_and_clear();

@@ -46,7 +46,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
@@ -55,6 +54,7 @@ use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
 use crate::output::file::Staged;
+use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
@@ -378,9 +378,10 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // be written is refused at once, not after minutes of runs.
     let report = Report::open(&args.output)?;
 
-    // 2.-4. The sweep, with a progress bar on stderr (drawn only on a terminal).
+    // 2.-4. The sweep, with its progress on stderr; the total counts the check
+    // runs from the start.
     let started = Instant::now();
-    let progress = progress_bar("tune", grid.speeds_rpm.len() * grid.offsets_deg.len());
+    let progress = progress_bar("tune", grid.points().len() + best::most_checks(&grid));
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
     refuse_interrupted("tune", "the sweep is incomplete")?;
@@ -398,16 +399,10 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A progress bar on stderr for `total` runs, drawn only when stderr is a
-/// terminal; `name` heads it.
-pub(crate) fn progress_bar(name: &str, total: usize) -> ProgressBar {
-    let progress = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template(&format!(
-        "{name} {{bar:40}} {{pos}}/{{len}} runs, {{elapsed}} elapsed, ~{{eta}} left"
-    )) {
-        progress.set_style(style);
-    }
-    progress
+/// The progress of `total` runs on stderr, `name` heading it: a bar on a
+/// terminal, else a line every few seconds ([`Progress`]).
+pub(crate) fn progress_bar(name: &str, total: usize) -> Progress {
+    Progress::new(name, total as u64, "runs")
 }
 
 /// A failure of `command` (`tune`, `merge`) when Ctrl-C stopped the runs (`what`
@@ -431,7 +426,7 @@ pub(crate) fn warning_count(warnings: &[String]) -> String {
 }
 
 /// Stages 2 to 4 on a checked machine and grid.
-pub fn tune(machine: &Machine, grid: Grid, progress: &ProgressBar) -> Tuning {
+pub fn tune(machine: &Machine, grid: Grid, progress: &Progress) -> Tuning {
     let points = grid.points();
     let runs = run_points(machine, &points, grid.t_end, progress);
     conclude(machine, grid, runs, progress)
@@ -444,7 +439,7 @@ pub fn conclude(
     machine: &Machine,
     grid: Grid,
     runs: Vec<RunOutcome>,
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> Tuning {
     let (right, left, checks) = best_offsets(machine, &grid, &runs, progress);
     let warnings = warnings(&grid, &runs, &right, &left);
@@ -492,16 +487,22 @@ impl Report {
         })
     }
 
-    /// Writes the files (all or none), then the result on stdout.
+    /// Writes the files (all or none), then the result on stdout; the result
+    /// is printed too when the table cannot be made.
     pub fn finish(
         mut self,
         tuning: &Tuning,
         request: &Request,
         console: &mut Console<'_>,
     ) -> Result<(), Failure> {
+        let result = match self.format {
+            Format::Json => tuning_json(tuning),
+            Format::Table => tuning_table(tuning, &request.machine_path),
+        };
         if let Some((i, path)) = &self.table {
             if tuning.right.is_empty() || tuning.left.is_empty() {
-                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing to write".into()));
+                console.print(&result);
+                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above".into()));
             }
             let text = table_file(tuning, request, path);
             // What is written must read back as a table the controller takes.
@@ -521,10 +522,7 @@ impl Report {
             self.staged.write(i, &plot::plot_svg(tuning, &title))?;
         }
         self.staged.commit()?;
-        console.print(&match self.format {
-            Format::Json => tuning_json(tuning),
-            Format::Table => tuning_table(tuning, &request.machine_path),
-        });
+        console.print(&result);
         Ok(())
     }
 }

@@ -8,10 +8,14 @@
 //! and 240 degrees from the file's), so on `3 N` runs. Per point: the nominal run
 //! (the nominal machine from the file's start, the plain sweep's number), the mean,
 //! the 10th and 90th percentiles (nearest rank), the extremes, and the share of runs
-//! going each way. The best offset at a speed is, rightward, the one with the
-//! highest 10th percentile among the points whose every run goes right (leftward:
-//! the lowest 90th percentile among those whose every run goes left); a speed
-//! with no such point has none, and says so. A point whose runs on one machine,
+//! travelling each way (faster than [`MIN_TRAVEL_MPS`]). The best offset at a
+//! speed is, rightward, the one with the highest 10th percentile among the points
+//! whose every run travels right (leftward: the lowest 90th percentile among those
+//! whose every run travels left). A speed with no such point gets the least bad
+//! one, by the same percentile among the points that held their offset on every
+//! run, marked as not travelling that way on every run and warned of: so
+//! `--write` writes what holds, as the plain sweep writes its least bad offset
+//! with a warning. A point whose runs on one machine,
 //! from its different starts, settle at speeds further apart than
 //! [`multistable_margin`] is **multistable** there, flagged with the speeds found.
 //!
@@ -22,10 +26,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
-use super::best::{Best, Refinement, Tuning};
+use super::best::{mm_s, Best, Refinement, Tuning, Way, MIN_TRAVEL_MPS};
 use super::plot;
 use super::report::count;
 use super::sweep::{run_point, Grid, RunOutcome};
@@ -36,6 +39,7 @@ use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
+use crate::output::progress::Progress;
 use crate::output::text;
 
 /// Default `--samples`: the nominal machine and seven drawn (24 runs a point with
@@ -78,9 +82,9 @@ pub struct PointStats {
     pub min: f64,
     /// Fastest (most rightward) run, m/s.
     pub max: f64,
-    /// Share of runs going left (`v < 0`).
+    /// Share of runs travelling left (`v < -MIN_TRAVEL_MPS`).
     pub left_share: f64,
-    /// Share of runs going right (`v > 0`).
+    /// Share of runs travelling right (`v > MIN_TRAVEL_MPS`).
     pub right_share: f64,
     /// Runs that did not hold their offset (not counted as travelling either way).
     pub not_held: usize,
@@ -98,6 +102,58 @@ pub struct RobustBest {
     pub point: PointStats,
     /// The percentile it was chosen by, m/s: the 10th rightward, the 90th leftward.
     pub by: f64,
+    /// Whether every run travels its way there; `false` for the least bad
+    /// offset of a speed where none does (warned of).
+    pub every_run: bool,
+}
+
+impl PointStats {
+    /// The share of runs travelling `way`.
+    fn share(&self, way: Way) -> f64 {
+        match way {
+            Way::Right => self.right_share,
+            Way::Left => self.left_share,
+        }
+    }
+
+    /// The percentile `way` is judged by, turned so that larger is better: the
+    /// 10th rightward, minus the 90th leftward.
+    fn score(&self, way: Way) -> f64 {
+        match way {
+            Way::Right => self.p10,
+            Way::Left => -self.p90,
+        }
+    }
+}
+
+/// The best offset `way` among one speed's points `at`: the best percentile
+/// ([`PointStats::score`]) among those whose every run travels `way`, else the
+/// least bad by it among those that held their offset on every run (among all
+/// with a percentile when none did); `None` when no point has a percentile.
+fn pick(at: &[&PointStats], way: Way) -> Option<RobustBest> {
+    let best = |points: &mut dyn Iterator<Item = &&PointStats>| {
+        points
+            .filter(|s| s.score(way).is_finite())
+            .max_by(|a, b| a.score(way).total_cmp(&b.score(way)))
+            .map(|s| (*s).clone())
+    };
+    let held = |s: &&&PointStats| s.not_held == 0;
+    let (point, every_run) = match best(&mut at.iter().filter(held).filter(|s| s.share(way) == 1.0))
+    {
+        Some(p) => (p, true),
+        None => (
+            best(&mut at.iter().filter(held)).or_else(|| best(&mut at.iter()))?,
+            false,
+        ),
+    };
+    Some(RobustBest {
+        by: match way {
+            Way::Right => point.p10,
+            Way::Left => point.p90,
+        },
+        point,
+        every_run,
+    })
 }
 
 /// The whole robust sweep.
@@ -164,7 +220,7 @@ pub fn machines(
 pub fn sweep(
     machines: &[(usize, usize, Machine)],
     grid: &Grid,
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> Vec<Vec<RunOutcome>> {
     let points = grid.points();
     let jobs: Vec<(usize, usize)> = (0..machines.len())
@@ -242,8 +298,8 @@ fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointSta
         p90,
         min,
         max,
-        left_share: held.iter().filter(|v| **v < 0.0).count() as f64 / n as f64,
-        right_share: held.iter().filter(|v| **v > 0.0).count() as f64 / n as f64,
+        left_share: held.iter().filter(|v| Way::Left.travels(**v)).count() as f64 / n as f64,
+        right_share: held.iter().filter(|v| Way::Right.travels(**v)).count() as f64 / n as f64,
         not_held: n - held.len(),
         multistable,
         speeds: runs
@@ -274,30 +330,32 @@ pub fn conclude(
     let mut warnings = Vec::new();
     for &speed in &grid.speeds_rpm {
         let at: Vec<&PointStats> = points.iter().filter(|s| s.speed_rpm == speed).collect();
-        let always = |share: fn(&PointStats) -> f64| {
-            at.iter()
-                .filter(move |s| s.not_held == 0 && share(s) == 1.0)
-                .copied()
-        };
-        match always(|s| s.right_share).max_by(|a, b| a.p10.total_cmp(&b.p10)) {
-            Some(b) => right.push(RobustBest {
-                point: b.clone(),
-                by: b.p10,
-            }),
-            None => warnings.push(format!(
-                "{} rpm: no offset travels right on every machine from every start",
-                text::sig(speed)
-            )),
-        }
-        match always(|s| s.left_share).min_by(|a, b| a.p90.total_cmp(&b.p90)) {
-            Some(b) => left.push(RobustBest {
-                point: b.clone(),
-                by: b.p90,
-            }),
-            None => warnings.push(format!(
-                "{} rpm: no offset travels left on every machine from every start",
-                text::sig(speed)
-            )),
+        for (way, list) in [(Way::Right, &mut right), (Way::Left, &mut left)] {
+            let every = format!(
+                "{} rpm: no offset travels {} faster than {} mm/s on every machine from every start",
+                text::sig(speed),
+                way.name(),
+                text::sig(MIN_TRAVEL_MPS * 1e3)
+            );
+            match pick(&at, way) {
+                Some(b) if b.every_run => list.push(b),
+                Some(b) => {
+                    warnings.push(format!(
+                        "{every}: the least bad is {} deg, {} percentile {} mm/s, {} of {} runs travelling {}",
+                        text::sig(b.point.offset_deg),
+                        match way {
+                            Way::Right => "10th",
+                            Way::Left => "90th",
+                        },
+                        mm_s(b.by),
+                        (b.point.share(way) * b.point.speeds.len() as f64).round(),
+                        b.point.speeds.len(),
+                        way.name()
+                    ));
+                    list.push(b);
+                }
+                None => warnings.push(format!("{every}: no run held its offset, no best offset")),
+            }
         }
     }
     let multistable = points.iter().filter(|s| !s.multistable.is_empty()).count();
@@ -350,12 +408,18 @@ pub fn run(
     progress.finish_and_clear();
     super::refuse_interrupted("tune", "the sweep is incomplete")?;
     let robust = conclude(grid, uncertainty, seed, &machines, &runs);
+    let result = match format {
+        Format::Json => json(&robust),
+        Format::Table => table(&robust, path),
+    };
     if let Some((i, p)) = &write {
-        let text = table_file(&robust, request, p).ok_or_else(|| {
-            Failure::Run(
-                "error: --write: no speed has a best offset both ways on every machine: nothing to write\n".into(),
-            )
-        })?;
+        let Some(text) = table_file(&robust, request, p) else {
+            // The sweep is printed all the same: its runs are not thrown away.
+            console.print(&result);
+            return Err(Failure::Run(
+                "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
+            ));
+        };
         staged.write(*i, &text)?;
     }
     if let Some(i) = plot {
@@ -363,10 +427,7 @@ pub fn run(
         staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
     }
     staged.commit()?;
-    console.print(&match format {
-        Format::Json => json(&robust),
-        Format::Table => table(&robust, path),
-    });
+    console.print(&result);
     console.note(&format!(
         "tune --robust: {} runs ({} x {STARTS} starts x {}) in {:.1} s on {}{}\n",
         machines.len() * robust.points.len(),
@@ -422,7 +483,7 @@ fn rows(r: &Robust) -> Vec<(&RobustBest, &RobustBest)> {
 }
 
 /// The tuning table file (`--write`), `None` when no speed has a best offset both
-/// ways.
+/// ways (robust or the least bad: no point held its offset on a run).
 pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String> {
     let both = rows(r);
     if both.is_empty() {
@@ -446,7 +507,8 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
          robust over the machine file's [uncertainty]. Written by `host-sim tune --robust`\n\
          (see docs/tuning.md); regenerate with\n  {command}\n\
          Each offset travels its way on all {} machines from all {STARTS} starts and has the best\n\
-         10th percentile of the speed there. 10th percentile (mean), m/s:\n",
+         10th percentile of the speed there (90th leftward), or is the least bad where none does.\n\
+         10th (90th) percentile (mean), m/s:\n",
         r.samples
     );
     for (a, b) in &both {
@@ -460,6 +522,19 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
             b.point.offset_deg,
             text::signed(b.by),
             text::signed(b.point.mean)
+        );
+    }
+    let least_bad: Vec<String> = both
+        .iter()
+        .flat_map(|(a, b)| [(a, Way::Right), (b, Way::Left)])
+        .filter(|(b, _)| !b.every_run)
+        .map(|(b, way)| format!("{} rpm {}", text::sig(b.point.speed_rpm), way.name()))
+        .collect();
+    if !least_bad.is_empty() {
+        let _ = writeln!(
+            header,
+            "Not travelling its way on every run (the least bad; see the warnings): {}.",
+            least_bad.join(", ")
         );
     }
     let flagged: Vec<String> = both
@@ -500,7 +575,9 @@ pub fn table(r: &Robust, path: &Path) -> String {
             text::sig(range.high)
         );
     }
-    out.push_str("\nbest offsets (every run travelling that way), mm/s:\n");
+    out.push_str(
+        "\nbest offsets (every run travelling that way, else the least bad: marked), mm/s:\n",
+    );
     out.push_str("speed_rpm  way    offset_deg  p10/p90    mean     nominal\n");
     for &speed in &r.grid.speeds_rpm {
         for (way, list) in [("right", &r.right), ("left", &r.left)] {
@@ -508,13 +585,18 @@ pub fn table(r: &Robust, path: &Path) -> String {
                 Some(b) => {
                     let _ = writeln!(
                         out,
-                        "{:<10} {:<6} {:<11.1} {:<10.3} {:<8.3} {:.3}",
+                        "{:<10} {:<6} {:<11.1} {:<10.3} {:<8.3} {:.3}{}",
                         text::sig(speed),
                         way,
                         b.point.offset_deg,
                         b.by * 1e3,
                         b.point.mean * 1e3,
-                        b.point.nominal * 1e3
+                        b.point.nominal * 1e3,
+                        if b.every_run {
+                            ""
+                        } else {
+                            "  least bad: not every run travels this way"
+                        }
                     );
                 }
                 None => {
@@ -579,7 +661,8 @@ pub fn json(r: &Robust) -> String {
         list.iter()
             .map(|b| {
                 json!({"speed_rpm": b.point.speed_rpm, "offset_deg": b.point.offset_deg,
-                       "mean_velocity": b.point.nominal, "by": b.by, "robust": stats(&b.point)})
+                       "mean_velocity": b.point.nominal, "by": b.by, "every_run": b.every_run,
+                       "robust": stats(&b.point)})
             })
             .collect()
     };
@@ -645,6 +728,45 @@ mod tests {
         assert!((s.left_share - 1.0 / 3.0).abs() < 1e-15);
         assert!(s.speeds[2].is_nan());
         assert_eq!((s.min, s.max), (-0.001, 0.02));
+    }
+
+    /// The statistics of one point at `offset_deg` whose three runs (one
+    /// machine) went at `speeds`, m/s.
+    fn point(offset_deg: f64, speeds: [f64; 3]) -> PointStats {
+        let runs: Vec<Vec<RunOutcome>> = speeds.iter().map(|v| vec![outcome(*v)]).collect();
+        PointStats {
+            offset_deg,
+            ..point_stats(&[0, 0, 0], &runs, 0)
+        }
+    }
+
+    /// Speeds below `MIN_TRAVEL_MPS` are no travel: a point whose runs all
+    /// went left by 1e-5 m/s does not travel left on every run (issue 23).
+    /// Where no point travels a way on every run, the least bad by the same
+    /// percentile is picked, marked so (issue 23: the sweep was thrown away).
+    #[test]
+    fn a_way_without_travel_on_every_run_gets_the_least_bad_marked() {
+        let right = point(90.0, [0.030, 0.031, 0.029]);
+        let noise = point(0.0, [-1e-5, -2e-5, -3e-6]);
+        let back = point(180.0, [0.004, -0.001, 0.002]);
+        assert_eq!((noise.left_share, noise.right_share), (0.0, 0.0));
+        assert!((back.left_share - 1.0 / 3.0).abs() < 1e-15);
+        let at = [&right, &noise, &back];
+        let r = pick(&at, Way::Right).unwrap();
+        assert_eq!((r.point.offset_deg, r.by, r.every_run), (90.0, 0.029, true));
+        // Left: none travels on every run; the lowest 90th percentile is the
+        // noise's, -3e-6 m/s (the third of three).
+        let l = pick(&at, Way::Left).unwrap();
+        assert_eq!((l.point.offset_deg, l.by, l.every_run), (0.0, -3e-6, false));
+        // A point that did not hold its offset on a run is not picked while
+        // another held on all of them.
+        let mut unheld = point(270.0, [-0.03, -0.03, -0.03]);
+        unheld.not_held = 1;
+        let l = pick(&[&right, &unheld], Way::Left).unwrap();
+        assert_eq!((l.point.offset_deg, l.every_run), (90.0, false));
+        // No percentile anywhere: nothing to pick.
+        let none = point(0.0, [f64::NAN; 3]);
+        assert_eq!(pick(&[&none], Way::Right), None);
     }
 
     #[test]

@@ -2,7 +2,6 @@
 //! `A:B:STEP` ranges), one closed-loop run per point ([`run_point`]), all of them in
 //! parallel ([`run_points`]), and the whole tuning ([`super::tune`]).
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 use shared::controller::{Command, Outputs, State, Telemetry};
 
@@ -12,6 +11,7 @@ use super::HELD_ERROR_DEG_RMS;
 use super::MAX_POINTS;
 use crate::machine::input;
 use crate::machine::Machine;
+use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
@@ -296,7 +296,7 @@ pub fn run_points(
     machine: &Machine,
     points: &[(f64, f64)],
     t_end: f64,
-    progress: &ProgressBar,
+    progress: &Progress,
 ) -> Vec<RunOutcome> {
     points
         .par_iter()

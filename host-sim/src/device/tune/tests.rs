@@ -12,7 +12,8 @@ use super::*;
 /// A machine that takes a hold in one poll (`starting`, then `running` with the
 /// offset held), stops in one (`stopping`, then `idle`), and latches `fault`
 /// at the `fault_at`-th poll of a point, if given. `stuck`: it never closes the
-/// phase loop; `gone_after`: the link dies after that many polls of a point.
+/// phase loop; `gone_after`: the link dies after that many polls of a point;
+/// `runs_on`: it acknowledges a stop and runs on at 3000 rpm.
 struct FakeRig {
     state: State,
     target: f32,
@@ -21,6 +22,7 @@ struct FakeRig {
     faults: Faults,
     stuck: bool,
     gone_after: Option<usize>,
+    runs_on: bool,
     log: Vec<String>,
 }
 
@@ -34,6 +36,7 @@ impl FakeRig {
             faults: Faults::NONE,
             stuck: false,
             gone_after: None,
+            runs_on: false,
             log: Vec::new(),
         }
     }
@@ -60,12 +63,14 @@ impl Rig for FakeRig {
     fn stop(&mut self) -> Result<(), Failure> {
         self.gone()?;
         self.log.push("stop".into());
-        if self.state != State::Fault {
+        if self.state != State::Fault && !self.runs_on {
             self.state = State::Stopping;
         }
         Ok(())
     }
+}
 
+impl Poll for FakeRig {
     fn status(&mut self) -> Result<StatusReport, Failure> {
         self.gone()?;
         self.polls += 1;
@@ -79,6 +84,10 @@ impl Rig for FakeRig {
             faults: self.faults,
             telemetry: Telemetry {
                 phase_loop_closed: self.state == State::Running,
+                speed_rpm: match self.state {
+                    State::Starting | State::Running => [3000.0; 2],
+                    _ => [0.0; 2],
+                },
                 commanded_offset_deg: self.target,
                 target_offset_deg: self.target,
                 ..no_telemetry()
@@ -260,7 +269,7 @@ fn a_fault_while_measuring_stops_the_machine_and_keeps_the_rows() {
     assert_eq!(e.status(), 1);
     assert_eq!(
         e.message(),
-        "error: 3000 rpm, 90 deg: measuring: fault estop latched; the machine is stopped\n"
+        "error: 3000 rpm, 90 deg: measuring: fault estop latched; the machine is stopped: at rest after 0.0 s (state fault, rotors at 0.0 and 0.0 rpm)\n"
     );
     assert_eq!(rig.log, ["hold 3000 90", "stop"]);
     assert_eq!(
@@ -295,6 +304,34 @@ fn ctrl_c_stops_the_machine() {
     assert!(file.rows.is_empty());
 }
 
+/// A device that acknowledges the stop after a failure and runs on: the sweep
+/// asks its status until the timeout and says what it says, never "the
+/// machine is stopped" (issue 23: printed while the device ran at 3000 rpm).
+#[test]
+fn a_stop_acknowledged_by_a_running_machine_is_not_a_stopped_machine() {
+    let (mut file, _) = scratch_file("runs-on.csv");
+    let mut rig = FakeRig::new(None);
+    rig.stuck = true;
+    rig.runs_on = true;
+    let mut op = Script::new(&[]);
+    let timing = Timing {
+        timeout_s: 0.05,
+        ..TIMING
+    };
+    let e = sweep(&mut rig, &mut op, &mut file, &POINTS, timing).unwrap_err();
+    let m = e.message();
+    assert!(!m.contains("the machine is stopped"), "{m}");
+    assert!(
+        m.contains("; the stop was accepted, but the machine is not at rest "),
+        "{m}"
+    );
+    assert!(
+        m.contains(" s after the stop: state starting, rotors at 3000.0 and 3000.0 rpm: stop it by hand (E-stop)"),
+        "{m}"
+    );
+    assert_eq!(rig.log, ["hold 3000 0", "stop"]);
+}
+
 #[test]
 fn an_offset_never_held_is_a_timeout_naming_the_point() {
     let (mut file, _) = scratch_file("stuck.csv");
@@ -311,6 +348,32 @@ fn an_offset_never_held_is_a_timeout_naming_the_point() {
         "{e:?}"
     );
     assert_eq!(rig.log, ["hold 3000 0", "stop"]);
+}
+
+/// A distance whose velocity the measured file's reader would refuse is asked
+/// again, not appended (the file would not read back).
+#[test]
+fn a_distance_beyond_the_files_bound_is_asked_again() {
+    let (mut file, path) = scratch_file("huge.csv");
+    let mut rig = FakeRig::new(None);
+    // 1e308 mm, then 250 mm (in 0.02 s: 12.5 m/s, beyond 10 m/s), then 3 mm.
+    let mut op = Script::new(&["1e308", "250", "3", "q"]);
+    let tally = sweep(&mut rig, &mut op, &mut file, &POINTS, TIMING).unwrap();
+    assert_eq!(tally.measured, 1);
+    assert!(
+        op.told.contains("not a distance: 1e308 mm in 0.02 s is 5e306 m/s, and a measured velocity must be within [-10, 10] m/s; give the distance in mm\n"),
+        "{}",
+        op.told
+    );
+    assert!(
+        op.told
+            .contains("not a distance: 250 mm in 0.02 s is 12.5 m/s"),
+        "{}",
+        op.told
+    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text, "speed_rpm,offset_deg,velocity_mps\n3000,0,0.15\n");
+    assert!(crate::measured::parse("huge.csv", &text, None).is_ok());
 }
 
 #[test]
