@@ -251,7 +251,7 @@ fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
     assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
     assert!(
         r.stderr.starts_with(
-            "error: 3000 rpm, 90 deg: measuring: interrupted (Ctrl-C); the machine is stopped\n\
+            "error: 3000 rpm, 90 deg: measuring: interrupted by SIGINT (Ctrl-C); the machine is stopped\n\
              1 row in "
         ),
         "{}",

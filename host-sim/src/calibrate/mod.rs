@@ -286,10 +286,10 @@ impl Trials<'_> {
             .collect();
         self.runs += done.len();
         if crate::interrupt::interrupted() {
-            return Err(
-                "error: calibrate: interrupted (Ctrl-C): the fit is incomplete, nothing written"
-                    .into(),
-            );
+            return Err(format!(
+                "error: calibrate: {}: the fit is incomplete, nothing written",
+                crate::interrupt::interruption()
+            ));
         }
         // The residuals, point by point.
         let mut done = done.into_iter();

@@ -4,10 +4,12 @@
 //! - [`file`](mod@file): a file written whole or not at all;
 //! - [`csv`]: the trace and the events as CSV;
 //! - [`svg`]: the SVG figures' common pieces;
+//! - [`temporary`]: where a file waits until its set is committed;
 //! - [`text`]: numbers and aligned tables for people.
 
 pub mod animate;
 pub mod csv;
 pub mod file;
 pub mod svg;
+pub mod temporary;
 pub mod text;

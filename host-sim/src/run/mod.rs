@@ -297,10 +297,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         staged.write(i, &animate::page(&title, &machine, &mut frames))?;
     }
     if let Some(t) = result.stopped_at {
-        // Ctrl-C: what was simulated is written whole; no summary of half a run.
+        // A signal: what was simulated is written whole; no summary of
+        // half a run.
         staged.commit()?;
         return Err(Failure::Run(format!(
-            "error: run: interrupted at t = {} s of {} s (Ctrl-C); the files asked for hold the run up to there, no summary",
+            "error: run: {} at t = {} s of {} s; the files asked for hold the run up to there, no summary",
+            interrupt::interruption(),
             sig(t),
             sig(t_end)
         )));

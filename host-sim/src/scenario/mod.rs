@@ -77,7 +77,8 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     staged.commit()?;
     if let Some(t) = report.stopped_at {
         return Err(Failure::Run(format!(
-            "error: scenario: interrupted at t = {} s (Ctrl-C): nothing judged{}",
+            "error: scenario: {} at t = {} s: nothing judged{}",
+            crate::interrupt::interruption(),
             crate::output::text::sig(t),
             if args.animate.is_some() {
                 "; the animation holds the run up to there"

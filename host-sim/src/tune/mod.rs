@@ -410,12 +410,13 @@ pub(crate) fn progress_bar(name: &str, total: usize) -> ProgressBar {
     progress
 }
 
-/// A failure of `command` (`tune`, `merge`) when Ctrl-C stopped the runs (`what`
-/// is what that left undone): nothing is written then.
+/// A failure of `command` (`tune`, `merge`) when a signal stopped the runs
+/// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
 pub(crate) fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
     if crate::interrupt::interrupted() {
         return Err(Failure::Run(format!(
-            "error: {command}: interrupted (Ctrl-C): {what}, nothing written"
+            "error: {command}: {}: {what}, nothing written",
+            crate::interrupt::interruption()
         )));
     }
     Ok(())
