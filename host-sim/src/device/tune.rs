@@ -561,7 +561,7 @@ pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
             return Err(Failure::Usage(p.clone()));
         }
         let mut set = Staged::new();
-        let i = set.add(path)?;
+        let i = set.add("--write", path)?;
         table = Some((set, i));
     }
     let file =

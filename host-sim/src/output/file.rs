@@ -118,6 +118,8 @@ fn canonical(path: &Path) -> PathBuf {
 
 /// One output being written.
 struct Pending {
+    /// The option that named it (`--out`), for messages.
+    option: String,
     /// The path as the user named it (for messages).
     named: PathBuf,
     target: Target,
@@ -140,7 +142,7 @@ impl Pending {
                 self.closed = true;
                 Ok(())
             }
-            r => r.map_err(|e| cannot_write(&self.named, e)),
+            r => r.map_err(|e| cannot_write(&self.option, &self.named, e)),
         }
     }
 }
@@ -162,9 +164,12 @@ impl Default for Staged {
     }
 }
 
-/// "cannot write PATH: why", a user mistake (the path is the user's to fix).
-fn cannot_write(path: &Path, why: impl std::fmt::Display) -> Failure {
-    Failure::Usage(format!("error: cannot write {}: {why}", path.display()))
+/// "OPTION: cannot write PATH: why", a user mistake (the path is the user's to fix).
+fn cannot_write(option: &str, path: &Path, why: impl std::fmt::Display) -> Failure {
+    Failure::Usage(format!(
+        "error: {option}: cannot write {}: {why}",
+        path.display()
+    ))
 }
 
 impl Staged {
@@ -173,10 +178,12 @@ impl Staged {
         Staged::default()
     }
 
-    /// Adds `path` to the set: checks it and opens its temporary file (or the
-    /// special file). Returns its index for [`Staged::write`].
-    pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
-        let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
+    /// Adds `path`, given as `option` (`--out`, which every message about it
+    /// names), to the set: checks it and opens its temporary file (or the special
+    /// file). Returns its index for [`Staged::write`].
+    pub fn add(&mut self, option: &str, path: &Path) -> Result<usize, Failure> {
+        let refuse = |why: &dyn std::fmt::Display| cannot_write(option, path, why);
+        let target = Target::of(path).map_err(|why| refuse(&why))?;
         // Two outputs into one file would share its temporary file and replace it
         // with a mix of both; two into stdout (or stderr), streamed as the run
         // goes, would interleave their lines.
@@ -190,13 +197,11 @@ impl Staged {
             _ => false,
         }) {
             let what = if here.is_some() { "file" } else { "stream" };
-            return Err(cannot_write(
-                path,
-                format!(
-                    "it is the {what} {} is written to already: give each output its own {what}",
-                    other.named.display()
-                ),
-            ));
+            return Err(refuse(&format!(
+                "`{} {}` writes to that {what} already: give each output its own {what}",
+                other.option,
+                other.named.display()
+            )));
         }
         let (temporary, sink): (Option<Temporary>, Box<dyn Write>) = match &target {
             Target::Stdout => (None, Box::new(io::stdout())),
@@ -205,20 +210,21 @@ impl Staged {
                 let f = OpenOptions::new()
                     .write(true)
                     .open(p)
-                    .map_err(|e| cannot_write(path, e))?;
+                    .map_err(|e| refuse(&e))?;
                 (None, Box::new(f))
             }
             Target::Regular(p) => {
-                let tmp = Temporary::beside(p, self.unnamed).map_err(|e| cannot_write(path, e))?;
+                let tmp = Temporary::beside(p, self.unnamed).map_err(|e| refuse(&e))?;
                 // An existing file keeps its permissions.
                 if let Ok(m) = fs::metadata(p) {
                     let _ = tmp.file().set_permissions(m.permissions());
                 }
-                let f = tmp.file().try_clone().map_err(|e| cannot_write(path, e))?;
+                let f = tmp.file().try_clone().map_err(|e| refuse(&e))?;
                 (Some(tmp), Box::new(f))
             }
         };
         self.pending.push(Pending {
+            option: option.to_string(),
             named: path.to_path_buf(),
             target,
             temporary,
@@ -226,6 +232,15 @@ impl Staged {
             closed: false,
         });
         Ok(self.pending.len() - 1)
+    }
+
+    /// [`Staged::add`] for an option that may be absent: `None` when it is.
+    pub fn add_optional(
+        &mut self,
+        option: &str,
+        path: Option<&Path>,
+    ) -> Result<Option<usize>, Failure> {
+        path.map(|p| self.add(option, p)).transpose()
     }
 
     /// Writes `contents` to output `index`.
@@ -252,12 +267,13 @@ impl Staged {
             if let Some(tmp) = &p.temporary {
                 tmp.file()
                     .sync_all()
-                    .map_err(|e| cannot_write(&p.named, e))?;
+                    .map_err(|e| cannot_write(&p.option, &p.named, e))?;
             }
         }
         for p in &mut self.pending {
             if let (Some(tmp), Target::Regular(target)) = (&mut p.temporary, &p.target) {
-                tmp.persist(target).map_err(|e| cannot_write(&p.named, e))?;
+                tmp.persist(target)
+                    .map_err(|e| cannot_write(&p.option, &p.named, e))?;
                 // Make the new name durable where directories can be synced (best
                 // effort: the file is complete either way).
                 if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -304,7 +320,7 @@ mod tests {
         let mut staged = staged();
         let indices = files
             .iter()
-            .map(|(path, _)| staged.add(path))
+            .map(|(path, _)| staged.add("--out", path))
             .collect::<Result<Vec<_>, _>>()?;
         for (i, (_, contents)) in indices.into_iter().zip(files) {
             staged.write(i, contents)?;
@@ -363,7 +379,7 @@ mod tests {
             // A missing directory: the temporary file cannot be created.
             let missing = dir.join("no-such-dir").join("out.csv");
             let e = write_whole(&missing, "x").unwrap_err();
-            assert!(e.starts_with("cannot write "), "{e}");
+            assert!(e.starts_with("--out: cannot write "), "{e}");
             assert!(e.contains("out.csv"), "{e}");
             // The target is a directory: refused, the directory untouched.
             let target = dir.join("taken");
@@ -514,7 +530,7 @@ mod tests {
             for die in [false, true] {
                 let mut set = staged();
                 for (path, text) in [(&a, "new a"), (&dir.join("b.csv"), "new b")] {
-                    let i = set.add(path).unwrap();
+                    let i = set.add("--out", path).unwrap();
                     set.write(i, &text.repeat(1 << 14)).unwrap();
                     set.pending[i].writer.flush().unwrap();
                     let tmp = set.pending[i].temporary.as_ref().unwrap();

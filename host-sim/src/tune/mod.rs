@@ -51,6 +51,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
@@ -75,6 +76,15 @@ use sweep::{parse_offsets, parse_speeds, Range};
 /// Arguments of `host-sim tune`.
 #[derive(Debug, Args)]
 #[command(mut_arg("t_end", |a| a.help("End time of each run, s; the mean velocity is over the second half [default: 5]")))]
+#[command(after_help = epilogue(
+    &[
+        "host-sim tune examples/vibro-driver.toml --speeds 2750:3000:250 --offsets 0:360:90 --t-end 4",
+        "host-sim tune examples/vibro-driver.toml --write my.tuning.toml --plot tune.svg",
+        "host-sim tune examples/vibro-driver.toml --shard 1/2 --out-part part1.json",
+    ],
+    &[],
+    &["docs/tuning.md", "docs/scale-out.md (--shard)"],
+))]
 pub struct TuneArgs {
     /// The machine file.
     #[command(flatten)]
@@ -476,15 +486,10 @@ impl Report {
     pub fn open(output: &TuneOutputs) -> Result<Report, Failure> {
         let mut staged = Staged::new();
         let table = match &output.write {
-            Some(p) => Some((staged.add(p)?, p.clone())),
+            Some(p) => Some((staged.add("--write", p)?, p.clone())),
             None => None,
         };
-        let plot = output
-            .plot
-            .file
-            .as_deref()
-            .map(|p| staged.add(p))
-            .transpose()?;
+        let plot = staged.add_optional("--plot", output.plot.file.as_deref())?;
         Ok(Report {
             staged,
             table,
