@@ -84,6 +84,20 @@ pub struct Output {
 /// Runs a parsed command line on `console`; writes a failure's message there and
 /// returns the exit status.
 pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
+    // The simulating commands end at their next control tick on SIGINT, SIGTERM
+    // or SIGHUP, their files whole ([`crate::interrupt`]): caught from the start,
+    // so that a signal while they read their inputs and open their outputs is
+    // theirs to handle too, not the end of the process.
+    if matches!(
+        cli.command,
+        Command::Run(_)
+            | Command::Scenario(_)
+            | Command::Tune(_)
+            | Command::Merge(_)
+            | Command::Calibrate(_)
+    ) {
+        crate::interrupt::catch();
+    }
     let result: Result<(), Failure> = match cli.command {
         Command::Impact(args) => impact::run(&args, console),
         Command::Run(args) => run::run(&args, console),
