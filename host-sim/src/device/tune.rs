@@ -445,11 +445,11 @@ fn run_point(
             State::Running if elapsed < TAKE_S => Ok(false),
             State::Idle | State::Stopping if elapsed < timing.timeout_s => Ok(false),
             State::Idle | State::Stopping => Err(format!(
-                "not at rest {} s after the stop (--timeout): state {}, rotors at {:.0} and {:.0} rpm",
+                "not at rest {} s after the stop (--timeout): state {}, rotors at {} and {} rpm",
                 text::sig(timing.timeout_s),
                 s.state.name(),
-                s.telemetry.speed_rpm[0],
-                s.telemetry.speed_rpm[1]
+                text::fixed(f64::from(s.telemetry.speed_rpm[0]), 0),
+                text::fixed(f64::from(s.telemetry.speed_rpm[1]), 0)
             )),
             other => Err(format!("the controller is {} after the stop", other.name())),
         }
