@@ -17,8 +17,9 @@
 //!   expectations), [`tune`] (the sweep of speed and phase offset), [`calibrate`]
 //!   (machine keys fitted to measured travel), [`device`] (the UART link to a
 //!   board, and a simulated board);
-//! - [`cli`]: the top-level command line, the arguments commands share, and the one
-//!   place that turns a command's result into output and an exit status.
+//! - [`cli`]: the top-level command line, the arguments commands share, the end of
+//!   every `--help` ([`help`]: examples and documents), and the one place that
+//!   turns a command's result into output and an exit status.
 #![warn(missing_docs)]
 
 pub mod args;
@@ -26,6 +27,7 @@ pub mod calibrate;
 pub mod cli;
 pub mod device;
 pub mod failure;
+pub mod help;
 pub mod impact;
 pub mod interrupt;
 pub use machine_file as machine;

@@ -32,8 +32,7 @@
 use std::path::Path;
 
 use crate::machine::input;
-use crate::output::csv::csv_number;
-use crate::output::text;
+use crate::output::text::{self, decimals};
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 
 /// The columns every file has, in the order a new file is written.
@@ -113,6 +112,12 @@ pub fn velocity_refusal(v: f64) -> Option<String> {
     refusal(2, v, None).map(|allowed| format!("must be {allowed}"))
 }
 
+/// Decimals of the numbers in a row written ([`Header::row`]): 1e-6 rpm, deg and
+/// m/s (1 um/s). A point read back is within `SAME_POINT / 2` of the one written;
+/// a velocity measured as a distance typed in mm over seconds keeps every digit
+/// typed down to 1 um over 1 s.
+pub const ROW_PLACES: usize = 6;
+
 /// One measured run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
@@ -167,14 +172,16 @@ impl Header {
         self.order.contains(&3)
     }
 
-    /// One row in this header's column order (without its line break): the
-    /// shortest decimals that read back the same, weight 1 when the column is
-    /// there.
+    /// One row in this header's column order (without its line break), weight 1
+    /// when the column is there. Each number is rounded to [`ROW_PLACES`] decimals
+    /// and written in its shortest form: a velocity of 128.68 mm in 4 s is
+    /// `0.03217`, not the `0.032170000000000004` that `128.68e-3 / 4` is in
+    /// binary; a grid point `21.599999999999998` is `21.6`.
     pub fn row(&self, speed_rpm: f64, offset_deg: f64, velocity_mps: f64) -> String {
         let cell = |k: usize| match k {
-            0 => csv_number(speed_rpm),
-            1 => csv_number(offset_deg),
-            2 => csv_number(velocity_mps),
+            0 => decimals(speed_rpm, ROW_PLACES),
+            1 => decimals(offset_deg, ROW_PLACES),
+            2 => decimals(velocity_mps, ROW_PLACES),
             _ => "1".to_string(),
         };
         let cells: Vec<String> = self.order.iter().map(|&k| cell(k)).collect();
@@ -368,12 +375,18 @@ mod tests {
         let header = Header::default();
         assert_eq!(header.line(), "speed_rpm,offset_deg,velocity_mps");
         assert_eq!(header.row(3000.0, 90.0, 0.0125), "3000,90,0.0125");
+        // device tune's velocity of 128.68 mm in 4 s, a grid offset 0.1 + 0.2:
+        // the decimals typed, not the binary residue.
+        assert_eq!(
+            header.row(3000.0, 0.1 + 0.2, 128.68 * 1e-3 / 4.0),
+            "3000,0.3,0.03217"
+        );
         let (header, _) =
             parse("m.csv", "velocity_mps,weight,speed_rpm,offset_deg\n", None).unwrap();
         let text = format!("{}\n{}\n", header.line(), header.row(2500.0, 270.5, -3e-5));
         assert_eq!(
             text,
-            "velocity_mps,weight,speed_rpm,offset_deg\n-3e-5,1,2500,270.5\n"
+            "velocity_mps,weight,speed_rpm,offset_deg\n-0.00003,1,2500,270.5\n"
         );
         let (_, rows) = parse("m.csv", &text, None).unwrap();
         assert_eq!(

@@ -238,7 +238,10 @@ fn a_refused_run_writes_nothing() {
         "0.1",
         &["--out", out_arg, "--animate", dir.to_str().unwrap()],
     );
-    r.refused("is a directory");
+    r.refused(&format!(
+        "error: --animate: cannot write {}: is a directory",
+        dir.display()
+    ));
     assert!(!out.exists());
 }
 

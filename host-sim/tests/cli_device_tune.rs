@@ -253,7 +253,7 @@ fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
     let (first, rest) = r.stderr.split_once('\n').unwrap();
     assert!(
         first.starts_with(
-            "error: 3000 rpm, 90 deg: measuring: interrupted (Ctrl-C); the machine is stopped: at rest after "
+            "error: 3000 rpm, 90 deg: measuring: interrupted by SIGINT (Ctrl-C); the machine is stopped: at rest after "
         ) && first.contains(" s (state idle, rotors at "),
         "{}",
         r.stderr

@@ -133,7 +133,11 @@ fn ctrl_c_ends_a_long_run_with_its_files_whole() {
     });
     interrupter.join().unwrap();
     assert_eq!(r.status, 1, "{}", r.stderr);
-    assert!(r.stderr.contains("interrupted at t = "), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("interrupted by SIGINT (Ctrl-C) at t = "),
+        "{}",
+        r.stderr
+    );
     assert!(
         r.stdout.is_empty(),
         "no summary of half a run: {}",

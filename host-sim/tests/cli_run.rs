@@ -205,7 +205,10 @@ fn unwritable_output_is_refused_and_nothing_is_left() {
             target.to_str().unwrap(),
         ],
     );
-    r.refused("t.csv");
+    r.refused(&format!(
+        "error: --out: cannot write {}: ",
+        target.display()
+    ));
     assert!(!target.exists());
 }
 
@@ -219,7 +222,12 @@ fn one_unwritable_output_leaves_none_of_the_others() {
     let plot = dir.join("UNWRITABLE").join("p.svg");
     let r = run_writing("coast", "0.05", [&out, &events, &plot]);
     assert_eq!(r.status, 2, "{}", r.stderr);
-    assert!(r.stderr.contains("p.svg"), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains(&format!("error: --plot: cannot write {}: ", plot.display())),
+        "{}",
+        r.stderr
+    );
     let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
     assert!(left.is_empty(), "{left:?}");
 }
@@ -514,7 +522,7 @@ fn two_outputs_into_one_stream_are_refused() {
             events,
         ]);
         r.refused(&format!(
-            "error: cannot write -: it is the stream {out} is written to already: give each output its own stream"
+            "error: --events: cannot write -: `--out {out}` writes to that stream already: give each output its own stream"
         ));
         assert!(r.stdout.is_empty(), "{}", r.stdout);
     }

@@ -134,22 +134,18 @@ fn a_tiny_sweep_gives_the_spec_json_the_same_on_one_and_two_threads() {
     assert!(svg.contains("2750 rpm") && svg.contains("3000 rpm"));
 }
 
+/// `tune` of the reference machine at 3000 rpm and one offset, runs of `t_end`.
+fn one_point(offset: &str, t_end: &str) -> Run {
+    let m = machine();
+    let args = ["--speeds", "3000", "--offsets", offset, "--t-end", t_end];
+    let mut all = vec!["tune", m.to_str().unwrap()];
+    all.extend(args);
+    run_on(None, &all)
+}
+
 #[test]
 fn one_point_prints_a_table_and_warns_when_the_run_is_too_short() {
-    let m = machine();
-    let r = run_on(
-        None,
-        &[
-            "tune",
-            m.to_str().unwrap(),
-            "--speeds",
-            "3000",
-            "--offsets",
-            "90",
-            "--t-end",
-            "0.5",
-        ],
-    );
+    let r = one_point("90", "0.5");
     assert_eq!(r.status, 0, "{}", r.stderr);
     for text in [
         "rpm \\ deg",
@@ -258,6 +254,23 @@ fn progress_off_a_terminal_is_lines_with_a_fixed_total() {
     assert!(counts.iter().all(|c| c.1 == 6), "{counts:?}");
     assert!(counts.windows(2).all(|w| w[0].0 <= w[1].0), "{counts:?}");
     assert_eq!(counts.last(), Some(&(6, 6)));
+}
+
+/// A run whose offset reference is still ramping at its last tick never reached
+/// the held offset: the warning says so with the run's end (it printed `at t = -
+/// s`). At 3000 rpm the reference reaches 180 deg at about 1.18 s.
+#[test]
+fn an_offset_never_reached_is_said_so_with_the_end_of_the_run() {
+    let r = one_point("180", "1.1");
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    assert!(
+        r.stdout.contains(
+            "3000 rpm, 180 deg: offset not held: the offset reference had not reached the held offset by the end of the run, t = 1.1 s (raise --t-end)"
+        ),
+        "{}",
+        r.stdout
+    );
+    assert!(!r.stdout.contains("t = -"), "{}", r.stdout);
 }
 
 #[test]

@@ -13,10 +13,13 @@
 //! - [`machine_constants`]: the controller's constants of a machine, by `shared`'s
 //!   formulas ([`MachineConstants::from_physics`]);
 //! - [`input`]: the checked TOML reader the files (and host-sim's other input files)
-//!   are read with: every problem with its file and key path.
+//!   are read with: every problem with its file and key path;
+//! - [`kind`]: which input file a table is, so a file given to the wrong command
+//!   is refused in one line naming the command that reads it.
 //!
 //! Reading a machine file (see [`Machine::load`]):
-//! 1. read and parse the TOML ([`input`]);
+//! 1. read and parse the TOML ([`input`]); a file recognisably of another kind (an
+//!    impact case, a scenario, a tuning table) is one problem saying so ([`kind`]);
 //! 2. apply the `--set KEY=VALUE` overrides to the parsed table
 //!    ([`set`]), so overridden values meet the same checks;
 //! 3. every key on its own: types, NaN and infinities, ranges, unknown keys with a
@@ -35,6 +38,7 @@
 
 pub mod bodies;
 pub mod input;
+pub mod kind;
 pub mod rotors;
 pub mod set;
 pub mod tuning_file;
@@ -296,6 +300,10 @@ impl Machine {
                 return Err(problems);
             }
         };
+        // Another kind of file (an impact case, a scenario): said in one line.
+        if let Some(p) = kind::wrong_kind(file, &table, kind::FileKind::Machine) {
+            return Err(vec![p]);
+        }
         // Stage 2: the overrides.
         let (applied, set_problems) = set::apply(&mut table, sets);
         // Stages 3 to 6.

@@ -29,6 +29,7 @@ use std::path::Path;
 use shared::controller::{RowField, TableError, TuningTable, MAX_TUNING_ROWS};
 
 use crate::input::{self, number, Need, Problem, Problems};
+use crate::kind::{self, FileKind};
 
 /// One row: speed, rpm; right and left offsets, degrees.
 pub type Row = (f64, f64, f64);
@@ -56,6 +57,9 @@ pub fn read_table(path: &Path) -> Result<TuningTable, Vec<Problem>> {
 pub fn parse(file: &str, text: &str) -> Result<Vec<Row>, Vec<Problem>> {
     // Stage 1: the TOML and the keys.
     let toml = input::parse(file, text).map_err(|p| vec![p])?;
+    if let Some(p) = kind::wrong_kind(file, &toml, FileKind::TuningTable) {
+        return Err(vec![p]);
+    }
     let problems = Problems::new(file);
     let root = input::Section::root(&toml, &problems);
     let mut rows = Vec::new();

@@ -34,6 +34,7 @@ use rayon::prelude::*;
 
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::machine::input;
 use crate::measured::{self, Row};
 use crate::output::file::Staged;
@@ -49,6 +50,15 @@ use keys::FitKey;
 #[derive(Debug, Args)]
 #[command(mut_arg("t_end", |a| a.help("End time of each simulated run, s; the mean velocity is over the second half, as `tune`'s [default: 5]")))]
 #[command(mut_arg("format", |a| a.help("Output format of the result")))]
+#[command(after_help = epilogue(
+    &[
+        "host-sim device --port /dev/ttyUSB0 tune --speeds 3000 --offsets 0:180:30 --for 4 --out measured.csv",
+        "host-sim calibrate examples/vibro-driver.toml --measured measured.csv --fit 'contacts.*.restitution'",
+        "host-sim calibrate examples/vibro-driver.toml --measured measured.csv --fit 'contacts.*.restitution' --write calibrated.toml",
+    ],
+    &[],
+    &["docs/calibration.md"],
+))]
 pub struct CalibrateArgs {
     /// The machine file.
     #[command(flatten)]
@@ -196,7 +206,7 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
     // 1. Inputs, then the output, before any run.
     let inputs = read_options(args).map_err(Failure::Usage)?;
     let mut staged = Staged::new();
-    let out = args.write.as_deref().map(|p| staged.add(p)).transpose()?;
+    let out = staged.add_optional("--write", args.write.as_deref())?;
 
     // 2. and 3. The fit, with a progress bar on stderr (on a terminal).
     let started = Instant::now();
@@ -286,10 +296,10 @@ impl Trials<'_> {
             .collect();
         self.runs += done.len();
         if crate::interrupt::interrupted() {
-            return Err(
-                "error: calibrate: interrupted (Ctrl-C): the fit is incomplete, nothing written"
-                    .into(),
-            );
+            return Err(format!(
+                "error: calibrate: {}: the fit is incomplete, nothing written",
+                crate::interrupt::interruption()
+            ));
         }
         // The residuals, point by point.
         let mut done = done.into_iter();

@@ -5,10 +5,21 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand, ValueEnum};
 
 use super::client::DEFAULT_RETRIES;
+use crate::help::epilogue;
 use crate::tune::sweep::{parse_offsets, parse_speeds, Range};
+
+/// The end of a `device` command's `--help`: its `examples`, and the document.
+fn help(examples: &[&str]) -> String {
+    epilogue(examples, &[], &["docs/cli-device.md"])
+}
 
 /// Arguments of `host-sim device`.
 #[derive(Debug, Args)]
+#[command(after_help = help(&[
+    "host-sim device --port /dev/ttyUSB0 status",
+    "host-sim device --port tcp:127.0.0.1:5555 travel right --speed 3000 --for 10",
+    "host-sim device --port /dev/ttyUSB0 telemetry --serve",
+]))]
 pub struct DeviceArgs {
     /// The device: a serial port (`/dev/ttyUSB0`, `/dev/pts/N`), opened raw at
     /// 115200 baud 8N1, or `tcp:HOST:PORT` (a socket carrying the same bytes).
@@ -27,28 +38,52 @@ pub struct DeviceArgs {
 #[derive(Debug, Subcommand)]
 pub enum DeviceCommand {
     /// State, faults and the latest telemetry.
+    #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 status"]))]
     Status,
     /// Travel right or left: both rotors at `--speed`, the phase offset from the
     /// device's tuning table.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 travel right --speed 3000 --for 10",
+        "host-sim device --port /dev/ttyUSB0 travel left --speed 2800",
+    ]))]
     Travel(TravelArgs),
     /// Ramp both rotors down to rest.
+    #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 stop"]))]
     Stop,
     /// Run both rotors at `--speed` and hold the phase offset `--offset`.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 hold --speed 3000 --offset 90 --for 10",
+    ]))]
     Hold(HoldArgs),
     /// Clear the latched faults whose cause is gone.
+    #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 reset"]))]
     Reset,
     /// Stream telemetry (readable lines, or CSV), keeping the link alive with
     /// heartbeats; Ctrl-C ends it.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 telemetry --count 10",
+        "host-sim device --port /dev/ttyUSB0 telemetry --period 20 --duration 5 --csv telemetry.csv",
+        "host-sim device --port /dev/ttyUSB0 telemetry --serve",
+    ]))]
     Telemetry(TelemetryArgs),
     /// Run the self-test (motors stopped, no fault) and print its result per rotor.
+    #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 self-test"]))]
     SelfTest(SelfTestArgs),
     /// Read or write the device's tuning table (the file format of `host-sim tune
     /// --write`).
     #[command(subcommand)]
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 table read --out table.toml",
+        "host-sim device --port /dev/ttyUSB0 table write examples/vibro-driver.tuning.toml",
+    ]))]
     Table(TableCommand),
     /// Sweep speed and offset on the machine: hold each grid point for `--for` S,
     /// ask the operator the distance travelled, append it to a measured file;
     /// `--write` makes the tuning table from it.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 tune --speeds 3000 --offsets 0:180:30 --for 4 --out measured.csv",
+        "host-sim device --port /dev/ttyUSB0 tune --speeds 3000 --offsets 0:180:30 --for 4 --resume measured.csv --write my.tuning.toml",
+    ]))]
     Tune(DeviceTuneArgs),
 }
 
@@ -145,6 +180,10 @@ pub struct SelfTestArgs {
 #[derive(Debug, Subcommand)]
 pub enum TableCommand {
     /// Download the tuning table in use (to stdout, or to `--out`).
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 table read",
+        "host-sim device --port /dev/ttyUSB0 table read --out table.toml",
+    ]))]
     Read {
         /// Write the table file here (whole) instead of stdout.
         #[arg(long, value_name = "FILE.toml")]
@@ -152,6 +191,9 @@ pub enum TableCommand {
     },
     /// Upload a tuning table file: stored in the device's flash and used from
     /// then on (motors stopped only).
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 table write examples/vibro-driver.tuning.toml",
+    ]))]
     Write {
         /// The tuning table file (as `host-sim tune --write` writes it).
         #[arg(value_name = "FILE.toml")]
@@ -215,6 +257,11 @@ pub struct DeviceTuneArgs {
 
 /// Arguments of `host-sim device-sim`.
 #[derive(Debug, Args)]
+#[command(after_help = help(&[
+    "host-sim device-sim",
+    "host-sim device-sim --machine examples/vibro-driver.toml --listen tcp:127.0.0.1:5555",
+    "host-sim device --port tcp:127.0.0.1:5555 status",
+]))]
 pub struct DeviceSimArgs {
     /// Listen on `tcp:HOST:PORT` (port 0: any free port) instead of opening a
     /// pseudo-terminal. The first line printed is the `--port` to give

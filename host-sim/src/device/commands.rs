@@ -69,10 +69,10 @@ struct Checked {
     tune: Option<tune::Prepared>,
 }
 
-/// `path` staged as the command's one output file.
-fn staged(path: &Path) -> Result<Option<(Staged, usize)>, Failure> {
+/// `path`, given as `option`, staged as the command's one output file.
+fn staged(option: &str, path: &Path) -> Result<Option<(Staged, usize)>, Failure> {
     let mut set = Staged::new();
-    let i = set.add(path)?;
+    let i = set.add(option, path)?;
     Ok(Some((set, i)))
 }
 
@@ -129,7 +129,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
                 positive("--duration", d, "seconds")?;
             }
             if let Some(path) = &a.csv {
-                file = staged(path)?;
+                file = staged("--csv", path)?;
             }
             if let Some(addr) = &a.serve {
                 live::listen_address(addr, a.allow_remote)?;
@@ -144,7 +144,9 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         DeviceCommand::Table(TableCommand::Write { file }) => {
             table = Some(tuning_file::read_table(file)?);
         }
-        DeviceCommand::Table(TableCommand::Read { out: Some(path) }) => file = staged(path)?,
+        DeviceCommand::Table(TableCommand::Read { out: Some(path) }) => {
+            file = staged("--out", path)?
+        }
         DeviceCommand::Tune(a) => tune = Some(tune::prepare(a)?),
         DeviceCommand::Table(TableCommand::Read { out: None })
         | DeviceCommand::Status

@@ -4,6 +4,28 @@
 use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::protocol::StatusReport;
 
+use crate::output::text::{decimals, fixed};
+
+/// Decimals of the telemetry's `f32` fields in the CSV and the live page's frames,
+/// by unit: each value is rounded to them and written in its shortest form
+/// (`3000.091`, `0`; never a 45-digit subnormal nor `-0`). Finer than the board
+/// measures: an encoder count is 0.088 deg at 4096 counts a turn, a 12-bit ADC
+/// step 8 mA and 9 mV (`firmware/src/sense.rs`), a PWM step 1/4200 of the duty.
+pub const RPM_PLACES: usize = 3;
+/// Degrees: 0.001 deg.
+pub const DEG_PLACES: usize = 3;
+/// Amperes: 10 uA.
+pub const AMPERE_PLACES: usize = 5;
+/// Volts: 1 mV.
+pub const VOLT_PLACES: usize = 3;
+/// Duty, in [-1, 1]: 1e-5.
+pub const DUTY_PLACES: usize = 5;
+
+/// A telemetry field rounded to `places` decimals, in its shortest form.
+pub fn field(x: f32, places: usize) -> String {
+    decimals(f64::from(x), places)
+}
+
 /// The fault names, `none` when there is none.
 pub fn faults_text(faults: Faults) -> String {
     let names: Vec<&str> = faults.names().collect();
@@ -32,38 +54,39 @@ pub fn status_text(s: &StatusReport) -> String {
     } else {
         flags.join(" ")
     };
+    let f = |x: f32, places: usize| fixed(f64::from(x), places);
     format!(
         "state           {}\n\
          faults          {}\n\
          uptime          {:.3} s\n\
-         speed           {:.1} / {:.1} rpm (rotor 1 / rotor 2)\n\
-         speed ref       {:.1} / {:.1} rpm\n\
-         phase offset    {:.1} deg measured{}\n\
-         offset target   {:.1} deg (commanded {:.1} deg)\n\
-         phase error     {:.2} deg\n\
-         current         {:.3} / {:.3} A\n\
-         supply          {:.2} V\n\
-         duty            {:.3} / {:.3}\n\
+         speed           {} / {} rpm (rotor 1 / rotor 2)\n\
+         speed ref       {} / {} rpm\n\
+         phase offset    {} deg measured{}\n\
+         offset target   {} deg (commanded {} deg)\n\
+         phase error     {} deg\n\
+         current         {} / {} A\n\
+         supply          {} V\n\
+         duty            {} / {}\n\
          flags           {}\n\
          control tick    started {} late, the previous worked {}; {} overruns (ticks past their deadline)\n\
          link            {} received bytes lost\n",
         s.state.name(),
         faults_text(s.faults),
         f64::from(s.uptime_ms) / 1000.0,
-        t.speed_rpm[0],
-        t.speed_rpm[1],
-        t.speed_ref_rpm[0],
-        t.speed_ref_rpm[1],
-        t.phase_offset_deg,
+        f(t.speed_rpm[0], 1),
+        f(t.speed_rpm[1], 1),
+        f(t.speed_ref_rpm[0], 1),
+        f(t.speed_ref_rpm[1], 1),
+        f(t.phase_offset_deg, 1),
         if t.phase_valid { "" } else { " (not valid)" },
-        t.target_offset_deg,
-        t.commanded_offset_deg,
-        t.phase_error_deg,
-        t.current[0],
-        t.current[1],
-        t.supply_voltage,
-        t.duty[0],
-        t.duty[1],
+        f(t.target_offset_deg, 1),
+        f(t.commanded_offset_deg, 1),
+        f(t.phase_error_deg, 2),
+        f(t.current[0], 3),
+        f(t.current[1], 3),
+        f(t.supply_voltage, 2),
+        f(t.duty[0], 3),
+        f(t.duty[1], 3),
         flags,
         saturated(t.tick_late_us, " us"),
         saturated(t.tick_busy_us, " us"),
@@ -84,22 +107,23 @@ fn saturated(value: u16, unit: &str) -> String {
 /// A telemetry frame as one line.
 pub fn telemetry_line(s: &StatusReport) -> String {
     let t = &s.telemetry;
+    let f = |x: f32, places: usize| fixed(f64::from(x), places);
     let offset = if t.phase_valid {
-        format!("{:6.1}", t.phase_offset_deg)
+        f(t.phase_offset_deg, 1)
     } else {
-        "     -".into()
+        "-".into()
     };
     format!(
-        "{:10.3} s  {:<8} speed {:7.1} {:7.1} rpm  offset {} deg (target {:5.1})  I {:6.3} {:6.3} A  {:5.2} V  faults {}",
+        "{:10.3} s  {:<8} speed {:>7} {:>7} rpm  offset {:>6} deg (target {:>5})  I {:>6} {:>6} A  {:>5} V  faults {}",
         f64::from(s.uptime_ms) / 1000.0,
         s.state.name(),
-        t.speed_rpm[0],
-        t.speed_rpm[1],
+        f(t.speed_rpm[0], 1),
+        f(t.speed_rpm[1], 1),
         offset,
-        t.target_offset_deg,
-        t.current[0],
-        t.current[1],
-        t.supply_voltage,
+        f(t.target_offset_deg, 1),
+        f(t.current[0], 3),
+        f(t.current[1], 3),
+        f(t.supply_voltage, 2),
         faults_text(s.faults),
     )
 }
@@ -111,8 +135,8 @@ phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offse
 phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,\
 tick_late_us,tick_busy_us,overruns,rx_dropped";
 
-/// A telemetry frame as a CSV row (faults by name, `|`-separated; `f32`s in their
-/// shortest exact form), without the newline.
+/// A telemetry frame as a CSV row (faults by name, `|`-separated; `f32`s rounded
+/// to their unit's decimals, [`RPM_PLACES`] and the others), without the newline.
 pub fn csv_row(s: &StatusReport) -> String {
     let t = &s.telemetry;
     let faults: Vec<&str> = s.faults.names().collect();
@@ -122,21 +146,21 @@ pub fn csv_row(s: &StatusReport) -> String {
         s.uptime_ms,
         s.state.name(),
         faults.join("|"),
-        t.speed_rpm[0],
-        t.speed_rpm[1],
-        t.speed_ref_rpm[0],
-        t.speed_ref_rpm[1],
+        field(t.speed_rpm[0], RPM_PLACES),
+        field(t.speed_rpm[1], RPM_PLACES),
+        field(t.speed_ref_rpm[0], RPM_PLACES),
+        field(t.speed_ref_rpm[1], RPM_PLACES),
         b(t.phase_valid),
         b(t.phase_loop_closed),
-        t.phase_offset_deg,
-        t.commanded_offset_deg,
-        t.target_offset_deg,
-        t.phase_error_deg,
-        t.current[0],
-        t.current[1],
-        t.supply_voltage,
-        t.duty[0],
-        t.duty[1],
+        field(t.phase_offset_deg, DEG_PLACES),
+        field(t.commanded_offset_deg, DEG_PLACES),
+        field(t.target_offset_deg, DEG_PLACES),
+        field(t.phase_error_deg, DEG_PLACES),
+        field(t.current[0], AMPERE_PLACES),
+        field(t.current[1], AMPERE_PLACES),
+        field(t.supply_voltage, VOLT_PLACES),
+        field(t.duty[0], DUTY_PLACES),
+        field(t.duty[1], DUTY_PLACES),
         b(t.command_rejected),
         t.tick_late_us,
         t.tick_busy_us,
@@ -225,5 +249,42 @@ mod tests {
         );
         // The CSV keeps the numbers as sent.
         assert!(csv_row(&s).ends_with(",65535,17,2,65535"));
+    }
+
+    /// A rotor coasting to rest: its filtered speed decays into subnormal and
+    /// negative-zero `f32`s, which read as 0 (they printed as 45 digits in the CSV
+    /// and `-0.0 rpm` in the status); a value keeps its unit's decimals.
+    #[test]
+    fn speeds_decayed_to_nothing_read_as_zero() {
+        let mut telemetry = no_telemetry();
+        telemetry.speed_rpm = [2.7e-44, -1e-30];
+        telemetry.speed_ref_rpm = [-0.0, 3000.0913];
+        telemetry.current = [-0.0000001, f32::NAN];
+        telemetry.phase_error_deg = -0.023040771;
+        let s = StatusReport {
+            uptime_ms: 10070,
+            state: State::Idle,
+            faults: Faults::NONE,
+            telemetry,
+            rx_dropped: 0,
+        };
+        let row = csv_row(&s);
+        assert!(
+            row.starts_with("10070,idle,,0,0,0,3000.091,0,0,0,0,0,-0.023,0,NaN,"),
+            "{row}"
+        );
+        let text = status_text(&s);
+        assert!(
+            text.contains("speed           0.0 / 0.0 rpm (rotor 1 / rotor 2)\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("speed ref       0.0 / 3000.1 rpm\n"),
+            "{text}"
+        );
+        assert!(text.contains("current         0.000 / NaN A\n"), "{text}");
+        let line = telemetry_line(&s);
+        assert!(line.contains("speed     0.0     0.0 rpm"), "{line}");
+        assert!(!line.contains("-0.0"), "{line}");
     }
 }

@@ -18,6 +18,7 @@ use shared::protocol::{Request, Response, StatusReport};
 use super::client::Client;
 use super::requests::{ask, unexpected, HEARTBEAT_EVERY};
 use crate::failure::Failure;
+use crate::output::text;
 
 /// Longest wait for rest after a stop when the command has no `--timeout`, s:
 /// from 3000 rpm the simulated board's rotors are at rest about 1 s after the
@@ -55,10 +56,10 @@ pub fn at_rest(s: &StatusReport) -> bool {
 /// 0.0 and 0.0 rpm`.
 pub fn motion(s: &StatusReport) -> String {
     format!(
-        "state {}, rotors at {:.1} and {:.1} rpm",
+        "state {}, rotors at {} and {} rpm",
         s.state.name(),
-        s.telemetry.speed_rpm[0],
-        s.telemetry.speed_rpm[1]
+        text::fixed(f64::from(s.telemetry.speed_rpm[0]), 1),
+        text::fixed(f64::from(s.telemetry.speed_rpm[1]), 1)
     )
 }
 

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use super::mechanics::PlatformPose;
 use crate::failure::Failure;
 use crate::output::file::Target;
+use crate::output::text::fixed;
 
 /// The truth file's header line.
 pub const TRUTH_HEADER: &str = "t,x,y,angle";
@@ -98,11 +99,11 @@ impl TruthFile {
         self.last_ms = Some(uptime_ms);
         // Micrometres and microradians: far below what a run moves in a period.
         let row = format!(
-            "{:.3},{:.6},{:.6},{:.6}",
+            "{:.3},{},{},{}",
             uptime_ms as f64 / 1000.0,
-            pose.x,
-            pose.y,
-            pose.angle
+            fixed(pose.x, 6),
+            fixed(pose.y, 6),
+            fixed(pose.angle, 6)
         );
         self.line(&row)
     }

@@ -292,7 +292,8 @@ pub fn sweep(
                 }
                 Reply::Interrupted => {
                     return Err(Failure::Run(format!(
-                        "error: interrupted (Ctrl-C) at the prompt of {here}: the machine was at rest before the prompt; that point is not recorded"
+                        "error: {} at the prompt of {here}: the machine was at rest before the prompt; that point is not recorded",
+                        interrupt::interruption()
                     )))
                 }
             };
@@ -490,7 +491,8 @@ fn watch(
         }
         if op.interrupted() {
             return Err(Failure::Run(format!(
-                "error: {here}: {doing}: interrupted (Ctrl-C)"
+                "error: {here}: {doing}: {}",
+                interrupt::interruption()
             )));
         }
         if done(&s, start.elapsed().as_secs_f64()).map_err(fail)? {
@@ -559,7 +561,7 @@ pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
             return Err(Failure::Usage(p.clone()));
         }
         let mut set = Staged::new();
-        let i = set.add(path)?;
+        let i = set.add("--write", path)?;
         table = Some((set, i));
     }
     let file =

@@ -18,6 +18,7 @@ use shared::impact::{BodyContact, ContactLaw, ImpactLaw, PlanarBody};
 use crate::machine::input::{
     self, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
 };
+use crate::machine::kind::{self, FileKind};
 use crate::machine::LAWS;
 
 /// Relative tolerance of the check that `[body].velocity` agrees with the pivot:
@@ -85,6 +86,9 @@ pub fn read_case(path: &Path) -> Result<ImpactCase, Vec<Problem>> {
 /// Checks the text of a case file named `file` (the stages of the module doc).
 pub fn parse_case(file: &str, text: &str) -> Result<ImpactCase, Vec<Problem>> {
     let table = input::parse(file, text).map_err(|p| vec![p])?;
+    if let Some(p) = kind::wrong_kind(file, &table, FileKind::ImpactCase) {
+        return Err(vec![p]);
+    }
     let problems = Problems::new(file);
     let case = check(&table, &problems);
     problems.into_result(case)

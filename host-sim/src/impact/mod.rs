@@ -18,10 +18,19 @@ use shared::impact::{solve_body, ImpactError, MAX_CONTACTS};
 use crate::args::Format;
 use crate::args::FormatArg;
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::impact::case::read_case;
 
 /// Arguments of `host-sim impact`.
 #[derive(Debug, Args)]
+#[command(after_help = epilogue(
+    &[
+        "host-sim impact examples/impact/fig7-four-points.toml",
+        "host-sim impact examples/impact/rocking-block.toml --law newton --format json",
+    ],
+    &[],
+    &["docs/cli-impact.md"],
+))]
 pub struct ImpactArgs {
     /// The impact case file (TOML; see docs/cli-impact.md).
     #[arg(value_name = "CASE.toml")]

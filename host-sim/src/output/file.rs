@@ -5,10 +5,12 @@
 //! - `-`: the process's stdout, written through; so is a path naming the file or
 //!   pipe stdout already writes to (`/dev/stdout`, or `--out t.csv > t.csv`), and
 //!   likewise stderr's, so that what goes there stays in order;
-//! - a regular file, or a name not yet taken: a temporary file beside it (same
-//!   directory, so the rename cannot cross file systems), flushed to disk, then
-//!   renamed over it. A symbolic link is followed: the file it points to is
-//!   replaced, the link stays a link. An existing file keeps its permissions;
+//! - a regular file, or a name not yet taken: a temporary file in the same
+//!   directory ([`super::temporary`]: on Linux one without a name, so that even a
+//!   process killed with SIGKILL leaves nothing; elsewhere a hidden
+//!   `.NAME.PID.tmp`), flushed to disk, then put in its place. A symbolic link is
+//!   followed: the file it points to is replaced, the link stays a link. An
+//!   existing file keeps its permissions;
 //! - anything else that exists and is not a directory (`/dev/null`, `/dev/full`, a
 //!   FIFO, a terminal), and any existing path under `/dev` or `/proc`
 //!   (`/dev/stdout` redirected to a file): opened for writing and written through,
@@ -18,13 +20,14 @@
 //! [`Staged`] holds a set of outputs while a run writes them (a trace streamed row
 //! by row, say): every target is checked and every temporary file created before the
 //! run starts, so an unwritable path is reported at once and nothing is left
-//! behind; [`Staged::commit`] renames them all at the end; dropping a set that was
-//! not committed removes its temporary files.
+//! behind; [`Staged::commit`] puts them all in place at the end; dropping a set
+//! that was not committed removes its temporary files.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
+use super::temporary::Temporary;
 use crate::failure::Failure;
 
 /// Where an output path's bytes go.
@@ -113,24 +116,15 @@ fn canonical(path: &Path) -> PathBuf {
     }
 }
 
-/// The temporary file beside `path`: the same directory, a hidden name with the
-/// process id.
-fn temporary_beside(path: &Path) -> Option<PathBuf> {
-    let name = path.file_name()?.to_string_lossy();
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    Some(dir.join(format!(".{name}.{}.tmp", std::process::id())))
-}
-
 /// One output being written.
 struct Pending {
+    /// The option that named it (`--out`), for messages.
+    option: String,
     /// The path as the user named it (for messages).
     named: PathBuf,
     target: Target,
     /// The temporary file of a regular target.
-    temporary: Option<PathBuf>,
+    temporary: Option<Temporary>,
     writer: BufWriter<Box<dyn Write>>,
     /// A stream whose reader has gone (`host-sim ... --out - | head`): what
     /// follows is dropped without a word, as for any output to a closed pipe.
@@ -148,21 +142,34 @@ impl Pending {
                 self.closed = true;
                 Ok(())
             }
-            r => r.map_err(|e| cannot_write(&self.named, e)),
+            r => r.map_err(|e| cannot_write(&self.option, &self.named, e)),
         }
     }
 }
 
 /// A set of outputs written together ([module doc](self)).
-#[derive(Default)]
 pub struct Staged {
     pending: Vec<Pending>,
-    committed: bool,
+    /// Temporary files without a name where the platform has them (the tests
+    /// also try the named ones).
+    unnamed: bool,
 }
 
-/// "cannot write PATH: why", a user mistake (the path is the user's to fix).
-fn cannot_write(path: &Path, why: impl std::fmt::Display) -> Failure {
-    Failure::Usage(format!("error: cannot write {}: {why}", path.display()))
+impl Default for Staged {
+    fn default() -> Self {
+        Staged {
+            pending: Vec::new(),
+            unnamed: true,
+        }
+    }
+}
+
+/// "OPTION: cannot write PATH: why", a user mistake (the path is the user's to fix).
+fn cannot_write(option: &str, path: &Path, why: impl std::fmt::Display) -> Failure {
+    Failure::Usage(format!(
+        "error: {option}: cannot write {}: {why}",
+        path.display()
+    ))
 }
 
 impl Staged {
@@ -171,10 +178,12 @@ impl Staged {
         Staged::default()
     }
 
-    /// Adds `path` to the set: checks it and opens its temporary file (or the
-    /// special file). Returns its index for [`Staged::write`].
-    pub fn add(&mut self, path: &Path) -> Result<usize, Failure> {
-        let target = Target::of(path).map_err(|why| cannot_write(path, why))?;
+    /// Adds `path`, given as `option` (`--out`, which every message about it
+    /// names), to the set: checks it and opens its temporary file (or the special
+    /// file). Returns its index for [`Staged::write`].
+    pub fn add(&mut self, option: &str, path: &Path) -> Result<usize, Failure> {
+        let refuse = |why: &dyn std::fmt::Display| cannot_write(option, path, why);
+        let target = Target::of(path).map_err(|why| refuse(&why))?;
         // Two outputs into one file would share its temporary file and replace it
         // with a mix of both; two into stdout (or stderr), streamed as the run
         // goes, would interleave their lines.
@@ -188,41 +197,34 @@ impl Staged {
             _ => false,
         }) {
             let what = if here.is_some() { "file" } else { "stream" };
-            return Err(cannot_write(
-                path,
-                format!(
-                    "it is the {what} {} is written to already: give each output its own {what}",
-                    other.named.display()
-                ),
-            ));
+            return Err(refuse(&format!(
+                "`{} {}` writes to that {what} already: give each output its own {what}",
+                other.option,
+                other.named.display()
+            )));
         }
-        let (temporary, sink): (Option<PathBuf>, Box<dyn Write>) = match &target {
+        let (temporary, sink): (Option<Temporary>, Box<dyn Write>) = match &target {
             Target::Stdout => (None, Box::new(io::stdout())),
             Target::Stderr => (None, Box::new(io::stderr())),
             Target::Special(p) => {
                 let f = OpenOptions::new()
                     .write(true)
                     .open(p)
-                    .map_err(|e| cannot_write(path, e))?;
+                    .map_err(|e| refuse(&e))?;
                 (None, Box::new(f))
             }
             Target::Regular(p) => {
-                let tmp =
-                    temporary_beside(p).ok_or_else(|| cannot_write(path, "not a file name"))?;
-                let f = OpenOptions::new()
-                    .write(true)
-                    .create(true)
-                    .truncate(true)
-                    .open(&tmp)
-                    .map_err(|e| cannot_write(path, e))?;
+                let tmp = Temporary::beside(p, self.unnamed).map_err(|e| refuse(&e))?;
                 // An existing file keeps its permissions.
                 if let Ok(m) = fs::metadata(p) {
-                    let _ = fs::set_permissions(&tmp, m.permissions());
+                    let _ = tmp.file().set_permissions(m.permissions());
                 }
+                let f = tmp.file().try_clone().map_err(|e| refuse(&e))?;
                 (Some(tmp), Box::new(f))
             }
         };
         self.pending.push(Pending {
+            option: option.to_string(),
             named: path.to_path_buf(),
             target,
             temporary,
@@ -230,6 +232,15 @@ impl Staged {
             closed: false,
         });
         Ok(self.pending.len() - 1)
+    }
+
+    /// [`Staged::add`] for an option that may be absent: `None` when it is.
+    pub fn add_optional(
+        &mut self,
+        option: &str,
+        path: Option<&Path>,
+    ) -> Result<Option<usize>, Failure> {
+        path.map(|p| self.add(option, p)).transpose()
     }
 
     /// Writes `contents` to output `index`.
@@ -242,8 +253,8 @@ impl Staged {
         p.check(r)
     }
 
-    /// Flushes every output, then renames every temporary file over its target.
-    /// On an error before the first rename nothing is replaced.
+    /// Flushes every output, then puts every temporary file in its target's place.
+    /// On an error before the first is in place nothing is replaced.
     pub fn commit(mut self) -> Result<(), Failure> {
         for p in &mut self.pending {
             if !p.closed {
@@ -251,19 +262,19 @@ impl Staged {
                 p.check(r)?;
             }
         }
-        // Durable before the renames: reopen each temporary file and sync it.
+        // Durable before any is put in place.
         for p in &self.pending {
             if let Some(tmp) = &p.temporary {
-                File::open(tmp)
-                    .and_then(|f| f.sync_all())
-                    .map_err(|e| cannot_write(&p.named, e))?;
+                tmp.file()
+                    .sync_all()
+                    .map_err(|e| cannot_write(&p.option, &p.named, e))?;
             }
         }
         for p in &mut self.pending {
-            if let (Some(tmp), Target::Regular(target)) = (&p.temporary, &p.target) {
-                fs::rename(tmp, target).map_err(|e| cannot_write(&p.named, e))?;
-                p.temporary = None;
-                // Make the rename durable where directories can be synced (best
+            if let (Some(tmp), Target::Regular(target)) = (&mut p.temporary, &p.target) {
+                tmp.persist(target)
+                    .map_err(|e| cannot_write(&p.option, &p.named, e))?;
+                // Make the new name durable where directories can be synced (best
                 // effort: the file is complete either way).
                 if let Some(dir) = target.parent().filter(|d| !d.as_os_str().is_empty()) {
                     if let Ok(d) = File::open(dir) {
@@ -272,35 +283,44 @@ impl Staged {
                 }
             }
         }
-        self.committed = true;
         Ok(())
-    }
-}
-
-impl Drop for Staged {
-    /// A set not committed leaves no temporary file behind.
-    fn drop(&mut self) {
-        if !self.committed {
-            for p in &self.pending {
-                if let Some(tmp) = &p.temporary {
-                    let _ = fs::remove_file(tmp);
-                }
-            }
-        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Whether this test's sets use unnamed temporary files ([`both`]).
+        static UNNAMED: Cell<bool> = const { Cell::new(true) };
+    }
+
+    /// Runs `test` twice: with temporary files without a name (where the file
+    /// system has them) and with the named ones used elsewhere.
+    fn both(test: impl Fn()) {
+        for unnamed in [true, false] {
+            UNNAMED.set(unnamed);
+            test();
+        }
+    }
+
+    /// An empty set in this test's way ([`both`]).
+    fn staged() -> Staged {
+        Staged {
+            pending: Vec::new(),
+            unnamed: UNNAMED.get(),
+        }
+    }
 
     /// Writes every `(path, contents)` as one set ([`Staged`]): all regular files
     /// replaced, or none.
     fn write_files(files: &[(&Path, String)]) -> Result<(), Failure> {
-        let mut staged = Staged::new();
+        let mut staged = staged();
         let indices = files
             .iter()
-            .map(|(path, _)| staged.add(path))
+            .map(|(path, _)| staged.add("--out", path))
             .collect::<Result<Vec<_>, _>>()?;
         for (i, (_, contents)) in indices.into_iter().zip(files) {
             staged.write(i, contents)?;
@@ -341,124 +361,219 @@ mod tests {
 
     #[test]
     fn write_whole_replaces_the_file_and_leaves_no_temporary() {
-        let dir = scratch("replace");
-        let path = dir.join("out.csv");
-        fs::write(&path, "old contents, longer than the new").unwrap();
-        write_whole(&path, "new\n").unwrap();
-        assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
-        assert_eq!(names(&dir), ["out.csv"]);
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            let dir = scratch("replace");
+            let path = dir.join("out.csv");
+            fs::write(&path, "old contents, longer than the new").unwrap();
+            write_whole(&path, "new\n").unwrap();
+            assert_eq!(fs::read_to_string(&path).unwrap(), "new\n");
+            assert_eq!(names(&dir), ["out.csv"]);
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 
     #[test]
     fn write_whole_failure_names_the_path_and_keeps_the_old_file() {
-        let dir = scratch("fail");
-        // A missing directory: the temporary file cannot be created.
-        let missing = dir.join("no-such-dir").join("out.csv");
-        let e = write_whole(&missing, "x").unwrap_err();
-        assert!(e.starts_with("cannot write "), "{e}");
-        assert!(e.contains("out.csv"), "{e}");
-        // The target is a directory: refused, the directory untouched.
-        let target = dir.join("taken");
-        fs::create_dir(&target).unwrap();
-        fs::write(target.join("keep"), "k").unwrap();
-        let e = write_whole(&target, "x").unwrap_err();
-        assert!(e.contains("taken") && e.contains("is a directory"), "{e}");
-        assert_eq!(names(&dir), ["taken"]);
-        assert_eq!(fs::read_to_string(target.join("keep")).unwrap(), "k");
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            let dir = scratch("fail");
+            // A missing directory: the temporary file cannot be created.
+            let missing = dir.join("no-such-dir").join("out.csv");
+            let e = write_whole(&missing, "x").unwrap_err();
+            assert!(e.starts_with("--out: cannot write "), "{e}");
+            assert!(e.contains("out.csv"), "{e}");
+            // The target is a directory: refused, the directory untouched.
+            let target = dir.join("taken");
+            fs::create_dir(&target).unwrap();
+            fs::write(target.join("keep"), "k").unwrap();
+            let e = write_whole(&target, "x").unwrap_err();
+            assert!(e.contains("taken") && e.contains("is a directory"), "{e}");
+            assert_eq!(names(&dir), ["taken"]);
+            assert_eq!(fs::read_to_string(target.join("keep")).unwrap(), "k");
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 
     #[test]
     fn a_symbolic_link_is_followed_and_stays_a_link() {
-        let dir = scratch("symlink");
-        let real = dir.join("real.csv");
-        fs::write(&real, "old").unwrap();
-        let link = dir.join("link.csv");
-        std::os::unix::fs::symlink("real.csv", &link).unwrap();
-        write_whole(&link, "new").unwrap();
-        assert!(fs::symlink_metadata(&link)
-            .unwrap()
-            .file_type()
-            .is_symlink());
-        assert_eq!(fs::read_to_string(&real).unwrap(), "new");
-        // A link to a name not yet taken creates that file.
-        let dangling = dir.join("dangling.csv");
-        std::os::unix::fs::symlink("later.csv", &dangling).unwrap();
-        write_whole(&dangling, "made").unwrap();
-        assert!(fs::symlink_metadata(&dangling)
-            .unwrap()
-            .file_type()
-            .is_symlink());
-        assert_eq!(fs::read_to_string(dir.join("later.csv")).unwrap(), "made");
-        assert_eq!(
-            names(&dir),
-            ["dangling.csv", "later.csv", "link.csv", "real.csv"]
-        );
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            let dir = scratch("symlink");
+            let real = dir.join("real.csv");
+            fs::write(&real, "old").unwrap();
+            let link = dir.join("link.csv");
+            std::os::unix::fs::symlink("real.csv", &link).unwrap();
+            write_whole(&link, "new").unwrap();
+            assert!(fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink());
+            assert_eq!(fs::read_to_string(&real).unwrap(), "new");
+            // A link to a name not yet taken creates that file.
+            let dangling = dir.join("dangling.csv");
+            std::os::unix::fs::symlink("later.csv", &dangling).unwrap();
+            write_whole(&dangling, "made").unwrap();
+            assert!(fs::symlink_metadata(&dangling)
+                .unwrap()
+                .file_type()
+                .is_symlink());
+            assert_eq!(fs::read_to_string(dir.join("later.csv")).unwrap(), "made");
+            assert_eq!(
+                names(&dir),
+                ["dangling.csv", "later.csv", "link.csv", "real.csv"]
+            );
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 
     #[test]
     fn special_files_are_written_through_not_replaced() {
-        write_whole(Path::new("/dev/null"), "discarded").unwrap();
-        assert!(!fs::metadata("/dev/null").unwrap().is_file());
-        let e = write_whole(Path::new("/dev/no-such-device"), "x").unwrap_err();
-        assert!(e.contains("no such device"), "{e}");
-        assert!(!Path::new("/dev/no-such-device").exists());
-        if Path::new("/dev/full").exists() {
-            let e = write_whole(Path::new("/dev/full"), &"x".repeat(1 << 17)).unwrap_err();
-            assert!(e.contains("/dev/full"), "{e}");
-            assert!(!fs::metadata("/dev/full").unwrap().is_file());
-        }
+        both(|| {
+            write_whole(Path::new("/dev/null"), "discarded").unwrap();
+            assert!(!fs::metadata("/dev/null").unwrap().is_file());
+            let e = write_whole(Path::new("/dev/no-such-device"), "x").unwrap_err();
+            assert!(e.contains("no such device"), "{e}");
+            assert!(!Path::new("/dev/no-such-device").exists());
+            if Path::new("/dev/full").exists() {
+                let e = write_whole(Path::new("/dev/full"), &"x".repeat(1 << 17)).unwrap_err();
+                assert!(e.contains("/dev/full"), "{e}");
+                assert!(!fs::metadata("/dev/full").unwrap().is_file());
+            }
+        });
     }
 
     #[test]
     fn a_set_with_one_bad_path_writes_none() {
-        let dir = scratch("set");
-        let a = dir.join("a.csv");
-        fs::write(&a, "old a").unwrap();
-        let b = dir.join("b.csv");
-        let bad = dir.join("missing").join("p.svg");
-        let e = write_files(&[
-            (a.as_path(), "new a".into()),
-            (b.as_path(), "new b".into()),
-            (bad.as_path(), "svg".into()),
-        ])
-        .unwrap_err();
-        assert_eq!(e.status(), crate::failure::EXIT_USAGE);
-        assert!(e.message().contains("p.svg"), "{e:?}");
-        assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
-        assert_eq!(names(&dir), ["a.csv"]);
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            let dir = scratch("set");
+            let a = dir.join("a.csv");
+            fs::write(&a, "old a").unwrap();
+            let b = dir.join("b.csv");
+            let bad = dir.join("missing").join("p.svg");
+            let e = write_files(&[
+                (a.as_path(), "new a".into()),
+                (b.as_path(), "new b".into()),
+                (bad.as_path(), "svg".into()),
+            ])
+            .unwrap_err();
+            assert_eq!(e.status(), crate::failure::EXIT_USAGE);
+            assert!(e.message().contains("p.svg"), "{e:?}");
+            assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
+            assert_eq!(names(&dir), ["a.csv"]);
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 
     #[test]
     fn one_file_named_twice_in_a_set_is_refused() {
-        let dir = scratch("twice");
-        let a = dir.join("a.csv");
-        fs::write(&a, "old").unwrap();
-        let again = dir.join(".").join("a.csv");
-        let e = write_files(&[(a.as_path(), "one".into()), (again.as_path(), "two".into())])
-            .unwrap_err();
-        assert!(
-            e.message().contains("give each output its own file"),
-            "{e:?}"
-        );
-        assert_eq!(fs::read_to_string(&a).unwrap(), "old");
-        assert_eq!(names(&dir), ["a.csv"]);
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            let dir = scratch("twice");
+            let a = dir.join("a.csv");
+            fs::write(&a, "old").unwrap();
+            let again = dir.join(".").join("a.csv");
+            let e = write_files(&[(a.as_path(), "one".into()), (again.as_path(), "two".into())])
+                .unwrap_err();
+            assert!(
+                e.message().contains("give each output its own file"),
+                "{e:?}"
+            );
+            assert_eq!(fs::read_to_string(&a).unwrap(), "old");
+            assert_eq!(names(&dir), ["a.csv"]);
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 
     #[test]
     fn permissions_of_a_replaced_file_are_kept() {
-        use std::os::unix::fs::PermissionsExt;
-        let dir = scratch("perm");
-        let path = dir.join("out.csv");
-        fs::write(&path, "old").unwrap();
-        fs::set_permissions(&path, fs::Permissions::from_mode(0o640)).unwrap();
-        write_whole(&path, "new").unwrap();
-        let mode = fs::metadata(&path).unwrap().permissions().mode() & 0o777;
-        assert_eq!(mode, 0o640);
-        fs::remove_dir_all(&dir).unwrap();
+        both(|| {
+            use std::os::unix::fs::PermissionsExt;
+            let dir = scratch("perm");
+            let path = dir.join("out.csv");
+            fs::write(&path, "old").unwrap();
+            fs::set_permissions(&path, fs::Permissions::from_mode(0o640)).unwrap();
+            write_whole(&path, "new").unwrap();
+            let mode = fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o640);
+            fs::remove_dir_all(&dir).unwrap();
+        });
+    }
+
+    /// Whether `dir`'s file system gives files without a name (`O_TMPFILE`),
+    /// asked of the kernel directly.
+    fn has_unnamed_files(dir: &Path) -> bool {
+        #[cfg(target_os = "linux")]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            OpenOptions::new()
+                .write(true)
+                .custom_flags(nix::libc::O_TMPFILE)
+                .open(dir)
+                .is_ok()
+        }
+        #[cfg(not(target_os = "linux"))]
+        {
+            let _ = dir;
+            false
+        }
+    }
+
+    /// A process that dies while writing a set (its drop never runs, as under
+    /// SIGKILL) leaves no file beside the targets where the file system has
+    /// unnamed files; elsewhere, the hidden named files, which a set dropped
+    /// uncommitted removes.
+    #[test]
+    fn a_set_never_committed_nor_dropped_leaves_nothing_where_files_can_be_unnamed() {
+        both(|| {
+            let dir = scratch("killed");
+            let a = dir.join("a.csv");
+            fs::write(&a, "old a").unwrap();
+            let unnamed = UNNAMED.get() && has_unnamed_files(&dir);
+            let hidden = |n: &str| format!(".{n}.{}.tmp", std::process::id());
+            for die in [false, true] {
+                let mut set = staged();
+                for (path, text) in [(&a, "new a"), (&dir.join("b.csv"), "new b")] {
+                    let i = set.add("--out", path).unwrap();
+                    set.write(i, &text.repeat(1 << 14)).unwrap();
+                    set.pending[i].writer.flush().unwrap();
+                    let tmp = set.pending[i].temporary.as_ref().unwrap();
+                    assert_eq!(tmp.is_unnamed(), unnamed);
+                }
+                let during = names(&dir);
+                if die {
+                    std::mem::forget(set);
+                } else {
+                    drop(set);
+                }
+                if unnamed {
+                    assert_eq!(during, ["a.csv"]);
+                    assert_eq!(names(&dir), ["a.csv"]);
+                } else {
+                    assert_eq!(during, [hidden("a.csv"), hidden("b.csv"), "a.csv".into()]);
+                    if die {
+                        assert_eq!(names(&dir).len(), 3);
+                        fs::remove_file(dir.join(hidden("a.csv"))).unwrap();
+                        fs::remove_file(dir.join(hidden("b.csv"))).unwrap();
+                    }
+                    assert_eq!(names(&dir), ["a.csv"]);
+                }
+                assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
+            }
+            fs::remove_dir_all(&dir).unwrap();
+        });
+    }
+
+    /// A hidden name left by an earlier process with this id is taken over: the
+    /// file is replaced and no hidden name stays.
+    #[test]
+    fn a_stale_hidden_name_is_taken_over() {
+        both(|| {
+            let dir = scratch("stale");
+            let path = dir.join("out.csv");
+            fs::write(&path, "old").unwrap();
+            let stale = dir.join(format!(".out.csv.{}.tmp", std::process::id()));
+            fs::write(&stale, "left by a killed run").unwrap();
+            write_whole(&path, "new").unwrap();
+            assert_eq!(fs::read_to_string(&path).unwrap(), "new");
+            assert_eq!(names(&dir), ["out.csv"]);
+            fs::remove_dir_all(&dir).unwrap();
+        });
     }
 }

@@ -6,6 +6,7 @@
 //! - [`progress`]: a long command's progress on stderr (a bar, or lines off a
 //!   terminal);
 //! - [`svg`]: the SVG figures' common pieces;
+//! - [`temporary`]: where a file waits until its set is committed;
 //! - [`text`]: numbers and aligned tables for people.
 
 pub mod animate;
@@ -13,4 +14,5 @@ pub mod csv;
 pub mod file;
 pub mod progress;
 pub mod svg;
+pub mod temporary;
 pub mod text;

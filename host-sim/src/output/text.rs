@@ -12,15 +12,7 @@ pub fn sig(x: f64) -> String {
     }
     let magnitude = x.abs().log10().floor() as i32;
     if (-4..6).contains(&magnitude) {
-        let decimals = (5 - magnitude).max(0) as usize;
-        let s = format!("{x:.decimals$}");
-        let s = trim_zeros(&s);
-        // Rounding may leave "-0".
-        if s == "-0" {
-            "0".to_string()
-        } else {
-            s
-        }
+        decimals(x, (5 - magnitude).max(0) as usize)
     } else {
         let s = format!("{x:.5e}");
         match s.split_once('e') {
@@ -28,6 +20,23 @@ pub fn sig(x: f64) -> String {
             None => s,
         }
     }
+}
+
+/// `x` with `places` decimals, for people (`12.00 V`, `0.0 rpm`): what rounds to
+/// zero has no sign (`0.0`, never `-0.0`); `NaN`, `inf` as they are.
+pub fn fixed(x: f64, places: usize) -> String {
+    let s = format!("{x:.places$}");
+    match s.strip_prefix('-') {
+        Some(rest) if rest.bytes().all(|b| b == b'0' || b == b'.') => rest.to_string(),
+        _ => s,
+    }
+}
+
+/// `x` rounded to `places` decimals and written as the shortest decimal of that
+/// (trailing zeros dropped), for files: `0.03217` (not `0.032170000000000004`),
+/// `3000`, `0` (a subnormal or `-0.0` too, never `-0`); `NaN`, `inf` as they are.
+pub fn decimals(x: f64, places: usize) -> String {
+    trim_zeros(&fixed(x, places))
 }
 
 /// [`sig`] with an explicit sign: `+0.0123`, `-1.5`.
@@ -138,6 +147,29 @@ mod tests {
         assert_eq!(sig(-1e-20), "-1e-20");
         assert_eq!(sig(0.0001), "0.0001");
         assert_eq!(signed(0.0123), "+0.0123");
+        assert_eq!(sig(-1e-7), "-1e-7");
+        assert_eq!(sig(-0.0000001234567), "-1.23457e-7");
+    }
+
+    #[test]
+    fn fixed_decimals_never_print_a_negative_zero() {
+        assert_eq!(fixed(-0.0, 1), "0.0");
+        assert_eq!(fixed(-0.04, 1), "0.0");
+        assert_eq!(fixed(-0.05001, 1), "-0.1");
+        assert_eq!(fixed(2999.96, 1), "3000.0");
+        assert_eq!(fixed(f64::NAN, 3), "NaN");
+    }
+
+    #[test]
+    fn decimals_are_the_shortest_form_of_the_rounded_value() {
+        // 128.68 mm in 4 s.
+        assert_eq!(decimals(128.68 * 1e-3 / 4.0, 6), "0.03217");
+        assert_eq!(decimals(f64::from(2.7e-44_f32), 3), "0");
+        assert_eq!(decimals(-1e-300, 3), "0");
+        assert_eq!(decimals(3000.0, 3), "3000");
+        assert_eq!(decimals(f64::from(3000.0913_f32), 3), "3000.091");
+        assert_eq!(decimals(-0.0230407715, 3), "-0.023");
+        assert_eq!(decimals(f64::NAN, 3), "NaN");
     }
 
     #[test]

@@ -27,6 +27,7 @@ use shared::impact::MAX_CONTACTS;
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::interrupt;
 use crate::machine::{Machine, MachineContact};
 use crate::output::animate::{self, frames::Frames, Film};
@@ -47,6 +48,8 @@ use report::{summary_json, summary_table};
 #[command(mut_arg("t_end", |a| a.help("End time, s (default: the file's `simulation.t_end`)")))]
 #[command(mut_arg("plot", |a| a.help("Write a plot of the run as SVG")))]
 #[command(mut_arg("format", |a| a.help("Output format of the summary")))]
+#[command(mut_arg("animate", |a| a.help(animate::option_help())))]
+#[command(after_help = help())]
 pub struct RunArgs {
     /// The machine file.
     #[command(flatten)]
@@ -78,7 +81,7 @@ pub struct RunArgs {
     /// The plot.
     #[command(flatten)]
     pub plot: PlotArg,
-    /// Write the run as an HTML page that plays it (self-contained; at most 600 s).
+    /// Write the run as an HTML page that plays it ([`animate::option_help`]).
     #[arg(long, value_name = "FILE.html")]
     pub animate: Option<PathBuf>,
     /// Output format.
@@ -87,6 +90,28 @@ pub struct RunArgs {
     /// Overrides.
     #[command(flatten)]
     pub set: SetArgs,
+}
+
+/// The end of `run --help`: examples, the limits of a run (from the constants
+/// that enforce them), the documents.
+fn help() -> String {
+    let mut limits = String::from("Limits (a value beyond one is refused before the run, exit 2):");
+    for line in limits::describe() {
+        limits.push_str(&format!("\n  {line}"));
+    }
+    limits.push_str(&format!(
+        "\n  --animate: runs of at most {} s\n  [[contacts]]: 1 to {MAX_CONTACTS} (the impact solver's)",
+        sig(animate::MAX_SECONDS)
+    ));
+    epilogue(
+        &[
+            "host-sim run examples/vibro-driver.toml --command right --t-end 5",
+            "host-sim run examples/vibro-driver.toml --open-loop 12,12 --t-end 2 --out trace.csv --events events.csv --plot run.svg",
+            "host-sim run examples/vibro-driver.toml --command left --set contacts.K1.friction=0.2 --format json",
+        ],
+        &[limits],
+        &["docs/cli-run.md", "docs/machine-file.md"],
+    )
 }
 
 /// What `--command` asks of the controller.
@@ -241,15 +266,10 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // The output files, checked and opened before the run: a path that cannot be
     // written is refused at once and nothing is left behind.
     let mut staged = Staged::new();
-    let trace = args.out.as_deref().map(|p| staged.add(p)).transpose()?;
-    let events = args.events.as_deref().map(|p| staged.add(p)).transpose()?;
-    let plot = args
-        .plot
-        .file
-        .as_deref()
-        .map(|p| staged.add(p))
-        .transpose()?;
-    let animation = args.animate.as_deref().map(|p| staged.add(p)).transpose()?;
+    let trace = staged.add_optional("--out", args.out.as_deref())?;
+    let events = staged.add_optional("--events", args.events.as_deref())?;
+    let plot = staged.add_optional("--plot", args.plot.file.as_deref())?;
+    let animation = staged.add_optional("--animate", args.animate.as_deref())?;
     let contacts = machine.contacts.len();
     if let Some(i) = trace {
         let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
@@ -302,10 +322,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         staged.write(i, &animate::page(&title, &machine, &mut frames))?;
     }
     if let Some(t) = result.stopped_at {
-        // Ctrl-C: what was simulated is written whole; no summary of half a run.
+        // A signal: what was simulated is written whole; no summary of
+        // half a run.
         staged.commit()?;
         return Err(Failure::Run(format!(
-            "error: run: interrupted at t = {} s of {} s (Ctrl-C); the files asked for hold the run up to there, no summary",
+            "error: run: {} at t = {} s of {} s; the files asked for hold the run up to there, no summary",
+            interrupt::interruption(),
             sig(t),
             sig(t_end)
         )));

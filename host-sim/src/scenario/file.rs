@@ -44,6 +44,7 @@ use shared::controller::{Command, Direction, Faults, State};
 use toml::{Table, Value};
 
 use crate::machine::input::{self, Limit, Location, Need, Problem, Problems, Section};
+use crate::machine::kind::{self, FileKind};
 use crate::machine::Machine;
 use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop;
@@ -346,6 +347,9 @@ pub fn load(path: &Path) -> Result<Scenario, Vec<Problem>> {
 pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Problem>> {
     // 1. TOML.
     let table = input::parse(file, text).map_err(|p| vec![p])?;
+    if let Some(p) = kind::wrong_kind(file, &table, FileKind::Scenario) {
+        return Err(vec![p]);
+    }
 
     // 2. Every key on its own.
     let problems = Problems::new(file);

@@ -22,6 +22,7 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::FormatArg;
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::file::Staged;
 use crate::simulation::{limits, Interruptible};
@@ -29,6 +30,15 @@ use crate::simulation::{limits, Interruptible};
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
 #[command(mut_arg("format", |a| a.help("Output format of the report")))]
+#[command(mut_arg("animate", |a| a.help(animate::option_help())))]
+#[command(after_help = epilogue(
+    &[
+        "host-sim scenario tests/scenarios/travel-right.toml",
+        "host-sim scenario tests/scenarios/estop.toml --format json --animate estop.html",
+    ],
+    &[],
+    &["docs/scenarios.md", "docs/cli-run.md#limits"],
+))]
 pub struct ScenarioArgs {
     /// The scenario file (TOML; see docs/scenarios.md).
     #[arg(value_name = "SCENARIO.toml")]
@@ -36,7 +46,7 @@ pub struct ScenarioArgs {
     /// Output format.
     #[command(flatten)]
     pub format: FormatArg,
-    /// Write the run as an HTML page that plays it (self-contained; at most 600 s).
+    /// Write the run as an HTML page that plays it ([`animate::option_help`]).
     #[arg(long, value_name = "FILE.html")]
     pub animate: Option<PathBuf>,
 }
@@ -58,7 +68,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
 
     // 2. Run, the animation's file opened first (refused before the run).
     let mut staged = Staged::new();
-    let animation = args.animate.as_deref().map(|p| staged.add(p)).transpose()?;
+    let animation = staged.add_optional("--animate", args.animate.as_deref())?;
     let mut film = Film {
         frames: animation.map(|_| Frames::new(&scenario.machine)),
         inner: &mut Interruptible::new(),
@@ -77,7 +87,8 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     staged.commit()?;
     if let Some(t) = report.stopped_at {
         return Err(Failure::Run(format!(
-            "error: scenario: interrupted at t = {} s (Ctrl-C): nothing judged{}",
+            "error: scenario: {} at t = {} s: nothing judged{}",
+            crate::interrupt::interruption(),
             crate::output::text::sig(t),
             if args.animate.is_some() {
                 "; the animation holds the run up to there"

@@ -19,6 +19,17 @@ pub const MAX_T_END_S: f64 = 3600.0;
 /// Most regular trace rows of one run (`t_end / output_step`).
 pub const MAX_TRACE_ROWS: f64 = 1.0e7;
 
+/// The limits as lines for people (`run --help`), from the constants above.
+pub fn describe() -> Vec<String> {
+    vec![
+        format!(
+            "--t-end (or simulation.t_end): at most {} s of simulated time in one run",
+            sig(MAX_T_END_S)
+        ),
+        format!("trace rows, t_end / simulation.output_step: at most {MAX_TRACE_ROWS:.0e}"),
+    ]
+}
+
 /// The problems of a run of `machine` to `t_end`, s, whose end
 /// time was given as `t_end_key` (`--t-end`, `simulation.t_end`, `FILE: t_end`):
 /// one line each, `error: ` first.

@@ -26,9 +26,19 @@ use super::{
     warning_count, Report, TuneOutputs,
 };
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 
 /// Arguments of `host-sim merge`.
 #[derive(Debug, Args)]
+#[command(after_help = epilogue(
+    &[
+        "host-sim tune examples/vibro-driver.toml --t-end 4 --shard 1/2 --out-part part1.json",
+        "host-sim tune examples/vibro-driver.toml --t-end 4 --shard 2/2 --out-part part2.json",
+        "host-sim merge part1.json part2.json --write my.tuning.toml --plot tune.svg",
+    ],
+    &[],
+    &["docs/scale-out.md", "docs/tuning.md"],
+))]
 pub struct MergeArgs {
     /// The partial results of `host-sim tune --shard I/N`: all N parts of one
     /// sweep, in any order.

@@ -50,6 +50,7 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
+use crate::help::epilogue;
 use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
@@ -75,6 +76,15 @@ use sweep::{parse_offsets, parse_speeds, Range};
 /// Arguments of `host-sim tune`.
 #[derive(Debug, Args)]
 #[command(mut_arg("t_end", |a| a.help("End time of each run, s; the mean velocity is over the second half [default: 5]")))]
+#[command(after_help = epilogue(
+    &[
+        "host-sim tune examples/vibro-driver.toml --speeds 2750:3000:250 --offsets 0:360:90 --t-end 4",
+        "host-sim tune examples/vibro-driver.toml --write my.tuning.toml --plot tune.svg",
+        "host-sim tune examples/vibro-driver.toml --shard 1/2 --out-part part1.json",
+    ],
+    &[],
+    &["docs/tuning.md", "docs/scale-out.md (--shard)"],
+))]
 pub struct TuneArgs {
     /// The machine file.
     #[command(flatten)]
@@ -405,12 +415,13 @@ pub(crate) fn progress_bar(name: &str, total: usize) -> Progress {
     Progress::new(name, total as u64, "runs")
 }
 
-/// A failure of `command` (`tune`, `merge`) when Ctrl-C stopped the runs (`what`
-/// is what that left undone): nothing is written then.
+/// A failure of `command` (`tune`, `merge`) when a signal stopped the runs
+/// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
 pub(crate) fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
     if crate::interrupt::interrupted() {
         return Err(Failure::Run(format!(
-            "error: {command}: interrupted (Ctrl-C): {what}, nothing written"
+            "error: {command}: {}: {what}, nothing written",
+            crate::interrupt::interruption()
         )));
     }
     Ok(())
@@ -470,15 +481,10 @@ impl Report {
     pub fn open(output: &TuneOutputs) -> Result<Report, Failure> {
         let mut staged = Staged::new();
         let table = match &output.write {
-            Some(p) => Some((staged.add(p)?, p.clone())),
+            Some(p) => Some((staged.add("--write", p)?, p.clone())),
             None => None,
         };
-        let plot = output
-            .plot
-            .file
-            .as_deref()
-            .map(|p| staged.add(p))
-            .transpose()?;
+        let plot = staged.add_optional("--plot", output.plot.file.as_deref())?;
         Ok(Report {
             staged,
             table,

@@ -332,7 +332,7 @@ pub(crate) fn run_shard(
 ) -> Result<(), Failure> {
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
-    let output = staged.add(&out)?;
+    let output = staged.add("--out-part", &out)?;
 
     let started = Instant::now();
     let all = grid.points();

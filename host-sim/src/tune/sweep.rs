@@ -271,11 +271,18 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         };
         Some(format!("the controller ended `{}`{faults}", s.state))
     } else if settled_at.is_none_or(|t| t > 0.5 * t_end) {
-        Some(format!(
-            "the offset reference reached the held offset only at t = {} s, after T/2 = {} s (raise --t-end)",
-            settled_at.map_or("-".to_string(), text::sig),
-            text::sig(0.5 * t_end)
-        ))
+        Some(match settled_at {
+            Some(t) => format!(
+                "the offset reference reached the held offset only at t = {} s, after T/2 = {} s (raise --t-end)",
+                text::sig(t),
+                text::sig(0.5 * t_end)
+            ),
+            // Not held at the last tick: it never settled.
+            None => format!(
+                "the offset reference had not reached the held offset by the end of the run, t = {} s (raise --t-end)",
+                text::sig(t_end)
+            ),
+        })
     } else if s.phase_error_deg_rms.is_nan() || s.phase_error_deg_rms > HELD_ERROR_DEG_RMS {
         Some(format!(
             "phase error {} deg RMS over the second half (held offsets stay within {} deg)",

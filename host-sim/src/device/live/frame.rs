@@ -6,10 +6,15 @@
 use serde_json::{json, Value};
 use shared::protocol::StatusReport;
 
-/// An `f32` as the JSON number of its shortest exact decimal form (3000.0913, not
-/// the widened 3000.09130859375); a non-finite one as `null`.
-fn number(x: f32) -> Value {
-    x.to_string()
+use crate::device::report::{
+    field, AMPERE_PLACES, DEG_PLACES, DUTY_PLACES, RPM_PLACES, VOLT_PLACES,
+};
+
+/// An `f32` as the JSON number of its CSV cell ([`field`]: rounded to `places`
+/// decimals, 3000.091 rather than the widened 3000.09130859375); a non-finite one
+/// as `null`.
+fn number(x: f32, places: usize) -> Value {
+    field(x, places)
         .parse::<f64>()
         .ok()
         .and_then(serde_json::Number::from_f64)
@@ -24,21 +29,21 @@ pub fn json(s: &StatusReport) -> String {
         "uptime_ms": s.uptime_ms,
         "state": s.state.name(),
         "faults": faults,
-        "speed1_rpm": number(t.speed_rpm[0]),
-        "speed2_rpm": number(t.speed_rpm[1]),
-        "speed_ref1_rpm": number(t.speed_ref_rpm[0]),
-        "speed_ref2_rpm": number(t.speed_ref_rpm[1]),
+        "speed1_rpm": number(t.speed_rpm[0], RPM_PLACES),
+        "speed2_rpm": number(t.speed_rpm[1], RPM_PLACES),
+        "speed_ref1_rpm": number(t.speed_ref_rpm[0], RPM_PLACES),
+        "speed_ref2_rpm": number(t.speed_ref_rpm[1], RPM_PLACES),
         "phase_valid": t.phase_valid,
         "phase_loop_closed": t.phase_loop_closed,
-        "phase_offset_deg": number(t.phase_offset_deg),
-        "commanded_offset_deg": number(t.commanded_offset_deg),
-        "target_offset_deg": number(t.target_offset_deg),
-        "phase_error_deg": number(t.phase_error_deg),
-        "current1_a": number(t.current[0]),
-        "current2_a": number(t.current[1]),
-        "supply_voltage_v": number(t.supply_voltage),
-        "duty1": number(t.duty[0]),
-        "duty2": number(t.duty[1]),
+        "phase_offset_deg": number(t.phase_offset_deg, DEG_PLACES),
+        "commanded_offset_deg": number(t.commanded_offset_deg, DEG_PLACES),
+        "target_offset_deg": number(t.target_offset_deg, DEG_PLACES),
+        "phase_error_deg": number(t.phase_error_deg, DEG_PLACES),
+        "current1_a": number(t.current[0], AMPERE_PLACES),
+        "current2_a": number(t.current[1], AMPERE_PLACES),
+        "supply_voltage_v": number(t.supply_voltage, VOLT_PLACES),
+        "duty1": number(t.duty[0], DUTY_PLACES),
+        "duty2": number(t.duty[1], DUTY_PLACES),
         "command_rejected": t.command_rejected,
         "tick_late_us": t.tick_late_us,
         "tick_busy_us": t.tick_busy_us,
@@ -96,7 +101,7 @@ mod tests {
                     .is_some_and(|(a, b)| a == b);
             assert!(same, "{k}: {got} in JSON, {want} in CSV");
         }
-        assert_eq!(v["speed1_rpm"], json!(3000.0913));
+        assert_eq!(v["speed1_rpm"], json!(3000.091));
         assert_eq!(v["faults"], json!(["stall", "link_lost"]));
     }
 }

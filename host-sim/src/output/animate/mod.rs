@@ -35,6 +35,14 @@ const TEMPLATE: &str = include_str!("page.html");
 /// The player.
 const SCRIPT: &str = include_str!("page.js");
 
+/// The help of `--animate` (`run`, `scenario`), its limit from [`MAX_SECONDS`].
+pub fn option_help() -> String {
+    format!(
+        "Write the run as an HTML page that plays it (self-contained; runs of at most {} s)",
+        crate::output::text::sig(MAX_SECONDS)
+    )
+}
+
 /// A refusal if a run of `t_end` s is longer than an animation holds; `origin`
 /// names where `t_end` came from (`--t-end`, `simulation.t_end`, a scenario key).
 pub fn check_duration(t_end: f64, origin: &str) -> Option<String> {
