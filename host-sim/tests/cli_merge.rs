@@ -348,6 +348,16 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
             "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held null"
         ));
     }
+    // Parts of another host-sim: the merge's check runs would be this one's.
+    all_resealed_refused(
+        &d,
+        "old",
+        |p| p.sweep.host_sim_version = "0.0.1".into(),
+        &format!(
+            "error: old1.json: a part of host-sim 0.0.1, this is host-sim {}: run the parts and the merge with one host-sim",
+            env!("CARGO_PKG_VERSION")
+        ),
+    );
     // Sweeps tune refuses: they would run for ever, or the controller refuse them.
     all_resealed_refused(
         &d,

@@ -478,6 +478,15 @@ pub fn read(path: &Path) -> Result<Part, String> {
     if let Some(why) = part.sweep.problem() {
         return Err(damaged(why));
     }
+    // merge's check runs are this host-sim's: the parts' runs must be too.
+    let this = env!("CARGO_PKG_VERSION");
+    if part.sweep.host_sim_version != this {
+        return Err(format!(
+            "error: {}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
+            path.display(),
+            part.sweep.host_sim_version
+        ));
+    }
     let Shard { index, count } = part.shard;
     if count == 0 || count > MAX_POINTS || index == 0 || index > count {
         return Err(damaged(format!(
