@@ -1,7 +1,8 @@
 //! `host-sim device telemetry --serve` through the real binary against the real
 //! `host-sim device-sim` over TCP: the routes over plain HTTP (the page, the
-//! event stream's frames, Stop and its acknowledgement, 404/405, the loopback and
-//! origin checks, the end of the stream), the remote warning, the refusal of a
+//! event stream's frames, Stop and its acknowledgement, also behind half-sent
+//! requests, 404/405, the loopback and origin checks, two Host headers, the end
+//! of the stream), the remote warning, the refusal of a
 //! network address without `--allow-remote`, and the live page in a headless
 //! chromium: values that change, Pause, no console error, Stop stopping the
 //! device (seen by `host-sim device status`), a screenshot in
@@ -243,6 +244,30 @@ fn the_routes_over_plain_http() {
     assert_eq!(status_body(&r).0, 403);
     let r = post("/stop", "\r\nOrigin: http://attacker.example");
     assert_eq!(status_body(&r).0, 403);
+    // Without Origin, the browser's other words for another site's page.
+    let r = post("/stop", "\r\nSec-Fetch-Site: cross-site");
+    assert_eq!(status_body(&r).0, 403, "{r}");
+    let r = post("/stop", "\r\nReferer: http://attacker.example/page");
+    assert_eq!(status_body(&r).0, 403, "{r}");
+    // Two Host headers: neither is taken.
+    for hosts in [
+        format!("Host: {addr}\r\nHost: attacker.example"),
+        format!("Host: attacker.example\r\nHost: {addr}"),
+    ] {
+        let r = http(&addr, &format!("GET / HTTP/1.1\r\n{hosts}"));
+        assert_eq!(status_body(&r).0, 400, "{r}");
+        assert!(r.contains("two Host headers"), "{r}");
+    }
+    // Clients that send the start of a request and nothing more, more than the
+    // server lets wait: the Stop below still gets through.
+    let half: Vec<TcpStream> = (0..80)
+        .map(|_| {
+            let mut s = TcpStream::connect(&addr).unwrap();
+            s.write_all(b"POST /stop HTTP/1.1\r\nHost: 127.0.0.1")
+                .unwrap();
+            s
+        })
+        .collect();
 
     // Stop, acknowledged by the device.
     let r = post("/stop", &format!("\r\nOrigin: http://{addr}"));
@@ -252,6 +277,7 @@ fn the_routes_over_plain_http() {
         serde_json::from_str::<Value>(&body).unwrap(),
         json!({ "accepted": true, "answer": "stop: accepted" })
     );
+    drop(half);
 
     // --duration ends it: the open stream gets its end, the stream is off.
     let mut end = None;

@@ -179,3 +179,60 @@ fn tune_refuses_an_unwritable_output_before_the_sweep() {
         "No such file",
     );
 }
+
+/// Every input file of every command is read through the one reader: a regular
+/// file of at most 4 MiB. `/dev/zero` never ends (it filled the memory at
+/// 400 MB/s) and opening a named pipe no one writes to waits for ever: both are
+/// refused before they are opened, naming the file; so is a directory and a
+/// file past the limit.
+#[test]
+fn an_input_file_is_a_regular_file_of_bounded_size() {
+    let fifo = scratch("cli-limits", "pipe.toml");
+    let _ = std::fs::remove_file(&fifo);
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    let big = scratch("cli-limits", "big.toml");
+    std::fs::write(&big, "#".repeat((4 << 20) + 1)).unwrap();
+    let dir = scratch("cli-limits", "a-directory.toml");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (fifo, big, dir) = (
+        fifo.to_str().unwrap(),
+        big.to_str().unwrap(),
+        dir.to_str().unwrap(),
+    );
+    let m = machine();
+    let m = m.to_str().unwrap();
+    let device = "a device, not a regular file";
+    let pipe = "a named pipe (FIFO), not a regular file";
+    // The first cases end on a reader without these checks too (and fail the
+    // test there), before those that would wait or fill the memory.
+    let cases: &[(&[&str], &str, &str)] = &[
+        (
+            &["run", big, "--command", "right"],
+            big,
+            "too large (4194305 bytes): an input file of this kind has at most 4194304 bytes (4 MiB)",
+        ),
+        (&["run", dir, "--command", "right"], dir, "a directory, not a regular file"),
+        (&["run", fifo, "--command", "right"], fifo, pipe),
+        (&["impact", fifo], fifo, pipe),
+        (&["tune", fifo], fifo, pipe),
+        (
+            &["calibrate", m, "--measured", fifo, "--fit", "contacts.*.friction"],
+            fifo,
+            pipe,
+        ),
+        (&["run", "/dev/zero", "--command", "right"], "/dev/zero", device),
+        (
+            &["run", m, "--command", "right", "--set", "controller.tuning_table=/dev/zero"],
+            "/dev/zero",
+            device,
+        ),
+        (&["scenario", "/dev/zero"], "/dev/zero", device),
+    ];
+    for (args, file, why) in cases {
+        let mut cmd = host_sim();
+        cmd.args(*args).current_dir(root());
+        let r = finish_within(cmd, LIMIT);
+        r.refused(&format!("error: {file}: cannot read the file: {why}"));
+    }
+}

@@ -6,6 +6,10 @@
 //! file named); tune refuses a bad `--shard`.
 
 use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use host_sim::tune::part::Part;
+use serde_json::Value;
 
 mod common;
 use common::{machine, Run, TINY_GRID as GRID};
@@ -228,5 +232,173 @@ fn tune_refuses_a_bad_shard() {
     assert!(
         std::fs::read_dir(&d).unwrap().next().is_none(),
         "nothing written"
+    );
+}
+
+/// Part `name` in `d` with `edit` made to its JSON, written as `out`: a hand edit
+/// (the hashes left as they were).
+fn hand_edited(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut Value)) {
+    let mut part: Value = serde_json::from_slice(&bytes(d.join(name))).unwrap();
+    edit(&mut part);
+    let text = serde_json::to_string_pretty(&part).unwrap();
+    std::fs::write(d.join(out), text).unwrap();
+}
+
+/// Part `name` in `d` with `edit` made and its hashes computed again, written as
+/// `out`: what someone who recomputes them makes.
+fn resealed(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut Part)) {
+    let mut part: Part = serde_json::from_slice(&bytes(d.join(name))).unwrap();
+    edit(&mut part);
+    part.seal();
+    let text = serde_json::to_string_pretty(&part).unwrap();
+    std::fs::write(d.join(out), text).unwrap();
+}
+
+/// `host-sim merge args...` in `cwd`, failing (not hanging) if it runs on past
+/// [`WATCHDOG`].
+fn merge_within(cwd: &Path, args: &[&str]) -> Run {
+    let mut cmd = common::host_sim();
+    cmd.arg("merge").args(args).current_dir(cwd);
+    common::finish_within(cmd, WATCHDOG)
+}
+
+/// Long enough for a merge of the tiny grid on a loaded machine (a few seconds);
+/// the defects these tests guard against never end.
+const WATCHDOG: Duration = Duration::from_secs(120);
+
+/// The run of `part` at `speed_rpm`, `offset_deg`.
+fn run_at(part: &mut Value, speed_rpm: f64, offset_deg: f64) -> &mut Value {
+    part["runs"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find(|r| r["speed_rpm"] == speed_rpm && r["offset_deg"] == offset_deg)
+        .expect("the part has the run")
+}
+
+/// The three parts of the tiny sweep in a fresh scratch directory `name`.
+fn three_parts(name: &str) -> PathBuf {
+    let m = machine().canonicalize().unwrap();
+    let d = dir(name);
+    for i in 1..=3 {
+        part(&d, &m, &GRID, &format!("{i}/3"), &format!("p{i}.json"));
+    }
+    d
+}
+
+#[test]
+fn merge_refuses_a_part_whose_runs_were_edited() {
+    let d = three_parts("edited-runs");
+    // Part 2 holds 3000 rpm, 0 deg (grid point 4), which travels neither way;
+    // as 0.05 m/s it became the best right offset of 3000 rpm.
+    let edits: [(&str, Value); 5] = [
+        ("mean_velocity", 0.05.into()),
+        ("mean_velocity", "NaN".into()),
+        ("mean_velocity", "inf".into()),
+        ("mean_velocity", 1e308.into()),
+        ("not_held", "the offset was not held".into()),
+    ];
+    for (k, (key, value)) in edits.into_iter().enumerate() {
+        let name = format!("edit{k}.json");
+        hand_edited(&d, "p2.json", &name, |p| {
+            run_at(p, 3000.0, 0.0)[key] = value.clone();
+        });
+        let r = merge_within(&d, &["p1.json", &name, "p3.json"]);
+        r.refused(&format!(
+            "error: {name}: a damaged partial result: part 2/3: part_sha256 does not match its contents"
+        ));
+        assert!(r.stdout.is_empty(), "{key} = {value}: {}", r.stdout);
+    }
+    // The machine file's path is the part's too.
+    hand_edited(&d, "p1.json", "path.json", |p| {
+        p["machine"]["path"] = "/dev/zero".into();
+    });
+    merge_within(&d, &["path.json", "p2.json", "p3.json"]).refused(
+        "error: path.json: a damaged partial result: part 1/3: part_sha256 does not match",
+    );
+    // Unedited, they merge.
+    let r = merge_within(&d, &["p1.json", "p2.json", "p3.json"]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+}
+
+/// The three parts in `d` with `edit` made to each and their hashes recomputed,
+/// as `TAG1.json`, ...: merged, refused with `message`, within [`WATCHDOG`].
+fn all_resealed_refused(d: &Path, tag: &str, edit: impl Fn(&mut Part), message: &str) {
+    let names: Vec<String> = (1..=3).map(|i| format!("{tag}{i}.json")).collect();
+    for (i, name) in (1..=3).zip(&names) {
+        resealed(d, &format!("p{i}.json"), name, &edit);
+    }
+    let args: Vec<&str> = names.iter().map(String::as_str).collect();
+    let r = merge_within(d, &args);
+    r.refused(message);
+    assert!(r.stdout.is_empty(), "{tag}: {}", r.stdout);
+}
+
+#[test]
+fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
+    let d = three_parts("resealed");
+    // A held run without a mean velocity: no run makes that.
+    for (k, v) in [f64::NAN, f64::INFINITY].into_iter().enumerate() {
+        let name = format!("value{k}.json");
+        resealed(&d, "p2.json", &name, |p| {
+            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            r.mean_velocity = v;
+        });
+        merge_within(&d, &["p1.json", &name, "p3.json"]).refused(&format!(
+            "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held null"
+        ));
+    }
+    // Parts of another host-sim: the merge's check runs would be this one's.
+    all_resealed_refused(
+        &d,
+        "old",
+        |p| p.sweep.host_sim_version = "0.0.1".into(),
+        &format!(
+            "error: old1.json: a part of host-sim 0.0.1, this is host-sim {}: run the parts and the merge with one host-sim",
+            env!("CARGO_PKG_VERSION")
+        ),
+    );
+    // Sweeps tune refuses: they would run for ever, or the controller refuse them.
+    all_resealed_refused(
+        &d,
+        "t-end",
+        |p| p.sweep.t_end = 1e300,
+        "error: t-end1.json: a sweep tune refuses: --t-end 1e300: at most 3600 s of simulated time in one run",
+    );
+    all_resealed_refused(
+        &d,
+        "step",
+        |p| p.sweep.set = vec!["simulation.output_step=1e-300".into()],
+        "error: step1.json: a sweep tune refuses: simulation.output_step 1e-300: ",
+    );
+    all_resealed_refused(
+        &d,
+        "speed",
+        |p| {
+            // The grid's speed and its runs'.
+            p.sweep.speeds_rpm[1] = 9000.0;
+            for r in p.runs.iter_mut().filter(|r| r.speed_rpm == 3000.0) {
+                r.speed_rpm = 9000.0;
+            }
+        },
+        "error: speed1.json: a sweep tune refuses: --speeds 2750:3000:250: 9000 rpm outside the controller's speed range",
+    );
+    // A machine file that never ends, and a named pipe no one writes to: refused,
+    // neither read nor waited on.
+    all_resealed_refused(
+        &d,
+        "zero",
+        |p| p.machine.path = "/dev/zero".into(),
+        "error: /dev/zero: cannot read the file: a device, not a regular file (an input file is read whole): the machine file the parts were made from",
+    );
+    let fifo = d.join("fifo.toml");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+    let fifo = fifo.to_str().unwrap().to_string();
+    all_resealed_refused(
+        &d,
+        "fifo",
+        |p| p.machine.path = fifo.clone(),
+        "fifo.toml: cannot read the file: a named pipe (FIFO), not a regular file",
     );
 }

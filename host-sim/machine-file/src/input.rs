@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Stages of reading a file (see [`load`]):
-//! 1. read the text ([`read_text`]): a missing or unreadable file is one problem;
+//! 1. read the text ([`read_text`]): a regular file of bounded size; a missing,
+//!    unreadable, special or too large file is one problem;
 //! 2. parse the TOML ([`parse`]): a syntax error is one problem with its line and column;
 //! 3. walk the tables with [`Section`]: each typed read checks the type, rejects NaN and
 //!    infinities, checks the allowed range, and records the key as known;
@@ -167,13 +168,100 @@ impl Problems {
     }
 }
 
-/// Reads a whole text file; a missing or unreadable file is one problem.
+/// The largest input file [`read_text`] reads, bytes: 4 MiB. The reference
+/// machine file is 7 kB and a tuning table, a scenario or an impact case a few;
+/// a file this large is a mistake (a log, an image, a device), and reading no
+/// more keeps a mistake from filling the memory.
+pub const MAX_FILE_BYTES: u64 = 4 << 20;
+
+/// Reads a whole text file of at most [`MAX_FILE_BYTES`]
+/// ([`read_text_at_most`]); a missing, unreadable, special or too large file is
+/// one problem.
 pub fn read_text(path: &Path) -> Result<String, Problem> {
-    std::fs::read_to_string(path).map_err(|e| Problem {
+    read_text_at_most(path, MAX_FILE_BYTES)
+}
+
+/// Reads a whole text file of at most `limit` bytes: the one way every command
+/// reads an input file. Only a regular file is read (a symbolic link is
+/// followed): a directory, a named pipe (FIFO, whose opening alone would wait
+/// for a writer for ever), a device (`/dev/zero` never ends) or a socket is
+/// refused from its metadata before it is opened, and again from the metadata
+/// of the file opened. The size is checked before reading, and the read itself
+/// takes at most `limit + 1` bytes, so a file that grows while it is read, or
+/// that reports no size (`/proc`), is still refused past `limit`.
+pub fn read_text_at_most(path: &Path, limit: u64) -> Result<String, Problem> {
+    let problem = |message: String| Problem {
         file: path.display().to_string(),
         location: Location::File,
-        message: format!("cannot read the file: {}", io_reason(&e)),
-    })
+        message,
+    };
+    let cannot = |e: std::io::Error| problem(format!("cannot read the file: {}", io_reason(&e)));
+    let check = |meta: &std::fs::Metadata| {
+        if !meta.is_file() {
+            Err(problem(format!(
+                "cannot read the file: {}, not a regular file (an input file is read whole)",
+                file_kind(meta)
+            )))
+        } else if meta.len() > limit {
+            Err(problem(too_large(Some(meta.len()), limit)))
+        } else {
+            Ok(())
+        }
+    };
+    check(&std::fs::metadata(path).map_err(cannot)?)?;
+    let file = std::fs::File::open(path).map_err(cannot)?;
+    let meta = file.metadata().map_err(cannot)?;
+    check(&meta)?;
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(file, limit.saturating_add(1)),
+        &mut bytes,
+    )
+    .map_err(cannot)?;
+    if bytes.len() as u64 > limit {
+        return Err(problem(too_large(None, limit)));
+    }
+    String::from_utf8(bytes).map_err(|_| problem("cannot read the file: not UTF-8 text".into()))
+}
+
+/// Why a file of `size` bytes (`None`: more than `limit`, found while reading
+/// it) is refused.
+fn too_large(size: Option<u64>, limit: u64) -> String {
+    let size = match size {
+        Some(n) => format!("{n} bytes"),
+        None => format!("more than {limit} bytes"),
+    };
+    const MIB: u64 = 1 << 20;
+    let mib = if limit.is_multiple_of(MIB) {
+        format!(" ({} MiB)", limit / MIB)
+    } else {
+        String::new()
+    };
+    format!(
+        "cannot read the file: too large ({size}): an input file of this kind has at most {limit} bytes{mib}"
+    )
+}
+
+/// What a file that is not a regular file is, for people.
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a named pipe (FIFO)";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
 }
 
 /// A short reason for an I/O error, without Rust's `(os error N)` noise.
@@ -840,6 +928,83 @@ mod tests {
 
     fn lines(problems: Problems) -> Vec<String> {
         problems.into_vec().iter().map(|p| p.to_string()).collect()
+    }
+
+    /// `read_text_at_most(path, limit)` on a thread, failing the test if it has
+    /// not returned within 20 s (a read that waits for ever fails, not hangs).
+    fn read_within(path: &Path, limit: u64) -> Result<String, String> {
+        let path = path.to_path_buf();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(read_text_at_most(&path, limit).map_err(|p| p.to_string()));
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(20))
+            .expect("the read returned")
+    }
+
+    #[test]
+    fn only_a_regular_file_of_bounded_size_is_read() {
+        let dir = std::env::temp_dir().join(format!("machine-file-read-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let small = dir.join("small.toml");
+        std::fs::write(&small, "x = 1\n").unwrap();
+        assert_eq!(read_within(&small, 6), Ok("x = 1\n".into()));
+        let message = read_within(&small, 5).unwrap_err();
+        assert!(
+            message.ends_with("small.toml: cannot read the file: too large (6 bytes): an input file of this kind has at most 5 bytes"),
+            "{message}"
+        );
+        std::fs::write(dir.join("latin1.toml"), b"x = \"\xe9\"\n").unwrap();
+        let message = read_within(&dir.join("latin1.toml"), 100).unwrap_err();
+        assert!(
+            message.ends_with("cannot read the file: not UTF-8 text"),
+            "{message}"
+        );
+        let message = read_within(&dir, 100).unwrap_err();
+        assert!(
+            message.ends_with("cannot read the file: a directory, not a regular file (an input file is read whole)"),
+            "{message}"
+        );
+        let message = read_within(&dir.join("none.toml"), 100).unwrap_err();
+        assert!(
+            message.ends_with("cannot read the file: no such file"),
+            "{message}"
+        );
+        #[cfg(unix)]
+        {
+            // A device that never ends, and a named pipe no one writes to: both
+            // refused before they are opened.
+            let message = read_within(Path::new("/dev/zero"), MAX_FILE_BYTES).unwrap_err();
+            assert_eq!(
+                message,
+                "error: /dev/zero: cannot read the file: a device, not a regular file (an input file is read whole)"
+            );
+            let fifo = dir.join("fifo.toml");
+            let _ = std::fs::remove_file(&fifo);
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+            if made.is_ok_and(|s| s.success()) {
+                let message = read_within(&fifo, MAX_FILE_BYTES).unwrap_err();
+                assert!(
+                    message.ends_with("fifo.toml: cannot read the file: a named pipe (FIFO), not a regular file (an input file is read whole)"),
+                    "{message}"
+                );
+            } else {
+                panic!("mkfifo is needed for this test");
+            }
+        }
+        // A regular file that reports no size (0) and has more: cut at the limit
+        // while read, not trusted.
+        #[cfg(target_os = "linux")]
+        {
+            let maps = Path::new("/proc/self/maps");
+            assert_eq!(std::fs::metadata(maps).unwrap().len(), 0);
+            let message = read_within(maps, 16).unwrap_err();
+            assert!(
+                message.ends_with("cannot read the file: too large (more than 16 bytes): an input file of this kind has at most 16 bytes"),
+                "{message}"
+            );
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

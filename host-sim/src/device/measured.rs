@@ -13,6 +13,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::failure::Failure;
+use crate::machine::input;
 use crate::measured::{self, Header, Row};
 use crate::output::csv::csv_number;
 use crate::simulation::summary::wrap_deg_360;
@@ -80,8 +81,8 @@ impl MeasuredFile {
     /// row checked ([`measured::parse`]; speeds above 0, as `--speeds`'), every
     /// problem at once.
     pub fn resume(path: &Path) -> Result<MeasuredFile, Failure> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| usage(path, format!("--resume: cannot read the file: {e}")))?;
+        let text =
+            input::read_text(path).map_err(|p| usage(path, format!("--resume: {}", p.message)))?;
         let (header, rows) =
             measured::parse(&path.display().to_string(), &text, None).map_err(Failure::Usage)?;
         let file = OpenOptions::new().append(true).open(path).map_err(|e| {

@@ -8,7 +8,9 @@
 //!    ([`part::assemble`]): one sweep, the same N, each part once, none missing;
 //!    every problem at once, exit 2, before any run;
 //! 2. the machine file the parts name (or `--machine`), its SHA-256 checked against
-//!    theirs, loaded with their `--set` overrides;
+//!    theirs, loaded with their `--set` overrides; the sweep checked against
+//!    `tune`'s limits ([`grid_problems`]: a part cannot ask for what `tune`
+//!    refuses, whoever recomputed its hashes);
 //! 3. the outputs opened ([`Report::open`]), then the sweep concluded from the
 //!    grid's outcomes ([`super::conclude`]: the best offsets with their check runs,
 //!    at most two per speed, and the warnings) and reported ([`Report::finish`]),
@@ -22,8 +24,8 @@ use clap::Args;
 use super::part;
 use super::report::count;
 use super::{
-    conclude, load_machine, progress_bar, read_machine_file, refuse_interrupted, table_problems,
-    warning_count, Report, TuneOutputs,
+    conclude, grid_problems, load_machine, progress_bar, read_machine_file, refuse_interrupted,
+    table_problems, warning_count, Report, TuneOutputs,
 };
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
@@ -95,6 +97,21 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
     let grid = first.sweep.grid();
+    let refused = grid_problems(&machine, &grid, &first.sweep.speeds, &first.sweep.offsets);
+    if !refused.is_empty() {
+        // The parts are one sweep (checked): the first one names it.
+        let file = parts[0].0.display();
+        let lines: Vec<String> = refused
+            .iter()
+            .map(|p| {
+                format!(
+                    "error: {file}: a sweep tune refuses: {}",
+                    p.trim_start_matches("error: ")
+                )
+            })
+            .collect();
+        return Err(Failure::Usage(lines.join("\n") + "\n"));
+    }
     if args.output.write.is_some() {
         let problems = table_problems(&grid.speeds_rpm, &first.sweep.speeds);
         if !problems.is_empty() {

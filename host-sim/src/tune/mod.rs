@@ -214,19 +214,12 @@ pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), String> {
     let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
     let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
-    let params = match closed_loop::params(&machine) {
-        Ok(p) => p,
-        Err(problems) => return Err(input::render(&problems)),
-    };
-    let (lo, hi) = (
-        f64::from(params.min_speed_rpm),
-        f64::from(params.max_speed_rpm),
-    );
+    let (lo, hi) = speed_range(&machine)?;
     let mut problems = Vec::new();
 
-    // Speeds: given, or around the nominal speed; all within the controller's range.
-    let (speeds, speeds_text) = match &args.speeds {
-        Some(r) => (Some(r.points.clone()), r.text.clone()),
+    // Speeds: given, or around the nominal speed.
+    let (speeds_rpm, speeds_text) = match &args.speeds {
+        Some(r) => (r.points.clone(), r.text.clone()),
         None => {
             let (s, t) = default_speeds(machine.controller.speed_rpm, lo, hi);
             if s.is_empty() {
@@ -236,28 +229,10 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
                     text::sig(lo),
                     text::sig(hi)
                 ));
-                (None, t)
-            } else {
-                (Some(s), t)
             }
+            (s, t)
         }
     };
-    let speeds = speeds.filter(|s| {
-        let outside: Vec<String> = s
-            .iter()
-            .filter(|v| !(**v >= lo && **v <= hi))
-            .map(|v| text::sig(*v))
-            .collect();
-        if !outside.is_empty() {
-            problems.push(format!(
-                "error: --speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
-                outside.join(", "),
-                text::sig(lo),
-                text::sig(hi)
-            ));
-        }
-        outside.is_empty()
-    });
 
     // Offsets: at most one turn (checked by the parser), wrapped to [0, 360).
     let default_offsets;
@@ -269,51 +244,83 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
         }
     };
     let offsets_text = offsets_range.text.clone();
-    let offsets = Some(wrap_offsets(&offsets_range.points));
+    let grid = Grid {
+        speeds_rpm,
+        offsets_deg: wrap_offsets(&offsets_range.points),
+        t_end: args.t_end.seconds.unwrap_or(DEFAULT_T_END),
+    };
+    problems.extend(grid_problems(&machine, &grid, &speeds_text, &offsets_text));
+    if args.output.write.is_some() {
+        problems.extend(table_problems(&grid.speeds_rpm, &speeds_text));
+    }
+    if !problems.is_empty() {
+        return Err(problems.join("\n") + "\n");
+    }
+    let request = Request {
+        machine_path: args.machine.path.clone(),
+        machine_sha256,
+        set: args.set.keys.clone(),
+        speeds_text,
+        offsets_text,
+    };
+    Ok((machine, grid, request, text))
+}
 
-    // The end time.
-    let t_end = args.t_end.seconds.unwrap_or(DEFAULT_T_END);
+/// The controller's speed range of `machine`, rpm: `[min_speed_rpm,
+/// max_speed_rpm]`.
+fn speed_range(machine: &Machine) -> Result<(f64, f64), String> {
+    match closed_loop::params(machine) {
+        Ok(p) => Ok((f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm))),
+        Err(problems) => Err(input::render(&problems)),
+    }
+}
+
+/// What `tune` refuses in a sweep of `grid` on `machine` (with `--speeds` given
+/// as `speeds_text`, `--offsets` as `offsets_text`), one line each: speeds
+/// outside the controller's range, an end time that is not a positive number
+/// or beyond one run's limits ([`limits::check`], the trace rows of
+/// `simulation.output_step` included), more than [`MAX_POINTS`] runs. The one
+/// definition for `tune`'s options and for the sweep a part of `merge` names.
+pub fn grid_problems(
+    machine: &Machine,
+    grid: &Grid,
+    speeds_text: &str,
+    offsets_text: &str,
+) -> Vec<String> {
+    let (lo, hi) = match speed_range(machine) {
+        Ok(range) => range,
+        Err(problems) => return problems.lines().map(str::to_string).collect(),
+    };
+    let mut problems = Vec::new();
+    let outside: Vec<String> = grid
+        .speeds_rpm
+        .iter()
+        .filter(|v| !(**v >= lo && **v <= hi))
+        .map(|v| text::sig(*v))
+        .collect();
+    if !outside.is_empty() {
+        problems.push(format!(
+            "error: --speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
+            outside.join(", "),
+            text::sig(lo),
+            text::sig(hi)
+        ));
+    }
+    let t_end = grid.t_end;
     if !(t_end.is_finite() && t_end > 0.0) {
         problems.push(format!(
             "error: --t-end {t_end}: must be a positive number of seconds"
         ));
     }
-
-    problems.extend(limits::check(&machine, t_end, "--t-end"));
-
-    // The whole grid, and what the table file can hold.
-    if let (Some(s), Some(o)) = (&speeds, &offsets) {
-        let n = s.len() * o.len();
-        if n > MAX_POINTS {
-            problems.push(format!(
-                "error: --speeds {speeds_text} --offsets {offsets_text}: {} speeds x {} offsets = {n} runs, at most {MAX_POINTS}",
-                s.len(),
-                o.len()
-            ));
-        }
-        if args.output.write.is_some() {
-            problems.extend(table_problems(s, &speeds_text));
-        }
+    problems.extend(limits::check(machine, t_end, "--t-end"));
+    let (s, o) = (grid.speeds_rpm.len(), grid.offsets_deg.len());
+    if s.saturating_mul(o) > MAX_POINTS {
+        problems.push(format!(
+            "error: --speeds {speeds_text} --offsets {offsets_text}: {s} speeds x {o} offsets = {} runs, at most {MAX_POINTS}",
+            s.saturating_mul(o)
+        ));
     }
-    match (speeds, offsets) {
-        (Some(speeds_rpm), Some(offsets_deg)) if problems.is_empty() => Ok((
-            machine,
-            Grid {
-                speeds_rpm,
-                offsets_deg,
-                t_end,
-            },
-            Request {
-                machine_path: args.machine.path.clone(),
-                machine_sha256,
-                set: args.set.keys.clone(),
-                speeds_text,
-                offsets_text,
-            },
-            text,
-        )),
-        _ => Err(problems.join("\n") + "\n"),
-    }
+    problems
 }
 
 /// The machine of a sweep: `path` with the `--set` overrides, refused when it has

@@ -5,15 +5,23 @@
 //! and puts the outcomes back in grid order. docs/scale-out.md describes the
 //! format for people.
 //!
-//! Two hashes tie a part to its sweep:
+//! Three hashes tie a part to its sweep and to what `tune` wrote:
 //! - `machine.sha256`: SHA-256 of the machine file's bytes as read;
 //! - `sweep_sha256`: SHA-256 of `machine.sha256` (64 lowercase hex digits), one
 //!   line feed, then the `sweep` object as compact JSON (serde_json, keys in the
 //!   order of [`Sweep`], numbers in shortest round-trip form): the machine file,
 //!   the host-sim version, the `--set` overrides, the speeds, the offsets and the
-//!   end time, everything that changes a run's outcome. A part whose
-//!   `sweep_sha256` does not match its own `machine` and `sweep` was edited or
-//!   damaged and is refused.
+//!   end time, everything that changes a run's outcome;
+//! - `part_sha256`: SHA-256 of the whole part as compact JSON with `part_sha256`
+//!   itself empty ([`Part::hash`]): the above, the machine file's path, the shard
+//!   and every run's outcome, everything the merged result depends on.
+//!
+//! A part whose hashes do not match its contents was edited or damaged and is
+//! refused. They guard against accidents (an edit, a truncated copy, parts of
+//! two sweeps), not against a forger, who can recompute them. So the values are
+//! checked too, as `tune` checks its options ([`read`], and `merge` applies
+//! tune's limits to the sweep a part names), and the machine file is read as
+//! every input file is: a regular file of bounded size.
 //!
 //! Numbers are written in serde_json's shortest round-trip form and read back with
 //! its `float_roundtrip` parser, so a merged outcome is the run's own `f64`, bit for
@@ -37,8 +45,14 @@ use crate::output::text;
 /// The `format` of a partial result.
 pub const FORMAT: &str = "host-sim-tune-part";
 
-/// The `version` of the format this host-sim writes and reads.
-pub const VERSION: u64 = 1;
+/// The `version` of the format this host-sim writes and reads (2: with
+/// `part_sha256`).
+pub const VERSION: u64 = 2;
+
+/// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
+/// 200 bytes, so the largest grid, 10 000 runs, about 2 MB, leaving room for
+/// the plant's warnings.
+pub const MAX_BYTES: u64 = 64 << 20;
 
 /// Which part of the grid: part `index` (from 1) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -158,6 +172,27 @@ pub struct Part {
     pub shard: Shard,
     /// The outcomes of the part's grid points, ascending.
     pub runs: Vec<PartRun>,
+    /// The hash of all of the above ([`Part::hash`]).
+    pub part_sha256: String,
+}
+
+impl Part {
+    /// `part_sha256` ([module doc](self)): SHA-256 of this part as compact JSON
+    /// (keys in the order of [`Part`], numbers in shortest round-trip form) with
+    /// `part_sha256` the empty string.
+    pub fn hash(&self) -> String {
+        let unsealed = Part {
+            part_sha256: String::new(),
+            ..self.clone()
+        };
+        sha256_hex(&serde_json::to_vec(&unsealed).unwrap_or_default())
+    }
+
+    /// Sets `sweep_sha256` and `part_sha256` from the contents.
+    pub fn seal(&mut self) {
+        self.sweep_sha256 = sweep_sha256(&self.machine.sha256, &self.sweep);
+        self.part_sha256 = self.hash();
+    }
 }
 
 /// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
@@ -344,17 +379,15 @@ pub(crate) fn run_shard(
     refuse_interrupted("tune", "the part is incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
 
-    let machine_sha256 = request.machine_sha256.clone();
-    let sweep = Sweep::new(&grid, request);
-    let part = Part {
+    let mut part = Part {
         format: FORMAT.into(),
         version: VERSION,
         machine: MachineFile {
             path: request.machine_path.display().to_string(),
-            sha256: machine_sha256.clone(),
+            sha256: request.machine_sha256.clone(),
         },
-        sweep_sha256: sweep_sha256(&machine_sha256, &sweep),
-        sweep,
+        sweep: Sweep::new(&grid, request),
+        sweep_sha256: String::new(),
         shard,
         runs: mine
             .iter()
@@ -368,7 +401,9 @@ pub(crate) fn run_shard(
                 plant_warnings: r.plant_warnings,
             })
             .collect(),
+        part_sha256: String::new(),
     };
+    part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
         Failure::Run(format!(
             "error: tune --shard {shard}: the part does not serialize: {e}"
@@ -400,11 +435,15 @@ fn not_a_part(path: &Path, why: &str) -> String {
     )
 }
 
-/// Reads the partial result `path` and checks it on its own: its format and
-/// version, its fields, its `sweep_sha256`, its shard, and that its runs are
-/// exactly its grid points.
+/// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`])
+/// and checks it on its own: its format and version, its fields, its hashes,
+/// its shard, that its runs are exactly its grid points, and that a run that
+/// held its offset has a mean velocity (a number, as [`run_point`] makes it).
+///
+/// [`run_point`]: super::sweep::run_point
 pub fn read(path: &Path) -> Result<Part, String> {
-    let text = input::read_text(path).map_err(|p| input::render(&[p]).trim_end().to_string())?;
+    let text = input::read_text_at_most(path, MAX_BYTES)
+        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
     let value: Value =
         serde_json::from_str(&text).map_err(|e| not_a_part(path, &format!("not JSON ({e})")))?;
     match value.get("format") {
@@ -439,6 +478,15 @@ pub fn read(path: &Path) -> Result<Part, String> {
     if let Some(why) = part.sweep.problem() {
         return Err(damaged(why));
     }
+    // merge's check runs are this host-sim's: the parts' runs must be too.
+    let this = env!("CARGO_PKG_VERSION");
+    if part.sweep.host_sim_version != this {
+        return Err(format!(
+            "error: {}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
+            path.display(),
+            part.sweep.host_sim_version
+        ));
+    }
     let Shard { index, count } = part.shard;
     if count == 0 || count > MAX_POINTS || index == 0 || index > count {
         return Err(damaged(format!(
@@ -457,6 +505,26 @@ pub fn read(path: &Path) -> Result<Part, String> {
         return Err(damaged(format!(
             "its runs are not the grid points of part {}",
             part.shard
+        )));
+    }
+    if part.part_sha256 != part.hash() {
+        return Err(damaged(format!(
+            "part {}: part_sha256 does not match its contents: its runs, its shard or its machine file's path were edited after tune wrote it",
+            part.shard
+        )));
+    }
+    // As `run_point` makes them: a run without a mean velocity did not hold.
+    if let Some(r) = part
+        .runs
+        .iter()
+        .find(|r| r.not_held.is_none() && !r.mean_velocity.is_finite())
+    {
+        return Err(damaged(format!(
+            "run {} ({} rpm, {} deg): mean_velocity {} with not_held null: a run that held its offset has a finite mean velocity",
+            r.point,
+            text::sig(r.speed_rpm),
+            text::sig(r.offset_deg),
+            r.mean_velocity
         )));
     }
     Ok(part)

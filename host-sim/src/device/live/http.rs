@@ -1,14 +1,25 @@
-//! Just enough HTTP/1.1 for the live page: a request's head read (its line and
-//! headers, bounded), a body of a declared length read and dropped, and whole
-//! responses written, each on a connection of its own (`Connection: close`).
+//! Just enough HTTP/1.1 for the live page: a request (its line, its headers and
+//! a body of a declared length, bounded) recognised in the bytes received so far,
+//! and whole responses written, each on a connection of its own (`Connection:
+//! close`).
 
-use std::io::{self, Read, Write};
+use std::io::{self, Write};
 
 /// The longest request head read (line and headers), bytes.
-const MAX_HEAD: usize = 8 * 1024;
+pub const MAX_HEAD: usize = 8 * 1024;
 
-/// The longest request body read (and dropped), bytes: the page's Stop has none.
-const MAX_BODY: u64 = 4 * 1024;
+/// The longest request body taken (and dropped), bytes: the page's Stop has none.
+pub const MAX_BODY: usize = 4 * 1024;
+
+/// Headers a request may send once only: a second `Host` or `Origin` would let
+/// one check read the first and another part of the way the second.
+const SINGLE: [&str; 5] = [
+    "host",
+    "origin",
+    "referer",
+    "sec-fetch-site",
+    "content-length",
+];
 
 /// A request's head.
 #[derive(Debug, PartialEq, Eq)]
@@ -31,48 +42,82 @@ impl Request {
     }
 }
 
-/// Reads a request's head from `r`, and its body if it declares one (at most
-/// 4 KiB, dropped); `None` for anything that is not an HTTP/1.x
-/// request (or too long, or cut short).
-pub fn read_request(r: &mut impl Read) -> io::Result<Option<Request>> {
-    let mut head = Vec::new();
-    let mut byte = [0u8; 1];
-    // Byte by byte, so that nothing after the head is taken.
-    while !head.ends_with(b"\r\n\r\n") {
-        if head.len() >= MAX_HEAD || r.read(&mut byte)? == 0 {
-            return Ok(None);
-        }
-        head.push(byte[0]);
-    }
-    let Ok(head) = String::from_utf8(head) else {
-        return Ok(None);
-    };
-    let request = parse_head(&head);
-    if let Some(len) = request
-        .as_ref()
-        .and_then(|q| q.header("content-length"))
-        .and_then(|v| v.parse::<u64>().ok())
-    {
-        io::copy(&mut r.take(len.min(MAX_BODY)), &mut io::sink())?;
-    }
-    Ok(request)
+/// What the bytes received on a connection so far are.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Received {
+    /// The start of a request: more to come.
+    Partial,
+    /// A whole request: its head, and its body (of `Content-Length` bytes) all
+    /// there.
+    Whole(Request),
+    /// No HTTP/1.x request this server takes, and why (for the 400 answer).
+    Refused(&'static str),
 }
 
-/// The request line and headers of `head` (which ends with an empty line).
-fn parse_head(head: &str) -> Option<Request> {
+/// What `bytes`, the bytes received on a connection so far, are: a request is
+/// whole once its head (at most [`MAX_HEAD`] bytes) and the body it declares
+/// (at most [`MAX_BODY`]) are there; the body is not kept.
+pub fn received(bytes: &[u8]) -> Received {
+    let Some(end) = bytes.windows(4).position(|w| w == b"\r\n\r\n") else {
+        return if bytes.len() >= MAX_HEAD {
+            Received::Refused("a request head longer than 8 KiB")
+        } else {
+            Received::Partial
+        };
+    };
+    if end + 4 > MAX_HEAD {
+        return Received::Refused("a request head longer than 8 KiB");
+    }
+    let Ok(head) = std::str::from_utf8(&bytes[..end + 4]) else {
+        return Received::Refused("a request head that is not UTF-8");
+    };
+    let request = match parse_head(head) {
+        Ok(r) => r,
+        Err(why) => return Received::Refused(why),
+    };
+    let body = match request.header("content-length").map(str::parse::<usize>) {
+        None => 0,
+        Some(Ok(n)) if n <= MAX_BODY => n,
+        Some(Ok(_)) => return Received::Refused("a body longer than 4 KiB"),
+        Some(Err(_)) => return Received::Refused("a Content-Length that is no length"),
+    };
+    if bytes.len() < end + 4 + body {
+        return Received::Partial;
+    }
+    Received::Whole(request)
+}
+
+/// The request line and headers of `head` (which ends with an empty line), or
+/// why it is refused.
+fn parse_head(head: &str) -> Result<Request, &'static str> {
+    let not_http = "not an HTTP/1.1 request";
     let mut lines = head.split("\r\n");
-    let mut line = lines.next()?.split(' ');
-    let (method, target, version) = (line.next()?, line.next()?, line.next()?);
-    if line.next().is_some() || !version.starts_with("HTTP/1.") || !target.starts_with('/') {
-        return None;
+    let mut line = lines.next().ok_or(not_http)?.split(' ');
+    let (Some(method), Some(target), Some(version), None) =
+        (line.next(), line.next(), line.next(), line.next())
+    else {
+        return Err(not_http);
+    };
+    if !version.starts_with("HTTP/1.") || !target.starts_with('/') {
+        return Err(not_http);
     }
     let path = target.split_once('?').map_or(target, |(p, _)| p);
-    let mut headers = Vec::new();
+    let mut headers: Vec<(String, String)> = Vec::new();
     for l in lines.filter(|l| !l.is_empty()) {
-        let (name, value) = l.split_once(':')?;
-        headers.push((name.trim().to_ascii_lowercase(), value.trim().to_string()));
+        let (name, value) = l.split_once(':').ok_or(not_http)?;
+        let name = name.trim().to_ascii_lowercase();
+        if SINGLE.contains(&name.as_str()) && headers.iter().any(|(n, _)| *n == name) {
+            return Err(match name.as_str() {
+                "host" => "two Host headers: a request names one host",
+                "origin" => "two Origin headers: a request has one origin",
+                "referer" => "two Referer headers",
+                "sec-fetch-site" => "two Sec-Fetch-Site headers",
+                _ => "two Content-Length headers",
+            });
+        }
+        headers.push((name, value.trim().to_string()));
     }
-    Some(Request {
+    Ok(Request {
         method: method.to_string(),
         path: path.to_string(),
         headers,
@@ -87,6 +132,7 @@ fn reason(status: u16) -> &'static str {
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        408 => "Request Timeout",
         502 => "Bad Gateway",
         503 => "Service Unavailable",
         _ => "Error",
@@ -138,29 +184,59 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_request_head_is_read_and_its_body_dropped() {
-        let text =
-            "POST /stop?x=1 HTTP/1.1\r\nHost: 127.0.0.1:8321\r\nContent-Length: 2\r\n\r\n{}NEXT";
-        let mut input = text.as_bytes();
-        let q = read_request(&mut input).unwrap().unwrap();
+    fn a_request_is_whole_with_its_declared_body() {
+        let text = "POST /stop?x=1 HTTP/1.1\r\nHost: 127.0.0.1:8321\r\nContent-Length: 2\r\n\r\n{}";
+        for cut in 0..text.len() {
+            assert_eq!(
+                received(&text.as_bytes()[..cut]),
+                Received::Partial,
+                "{cut}"
+            );
+        }
+        let Received::Whole(q) = received(text.as_bytes()) else {
+            panic!("not whole")
+        };
         assert_eq!((q.method.as_str(), q.path.as_str()), ("POST", "/stop"));
         assert_eq!(q.header("host"), Some("127.0.0.1:8321"));
-        assert_eq!(input, b"NEXT");
     }
 
     #[test]
-    fn what_is_no_request_is_none() {
+    fn what_is_no_request_is_refused() {
         let long = format!("GET / HTTP/1.1\r\nX: {}\r\n\r\n", "a".repeat(MAX_HEAD));
-        for bad in [
-            "GET / HTTP/1.1\r\nHost: h\r\n",
-            "GET /\r\n\r\n",
-            "GET * HTTP/1.1\r\n\r\n",
-            "GET / SPDY/3\r\n\r\n",
-            "GET / HTTP/1.1\r\nno colon\r\n\r\n",
-            long.as_str(),
+        let body = format!(
+            "POST / HTTP/1.1\r\nContent-Length: {}\r\n\r\n",
+            MAX_BODY + 1
+        );
+        for (bad, why) in [
+            ("GET /\r\n\r\n", "not an HTTP/1.1 request"),
+            ("GET * HTTP/1.1\r\n\r\n", "not an HTTP/1.1 request"),
+            ("GET / SPDY/3\r\n\r\n", "not an HTTP/1.1 request"),
+            (
+                "GET / HTTP/1.1\r\nno colon\r\n\r\n",
+                "not an HTTP/1.1 request",
+            ),
+            (long.as_str(), "a request head longer than 8 KiB"),
+            (body.as_str(), "a body longer than 4 KiB"),
+            (
+                "POST / HTTP/1.1\r\nContent-Length: two\r\n\r\n",
+                "a Content-Length that is no length",
+            ),
+            (
+                "GET / HTTP/1.1\r\nHost: 127.0.0.1:1\r\nHost: evil.example\r\n\r\n",
+                "two Host headers: a request names one host",
+            ),
+            (
+                "POST /stop HTTP/1.1\r\nOrigin: http://a\r\norigin: http://b\r\n\r\n",
+                "two Origin headers: a request has one origin",
+            ),
         ] {
-            assert_eq!(read_request(&mut bad.as_bytes()).unwrap(), None, "{bad:?}");
+            assert_eq!(received(bad.as_bytes()), Received::Refused(why), "{bad:?}");
         }
+        // Without its end, a long head is refused as soon as it is too long.
+        assert_eq!(
+            received(&long.as_bytes()[..MAX_HEAD]),
+            Received::Refused("a request head longer than 8 KiB")
+        );
     }
 
     #[test]

@@ -5,7 +5,11 @@
 //! Server-Sent Events, and the page's one command, Stop, which reaches the device
 //! only through this thread.
 //!
-//! - [`server`]: the routes, the page, the event streams;
+//! - [`server`]: the connections, their requests read as they come, the routes;
+//! - [`guard`]: whose requests are answered, whose Stops taken;
+//! - [`stream`]: an event stream, and when its page is dropped;
+//! - [`lag`]: how far behind its stream a page is;
+//! - [`stops`]: the Stops answered, all those waiting with one Stop on the link;
 //! - [`http`]: just enough HTTP/1.1;
 //! - [`hub`]: frames to the pages, Stop requests to the link thread;
 //! - [`frame`]: a frame as JSON.
@@ -14,9 +18,13 @@
 //! can reach needs `--allow-remote`, and then the page says so.
 
 pub mod frame;
+pub mod guard;
 pub mod http;
 pub mod hub;
+pub mod lag;
 pub mod server;
+pub mod stops;
+pub mod stream;
 
 use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
 use std::time::Duration;
@@ -29,7 +37,7 @@ use super::requests::command;
 use super::telemetry::{self, Sink};
 use crate::failure::{Console, Failure};
 use hub::{Event, LinkEnd};
-use server::{Page, Server};
+use server::{Limits, Page, Server};
 
 /// How long the open pages get to receive the stream's end before the process
 /// ends.
@@ -125,7 +133,7 @@ pub fn run(
         remote: a.allow_remote && !local.ip().is_loopback(),
     };
     let (link, pages) = hub::hub();
-    let server = Server::start(listener, &page, pages)
+    let server = Server::start(listener, &page, pages, Limits::default())
         .map_err(|e| Failure::Usage(format!("error: --serve: {addr}: {e}")))?;
     out.note(&format!(
         "telemetry: live page on http://{local}/ (a frame every {} ms; Ctrl-C ends it)\n",

@@ -1,5 +1,8 @@
-//! The live page's HTTP server on `std::net`: a thread that accepts, a thread per
-//! connection, four routes.
+//! The live page's HTTP server on `std::net`: one thread takes the connections
+//! and reads every request as its bytes come, waiting on none ([`Server`]); a
+//! request once whole is answered at once (a refusal), on a thread of its own
+//! (the page; an event stream, [`super::stream`]) or by the Stop thread
+//! ([`super::stops`]).
 //!
 //! | route | answer |
 //! | --- | --- |
@@ -8,45 +11,81 @@
 //! | `POST /stop` | Stop sent to the device through the link thread; its answer as JSON: `{"accepted": true, "answer": ...}`, or `{"accepted": false, "error": ...}` with status 502 |
 //! | anything else | 404, or 405 for another method on these paths |
 //!
-//! On a loopback address only requests naming a loopback host (`Host:
-//! 127.0.0.1:PORT`, `localhost:PORT`, `[::1]:PORT`) are served, so that a web
-//! site cannot reach the page by pointing its own name at 127.0.0.1 (DNS
-//! rebinding); a Stop whose `Origin` is another site is refused (403) whatever
-//! the address.
+//! **Stop always gets through.** A request still coming holds no thread and no
+//! slot, only its place among [`Limits::waiting`] others: a connection beyond
+//! them makes the one that has waited longest give way (503), and every request
+//! whole by then is taken first. A Stop is sent whole with its connection (the
+//! page's `fetch` writes it at once), so it is taken the moment it is accepted:
+//! clients that open connections and never finish their requests, however many,
+//! only push out each other. Stops are answered by one thread, all those waiting
+//! with one Stop on the link, so a flood of Stops holds nothing either (and
+//! stops the device).
+//!
+//! **Who is answered** ([`super::guard`]): on a loopback address only requests
+//! naming a loopback host, so that a web site cannot reach the page by pointing
+//! its own name at 127.0.0.1 (DNS rebinding); a Stop that says it comes from
+//! another page (its `Origin`, `Sec-Fetch-Site` or `Referer`) is refused (403)
+//! whatever the address; a request with two `Host`, `Origin`, `Referer`,
+//! `Sec-Fetch-Site` or `Content-Length` headers is refused (400), so no check
+//! reads one and another part the other.
 
-use std::io::{self, Write};
-use std::net::{IpAddr, TcpListener, TcpStream};
+use std::collections::VecDeque;
+use std::io::{self, Read};
+use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::RecvTimeoutError;
+use std::sync::mpsc::{self, SyncSender, TrySendError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use serde_json::json;
-
-use super::http::{self, Request};
-use super::hub::{Event, PageEnd};
+use super::guard::{foreign_stop, loopback_host};
+use super::http::{self, Received, Request};
+use super::hub::PageEnd;
+use super::{stops, stream};
 
 /// The page, before [`Page::render`] fills in its `{{...}}` fields.
 const PAGE: &str = include_str!("page.html");
 
-/// How often the accepting thread looks for a connection and for the end.
+/// How often the accepting thread looks for connections and bytes when none
+/// came.
 const ACCEPT_POLL: Duration = Duration::from_millis(20);
 
-/// Connections served at once; more are answered 503 (a page holds one open for
-/// its event stream, and one more for a moment per Stop).
-const MAX_CONNECTIONS: usize = 32;
+/// How many of each the server holds at once, and how long it waits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Requests still coming (a connection beyond makes the one waiting
+    /// longest give way, 503).
+    pub waiting: usize,
+    /// How long a request may take to arrive whole (408 after).
+    pub request_time: Duration,
+    /// Event streams (a page holds one; 503 beyond).
+    pub streams: usize,
+    /// Pages being sent (503 beyond).
+    pub answering: usize,
+    /// Stops waiting for the device's answer (503 beyond: the device gets a
+    /// Stop from those).
+    pub stops: usize,
+    /// How far behind its event stream a page may be: the age of the oldest
+    /// byte it has not read, or of a frame not yet written ([`super::stream`]).
+    pub drain: Duration,
+}
 
-/// How long a connection may take to send its request.
-const REQUEST_TIMEOUT: Duration = Duration::from_secs(10);
-
-/// An event stream with nothing to send gets a comment this often, so that a page
-/// gone away is noticed (the write fails).
-const KEEP_ALIVE: Duration = Duration::from_secs(5);
-
-/// How long a Stop waits for the link thread's answer: more than a request's six
-/// tries of 100 ms and a read in between.
-const STOP_WAIT: Duration = Duration::from_secs(3);
+impl Default for Limits {
+    /// 64 requests coming, 10 s each; 16 event streams, 8 pages being sent, 64
+    /// Stops waiting; 10 s behind (a page 10 s behind shows what is no longer
+    /// so; a browser reads its streams within milliseconds, in a background tab
+    /// too).
+    fn default() -> Self {
+        Limits {
+            waiting: 64,
+            request_time: Duration::from_secs(10),
+            streams: 16,
+            answering: 8,
+            stops: 64,
+            drain: Duration::from_secs(10),
+        }
+    }
+}
 
 /// What the page shows of the run.
 pub struct Page {
@@ -90,37 +129,46 @@ pub struct Server {
     thread: Option<JoinHandle<()>>,
 }
 
-/// What every connection's thread needs.
+/// What the threads that answer need.
 struct Shared {
     page: String,
     pages: PageEnd,
     remote: bool,
-    connections: AtomicUsize,
+    limits: Limits,
+    /// Event streams open (or starting) now.
     streams: Arc<AtomicUsize>,
+    /// Pages being sent now.
+    answering: AtomicUsize,
+    /// To the Stop thread.
+    stops: SyncSender<TcpStream>,
 }
 
 impl Server {
-    /// Serve `page` on `listener`, reaching the link through `pages`.
-    pub fn start(listener: TcpListener, page: &Page, pages: PageEnd) -> io::Result<Server> {
+    /// Serve `page` on `listener` within `limits`, reaching the link through
+    /// `pages`.
+    pub fn start(
+        listener: TcpListener,
+        page: &Page,
+        pages: PageEnd,
+        limits: Limits,
+    ) -> io::Result<Server> {
         listener.set_nonblocking(true)?;
         let done = Arc::new(AtomicBool::new(false));
         let streams = Arc::new(AtomicUsize::new(0));
+        let (stops_tx, stops_rx) = mpsc::sync_channel(limits.stops);
+        let link = pages.clone();
+        std::thread::Builder::new().spawn(move || stops::answer(stops_rx, link))?;
         let shared = Arc::new(Shared {
             page: page.render(),
             pages,
             remote: page.remote,
-            connections: AtomicUsize::new(0),
+            limits,
             streams: streams.clone(),
+            answering: AtomicUsize::new(0),
+            stops: stops_tx,
         });
         let stop = done.clone();
-        let thread = std::thread::spawn(move || {
-            while !stop.load(Ordering::SeqCst) {
-                match listener.accept() {
-                    Ok((stream, _)) => admit(stream, &shared),
-                    Err(_) => std::thread::sleep(ACCEPT_POLL),
-                }
-            }
-        });
+        let thread = std::thread::Builder::new().spawn(move || door(&listener, &shared, &stop))?;
         Ok(Server {
             done,
             streams,
@@ -142,250 +190,449 @@ impl Server {
     }
 }
 
-/// A connection accepted: served on a thread of its own, or, beyond
-/// [`MAX_CONNECTIONS`] open (or when no thread can be had), answered 503 at once
-/// without waiting for its request, so that clients that never finish theirs
-/// cannot make threads without bound.
-fn admit(mut stream: TcpStream, shared: &Arc<Shared>) {
-    let open = shared.connections.fetch_add(1, Ordering::SeqCst);
-    let refuse = |mut stream: TcpStream| {
-        shared.connections.fetch_sub(1, Ordering::SeqCst);
-        // Best effort, never waiting: the socket's buffer takes the answer or not.
-        let _ = stream.set_nonblocking(true);
-        let _ = http::respond_text(&mut stream, 503, "", "too many connections");
-    };
-    if open >= MAX_CONNECTIONS {
-        return refuse(stream);
-    }
-    let Ok(again) = stream.try_clone() else {
-        return refuse(stream);
-    };
-    let mine = shared.clone();
-    let spawned = std::thread::Builder::new().spawn(move || {
-        let _ = serve(&mut stream, &mine);
-        mine.connections.fetch_sub(1, Ordering::SeqCst);
-    });
-    if spawned.is_err() {
-        refuse(again);
+/// A connection whose request is still coming.
+struct Coming {
+    stream: TcpStream,
+    /// What it sent so far.
+    bytes: Vec<u8>,
+    /// When it was accepted.
+    since: Instant,
+}
+
+/// The accepting thread: new connections taken (each read at once), every
+/// request still coming read as its bytes come, the one waiting longest giving
+/// way to a new one beyond [`Limits::waiting`], those past
+/// [`Limits::request_time`] given up, until `done`.
+fn door(listener: &TcpListener, shared: &Arc<Shared>, done: &AtomicBool) {
+    let limits = shared.limits;
+    let mut coming: VecDeque<Coming> = VecDeque::new();
+    while !done.load(Ordering::SeqCst) {
+        let mut busy = false;
+        // At most as many new connections as may wait, then a look at all.
+        for _ in 0..limits.waiting.max(1) {
+            let Ok((stream, _)) = listener.accept() else {
+                break;
+            };
+            busy = true;
+            if stream.set_nonblocking(true).is_err() {
+                continue;
+            }
+            if coming.len() >= limits.waiting {
+                // Every request whole by now is taken before one gives way.
+                read_all(&mut coming, shared);
+            }
+            if coming.len() >= limits.waiting {
+                if let Some(oldest) = coming.pop_front() {
+                    refuse(
+                        oldest.stream,
+                        503,
+                        "too many requests coming at once: the one waiting longest gives way",
+                    );
+                }
+            }
+            let new = Coming {
+                stream,
+                bytes: Vec::new(),
+                since: Instant::now(),
+            };
+            coming.extend(take(new, shared));
+        }
+        busy |= read_all(&mut coming, shared);
+        // Accepted in order: the first is the one waiting longest.
+        while coming
+            .front()
+            .is_some_and(|c| c.since.elapsed() >= limits.request_time)
+        {
+            if let Some(late) = coming.pop_front() {
+                refuse(
+                    late.stream,
+                    408,
+                    &format!(
+                        "the request did not arrive whole within {} s",
+                        limits.request_time.as_secs_f64()
+                    ),
+                );
+            }
+        }
+        if !busy {
+            std::thread::sleep(ACCEPT_POLL);
+        }
     }
 }
 
-/// The request read (within [`REQUEST_TIMEOUT`] in all) and answered; an error
-/// is the connection's end.
-fn serve(stream: &mut TcpStream, shared: &Shared) -> io::Result<()> {
-    stream.set_nonblocking(false)?;
-    // A page that stops reading its stream is given up after this long.
-    stream.set_write_timeout(Some(REQUEST_TIMEOUT))?;
-    let _ = stream.set_nodelay(true);
-    let Some(request) = http::read_request(&mut Deadline::new(stream, REQUEST_TIMEOUT))? else {
-        return http::respond_text(stream, 400, "", "not an HTTP/1.1 request");
+/// [`take`] on every request still coming, in order; whether any sent
+/// something.
+fn read_all(coming: &mut VecDeque<Coming>, shared: &Arc<Shared>) -> bool {
+    let mut busy = false;
+    let before = std::mem::take(coming);
+    for c in before {
+        let sent = c.bytes.len();
+        match take(c, shared) {
+            Some(c) => {
+                busy |= c.bytes.len() != sent;
+                coming.push_back(c);
+            }
+            None => busy = true,
+        }
+    }
+    busy
+}
+
+/// Reads what has come on `c` without waiting: `Some(c)` while its request is
+/// still coming; `None` once it is answered, handed on, or gone.
+fn take(mut c: Coming, shared: &Arc<Shared>) -> Option<Coming> {
+    let mut buf = [0u8; 4096];
+    while c.bytes.len() <= http::MAX_HEAD + http::MAX_BODY {
+        match c.stream.read(&mut buf) {
+            // Closed before its request was whole.
+            Ok(0) => return None,
+            Ok(n) => c.bytes.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+            Err(_) => return None,
+        }
+    }
+    match http::received(&c.bytes) {
+        Received::Partial => Some(c),
+        Received::Refused(why) => {
+            refuse(c.stream, 400, why);
+            None
+        }
+        Received::Whole(request) => {
+            route(c.stream, &request, shared);
+            None
+        }
+    }
+}
+
+/// A short answer on `stream` without waiting (its send buffer, empty, takes
+/// it), and the connection's end.
+fn refuse(stream: TcpStream, status: u16, why: &str) {
+    refuse_with(stream, status, "", why);
+}
+
+/// [`refuse`] with `extra` header lines (each ending in CRLF).
+fn refuse_with(mut stream: TcpStream, status: u16, extra: &str, why: &str) {
+    let _ = stream.set_nonblocking(true);
+    let _ = http::respond_text(&mut stream, status, extra, why);
+}
+
+/// A whole request answered: refused here, or handed to a thread.
+fn route(stream: TcpStream, request: &Request, shared: &Arc<Shared>) {
+    let Some(host) = request.header("host") else {
+        return refuse(
+            stream,
+            400,
+            "no Host header: an HTTP/1.1 request names its host",
+        );
     };
-    if !shared.remote && !loopback_host(request.header("host")) {
-        return http::respond_text(
+    if !shared.remote && !loopback_host(Some(host)) {
+        return refuse(
             stream,
             403,
-            "",
             "this page answers requests for 127.0.0.1, localhost or [::1] only",
         );
     }
+    let limits = shared.limits;
     match (request.path.as_str(), request.method.as_str()) {
-        ("/", "GET") => http::respond(
-            stream,
-            200,
-            "",
-            "text/html; charset=utf-8",
-            shared.page.as_bytes(),
-        ),
-        ("/events", "GET") => events(stream, shared),
-        ("/stop", "POST") => stop(stream, shared, &request),
-        ("/" | "/events", _) => http::respond_text(stream, 405, "Allow: GET\r\n", "GET only"),
-        ("/stop", _) => http::respond_text(stream, 405, "Allow: POST\r\n", "POST only"),
-        _ => http::respond_text(stream, 404, "", "no such page: the page is at /"),
-    }
-}
-
-/// A connection read with one deadline for all its reads: a client that sends
-/// a byte now and then cannot keep it open past the deadline.
-struct Deadline<'s> {
-    stream: &'s mut TcpStream,
-    until: Instant,
-}
-
-impl<'s> Deadline<'s> {
-    fn new(stream: &'s mut TcpStream, within: Duration) -> Self {
-        Deadline {
-            stream,
-            until: Instant::now() + within,
-        }
-    }
-}
-
-impl io::Read for Deadline<'_> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let left = self.until.saturating_duration_since(Instant::now());
-        if left.is_zero() {
-            return Err(io::ErrorKind::TimedOut.into());
-        }
-        self.stream.set_read_timeout(Some(left))?;
-        // A read that waits out the socket's timeout fails with `WouldBlock` on
-        // Unix (EAGAIN) and `TimedOut` on Windows: either way the deadline passed.
-        io::Read::read(self.stream, buf).map_err(|e| match e.kind() {
-            io::ErrorKind::WouldBlock => io::ErrorKind::TimedOut.into(),
-            _ => e,
-        })
-    }
-}
-
-/// Whether a `Host` header names a loopback host (`127.0.0.1:8321`,
-/// `localhost:8321`, `[::1]:8321`).
-fn loopback_host(host: Option<&str>) -> bool {
-    let Some(host) = host else { return false };
-    // Without the port: after the last colon, unless that is inside [::1].
-    let name = match host.rsplit_once(':') {
-        Some((name, port)) if !port.contains(']') => name,
-        _ => host,
-    };
-    let name = name.trim_start_matches('[').trim_end_matches(']');
-    name.eq_ignore_ascii_case("localhost")
-        || name.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback())
-}
-
-/// `GET /events`: the frames as they come, until the stream ends or the page
-/// goes away.
-fn events(stream: &mut TcpStream, shared: &Shared) -> io::Result<()> {
-    let Some(rx) = shared.pages.subscribe() else {
-        return http::respond_text(stream, 503, "", "the telemetry stream has ended");
-    };
-    shared.streams.fetch_add(1, Ordering::SeqCst);
-    let result = (|| {
-        http::start_event_stream(stream)?;
-        loop {
-            match rx.recv_timeout(KEEP_ALIVE) {
-                Ok(Event::Frame(json)) => write!(stream, "data: {json}\n\n")?,
-                Ok(Event::End(why)) => {
-                    let why = json!({ "reason": &*why }).to_string();
-                    write!(stream, "event: end\ndata: {why}\n\n")?;
-                    stream.flush()?;
-                    return Ok(());
-                }
-                Err(RecvTimeoutError::Timeout) => stream.write_all(b": keep-alive\n\n")?,
-                Err(RecvTimeoutError::Disconnected) => return Ok(()),
+        ("/", "GET") => {
+            if shared.answering.fetch_add(1, Ordering::SeqCst) >= limits.answering {
+                shared.answering.fetch_sub(1, Ordering::SeqCst);
+                return refuse(stream, 503, "too many pages being sent at once");
             }
-            stream.flush()?;
+            spawn(
+                stream,
+                shared,
+                |s| &s.answering,
+                move |mut s, shared| {
+                    s.set_write_timeout(Some(limits.request_time))?;
+                    http::respond(
+                        &mut s,
+                        200,
+                        "",
+                        "text/html; charset=utf-8",
+                        shared.page.as_bytes(),
+                    )
+                },
+            );
         }
-    })();
-    shared.streams.fetch_sub(1, Ordering::SeqCst);
-    result
+        ("/events", "GET") => {
+            if shared.streams.fetch_add(1, Ordering::SeqCst) >= limits.streams {
+                shared.streams.fetch_sub(1, Ordering::SeqCst);
+                return refuse(
+                    stream,
+                    503,
+                    &format!("{} event streams are open: no more", limits.streams),
+                );
+            }
+            spawn(
+                stream,
+                shared,
+                |s| &s.streams,
+                |s, shared| stream::events(s, &shared.pages, shared.limits.drain),
+            );
+        }
+        ("/stop", "POST") => {
+            if let Some(from) = foreign_stop(request) {
+                return refuse(
+                    stream,
+                    403,
+                    &format!("Stop is taken from this page only (this one says {from})"),
+                );
+            }
+            match shared.stops.try_send(stream) {
+                Ok(()) => {}
+                Err(TrySendError::Full(s)) => refuse(
+                    s,
+                    503,
+                    &format!(
+                        "{} Stops are waiting for the device's answer already: the device gets a Stop",
+                        limits.stops
+                    ),
+                ),
+                Err(TrySendError::Disconnected(s)) => refuse(s, 503, "the server is ending"),
+            }
+        }
+        ("/" | "/events", _) => refuse_with(stream, 405, "Allow: GET\r\n", "GET only"),
+        ("/stop", _) => refuse_with(stream, 405, "Allow: POST\r\n", "POST only"),
+        _ => refuse(stream, 404, "no such page: the page is at /"),
+    }
 }
 
-/// `POST /stop`: Stop through the link thread, its answer as JSON.
-fn stop(stream: &mut TcpStream, shared: &Shared, request: &Request) -> io::Result<()> {
-    // A page of another site may post here (a form needs no permission): only
-    // this page's own requests, or those of no page (curl), are taken.
-    if let (Some(origin), Some(host)) = (request.header("origin"), request.header("host")) {
-        if origin != format!("http://{host}") {
-            return http::respond_text(stream, 403, "", "Stop is taken from this page only");
+/// `work` on `stream` on a thread of its own, blocking; the count `of` (taken
+/// already by the caller) given back when it ends, or at once, with a 503, when
+/// no thread can be had.
+fn spawn(
+    stream: TcpStream,
+    shared: &Arc<Shared>,
+    of: fn(&Shared) -> &AtomicUsize,
+    work: impl FnOnce(TcpStream, &Shared) -> io::Result<()> + Send + 'static,
+) {
+    let again = stream.try_clone();
+    let mine = shared.clone();
+    let spawned = std::thread::Builder::new().spawn(move || {
+        let _ = stream.set_nodelay(true);
+        if stream.set_nonblocking(false).is_ok() {
+            let _ = work(stream, &mine);
+        }
+        of(&mine).fetch_sub(1, Ordering::SeqCst);
+    });
+    if spawned.is_err() {
+        of(shared).fetch_sub(1, Ordering::SeqCst);
+        if let Ok(s) = again {
+            refuse(s, 503, "no thread to answer with");
         }
     }
-    let (status, body) = match shared.pages.stop(STOP_WAIT) {
-        Ok(answer) => (200, json!({ "accepted": true, "answer": answer })),
-        Err(error) => (502, json!({ "accepted": false, "error": error })),
-    };
-    http::respond(
-        stream,
-        status,
-        "",
-        "application/json",
-        body.to_string().as_bytes(),
-    )
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::hub::{self, Event, LinkEnd};
     use super::*;
-    use std::io::Read;
+    use std::io::Write;
 
-    #[test]
-    fn loopback_hosts() {
-        for ok in [
-            "127.0.0.1:8321",
-            "localhost:1",
-            "LOCALHOST",
-            "[::1]:8321",
-            "[::1]",
-            "127.1.2.3:80",
-        ] {
-            assert!(loopback_host(Some(ok)), "{ok}");
-        }
-        for bad in [
-            "evil.example:8321",
-            "10.0.0.1:8321",
-            "[::2]:1",
-            "0.0.0.0:8321",
-            "",
-            "localhost.evil:1",
-        ] {
-            assert!(!loopback_host(Some(bad)), "{bad}");
-        }
-        assert!(!loopback_host(None));
-    }
-
-    /// A server on a free loopback port, and its address.
-    fn started() -> (Server, std::net::SocketAddr, super::super::hub::LinkEnd) {
+    /// A server within `limits` on a free loopback port, its address, and the
+    /// link's end of its hub.
+    fn started(limits: Limits) -> (Server, std::net::SocketAddr, LinkEnd) {
         let listener = TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = listener.local_addr().unwrap();
-        let (link, pages) = super::super::hub::hub();
+        let (link, pages) = hub::hub();
         let page = Page {
             device: "sim".into(),
             period_ms: 100,
             remote: false,
         };
-        (Server::start(listener, &page, pages).unwrap(), addr, link)
+        let server = Server::start(listener, &page, pages, limits).unwrap();
+        (server, addr, link)
+    }
+
+    /// The link thread's part for Stops: each batch answered `stop: accepted`,
+    /// until `link` is handed back through the returned stopper.
+    fn answering(link: LinkEnd) -> (Arc<AtomicBool>, JoinHandle<LinkEnd>) {
+        let done = Arc::new(AtomicBool::new(false));
+        let until = done.clone();
+        let thread = std::thread::spawn(move || {
+            while !until.load(Ordering::SeqCst) {
+                for reply in link.stop_requests() {
+                    let _ = reply.send(Ok("stop: accepted".into()));
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            link
+        });
+        (done, thread)
+    }
+
+    /// The whole answer to `request` sent at once on a new connection (read for
+    /// at most 30 s: a server that never answers fails the test).
+    fn ask(addr: std::net::SocketAddr, request: &str) -> String {
+        let mut c = TcpStream::connect(addr).unwrap();
+        c.write_all(request.as_bytes()).unwrap();
+        answer(&mut c)
+    }
+
+    /// What `c` receives until its end (at most 30 s).
+    fn answer(c: &mut TcpStream) -> String {
+        c.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        let mut bytes = Vec::new();
+        // A reset after the answer (the server closed with bytes unread) ends it too.
+        let _ = c.read_to_end(&mut bytes);
+        String::from_utf8_lossy(&bytes).into_owned()
     }
 
     #[test]
-    fn beyond_the_cap_a_silent_connection_is_refused_at_once() {
-        let (server, addr, _link) = started();
-        // Clients that open a connection and never send their request.
-        let idle: Vec<TcpStream> = (0..MAX_CONNECTIONS)
-            .map(|_| TcpStream::connect(addr).unwrap())
+    fn half_sent_requests_cannot_keep_a_stop_out() {
+        // No request cut at its deadline while the test runs, however slowly.
+        let limits = Limits {
+            request_time: Duration::from_secs(3600),
+            ..Limits::default()
+        };
+        let (server, addr, link) = started(limits);
+        let (done, link_thread) = answering(link);
+        // Many more clients than may wait, each sending the start of a request
+        // and nothing more (issue: 32 of them took every slot, and every Stop
+        // got 503 for as long as they kept coming).
+        let half: Vec<TcpStream> = (0..limits.waiting * 2)
+            .map(|_| {
+                let mut c = TcpStream::connect(addr).unwrap();
+                c.write_all(b"POST /stop HTTP/1.1\r\nHost: 127.0.0.1")
+                    .unwrap();
+                c
+            })
             .collect();
-        // The accepting thread counts them within a few polls.
-        std::thread::sleep(ACCEPT_POLL * 10);
-        let mut more = TcpStream::connect(addr).unwrap();
-        // Refused without waiting for a request: well within REQUEST_TIMEOUT.
-        more.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
-        let mut answer = String::new();
-        more.read_to_string(&mut answer).unwrap();
-        assert!(answer.starts_with("HTTP/1.1 503 "), "{answer:?}");
-        drop(idle);
+        let stop = format!("POST /stop HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 0\r\n\r\n");
+        for _ in 0..3 {
+            let a = ask(addr, &stop);
+            assert!(a.starts_with("HTTP/1.1 200 "), "{a:?}");
+            assert!(
+                a.ends_with("{\"accepted\":true,\"answer\":\"stop: accepted\"}"),
+                "{a:?}"
+            );
+        }
+        // The first half gave way to the others (503); the others still wait.
+        let mut first = half.into_iter().next().unwrap();
+        assert!(answer(&mut first).starts_with("HTTP/1.1 503 "));
+        done.store(true, Ordering::SeqCst);
+        drop(link_thread.join().unwrap());
         server.finish(Duration::ZERO);
     }
 
     #[test]
-    fn a_request_dribbled_a_byte_at_a_time_is_cut_at_the_deadline() {
-        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-        let addr = listener.local_addr().unwrap();
-        let dribble = std::thread::spawn(move || {
-            let mut c = TcpStream::connect(addr).unwrap();
-            // One byte every 20 ms, never a whole head: each read alone is quick.
-            for _ in 0..100 {
-                if c.write_all(b"G").is_err() {
+    fn the_request_waiting_longest_gives_way_and_a_late_one_is_cut() {
+        let limits = Limits {
+            waiting: 4,
+            request_time: Duration::from_secs(3600),
+            ..Limits::default()
+        };
+        let (server, addr, _link) = started(limits);
+        // Silent clients, one more than may wait: the first gives way at once.
+        let mut silent: Vec<TcpStream> = (0..=limits.waiting)
+            .map(|_| TcpStream::connect(addr).unwrap())
+            .collect();
+        let first = answer(&mut silent[0]);
+        assert!(first.starts_with("HTTP/1.1 503 "), "{first:?}");
+        assert!(
+            first.contains("the one waiting longest gives way"),
+            "{first:?}"
+        );
+        server.finish(Duration::ZERO);
+
+        let limits = Limits {
+            request_time: Duration::from_millis(300),
+            ..Limits::default()
+        };
+        let (server, addr, _link) = started(limits);
+        // One that sends a byte now and then: each read alone is quick, the
+        // whole request never arrives; cut at the deadline.
+        let mut dribble = TcpStream::connect(addr).unwrap();
+        let mut reader = dribble.try_clone().unwrap();
+        let writer = std::thread::spawn(move || {
+            for _ in 0..1500 {
+                if dribble.write_all(b"G").is_err() {
                     break;
                 }
                 std::thread::sleep(Duration::from_millis(20));
             }
         });
-        let (mut stream, _) = listener.accept().unwrap();
-        let within = Duration::from_millis(200);
+        let late = answer(&mut reader);
+        assert!(late.starts_with("HTTP/1.1 408 "), "{late:?}");
+        assert!(
+            late.contains("did not arrive whole within 0.3 s"),
+            "{late:?}"
+        );
+        writer.join().unwrap();
+        server.finish(Duration::ZERO);
+    }
+
+    #[test]
+    fn a_page_that_stops_reading_is_dropped_and_one_that_reads_is_kept() {
+        let limits = Limits {
+            drain: Duration::from_secs(3),
+            ..Limits::default()
+        };
+        let (server, addr, mut link) = started(limits);
+        let events = format!("GET /events HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+        let mut idle = TcpStream::connect(addr).unwrap();
+        idle.write_all(events.as_bytes()).unwrap();
+        let mut reading = TcpStream::connect(addr).unwrap();
+        reading.write_all(events.as_bytes()).unwrap();
+        // Reads a little at a time with pauses, keeping up on the whole (1 kB
+        // every 50 ms, the frames 5 kB/s).
+        let received = Arc::new(AtomicUsize::new(0));
+        let count = received.clone();
+        let reader = std::thread::spawn(move || {
+            reading
+                .set_read_timeout(Some(Duration::from_secs(30)))
+                .unwrap();
+            let mut buf = [0u8; 1024];
+            loop {
+                match reading.read(&mut buf) {
+                    Ok(0) | Err(_) => return,
+                    Ok(n) => count.fetch_add(n, Ordering::SeqCst),
+                };
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        });
+        // Frames of 500 bytes every 100 ms, as the telemetry's at its default
+        // period: a trickle the kernel takes for minutes from a page that never
+        // reads (its receive buffer grows). Until the idle page is dropped: at
+        // most 30 s, or the test fails.
+        let frame: Arc<str> = format!("\"{}\"", "x".repeat(490)).into();
         let started = Instant::now();
-        let read = http::read_request(&mut Deadline::new(&mut stream, within));
-        let took = started.elapsed();
-        assert_eq!(read.unwrap_err().kind(), io::ErrorKind::TimedOut);
-        // The deadline and at most one read's wait (20 ms) and scheduling after.
-        assert!(took < within + Duration::from_millis(150), "{took:?}");
-        drop(stream);
-        dribble.join().unwrap();
+        let publish = |link: &mut LinkEnd| {
+            link.publish(Event::Frame(frame.clone()));
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        while server.streams.load(Ordering::SeqCst) < 2 {
+            publish(&mut link);
+            assert!(started.elapsed() < Duration::from_secs(60), "no streams");
+        }
+        while server.streams.load(Ordering::SeqCst) == 2 {
+            publish(&mut link);
+            assert!(
+                started.elapsed() < Duration::from_secs(30),
+                "the page that reads nothing was not dropped"
+            );
+        }
+        // The reading page is the one left, and goes on getting frames for
+        // twice the limit.
+        let before = received.load(Ordering::SeqCst);
+        let again = Instant::now();
+        while again.elapsed() < limits.drain * 2 {
+            publish(&mut link);
+        }
+        assert_eq!(server.streams.load(Ordering::SeqCst), 1);
+        assert!(received.load(Ordering::SeqCst) > before + 5 * 500);
+        assert!(!reader.is_finished(), "the reading page was dropped");
+        // The idle page's connection was ended by the server: what it holds is
+        // what was sent before and within the limit, not minutes of frames.
+        let rest = answer(&mut idle);
+        assert!(rest.starts_with("HTTP/1.1 200 OK\r\n"), "{}", &rest[..64]);
+        assert!(rest.len() < 1 << 20, "{} bytes", rest.len());
+        link.publish(Event::End("test over".into()));
+        drop(link);
+        reader.join().unwrap();
+        server.finish(Duration::from_secs(5));
     }
 
     #[test]
