@@ -1,5 +1,5 @@
-//! The measured travel file: one row per run on the real machine (spec
-//! `machine.md`, "Additions"; docs/calibration.md, "The measured travel file").
+//! The measured travel file: one row per run on the real machine
+//! (docs/calibration.md, "The measured travel file").
 //! `host-sim device tune` writes it ([`crate::device::measured`] appends to it),
 //! `host-sim calibrate` reads it; both with this one reader.
 //!

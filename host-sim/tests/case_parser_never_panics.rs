@@ -1,5 +1,6 @@
-//! The case reader never panics, whatever the file holds (spec `impact-case.md`:
-//! "no panic"), and what it accepts the solver and the report take without panic.
+//! The case reader never panics, whatever the file holds (docs/cli-impact.md, "Bad
+//! input": "without a panic"), and what it accepts the solver and the report take
+//! without panic.
 
 use clap::Parser;
 use host_sim::cli::{self, Cli};
@@ -8,7 +9,7 @@ use host_sim::impact::report;
 use proptest::prelude::*;
 use shared::impact::{solve_body, MAX_CONTACTS};
 
-/// The spec's example with every number a placeholder `{}`.
+/// The example case of docs/cli-impact.md with every number a placeholder `{}`.
 const TEMPLATE: &str = r#"law = "{}"
 [body]
 mass = {}

@@ -1,6 +1,6 @@
-//! `host-sim impact` through the real binary: every refusal of the spec
-//! (`impact-case.md`, "Bad input") exits 2 with the key path and a helpful message
-//! and never panics; the example case files run and print the spec's JSON.
+//! `host-sim impact` through the real binary: every refusal of docs/cli-impact.md
+//! ("Bad input") exits 2 with the key path and a helpful message and never panics;
+//! the example case files run and print the documented JSON.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -11,7 +11,7 @@ mod common;
 use common::{keys, run as host_sim};
 use host_sim::impact::report::{CONTACT_KEYS, DOCUMENT_KEYS, SEGMENT_KEYS};
 
-/// The spec's example case, valid.
+/// The example case of docs/cli-impact.md, valid.
 const GOOD: &str = include_str!("fixtures/pinned-body.toml");
 
 /// A second contact to append to [`GOOD`].
@@ -67,7 +67,7 @@ fn replace(from: &str, to: &str) -> String {
 }
 
 #[test]
-fn the_spec_example_is_accepted() {
+fn the_documented_example_is_accepted() {
     let run = host_sim(&["impact", &case_file(GOOD)]);
     assert_eq!(run.status, 0, "{}", run.stderr);
     assert!(run.stderr.is_empty(), "{}", run.stderr);
@@ -334,7 +334,7 @@ fn every_example_runs_as_a_table() {
 }
 
 #[test]
-fn every_example_prints_the_spec_json() {
+fn every_example_prints_the_documented_json() {
     for file in EXAMPLES {
         let doc = example_json(file, &[]);
         assert_eq!(doc["law"], "poisson");

@@ -1,4 +1,4 @@
-//! `host-sim run` through the real binary: the spec's JSON summary, the trace and
+//! `host-sim run` through the real binary: the documented JSON summary, the trace and
 //! events CSV headers, the plot, determinism, and clear refusals (exit 2, no panic)
 //! for bad files and options.
 
@@ -15,7 +15,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 #[test]
-fn json_summary_has_the_spec_keys_in_order() {
+fn json_summary_has_the_documented_keys_in_order() {
     let r = run_machine(
         "run",
         &["--open-loop", "12,12", "--t-end", "0.5", "--format", "json"],
@@ -68,7 +68,7 @@ fn run_writing(volts: &str, t_end: &str, files: [&PathBuf; 3]) -> common::Run {
 }
 
 #[test]
-fn files_are_written_with_the_spec_headers() {
+fn files_are_written_with_the_documented_headers() {
     let (out, events, plot) = open_loop_files("headers");
     let trace = std::fs::read_to_string(&out).unwrap();
     assert!(trace.starts_with(

@@ -1,4 +1,4 @@
-//! `host-sim tune` through the real binary: the spec's JSON on a tiny grid, the
+//! `host-sim tune` through the real binary: the documented JSON on a tiny grid, the
 //! same output on one and on two threads, best offsets on the right side of the
 //! vertical for the reference machine, a `--write` table that a machine file can
 //! name, and clear refusals (exit 2, no panic) of bad options.
@@ -45,7 +45,7 @@ fn tiny(threads: usize, write: &Path, plot: &Path) -> Run {
 }
 
 #[test]
-fn a_tiny_sweep_gives_the_spec_json_the_same_on_one_and_two_threads() {
+fn a_tiny_sweep_gives_the_documented_json_the_same_on_one_and_two_threads() {
     let (w1, w2) = (scratch("one.tuning.toml"), scratch("two.tuning.toml"));
     let (p1, p2) = (scratch("one.svg"), scratch("two.svg"));
     let one = tiny(1, &w1, &p1);
@@ -69,7 +69,7 @@ fn a_tiny_sweep_gives_the_spec_json_the_same_on_one_and_two_threads() {
         one.stderr
     );
 
-    // The spec's keys (and the documented `warnings`).
+    // The documented keys, in order (docs/tuning.md, "Output").
     let doc: Value = serde_json::from_str(&one.stdout).expect("JSON");
     assert_eq!(keys(&doc), ["grid", "best", "warnings"]);
     let grid = doc["grid"].as_array().unwrap();

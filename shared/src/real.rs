@@ -2,7 +2,7 @@
 //!
 //! Only what the impact model needs. Square roots go through `libm`, which is
 //! correctly rounded, rather than micromath's approximation (up to 6 % off), because
-//! impulses depend on them (spec `impact-case.md`, "Accuracy").
+//! impulses depend on them (docs/impact-model.md, "Accuracy and limits").
 
 use core::fmt::Debug;
 use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};

@@ -2,9 +2,10 @@
 //! constant speed and phase offset: the plant alone, without controller or motors,
 //! the setting of the plant's travel references.
 //!
-//! The offset is the spec's `theta_1 - theta_2 = phi_1 + phi_2` (index angles 0,
-//! rotor 2 clockwise); rotor 1 starts hanging down (`phi_1 = -90` degrees) and rotor 2
-//! at `offset - phi_1`, the platform at rest on both feet.
+//! The offset is `theta_1 - theta_2 = phi_1 + phi_2` (docs/machine-file.md,
+//! "Conventions", with index angles 0 and rotor 2 clockwise); rotor 1 starts hanging
+//! down (`phi_1 = -90` degrees) and rotor 2 at `offset - phi_1`, the platform at rest
+//! on both feet.
 
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};

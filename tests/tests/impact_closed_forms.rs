@@ -11,9 +11,9 @@
 //!   force is first checked against the closed forms itself.
 //! - A flat two-foot landing without friction: the lever rule and symmetry.
 //!
-//! Conventions (spec `impact-case.md`): the tangent is `t = (-n_y, n_x)`, a contact's
-//! impulse is `P_n n + P_t t`, `u_n < 0` is approaching, `a x b = a_x b_y - a_y b_x`,
-//! `omega x r = omega (-r_y, r_x)`.
+//! Conventions (docs/impact-model.md, "Conventions"): the tangent is
+//! `t = (-n_y, n_x)`, a contact's impulse is `P_n n + P_t t`, `u_n < 0` is approaching,
+//! `a x b = a_x b_y - a_y b_x`, `omega x r = omega (-r_y, r_x)`.
 
 use shared::impact::{
     solve, solve_body, BodyContact, BodyImpact, ContactLaw, ContactOutcome, ImpactLaw,
@@ -255,7 +255,8 @@ impl PinnedRod {
 }
 
 /// Pinned rod with friction, springing back: omega_2 and the normal impulses of
-/// both phases under each law, to 1e-9 (spec f64 accuracy). The slip reverses as
+/// both phases under each law, to 1e-9 (the f64 accuracy of
+/// docs/impact-model.md, "Accuracy and limits"). The slip reverses as
 /// compression ends: case 6 under every law.
 #[test]
 fn pinned_rod_with_friction_three_laws() {
@@ -514,7 +515,7 @@ fn brute_force(p: &OneContact, law: ImpactLaw, steps_per_compression: f64) -> Op
             if history.last().map(|&(_, st)| st) != Some(state) {
                 // A switch inside the step that ends compression happens at the end
                 // of compression to within the brute force's resolution (one step);
-                // the spec puts such events in restitution.
+                // docs/impact-model.md puts such events in restitution.
                 let in_compression = s.compression && !ends;
                 history.push((in_compression, state));
             }
@@ -544,7 +545,8 @@ fn brute_force(p: &OneContact, law: ImpactLaw, steps_per_compression: f64) -> Op
     if !finished {
         return None;
     }
-    // The paper's case from the history (spec "case"): the first switch decides.
+    // The paper's case from the history (docs/impact-model.md): the first switch
+    // decides.
     let from_rest = p.u_t0 == 0.0;
     let case = match history.get(1) {
         None if from_rest && history[0].1 == Slip::Stick => 7,
@@ -580,8 +582,8 @@ fn brute_force(p: &OneContact, law: ImpactLaw, steps_per_compression: f64) -> Op
 /// of normal impulse, which carries up to `mu` times as much tangential impulse;
 /// Poisson's restitution repeats compression's error up to (1 + R) <= 2 times.
 /// Bound per reversal: `e (1 + W_max/end_rate) (1 + mu) 2`, times a safety factor 2.
-/// Plus 1e-9 of the scale: the solver's f64 accuracy (spec), and the brute force's
-/// rounding (2e5 steps of ~1e-16 each, ~1e-11).
+/// Plus 1e-9 of the scale: the solver's f64 accuracy (docs/impact-model.md), and the
+/// brute force's rounding (2e5 steps of ~1e-16 each, ~1e-11).
 /// With `dP_n = P_scale / 2e5` and mu <= 1.2 a reversal allows ~1e-4 relative.
 fn tolerance(p: &OneContact, b: &Brute) -> (f64, f64) {
     let e = 2.0 * p.mu * b.dp;

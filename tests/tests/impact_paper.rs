@@ -228,10 +228,10 @@ fn compare_with_paper<T: Real>(b: &PaperBody, out: &BodyImpact<T, 8>, rel: f64) 
 }
 
 /// Springing back (h > f d), Poisson's law (the paper's eq. (4)), f64: all eight
-/// impulses and omega_2 match eqs. (5)-(6) to 1e-9 of the impulse scale (the spec's
-/// accuracy for f64). The slip (along -t in compression) stops exactly as
-/// compression ends (u_n and u_t of a pinned body vanish together, both being
-/// proportional to omega) and reverses in restitution: case 6.
+/// impulses and omega_2 match eqs. (5)-(6) to 1e-9 of the impulse scale (the f64
+/// accuracy of docs/impact-model.md, "Accuracy and limits"). The slip (along -t in
+/// compression) stops exactly as compression ends (u_n and u_t of a pinned body vanish
+/// together, both being proportional to omega) and reverses in restitution: case 6.
 #[test]
 fn paper_eqs_5_6_springing_back_poisson_f64() {
     let mut rng = Rng::new(0x5eed_0005);
@@ -285,7 +285,8 @@ fn paper_eqs_5_6_springing_back_poisson_f64() {
 }
 
 /// The same in f32: within 1e-4 of the closed form evaluated (in f64) on the f32
-/// inputs (spec: f32 within 1e-4 relative of f64, and f64 is within 1e-9 of exact).
+/// inputs (docs/impact-model.md, "Accuracy and limits": f32 within 1e-4 relative of
+/// f64, and f64 within 1e-9 of exact).
 #[test]
 fn paper_eqs_5_6_springing_back_poisson_f32() {
     let mut rng = Rng::new(0x5eed_0032);
@@ -374,7 +375,8 @@ fn paper_jammed_regime_sticks_in_restitution() {
     }
 }
 
-/// The paper's Fig. 7 body, eqs. (7)-(9) (with the spec's two sign corrections),
+/// The paper's Fig. 7 body, eqs. (7)-(9) (with the two sign corrections of
+/// docs/impact-model.md, "The paper's examples: their geometry"),
 /// generalised to contact weights w_i. Pinned at O = (0, 0), contacts
 /// K_i = (L_i, 0), L_i > 0, normal n = (0, -1) (obstacle above), so
 /// t = (-n_y, n_x) = (1, 0); omega_0 > 0.

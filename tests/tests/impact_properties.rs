@@ -3,8 +3,8 @@
 //!
 //! Every check is computed here from the body's own data (kinematics, momentum,
 //! energy), a second route to the same quantity, never from the model's internals.
-//! Conventions (spec `impact-case.md`): `t = (-n_y, n_x)`, a contact's impulse is
-//! `P_n n + P_t t`, `u_n < 0` is approaching, `a x b = a_x b_y - a_y b_x`,
+//! Conventions (docs/impact-model.md, "Conventions"): `t = (-n_y, n_x)`, a contact's
+//! impulse is `P_n n + P_t t`, `u_n < 0` is approaching, `a x b = a_x b_y - a_y b_x`,
 //! `omega x r = omega (-r_y, r_x)`.
 
 use proptest::prelude::*;
@@ -16,7 +16,7 @@ use shared::impact::{
 use shared::Real;
 use tests::rig::{cross, norm, sub};
 
-/// Relative tolerance of the f64 checks: the spec's f64 accuracy.
+/// Relative tolerance of the f64 checks: the f64 accuracy of docs/impact-model.md.
 const REL: f64 = 1e-9;
 
 /// One contact of a generated case.
@@ -896,10 +896,11 @@ fn scenario_problem(s: &Scenario) -> ImpactProblem<f64, 8> {
 }
 
 /// True when some contact took normal impulse in compression and was then
-/// released, ending compression separating (`u_n > 0`). The spec's path rule
-/// allows it (a contact whose share turns negative at a later event is released),
-/// and Poisson's `R P_c` then pushes a separating contact: energy can grow even
-/// with equal restitution (`released_contact_makes_poisson_gain_energy`).
+/// released, ending compression separating (`u_n > 0`). The path rule of
+/// docs/impact-model.md ("Compression: several contacts together") allows it (a contact
+/// whose share turns negative at a later event is released), and Poisson's `R P_c` then
+/// pushes a separating contact: energy can grow even with equal restitution
+/// (`released_contact_makes_poisson_gain_energy`).
 fn released_after_loading(s: &Scenario, out: &BodyImpact<f64, 8>) -> bool {
     let len = s.contacts.len();
     let p = scenario_problem(s);
@@ -1242,8 +1243,8 @@ fn f32_two_frictional_contacts_stopping_the_body() {
     assert!(!delassus_stable(&s, &out, s.contacts.len(), 0));
 }
 
-/// Root cause: the spec's path rule recomputes the shares at every event and
-/// releases a contact whose share turns negative, even one that already took
+/// Root cause: the path rule (docs/impact-model.md) recomputes the shares at every
+/// event and releases a contact whose share turns negative, even one that already took
 /// impulse. Here contact 1 separates at 4.55 m/s, comes down to zero velocity
 /// during compression and joins; contact 3 is then released with 0.0226 N s of
 /// compression impulse and ends compression separating at 0.19 m/s. Poisson's

@@ -120,7 +120,8 @@ fn run_drop(settings: Settings) -> Drop {
 /// speed by `g dt` and starts the next flight `v dt` below the floor, which adds
 /// `g dt` more on arrival: `|v_{k+1} - e v_k| <= 1e-9 v_k + 2 g dt`. The first impact
 /// time is exact to `dt` (10 dt allowed); the accumulation point to 1e-6 relative
-/// (the spec'd Zeno accuracy; the flight times are exact to `dt` each).
+/// (docs/plant-model.md, "What the tests check"; the flight times are exact to `dt`
+/// each).
 #[test]
 fn drop_test_bounces_like_a_ball_and_comes_to_rest_on_both_feet() {
     let settings = Settings::default();
@@ -472,8 +473,8 @@ fn current_limit_clamps_and_the_speed_ramps_linearly() {
     );
 }
 
-/// Reference: the driver clamps the winding current to `+-I_lim` (spec `machine.md`,
-/// `current_limit`), so every state the plant reports, including the dense output
+/// Reference: the driver clamps the winding current to `+-I_lim` (docs/machine-file.md,
+/// `motor.current_limit`), so every state the plant reports, including the dense output
 /// that `run --out` samples between step ends, has `|i| <= I_lim` (to rounding,
 /// 1e-12 relative).
 #[test]
@@ -626,9 +627,10 @@ fn energy_never_grows_with_dissipation() {
 /// ```
 ///
 /// `phi1 + phi2 = phi1_0 + phi2_0` is constant, and equals the phase offset
-/// `d = theta1 - theta2` (spec: `theta_k = s_k (phi_k - index_angle_k)`, `s = +1, -1`,
-/// index angles 0): `F` lies on the line at `d / 2` from +x with amplitude
-/// `F0 = 2 m e w^2`, reached where `phi1 - phi2 = 0 (mod 2 pi)`.
+/// `d = theta1 - theta2` (docs/machine-file.md, "Conventions":
+/// `theta_k = s_k (phi_k - index_angle_k)`, `s = +1, -1`, index angles 0): `F` lies on
+/// the line at `d / 2` from +x with amplitude `F0 = 2 m e w^2`, reached where
+/// `phi1 - phi2 = 0 (mod 2 pi)`.
 ///
 /// The plant's holding force on `(x, y)` balances gravity on everything and the
 /// exciting force: `F = -h_xy - M g`, `M` the total mass. Its moment about the
@@ -1168,7 +1170,7 @@ fn sticking_contact_forces_stay_in_the_friction_cone() {
 // ---------------------------------------------------------------------------------
 
 /// Two runs of the same machine from the same state give the same bits: final state,
-/// time, step count and every event (spec `machine.md`, "Determinism"). The run
+/// time, step count and every event (docs/plant-model.md, "Determinism"). The run
 /// exercises everything at once: a tilted drop with friction, both motors driven,
 /// rocking, impacts, sticking and slipping.
 #[test]

@@ -7,11 +7,11 @@
 //!   accumulation tails of landings, whose remaining flight it accounts for).
 //! - Mirror symmetry: the reference platform is mirror-symmetric about its
 //!   vertical centre line, and mirroring the machine maps the offset `d` to
-//!   `360 - d` (the spec's convention: the exciting force's line at `d/2` from +x
-//!   mirrors to `180 - d/2`) and `x` to `-x`. So `v(360 - d) = -v(d)`, and the
+//!   `360 - d` (docs/machine-file.md, "Conventions": the exciting force's line at `d/2`
+//!   from +x mirrors to `180 - d/2`) and `x` to `-x`. So `v(360 - d) = -v(d)`, and the
 //!   vertical-force offset 180 degrees gives no travel.
-//! - The spec's convention for the direction: near 90 degrees the force pushes
-//!   up-and-right then down-and-left, and the platform travels right.
+//! - The convention for the direction (docs/machine-file.md): near 90 degrees the force
+//!   pushes up-and-right then down-and-left, and the platform travels right.
 
 use host_sim::plant::simulator::Settings;
 use tests::held::{held_rotors, mean_velocity as held_mean_velocity, reference_machine};
@@ -53,7 +53,7 @@ fn travel_is_mirror_antisymmetric_in_the_offset() {
             360.0 - d
         );
     }
-    // Near 90 degrees the platform travels right (spec convention).
+    // Near 90 degrees the platform travels right (docs/machine-file.md).
     assert!(mean_velocity(90.0, 4.0, s) > 0.0);
     // The vertical-force offset: no travel beyond rounding of a symmetric motion.
     // Symmetry gives this for free, a platform glued to the floor included; that

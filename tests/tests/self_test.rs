@@ -6,7 +6,7 @@
 //! - counts per revolution: the machine file's `[sensors].encoder_counts`;
 //! - index offset: from the plant's true eccentric angle `phi0` (platform frame)
 //!   at the tick the drive starts, the rotor's `sense` and `index_angle`: the
-//!   encoder angle is `theta0 = s (phi0 - index_angle)` (spec `machine.md`), its
+//!   encoder angle is `theta0 = s (phi0 - index_angle)` (docs/machine-file.md), its
 //!   count `floor(theta0 N / 2 pi)`, and the index sits at the multiples of `N`, so
 //!   the counts from the start to the index in the driven sense are
 //!   `(-floor(theta0 N / 2 pi)) mod N`. A second, coarser reference from the

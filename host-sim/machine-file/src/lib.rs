@@ -428,10 +428,11 @@ fn blame_set(mut problem: Problem, applied: &[set::Applied]) -> Problem {
 
 /// Default `[fundament].point`: the floor passes through the origin.
 pub const DEFAULT_FUNDAMENT_POINT: [f64; 2] = [0.0, 0.0];
-/// Default `[fundament].normal`: a horizontal floor, the line `y = 0` (spec).
+/// Default `[fundament].normal`: a horizontal floor, the line `y = 0`
+/// (docs/machine-file.md, "Keys").
 pub const DEFAULT_FUNDAMENT_NORMAL: [f64; 2] = [0.0, 1.0];
-/// Default `[fundament].gravity`, m/s^2: standard gravity, 9.80665 rounded as the
-/// spec writes it, pointing down.
+/// Default `[fundament].gravity`, m/s^2: standard gravity, 9.80665 rounded as
+/// docs/machine-file.md gives it, pointing down.
 pub const DEFAULT_GRAVITY: [f64; 2] = [0.0, -9.81];
 /// Default `[sensors].encoder_counts`: a 1024-line encoder decoded x4, a common
 /// choice for small motors.
@@ -510,7 +511,8 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Ma
     // default from the same `Need::Default` a present section uses.
     let empty = Table::new();
 
-    // Stage 3: every key on its own, in the spec's order.
+    // Stage 3: every key on its own, section by section as docs/machine-file.md lists
+    // them ("Keys"), the bodies and joints ("Several bodies") after the rotors.
     let fundament = optional(&root, "fundament", &empty).and_then(|s| read_fundament(&s));
     let platform = root
         .section("platform", Need::Required)

@@ -74,7 +74,8 @@ pub const MOTOR_KEYS: &[(&str, Node)] = &[
     ("current_limit", Node::Value),
 ];
 
-/// Every key of the machine file (spec `machine.md`), in the spec's order. The
+/// Every key of the machine file (docs/machine-file.md, "Keys"; `bodies` and
+/// `joints`: "Several bodies"), section by section in the order of "Keys". The
 /// machine reader's unit tests check that it reads exactly these keys.
 pub const SCHEMA: &[(&str, Node)] = &[
     (

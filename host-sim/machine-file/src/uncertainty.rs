@@ -1,5 +1,6 @@
 //! `[uncertainty]`: the ranges within which some of the machine file's numbers are
-//! not known (spec `machine.md`, "Additions"), and machines drawn from them.
+//! not known (docs/machine-file.md, "`[uncertainty]`: what is not known"), and machines
+//! drawn from them.
 //!
 //! ```toml
 //! [uncertainty]

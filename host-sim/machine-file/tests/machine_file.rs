@@ -1,6 +1,6 @@
-//! The machine file (spec `machine.md`) through `Machine::load`: the reference example
-//! loads; every refusal names its key path and never panics; several problems are
-//! reported together; `--set` overrides keys before checking; omitted sections take
+//! The machine file (docs/machine-file.md) through `Machine::load`: the reference
+//! example loads; every refusal names its key path and never panics; several problems
+//! are reported together; `--set` overrides keys before checking; omitted sections take
 //! the documented defaults.
 
 use std::path::{Path, PathBuf};

@@ -2,7 +2,7 @@
 //! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...`
 //!
 //! Fits keys of the machine file to the travel speeds measured on the real
-//! machine (spec `machine.md`, "Additions"; docs/calibration.md): by least squares
+//! machine (docs/calibration.md): by least squares
 //! on the mean travel velocity of each measured run, within each key's range.
 //!
 //! Stages of [`run`]:

@@ -1,5 +1,5 @@
-//! The impact case file (spec `impact-case.md`): one rigid body at the instant its
-//! contact points touch their obstacles, optionally pinned to the ground.
+//! The impact case file (docs/cli-impact.md, "The case file"): one rigid body at the
+//! instant its contact points touch their obstacles, optionally pinned to the ground.
 //!
 //! Reading a case (see [`parse_case`]):
 //! 1. keys and values, each checked on its own ([`crate::machine::input`]): types, NaN and
@@ -295,7 +295,8 @@ fn check_approach(root: &Section, case: &ImpactCase) {
 mod tests {
     use super::*;
 
-    /// The spec's example with Newton's law and an unnormalised normal.
+    /// The example case of docs/cli-impact.md with Newton's law and an unnormalised
+    /// normal.
     fn good() -> String {
         include_str!("../../tests/fixtures/pinned-body.toml")
             .replace("law = \"poisson\"", "law = \"newton\"")
@@ -303,7 +304,7 @@ mod tests {
     }
 
     #[test]
-    fn the_spec_example_reads() {
+    fn the_documented_example_reads() {
         let case = parse_case("c.toml", &good()).expect("valid");
         assert_eq!(case.law, ImpactLaw::Newton);
         assert_eq!(case.pivot, Some([0.0, 0.0]));

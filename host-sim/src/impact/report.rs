@@ -1,5 +1,5 @@
-//! The output of `host-sim impact`: the JSON document of the spec
-//! (`impact-case.md`), its table for people, and the warnings in words.
+//! The output of `host-sim impact`: its JSON document (docs/cli-impact.md,
+//! "Output"), its table for people, and the warnings in words.
 //!
 //! The JSON keys and their order are the contract: `law`, `velocity_before`,
 //! `angular_velocity_before`, `velocity_after`, `angular_velocity_after`, `contacts`
@@ -15,7 +15,8 @@ use crate::output::text::{self, Align, Table};
 /// A body's impact result, as `solve_body` returns it for up to [`MAX_CONTACTS`].
 pub type Solved = BodyImpact<f64, MAX_CONTACTS>;
 
-/// The document's keys in the spec's order (`pivot` only when pinned).
+/// The document's keys in the documented order (docs/cli-impact.md, "`--format
+/// json`"; `pivot` only when pinned).
 pub const DOCUMENT_KEYS: [&str; 10] = [
     "law",
     "velocity_before",
@@ -29,7 +30,7 @@ pub const DOCUMENT_KEYS: [&str; 10] = [
     "warnings",
 ];
 
-/// The keys of a contact's object, in the spec's order.
+/// The keys of a contact's object, in the documented order.
 pub const CONTACT_KEYS: [&str; 11] = [
     "normal_impulse",
     "tangential_impulse",
@@ -44,7 +45,7 @@ pub const CONTACT_KEYS: [&str; 11] = [
     "segments",
 ];
 
-/// The keys of one segment of a contact's history, in the spec's order.
+/// The keys of one segment of a contact's history, in the documented order.
 pub const SEGMENT_KEYS: [&str; 4] = ["phase", "state", "normal_impulse", "tangential_impulse"];
 
 /// `[x, y]` as a JSON array of numbers.
@@ -60,7 +61,7 @@ fn impulse_pair(p: [f64; 2]) -> Value {
     Value::Object(m)
 }
 
-/// One contact's object, keys in the spec's order.
+/// One contact's object, keys in the documented order.
 fn contact_json(c: &ContactOutcome<f64>) -> Value {
     let mut m = Map::new();
     m.insert("normal_impulse".into(), Value::from(c.normal_impulse));
@@ -104,7 +105,7 @@ fn contact_json(c: &ContactOutcome<f64>) -> Value {
     Value::Object(m)
 }
 
-/// The spec's JSON document for `case` solved into `result`.
+/// The JSON document of docs/cli-impact.md for `case` solved into `result`.
 pub fn json(case: &ImpactCase, result: &Solved) -> Value {
     let mut doc = Map::new();
     doc.insert("law".into(), Value::from(case.law.name()));
@@ -370,7 +371,7 @@ mod tests {
     use crate::impact::case::parse_case;
     use shared::impact::{ImpactOutcome, InteractionCase, Phase, PivotImpulse, Segment, Warnings};
 
-    /// The spec's example with a second contact "B".
+    /// The example case of docs/cli-impact.md with a second contact "B".
     fn case_text() -> String {
         include_str!("../../tests/fixtures/pinned-body.toml").to_string()
             + "[[contacts]]\nname = \"B\"\npoint = [-0.4, 0.3]\nnormal = [1.0, 0.0]\nrestitution = 0.6\nfriction = 0.3\n"
@@ -436,7 +437,7 @@ mod tests {
     }
 
     #[test]
-    fn json_has_exactly_the_spec_keys_in_order() {
+    fn json_has_exactly_the_documented_keys_in_order() {
         let case = parse_case("c.toml", &case_text()).unwrap();
         let doc = json(&case, &fake(Warnings::default()));
         assert_eq!(keys(&doc), DOCUMENT_KEYS);

@@ -1,9 +1,9 @@
-//! The trace (`--out`) and the events (`--events`) of a run as CSV (spec
-//! `machine.md`): a header line, then one line per row, fields separated by commas,
-//! lines ending with `\n`; text fields quoted as RFC 4180 says (in double quotes,
-//! inner quotes doubled) when they hold a comma, a quote or a line break. Numbers are
-//! written by [`csv_number`]: the shortest decimal that reads back to the same
-//! `f64`, plain between 1e-4 and 1e16 and scientific outside (`0.001`, `-2.5`,
+//! The trace (`--out`) and the events (`--events`) of a run as CSV
+//! (docs/cli-run.md, "Outputs"): a header line, then one line per row, fields separated
+//! by commas, lines ending with `\n`; text fields quoted as RFC 4180 says (in double
+//! quotes, inner quotes doubled) when they hold a comma, a quote or a line break.
+//! Numbers are written by [`csv_number`]: the shortest decimal that reads back to the
+//! same `f64`, plain between 1e-4 and 1e16 and scientific outside (`0.001`, `-2.5`,
 //! `3`, `1.5e-9`, `2e20`), `NaN`, `inf` and `-inf` for the non-finite.
 
 use std::fmt::Write as _;
@@ -13,7 +13,7 @@ use shared::impact::MAX_CONTACTS;
 use crate::machine::MachineContact;
 use crate::simulation::trace::{EventRow, TraceRow};
 
-/// The trace CSV's columns that every machine has (spec `machine.md`, `--out`);
+/// The trace CSV's columns that every machine has (docs/cli-run.md, `--out`);
 /// the contact forces follow ([`trace_header`]).
 pub const TRACE_HEADER: &str = "t,x,y,angle,vx,vy,omega,phi1,phi2,omega1,omega2,i1,i2,duty1,duty2";
 
@@ -23,8 +23,8 @@ pub const BODY_COLUMNS: [&str; 6] = ["x", "y", "angle", "vx", "vy", "omega"];
 
 /// The trace CSV's header for a machine whose contacts are named `contacts` and
 /// whose bodies after the platform `bodies`: [`TRACE_HEADER`], then per contact in
-/// file order `fn_<name>,ft_<name>` (the spec's addition: normal and tangential
-/// force of persistent contact, N), then per body [`BODY_COLUMNS`] with `_<name>`.
+/// file order `fn_<name>,ft_<name>` (the normal and tangential force of persistent
+/// contact, N), then per body [`BODY_COLUMNS`] with `_<name>`.
 pub fn trace_header(contacts: &[String], bodies: &[String]) -> String {
     let mut header = TRACE_HEADER.to_string();
     for name in contacts {
@@ -43,8 +43,8 @@ pub fn trace_header(contacts: &[String], bodies: &[String]) -> String {
     header
 }
 
-/// The events CSV's header (spec `machine.md`, `--events`), then the contact's two
-/// bodies (`body`, the point's; `against`, the face's: a body or `fundament`;
+/// The events CSV's header (docs/cli-run.md, `--events`), ending with the contact's
+/// two bodies (`body`, the point's; `against`, the face's: a body or `fundament`;
 /// empty for controller events).
 pub const EVENTS_HEADER: &str = "t,kind,contact,normal_velocity_before,normal_velocity_after,normal_impulse,tangential_impulse,case,detail,body,against";
 
@@ -182,7 +182,7 @@ mod tests {
     }
 
     #[test]
-    fn trace_has_the_spec_columns() {
+    fn trace_has_the_documented_columns() {
         let rows = [
             TraceRow::default(),
             TraceRow {

@@ -511,7 +511,7 @@ impl PlantModel {
 
     /// The trace row of state `y` at `t` with duties `duty` and the contact
     /// forces `forces` at that state; a rotor the machine does not have reads 0,
-    /// its duty included (the spec's trace keeps its columns).
+    /// its duty included (the trace's columns are fixed: docs/cli-run.md, `--out`).
     pub fn row(&self, t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
         let n = self.dof;
         let [x, yc, angle, vx, vy, omega] = self.body_motion(0, y);

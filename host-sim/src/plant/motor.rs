@@ -184,11 +184,12 @@ impl DcMotor {
     ///   off until the current has decayed, which, averaged over the chopping period,
     ///   lowers the effective voltage to `R i + k omega`
     ///   ([`DcMotor::terminal_voltage`]). The limit acts in both signs, for driving
-    ///   and for braking currents alike, as the spec's "the driver clamps the winding
-    ///   current to +-this". Idealisation: the chopper can always find that voltage
-    ///   (true while `|R I_lim + k omega|` stays within the supply). An integrator
-    ///   step that crosses the limit overshoots it by `O(h di/dt)`; the integrator
-    ///   clamps the state with [`DcMotor::clamp_current`] after each step.
+    ///   and for braking currents alike, as docs/machine-file.md says of
+    ///   `motor.current_limit`: "the driver clamps the winding current to +- this".
+    ///   Idealisation: the chopper can always find that voltage (true while
+    ///   `|R I_lim + k omega|` stays within the supply). An integrator step that
+    ///   crosses the limit overshoots it by `O(h di/dt)`; the integrator clamps the
+    ///   state with [`DcMotor::clamp_current`] after each step.
     /// - **Open winding.** `di/dt = 0`: the current is forced to 0 when the bridge
     ///   opens ([`DcMotor::project_current`]) and stays there.
     /// - **Coasting bridge.** The body diodes put `-V_s sign(i)` on the winding

@@ -3,11 +3,11 @@
 //!
 //! # Encoder angle
 //!
-//! The spec's phase convention (`machine.md`): a rotor's encoder angle is
-//! `theta = s (phi - index_angle)`, with `phi` the eccentric angle in the platform
-//! frame and `s = +1` for a ccw rotor, `-1` for cw ([`encoder_angle`]). So `theta`
-//! grows when the rotor is driven forward, whichever its sense, and the index pulse
-//! fires where `theta` is a multiple of `2 pi`.
+//! The phase convention of docs/machine-file.md ("Conventions"): a rotor's encoder
+//! angle is `theta = s (phi - index_angle)`, with `phi` the eccentric angle in the
+//! platform frame and `s = +1` for a ccw rotor, `-1` for cw ([`encoder_angle`]). So
+//! `theta` grows when the rotor is driven forward, whichever its sense, and the index
+//! pulse fires where `theta` is a multiple of `2 pi`.
 //!
 //! # Determinism
 //!
@@ -102,8 +102,8 @@ impl Clone for NoiseStream {
     }
 }
 
-/// The spec's encoder angle `theta = s (phi - index_angle)`, rad, with `s = +1` for
-/// ccw and `-1` for cw.
+/// The encoder angle `theta = s (phi - index_angle)` (docs/machine-file.md,
+/// "Conventions"), rad, with `s = +1` for ccw and `-1` for cw.
 pub fn encoder_angle(sense: Sense, index_angle: f64, phi: f64) -> f64 {
     sense.sign() * (phi - index_angle)
 }

@@ -8,9 +8,9 @@
 //!    impact instant and their count in the legend;
 //! 4. the pitch angle, degrees;
 //! 5. the rotor speeds in their driven senses, rpm;
-//! 6. the phase offset `theta_1 - theta_2` (spec convention), degrees in [0, 360):
-//!    a line that wraps continues from the opposite edge instead of crossing the
-//!    panel.
+//! 6. the phase offset `theta_1 - theta_2` (docs/machine-file.md, "Conventions"),
+//!    degrees in [0, 360): a line that wraps continues from the opposite edge instead
+//!    of crossing the panel.
 //!
 //! Every panel has a title with its legend, an axis label with the unit, and ticks
 //! at "nice" values (1, 2, 2.5 or 5 times a power of ten). A line of more than

@@ -1,9 +1,9 @@
-//! The summary of `host-sim run` as the spec's JSON document or as a table for
-//! people (spec `machine.md`): keys and their order are the contract (`t_end`,
-//! `mean_velocity`, `distance`, `impacts`, `rotor_speed_rpm`, `phase_offset_deg`,
-//! `phase_error_deg_rms`, `state`, `faults`, `final`, `warnings`), followed by the
-//! project's additions (`rotors`, `phase_loop`); a number that is not finite is
-//! written `null`, so the document always parses.
+//! The summary of `host-sim run` as a JSON document or as a table for people
+//! (docs/cli-run.md, "Outputs"): the JSON's keys and their order are the contract
+//! (`t_end`, `mean_velocity`, `distance`, `impacts`, `rotor_speed_rpm`,
+//! `phase_offset_deg`, `phase_error_deg_rms`, `state`, `faults`, `final`,
+//! `warnings`, `rotors`, `phase_loop`, `not_a_travel`); a number that is not finite
+//! is written `null`, so the document always parses.
 //!
 //! A run in which a body went through the fundament or tipped over
 //! ([`crate::simulation::breach`]) has no travel: `mean_velocity` and `distance`
@@ -19,8 +19,8 @@ use serde_json::{Map, Value};
 use crate::output::text::{self, Align, Table};
 use crate::simulation::trace::Summary;
 
-/// The keys of the summary document: the spec's, in its order, then the
-/// project's additions: `rotors` (1 or 2), `phase_loop` (whether a phase loop
+/// The keys of the summary document, in the documented order (docs/cli-run.md,
+/// "Outputs"); the last three: `rotors` (1 or 2), `phase_loop` (whether a phase loop
 /// held the offset: a controller run on two rotors) and `not_a_travel` (why
 /// `mean_velocity` and `distance` are `null`, or `null`).
 pub const SUMMARY_KEYS: [&str; 14] = [
@@ -52,7 +52,7 @@ pub const ONE_ROTOR_OPEN_LOOP_LINE: &str = "one rotor: no phase offset";
 /// begins.
 pub const NOT_A_TRAVEL: &str = "not a travel";
 
-/// The keys of the summary's `final` object, in the spec's order.
+/// The keys of the summary's `final` object, in the documented order.
 pub const FINAL_KEYS: [&str; 4] = ["position", "angle", "velocity", "angular_velocity"];
 
 /// A JSON number, or `null` when `x` is not finite (JSON has no NaN or infinity).
@@ -71,7 +71,7 @@ fn strings(list: &[String]) -> Value {
     Value::Array(list.iter().map(|s| Value::from(s.as_str())).collect())
 }
 
-/// The spec's JSON document of a run's summary, keys in the spec's order.
+/// The JSON document of a run's summary, keys in the documented order.
 pub fn summary_value(s: &Summary) -> Value {
     let mut doc = Map::new();
     let not_a_travel = s.not_a_travel();
@@ -239,7 +239,7 @@ mod tests {
     }
 
     #[test]
-    fn json_has_exactly_the_spec_keys_in_order() {
+    fn json_has_exactly_the_documented_keys_in_order() {
         let text = summary_json(&summary());
         let doc: Value = serde_json::from_str(&text).unwrap();
         assert_eq!(keys(&doc), SUMMARY_KEYS);
@@ -314,8 +314,8 @@ mod tests {
 
     #[test]
     fn no_travel_is_shown_where_a_body_went_through_the_floor() {
-        // JSON: the spec's keys then the additions; no number for the travel, the
-        // reason beside it.
+        // JSON: the documented keys in order; no number for the travel, the reason
+        // beside it.
         let doc: Value = serde_json::from_str(&summary_json(&through_the_floor())).unwrap();
         assert_eq!(keys(&doc), SUMMARY_KEYS);
         assert!(doc["mean_velocity"].is_null(), "{doc}");

@@ -1,13 +1,13 @@
-//! The summary of a run (spec `machine.md`, `host-sim run --format json`): mean
+//! The summary of a run (docs/cli-run.md, "Outputs", `--format json`): mean
 //! velocity, distance, impacts, rotor speeds and phase offset, computed from the
 //! recorded trace and events.
 //!
 //! Every statistic "over the second half" runs from `T/2` to `T`, with `T` the time
 //! of the last trace row and `T/2` the midpoint between the first and the last row
-//! (the first row is at `t = 0` in a run, so this is the spec's `T/2`). Values at
+//! (the first row is at `t = 0` in a run, so this is the documented `T/2`). Values at
 //! `T/2` are interpolated linearly between the rows around it.
 //!
-//! Phase convention (spec, must): a rotor's encoder angle is
+//! Phase convention (docs/machine-file.md, "Conventions"): a rotor's encoder angle is
 //! `theta_k = s_k (phi_k - index_angle_k)`, `s_k = +1` for ccw and `-1` for cw; the
 //! phase offset is `theta_1 - theta_2` in degrees, wrapped to [0, 360). A machine
 //! with one rotor has no offset: its summary has one rotor speed and no
@@ -352,8 +352,8 @@ impl<'m> SummaryBuilder<'m> {
     }
 }
 
-/// The spec's summary of a run from its trace rows (times ascending, possibly two
-/// rows at an event time) and its events.
+/// The summary of a run (docs/cli-run.md, "Outputs") from its trace rows (times
+/// ascending, possibly two rows at an event time) and its events.
 ///
 /// - `mean_velocity = (x(T) - x(T/2)) / (T/2)`, `distance = x(T) - x(0)`;
 /// - `impacts`: the number of distinct impact times;
@@ -402,8 +402,8 @@ pub fn summarize(
 pub(crate) mod tests {
     use super::*;
 
-    /// A machine like the spec's example: rotor 1 "left" ccw, rotor 2 "right" cw,
-    /// index angles given (rad).
+    /// A machine like the reference one (`examples/vibro-driver.toml`): rotor 1
+    /// "left" ccw, rotor 2 "right" cw, index angles given (rad).
     pub(crate) fn machine(index: [f64; 2]) -> Machine {
         let sets = [
             format!("rotors.left.index_angle={:?}", index[0]),

@@ -6,7 +6,8 @@ use crate::machine::bodies::MAX_BODIES;
 use crate::simulation::breach::Breach;
 
 /// One row of the `--out` trace. On a machine with one rotor, rotor 2's columns
-/// (`phi2`, `omega2`, `i2`, `duty2`) stay, as 0 (the spec's columns are fixed).
+/// (`phi2`, `omega2`, `i2`, `duty2`) stay, as 0 (the columns are fixed:
+/// docs/cli-run.md, `--out`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TraceRow {
     /// Time, s.
@@ -51,7 +52,7 @@ pub struct TraceRow {
     pub bodies: [[f64; 6]; MAX_BODIES - 1],
 }
 
-/// The kind of an event (spec `machine.md`, `--events`).
+/// The kind of an event (docs/cli-run.md, `--events`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EventKind {
     /// An impact at a contact.
@@ -144,7 +145,7 @@ pub struct FinalState {
     pub angular_velocity: f64,
 }
 
-/// The `--format json` summary of a run (spec `machine.md`).
+/// The `--format json` summary of a run (docs/cli-run.md, "Outputs").
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Summary {
     /// Simulated end time, s.

@@ -4,7 +4,7 @@
 //!
 //! Sweeps rotor speed and phase offset in closed loop and finds, at every speed,
 //! the offset that travels right fastest and the one that travels left fastest
-//! (spec `machine.md`, `host-sim tune`; docs/tuning.md).
+//! (docs/tuning.md).
 //!
 //! A machine with one rotor has no phase offset and its controller no tuning
 //! table to use: `tune` refuses it (exit 2, `one_rotor_refusal`).

@@ -28,8 +28,8 @@ fn point_value(speed: f64, offset: f64, velocity: f64) -> Value {
     Value::Object(m)
 }
 
-/// The spec's JSON document, `{"grid": [...], "best": {"right": [...], "left":
-/// [...]}}`, and the project's `"warnings": [...]`, pretty-printed.
+/// The JSON document of docs/tuning.md ("Output"), `{"grid": [...], "best":
+/// {"right": [...], "left": [...]}, "warnings": [...]}`, pretty-printed.
 pub fn tuning_json(t: &Tuning) -> String {
     let mut doc = Map::new();
     doc.insert(

@@ -184,7 +184,7 @@ pub fn run_machine(command: &str, args: &[&str]) -> Run {
     run(&all)
 }
 
-/// The keys of a JSON object, in order (the spec fixes the order).
+/// The keys of a JSON object, in order (the docs fix the order).
 pub fn keys(v: &Value) -> Vec<&str> {
     v.as_object()
         .expect("a JSON object")

@@ -1,7 +1,7 @@
 //! Angles and speeds: wrapping on the circle, circular interpolation, unit changes.
 //!
-//! Offsets are in degrees as the spec writes them (`machine.md`, "Phase convention"):
-//! a phase offset lives in [0, 360), a phase error in (-180, 180]. Everything here is
+//! Offsets are in degrees, as docs/machine-file.md ("Conventions") gives them: a
+//! phase offset lives in [0, 360), a phase error in (-180, 180]. Everything here is
 //! linear arithmetic and `floor` (libm, exact): no trigonometry, so nothing depends on
 //! micromath's approximations.
 

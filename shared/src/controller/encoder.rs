@@ -23,8 +23,9 @@
 //!
 //! # Angle
 //!
-//! The index pulse fires at `theta = 0` (spec: `theta = s (phi - index_angle)`), so
-//! with the count `c0` latched at the last index pulse,
+//! The index pulse fires at `theta = 0` (`theta = s (phi - index_angle)`:
+//! docs/machine-file.md, "Conventions"), so with the count `c0` latched at the last
+//! index pulse,
 //!
 //! ```text
 //!   theta = 2 pi ((count - c0) mod N) / N

@@ -73,9 +73,9 @@ pub struct Inputs {
     /// `now.wrapping_sub(before) as i32`.
     pub encoder: [u32; 2],
     /// The counter value latched at an index pulse since the previous tick, `None`
-    /// when there was none. The index marks `theta = 0` (spec: `theta = s (phi -
-    /// index_angle)`), so the controller's angle is `theta = 2 pi (count -
-    /// index_count) / N`.
+    /// when there was none. The index marks `theta = 0`
+    /// (`theta = s (phi - index_angle)`: docs/machine-file.md, "Conventions"), so the
+    /// controller's angle is `theta = 2 pi (count - index_count) / N`.
     pub index: [Option<u32>; 2],
     /// Winding currents, A, measured, positive when driving the rotor forward:
     /// each the mean over the tick just ended (the firmware averages its ADC

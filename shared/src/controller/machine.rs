@@ -3,7 +3,7 @@
 //! and the firmware's build script both call, so the firmware runs the controller
 //! with the constants the simulator tuned it with.
 //!
-//! The values are the machine file's (spec `machine.md`), SI units, in `f64`: the
+//! The values are the machine file's (docs/machine-file.md), SI units, in `f64`: the
 //! host computes them and each constant is rounded to `f32` once, at the end.
 //!
 //! | constant | formula |

@@ -6,8 +6,8 @@
 //! # What it does
 //!
 //! Two counter-rotating unbalance rotors are run at a commanded speed while a
-//! phase-lock loop holds their phase offset `theta_1 - theta_2` (spec `machine.md`,
-//! "Phase convention") where the exciting force pushes the platform the commanded
+//! phase-lock loop holds their phase offset `theta_1 - theta_2` (docs/machine-file.md,
+//! "Conventions") where the exciting force pushes the platform the commanded
 //! way: the offset of the tuning table for the direction and speed
 //! ([`Command::Travel`]), or an explicit one ([`Command::HoldOffset`]).
 //!

@@ -4,7 +4,8 @@
 
 use super::angle::{leans_right, wrap_deg, wrap_deg_signed};
 
-/// The vertical-force offset, degrees (spec: the force acts along `offset / 2`).
+/// The vertical-force offset, degrees (the force acts along `offset / 2`:
+/// docs/machine-file.md, "Conventions").
 pub const VERTICAL_OFFSET_DEG: f32 = 180.0;
 
 /// Rates and band of the speed ramp.

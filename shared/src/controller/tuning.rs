@@ -6,8 +6,8 @@
 //! offset (along the shorter arc, [`lerp_deg`]): rows at 350 and 10 degrees give 0
 //! half-way, not 180. Outside the table's speed range the nearest row holds. Without
 //! a table the default is 90 degrees for right and 270 for left at every speed: the
-//! spec's force along `offset / 2` then leans 45 degrees from the vertical, up and
-//! right (or up and left) every revolution.
+//! force along `offset / 2` (docs/machine-file.md, "Conventions") then leans 45
+//! degrees from the vertical, up and right (or up and left) every revolution.
 //!
 //! The rule for rows is [`TuningTable::from_rows`] with [`RowField::check`]: 1 to
 //! [`MAX_TUNING_ROWS`] rows, speeds > 0 rpm and strictly increasing, offsets in

@@ -57,7 +57,8 @@ impl SlipState {
 }
 
 /// The paper's seven impact interaction cases (its list after eq. (1)), plus 0 for a
-/// contact that receives no impulse. Numbering fixed by the spec.
+/// contact that receives no impulse. Numbering fixed by docs/impact-model.md ("The
+/// seven interaction cases"), which `host-sim impact` prints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum InteractionCase {
@@ -80,7 +81,7 @@ pub enum InteractionCase {
 }
 
 impl InteractionCase {
-    /// The case number of the spec (0 to 7).
+    /// The documented case number (0 to 7).
     pub fn number(self) -> u8 {
         self as u8
     }

@@ -71,9 +71,9 @@ impl<T: Real> Default for ContactLaw<T> {
 /// One impact: `len` contacts (at most `N`), their Delassus matrix, their velocities
 /// before the impact and their laws. Unused entries (index >= `len`) are ignored.
 ///
-/// Sign conventions (spec `impact-case.md`): a contact's normal impulse `P_n >= 0`
-/// acts along its normal `n`, its tangential impulse `P_t` along `t = (-n_y, n_x)`;
-/// `u_n < 0` is approaching.
+/// Sign conventions (docs/impact-model.md, "Conventions"): a contact's normal impulse
+/// `P_n >= 0` acts along its normal `n`, its tangential impulse `P_t` along
+/// `t = (-n_y, n_x)`; `u_n < 0` is approaching.
 #[derive(Clone, Debug)]
 pub struct ImpactProblem<T, const N: usize> {
     /// Number of contacts in use.

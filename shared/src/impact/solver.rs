@@ -1,5 +1,5 @@
 //! Darboux-Keller integration of an impact in impulse space, piecewise exactly
-//! (spec `impact-case.md`, "Method").
+//! (docs/impact-model.md, "The method").
 //!
 //! Stages of [`solve`]:
 //! 1. **Compression**: pieces of the complementarity rule toward zero normal
@@ -46,10 +46,11 @@ pub enum ImpactError {
     TooManyEvents,
 }
 
-/// The relative tolerance of events and checks: `1e-9` in `f64` (the spec's
-/// threshold for events at the end of compression), `64 eps` (7.6e-6) in `f32`,
-/// above the rounding of velocities recomputed as `u0 + W P` and far enough
-/// below the spec's `1e-4` agreement of `f32` with `f64`.
+/// The relative tolerance of events and checks: `1e-9` in `f64` (the threshold
+/// for events at the end of compression, docs/impact-model.md, "The seven
+/// interaction cases"), `64 eps` (7.6e-6) in `f32`, above the rounding of
+/// velocities recomputed as `u0 + W P` and far enough below the `1e-4` agreement
+/// of `f32` with `f64` (docs/impact-model.md, "Accuracy and limits").
 fn relative_tolerance<T: Real>() -> T {
     T::from_f64(1e-9).max(T::from_f64(64.0) * T::EPSILON)
 }
@@ -596,10 +597,10 @@ impl<'a, T: Real, const N: usize> Run<'a, T, N> {
     }
 }
 
-/// The paper's interaction case of a contact from its history (spec numbering):
-/// the first switch out of a slip decides (stick: 3 in compression, 4 in
-/// restitution; reversal: 5 or 6); without one, stick throughout is 7, slip from
-/// zero tangential velocity 2, slip one way 1; no impulse 0.
+/// The paper's interaction case of a contact from its history (the numbering of
+/// docs/impact-model.md): the first switch out of a slip decides (stick: 3 in
+/// compression, 4 in restitution; reversal: 5 or 6); without one, stick throughout is
+/// 7, slip from zero tangential velocity 2, slip one way 1; no impulse 0.
 fn classify<T: Real>(segments: &[Segment<T>], u_t0: T, tol: T) -> InteractionCase {
     let Some(first) = segments.first() else {
         return InteractionCase::Inactive;
