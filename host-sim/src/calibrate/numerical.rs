@@ -11,17 +11,17 @@
 //! That difference is a model error the fit cannot tell from a measurement's, and
 //! it is shared by every row at the point (one run serves them all).
 //!
-//! The estimate: at the fit, every point run again at `rtol / 2` and `rtol / 4`
+//! The estimate: at the fit, every point run again at `rtol / 2` to `rtol / 16`
 //! ([`DIVISORS`]; clamped to the machine file's lowest tolerance), and the
-//! sample variance of the three speeds `g_0, g_1, g_2` (the fit's first):
+//! sample variance of the five speeds `g_0 .. g_4` (the fit's first):
 //!
 //! ```text
-//! tau_k^2 = sum_i (g_i - gbar)^2 / 2
+//! tau_k^2 = sum_i (g_i - gbar)^2 / 4
 //! ```
 //!
-//! unbiased when the three are independent samples of a chaotic gait's mean;
+//! unbiased when the five are independent samples of a chaotic gait's mean;
 //! where the error is a smooth bias `e rtol` it gives `tau = 0.38 e rtol`, an
-//! underestimate, but such biases are below 0.01 mm/s at 1e-3 on the reference
+//! underestimate, but such biases are below 0.02 mm/s at 1e-3 on the reference
 //! machine. A point held at the fit but not at a finer tolerance has no settled
 //! speed to speak of: its `tau` is the residual of a run not held,
 //! [`NOT_HELD_RESIDUAL_MPS`]. [`super::precision`] adds `W_k tau_k^2` to the
