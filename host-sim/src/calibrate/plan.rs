@@ -83,7 +83,7 @@ pub fn plan(args: &CalibrateArgs, inputs: &Inputs, settings: &Settings) -> Plan 
     let mut warnings = Vec::new();
     if points >= MANY_POINTS {
         warnings.push(format!(
-            "{} measured: every evaluation of the fit runs each of them, up to {} in all; a few dozen points, each repeated, fit as well for a fraction of the time (docs/calibration.md, \"Cost\")",
+            "{} measured: every evaluation of the fit runs each of them, up to {} in all; fewer points, each measured more than once (a repeated point costs no run), take a fraction of the time (docs/calibration.md, \"Cost\")",
             count(points, "distinct point"),
             count(evaluations * points, "run")
         ));
