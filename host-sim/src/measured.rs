@@ -27,7 +27,9 @@
 //!   answer).
 //!
 //! Every problem at once, one line each: `error: FILE: line N: COLUMN: what is
-//! wrong (got ...)`.
+//! wrong (got ...)`; past [`MAX_PROBLEMS`] lines the rest are counted, and a field
+//! quoted is cut past [`MAX_QUOTED`] bytes. A file over [`MAX_BYTES`] is refused
+//! unread ([`read_each`], which gives the rows one by one and keeps none).
 
 use std::path::Path;
 
@@ -189,21 +191,66 @@ impl Header {
     }
 }
 
-/// Reads and checks the file at `path` ([`parse`]).
-pub fn read(path: &Path, speed_range: Option<(f64, f64)>) -> Result<(Header, Vec<Row>), String> {
-    let text = input::read_text(path).map_err(|p| input::render(&[p]))?;
-    parse(&path.display().to_string(), &text, speed_range)
+/// The largest measured file read, bytes: 64 MiB, some 4 million rows of
+/// `3000,90,0.0301234` (a sweep on the machine writes one row a run, a few
+/// hundred). The reader holds the whole text, so this bounds its memory.
+pub const MAX_BYTES: u64 = 64 << 20;
+
+/// The most problems one message lists; the rest are counted.
+pub const MAX_PROBLEMS: usize = 50;
+
+/// The longest field quoted whole in a message, bytes; a longer one is cut
+/// ([`text::cut`]).
+pub const MAX_QUOTED: usize = 40;
+
+/// Reads and checks the file at `path` ([`parse_each`]), row by row: `each` gets
+/// every row, none is kept here. A file over [`MAX_BYTES`] is refused unread.
+pub fn read_each(
+    path: &Path,
+    speed_range: Option<(f64, f64)>,
+    each: &mut dyn FnMut(Row),
+) -> Result<Header, String> {
+    let text = read_bounded(path)?;
+    parse_each(&path.display().to_string(), &text, speed_range, each)
+}
+
+/// The text of the file at `path` through the one reader of input files (a
+/// regular file, at most [`MAX_BYTES`] of it read: a device, a FIFO or a file
+/// that never ends is refused too); a file too large is told how to shrink.
+fn read_bounded(path: &Path) -> Result<String, String> {
+    input::read_text_at_most(path, MAX_BYTES).map_err(|mut p| {
+        if p.message.contains("too large") {
+            p.message += ": a measured file holds one row a run; average repeated runs into one row, with their count as its weight";
+        }
+        input::render(&[p])
+    })
 }
 
 /// The header and rows of the text of a measured file named `file`, or every
-/// problem, one line each. `speed_range`, when given, is the controller's
-/// `[min_speed_rpm, max_speed_rpm]`, rpm; without it a speed need only be above 0.
+/// problem, one line each ([`parse_each`]).
 pub fn parse(
     file: &str,
     text: &str,
     speed_range: Option<(f64, f64)>,
 ) -> Result<(Header, Vec<Row>), String> {
-    let mut problems = Vec::new();
+    let mut rows = Vec::new();
+    let header = parse_each(file, text, speed_range, &mut |r| rows.push(r))?;
+    Ok((header, rows))
+}
+
+/// The header of the text of a measured file named `file`, each of its rows given
+/// to `each` in order; or every problem, one line each (the first
+/// [`MAX_PROBLEMS`], then their count; a field longer than [`MAX_QUOTED`] cut).
+/// `speed_range`, when given, is the controller's `[min_speed_rpm,
+/// max_speed_rpm]`, rpm; without it a speed need only be above 0. `each` may
+/// have seen rows of a file that is refused.
+pub fn parse_each(
+    file: &str,
+    text: &str,
+    speed_range: Option<(f64, f64)>,
+    each: &mut dyn FnMut(Row),
+) -> Result<Header, String> {
+    let mut problems = Problems::default();
     // A spreadsheet's "CSV UTF-8" starts with a byte order mark: not part of the
     // header's first name.
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
@@ -228,7 +275,8 @@ pub fn parse(
                 "error: {file}: line {header_line}: header: column `{name}` twice"
             )),
             None => problems.push(format!(
-                "error: {file}: line {header_line}: header: unknown column `{name}` (allowed: {})",
+                "error: {file}: line {header_line}: header: unknown column `{}` (allowed: {})",
+                text::cut(name, MAX_QUOTED),
                 ALL.join(", ")
             )),
         }
@@ -242,12 +290,11 @@ pub fn parse(
         }
     }
     if !problems.is_empty() {
-        return Err(problems.join("\n") + "\n");
+        return Err(problems.render());
     }
     let header = Header { order };
 
     // The rows.
-    let mut rows = Vec::new();
     for (line, l) in lines {
         let cells: Vec<&str> = l.split(',').map(str::trim).collect();
         if cells.len() != header.order.len() {
@@ -264,21 +311,23 @@ pub fn parse(
         for (&k, cell) in header.order.iter().zip(&cells) {
             let Some(v) = cell.parse::<f64>().ok().filter(|v| v.is_finite()) else {
                 problems.push(format!(
-                    "error: {file}: line {line}: {}: must be a finite number (got {cell:?})",
-                    ALL[k]
+                    "error: {file}: line {line}: {}: must be a finite number (got {:?})",
+                    ALL[k],
+                    text::cut(cell, MAX_QUOTED)
                 ));
                 continue;
             };
             match refusal(k, v, speed_range) {
                 Some(allowed) => problems.push(format!(
-                    "error: {file}: line {line}: {}: must be {allowed} (got {cell})",
-                    ALL[k]
+                    "error: {file}: line {line}: {}: must be {allowed} (got {})",
+                    ALL[k],
+                    text::cut(cell, MAX_QUOTED)
                 )),
                 None => values[k] = Some(v),
             }
         }
         if let [Some(speed_rpm), Some(offset), Some(velocity_mps), Some(weight)] = values {
-            rows.push(Row {
+            each(Row {
                 line,
                 speed_rpm,
                 offset_deg: wrap_deg_360(offset) + 0.0,
@@ -288,29 +337,44 @@ pub fn parse(
         }
     }
     if problems.is_empty() {
-        Ok((header, rows))
+        Ok(header)
     } else {
-        Err(problems.join("\n") + "\n")
+        Err(problems.render())
     }
 }
 
-/// The distinct points `(speed, offset)` of `rows` in the order first met, and
-/// for each row the index of its point: the runs one evaluation needs.
-pub fn points(rows: &[Row]) -> (Vec<(f64, f64)>, Vec<usize>) {
-    let mut points: Vec<(f64, f64)> = Vec::new();
-    let mut of_row = Vec::new();
-    for r in rows {
-        let key = (r.speed_rpm, r.offset_deg);
-        let i = match points.iter().position(|p| *p == key) {
-            Some(i) => i,
-            None => {
-                points.push(key);
-                points.len() - 1
-            }
-        };
-        of_row.push(i);
+/// The problems of a file: the first [`MAX_PROBLEMS`] kept, the rest counted.
+#[derive(Default)]
+struct Problems {
+    kept: Vec<String>,
+    more: usize,
+}
+
+impl Problems {
+    fn push(&mut self, message: String) {
+        if self.kept.len() < MAX_PROBLEMS {
+            self.kept.push(message);
+        } else {
+            self.more += 1;
+        }
     }
-    (points, of_row)
+
+    fn is_empty(&self) -> bool {
+        self.kept.is_empty()
+    }
+
+    /// One line each, then `... and N more problems` when some were left out.
+    fn render(&self) -> String {
+        let mut out = self.kept.join("\n") + "\n";
+        if self.more > 0 {
+            out += &format!(
+                "... and {} more problem{} (the first {MAX_PROBLEMS} are listed)\n",
+                self.more,
+                if self.more == 1 { "" } else { "s" }
+            );
+        }
+        out
+    }
 }
 
 #[cfg(test)]
@@ -470,12 +534,69 @@ mod tests {
         );
     }
 
+    /// A long field is quoted cut, with its length; past the most problems, the
+    /// rest are counted.
     #[test]
-    fn repeated_rows_share_one_point() {
-        let rows =
-            rows("speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n3000,0,0.01\n3000,-270,0.031\n");
-        let (points, of_row) = points(&rows);
-        assert_eq!(points, vec![(3000.0, 90.0), (3000.0, 0.0)]);
-        assert_eq!(of_row, vec![0, 1, 0]);
+    fn messages_stay_short() {
+        let long = "x".repeat(10_000_000);
+        let e = err(&format!(
+            "speed_rpm,offset_deg,velocity_mps\n3000,90,{long}\n"
+        ));
+        assert_eq!(
+            e,
+            format!(
+                "error: m.csv: line 2: velocity_mps: must be a finite number (got \"{}... (10000000 bytes)\")\n",
+                "x".repeat(MAX_QUOTED)
+            )
+        );
+        let e = err(&format!("speed_rpm,offset_deg,{long}\n"));
+        assert!(e.len() < 400, "{}", e.len());
+        // A number that reads (as 0) but is refused.
+        let zeros = "0".repeat(10_000_000);
+        let e = err(&format!(
+            "speed_rpm,offset_deg,velocity_mps\n0.{zeros}1,90,0.1\n"
+        ));
+        assert_eq!(
+            e,
+            format!(
+                "error: m.csv: line 2: speed_rpm: must be within the controller's speed range [500, 4500] rpm (got 0.{}... (10000003 bytes))\n",
+                "0".repeat(MAX_QUOTED - 2)
+            )
+        );
+        let bad = "3000,90,fast\n".repeat(MAX_PROBLEMS + 7);
+        let e = err(&format!("speed_rpm,offset_deg,velocity_mps\n{bad}"));
+        assert_eq!(e.lines().count(), MAX_PROBLEMS + 1);
+        assert!(e.ends_with(&format!(
+            "\n... and 7 more problems (the first {MAX_PROBLEMS} are listed)\n"
+        )));
+    }
+
+    /// Rows go to the caller one by one, in order; a file over the size limit is
+    /// refused before it is parsed.
+    #[test]
+    fn a_file_is_read_row_by_row_within_its_size() {
+        let dir = std::env::temp_dir().join(format!("host-sim-measured-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.csv");
+        std::fs::write(
+            &path,
+            "speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n3000,0,0.01\n",
+        )
+        .unwrap();
+        let mut lines = Vec::new();
+        read_each(&path, None, &mut |r| lines.push(r.line)).unwrap();
+        assert_eq!(lines, [2, 3]);
+        // Past the limit: refused, whatever it holds (a sparse file of zeros).
+        let big = std::fs::File::create(&path).unwrap();
+        big.set_len(MAX_BYTES + 1).unwrap();
+        let e = read_each(&path, None, &mut |_| panic!("no row")).unwrap_err();
+        assert_eq!(
+            e,
+            format!(
+                "error: {}: cannot read the file: too large (67108865 bytes): an input file of this kind has at most 67108864 bytes (64 MiB): a measured file holds one row a run; average repeated runs into one row, with their count as its weight\n",
+                path.display()
+            )
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -265,7 +265,7 @@ fn file_kind(meta: &std::fs::Metadata) -> &'static str {
 }
 
 /// A short reason for an I/O error, without Rust's `(os error N)` noise.
-fn io_reason(e: &std::io::Error) -> String {
+pub fn io_reason(e: &std::io::Error) -> String {
     match e.kind() {
         std::io::ErrorKind::NotFound => "no such file".to_string(),
         std::io::ErrorKind::PermissionDenied => "permission denied".to_string(),

@@ -8,20 +8,27 @@
 //! Stages of [`run`]:
 //! 1. read and check, every problem at once (exit 2) before any run: the machine
 //!    file with the `--set`s (as `tune` runs it: two rotors, no tuning table), the
-//!    fitted keys and their ranges ([`keys`]), the measured file ([`measured`]),
-//!    `--t-end`, the output file (opened, staged);
+//!    fitted keys and their ranges ([`keys`]), the measured file ([`measured`],
+//!    read row by row into its distinct points, [`points`]), `--t-end`, the output
+//!    file (opened, staged); then the planned cost on stderr ([`plan`]);
 //! 2. the fit ([`fit`]): one evaluation is one closed-loop run per distinct
 //!    `(speed, offset)` of the measured file (`tune`'s [`run_point`], holding the
 //!    offset from `t = 0`), all the runs of a batch of points in parallel; a run
-//!    that does not hold its offset gives its rows the residual
+//!    that does not hold its offset gives its point the residual
 //!    [`NOT_HELD_RESIDUAL_MPS`];
-//! 3. the standard errors and the keys not identified ([`precision`]);
+//! 3. the simulator's numerical noise at the fit: every point run again at finer
+//!    tolerances ([`numerical`]); the standard errors, the measurements' scatter
+//!    and that noise both in them, and the keys not identified ([`precision`]);
 //! 4. the outputs ([`report`]): `--write` (the machine file with the fitted values,
 //!    nothing else changed, checked to read back), then the result on stdout as a
-//!    table or JSON, each row's residual in both; one summary line on stderr.
+//!    table or JSON, the residual of each of the first [`points::ROWS_SHOWN`] rows
+//!    in both; one summary line on stderr.
 
 pub mod fit;
 pub mod keys;
+pub mod numerical;
+pub mod plan;
+pub mod points;
 pub mod precision;
 pub mod report;
 
@@ -36,7 +43,7 @@ use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::machine::input;
-use crate::measured::{self, Row};
+use crate::measured;
 use crate::output::file::Staged;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
@@ -45,6 +52,7 @@ use crate::tune::sweep::{run_point, RunOutcome};
 use crate::tune::{load_machine, progress_bar, read_machine_file, warning_count, DEFAULT_T_END};
 use fit::Settings;
 use keys::FitKey;
+use points::{Gathered, Point, MAX_POINTS};
 
 /// Arguments of `host-sim calibrate`.
 #[derive(Debug, Args)]
@@ -90,10 +98,7 @@ pub struct CalibrateArgs {
     pub set: SetArgs,
 }
 
-/// The residual of a row whose simulated run did not hold its offset, m/s: twice
-/// the reference machine's fastest travel (50 mm/s at 3500 rpm), so that a fit
-/// holding every offset always scores better than one that does not.
-pub const NOT_HELD_RESIDUAL_MPS: f64 = 0.1;
+pub use points::NOT_HELD_RESIDUAL_MPS;
 
 /// What was read in stage 1.
 pub struct Inputs {
@@ -101,12 +106,8 @@ pub struct Inputs {
     pub text: String,
     /// The fitted keys.
     pub keys: Vec<FitKey>,
-    /// The measured rows.
-    pub rows: Vec<Row>,
-    /// The distinct (speed rpm, offset degrees) points of the rows.
-    pub points: Vec<(f64, f64)>,
-    /// Each row's index in `points`.
-    pub of_row: Vec<usize>,
+    /// The measured rows, gathered by their distinct points.
+    pub data: Gathered,
     /// End time of each run, s.
     pub t_end: f64,
 }
@@ -125,17 +126,23 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
         f64::from(params.min_speed_rpm),
         f64::from(params.max_speed_rpm),
     );
-    let rows = measured::read(&args.measured, Some(speeds))
-        .and_then(|(_, rows)| {
+    let mut data = Gathered::default();
+    let rows = measured::read_each(&args.measured, Some(speeds), &mut |r| data.add(r))
+        .and_then(|_| {
+            let file = args.measured.display();
             // A file with a header alone (a sweep stopped before its first
             // answer) is well formed, but there is nothing to fit.
-            if rows.is_empty() {
+            if data.rows == 0 {
                 Err(format!(
-                    "error: {}: no rows after the header: one row per measured run\n",
-                    args.measured.display()
+                    "error: {file}: no rows after the header: one row per measured run\n"
+                ))
+            } else if data.rows_beyond > 0 {
+                Err(format!(
+                    "error: {file}: more than {MAX_POINTS} distinct (speed, offset) points ({} beyond the first {MAX_POINTS} points): one evaluation of the fit runs each point, and a fit takes some 80 evaluations (docs/calibration.md, \"Cost\"); measure fewer points (a point repeated costs no run)\n",
+                    count(data.rows_beyond, "row")
                 ))
             } else {
-                Ok(rows)
+                Ok(())
             }
         })
         .map_err(|e| problems.push(e))
@@ -150,17 +157,12 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
         problems.push(p + "\n");
     }
     match (keys, rows) {
-        (Some(keys), Some(rows)) if problems.is_empty() => {
-            let (points, of_row) = measured::points(&rows);
-            Ok(Inputs {
-                text,
-                keys,
-                rows,
-                points,
-                of_row,
-                t_end,
-            })
-        }
+        (Some(keys), Some(())) if problems.is_empty() => Ok(Inputs {
+            text,
+            keys,
+            data,
+            t_end,
+        }),
         _ => Err(problems
             .iter()
             .map(|p| {
@@ -178,12 +180,21 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
 pub struct Calibration {
     /// The fitted keys.
     pub keys: Vec<FitKey>,
-    /// The measured rows.
-    pub rows: Vec<Row>,
+    /// The measured rows, gathered by their distinct points.
+    pub data: Gathered,
+    /// The weighted sum of squares over the rows at the fit, `S`, m^2/s^2 (the
+    /// search's over the points and the scatter within them).
+    pub ssr: f64,
     /// The fitted value of each key (rounded as written).
     pub fitted: Vec<f64>,
     /// Each key's standard error, in its units.
     pub std_error: Vec<Option<f64>>,
+    /// Its part from the measurements' scatter, in the key's units.
+    pub std_error_measurement: Vec<Option<f64>>,
+    /// Its part from the simulator's numerical noise, in the key's units.
+    pub std_error_numerical: Vec<Option<f64>>,
+    /// The runs at finer tolerances and the numerical noise of each point.
+    pub noise: numerical::Noise,
     /// How far each key's fit may lie from the least-squares point by the
     /// search's last step, in its units.
     pub resolution: Vec<Option<f64>>,
@@ -191,7 +202,7 @@ pub struct Calibration {
     pub fit: fit::Fit,
     /// The estimates behind the standard errors.
     pub precision: precision::Precision,
-    /// Each row's simulated run at the fit.
+    /// Each point's simulated run at the fit.
     pub simulated: Vec<RunOutcome>,
     /// End time of each run, s.
     pub t_end: f64,
@@ -203,14 +214,18 @@ pub struct Calibration {
 
 /// Runs the command (stages of the module doc).
 pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failure> {
-    // 1. Inputs, then the output, before any run.
+    // 1. Inputs, then the output, before any run; then what the fit will cost.
     let inputs = read_options(args).map_err(Failure::Usage)?;
     let mut staged = Staged::new();
     let out = staged.add_optional("--write", args.write.as_deref())?;
+    let settings = Settings::for_keys(inputs.keys.len());
+    let plan = plan::plan(args, &inputs, &settings);
+    console.note(&plan.render(rayon::current_num_threads()));
 
     // 2. and 3. The fit, with a progress bar on stderr (on a terminal).
     let started = Instant::now();
-    let calibration = calibrate(args, inputs)?;
+    let mut calibration = calibrate(args, inputs, &settings)?;
+    calibration.warnings.extend(plan.warnings);
     let seconds = started.elapsed().as_secs_f64();
 
     // 4. The file, then the result.
@@ -241,6 +256,8 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
 struct Trials<'a> {
     args: &'a CalibrateArgs,
     inputs: &'a Inputs,
+    /// The measured points' speeds and offsets.
+    points: Vec<(f64, f64)>,
     progress: crate::output::progress::Progress,
     /// The runs of every point evaluated, by the bits of its coordinates.
     outcomes: HashMap<Vec<u64>, Vec<RunOutcome>>,
@@ -256,17 +273,16 @@ fn bits(u: &[f64]) -> Vec<u64> {
 }
 
 impl Trials<'_> {
-    /// The weighted residuals of every point of `batch` (not numbers for a point
-    /// the reader refuses); `Err` on Ctrl-C.
+    /// The weighted residuals of every trial point of `batch`, one per measured
+    /// point (not numbers for a trial point the reader refuses); `Err` on Ctrl-C.
     fn residuals(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> {
         let Inputs {
             text,
             keys,
-            rows,
-            points,
-            of_row,
+            data,
             t_end,
         } = self.inputs;
+        let points = &self.points;
         // The machines, in order (a point the reader refuses has none).
         let machines: Vec<Option<_>> = batch
             .iter()
@@ -301,58 +317,97 @@ impl Trials<'_> {
                 crate::interrupt::interruption()
             ));
         }
-        // The residuals, point by point.
+        // The residuals, trial point by trial point.
         let mut done = done.into_iter();
         let mut out = Vec::new();
         for (u, m) in batch.iter().zip(&machines) {
             if m.is_none() {
-                out.push(vec![f64::NAN; rows.len()]);
+                out.push(vec![f64::NAN; points.len()]);
                 continue;
             }
             let sims: Vec<RunOutcome> = done.by_ref().take(points.len()).collect();
-            out.push(row_residuals(rows, of_row, &sims));
+            out.push(point_residuals(&data.points, &sims));
             self.outcomes.insert(bits(u), sims);
         }
         Ok(out)
     }
 }
 
-/// Stages 2 and 3 on checked inputs.
-pub fn calibrate(args: &CalibrateArgs, inputs: Inputs) -> Result<Calibration, Failure> {
+/// Stages 2 and 3 on checked inputs, with the search's `settings`.
+pub fn calibrate(
+    args: &CalibrateArgs,
+    inputs: Inputs,
+    settings: &Settings,
+) -> Result<Calibration, Failure> {
     let keys = &inputs.keys;
     let p = keys.len();
-    let settings = Settings::for_keys(p);
+    let points = inputs.data.speeds_offsets();
     let mut trials = Trials {
         args,
         inputs: &inputs,
+        // The search's most runs, then the numerical noise's at the fit: the
+        // total is fixed from the start (the search may end early).
         progress: progress_bar(
             "calibrate",
-            settings.most_evaluations(1, p) * inputs.points.len(),
+            (most_evaluations(settings, p) + numerical::DIVISORS.len()) * points.len(),
         ),
+        points,
         outcomes: HashMap::new(),
         refused: Vec::new(),
         runs: 0,
     };
     let start: Vec<f64> = keys.iter().map(|k| k.u_of(k.nominal)).collect();
-    let found = fit::fit(p, &[start], &settings, &mut |b| trials.residuals(b));
-    trials.progress.finish_and_clear();
-    let found = found.map_err(Failure::Run)?;
+    let found = fit::fit(p, &[start], settings, &mut |b| trials.residuals(b));
+    let found = found.map_err(|e| {
+        trials.progress.finish_and_clear();
+        Failure::Run(e)
+    })?;
 
-    // The runs at the fit, row by row.
-    let sims = trials.outcomes.remove(&bits(&found.u)).unwrap_or_default();
-    let simulated: Vec<RunOutcome> = inputs
-        .of_row
-        .iter()
-        .filter_map(|&k| sims.get(k).cloned())
-        .collect();
-    if simulated.len() != inputs.rows.len() {
+    // The runs at the fit, point by point.
+    let simulated = trials.outcomes.remove(&bits(&found.u)).unwrap_or_default();
+    if simulated.len() != inputs.data.points.len() {
+        trials.progress.finish_and_clear();
         return Err(Failure::Run(
             "error: calibrate: no point of the search ran (every one refused by the machine reader); nothing written".into(),
         ));
     }
 
-    // 3. Standard errors and resolution, in the keys' units.
-    let precision = precision::precision(&found.jacobian, found.ssr, settings.last_step);
+    // 3. The numerical noise at the fit (its machine loaded: the search ran it).
+    let mut sets = args.set.keys.clone();
+    sets.extend(keys::sets_at(keys, &found.u));
+    let machine = load_machine(&args.machine.path, &inputs.text, &sets).map_err(Failure::Run)?;
+    let progress = &trials.progress;
+    let noise = numerical::noise(
+        &machine,
+        &inputs.data.points,
+        inputs.t_end,
+        &simulated,
+        &|| progress.inc(1),
+    );
+    trials.progress.finish_and_clear();
+    crate::tune::refuse_interrupted("calibrate", "the fit is incomplete")?;
+    let runs = trials.runs + numerical::DIVISORS.len() * trials.points.len();
+
+    // Standard errors and resolution, in the keys' units.
+    let n = inputs.data.rows;
+    let ssr = found.ssr + inputs.data.scatter();
+    let numerical: Vec<f64> = inputs
+        .data
+        .points
+        .iter()
+        .zip(&noise.sd)
+        .map(|(point, tau)| point.weight * tau * tau)
+        .collect();
+    let precision = precision::precision(
+        &found.jacobian,
+        ssr,
+        n,
+        settings.last_step,
+        &precision::Numerical {
+            variance: numerical,
+            indifference: noise.gain() + noise.ssr_sd(),
+        },
+    );
     let in_units = |normalised: &[Option<f64>]| -> Vec<Option<f64>> {
         keys.iter()
             .zip(normalised)
@@ -360,46 +415,60 @@ pub fn calibrate(args: &CalibrateArgs, inputs: Inputs) -> Result<Calibration, Fa
             .collect()
     };
     let std_error = in_units(&precision.std_error_u);
+    let std_error_measurement = in_units(&precision.measurement_u);
+    let std_error_numerical = in_units(&precision.numerical_u);
     let resolution = in_units(&precision.resolution_u);
-    let warnings = report::warnings(
+    let mut warnings = report::warnings(
         keys,
         &found,
+        n,
         &precision,
         &std_error,
         &simulated,
         &trials.refused,
     );
+    warnings.extend(report::numerical_warnings(
+        keys,
+        &std_error_measurement,
+        &std_error_numerical,
+        &inputs.data.points,
+        &noise,
+    ));
     Ok(Calibration {
         fitted: keys
             .iter()
             .zip(&found.u)
             .map(|(k, u)| k.value_at(*u))
             .collect(),
-        keys: keys.clone(),
-        rows: inputs.rows.clone(),
+        keys: inputs.keys.clone(),
+        ssr,
         std_error,
+        std_error_measurement,
+        std_error_numerical,
+        noise,
         resolution,
         fit: found,
         precision,
         simulated,
         t_end: inputs.t_end,
-        runs: trials.runs,
+        runs,
         warnings,
+        data: inputs.data,
     })
 }
 
-/// The weighted residuals `sqrt(w) (v_sim - v_meas)` of `rows` (row `r` at point
-/// `of_row[r]` of `sims`), m/s; [`NOT_HELD_RESIDUAL_MPS`] for a run not held.
-pub fn row_residuals(rows: &[Row], of_row: &[usize], sims: &[RunOutcome]) -> Vec<f64> {
-    rows.iter()
-        .zip(of_row)
-        .map(|(r, &k)| {
-            let o = &sims[k];
-            let e = match o.not_held {
-                None => o.mean_velocity - r.velocity_mps,
-                Some(_) => NOT_HELD_RESIDUAL_MPS,
-            };
-            r.weight.sqrt() * e
-        })
+/// The most evaluations of a fit of `p` keys with `settings`: the search's and
+/// the runs again at finer tolerances ([`numerical::DIVISORS`]).
+pub fn most_evaluations(settings: &Settings, p: usize) -> usize {
+    settings.most_evaluations(1, p) + numerical::DIVISORS.len()
+}
+
+/// The weighted residuals of the measured `points` (the simulated run of point
+/// `k` in `sims[k]`), m/s ([`Point::residual`]).
+pub fn point_residuals(points: &[Point], sims: &[RunOutcome]) -> Vec<f64> {
+    points
+        .iter()
+        .zip(sims)
+        .map(|(p, o)| p.residual(o.not_held.is_none().then_some(o.mean_velocity)))
         .collect()
 }

@@ -12,9 +12,40 @@
 //! ```
 //!
 //! `S` the weighted sum of squares at the optimum, `n` the rows (a repeated row
-//! counts once for each time it is listed), `p` the keys. A key's standard error
-//! is `(HIGH - LOW) sqrt(cov_ii)`. A local, linear estimate: it says nothing of
-//! other minima, and little where the speed jumps between gaits.
+//! counts once for each time it is listed), `p` the keys. A local, linear
+//! estimate: it says nothing of other minima, and little where the speed jumps
+//! between gaits.
+//!
+//! The simulator's numerical noise (`tau_k`, m/s, at each measured point,
+//! [`super::numerical`]) is a second error in every residual, shared by the `W_k`
+//! of weight at the point: the linearised fit moves by `-(J^T J)^-1 J^T e` for
+//! residual errors `e`, and a point's `e_k = sqrt(W_k) tau_k` (its row of `J`
+//! being `sqrt(W_k) dg_k/du`) adds the "sandwich" term (White, *Econometrica* 48,
+//! 1980, for errors of unequal variance):
+//!
+//! ```text
+//! cov(u) = s^2 (J^T J)^-1 + (J^T J)^-1 B (J^T J)^-1,    B = sum_k W_k tau_k^2 J_k J_k^T
+//! ```
+//!
+//! That is the noise's effect on a smooth `S`. But the noise makes `S` rough:
+//! the search ends at the trial point whose noise lowered `S` most, not at the
+//! minimum `u*` of the noise-free `S`. With `q = G + sigma_S`
+//! ([`super::numerical`]: the search's gain from the noise at the fit `u0`, and
+//! one standard deviation of the noise of `S` at `u*`), the search preferring
+//! `u0` means `S(u0) - S(u*) = (u0 - u*)^T J^T J (u0 - u*) <= q`, an ellipsoid
+//! whose extent along key `i` is
+//!
+//! ```text
+//! d_i = sqrt(q ((J^T J)^-1)_ii)
+//! ```
+//!
+//! taken as one more standard deviation of the numerical error (generous: three
+//! of them allow `9 q`). The numerical part of a key's standard error is
+//! `sqrt(sandwich_ii + d_i^2)`; its standard error is the root sum of squares of
+//! that and the measurements' part, `sqrt(s^2 ((J^T J)^-1)_ii)`, both reported, in
+//! the key's units (times `HIGH - LOW`). Where the residuals already show the
+//! numerical noise (measurements of a real machine), `s^2` counts it once more:
+//! the standard error errs on the wide side.
 //!
 //! The search's own resolution: where a compass search of step `h` stops, no
 //! poll point `u +- h e_i` lowers `S`; for `S` quadratic about its minimum `u*`,
@@ -51,8 +82,14 @@ pub const WEAK_COMPONENT: f64 = 0.3;
 #[derive(Clone, Debug, PartialEq)]
 pub struct Precision {
     /// Standard error of each key, normalised (`None`: not estimable: no degrees
-    /// of freedom, or a column zero or not a number).
+    /// of freedom, or a column zero or not a number): the root sum of squares of
+    /// the next two.
     pub std_error_u: Vec<Option<f64>>,
+    /// Its part from the measurements' scatter, `sqrt(s^2 ((J^T J)^-1)_ii)`.
+    pub measurement_u: Vec<Option<f64>>,
+    /// Its part from the simulator's numerical noise, `sqrt(sandwich_ii + d_i^2)`
+    /// (also where `n <= p`).
+    pub numerical_u: Vec<Option<f64>>,
     /// How far the search's end may lie from the least-squares point, normalised
     /// (`None` where `J^T J` is singular): see the module doc.
     pub resolution_u: Vec<Option<f64>>,
@@ -69,10 +106,27 @@ pub struct Precision {
     pub weak: Vec<usize>,
 }
 
-/// The estimates from the Jacobian `j` (rows) and the sum of squares `ssr` at the
-/// end of a compass search of last step `step`.
-pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
-    let n = j.len();
+/// The simulator's numerical noise at the fit, for [`precision`] (module doc).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Numerical {
+    /// Per row of the Jacobian, the variance `W_k tau_k^2` the noise adds to its
+    /// residual, m^2/s^2.
+    pub variance: Vec<f64>,
+    /// `q = G + sigma_S`, m^2/s^2.
+    pub indifference: f64,
+}
+
+/// The estimates from the Jacobian `j` (one row per measured point, `J^T J` the
+/// rows' own: [`super::points`]) and the sum of squares `ssr` over `n` rows at the
+/// end of a compass search of last step `step`, with the simulator's `numerical`
+/// noise.
+pub fn precision(
+    j: &[Vec<f64>],
+    ssr: f64,
+    n: usize,
+    step: f64,
+    numerical: &Numerical,
+) -> Precision {
     let p = j.first().map_or(0, Vec::len);
     let dof = n as isize - p as isize;
     let s2 = (dof > 0).then(|| ssr / dof as f64);
@@ -123,14 +177,43 @@ pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
         })
         .collect();
     let invertible = lo > 0.0 && condition.is_finite();
+    // (J^T J)^-1 B (J^T J)^-1 on the live columns; (A^-1)_xy = (C^-1)_xy / (d_x d_y).
+    let a_inv: Vec<Vec<f64>> = (0..m)
+        .map(|x| {
+            (0..m)
+                .map(|y| c_inv[x][y] / (column_norm[live[x]] * column_norm[live[y]]))
+                .collect()
+        })
+        .collect();
+    let mut b = vec![vec![0.0; m]; m];
+    for (row, v) in j.iter().zip(&numerical.variance) {
+        for x in 0..m {
+            for y in 0..m {
+                b[x][y] += v * row[live[x]] * row[live[y]];
+            }
+        }
+    }
+    let sandwich_diagonal = |x: usize| -> f64 {
+        (0..m)
+            .flat_map(|y| (0..m).map(move |z| (y, z)))
+            .map(|(y, z)| a_inv[x][y] * b[y][z] * a_inv[z][x])
+            .sum()
+    };
     let mut std_error_u = vec![None; p];
+    let mut measurement_u = vec![None; p];
+    let mut numerical_u = vec![None; p];
     let mut resolution_u = vec![None; p];
     for (x, &i) in live.iter().enumerate() {
         if !invertible {
             break;
         }
+        let indifference = numerical.indifference.max(0.0) * a_inv[x][x];
+        let numerical = (sandwich_diagonal(x).max(0.0) + indifference).sqrt();
+        numerical_u[i] = Some(numerical);
         if let Some(s2) = s2 {
-            std_error_u[i] = Some((s2 * c_inv[x][x]).sqrt() / column_norm[i]);
+            let measurement = (s2 * c_inv[x][x]).sqrt() / column_norm[i];
+            measurement_u[i] = Some(measurement);
+            std_error_u[i] = Some(measurement.hypot(numerical));
         }
         // |u - u*|_i <= sum_k |(A^-1)_ik| (h/2) A_kk, (A^-1)_ik = (C^-1)_ik / (d_i d_k).
         resolution_u[i] = Some(
@@ -156,6 +239,8 @@ pub fn precision(j: &[Vec<f64>], ssr: f64, step: f64) -> Precision {
     }
     Precision {
         std_error_u,
+        measurement_u,
+        numerical_u,
         resolution_u,
         s2,
         dof,
@@ -226,7 +311,7 @@ mod tests {
         let x = [0.0, 1.0, 2.0, 3.0];
         let j: Vec<Vec<f64>> = x.iter().map(|x| vec![1.0, *x]).collect();
         let ssr = 0.5;
-        let p = precision(&j, ssr, 0.1);
+        let p = precision(&j, ssr, 4, 0.1, &Numerical::default());
         let s = (ssr / 2.0f64).sqrt();
         let sxx: f64 = 5.0;
         assert!((p.std_error_u[1].unwrap() - s / sxx.sqrt()).abs() < 1e-12);
@@ -239,18 +324,85 @@ mod tests {
         assert!((p.resolution_u[1].unwrap() - 0.2).abs() < 1e-12);
     }
 
+    /// Numerical noise of variance `v` at the last of the straight line's points
+    /// moves the fit by `(J^T J)^-1 j_3 e_3`: its standard deviation is
+    /// `|(J^T J)^-1 j_3| sqrt(v)`, with `(J^T J)^-1 j_3 = [14 - 18, -6 + 12] / 20 =
+    /// [-0.2, 0.3]`; the noise of `S`, `q`, adds `q ((J^T J)^-1)_ii = q [14, 4] /
+    /// 20`; both add to the measurements' part in quadrature.
+    #[test]
+    fn numerical_noise_adds_its_two_terms() {
+        let j: Vec<Vec<f64>> = [0.0, 1.0, 2.0, 3.0].iter().map(|x| vec![1.0, *x]).collect();
+        let none = Numerical {
+            variance: vec![0.0; 4],
+            indifference: 0.0,
+        };
+        let plain = precision(&j, 0.5, 4, 0.1, &none);
+        assert_eq!(plain.numerical_u, vec![Some(0.0), Some(0.0)]);
+        assert_eq!(plain.std_error_u, plain.measurement_u);
+        let v = 0.25;
+        let q = 0.1;
+        for (numerical, expected) in [
+            (
+                Numerical {
+                    variance: vec![0.0, 0.0, 0.0, v],
+                    indifference: 0.0,
+                },
+                [0.04 * v, 0.09 * v],
+            ),
+            (
+                Numerical {
+                    variance: vec![0.0; 4],
+                    indifference: q,
+                },
+                [0.7 * q, 0.2 * q],
+            ),
+            (
+                Numerical {
+                    variance: vec![0.0, 0.0, 0.0, v],
+                    indifference: q,
+                },
+                [0.04 * v + 0.7 * q, 0.09 * v + 0.2 * q],
+            ),
+        ] {
+            let noisy = precision(&j, 0.5, 4, 0.1, &numerical);
+            assert_eq!(noisy.measurement_u, plain.measurement_u);
+            for (i, variance) in expected.iter().enumerate() {
+                let num = noisy.numerical_u[i].unwrap();
+                let meas = noisy.measurement_u[i].unwrap();
+                assert!((num - variance.sqrt()).abs() < 1e-12, "{num}");
+                assert!((noisy.std_error_u[i].unwrap() - meas.hypot(num)).abs() < 1e-15);
+            }
+        }
+        // No degrees of freedom: no standard error, but the numerical part.
+        let numerical = Numerical {
+            variance: vec![0.0, 1.0],
+            indifference: 0.0,
+        };
+        let p = precision(&j[..2], 0.0, 2, 0.1, &numerical);
+        assert_eq!(p.std_error_u, vec![None, None]);
+        assert!(p.numerical_u.iter().all(Option::is_some));
+    }
+
     /// A zero column and proportional columns are flagged; no degrees of freedom,
     /// no standard error.
     #[test]
     fn unidentifiable_keys_are_flagged() {
-        let p = precision(&[vec![1.0, 0.0], vec![2.0, 0.0], vec![3.0, 0.0]], 1.0, 0.1);
+        let p = precision(
+            &[vec![1.0, 0.0], vec![2.0, 0.0], vec![3.0, 0.0]],
+            1.0,
+            3,
+            0.1,
+            &Numerical::default(),
+        );
         assert_eq!(p.weak, vec![1]);
         assert_eq!(p.std_error_u[1], None);
         assert!(p.condition.is_infinite());
         let p = precision(
             &[vec![1.0, 2.0], vec![2.0, 4.0 + 1e-6], vec![3.0, 6.0]],
             1.0,
+            3,
             0.1,
+            &Numerical::default(),
         );
         assert!(p.condition > MAX_CONDITION);
         assert_eq!(p.weak, vec![0, 1]);
@@ -258,11 +410,19 @@ mod tests {
         let p = precision(
             &[vec![1.0, f64::NAN], vec![2.0, 1.0], vec![3.0, 0.5]],
             1.0,
+            3,
             0.1,
+            &Numerical::default(),
         );
         assert_eq!(p.weak, vec![1]);
         assert_eq!(p.std_error_u[1], None);
-        let p = precision(&[vec![1.0, 0.0], vec![0.0, 1.0]], 1.0, 0.1);
+        let p = precision(
+            &[vec![1.0, 0.0], vec![0.0, 1.0]],
+            1.0,
+            2,
+            0.1,
+            &Numerical::default(),
+        );
         assert_eq!((p.s2, p.std_error_u.clone()), (None, vec![None, None]));
     }
 

@@ -1,6 +1,7 @@
 //! The outputs of `host-sim calibrate`: the warnings, the table and the JSON
-//! document (the fitted keys with their standard errors, the search, every row's
-//! residual), and the machine file with the fitted values (`--write`).
+//! document (the fitted keys with their standard errors, the search, the residual
+//! of each of the first [`ROWS_SHOWN`] rows and the count of the rows left out),
+//! and the machine file with the fitted values (`--write`).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -10,6 +11,8 @@ use toml_edit::{DocumentMut, Item, Table};
 
 use super::fit::Fit;
 use super::keys::FitKey;
+use super::numerical::Noise;
+use super::points::{Point, ROWS_SHOWN};
 use super::precision::{informative, Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
 use super::{CalibrateArgs, Calibration, NOT_HELD_RESIDUAL_MPS};
 use crate::machine::input;
@@ -28,13 +31,13 @@ pub fn identified(c: &Calibration, i: usize) -> bool {
 pub fn warnings(
     keys: &[FitKey],
     fit: &Fit,
+    n: usize,
     precision: &Precision,
     std_error: &[Option<f64>],
     simulated: &[RunOutcome],
     refused: &[String],
 ) -> Vec<String> {
     let mut out = Vec::new();
-    let n = fit.residuals.len();
     if precision.dof <= 0 {
         out.push(format!(
             "{} for {}: no standard error (it needs more rows than keys)",
@@ -103,7 +106,7 @@ pub fn warnings(
     for o in simulated {
         if let Some(why) = &o.not_held {
             let w = format!(
-                "{} rpm {} deg: the simulated run did not hold its offset at the fit ({why}); its rows count with the residual {} m/s",
+                "{} rpm {} deg: the simulated run did not hold its offset at the fit ({why}); its rows count with the residual {} m/s from their mean",
                 text::sig(o.speed_rpm),
                 text::sig(o.offset_deg),
                 text::sig(NOT_HELD_RESIDUAL_MPS)
@@ -134,12 +137,62 @@ pub fn warnings(
     out
 }
 
-/// The rows' cells, for the table and JSON: the measured and simulated speeds and
-/// the residual (not weighted), m/s; `None` simulated where not held.
-fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
-    c.rows
+/// Points named in a warning of numerical noise, the noisiest first.
+const NOISIEST_NAMED: usize = 3;
+
+/// A warning for each key whose standard error the simulator's numerical noise
+/// (`numerical`, in the key's units) makes more of than the measurements'
+/// scatter (`measurement`): its precision is the simulator's, not the
+/// measurements'. It names the points whose speed changes most with the
+/// tolerance.
+pub fn numerical_warnings(
+    keys: &[FitKey],
+    measurement: &[Option<f64>],
+    numerical: &[Option<f64>],
+    points: &[Point],
+    noise: &Noise,
+) -> Vec<String> {
+    let mut order: Vec<usize> = (0..points.len()).filter(|&k| noise.sd[k] > 0.0).collect();
+    order.sort_by(|&a, &b| noise.sd[b].total_cmp(&noise.sd[a]).then(a.cmp(&b)));
+    let named: Vec<String> = order
         .iter()
-        .zip(&c.simulated)
+        .take(NOISIEST_NAMED)
+        .map(|&k| {
+            format!(
+                "{} rpm {} deg: {} mm/s",
+                text::sig(points[k].speed_rpm),
+                text::sig(points[k].offset_deg),
+                text::sig(noise.sd[k] * 1e3)
+            )
+        })
+        .collect();
+    let rtols: Vec<String> = noise.rtols.iter().map(|r| text::sig(*r)).collect();
+    let mut out = Vec::new();
+    for (i, k) in keys.iter().enumerate() {
+        if let (Some(m), Some(x)) = (measurement[i], numerical[i]) {
+            if x > m {
+                out.push(format!(
+                    "{}: the simulator's numerical noise makes more of its standard error ({}) than the measurements' scatter ({}): speeds change with the tolerance ({}) by up to {}; leaving such points out (a chaotic gait's speed changes at any tolerance) or a finer simulation.rtol narrows it (docs/calibration.md, \"Numerical noise\")",
+                    k.key,
+                    text::sig(x),
+                    text::sig(m),
+                    rtols.join(", "),
+                    named.join(", ")
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// The cells of the rows shown, for the table and JSON: the measured and
+/// simulated speeds and the residual (not weighted), m/s; `None` simulated where
+/// not held.
+fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
+    c.data
+        .shown
+        .iter()
+        .map(|(r, k)| (r, &c.simulated[*k]))
         .map(|(r, o)| match o.not_held {
             None => (
                 r.velocity_mps,
@@ -153,7 +206,7 @@ fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
 
 /// `--format table`.
 pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
-    let n = c.rows.len();
+    let n = c.data.rows;
     let mut out = format!(
         "calibrate {}: {} from {}, {}, runs of {} s\n\n",
         args.machine.path.display(),
@@ -169,6 +222,7 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         ("nominal", Align::Right),
         ("fitted", Align::Right),
         ("std_error", Align::Right),
+        ("numerical", Align::Right),
         ("resolution", Align::Right),
         ("identified", Align::Left),
     ]);
@@ -180,6 +234,7 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
             text::sig(k.nominal),
             text::sig(c.fitted[i]),
             c.std_error[i].map_or("-".into(), text::sig),
+            c.std_error_numerical[i].map_or("-".into(), text::sig),
             c.resolution[i].map_or("-".into(), text::sig),
             if identified(c, i) { "yes" } else { "no" }.into(),
         ]);
@@ -188,13 +243,15 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
     let p = &c.precision;
     let _ = writeln!(
         out,
-        "\nfit: weighted sum of squares {} m^2/s^2 over {} (n - p = {}), s = {} mm/s, condition number {}",
-        text::sig(c.fit.ssr),
+        "\nfit: weighted sum of squares {} m^2/s^2 over {} at {} (n - p = {}), s = {} mm/s, condition number {}",
+        text::sig(c.ssr),
         super::count(n, "row"),
+        super::count(c.data.points.len(), "point"),
         p.dof,
         p.s2.map_or("-".into(), |s2| text::sig(s2.sqrt() * 1e3)),
         text::sig(p.condition)
     );
+    let scatter = c.data.scatter();
     let from: Vec<String> = c
         .fit
         .searches
@@ -203,8 +260,8 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
             format!(
                 "start {} ({} -> {} in {})",
                 s.start,
-                text::sig(s.from),
-                text::sig(s.to),
+                text::sig(s.from + scatter),
+                text::sig(s.to + scatter),
                 super::count(s.polls, "poll")
             )
         })
@@ -217,6 +274,16 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         super::count(c.fit.evaluations, "evaluation"),
         super::count(c.runs, "run")
     );
+    let finer: Vec<String> = c.noise.rtols[1..].iter().map(|r| text::sig(*r)).collect();
+    let _ = writeln!(
+        out,
+        "numerical noise: each point run again at rtol {}: the rows' numerical column is the standard deviation of its speeds over the {} tolerances, the keys' that noise's part of the standard error",
+        match finer.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => finer.join(""),
+        },
+        c.noise.rtols.len()
+    );
     out.push_str("\nrows, mm/s (residual = simulated - measured):\n");
     let mut rows = text::Table::new(&[
         ("line", Align::Right),
@@ -226,8 +293,9 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         ("measured", Align::Right),
         ("simulated", Align::Right),
         ("residual", Align::Right),
+        ("numerical", Align::Right),
     ]);
-    for (r, (m, s, e)) in c.rows.iter().zip(row_values(c)) {
+    for ((r, k), (m, s, e)) in c.data.shown.iter().zip(row_values(c)) {
         rows.row(vec![
             r.line.to_string(),
             text::sig(r.speed_rpm),
@@ -236,9 +304,17 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
             format!("{:.3}", m * 1e3),
             s.map_or("not held".into(), |s| format!("{:.3}", s * 1e3)),
             format!("{:+.3}", e * 1e3),
+            format!("{:.3}", c.noise.sd[*k] * 1e3),
         ]);
     }
     out.push_str(&rows.render());
+    if let Some(left_out) = rows_left_out(c) {
+        let _ = writeln!(
+            out,
+            "... and {left_out} more row{} (the first {ROWS_SHOWN} are listed; all count in the fit)",
+            if left_out == 1 { "" } else { "s" }
+        );
+    }
     for w in &c.warnings {
         let _ = writeln!(out, "warning: {w}");
     }
@@ -256,38 +332,64 @@ pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
             json!({
                 "key": k.key, "targets": k.targets, "low": k.low, "high": k.high,
                 "range_from": k.bound.name(), "nominal": k.nominal, "fitted": c.fitted[i],
-                "std_error": c.std_error[i], "resolution": c.resolution[i],
+                "std_error": c.std_error[i],
+                "std_error_measurement": c.std_error_measurement[i],
+                "std_error_numerical": c.std_error_numerical[i],
+                "resolution": c.resolution[i],
                 "identified": identified(c, i),
             })
         })
         .collect();
     let rows: Vec<Value> = c
-        .rows
+        .data
+        .shown
         .iter()
         .zip(row_values(c))
-        .zip(&c.simulated)
-        .map(|((r, (m, s, e)), o)| {
+        .map(|((r, k), (m, s, e))| {
+            let o = &c.simulated[*k];
             json!({
                 "line": r.line, "speed_rpm": r.speed_rpm, "offset_deg": r.offset_deg,
                 "weight": r.weight, "measured_mps": m, "simulated_mps": s,
                 "residual_mps": e, "not_held": o.not_held,
+                "numerical_mps": c.noise.sd[*k],
+            })
+        })
+        .collect();
+    let points: Vec<Value> = c
+        .data
+        .points
+        .iter()
+        .zip(&c.simulated)
+        .zip(c.noise.speeds.iter().zip(&c.noise.sd))
+        .map(|((pt, o), (speeds, sd))| {
+            json!({
+                "speed_rpm": pt.speed_rpm, "offset_deg": pt.offset_deg, "rows": pt.rows,
+                "weight": pt.weight, "measured_mps": pt.mean_mps,
+                "simulated_mps": speeds.first().copied().flatten(),
+                "not_held": o.not_held, "speeds_mps": speeds, "numerical_mps": sd,
             })
         })
         .collect();
     let p = &c.precision;
+    // The search's sums are over the points; the rows' add the scatter within them.
+    let scatter = c.data.scatter();
     let doc = json!({
         "machine": args.machine.path.display().to_string(),
         "measured": args.measured.display().to_string(),
         "t_end": c.t_end,
         "keys": keys,
         "rows": rows,
+        "rows_left_out": rows_left_out(c).unwrap_or(0),
+        "points": points,
         "fit": {
-            "ssr": c.fit.ssr, "n": c.rows.len(), "p": c.keys.len(), "dof": p.dof,
+            "ssr": c.ssr, "n": c.data.rows, "points": c.data.points.len(),
+            "p": c.keys.len(), "dof": p.dof,
             "s": p.s2.map(f64::sqrt), "condition": finite(p.condition),
             "evaluations": c.fit.evaluations, "runs": c.runs,
-            "starts": c.fit.starts.iter().map(|(u, s)| json!({"u": u, "ssr": finite(*s)})).collect::<Vec<Value>>(),
+            "rtols": c.noise.rtols,
+            "starts": c.fit.starts.iter().map(|(u, s)| json!({"u": u, "ssr": finite(*s + scatter)})).collect::<Vec<Value>>(),
             "searches": c.fit.searches.iter().map(|s| json!({
-                "start": s.start, "u": s.u, "from": s.from, "to": s.to,
+                "start": s.start, "u": s.u, "from": s.from + scatter, "to": s.to + scatter,
                 "polls": s.polls, "converged": s.converged})).collect::<Vec<Value>>(),
         },
         "warnings": c.warnings,
@@ -295,6 +397,12 @@ pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
     let mut s = serde_json::to_string_pretty(&doc).unwrap_or_default();
     s.push('\n');
     s
+}
+
+/// The rows not listed in the outputs, when some are not.
+fn rows_left_out(c: &Calibration) -> Option<usize> {
+    let left_out = c.data.rows - c.data.shown.len();
+    (left_out > 0).then_some(left_out)
 }
 
 /// `--write`: the text of the machine file `path` (`text`) with every target of
