@@ -1,5 +1,8 @@
 //! The commands the README and the docs show run as written on the shipped files,
-//! and the shipped tuning table is what its own header's command writes.
+//! and the shipped tuning table is what its own header's command writes. (The
+//! transcripts of the other blocks, `$ host-sim ...` and its output, are run and
+//! compared by `documented_transcripts.rs`; both find the blocks with
+//! `common::docs`.)
 //!
 //! **Which blocks.** Every fenced block tagged `sh`, `bash` or `shell` in
 //! `README.md` and `docs/*.md` is exactly one of:

@@ -64,9 +64,15 @@
 //!
 //! Nothing is timed: the device commands run in real time against a device that
 //! keeps the wall clock, and the only bound is against a hang (two minutes a
-//! transcript). Cost (2026-11-28, the 2-core VM, test profile): about 40 s of
-//! wall time, most of it the device transcripts' real time (`device tune`'s three
-//! points about 11 s, `hold --for 2` 3 s); the CPU is a few seconds.
+//! transcript, or a wait within one). What the set-ups rely on is what the docs
+//! tell the operator: a command started after `telemetry --duration` ends
+//! reaches the device within the controller's 0.5 s link timeout (a process
+//! start takes milliseconds), and a device-sim answers within `device`'s six
+//! tries of 100 ms.
+//!
+//! Cost (2026-11-28, the 2-core VM, test profile): 28 s of wall time, nearly all
+//! of it the device transcripts' real time (`device tune`'s three points 9 s,
+//! `hold --for 2` 3 s, the set-ups' `telemetry --duration 1.5`); 2.3 s of CPU.
 
 #![cfg(unix)]
 
@@ -788,6 +794,11 @@ fn every_transcript_the_docs_show_is_what_the_tool_prints() {
                 None => shown.push(line.clone()),
             }
         }
+        assert!(
+            ctrl_c.is_some() || setup.and_then(|s| s.during).is_none(),
+            "{}: SETUPS gives an action to run before a ^C the output does not show",
+            t.place()
+        );
         let commands = commands(t, port);
         let typed = setup.and_then(|s| s.typed);
         let answers = typed.map(|(_, a)| a.iter().map(|a| format!("{a}\n")).collect());
