@@ -148,6 +148,10 @@ const RUNNING: &[&[&str]] = &[
     &["telemetry", "--duration", "1.5"],
 ];
 
+/// The example table in the device's flash, as the transcript above the read
+/// wrote it.
+const EXAMPLE_TABLE: &[&[&str]] = &[&["table", "write", "examples/vibro-driver.tuning.toml"]];
+
 /// A tuning table whose first row's rightward offset is out of range.
 const BAD_TABLE: &str =
     "[[rows]]\nspeed_rpm = 3000.0\nright_offset_deg = 400.0\nleft_offset_deg = 270.0\n";
@@ -257,7 +261,11 @@ const SETUPS: &[Setup] = &[
         ..Setup::on("docs/cli-device.md", "telemetry --serve\n", Device::Pty)
     },
     Setup {
-        before: &[&["table", "write", "examples/vibro-driver.tuning.toml"]],
+        before: EXAMPLE_TABLE,
+        ..Setup::on("docs/cli-device.md", "table read --out", Device::Pty)
+    },
+    Setup {
+        before: EXAMPLE_TABLE,
         ..Setup::on("docs/cli-device.md", "table read\n", Device::Pty)
     },
     Setup {
