@@ -6,7 +6,7 @@
 //! request, an acknowledged stream that never comes), and clear refusals (exit 2,
 //! no panic) of bad input.
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -16,6 +16,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 mod common;
+use common::fake_device::{self, ack};
 use common::Run;
 
 use host_sim::device::commands::TABLE_HEADER;
@@ -23,7 +24,7 @@ use host_sim::device::report::CSV_HEADER;
 use host_sim::device::serve::{serve, Endpoint};
 use host_sim::device::sim::{Noise, SimDevice};
 use host_sim::machine::tuning_file;
-use shared::protocol::{encode, Decoder, Message, MessageId, Request, Response, MAX_FRAME};
+use shared::protocol::{MessageId, Request, Response};
 use shared::storage;
 
 /// A simulated device served over TCP on this machine until dropped.
@@ -76,48 +77,6 @@ impl Device {
 impl Drop for Device {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
-    }
-}
-
-/// A device of the test's own making on a TCP port, for the misbehaviours the
-/// firmware's link code never shows: every request decoded and handed to
-/// `answer`, whose responses go back with the request's sequence number. It
-/// serves one host after another until the test process ends.
-fn fake_device(answer: fn(&Request) -> Vec<Response>) -> String {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = format!("tcp:{}", listener.local_addr().unwrap());
-    std::thread::spawn(move || {
-        for stream in listener.incoming() {
-            let Ok(mut stream) = stream else { return };
-            let mut decoder = Decoder::new();
-            let mut buf = [0u8; 512];
-            while let Ok(n @ 1..) = stream.read(&mut buf) {
-                let mut input = &buf[..n];
-                let mut out = Vec::new();
-                while let Some(event) = decoder.decode(&mut input) {
-                    let Ok(frame) = event else { continue };
-                    let Ok(request) = Request::parse(&frame) else {
-                        continue;
-                    };
-                    for response in answer(&request) {
-                        let mut bytes = [0u8; MAX_FRAME];
-                        let len = encode(&response, frame.seq, &mut bytes).unwrap();
-                        out.extend_from_slice(&bytes[..len]);
-                    }
-                }
-                if stream.write_all(&out).is_err() {
-                    break;
-                }
-            }
-        }
-    });
-    port
-}
-
-/// The Ack a well-behaved device gives `request`.
-fn ack(request: &Request) -> Response {
-    Response::Ack {
-        request: request.id() as u8,
     }
 }
 
@@ -372,16 +331,8 @@ fn a_line_too_noisy_for_an_answer_says_so() {
 
 #[test]
 fn a_device_that_never_answers_is_a_clear_timeout() {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = format!("tcp:{}", listener.local_addr().unwrap());
     // Accepts, reads and says nothing.
-    std::thread::spawn(move || {
-        if let Ok((mut s, _)) = listener.accept() {
-            let _ = s.set_read_timeout(Some(Duration::from_secs(10)));
-            let mut buf = [0u8; 256];
-            while matches!(s.read(&mut buf), Ok(n) if n > 0) {}
-        }
-    });
+    let port = fake_device::silent();
     let r = host_sim(&["device", "--port", &port, "--retries", "2", "status"]);
     assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
     assert!(
@@ -626,7 +577,7 @@ fn the_self_test_runs_and_reports_each_rotor() {
 /// said nothing of the kind. Every answer is now checked against its request.
 #[test]
 fn an_ack_for_another_request_is_no_acceptance() {
-    let port = fake_device(|_| {
+    let port = fake_device::answering(|_| {
         vec![Response::Ack {
             request: MessageId::Heartbeat as u8,
         }]
@@ -663,7 +614,7 @@ fn an_ack_for_another_request_is_no_acceptance() {
 
     // The other way round: the heartbeats of `travel --for` answered by an Ack
     // for Travel; and an Ack where a report is due (status, table read).
-    let port = fake_device(|request| match request {
+    let port = fake_device::answering(|request| match request {
         Request::Heartbeat => vec![Response::Ack {
             request: MessageId::Travel as u8,
         }],
@@ -711,7 +662,7 @@ fn an_ack_for_another_request_is_no_acceptance() {
 #[test]
 fn a_stream_that_never_comes_ends_the_run() {
     // Acknowledges every request and never streams.
-    let port = fake_device(|request| vec![ack(request)]);
+    let port = fake_device::answering(|request| vec![ack(request)]);
     let runs: [(&[&str], f64); 3] = [
         (&["telemetry", "--count", "3"], 1.0),
         (&["telemetry", "--period", "400", "--duration", "30"], 2.0),

@@ -1,5 +1,8 @@
 //! The commands the README and the docs show run as written on the shipped files,
-//! and the shipped tuning table is what its own header's command writes.
+//! and the shipped tuning table is what its own header's command writes. (The
+//! transcripts of the other blocks, `$ host-sim ...` and its output, are run and
+//! compared by `documented_transcripts.rs`; both find the blocks with
+//! `common::docs`.)
 //!
 //! **Which blocks.** Every fenced block tagged `sh`, `bash` or `shell` in
 //! `README.md` and `docs/*.md` is exactly one of:
@@ -56,6 +59,7 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::device_sim::{truth_rows, DeviceSim};
+use common::docs::{self, Block};
 
 /// Blocks not run here: (file, a piece of the block's text, why).
 const NOT_RUN: &[(&str, &str, &str)] = &[
@@ -154,67 +158,9 @@ const NOT_RUN: &[(&str, &str, &str)] = &[
 /// The shipped tuning table, relative to the repository's root.
 const TABLE: &str = "examples/vibro-driver.tuning.toml";
 
-/// A fenced shell block of a document.
-struct Block {
-    /// Relative to the repository's root.
-    file: String,
-    /// The line of its opening fence, from 1.
-    line: usize,
-    /// Its lines, the fence's indentation removed.
-    text: String,
-}
-
-impl Block {
-    fn place(&self) -> String {
-        format!("{}:{}", self.file, self.line)
-    }
-}
-
 /// The shell blocks of README.md and docs/*.md, in file order.
 fn shell_blocks() -> Vec<Block> {
-    let root = common::root();
-    let mut files = vec!["README.md".to_string()];
-    let mut docs: Vec<String> = std::fs::read_dir(root.join("docs"))
-        .expect("docs/")
-        .map(|e| e.expect("an entry").file_name().into_string().unwrap())
-        .filter(|n| n.ends_with(".md"))
-        .map(|n| format!("docs/{n}"))
-        .collect();
-    docs.sort();
-    files.extend(docs);
-    let mut blocks = Vec::new();
-    for file in files {
-        let text = std::fs::read_to_string(root.join(&file)).expect("a document");
-        let mut open: Option<(usize, usize, String, String)> = None;
-        for (i, line) in text.lines().enumerate() {
-            let trimmed = line.trim_start();
-            let indent = line.len() - trimmed.len();
-            match open.take() {
-                None => {
-                    if let Some(info) = trimmed.strip_prefix("```") {
-                        open = Some((i + 1, indent, info.trim().to_string(), String::new()));
-                    }
-                }
-                Some((start, fence_indent, info, body)) => {
-                    if trimmed == "```" {
-                        if ["sh", "bash", "shell"].contains(&info.as_str()) {
-                            blocks.push(Block {
-                                file: file.clone(),
-                                line: start,
-                                text: body,
-                            });
-                        }
-                    } else {
-                        let cut = indent.min(fence_indent);
-                        let body = body + &line[cut..] + "\n";
-                        open = Some((start, fence_indent, info, body));
-                    }
-                }
-            }
-        }
-        assert!(open.is_none(), "{file}: a fenced block is not closed");
-    }
-    blocks
+    docs::blocks().into_iter().filter(Block::is_shell).collect()
 }
 
 /// The block's lines with `\` continuations joined.
@@ -363,19 +309,6 @@ fn script(block: &Block, port: Option<&str>) -> String {
     out
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("a scratch directory");
-    for entry in std::fs::read_dir(from).expect("a directory") {
-        let entry = entry.expect("an entry");
-        let target = to.join(entry.file_name());
-        if entry.file_type().expect("a type").is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).expect("a copy");
-        }
-    }
-}
-
 /// A fresh scratch directory named `tag` holding copies of the repository's
 /// `examples/` and `scripts/`, an empty `docs/`, `my-machine.toml` (the
 /// reference machine) with its tuning table beside it, and `travel.csv`.
@@ -383,8 +316,8 @@ fn workspace(tag: &str) -> PathBuf {
     let dir = common::scratch(tag, "work");
     let _ = std::fs::remove_dir_all(&dir);
     let root = common::root();
-    copy_dir(&root.join("examples"), &dir.join("examples"));
-    copy_dir(&root.join("scripts"), &dir.join("scripts"));
+    common::copy_dir(&root.join("examples"), &dir.join("examples"));
+    common::copy_dir(&root.join("scripts"), &dir.join("scripts"));
     std::fs::create_dir_all(dir.join("docs")).expect("docs/");
     for (from, to) in [
         ("vibro-driver.toml", "my-machine.toml"),

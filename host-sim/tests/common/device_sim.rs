@@ -26,8 +26,21 @@ pub struct DeviceSim {
 impl DeviceSim {
     /// `host-sim device-sim --listen tcp:127.0.0.1:0 args...`, its port read.
     pub fn start(args: &[&str]) -> DeviceSim {
+        let mut all = vec!["--listen", "tcp:127.0.0.1:0"];
+        all.extend_from_slice(args);
+        DeviceSim::spawn(&all)
+    }
+
+    /// `host-sim device-sim args...` behind a pseudo-terminal (`/dev/pts/N`), its
+    /// port read.
+    pub fn start_pty(args: &[&str]) -> DeviceSim {
+        DeviceSim::spawn(args)
+    }
+
+    /// `host-sim device-sim args...`, its port read from its first line.
+    fn spawn(args: &[&str]) -> DeviceSim {
         let mut child = super::host_sim()
-            .args(["device-sim", "--listen", "tcp:127.0.0.1:0"])
+            .arg("device-sim")
             .args(args)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
