@@ -26,6 +26,7 @@ use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::tuning_file;
 use crate::output::file::Staged;
+use crate::output::text;
 
 /// How often the self-test is polled.
 const SELF_TEST_POLL: Duration = Duration::from_millis(50);
@@ -208,8 +209,8 @@ fn run_on(
             let table = table.unwrap_or_default();
             command(client, &Request::WriteTuningTable(table.clone()))?;
             out.print(&format!(
-                "table write: {} rows from {} stored in the device's flash and in use\n",
-                table.rows().len(),
+                "table write: {} from {} stored in the device's flash and in use\n",
+                text::count(table.rows().len(), "row"),
                 file.display()
             ));
         }
@@ -384,8 +385,8 @@ fn table_read(
             set.write(i, &text)?;
             set.commit()?;
             out.print(&format!(
-                "table read: {} rows written to {}\n",
-                rows.len(),
+                "table read: {} written to {}\n",
+                text::count(rows.len(), "row"),
                 path.display()
             ));
         }

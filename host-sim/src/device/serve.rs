@@ -24,6 +24,7 @@ use super::truth::TruthFile;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::machine::{tuning_file, Machine};
+use crate::output::text;
 use crate::simulation::closed_loop::constants_warning;
 
 /// Ticks the simulator runs at most in one go when it fell behind the clock
@@ -392,10 +393,10 @@ fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>
     }
     if let (Some(a), Some(b)) = (start, device.platform()) {
         note += &format!(
-            "; the platform travelled {:+.4} m (x from {:.4} to {:.4} m)",
-            b.x - a.x,
-            a.x,
-            b.x
+            "; the platform travelled {} m (x from {} to {} m)",
+            text::fixed_signed(b.x - a.x, 4),
+            text::fixed(a.x, 4),
+            text::fixed(b.x, 4)
         );
     }
     note + "\n"

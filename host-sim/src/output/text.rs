@@ -49,6 +49,27 @@ pub fn signed(x: f64) -> String {
     }
 }
 
+/// `n` things for people: `1 row`, `5 rows` (`noun` the singular; the plural
+/// adds an `s`).
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
+/// [`fixed`] with an explicit sign where it is not zero: `+0.0123`, `-1.5000`,
+/// `0.0000` (a travel that rounds to nothing has no sign).
+pub fn fixed_signed(x: f64, places: usize) -> String {
+    let s = fixed(x, places);
+    if s.starts_with('-') || s.bytes().all(|b| b == b'0' || b == b'.') {
+        s
+    } else {
+        format!("+{s}")
+    }
+}
+
 /// A plane vector as `[x, y]` with [`sig`] numbers.
 pub fn vec2(v: [f64; 2]) -> String {
     format!("[{}, {}]", sig(v[0]), sig(v[1]))
@@ -171,6 +192,19 @@ mod tests {
         assert_eq!(signed(0.0123), "+0.0123");
         assert_eq!(sig(-1e-7), "-1e-7");
         assert_eq!(sig(-0.0000001234567), "-1.23457e-7");
+    }
+
+    /// `device-sim` printed `-0.0000 m` for a travel of -3e-6 m, and `table read`
+    /// "1 rows".
+    #[test]
+    fn signed_fixed_and_counts() {
+        assert_eq!(fixed_signed(-3e-6, 4), "0.0000");
+        assert_eq!(fixed_signed(0.0, 4), "0.0000");
+        assert_eq!(fixed_signed(0.01234, 4), "+0.0123");
+        assert_eq!(fixed_signed(-1.5, 4), "-1.5000");
+        assert_eq!(count(1, "row"), "1 row");
+        assert_eq!(count(0, "row"), "0 rows");
+        assert_eq!(count(5, "row"), "5 rows");
     }
 
     #[test]
