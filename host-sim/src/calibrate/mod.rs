@@ -345,12 +345,10 @@ pub fn calibrate(
     let mut trials = Trials {
         args,
         inputs: &inputs,
-        // The search's most runs, then the numerical noise's at the fit: the
-        // total is fixed from the start (the search may end early).
-        progress: progress_bar(
-            "calibrate",
-            (most_evaluations(settings, p) + numerical::DIVISORS.len()) * points.len(),
-        ),
+        // The search's most runs and the numerical noise's at the fit
+        // ([`most_evaluations`]): the total is fixed from the start (the search
+        // may end early).
+        progress: progress_bar("calibrate", most_evaluations(settings, p) * points.len()),
         points,
         outcomes: HashMap::new(),
         refused: Vec::new(),
