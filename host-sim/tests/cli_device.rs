@@ -169,7 +169,7 @@ fn status_travel_stop_hold_and_reset() {
     let at_rest = scratch("at-rest.toml");
     std::fs::write(&at_rest, tuning_file::write(&[(3000.0, 90.0, 270.0)], "t")).unwrap();
     let w = dev.run(&["table", "write", at_rest.to_str().unwrap()]);
-    assert!(w.ok().starts_with("table write: 1 rows"), "{}", w.stdout);
+    assert!(w.ok().starts_with("table write: 1 row "), "{}", w.stdout);
 
     // Travel without heartbeats: the controller latches link_lost; reset clears it.
     dev.run(&["travel", "left", "--speed", "3000"]).ok();
