@@ -109,6 +109,39 @@ fn three_parts_merge_to_the_output_of_the_whole_sweep() {
     assert_eq!(merged.stdout, json.stdout);
 }
 
+/// Runs through the floor (the one-foot machine) go through the parts as no
+/// travel, their reason kept, and merge to the whole sweep's output.
+#[test]
+fn runs_through_the_floor_merge_as_no_travel() {
+    let m = common::root()
+        .join("tests/fixtures/one-foot-machine.toml")
+        .canonicalize()
+        .unwrap();
+    let d = dir("through-the-floor");
+    let grid = [
+        "--speeds",
+        "3000",
+        "--offsets",
+        "0:360:180",
+        "--t-end",
+        "0.5",
+    ];
+    let whole = tune(&d, &m, &grid, &["--format", "json"]);
+    assert_eq!(whole.status, 0, "{}", whole.stderr);
+    part(&d, &m, &grid, "1/2", "p1.json");
+    part(&d, &m, &grid, "2/2", "p2.json");
+    let p: Value = serde_json::from_slice(&bytes(d.join("p1.json"))).unwrap();
+    assert_eq!(p["version"], 3);
+    assert_eq!(
+        p["runs"][0]["not_a_travel"],
+        "platform went through the fundament at t = 0.015 s"
+    );
+    assert!(p["runs"][0]["not_held"].is_null());
+    let merged = merge(&d, &["p1.json", "p2.json", "--format", "json"]);
+    assert_eq!(merged.status, 0, "{}", merged.stderr);
+    assert_eq!(merged.stdout, whole.stdout);
+}
+
 #[test]
 fn merge_refuses_parts_that_are_not_one_whole_sweep() {
     let m = machine().canonicalize().unwrap();
@@ -345,7 +378,7 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
             r.mean_velocity = v;
         });
         merge_within(&d, &["p1.json", &name, "p3.json"]).refused(&format!(
-            "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held null"
+            "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held and not_a_travel null"
         ));
     }
     // Parts of another host-sim: the merge's check runs would be this one's.

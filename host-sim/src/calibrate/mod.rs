@@ -467,6 +467,6 @@ pub fn point_residuals(points: &[Point], sims: &[RunOutcome]) -> Vec<f64> {
     points
         .iter()
         .zip(sims)
-        .map(|(p, o)| p.residual(o.not_held.is_none().then_some(o.mean_velocity)))
+        .map(|(p, o)| p.residual(o.velocity()))
         .collect()
 }

@@ -114,7 +114,7 @@ pub fn noise(
             o
         })
         .collect();
-    let speed = |o: &RunOutcome| o.not_held.is_none().then_some(o.mean_velocity);
+    let speed = RunOutcome::velocity;
     let speeds: Vec<Vec<Option<f64>>> = (0..points.len())
         .map(|k| {
             let mut s = vec![speed(&at_fit[k])];

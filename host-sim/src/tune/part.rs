@@ -46,8 +46,8 @@ use crate::output::text;
 pub const FORMAT: &str = "host-sim-tune-part";
 
 /// The `version` of the format this host-sim writes and reads (2: with
-/// `part_sha256`).
-pub const VERSION: u64 = 2;
+/// `part_sha256`; 3: with each run's `not_a_travel`).
+pub const VERSION: u64 = 3;
 
 /// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
 /// 200 bytes, so the largest grid, 10 000 runs, about 2 MB, leaving room for
@@ -150,6 +150,8 @@ pub struct PartRun {
     pub mean_velocity: f64,
     /// Why the offset was not held, if it was not.
     pub not_held: Option<String>,
+    /// Why the run was no travel, if it was not.
+    pub not_a_travel: Option<String>,
     /// The plant's warnings.
     pub plant_warnings: Vec<String>,
 }
@@ -398,6 +400,7 @@ pub(crate) fn run_shard(
                 offset_deg: r.offset_deg,
                 mean_velocity: r.mean_velocity,
                 not_held: r.not_held,
+                not_a_travel: r.not_a_travel,
                 plant_warnings: r.plant_warnings,
             })
             .collect(),
@@ -517,10 +520,10 @@ pub fn read(path: &Path) -> Result<Part, String> {
     if let Some(r) = part
         .runs
         .iter()
-        .find(|r| r.not_held.is_none() && !r.mean_velocity.is_finite())
+        .find(|r| r.not_held.is_none() && r.not_a_travel.is_none() && !r.mean_velocity.is_finite())
     {
         return Err(damaged(format!(
-            "run {} ({} rpm, {} deg): mean_velocity {} with not_held null: a run that held its offset has a finite mean velocity",
+            "run {} ({} rpm, {} deg): mean_velocity {} with not_held and not_a_travel null: a run that held its offset and travelled has a finite mean velocity",
             r.point,
             text::sig(r.speed_rpm),
             text::sig(r.offset_deg),
@@ -609,6 +612,7 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
                 offset_deg: all[r.point].1,
                 mean_velocity: r.mean_velocity,
                 not_held: r.not_held.clone(),
+                not_a_travel: r.not_a_travel.clone(),
                 plant_warnings: r.plant_warnings.clone(),
             });
         }
@@ -659,6 +663,7 @@ mod tests {
                 offset_deg: 0.1 * 3.0,
                 mean_velocity: v,
                 not_held: None,
+                not_a_travel: None,
                 plant_warnings: vec![],
             };
             let back: PartRun =

@@ -88,10 +88,13 @@ pub struct PointStats {
     pub right_share: f64,
     /// Runs that did not hold their offset (not counted as travelling either way).
     pub not_held: usize,
+    /// Runs that were no travel (a body through the fundament or tipped over; not
+    /// counted as travelling either way).
+    pub not_a_travel: usize,
     /// Machines (0: nominal) on which the starts settled apart: the speeds, m/s.
     pub multistable: Vec<(usize, Vec<f64>)>,
     /// Every run's mean velocity, machine by machine and start by start within
-    /// (`NaN` where the offset was not held), m/s.
+    /// (`NaN` where the offset was not held or the run was no travel), m/s.
     pub speeds: Vec<f64>,
 }
 
@@ -137,7 +140,7 @@ fn pick(at: &[&PointStats], way: Way) -> Option<RobustBest> {
             .max_by(|a, b| a.score(way).total_cmp(&b.score(way)))
             .map(|s| (*s).clone())
     };
-    let held = |s: &&&PointStats| s.not_held == 0;
+    let held = |s: &&&PointStats| s.not_held == 0 && s.not_a_travel == 0;
     let (point, every_run) = match best(&mut at.iter().filter(held).filter(|s| s.share(way) == 1.0))
     {
         Some(p) => (p, true),
@@ -250,12 +253,8 @@ fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
 /// each other).
 fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointStats {
     let first = &runs[0][p];
-    let held: Vec<f64> = runs
-        .iter()
-        .map(|r| &r[p])
-        .filter(|o| o.not_held.is_none() && o.mean_velocity.is_finite())
-        .map(|o| o.mean_velocity)
-        .collect();
+    let held: Vec<f64> = runs.iter().filter_map(|r| r[p].velocity()).collect();
+    let not_a_travel = runs.iter().filter(|r| r[p].not_a_travel.is_some()).count();
     let n = runs.len();
     let mut sorted = held.clone();
     sorted.sort_by(f64::total_cmp);
@@ -277,9 +276,8 @@ fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointSta
         let this = sample[i];
         let mut speeds = Vec::new();
         while i < sample.len() && sample[i] == this {
-            let o = &runs[i][p];
-            if o.not_held.is_none() && o.mean_velocity.is_finite() {
-                speeds.push(o.mean_velocity);
+            if let Some(v) = runs[i][p].velocity() {
+                speeds.push(v);
             }
             i += 1;
         }
@@ -300,14 +298,12 @@ fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointSta
         max,
         left_share: held.iter().filter(|v| Way::Left.travels(**v)).count() as f64 / n as f64,
         right_share: held.iter().filter(|v| Way::Right.travels(**v)).count() as f64 / n as f64,
-        not_held: n - held.len(),
+        not_held: n - held.len() - not_a_travel,
+        not_a_travel,
         multistable,
         speeds: runs
             .iter()
-            .map(|r| match r[p].not_held {
-                None => r[p].mean_velocity,
-                Some(_) => f64::NAN,
-            })
+            .map(|r| r[p].velocity().unwrap_or(f64::NAN))
             .collect(),
     }
 }
@@ -644,7 +640,7 @@ pub fn json(r: &Robust) -> String {
         json!({
             "mean": s.mean, "p10": s.p10, "p90": s.p90, "min": s.min, "max": s.max,
             "right_share": s.right_share, "left_share": s.left_share,
-            "not_held": s.not_held,
+            "not_held": s.not_held, "not_a_travel": s.not_a_travel,
             "speeds": s.speeds.iter().map(|v| if v.is_finite() { json!(v) } else { Value::Null }).collect::<Vec<Value>>(),
             "multistable": s.multistable.iter().map(|(m, v)| json!({"machine": m, "speeds": v})).collect::<Vec<Value>>(),
         })
@@ -693,6 +689,7 @@ mod tests {
             offset_deg: 90.0,
             mean_velocity: v,
             not_held: None,
+            not_a_travel: None,
             plant_warnings: Vec::new(),
         }
     }
@@ -723,11 +720,18 @@ mod tests {
             .collect();
         runs[2][0].not_held = Some("fault".into());
         let s = point_stats(&[0, 0, 0], &runs, 0);
-        assert_eq!(s.not_held, 1);
+        assert_eq!((s.not_held, s.not_a_travel), (1, 0));
         assert!((s.right_share - 1.0 / 3.0).abs() < 1e-15);
         assert!((s.left_share - 1.0 / 3.0).abs() < 1e-15);
         assert!(s.speeds[2].is_nan());
         assert_eq!((s.min, s.max), (-0.001, 0.02));
+        // A run through the floor: no travel, counted as such, not as not held.
+        runs[0][0].not_a_travel = Some("platform went through the fundament".into());
+        runs[0][0].mean_velocity = f64::NAN;
+        let s = point_stats(&[0, 0, 0], &runs, 0);
+        assert_eq!((s.not_held, s.not_a_travel), (1, 1));
+        assert_eq!((s.right_share, s.left_share), (0.0, 1.0 / 3.0));
+        assert!(s.speeds[0].is_nan());
     }
 
     /// The statistics of one point at `offset_deg` whose three runs (one

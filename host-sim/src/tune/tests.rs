@@ -94,6 +94,7 @@ fn outcome(speed: f64, offset: f64, v: f64) -> RunOutcome {
         offset_deg: offset,
         mean_velocity: v,
         not_held: None,
+        not_a_travel: None,
         plant_warnings: vec![],
     }
 }
