@@ -435,3 +435,100 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
         "fifo.toml: cannot read the file: a named pipe (FIFO), not a regular file",
     );
 }
+
+/// `r` refused (exit 2) with `needle` in one short error, nothing on stdout.
+fn refused_short(r: &Run, needle: &str) {
+    let head: String = r.stderr.chars().take(600).collect();
+    assert_eq!(r.status, 2, "exit {}: {head}", r.status);
+    assert!(r.stderr.contains(needle), "{needle:?} not in: {head}");
+    assert!(
+        r.stderr.len() < 600,
+        "{} bytes of error: {head}",
+        r.stderr.len()
+    );
+    assert!(r.stdout.is_empty(), "{}", r.stdout.len());
+}
+
+/// What `tune` never writes, in a part whose hashes were recomputed, is refused
+/// (issue 23): a mean velocity beyond the measured file's bound, more plant
+/// warnings than a run keeps or a longer one; and every field an error quotes is
+/// cut (a 10 MB field gave a 10 MB line).
+#[test]
+fn merge_bounds_the_values_of_a_resealed_part() {
+    let d = three_parts("bounds");
+    let long = "q".repeat(10_000_000);
+    let merged = |name: &str| merge_within(&d, &["p1.json", name, "p3.json"]);
+    let damaged =
+        |name: &str| format!("error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): ");
+    // Faster than any travel by impacts, whether the offset was held or not.
+    for (k, (v, not_held)) in [(12345.5, None), (-10.5, Some("ended `fault`"))]
+        .into_iter()
+        .enumerate()
+    {
+        let name = format!("fast{k}.json");
+        resealed(&d, "p2.json", &name, |p| {
+            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            r.mean_velocity = v;
+            r.not_held = not_held.map(String::from);
+        });
+        refused_short(
+            &merged(&name),
+            &format!(
+                "{}mean_velocity {v} m/s: beyond the 10 m/s of any travel by impacts (tune writes no such run)",
+                damaged(&name)
+            ),
+        );
+    }
+    // A run that was no travel has no mean velocity.
+    resealed(&d, "p2.json", "travel.json", |p| {
+        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        r.not_a_travel = Some("platform went through the fundament".into());
+    });
+    refused_short(
+        &merged("travel.json"),
+        &format!("{}mean_velocity ", damaged("travel.json")),
+    );
+    // More plant warnings than a run keeps, or a longer one.
+    resealed(&d, "p2.json", "many.json", |p| {
+        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        r.plant_warnings = vec!["contacts: Painleve configuration".into(); 100];
+    });
+    refused_short(
+        &merged("many.json"),
+        &format!("{}100 plant warnings", damaged("many.json")),
+    );
+    for field in ["warning", "not_held"] {
+        let name = format!("long-{field}.json");
+        resealed(&d, "p2.json", &name, |p| {
+            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            match field {
+                "warning" => r.plant_warnings = vec![long.clone()],
+                _ => r.not_held = Some(long.clone()),
+            }
+        });
+        refused_short(&merged(&name), "... (10000000 bytes)");
+    }
+    // Fields quoted in errors: cut.
+    hand_edited(&d, "p2.json", "format.json", |p| {
+        p["format"] = long.clone().into()
+    });
+    refused_short(
+        &merged("format.json"),
+        "format.json: not a partial result of `host-sim tune --shard`: its format is \"qqq",
+    );
+    hand_edited(&d, "p2.json", "version.json", |p| {
+        p["version"] = long.clone().into()
+    });
+    refused_short(
+        &merged("version.json"),
+        "version.json: partial result version \"qqq",
+    );
+    resealed(&d, "p2.json", "host.json", |p| {
+        p.sweep.host_sim_version = long.clone()
+    });
+    refused_short(&merged("host.json"), "host.json: a part of host-sim qqq");
+    resealed(&d, "p2.json", "shard.json", |p| {
+        p.machine.path = long.clone()
+    });
+    refused_short(&merged("shard.json"), "... (10000000 bytes)");
+}

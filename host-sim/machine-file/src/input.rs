@@ -423,6 +423,12 @@ pub fn cut(s: &str, max: usize) -> String {
     format!("{}... ({} bytes)", &s[..end], s.len())
 }
 
+/// The most bytes [`cut`]`(s, max)` gives, whatever `s`: `max`, then `... (N
+/// bytes)` with N of at most 20 digits (a `usize`).
+pub const fn cut_bound(max: usize) -> usize {
+    max + "... ( bytes)".len() + 20
+}
+
 /// `s` quoted for a message, [`cut`] at [`MAX_QUOTED`]: `"ccw"`,
 /// `"qqq... (3000000 bytes)"`.
 pub fn quoted(s: &str) -> String {
@@ -1155,6 +1161,8 @@ mod tests {
         assert_eq!(cut("faster", 4), "fast... (6 bytes)");
         // Never inside a character: "é" is 2 bytes.
         assert_eq!(cut("aéb", 2), "a... (4 bytes)");
+        let huge = "q".repeat(10_000_000);
+        assert!(cut(&huge, 400).len() <= cut_bound(400));
         assert_eq!(quoted("ccw"), "\"ccw\"");
         assert_eq!(
             quoted(&"q".repeat(41)),

@@ -79,7 +79,7 @@ pub fn vec2(v: [f64; 2]) -> String {
 /// bytes)"`), so that a 10 MB field does not become a 10 MB line: the machine
 /// file reader's, the one cut of every message, with the length a quoted value
 /// is cut at.
-pub use crate::machine::input::{cut, MAX_QUOTED};
+pub use crate::machine::input::{cut, cut_bound, MAX_QUOTED};
 
 /// Drops trailing zeros after a decimal point, and the point itself if bare.
 fn trim_zeros(s: &str) -> String {
