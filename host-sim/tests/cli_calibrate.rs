@@ -683,3 +683,33 @@ fn a_run_through_the_floor_is_no_travel() {
     assert!(r.stdout.contains("no travel"), "{}", r.stdout);
     assert!(!r.stdout.contains("not held"), "{}", r.stdout);
 }
+
+/// A machine file that cannot be written does not throw the fit away (issue 23):
+/// the result is printed, then the error (Linux's `/dev/full`).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_file_that_cannot_be_written_still_prints_the_fit() {
+    let m = uncertain_machine("full");
+    let measured = scratch("full.csv");
+    std::fs::write(
+        &measured,
+        "speed_rpm,offset_deg,velocity_mps\n3000,90,0.030\n3000,90,0.031\n",
+    )
+    .unwrap();
+    let r = run(&[
+        "calibrate",
+        m.to_str().unwrap(),
+        "--measured",
+        measured.to_str().unwrap(),
+        "--fit",
+        "contacts.*.restitution",
+        "--t-end",
+        "3",
+        "--set",
+        "simulation.rtol=1e-3",
+        "--write",
+        "/dev/full",
+    ]);
+    r.printed_then_full("--write", "contacts.*.restitution");
+    assert!(r.stdout.starts_with("calibrate "), "{}", r.stdout);
+}

@@ -532,3 +532,16 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     });
     refused_short(&merged("shard.json"), "... (10000000 bytes)");
 }
+
+/// An output that cannot be written does not throw the merged sweep away (issue
+/// 23): the result is printed, then the error (Linux's `/dev/full`).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_cannot_be_written_still_prints_the_merged_sweep() {
+    let d = three_parts("full");
+    let r = merge_within(
+        &d,
+        &["p1.json", "p2.json", "p3.json", "--write", "/dev/full"],
+    );
+    r.printed_then_full("--write", "best offsets");
+}

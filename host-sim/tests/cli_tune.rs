@@ -438,3 +438,32 @@ fn runs_through_the_floor_are_no_travel() {
         r.stdout
     );
 }
+
+/// An output that cannot be written does not throw the sweep away (issue 23): the
+/// result is printed, then the error, exit 2 as for any output refused (Linux's
+/// `/dev/full`: every write fails).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_cannot_be_written_still_prints_the_sweep() {
+    let m = machine();
+    for option in ["--write", "--plot"] {
+        let r = run_on(
+            None,
+            &[
+                "tune",
+                m.to_str().unwrap(),
+                "--speeds",
+                "3000",
+                "--offsets",
+                "0:360:90",
+                "--t-end",
+                "3",
+                "--set",
+                "simulation.rtol=1e-3",
+                option,
+                "/dev/full",
+            ],
+        );
+        r.printed_then_full(option, "best offsets");
+    }
+}

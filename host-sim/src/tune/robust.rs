@@ -408,22 +408,26 @@ pub fn run(
         Format::Json => json(&robust),
         Format::Table => table(&robust, path),
     };
-    if let Some((i, p)) = &write {
-        let Some(text) = table_file(&robust, request, p) else {
-            // The sweep is printed all the same: its runs are not thrown away.
-            console.print(&result);
-            return Err(Failure::Run(
-                "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
-            ));
-        };
-        staged.write(*i, &text)?;
-    }
-    if let Some(i) = plot {
-        let title = format!("host-sim tune --robust {}", path.display());
-        staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
-    }
-    staged.commit()?;
+    // The files (all or none), then the sweep, printed whether or not they could
+    // be written: its runs are not thrown away; their error comes after it.
+    let mut files = || -> Result<(), Failure> {
+        if let Some((i, p)) = &write {
+            let Some(text) = table_file(&robust, request, p) else {
+                return Err(Failure::Run(
+                    "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
+                ));
+            };
+            staged.write(*i, &text)?;
+        }
+        if let Some(i) = plot {
+            let title = format!("host-sim tune --robust {}", path.display());
+            staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
+        }
+        Ok(())
+    };
+    let written = files().and_then(|()| staged.commit());
     console.print(&result);
+    written?;
     console.note(&format!(
         "tune --robust: {} runs ({} x {STARTS} starts x {}) in {:.1} s on {}{}\n",
         machines.len() * robust.points.len(),
