@@ -12,9 +12,10 @@
 //! speed is, rightward, the one with the highest 10th percentile among the points
 //! whose every run travels right (leftward: the lowest 90th percentile among those
 //! whose every run travels left). A speed with no such point gets the least bad
-//! one, by the same percentile among the points that held their offset on every
-//! run, marked as not travelling that way on every run and warned of: so
-//! `--write` writes what holds, as the plain sweep writes its least bad offset
+//! one: the point whose runs travel that way most often, less those travelling
+//! the other way (runs not held or no travel count for neither), then by the same
+//! percentile; marked as not travelling that way on every run and warned of: so
+//! `--write` writes what travels, as the plain sweep writes its least bad offset
 //! with a warning. A point whose runs on one machine,
 //! from its different starts, settle at speeds further apart than
 //! [`multistable_margin`] is **multistable** there, flagged with the speeds found.
@@ -119,6 +120,19 @@ impl PointStats {
         }
     }
 
+    /// The runs travelling `way` less those travelling the other way (runs not
+    /// held or no travel count for neither), a whole number: every run where
+    /// every run travels `way`; a point that goes the wrong way more often than
+    /// the right one ranks below one that does not move.
+    fn net_runs(&self, way: Way) -> i64 {
+        let n = self.speeds.len() as f64;
+        let net = match way {
+            Way::Right => self.right_share - self.left_share,
+            Way::Left => self.left_share - self.right_share,
+        };
+        (net * n).round() as i64
+    }
+
     /// The percentile `way` is judged by, turned so that larger is better: the
     /// 10th rightward, minus the 90th leftward.
     fn score(&self, way: Way) -> f64 {
@@ -129,26 +143,22 @@ impl PointStats {
     }
 }
 
-/// The best offset `way` among one speed's points `at`: the best percentile
-/// ([`PointStats::score`]) among those whose every run travels `way`, else the
-/// least bad by it among those that held their offset on every run (among all
-/// with a percentile when none did); `None` when no point has a percentile.
+/// The best offset `way` among one speed's points `at` (those with a
+/// percentile: a run that held its offset and travelled), ranked by
+/// [`PointStats::net_runs`] first, then by the percentile
+/// ([`PointStats::score`]): the best percentile among the points whose every
+/// run travels `way`, else the least bad, the point travelling
+/// `way` on the most runs, against those travelling the other way; `None` when
+/// no point has a percentile.
 fn pick(at: &[&PointStats], way: Way) -> Option<RobustBest> {
-    let best = |points: &mut dyn Iterator<Item = &&PointStats>| {
-        points
-            .filter(|s| s.score(way).is_finite())
-            .max_by(|a, b| a.score(way).total_cmp(&b.score(way)))
-            .map(|s| (*s).clone())
-    };
-    let held = |s: &&&PointStats| s.not_held == 0 && s.not_a_travel == 0;
-    let (point, every_run) = match best(&mut at.iter().filter(held).filter(|s| s.share(way) == 1.0))
-    {
-        Some(p) => (p, true),
-        None => (
-            best(&mut at.iter().filter(held)).or_else(|| best(&mut at.iter()))?,
-            false,
-        ),
-    };
+    let point = at
+        .iter()
+        .filter(|s| s.score(way).is_finite())
+        .max_by(|a, b| {
+            (a.net_runs(way).cmp(&b.net_runs(way))).then(a.score(way).total_cmp(&b.score(way)))
+        })
+        .map(|s| (*s).clone())?;
+    let every_run = point.share(way) == 1.0;
     Some(RobustBest {
         by: match way {
             Way::Right => point.p10,
@@ -585,13 +595,13 @@ pub fn table(r: &Robust, path: &Path) -> String {
                 Some(b) => {
                     let _ = writeln!(
                         out,
-                        "{:<10} {:<6} {:<11.1} {:<10.3} {:<8.3} {:.3}{}",
+                        "{:<10} {:<6} {:<11.1} {:<10} {:<8} {}{}",
                         text::sig(speed),
                         way,
                         b.point.offset_deg,
-                        b.by * 1e3,
-                        b.point.mean * 1e3,
-                        b.point.nominal * 1e3,
+                        text::fixed(b.by * 1e3, 3),
+                        text::fixed(b.point.mean * 1e3, 3),
+                        text::fixed(b.point.nominal * 1e3, 3),
                         if b.every_run {
                             ""
                         } else {
@@ -762,19 +772,57 @@ mod tests {
         let at = [&right, &noise, &back];
         let r = pick(&at, Way::Right).unwrap();
         assert_eq!((r.point.offset_deg, r.by, r.every_run), (90.0, 0.029, true));
-        // Left: none travels on every run; the lowest 90th percentile is the
-        // noise's, -3e-6 m/s (the third of three).
+        // Left: none travels on every run. 180 degrees travels left on one run
+        // of three but right on two: worse than the noise, which travels
+        // neither way; of those two with no net share, the lowest 90th
+        // percentile is the noise's, -3e-6 m/s (the third of three).
         let l = pick(&at, Way::Left).unwrap();
         assert_eq!((l.point.offset_deg, l.by, l.every_run), (0.0, -3e-6, false));
-        // A point that did not hold its offset on a run is not picked while
-        // another held on all of them.
-        let mut unheld = point(270.0, [-0.03, -0.03, -0.03]);
-        unheld.not_held = 1;
-        let l = pick(&[&right, &unheld], Way::Left).unwrap();
-        assert_eq!((l.point.offset_deg, l.every_run), (90.0, false));
         // No percentile anywhere: nothing to pick.
         let none = point(0.0, [f64::NAN; 3]);
         assert_eq!(pick(&[&none], Way::Right), None);
+    }
+
+    /// Issue 23: with frictionless feet (`--samples 2 --offsets 0:360:90 --t-end
+    /// 2`) no offset travels right on every run; 0 degrees was written, held on
+    /// every run and travelling on none, while 90 degrees travelled +33 mm/s on
+    /// the two runs of the drawn machine that held it. The least bad is the
+    /// point travelling its way on the most runs (against the other way), then
+    /// by the percentile.
+    #[test]
+    fn the_least_bad_travels_its_way_on_the_most_runs() {
+        let stats = |offset_deg: f64, speeds: [f64; 6]| {
+            let runs: Vec<Vec<RunOutcome>> = speeds
+                .iter()
+                .map(|v| {
+                    let mut o = outcome(*v);
+                    if v.is_nan() {
+                        o.not_held = Some("phase error".into());
+                    }
+                    vec![o]
+                })
+                .collect();
+            PointStats {
+                offset_deg,
+                ..point_stats(&[0, 0, 0, 1, 1, 1], &runs, 0)
+            }
+        };
+        let still = stats(0.0, [8.5e-9, -3.8e-10, -7.2e-10, 1.0e-5, 7.3e-5, -6.7e-5]);
+        let some = stats(90.0, [8.8e-7, -4.0e-7, f64::NAN, 0.0329, 0.0329, f64::NAN]);
+        assert_eq!((still.not_held, some.not_held), (0, 2));
+        let r = pick(&[&still, &some], Way::Right).unwrap();
+        assert_eq!((r.point.offset_deg, r.every_run), (90.0, false));
+        // Its percentile is over the runs that held: -4e-7 m/s.
+        assert_eq!(r.by, -4.0e-7);
+        // Of two that travel on as many runs, the better percentile.
+        let more = stats(180.0, [3e-4, 2e-4, f64::NAN, 0.0329, 0.0329, f64::NAN]);
+        assert_eq!(more.right_share, some.right_share);
+        let r = pick(&[&still, &some, &more], Way::Right).unwrap();
+        assert_eq!(r.point.offset_deg, 180.0);
+        // Travelling every run wins over any percentile.
+        let all = stats(270.0, [0.0006; 6]);
+        let r = pick(&[&some, &more, &all], Way::Right).unwrap();
+        assert_eq!((r.point.offset_deg, r.every_run), (270.0, true));
     }
 
     #[test]
