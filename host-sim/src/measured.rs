@@ -200,8 +200,8 @@ pub const MAX_BYTES: u64 = 64 << 20;
 pub const MAX_PROBLEMS: usize = 50;
 
 /// The longest field quoted whole in a message, bytes; a longer one is cut
-/// ([`text::cut`]).
-pub const MAX_QUOTED: usize = 40;
+/// ([`text::cut`]): the machine file reader's, one length for every input file.
+pub use crate::output::text::MAX_QUOTED;
 
 /// Reads and checks the file at `path` ([`parse_each`]), row by row: `each` gets
 /// every row, none is kept here. A file over [`MAX_BYTES`] is refused unread.

@@ -631,3 +631,85 @@ fn many_points_are_warned_of_before_the_fit() {
         "no warning; stderr: {seen:?}"
     );
 }
+
+/// A simulated run through the floor is no travel (issue 23): its rows count with
+/// the residual of a run without a speed, and every output says why in its own
+/// words, not as an offset not held.
+#[test]
+fn a_run_through_the_floor_is_no_travel() {
+    let one_foot = common::root().join("tests/fixtures/one-foot-machine.toml");
+    let measured = scratch("through-the-floor.csv");
+    std::fs::write(
+        &measured,
+        "speed_rpm,offset_deg,velocity_mps\n3000,0,0.010\n3000,0,0.012\n",
+    )
+    .unwrap();
+    let args = [
+        "calibrate",
+        one_foot.to_str().unwrap(),
+        "--measured",
+        measured.to_str().unwrap(),
+        "--fit",
+        "contacts.*.restitution",
+        "--t-end",
+        "0.5",
+    ];
+    let r = run(&[&args[..], &["--format", "json"]].concat());
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let c: Value = serde_json::from_str(&r.stdout).unwrap();
+    let why = "platform went through the fundament at t = 0.015 s";
+    for item in [&c["rows"][0], &c["rows"][1], &c["points"][0]] {
+        assert_eq!(item["not_a_travel"], why, "{item}");
+        assert!(item["not_held"].is_null(), "{item}");
+        assert!(item["simulated_mps"].is_null(), "{item}");
+    }
+    assert_eq!(c["rows"][0]["residual_mps"], 0.1);
+    let warning = format!(
+        "3000 rpm 0 deg: the simulated run was no travel at the fit ({why}); its rows count with the residual 0.1 m/s from their mean"
+    );
+    let warnings = c["warnings"].as_array().unwrap();
+    assert!(
+        warnings.iter().any(|w| *w == warning.as_str()),
+        "{warnings:#?}"
+    );
+    assert!(
+        !warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("did not hold its offset")),
+        "{warnings:#?}"
+    );
+    let r = run(&args);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    assert!(r.stdout.contains("no travel"), "{}", r.stdout);
+    assert!(!r.stdout.contains("not held"), "{}", r.stdout);
+}
+
+/// A machine file that cannot be written does not throw the fit away (issue 23):
+/// the result is printed, then the error (Linux's `/dev/full`).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_file_that_cannot_be_written_still_prints_the_fit() {
+    let m = uncertain_machine("full");
+    let measured = scratch("full.csv");
+    std::fs::write(
+        &measured,
+        "speed_rpm,offset_deg,velocity_mps\n3000,90,0.030\n3000,90,0.031\n",
+    )
+    .unwrap();
+    let r = run(&[
+        "calibrate",
+        m.to_str().unwrap(),
+        "--measured",
+        measured.to_str().unwrap(),
+        "--fit",
+        "contacts.*.restitution",
+        "--t-end",
+        "3",
+        "--set",
+        "simulation.rtol=1e-3",
+        "--write",
+        "/dev/full",
+    ]);
+    r.printed_then_full("--write", "contacts.*.restitution");
+    assert!(r.stdout.starts_with("calibrate "), "{}", r.stdout);
+}

@@ -109,6 +109,39 @@ fn three_parts_merge_to_the_output_of_the_whole_sweep() {
     assert_eq!(merged.stdout, json.stdout);
 }
 
+/// Runs through the floor (the one-foot machine) go through the parts as no
+/// travel, their reason kept, and merge to the whole sweep's output.
+#[test]
+fn runs_through_the_floor_merge_as_no_travel() {
+    let m = common::root()
+        .join("tests/fixtures/one-foot-machine.toml")
+        .canonicalize()
+        .unwrap();
+    let d = dir("through-the-floor");
+    let grid = [
+        "--speeds",
+        "3000",
+        "--offsets",
+        "0:360:180",
+        "--t-end",
+        "0.5",
+    ];
+    let whole = tune(&d, &m, &grid, &["--format", "json"]);
+    assert_eq!(whole.status, 0, "{}", whole.stderr);
+    part(&d, &m, &grid, "1/2", "p1.json");
+    part(&d, &m, &grid, "2/2", "p2.json");
+    let p: Value = serde_json::from_slice(&bytes(d.join("p1.json"))).unwrap();
+    assert_eq!(p["version"], 3);
+    assert_eq!(
+        p["runs"][0]["not_a_travel"],
+        "platform went through the fundament at t = 0.015 s"
+    );
+    assert!(p["runs"][0]["not_held"].is_null());
+    let merged = merge(&d, &["p1.json", "p2.json", "--format", "json"]);
+    assert_eq!(merged.status, 0, "{}", merged.stderr);
+    assert_eq!(merged.stdout, whole.stdout);
+}
+
 #[test]
 fn merge_refuses_parts_that_are_not_one_whole_sweep() {
     let m = machine().canonicalize().unwrap();
@@ -345,7 +378,7 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
             r.mean_velocity = v;
         });
         merge_within(&d, &["p1.json", &name, "p3.json"]).refused(&format!(
-            "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held null"
+            "error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): mean_velocity {v} with not_held and not_a_travel null"
         ));
     }
     // Parts of another host-sim: the merge's check runs would be this one's.
@@ -401,4 +434,114 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
         |p| p.machine.path = fifo.clone(),
         "fifo.toml: cannot read the file: a named pipe (FIFO), not a regular file",
     );
+}
+
+/// `r` refused (exit 2) with `needle` in one short error, nothing on stdout.
+fn refused_short(r: &Run, needle: &str) {
+    let head: String = r.stderr.chars().take(600).collect();
+    assert_eq!(r.status, 2, "exit {}: {head}", r.status);
+    assert!(r.stderr.contains(needle), "{needle:?} not in: {head}");
+    assert!(
+        r.stderr.len() < 600,
+        "{} bytes of error: {head}",
+        r.stderr.len()
+    );
+    assert!(r.stdout.is_empty(), "{}", r.stdout.len());
+}
+
+/// What `tune` never writes, in a part whose hashes were recomputed, is refused
+/// (issue 23): a mean velocity beyond the measured file's bound, more plant
+/// warnings than a run keeps or a longer one; and every field an error quotes is
+/// cut (a 10 MB field gave a 10 MB line).
+#[test]
+fn merge_bounds_the_values_of_a_resealed_part() {
+    let d = three_parts("bounds");
+    let long = "q".repeat(10_000_000);
+    let merged = |name: &str| merge_within(&d, &["p1.json", name, "p3.json"]);
+    let damaged =
+        |name: &str| format!("error: {name}: a damaged partial result: run 4 (3000 rpm, 0 deg): ");
+    // Faster than any travel by impacts, whether the offset was held or not.
+    for (k, (v, not_held)) in [(12345.5, None), (-10.5, Some("ended `fault`"))]
+        .into_iter()
+        .enumerate()
+    {
+        let name = format!("fast{k}.json");
+        resealed(&d, "p2.json", &name, |p| {
+            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            r.mean_velocity = v;
+            r.not_held = not_held.map(String::from);
+        });
+        refused_short(
+            &merged(&name),
+            &format!(
+                "{}mean_velocity {v} m/s: beyond the 10 m/s of any travel by impacts (tune writes no such run)",
+                damaged(&name)
+            ),
+        );
+    }
+    // A run that was no travel has no mean velocity.
+    resealed(&d, "p2.json", "travel.json", |p| {
+        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        r.not_a_travel = Some("platform went through the fundament".into());
+    });
+    refused_short(
+        &merged("travel.json"),
+        &format!("{}mean_velocity ", damaged("travel.json")),
+    );
+    // More plant warnings than a run keeps, or a longer one.
+    resealed(&d, "p2.json", "many.json", |p| {
+        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        r.plant_warnings = vec!["contacts: Painleve configuration".into(); 100];
+    });
+    refused_short(
+        &merged("many.json"),
+        &format!("{}100 plant warnings", damaged("many.json")),
+    );
+    for field in ["warning", "not_held"] {
+        let name = format!("long-{field}.json");
+        resealed(&d, "p2.json", &name, |p| {
+            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            match field {
+                "warning" => r.plant_warnings = vec![long.clone()],
+                _ => r.not_held = Some(long.clone()),
+            }
+        });
+        refused_short(&merged(&name), "... (10000000 bytes)");
+    }
+    // Fields quoted in errors: cut.
+    hand_edited(&d, "p2.json", "format.json", |p| {
+        p["format"] = long.clone().into()
+    });
+    refused_short(
+        &merged("format.json"),
+        "format.json: not a partial result of `host-sim tune --shard`: its format is \"qqq",
+    );
+    hand_edited(&d, "p2.json", "version.json", |p| {
+        p["version"] = long.clone().into()
+    });
+    refused_short(
+        &merged("version.json"),
+        "version.json: partial result version \"qqq",
+    );
+    resealed(&d, "p2.json", "host.json", |p| {
+        p.sweep.host_sim_version = long.clone()
+    });
+    refused_short(&merged("host.json"), "host.json: a part of host-sim qqq");
+    resealed(&d, "p2.json", "shard.json", |p| {
+        p.machine.path = long.clone()
+    });
+    refused_short(&merged("shard.json"), "... (10000000 bytes)");
+}
+
+/// An output that cannot be written does not throw the merged sweep away (issue
+/// 23): the result is printed, then the error (Linux's `/dev/full`).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_cannot_be_written_still_prints_the_merged_sweep() {
+    let d = three_parts("full");
+    let r = merge_within(
+        &d,
+        &["p1.json", "p2.json", "p3.json", "--write", "/dev/full"],
+    );
+    r.printed_then_full("--write", "best offsets");
 }

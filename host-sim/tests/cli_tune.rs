@@ -75,8 +75,21 @@ fn a_tiny_sweep_gives_the_documented_json_the_same_on_one_and_two_threads() {
     let grid = doc["grid"].as_array().unwrap();
     assert_eq!(grid.len(), 8, "2 speeds x 4 offsets");
     for p in grid {
-        assert_eq!(keys(p), ["speed_rpm", "offset_deg", "mean_velocity"]);
+        assert_eq!(
+            keys(p),
+            [
+                "speed_rpm",
+                "offset_deg",
+                "mean_velocity",
+                "not_held",
+                "not_a_travel"
+            ]
+        );
         assert!(p["mean_velocity"].is_f64());
+        assert!(
+            p["not_held"].is_null() && p["not_a_travel"].is_null(),
+            "{p}"
+        );
     }
     let offsets: Vec<f64> = grid[..4]
         .iter()
@@ -357,32 +370,34 @@ fn bad_options_exit_2_naming_the_option() {
 
 /// Issue 23: a machine that sinks through the floor (the reference machine without
 /// its right foot) gave a grid of travel speeds and best offsets from them. Each
-/// run is now a point not held, with no mean velocity, and no best offset is
-/// taken from it.
+/// run is now no travel, with no mean velocity, and no best offset is taken from
+/// it; it is said so in its own words and mark, not as an offset not held.
 #[test]
 fn runs_through_the_floor_are_no_travel() {
     let one_foot = common::root().join("tests/fixtures/one-foot-machine.toml");
-    let r = run_on(
-        Some(1),
-        &[
-            "tune",
-            one_foot.to_str().unwrap(),
-            "--speeds",
-            "3000",
-            "--offsets",
-            "0:360:180",
-            "--t-end",
-            "1",
-            "--format",
-            "json",
-        ],
-    );
+    let one_foot = one_foot.to_str().unwrap();
+    let args = [
+        "tune",
+        one_foot,
+        "--speeds",
+        "3000",
+        "--offsets",
+        "0:360:180",
+        "--t-end",
+        "1",
+    ];
+    let r = run_on(Some(1), &[&args[..], &["--format", "json"]].concat());
     assert_eq!(r.status, 0, "{}", r.stderr);
     let doc: Value = serde_json::from_str(&r.stdout).expect("JSON");
     let grid = doc["grid"].as_array().unwrap();
     assert_eq!(grid.len(), 2, "{doc}");
     for p in grid {
         assert!(p["mean_velocity"].is_null(), "{doc}");
+        assert!(p["not_held"].is_null(), "{doc}");
+        assert_eq!(
+            p["not_a_travel"], "platform went through the fundament at t = 0.015 s",
+            "{doc}"
+        );
     }
     for way in ["right", "left"] {
         assert_eq!(doc["best"][way], serde_json::json!([]), "{doc}");
@@ -394,9 +409,61 @@ fn runs_through_the_floor_are_no_travel() {
         .map(|w| w.as_str().unwrap())
         .collect();
     for offset in ["0", "180"] {
-        let not_held = format!(
-            "3000 rpm, {offset} deg: offset not held: not a travel: platform went through the fundament at t = 0.015 s"
+        let breach = format!(
+            "3000 rpm, {offset} deg: not a travel: platform went through the fundament at t = 0.015 s"
         );
-        assert!(warnings.contains(&not_held.as_str()), "{warnings:#?}");
+        assert!(warnings.contains(&breach.as_str()), "{warnings:#?}");
+    }
+    assert!(
+        !warnings.iter().any(|w| w.contains("offset not held")),
+        "{warnings:#?}"
+    );
+    // The table marks the cells as no travel, not as offsets not held.
+    let r = run_on(Some(1), &args);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    assert!(
+        r.stdout.contains("\n3000       nan!  nan!\n"),
+        "{}",
+        r.stdout
+    );
+    assert!(
+        r.stdout
+            .contains("! not a travel in this run: no mean velocity (see the warnings)"),
+        "{}",
+        r.stdout
+    );
+    assert!(
+        !r.stdout.contains("the offset was not held"),
+        "{}",
+        r.stdout
+    );
+}
+
+/// An output that cannot be written does not throw the sweep away (issue 23): the
+/// result is printed, then the error, exit 2 as for any output refused (Linux's
+/// `/dev/full`: every write fails).
+#[cfg(target_os = "linux")]
+#[test]
+fn an_output_that_cannot_be_written_still_prints_the_sweep() {
+    let m = machine();
+    for option in ["--write", "--plot"] {
+        let r = run_on(
+            None,
+            &[
+                "tune",
+                m.to_str().unwrap(),
+                "--speeds",
+                "3000",
+                "--offsets",
+                "0:360:90",
+                "--t-end",
+                "3",
+                "--set",
+                "simulation.rtol=1e-3",
+                option,
+                "/dev/full",
+            ],
+        );
+        r.printed_then_full(option, "best offsets");
     }
 }

@@ -261,6 +261,20 @@ fn no_table_still_prints_the_sweep() {
     assert!(!write.exists());
 }
 
+/// An output that cannot be written does not throw the sweep away (issue 23): the
+/// result is printed, then the error (Linux's `/dev/full`: every write fails).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_table_that_cannot_be_written_still_prints_the_sweep() {
+    let m = uncertain_machine();
+    let r = tune(
+        m.to_str().unwrap(),
+        &["--robust", "--samples", "1", "--write", "/dev/full"],
+    );
+    r.printed_then_full("--write", "best offsets");
+    assert!(r.stdout.starts_with("tune --robust "), "{}", r.stdout);
+}
+
 #[test]
 fn robust_refusals() {
     let m = uncertain_machine();

@@ -20,7 +20,9 @@
 //! refuses a machine that asks more than a platform on the fundament
 //! ([`beyond_the_platform`] names what).
 
-use crate::input::{check_names, number, read_name, vector, Limit, Named, Need, Section};
+use crate::input::{
+    check_names, cut, number, quoted, read_name, vector, Limit, Named, Need, Section, MAX_QUOTED,
+};
 use crate::{read_platform, MachineContact, Platform};
 
 /// The first body's name.
@@ -161,7 +163,7 @@ pub fn check(
         if *name == PLATFORM || *name == FUNDAMENT {
             root.problem(
                 &format!("bodies[{i}].name"),
-                format!("{name:?} is taken: the first body is `platform` ([platform]), the ground `fundament`"),
+                format!("{} is taken: the first body is `platform` ([platform]), the ground `fundament`", quoted(name)),
             );
             ok = false;
         }
@@ -169,8 +171,8 @@ pub fn check(
     let moving = |n: &str| n == PLATFORM || names.contains(&n);
     let known = |n: &str| n == FUNDAMENT || moving(n);
     let allowed = || {
-        let mut all = vec![PLATFORM, FUNDAMENT];
-        all.extend(names.iter().copied());
+        let mut all = vec![PLATFORM.to_string(), FUNDAMENT.to_string()];
+        all.extend(names.iter().map(|n| cut(n, MAX_QUOTED)));
         all.join(", ")
     };
 
@@ -203,14 +205,17 @@ pub fn check(
         let [a, b] = &j.bodies;
         for n in [a, b] {
             if !known(n) {
-                root.problem(&key, format!("no body named {n:?} (bodies: {})", allowed()));
+                root.problem(
+                    &key,
+                    format!("no body named {} (bodies: {})", quoted(n), allowed()),
+                );
                 ok = false;
             }
         }
         if a == b {
             root.problem(
                 &key,
-                format!("joins {a:?} to itself: a joint joins two bodies"),
+                format!("joins {} to itself: a joint joins two bodies", quoted(a)),
             );
             ok = false;
             continue;
@@ -226,7 +231,7 @@ pub fn check(
         if rx == ry {
             root.problem(
                 &key,
-                format!("{a:?} and {b:?} are already joined through other joints: this joint closes a loop (joints must make trees)"),
+                format!("{} and {} are already joined through other joints: this joint closes a loop (joints must make trees)", quoted(a), quoted(b)),
             );
             ok = false;
         } else {
@@ -243,11 +248,15 @@ pub fn check(
             let why = if ends.body == FUNDAMENT {
                 "the fundament does not move: the point is on a moving body (put the fundament in `against`)".to_string()
             } else {
-                format!("no moving body named {:?} (moving: {})", ends.body, {
-                    let mut m = vec![PLATFORM];
-                    m.extend(names.iter().copied());
-                    m.join(", ")
-                })
+                format!(
+                    "no moving body named {} (moving: {})",
+                    quoted(&ends.body),
+                    {
+                        let mut m = vec![PLATFORM.to_string()];
+                        m.extend(names.iter().map(|n| cut(n, MAX_QUOTED)));
+                        m.join(", ")
+                    }
+                )
             };
             root.problem(&key("body"), why);
             ok = false;
@@ -255,7 +264,11 @@ pub fn check(
         if !known(&ends.against) {
             root.problem(
                 &key("against"),
-                format!("no body named {:?} (bodies: {})", ends.against, allowed()),
+                format!(
+                    "no body named {} (bodies: {})",
+                    quoted(&ends.against),
+                    allowed()
+                ),
             );
             ok = false;
         }
@@ -263,8 +276,9 @@ pub fn check(
             root.problem(
                 &key("against"),
                 format!(
-                    "contact {name} is on {:?} against itself: a contact is between two bodies",
-                    ends.body
+                    "contact {} is on {} against itself: a contact is between two bodies",
+                    cut(name, MAX_QUOTED),
+                    quoted(&ends.body)
                 ),
             );
             ok = false;
@@ -287,7 +301,11 @@ pub fn check(
         let Some(unit) = ends.normal else {
             root.problem(
                 &key("normal"),
-                format!("missing; required against a body ({:?}): the face's normal, from it towards {:?}", ends.against, ends.body),
+                format!(
+                    "missing; required against a body ({}): the face's normal, from it towards {}",
+                    quoted(&ends.against),
+                    quoted(&ends.body)
+                ),
             );
             ok = false;
             continue;
@@ -299,8 +317,9 @@ pub fn check(
             root.problem(
                 &key("point"),
                 format!(
-                    "contact {name} overlaps {:?} at t = 0: the point {} is {} m behind the face through {} (normal {}); it must be on or in front of it",
-                    ends.against,
+                    "contact {} overlaps {} at t = 0: the point {} is {} m behind the face through {} (normal {}); it must be on or in front of it",
+                    cut(name, MAX_QUOTED),
+                    quoted(&ends.against),
                     vector(*point),
                     number(-gap),
                     vector(face),
@@ -317,7 +336,8 @@ pub fn check(
             root.problem(
                 &format!("rotors[{i}].body"),
                 format!(
-                    "no moving body named {body:?}: a rotor sits on the platform or a further body"
+                    "no moving body named {}: a rotor sits on the platform or a further body",
+                    quoted(body)
                 ),
             );
             ok = false;
@@ -397,12 +417,12 @@ pub fn check_size_and_motion(
             root.problem(
                 &format!("joints[{i}].point"),
                 format!(
-                    "the hinge {} moves at {} m/s with {:?} but at {} m/s with {:?} at t = 0; a joint holds its two bodies together there: give the bodies' `velocity` and `angular_velocity` so that they agree (v_c + omega x (point - c))",
+                    "the hinge {} moves at {} m/s with {} but at {} m/s with {} at t = 0; a joint holds its two bodies together there: give the bodies' `velocity` and `angular_velocity` so that they agree (v_c + omega x (point - c))",
                     vector(j.point),
                     vector(a),
-                    j.bodies[0],
+                    quoted(&j.bodies[0]),
                     vector(b),
-                    j.bodies[1]
+                    quoted(&j.bodies[1])
                 ),
             );
             ok = false;
@@ -429,12 +449,16 @@ pub fn beyond_the_platform(
     }
     for (i, c) in contacts.iter().enumerate() {
         if c.body != PLATFORM || c.against != FUNDAMENT {
-            keys.push(format!("contacts[{i}] ({} against {})", c.body, c.against));
+            keys.push(format!(
+                "contacts[{i}] ({} against {})",
+                cut(&c.body, MAX_QUOTED),
+                cut(&c.against, MAX_QUOTED)
+            ));
         }
     }
     for (i, b) in rotor_bodies.iter().enumerate() {
         if b != PLATFORM {
-            keys.push(format!("rotors[{i}].body ({b})"));
+            keys.push(format!("rotors[{i}].body ({})", cut(b, MAX_QUOTED)));
         }
     }
     keys

@@ -60,13 +60,18 @@ pub struct Problem {
 impl fmt::Display for Problem {
     /// `error: FILE: KEY: MESSAGE`, `error: FILE:LINE:COLUMN: MESSAGE` or
     /// `error: FILE: MESSAGE`.
+    /// The file name, key path and message each [`cut`] at [`MAX_PATH_SHOWN`].
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let file = cut(&self.file, MAX_PATH_SHOWN);
+        let message = cut(&self.message, MAX_PATH_SHOWN);
         match &self.location {
-            Location::File => write!(f, "error: {}: {}", self.file, self.message),
+            Location::File => write!(f, "error: {file}: {message}"),
             Location::Line { line, column } => {
-                write!(f, "error: {}:{line}:{column}: {}", self.file, self.message)
+                write!(f, "error: {file}:{line}:{column}: {message}")
             }
-            Location::Key(key) => write!(f, "error: {}: {key}: {}", self.file, self.message),
+            Location::Key(key) => {
+                write!(f, "error: {file}: {}: {message}", cut(key, MAX_PATH_SHOWN))
+            }
         }
     }
 }
@@ -392,10 +397,48 @@ pub fn vector(v: [f64; 2]) -> String {
     format!("[{}, {}]", number(v[0]), number(v[1]))
 }
 
+/// The most bytes of a value quoted from an input file in a message (a string,
+/// a key, a name, a field): a longer one is [`cut`], so that a 3 MB value does
+/// not become a 3 MB line.
+pub const MAX_QUOTED: usize = 40;
+
+/// The most bytes of a file name, a key path or a message in a [`Problem`]'s
+/// line: longer ones are [`cut`]. 4096 is `PATH_MAX` on Linux, the longest path
+/// a file can be opened by, so a file name is cut only where no file has it (a
+/// `tuning_table` of 3 MB); no message of the reader's comes near it (a value
+/// in one is cut at [`MAX_QUOTED`]).
+pub const MAX_PATH_SHOWN: usize = 4096;
+
+/// `s` for a message: whole when at most `max` bytes, else its first `max` bytes
+/// (to a character's boundary) and `... (N bytes)`, N its whole length. The one
+/// cut of every message of host-sim and its readers.
+pub fn cut(s: &str, max: usize) -> String {
+    if s.len() <= max {
+        return s.to_string();
+    }
+    let mut end = max;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}... ({} bytes)", &s[..end], s.len())
+}
+
+/// The most bytes [`cut`]`(s, max)` gives, whatever `s`: `max`, then `... (N
+/// bytes)` with N of at most 20 digits (a `usize`).
+pub const fn cut_bound(max: usize) -> usize {
+    max + "... ( bytes)".len() + 20
+}
+
+/// `s` quoted for a message, [`cut`] at [`MAX_QUOTED`]: `"ccw"`,
+/// `"qqq... (3000000 bytes)"`.
+pub fn quoted(s: &str) -> String {
+    format!("{:?}", cut(s, MAX_QUOTED))
+}
+
 /// What a TOML value is, for "got ..." in messages.
 fn shown(value: &Value) -> String {
     let text = match value {
-        Value::String(s) => format!("the string {s:?}"),
+        Value::String(s) => format!("the string {}", quoted(s)),
         Value::Integer(i) => i.to_string(),
         Value::Float(x) => number(*x),
         Value::Boolean(b) => b.to_string(),
@@ -405,12 +448,7 @@ fn shown(value: &Value) -> String {
         Value::Table(_) => "a table".to_string(),
     };
     // Keep messages on one short line.
-    let text = text.replace('\n', " ");
-    if text.chars().count() > 60 {
-        format!("{}...", text.chars().take(57).collect::<String>())
-    } else {
-        text
-    }
+    cut(&text.replace('\n', " "), MAX_QUOTED)
 }
 
 /// The known key closest to `unknown`, if any is close enough to be a likely typo.
@@ -470,10 +508,12 @@ impl<'a> Section<'a> {
         &self.path
     }
 
-    /// The full key path of `key` in this table.
+    /// The full key path of `key` in this table (a key from the file [`cut`] at
+    /// [`MAX_QUOTED`]: the schema's are shorter).
     pub fn key_path(&self, key: &str) -> String {
+        let key = cut(key, MAX_QUOTED);
         if self.path.is_empty() {
-            key.to_string()
+            key
         } else {
             format!("{}.{key}", self.path)
         }
@@ -712,7 +752,10 @@ impl<'a> Section<'a> {
             Some(near) => format!("; did you mean \"{near}\"?"),
             None => String::new(),
         };
-        self.problem(key, format!("unknown value {s:?}{hint} (allowed: {list})"));
+        self.problem(
+            key,
+            format!("unknown value {}{hint} (allowed: {list})", quoted(s)),
+        );
         None
     }
 
@@ -902,11 +945,13 @@ pub fn check_names<T>(root: &Section, array: &str, what: &str, list: &[Named<T>]
         if let Some((_, first)) = seen.iter().find(|(n, _)| *n == name) {
             let message = if element.given {
                 format!(
-                    "duplicate {what} name {name:?} ({array}[{first}] has it already); names must be unique"
+                    "duplicate {what} name {} ({array}[{first}] has it already); names must be unique",
+                    quoted(name)
                 )
             } else {
                 format!(
-                    "this {what}'s default name {name:?} is already used by {array}[{first}]; give it a unique name"
+                    "this {what}'s default name {} is already used by {array}[{first}]; give it a unique name",
+                    quoted(name)
                 )
             };
             root.problem(&format!("{array}[{i}].name"), message);
@@ -1108,6 +1153,21 @@ mod tests {
     fn line_column_counts_characters() {
         assert_eq!(line_column("ab\ncdé\nf", 8), (3, 1));
         assert_eq!(line_column("ab\ncdé\nf", 4), (2, 2));
+    }
+
+    #[test]
+    fn long_fields_are_cut_with_their_length() {
+        assert_eq!(cut("fast", 4), "fast");
+        assert_eq!(cut("faster", 4), "fast... (6 bytes)");
+        // Never inside a character: "é" is 2 bytes.
+        assert_eq!(cut("aéb", 2), "a... (4 bytes)");
+        let huge = "q".repeat(10_000_000);
+        assert!(cut(&huge, 400).len() <= cut_bound(400));
+        assert_eq!(quoted("ccw"), "\"ccw\"");
+        assert_eq!(
+            quoted(&"q".repeat(41)),
+            format!("\"{}... (41 bytes)\"", "q".repeat(40))
+        );
     }
 
     #[test]

@@ -1185,6 +1185,55 @@ mod tests {
         assert!(Machine::numbers("m.toml", REFERENCE, Path::new(""), &bad).is_err());
     }
 
+    /// A value, key or name of 3 MB is quoted cut in its message, with its
+    /// length ([`input::cut`]): it gave a 3 MB line.
+    #[test]
+    fn long_values_are_cut_in_messages() {
+        let long = "q".repeat(3_000_000);
+        let cases = [
+            // A choice, its value unknown.
+            REFERENCE.replacen("sense = \"ccw\"", &format!("sense = \"{long}\""), 1),
+            // An unknown key, and a name the file does not have.
+            REFERENCE.replacen("[controller]\n", &format!("[controller]\n{long} = 1\n"), 1),
+            REFERENCE.replacen(
+                "name = \"K1\"",
+                &format!("name = \"K1\"\nbody = \"{long}\""),
+                1,
+            ),
+            // A range of [uncertainty] on a key that is not one.
+            format!("{REFERENCE}\"{long}\" = [0.1, 0.2]\n"),
+        ];
+        for text in cases {
+            let e = Machine::from_text("m.toml", &text, Path::new(""), &[]).unwrap_err();
+            let rendered = input::render(&e);
+            assert!(
+                rendered.contains("... (3000000 bytes)"),
+                "{}",
+                input::cut(&rendered, 1000)
+            );
+            assert!(
+                rendered.len() < 2000,
+                "{} bytes: {}",
+                rendered.len(),
+                input::cut(&rendered, 3000)
+            );
+        }
+        // A file name no file can have (a tuning_table of 3 MB): cut after the
+        // longest path a file can be opened by.
+        let e = tuning_file::read(Path::new(&long)).unwrap_err();
+        let rendered = input::render(&e);
+        assert!(
+            rendered.len() < input::MAX_PATH_SHOWN + 200,
+            "{} bytes",
+            rendered.len()
+        );
+        assert!(
+            rendered.contains("... (3000000 bytes): cannot read the file"),
+            "{}",
+            input::cut(&rendered, 200)
+        );
+    }
+
     #[test]
     fn problems_in_set_values_name_the_set() {
         let sets = ["contacts.K1.friction=-1".to_string()];

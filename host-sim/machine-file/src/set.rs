@@ -25,7 +25,7 @@
 use serde::Deserialize;
 use toml::{Table, Value};
 
-use crate::input::{suggest, Location, Problem};
+use crate::input::{cut, suggest, Location, Problem, MAX_QUOTED};
 
 /// What a key of the machine file holds.
 #[derive(Clone, Copy, Debug)]
@@ -309,7 +309,7 @@ fn parse_value(text: &str) -> Value {
 
 /// The key path shown in messages: the segments the user wrote, joined by dots.
 fn shown(segments: &[String]) -> String {
-    segments.join(".")
+    cut(&segments.join("."), MAX_QUOTED)
 }
 
 /// Walks the schema and the file (without changing it) to the key `segments` name.
@@ -438,13 +438,17 @@ fn no_element(
     elements: &[Value],
     default_prefix: &str,
 ) -> String {
+    let selector = cut(selector, MAX_QUOTED);
     if elements.is_empty() {
         return format!("no {noun} named {selector}: the file has no [[{array}]] tables");
     }
     let list = elements
         .iter()
         .enumerate()
-        .map(|(i, e)| element_name(e, i, default_prefix).unwrap_or_else(|| format!("[{i}]")))
+        .map(|(i, e)| {
+            element_name(e, i, default_prefix)
+                .map_or_else(|| format!("[{i}]"), |n| cut(&n, MAX_QUOTED))
+        })
         .collect::<Vec<_>>()
         .join(", ");
     if selector.parse::<usize>().is_ok() {
@@ -470,7 +474,8 @@ fn unknown_key(parent: &[String], key: &str, keys: &[(&str, Node)]) -> String {
         None => String::new(),
     };
     format!(
-        "unknown key `{key}` {place}{hint} (allowed: {})",
+        "unknown key `{}` {place}{hint} (allowed: {})",
+        cut(key, MAX_QUOTED),
         known.join(", ")
     )
 }

@@ -32,7 +32,7 @@ use std::path::Path;
 
 use toml::{Table, Value};
 
-use crate::input::{Location, Problem, Problems};
+use crate::input::{cut, Location, Problem, Problems, MAX_QUOTED};
 use crate::set;
 
 /// The section's name in the machine file.
@@ -162,7 +162,7 @@ const ARRAYS: [&str; 4] = ["contacts", "rotors", "bodies", "joints"];
 /// [`read`] reads it, then its ends against the whole machine.
 pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) {
     for range in read(table, problems) {
-        let at = format!("{SECTION}.\"{}\"", range.key);
+        let at = at(&range.key);
         for (end, x) in [("LOW", range.low), ("HIGH", range.high)] {
             let sets: Vec<String> = range.targets.iter().map(|t| format!("{t}={x:?}")).collect();
             let mut varied = table.clone();
@@ -179,6 +179,12 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) {
             }
         }
     }
+}
+
+/// The key path of range `key` in messages: `uncertainty."contacts.*.friction"`
+/// (the key [`cut`] at [`MAX_QUOTED`]).
+fn at(key: &str) -> String {
+    format!("{SECTION}.\"{}\"", cut(key, MAX_QUOTED))
 }
 
 /// The ranges of `[uncertainty]` in `table` whose form and keys are right (two
@@ -204,11 +210,14 @@ fn read(table: &Table, problems: &Problems) -> Vec<Range> {
     // `contacts[1].restitution`), with the range that varies it: one range a key.
     let mut varied_by: Vec<(String, String)> = Vec::new();
     for (key, value) in entries {
-        let at = format!("{SECTION}.\"{key}\"");
+        let at = at(key);
         let Some((low, high)) = bounds(value) else {
             problems.at(
                 &at,
-                format!("must be [LOW, HIGH], two finite numbers with LOW < HIGH (got {value})"),
+                format!(
+                    "must be [LOW, HIGH], two finite numbers with LOW < HIGH (got {})",
+                    cut(&value.to_string(), MAX_QUOTED)
+                ),
             );
             continue;
         };
@@ -232,7 +241,10 @@ fn read(table: &Table, problems: &Problems) -> Vec<Range> {
                 Some((path, other)) => {
                     problems.at(
                         &at,
-                        format!("varies {path}, which \"{other}\" varies too: one range a key"),
+                        format!(
+                            "varies {path}, which \"{}\" varies too: one range a key",
+                            cut(other, MAX_QUOTED)
+                        ),
                     );
                     alone = false;
                 }

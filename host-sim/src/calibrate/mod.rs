@@ -228,18 +228,23 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
     calibration.warnings.extend(plan.warnings);
     let seconds = started.elapsed().as_secs_f64();
 
-    // 4. The file, then the result.
-    if let (Some(i), Some(path)) = (out, &args.write) {
-        let (text, _) = read_machine_file(&args.machine.path).map_err(Failure::Usage)?;
-        let written = report::machine_file(&args.machine.path, &text, &calibration, path)
-            .map_err(Failure::Run)?;
-        staged.write(i, &written)?;
-    }
-    staged.commit()?;
+    // 4. The file, then the result: printed whether or not the file could be
+    // written (the fit is not thrown away), its error after it.
+    let mut file = || -> Result<(), Failure> {
+        if let (Some(i), Some(path)) = (out, &args.write) {
+            let (text, _) = read_machine_file(&args.machine.path).map_err(Failure::Usage)?;
+            let written = report::machine_file(&args.machine.path, &text, &calibration, path)
+                .map_err(Failure::Run)?;
+            staged.write(i, &written)?;
+        }
+        Ok(())
+    };
+    let written = file().and_then(|()| staged.commit());
     console.print(&match args.format.format {
         crate::args::Format::Json => report::json(&calibration, args),
         crate::args::Format::Table => report::table(&calibration, args),
     });
+    written?;
     console.note(&format!(
         "calibrate: {} ({}) in {:.1} s on {}{}\n",
         count(calibration.fit.evaluations, "evaluation"),
@@ -467,6 +472,6 @@ pub fn point_residuals(points: &[Point], sims: &[RunOutcome]) -> Vec<f64> {
     points
         .iter()
         .zip(sims)
-        .map(|(p, o)| p.residual(o.not_held.is_none().then_some(o.mean_velocity)))
+        .map(|(p, o)| p.residual(o.velocity()))
         .collect()
 }

@@ -12,8 +12,9 @@
 //! it is shared by every row at the point (one run serves them all).
 //!
 //! The estimate: at the fit, every point run again at `rtol / 2` to `rtol / 16`
-//! ([`DIVISORS`]; clamped to the machine file's lowest tolerance), and the
-//! sample variance of the five speeds `g_0 .. g_4` (the fit's first):
+//! ([`DIVISORS`]), or at `rtol * 2` to `rtol * 16` where `rtol / 16` is below the
+//! machine file's lowest tolerance (1e-12): five distinct tolerances either way
+//! ([`tolerances`]), and the sample variance of the five speeds `g_0 .. g_4` (the fit's first):
 //!
 //! ```text
 //! tau_k^2 = sum_i (g_i - gbar)^2 / 4
@@ -90,11 +91,7 @@ pub fn noise(
     at_fit: &[RunOutcome],
     done: &(dyn Fn() + Sync),
 ) -> Noise {
-    let rtol = machine.simulation.rtol;
-    let mut rtols = vec![rtol];
-    for d in DIVISORS {
-        rtols.push((rtol / d).max(RTOL_RANGE.0));
-    }
+    let rtols = tolerances(machine.simulation.rtol);
     let finer: Vec<Machine> = rtols[1..]
         .iter()
         .map(|r| {
@@ -114,7 +111,7 @@ pub fn noise(
             o
         })
         .collect();
-    let speed = |o: &RunOutcome| o.not_held.is_none().then_some(o.mean_velocity);
+    let speed = RunOutcome::velocity;
     let speeds: Vec<Vec<Option<f64>>> = (0..points.len())
         .map(|k| {
             let mut s = vec![speed(&at_fit[k])];
@@ -144,6 +141,20 @@ pub fn noise(
     }
 }
 
+/// The fit's tolerance `rtol` and the four others its points run again at:
+/// `rtol` divided by [`DIVISORS`], or, where the finest of those is below the
+/// machine file's lowest tolerance, multiplied by them (clamping them to it
+/// would run the same tolerance five times and measure a noise of 0).
+pub fn tolerances(rtol: f64) -> Vec<f64> {
+    let finest = DIVISORS[DIVISORS.len() - 1];
+    let coarser = rtol / finest < RTOL_RANGE.0;
+    let mut rtols = vec![rtol];
+    for d in DIVISORS {
+        rtols.push(if coarser { rtol * d } else { rtol / d });
+    }
+    rtols
+}
+
 /// The sample standard deviation of `speeds` (the fit's first), m/s: `tau` of
 /// the module doc (0 and [`NOT_HELD_RESIDUAL_MPS`] where runs were not held).
 pub fn spread(speeds: &[Option<f64>]) -> f64 {
@@ -164,6 +175,41 @@ pub fn spread(speeds: &[Option<f64>]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// At the lowest tolerance, 1e-12, the runs again went to 1e-12 five times
+    /// over, gave the same speeds and a numerical noise of 0 (issue 23). They
+    /// go to five distinct tolerances, and a chaotic point (3250 rpm at 120
+    /// degrees, docs/calibration.md, "Numerical noise") shows its noise.
+    #[test]
+    fn at_the_lowest_tolerance_the_noise_is_measured_over_distinct_ones() {
+        let text = include_str!("../../../examples/vibro-driver.toml");
+        let sets = ["simulation.rtol=1e-12".to_string()];
+        let mut machine =
+            Machine::from_text("m.toml", text, std::path::Path::new(""), &sets).unwrap();
+        machine.controller.tuning_table = None;
+        let point = Point {
+            speed_rpm: 3250.0,
+            offset_deg: 120.0,
+            rows: 1,
+            weight: 1.0,
+            mean_mps: 0.017,
+            scatter: 0.0,
+        };
+        // 2 s: the offset is held from about 0.85 s, before T/2.
+        let t_end = 2.0;
+        let at_fit = run_point(&machine, point.speed_rpm, point.offset_deg, t_end);
+        let n = noise(&machine, &[point], t_end, &[at_fit], &|| {});
+        assert_eq!(n.rtols, [1e-12, 2e-12, 4e-12, 8e-12, 1.6e-11]);
+        let speeds: Vec<f64> = n.speeds[0]
+            .iter()
+            .map(|v| v.expect("held at every tolerance"))
+            .collect();
+        assert!(
+            speeds.iter().any(|v| *v != speeds[0]),
+            "a chaotic point's speeds at five tolerances: {speeds:?}"
+        );
+        assert!(n.sd[0] > 0.0);
+    }
 
     #[test]
     fn the_spread_of_the_speeds() {

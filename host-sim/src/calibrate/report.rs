@@ -102,18 +102,21 @@ pub fn warnings(
             ));
         }
     }
-    // Runs not held at the fit.
+    // Runs not held, or no travel, at the fit.
     for o in simulated {
-        if let Some(why) = &o.not_held {
-            let w = format!(
-                "{} rpm {} deg: the simulated run did not hold its offset at the fit ({why}); its rows count with the residual {} m/s from their mean",
-                text::sig(o.speed_rpm),
-                text::sig(o.offset_deg),
-                text::sig(NOT_HELD_RESIDUAL_MPS)
-            );
-            if !out.contains(&w) {
-                out.push(w);
-            }
+        let what = match (&o.not_a_travel, &o.not_held) {
+            (Some(why), _) => format!("was no travel at the fit ({why})"),
+            (None, Some(why)) => format!("did not hold its offset at the fit ({why})"),
+            (None, None) => continue,
+        };
+        let w = format!(
+            "{} rpm {} deg: the simulated run {what}; its rows count with the residual {} m/s from their mean",
+            text::sig(o.speed_rpm),
+            text::sig(o.offset_deg),
+            text::sig(NOT_HELD_RESIDUAL_MPS)
+        );
+        if !out.contains(&w) {
+            out.push(w);
         }
     }
     // The search that gave the fit stopped early (another's early stop is
@@ -187,19 +190,15 @@ pub fn numerical_warnings(
 
 /// The cells of the rows shown, for the table and JSON: the measured and
 /// simulated speeds and the residual (not weighted), m/s; `None` simulated where
-/// not held.
+/// the run gave no speed (not held, or no travel).
 fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
     c.data
         .shown
         .iter()
         .map(|(r, k)| (r, &c.simulated[*k]))
-        .map(|(r, o)| match o.not_held {
-            None => (
-                r.velocity_mps,
-                Some(o.mean_velocity),
-                o.mean_velocity - r.velocity_mps,
-            ),
-            Some(_) => (r.velocity_mps, None, NOT_HELD_RESIDUAL_MPS),
+        .map(|(r, o)| match o.velocity() {
+            Some(v) => (r.velocity_mps, Some(v), v - r.velocity_mps),
+            None => (r.velocity_mps, None, NOT_HELD_RESIDUAL_MPS),
         })
         .collect()
 }
@@ -302,7 +301,16 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
             text::sig(r.offset_deg),
             text::sig(r.weight),
             format!("{:.3}", m * 1e3),
-            s.map_or("not held".into(), |s| format!("{:.3}", s * 1e3)),
+            s.map_or_else(
+                || {
+                    if c.simulated[*k].not_a_travel.is_some() {
+                        "no travel".into()
+                    } else {
+                        "not held".into()
+                    }
+                },
+                |s| format!("{:.3}", s * 1e3),
+            ),
             format!("{:+.3}", e * 1e3),
             format!("{:.3}", c.noise.sd[*k] * 1e3),
         ]);
@@ -350,7 +358,7 @@ pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
             json!({
                 "line": r.line, "speed_rpm": r.speed_rpm, "offset_deg": r.offset_deg,
                 "weight": r.weight, "measured_mps": m, "simulated_mps": s,
-                "residual_mps": e, "not_held": o.not_held,
+                "residual_mps": e, "not_held": o.not_held, "not_a_travel": o.not_a_travel,
                 "numerical_mps": c.noise.sd[*k],
             })
         })
@@ -366,7 +374,8 @@ pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
                 "speed_rpm": pt.speed_rpm, "offset_deg": pt.offset_deg, "rows": pt.rows,
                 "weight": pt.weight, "measured_mps": pt.mean_mps,
                 "simulated_mps": speeds.first().copied().flatten(),
-                "not_held": o.not_held, "speeds_mps": speeds, "numerical_mps": sd,
+                "not_held": o.not_held, "not_a_travel": o.not_a_travel,
+                "speeds_mps": speeds, "numerical_mps": sd,
             })
         })
         .collect();

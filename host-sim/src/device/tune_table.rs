@@ -128,6 +128,7 @@ fn fit(speed_rpm: f64, points: Vec<OffsetMean>) -> SpeedFit {
             offset_deg,
             mean_velocity,
             not_held: None,
+            not_a_travel: None,
             plant_warnings: Vec::new(),
         })
         .collect();

@@ -75,19 +75,11 @@ pub fn vec2(v: [f64; 2]) -> String {
     format!("[{}, {}]", sig(v[0]), sig(v[1]))
 }
 
-/// `s` for a message: whole when at most `max` bytes, else its first `max` bytes
-/// (to a character's boundary) and `... (N bytes)`, N its whole length, so that a
-/// 10 MB field does not become a 10 MB line.
-pub fn cut(s: &str, max: usize) -> String {
-    if s.len() <= max {
-        return s.to_string();
-    }
-    let mut end = max;
-    while !s.is_char_boundary(end) {
-        end -= 1;
-    }
-    format!("{}... ({} bytes)", &s[..end], s.len())
-}
+/// `s` for a message, whole or cut with its length (`"x999... (10000001
+/// bytes)"`), so that a 10 MB field does not become a 10 MB line: the machine
+/// file reader's, the one cut of every message, with the length a quoted value
+/// is cut at.
+pub use crate::machine::input::{cut, cut_bound, MAX_QUOTED};
 
 /// Drops trailing zeros after a decimal point, and the point itself if bare.
 fn trim_zeros(s: &str) -> String {
@@ -169,14 +161,6 @@ impl Table {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn long_fields_are_cut_with_their_length() {
-        assert_eq!(cut("fast", 4), "fast");
-        assert_eq!(cut("faster", 4), "fast... (6 bytes)");
-        // Never inside a character: "é" is 2 bytes.
-        assert_eq!(cut("aéb", 2), "a... (4 bytes)");
-    }
 
     #[test]
     fn significant_digits() {

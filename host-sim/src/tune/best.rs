@@ -175,15 +175,15 @@ pub(crate) struct Candidate {
 }
 
 /// The best grid point for `way` among the runs of one speed (`runs`, offsets
-/// ascending): the extreme among the runs that held their offset (all runs when
-/// none did), the first of equals; `None` when no velocity is finite.
+/// ascending): the extreme among the runs that gave a speed (held their offset
+/// and travelled), else among those with a mean velocity (offsets not held), the
+/// first of equals; `None` when no velocity is finite (a run that was no travel
+/// has none).
 fn extreme(runs: &[RunOutcome], way: Way) -> Option<usize> {
-    let any_held = runs
-        .iter()
-        .any(|r| r.not_held.is_none() && r.mean_velocity.is_finite());
+    let any_held = runs.iter().any(|r| r.velocity().is_some());
     let mut best: Option<usize> = None;
     for (i, r) in runs.iter().enumerate() {
-        if !r.mean_velocity.is_finite() || (any_held && r.not_held.is_some()) {
+        if !r.mean_velocity.is_finite() || (any_held && r.velocity().is_none()) {
             continue;
         }
         if best.is_none_or(|b| way.score(r.mean_velocity) > way.score(runs[b].mean_velocity)) {
@@ -295,7 +295,7 @@ pub fn best_offsets(
                 // In `checks` order: the same filter, the same sequence.
                 if let Some(r) = checked.next() {
                     let faster = way.score(r.mean_velocity) >= way.score(at.mean_velocity);
-                    if r.not_held.is_none() && faster {
+                    if r.velocity().is_some() && faster {
                         best.offset_deg = x;
                         best.mean_velocity = r.mean_velocity;
                     } else {
@@ -326,8 +326,8 @@ pub(crate) fn warnings(
             text::sig(r.speed_rpm),
             text::sig(r.offset_deg)
         );
-        if let Some(why) = &r.not_held {
-            out.push(format!("{at}: offset not held: {why}"));
+        if let Some(why) = r.no_speed() {
+            out.push(format!("{at}: {why}"));
         }
         for w in &r.plant_warnings {
             out.push(format!("{at}: {w}"));

@@ -29,6 +29,7 @@ use super::{
 };
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
+use crate::output::text;
 
 /// Arguments of `host-sim merge`.
 #[derive(Debug, Args)]
@@ -97,7 +98,10 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
     let grid = first.sweep.grid();
-    let refused = grid_problems(&machine, &grid, &first.sweep.speeds, &first.sweep.offsets);
+    // The range texts as the messages quote them: cut (a part is anyone's file).
+    let quote = |s: &str| text::cut(s, text::MAX_QUOTED);
+    let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
+    let refused = grid_problems(&machine, &grid, &speeds, &offsets);
     if !refused.is_empty() {
         // The parts are one sweep (checked): the first one names it.
         let file = parts[0].0.display();
@@ -113,7 +117,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         return Err(Failure::Usage(lines.join("\n") + "\n"));
     }
     if args.output.write.is_some() {
-        let problems = table_problems(&grid.speeds_rpm, &first.sweep.speeds);
+        let problems = table_problems(&grid.speeds_rpm, &speeds);
         if !problems.is_empty() {
             return Err(Failure::Usage(problems.join("\n") + "\n"));
         }

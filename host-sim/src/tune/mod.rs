@@ -500,10 +500,12 @@ impl Report {
         })
     }
 
-    /// Writes the files (all or none), then the result on stdout; the result
-    /// is printed too when the table cannot be made.
+    /// Writes the files (all or none), then the result on stdout: printed
+    /// whether or not the files could be written (the table cannot be made, an
+    /// output cannot be written), so that the sweep is never thrown away; their
+    /// error comes after it.
     pub fn finish(
-        mut self,
+        self,
         tuning: &Tuning,
         request: &Request,
         console: &mut Console<'_>,
@@ -512,9 +514,15 @@ impl Report {
             Format::Json => tuning_json(tuning),
             Format::Table => tuning_table(tuning, &request.machine_path),
         };
+        let written = self.write(tuning, request);
+        console.print(&result);
+        written
+    }
+
+    /// The files of [`Report::finish`], all or none.
+    fn write(mut self, tuning: &Tuning, request: &Request) -> Result<(), Failure> {
         if let Some((i, path)) = &self.table {
             if tuning.right.is_empty() || tuning.left.is_empty() {
-                console.print(&result);
                 return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above".into()));
             }
             let text = table_file(tuning, request, path);
@@ -534,9 +542,7 @@ impl Report {
             let title = format!("host-sim tune {}", request.machine_path.display());
             self.staged.write(i, &plot::plot_svg(tuning, &title))?;
         }
-        self.staged.commit()?;
-        console.print(&result);
-        Ok(())
+        self.staged.commit()
     }
 }
 

@@ -46,12 +46,13 @@ use crate::output::text;
 pub const FORMAT: &str = "host-sim-tune-part";
 
 /// The `version` of the format this host-sim writes and reads (2: with
-/// `part_sha256`).
-pub const VERSION: u64 = 2;
+/// `part_sha256`; 3: with each run's `not_a_travel`).
+pub const VERSION: u64 = 3;
 
 /// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
-/// 200 bytes, so the largest grid, 10 000 runs, about 2 MB, leaving room for
-/// the plant's warnings.
+/// 200 bytes, so the largest grid, 10 000 runs, about 2 MB; with the most plant
+/// warnings and the longest texts a run keeps ([`super::sweep::MAX_PLANT_WARNINGS`],
+/// [`super::sweep::MAX_REASON_BYTES`]) under 5 KB a run, 50 MB.
 pub const MAX_BYTES: u64 = 64 << 20;
 
 /// Which part of the grid: part `index` (from 1) of `count`.
@@ -150,8 +151,24 @@ pub struct PartRun {
     pub mean_velocity: f64,
     /// Why the offset was not held, if it was not.
     pub not_held: Option<String>,
+    /// Why the run was no travel, if it was not.
+    pub not_a_travel: Option<String>,
     /// The plant's warnings.
     pub plant_warnings: Vec<String>,
+}
+
+impl PartRun {
+    /// The run's outcome, as `tune` made it.
+    pub fn outcome(&self) -> RunOutcome {
+        RunOutcome {
+            speed_rpm: self.speed_rpm,
+            offset_deg: self.offset_deg,
+            mean_velocity: self.mean_velocity,
+            not_held: self.not_held.clone(),
+            not_a_travel: self.not_a_travel.clone(),
+            plant_warnings: self.plant_warnings.clone(),
+        }
+    }
 }
 
 /// A partial result ([module doc](self)).
@@ -282,10 +299,12 @@ impl Sweep {
     }
 
     /// What differs between `self` (of file `a`) and `other` (of file `b`), one
-    /// phrase each; empty when they are the same sweep.
+    /// phrase each, the values quoted cut ([`text::cut`]); empty when they are
+    /// the same sweep.
     fn differences(&self, other: &Sweep, a: &str, b: &str) -> Vec<String> {
         let mut out = Vec::new();
         let mut differ = |what: &str, x: String, y: String| {
+            let (x, y) = (quote(&x), quote(&y));
             out.push(format!("{what} differs ({x} in {a}, {y} in {b})"));
         };
         let list = |v: &[f64]| {
@@ -398,6 +417,7 @@ pub(crate) fn run_shard(
                 offset_deg: r.offset_deg,
                 mean_velocity: r.mean_velocity,
                 not_held: r.not_held,
+                not_a_travel: r.not_a_travel,
                 plant_warnings: r.plant_warnings,
             })
             .collect(),
@@ -427,6 +447,19 @@ pub(crate) fn run_shard(
     Ok(())
 }
 
+/// A field of a part for a message: [`text::cut`] at [`text::MAX_QUOTED`] (a
+/// part is a file anyone can write: a 10 MB field must not make a 10 MB line).
+fn quote(field: &str) -> String {
+    text::cut(field, text::MAX_QUOTED)
+}
+
+/// Whether `s` is a SHA-256 as a part writes it: 64 lowercase hex digits.
+fn is_sha256(s: &str) -> bool {
+    s.len() == 64
+        && s.bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
 /// "error: FILE: not a partial result of `host-sim tune --shard`: why".
 fn not_a_part(path: &Path, why: &str) -> String {
     format!(
@@ -451,7 +484,7 @@ pub fn read(path: &Path) -> Result<Part, String> {
         Some(f) => {
             return Err(not_a_part(
                 path,
-                &format!("its format is {f}, not {FORMAT:?}"),
+                &format!("its format is {}, not {FORMAT:?}", quote(&f.to_string())),
             ))
         }
         None => return Err(not_a_part(path, &format!("no \"format\": {FORMAT:?}"))),
@@ -462,12 +495,18 @@ pub fn read(path: &Path) -> Result<Part, String> {
             return Err(format!(
                 "error: {}: partial result version {}: this host-sim reads version {VERSION}",
                 path.display(),
-                value.get("version").unwrap_or(&Value::Null)
+                quote(&value.get("version").unwrap_or(&Value::Null).to_string())
             ))
         }
     }
-    let part: Part = serde_json::from_value(value)
-        .map_err(|e| format!("error: {}: a damaged partial result: {e}", path.display()))?;
+    // serde's message quotes the value it refused: cut as the reader's are.
+    let part: Part = serde_json::from_value(value).map_err(|e| {
+        format!(
+            "error: {}: a damaged partial result: {}",
+            path.display(),
+            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
+        )
+    })?;
     let damaged =
         |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
     if part.sweep_sha256 != sweep_sha256(&part.machine.sha256, &part.sweep) {
@@ -484,8 +523,23 @@ pub fn read(path: &Path) -> Result<Part, String> {
         return Err(format!(
             "error: {}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
             path.display(),
-            part.sweep.host_sim_version
+            quote(&part.sweep.host_sim_version)
         ));
+    }
+    // The machine file's hash and path as `tune` writes them: a path no file can
+    // have is not opened, and no output names it.
+    if !is_sha256(&part.machine.sha256) {
+        return Err(damaged(format!(
+            "machine.sha256 {:?}: not a SHA-256 (64 lowercase hex digits)",
+            quote(&part.machine.sha256)
+        )));
+    }
+    if part.machine.path.len() > input::MAX_PATH_SHOWN {
+        return Err(damaged(format!(
+            "machine.path {:?}: longer than a path a file can be opened by ({} bytes)",
+            quote(&part.machine.path),
+            input::MAX_PATH_SHOWN
+        )));
     }
     let Shard { index, count } = part.shard;
     if count == 0 || count > MAX_POINTS || index == 0 || index > count {
@@ -513,19 +567,16 @@ pub fn read(path: &Path) -> Result<Part, String> {
             part.shard
         )));
     }
-    // As `run_point` makes them: a run without a mean velocity did not hold.
-    if let Some(r) = part
-        .runs
-        .iter()
-        .find(|r| r.not_held.is_none() && !r.mean_velocity.is_finite())
-    {
-        return Err(damaged(format!(
-            "run {} ({} rpm, {} deg): mean_velocity {} with not_held null: a run that held its offset has a finite mean velocity",
-            r.point,
-            text::sig(r.speed_rpm),
-            text::sig(r.offset_deg),
-            r.mean_velocity
-        )));
+    // As `run_point` makes them ([`RunOutcome::problem`]).
+    for r in &part.runs {
+        if let Some(why) = r.outcome().problem() {
+            return Err(damaged(format!(
+                "run {} ({} rpm, {} deg): {why}",
+                r.point,
+                text::sig(r.speed_rpm),
+                text::sig(r.offset_deg),
+            )));
+        }
     }
     Ok(part)
 }
@@ -607,9 +658,7 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
             runs[r.point] = Some(RunOutcome {
                 speed_rpm: all[r.point].0,
                 offset_deg: all[r.point].1,
-                mean_velocity: r.mean_velocity,
-                not_held: r.not_held.clone(),
-                plant_warnings: r.plant_warnings.clone(),
+                ..r.outcome()
             });
         }
     }
@@ -659,6 +708,7 @@ mod tests {
                 offset_deg: 0.1 * 3.0,
                 mean_velocity: v,
                 not_held: None,
+                not_a_travel: None,
                 plant_warnings: vec![],
             };
             let back: PartRun =

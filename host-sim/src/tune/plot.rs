@@ -383,6 +383,7 @@ mod tests {
                 offset_deg: o,
                 mean_velocity: v(s, o),
                 not_held: (o == 180.0).then(|| "ended `fault`".to_string()),
+                not_a_travel: None,
                 plant_warnings: vec![],
             })
             .collect();

@@ -20,12 +20,12 @@ fn number(x: f64) -> Value {
 }
 
 /// `{"speed_rpm", "offset_deg", "mean_velocity"}`.
-fn point_value(speed: f64, offset: f64, velocity: f64) -> Value {
+fn point_value(speed: f64, offset: f64, velocity: f64) -> Map<String, Value> {
     let mut m = Map::new();
     m.insert("speed_rpm".into(), number(speed));
     m.insert("offset_deg".into(), number(offset));
     m.insert("mean_velocity".into(), number(velocity));
-    Value::Object(m)
+    m
 }
 
 /// The JSON document of docs/tuning.md ("Output"), `{"grid": [...], "best":
@@ -37,7 +37,12 @@ pub fn tuning_json(t: &Tuning) -> String {
         Value::Array(
             t.runs
                 .iter()
-                .map(|r| point_value(r.speed_rpm, r.offset_deg, r.mean_velocity))
+                .map(|r| {
+                    let mut m = point_value(r.speed_rpm, r.offset_deg, r.mean_velocity);
+                    m.insert("not_held".into(), Value::from(r.not_held.clone()));
+                    m.insert("not_a_travel".into(), Value::from(r.not_a_travel.clone()));
+                    Value::Object(m)
+                })
                 .collect(),
         ),
     );
@@ -45,7 +50,7 @@ pub fn tuning_json(t: &Tuning) -> String {
         Value::Array(
             bests
                 .iter()
-                .map(|b| point_value(b.speed_rpm, b.offset_deg, b.mean_velocity))
+                .map(|b| Value::Object(point_value(b.speed_rpm, b.offset_deg, b.mean_velocity)))
                 .collect(),
         )
     };
@@ -91,8 +96,8 @@ fn describe(b: &Best) -> String {
 }
 
 /// The result for people: the grid of mean velocities (speeds as rows, offsets
-/// as columns, mm/s; `*` marks a run that did not hold its offset), the best
-/// offsets, and the warnings.
+/// as columns, mm/s; `*` marks a run that did not hold its offset, `!` one that
+/// was no travel), the best offsets, and the warnings.
 pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
     let g = &t.grid;
     let mut out = format!(
@@ -114,19 +119,29 @@ pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
         .collect();
     let mut grid = Table::new(&columns);
     let n = g.offsets_deg.len();
-    let mut marked = false;
+    let (mut not_held, mut not_a_travel) = (false, false);
     for (k, speed) in g.speeds_rpm.iter().enumerate() {
         let mut cells = vec![text::sig(*speed)];
         for r in &t.runs[k * n..(k + 1) * n] {
-            let mark = if r.not_held.is_some() { "*" } else { "" };
-            marked |= r.not_held.is_some();
+            let mark = if r.not_a_travel.is_some() {
+                "!"
+            } else if r.not_held.is_some() {
+                "*"
+            } else {
+                ""
+            };
+            not_held |= r.not_held.is_some();
+            not_a_travel |= r.not_a_travel.is_some();
             cells.push(format!("{}{mark}", mm_s(r.mean_velocity)));
         }
         grid.row(cells);
     }
     out.push_str(&grid.render());
-    if marked {
+    if not_held {
         out.push_str("* the offset was not held in this run (see the warnings)\n");
+    }
+    if not_a_travel {
+        out.push_str("! not a travel in this run: no mean velocity (see the warnings)\n");
     }
 
     // The best offsets.

@@ -12,9 +12,10 @@
 //! speed is, rightward, the one with the highest 10th percentile among the points
 //! whose every run travels right (leftward: the lowest 90th percentile among those
 //! whose every run travels left). A speed with no such point gets the least bad
-//! one, by the same percentile among the points that held their offset on every
-//! run, marked as not travelling that way on every run and warned of: so
-//! `--write` writes what holds, as the plain sweep writes its least bad offset
+//! one: the point whose runs travel that way most often, less those travelling
+//! the other way (runs not held or no travel count for neither), then by the same
+//! percentile; marked as not travelling that way on every run and warned of: so
+//! `--write` writes what travels, as the plain sweep writes its least bad offset
 //! with a warning. A point whose runs on one machine,
 //! from its different starts, settle at speeds further apart than
 //! [`multistable_margin`] is **multistable** there, flagged with the speeds found.
@@ -88,10 +89,13 @@ pub struct PointStats {
     pub right_share: f64,
     /// Runs that did not hold their offset (not counted as travelling either way).
     pub not_held: usize,
+    /// Runs that were no travel (a body through the fundament or tipped over; not
+    /// counted as travelling either way).
+    pub not_a_travel: usize,
     /// Machines (0: nominal) on which the starts settled apart: the speeds, m/s.
     pub multistable: Vec<(usize, Vec<f64>)>,
     /// Every run's mean velocity, machine by machine and start by start within
-    /// (`NaN` where the offset was not held), m/s.
+    /// (`NaN` where the offset was not held or the run was no travel), m/s.
     pub speeds: Vec<f64>,
 }
 
@@ -116,6 +120,19 @@ impl PointStats {
         }
     }
 
+    /// The runs travelling `way` less those travelling the other way (runs not
+    /// held or no travel count for neither), a whole number: every run where
+    /// every run travels `way`; a point that goes the wrong way more often than
+    /// the right one ranks below one that does not move.
+    fn net_runs(&self, way: Way) -> i64 {
+        let n = self.speeds.len() as f64;
+        let net = match way {
+            Way::Right => self.right_share - self.left_share,
+            Way::Left => self.left_share - self.right_share,
+        };
+        (net * n).round() as i64
+    }
+
     /// The percentile `way` is judged by, turned so that larger is better: the
     /// 10th rightward, minus the 90th leftward.
     fn score(&self, way: Way) -> f64 {
@@ -126,26 +143,22 @@ impl PointStats {
     }
 }
 
-/// The best offset `way` among one speed's points `at`: the best percentile
-/// ([`PointStats::score`]) among those whose every run travels `way`, else the
-/// least bad by it among those that held their offset on every run (among all
-/// with a percentile when none did); `None` when no point has a percentile.
+/// The best offset `way` among one speed's points `at` (those with a
+/// percentile: a run that held its offset and travelled), ranked by
+/// [`PointStats::net_runs`] first, then by the percentile
+/// ([`PointStats::score`]): the best percentile among the points whose every
+/// run travels `way`, else the least bad, the point travelling
+/// `way` on the most runs, against those travelling the other way; `None` when
+/// no point has a percentile.
 fn pick(at: &[&PointStats], way: Way) -> Option<RobustBest> {
-    let best = |points: &mut dyn Iterator<Item = &&PointStats>| {
-        points
-            .filter(|s| s.score(way).is_finite())
-            .max_by(|a, b| a.score(way).total_cmp(&b.score(way)))
-            .map(|s| (*s).clone())
-    };
-    let held = |s: &&&PointStats| s.not_held == 0;
-    let (point, every_run) = match best(&mut at.iter().filter(held).filter(|s| s.share(way) == 1.0))
-    {
-        Some(p) => (p, true),
-        None => (
-            best(&mut at.iter().filter(held)).or_else(|| best(&mut at.iter()))?,
-            false,
-        ),
-    };
+    let point = at
+        .iter()
+        .filter(|s| s.score(way).is_finite())
+        .max_by(|a, b| {
+            (a.net_runs(way).cmp(&b.net_runs(way))).then(a.score(way).total_cmp(&b.score(way)))
+        })
+        .map(|s| (*s).clone())?;
+    let every_run = point.share(way) == 1.0;
     Some(RobustBest {
         by: match way {
             Way::Right => point.p10,
@@ -250,12 +263,8 @@ fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
 /// each other).
 fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointStats {
     let first = &runs[0][p];
-    let held: Vec<f64> = runs
-        .iter()
-        .map(|r| &r[p])
-        .filter(|o| o.not_held.is_none() && o.mean_velocity.is_finite())
-        .map(|o| o.mean_velocity)
-        .collect();
+    let held: Vec<f64> = runs.iter().filter_map(|r| r[p].velocity()).collect();
+    let not_a_travel = runs.iter().filter(|r| r[p].not_a_travel.is_some()).count();
     let n = runs.len();
     let mut sorted = held.clone();
     sorted.sort_by(f64::total_cmp);
@@ -277,9 +286,8 @@ fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointSta
         let this = sample[i];
         let mut speeds = Vec::new();
         while i < sample.len() && sample[i] == this {
-            let o = &runs[i][p];
-            if o.not_held.is_none() && o.mean_velocity.is_finite() {
-                speeds.push(o.mean_velocity);
+            if let Some(v) = runs[i][p].velocity() {
+                speeds.push(v);
             }
             i += 1;
         }
@@ -300,14 +308,12 @@ fn point_stats(sample: &[usize], runs: &[Vec<RunOutcome>], p: usize) -> PointSta
         max,
         left_share: held.iter().filter(|v| Way::Left.travels(**v)).count() as f64 / n as f64,
         right_share: held.iter().filter(|v| Way::Right.travels(**v)).count() as f64 / n as f64,
-        not_held: n - held.len(),
+        not_held: n - held.len() - not_a_travel,
+        not_a_travel,
         multistable,
         speeds: runs
             .iter()
-            .map(|r| match r[p].not_held {
-                None => r[p].mean_velocity,
-                Some(_) => f64::NAN,
-            })
+            .map(|r| r[p].velocity().unwrap_or(f64::NAN))
             .collect(),
     }
 }
@@ -412,22 +418,26 @@ pub fn run(
         Format::Json => json(&robust),
         Format::Table => table(&robust, path),
     };
-    if let Some((i, p)) = &write {
-        let Some(text) = table_file(&robust, request, p) else {
-            // The sweep is printed all the same: its runs are not thrown away.
-            console.print(&result);
-            return Err(Failure::Run(
-                "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
-            ));
-        };
-        staged.write(*i, &text)?;
-    }
-    if let Some(i) = plot {
-        let title = format!("host-sim tune --robust {}", path.display());
-        staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
-    }
-    staged.commit()?;
+    // The files (all or none), then the sweep, printed whether or not they could
+    // be written: its runs are not thrown away; their error comes after it.
+    let mut files = || -> Result<(), Failure> {
+        if let Some((i, p)) = &write {
+            let Some(text) = table_file(&robust, request, p) else {
+                return Err(Failure::Run(
+                    "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
+                ));
+            };
+            staged.write(*i, &text)?;
+        }
+        if let Some(i) = plot {
+            let title = format!("host-sim tune --robust {}", path.display());
+            staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
+        }
+        Ok(())
+    };
+    let written = files().and_then(|()| staged.commit());
     console.print(&result);
+    written?;
     console.note(&format!(
         "tune --robust: {} runs ({} x {STARTS} starts x {}) in {:.1} s on {}{}\n",
         machines.len() * robust.points.len(),
@@ -585,13 +595,13 @@ pub fn table(r: &Robust, path: &Path) -> String {
                 Some(b) => {
                     let _ = writeln!(
                         out,
-                        "{:<10} {:<6} {:<11.1} {:<10.3} {:<8.3} {:.3}{}",
+                        "{:<10} {:<6} {:<11.1} {:<10} {:<8} {}{}",
                         text::sig(speed),
                         way,
                         b.point.offset_deg,
-                        b.by * 1e3,
-                        b.point.mean * 1e3,
-                        b.point.nominal * 1e3,
+                        text::fixed(b.by * 1e3, 3),
+                        text::fixed(b.point.mean * 1e3, 3),
+                        text::fixed(b.point.nominal * 1e3, 3),
                         if b.every_run {
                             ""
                         } else {
@@ -644,7 +654,7 @@ pub fn json(r: &Robust) -> String {
         json!({
             "mean": s.mean, "p10": s.p10, "p90": s.p90, "min": s.min, "max": s.max,
             "right_share": s.right_share, "left_share": s.left_share,
-            "not_held": s.not_held,
+            "not_held": s.not_held, "not_a_travel": s.not_a_travel,
             "speeds": s.speeds.iter().map(|v| if v.is_finite() { json!(v) } else { Value::Null }).collect::<Vec<Value>>(),
             "multistable": s.multistable.iter().map(|(m, v)| json!({"machine": m, "speeds": v})).collect::<Vec<Value>>(),
         })
@@ -693,6 +703,7 @@ mod tests {
             offset_deg: 90.0,
             mean_velocity: v,
             not_held: None,
+            not_a_travel: None,
             plant_warnings: Vec::new(),
         }
     }
@@ -723,11 +734,18 @@ mod tests {
             .collect();
         runs[2][0].not_held = Some("fault".into());
         let s = point_stats(&[0, 0, 0], &runs, 0);
-        assert_eq!(s.not_held, 1);
+        assert_eq!((s.not_held, s.not_a_travel), (1, 0));
         assert!((s.right_share - 1.0 / 3.0).abs() < 1e-15);
         assert!((s.left_share - 1.0 / 3.0).abs() < 1e-15);
         assert!(s.speeds[2].is_nan());
         assert_eq!((s.min, s.max), (-0.001, 0.02));
+        // A run through the floor: no travel, counted as such, not as not held.
+        runs[0][0].not_a_travel = Some("platform went through the fundament".into());
+        runs[0][0].mean_velocity = f64::NAN;
+        let s = point_stats(&[0, 0, 0], &runs, 0);
+        assert_eq!((s.not_held, s.not_a_travel), (1, 1));
+        assert_eq!((s.right_share, s.left_share), (0.0, 1.0 / 3.0));
+        assert!(s.speeds[0].is_nan());
     }
 
     /// The statistics of one point at `offset_deg` whose three runs (one
@@ -754,19 +772,57 @@ mod tests {
         let at = [&right, &noise, &back];
         let r = pick(&at, Way::Right).unwrap();
         assert_eq!((r.point.offset_deg, r.by, r.every_run), (90.0, 0.029, true));
-        // Left: none travels on every run; the lowest 90th percentile is the
-        // noise's, -3e-6 m/s (the third of three).
+        // Left: none travels on every run. 180 degrees travels left on one run
+        // of three but right on two: worse than the noise, which travels
+        // neither way; of those two with no net share, the lowest 90th
+        // percentile is the noise's, -3e-6 m/s (the third of three).
         let l = pick(&at, Way::Left).unwrap();
         assert_eq!((l.point.offset_deg, l.by, l.every_run), (0.0, -3e-6, false));
-        // A point that did not hold its offset on a run is not picked while
-        // another held on all of them.
-        let mut unheld = point(270.0, [-0.03, -0.03, -0.03]);
-        unheld.not_held = 1;
-        let l = pick(&[&right, &unheld], Way::Left).unwrap();
-        assert_eq!((l.point.offset_deg, l.every_run), (90.0, false));
         // No percentile anywhere: nothing to pick.
         let none = point(0.0, [f64::NAN; 3]);
         assert_eq!(pick(&[&none], Way::Right), None);
+    }
+
+    /// Issue 23: with frictionless feet (`--samples 2 --offsets 0:360:90 --t-end
+    /// 2`) no offset travels right on every run; 0 degrees was written, held on
+    /// every run and travelling on none, while 90 degrees travelled +33 mm/s on
+    /// the two runs of the drawn machine that held it. The least bad is the
+    /// point travelling its way on the most runs (against the other way), then
+    /// by the percentile.
+    #[test]
+    fn the_least_bad_travels_its_way_on_the_most_runs() {
+        let stats = |offset_deg: f64, speeds: [f64; 6]| {
+            let runs: Vec<Vec<RunOutcome>> = speeds
+                .iter()
+                .map(|v| {
+                    let mut o = outcome(*v);
+                    if v.is_nan() {
+                        o.not_held = Some("phase error".into());
+                    }
+                    vec![o]
+                })
+                .collect();
+            PointStats {
+                offset_deg,
+                ..point_stats(&[0, 0, 0, 1, 1, 1], &runs, 0)
+            }
+        };
+        let still = stats(0.0, [8.5e-9, -3.8e-10, -7.2e-10, 1.0e-5, 7.3e-5, -6.7e-5]);
+        let some = stats(90.0, [8.8e-7, -4.0e-7, f64::NAN, 0.0329, 0.0329, f64::NAN]);
+        assert_eq!((still.not_held, some.not_held), (0, 2));
+        let r = pick(&[&still, &some], Way::Right).unwrap();
+        assert_eq!((r.point.offset_deg, r.every_run), (90.0, false));
+        // Its percentile is over the runs that held: -4e-7 m/s.
+        assert_eq!(r.by, -4.0e-7);
+        // Of two that travel on as many runs, the better percentile.
+        let more = stats(180.0, [3e-4, 2e-4, f64::NAN, 0.0329, 0.0329, f64::NAN]);
+        assert_eq!(more.right_share, some.right_share);
+        let r = pick(&[&still, &some, &more], Way::Right).unwrap();
+        assert_eq!(r.point.offset_deg, 180.0);
+        // Travelling every run wins over any percentile.
+        let all = stats(270.0, [0.0006; 6]);
+        let r = pick(&[&some, &more, &all], Way::Right).unwrap();
+        assert_eq!((r.point.offset_deg, r.every_run), (270.0, true));
     }
 
     #[test]

@@ -11,6 +11,7 @@ use super::HELD_ERROR_DEG_RMS;
 use super::MAX_POINTS;
 use crate::machine::input;
 use crate::machine::Machine;
+use crate::measured::MAX_VELOCITY_MPS;
 use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
@@ -58,14 +59,123 @@ pub struct RunOutcome {
     /// Phase offset held, degrees in [0, 360).
     pub offset_deg: f64,
     /// `(x_C(T) - x_C(T/2)) / (T/2)`, m/s (the run's summary); NaN when the run
-    /// was no travel (a body through the fundament or tipped over).
+    /// was no travel.
     pub mean_velocity: f64,
     /// Why the offset was not held over the second half, if it was not: the
     /// controller faulted or never reached `running` in time, or the phase error
-    /// was large; or why the run was no travel.
+    /// was large. `None` for a run that was no travel (`not_a_travel` says why).
     pub not_held: Option<String>,
-    /// Warnings of the plant (e.g. a Painleve configuration).
+    /// Why the run was no travel, if it was not: a body went through the
+    /// fundament or tipped over ([`crate::simulation::breach`]), or the mean
+    /// velocity is beyond [`MAX_VELOCITY_MPS`]. Its mean velocity is then NaN.
+    pub not_a_travel: Option<String>,
+    /// Warnings of the plant (e.g. a Painleve configuration): at most
+    /// [`MAX_PLANT_WARNINGS`], then one counting the others.
     pub plant_warnings: Vec<String>,
+}
+
+/// The most plant warnings a run keeps; the others are counted in one more
+/// (`... and 12 more plant warnings in this run`). The plant warns once per
+/// kind and time (a Painleve configuration at each `t`), so a run may have many.
+pub const MAX_PLANT_WARNINGS: usize = 8;
+
+/// The most bytes of a warning or a reason a run keeps; a longer one is cut
+/// ([`text::cut`]: a name of the machine file may be in it). The plant's own are
+/// under 300 bytes. With [`MAX_PLANT_WARNINGS`] a run's outcome stays under 5
+/// KB, so that a partial result of the largest grid fits its 64 MiB.
+pub const MAX_REASON_BYTES: usize = 400;
+
+impl RunOutcome {
+    /// The outcome with its texts bounded: at most [`MAX_PLANT_WARNINGS`] plant
+    /// warnings and one counting the rest, each text cut at [`MAX_REASON_BYTES`].
+    pub(crate) fn bounded(mut self) -> RunOutcome {
+        let cut = |s: &str| text::cut(s, MAX_REASON_BYTES);
+        let more = self.plant_warnings.len().saturating_sub(MAX_PLANT_WARNINGS);
+        self.plant_warnings.truncate(MAX_PLANT_WARNINGS);
+        self.plant_warnings = self.plant_warnings.iter().map(|w| cut(w)).collect();
+        if more > 0 {
+            self.plant_warnings.push(format!(
+                "... and {} in this run",
+                text::count(more, "more plant warning")
+            ));
+        }
+        self.not_held = self.not_held.as_deref().map(cut);
+        self.not_a_travel = self.not_a_travel.as_deref().map(cut);
+        self
+    }
+
+    /// Why `tune` never makes this outcome (a partial result's run that `merge`
+    /// refuses), if it does not: a mean velocity beyond [`MAX_VELOCITY_MPS`], or
+    /// not a number where the run held its offset and travelled, or a number
+    /// where it was no travel; more plant warnings or longer texts than
+    /// [`RunOutcome::bounded`] keeps. The texts quoted cut.
+    pub fn problem(&self) -> Option<String> {
+        let v = self.mean_velocity;
+        let quoted = |s: &str| format!("{:?}", text::cut(s, text::MAX_QUOTED));
+        if v.is_finite() && v.abs() > MAX_VELOCITY_MPS {
+            return Some(format!(
+                "mean_velocity {} m/s: beyond the {} m/s of any travel by impacts (tune writes no such run)",
+                text::sig(v),
+                text::sig(MAX_VELOCITY_MPS)
+            ));
+        }
+        if let Some(why) = &self.not_a_travel {
+            if !v.is_nan() || self.not_held.is_some() {
+                return Some(format!(
+                    "mean_velocity {} with not_a_travel {}: a run that was no travel has no mean velocity (NaN) and no not_held",
+                    text::sig(v),
+                    quoted(why)
+                ));
+            }
+        } else if self.not_held.is_none() && !v.is_finite() {
+            return Some(format!(
+                "mean_velocity {v} with not_held and not_a_travel null: a run that held its offset and travelled has a finite mean velocity"
+            ));
+        }
+        let most = MAX_PLANT_WARNINGS + 1;
+        if self.plant_warnings.len() > most {
+            return Some(format!(
+                "{}: tune keeps at most {most} a run",
+                text::count(self.plant_warnings.len(), "plant warning")
+            ));
+        }
+        let texts = self
+            .plant_warnings
+            .iter()
+            .map(|w| ("a plant warning", w))
+            .chain(self.not_held.iter().map(|w| ("not_held", w)))
+            .chain(self.not_a_travel.iter().map(|w| ("not_a_travel", w)));
+        for (what, s) in texts {
+            if s.len() > text::cut_bound(MAX_REASON_BYTES) {
+                return Some(format!(
+                    "{what} {}: tune cuts such a text at {MAX_REASON_BYTES} bytes",
+                    quoted(s)
+                ));
+            }
+        }
+        None
+    }
+
+    /// The run's speed, m/s: its mean velocity where it held its offset and was a
+    /// travel (and the number is finite), else `None`. The one test of whether a
+    /// run gives a speed, for `tune`, `tune --robust`, `merge` and `calibrate`.
+    pub fn velocity(&self) -> Option<f64> {
+        (self.not_held.is_none() && self.not_a_travel.is_none() && self.mean_velocity.is_finite())
+            .then_some(self.mean_velocity)
+    }
+
+    /// Why the run gives no speed, for a message: `not a travel: WHY` or
+    /// `offset not held: WHY`; `None` where it gives one.
+    pub fn no_speed(&self) -> Option<String> {
+        match (&self.not_a_travel, &self.not_held) {
+            (Some(why), _) => Some(format!("not a travel: {why}")),
+            (None, Some(why)) => Some(format!("offset not held: {why}")),
+            (None, None) if !self.mean_velocity.is_finite() => {
+                Some("the mean velocity is not a number".into())
+            }
+            (None, None) => None,
+        }
+    }
 }
 
 /// Parses a range `A:B:STEP` (or a single value `A`) of option `option` into its
@@ -213,9 +323,16 @@ pub fn offset_held(state: State, t: &Telemetry) -> bool {
 /// `offset_deg` at `speed_rpm` from `t = 0`. The offset counts as held when the
 /// controller ends `running`, got there by `T/2`, and its phase error over the
 /// second half is within [`HELD_ERROR_DEG_RMS`]. A run in which a body went
-/// through the fundament or tipped over ([`crate::simulation::breach`]) is not
-/// held and has no mean velocity (NaN): it is no travel.
+/// through the fundament or tipped over ([`crate::simulation::breach`]), or whose
+/// mean velocity is beyond [`MAX_VELOCITY_MPS`] either way (no travel by impacts
+/// goes that fast: the measured file's bound), is no travel: `not_a_travel` says
+/// why, and it has no mean velocity (NaN).
 pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64) -> RunOutcome {
+    simulate_point(machine, speed_rpm, offset_deg, t_end).bounded()
+}
+
+/// [`run_point`] without the bounds of its texts.
+fn simulate_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64) -> RunOutcome {
     let command = Command::HoldOffset {
         speed_rpm: speed_rpm as f32,
         offset_deg: offset_deg as f32,
@@ -225,6 +342,7 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         offset_deg,
         mean_velocity: f64::NAN,
         not_held: None,
+        not_a_travel: None,
         plant_warnings: Vec::new(),
     };
     let mut driver = match ControllerDriver::new(machine, vec![(0.0, command)]) {
@@ -241,13 +359,25 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
     let result = simulate_observed(machine, &mut driver, &options, &mut Interruptible::new());
     let s = &result.summary;
     // A body through the fundament or tipped over: no travel to count (the
-    // run's own summary gives no number either).
-    let not_a_travel = s.not_a_travel();
-    outcome.mean_velocity = match not_a_travel {
+    // run's own summary gives no number either); nor a speed no travel by
+    // impacts reaches.
+    outcome.not_a_travel = s.not_a_travel().or_else(|| {
+        (s.mean_velocity.abs() > MAX_VELOCITY_MPS).then(|| {
+            format!(
+                "mean velocity {} m/s, beyond the {} m/s of any travel by impacts",
+                text::sig(s.mean_velocity),
+                text::sig(MAX_VELOCITY_MPS)
+            )
+        })
+    });
+    outcome.mean_velocity = match outcome.not_a_travel {
         None => s.mean_velocity,
         Some(_) => f64::NAN,
     };
     outcome.plant_warnings = s.warnings.clone();
+    if outcome.not_a_travel.is_some() {
+        return outcome;
+    }
 
     // Was the offset held over the second half? Settled from then on.
     let settled = |o: &Outputs| offset_held(o.state, &o.telemetry);
@@ -256,9 +386,7 @@ pub fn run_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64)
         None => history.first().map(|(t, _)| *t),
         Some(i) => history.get(i + 1).map(|(t, _)| *t),
     };
-    outcome.not_held = if let Some(why) = not_a_travel {
-        Some(format!("not a travel: {why}"))
-    } else if s.state == "starting" {
+    outcome.not_held = if s.state == "starting" {
         Some(
             "the controller was still `starting` at the end (speed ramp or phase lock unfinished): raise --t-end"
                 .to_string(),

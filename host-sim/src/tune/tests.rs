@@ -94,6 +94,7 @@ fn outcome(speed: f64, offset: f64, v: f64) -> RunOutcome {
         offset_deg: offset,
         mean_velocity: v,
         not_held: None,
+        not_a_travel: None,
         plant_warnings: vec![],
     }
 }
@@ -192,4 +193,43 @@ fn velocities_for_people() {
     assert_eq!(mm_s(-0.00002), "0.0");
     assert_eq!(mm_s(-0.0304), "-30.4");
     assert_eq!(mm_s(f64::NAN), "nan");
+}
+
+/// A run keeps at most `MAX_PLANT_WARNINGS` plant warnings and counts the rest,
+/// each text cut; what it keeps is no problem, more or longer is (`merge`'s test
+/// of a part's runs).
+#[test]
+fn a_runs_texts_are_bounded() {
+    let mut o = outcome(3000.0, 90.0, 0.03);
+    o.plant_warnings = (0..20)
+        .map(|i| format!("contacts: Painleve at t = {i} s"))
+        .collect();
+    o.not_held = Some("x".repeat(10_000));
+    assert!(o.problem().is_some());
+    let b = o.bounded();
+    assert_eq!(b.plant_warnings.len(), MAX_PLANT_WARNINGS + 1);
+    assert_eq!(
+        b.plant_warnings.last().unwrap(),
+        "... and 12 more plant warnings in this run"
+    );
+    assert!(b.not_held.as_ref().unwrap().ends_with("... (10000 bytes)"));
+    assert_eq!(b.problem(), None);
+    // The mean velocity: within the measured file's bound, a number where the
+    // run gave a speed, none where it was no travel.
+    for (v, not_a_travel, ok) in [
+        (10.0, None, true),
+        (10.5, None, false),
+        (f64::NAN, None, false),
+        (f64::NAN, Some("through the floor"), true),
+        (0.01, Some("through the floor"), false),
+    ] {
+        let mut o = outcome(3000.0, 90.0, v);
+        o.not_a_travel = not_a_travel.map(String::from);
+        assert_eq!(
+            o.problem().is_none(),
+            ok,
+            "{v} {not_a_travel:?}: {:?}",
+            o.problem()
+        );
+    }
 }

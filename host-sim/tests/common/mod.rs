@@ -110,6 +110,15 @@ impl Run {
             self.stderr
         );
     }
+
+    /// Asserts a result printed (`printed` on stdout), then the error of
+    /// `option` written to Linux's `/dev/full` (every write fails), exit 2.
+    pub fn printed_then_full(&self, option: &str, printed: &str) {
+        assert_eq!(self.status, 2, "{}{}", self.stdout, self.stderr);
+        assert!(self.stdout.contains(printed), "{option}: {}", self.stdout);
+        let error = format!("error: {option}: cannot write /dev/full: No space left on device");
+        assert!(self.stderr.contains(&error), "{}", self.stderr);
+    }
 }
 
 /// The `host-sim` binary, to add arguments and environment to.
