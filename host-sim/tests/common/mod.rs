@@ -24,9 +24,9 @@ pub fn machine() -> PathBuf {
 }
 
 /// The tuning tests' tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0
-/// and runs once). 4 s, not less: the offset reference ramps at 180 deg/s and
-/// passes 180 on its way to 270, holding it from 1.7 s on, and `mean_velocity` is
-/// over the second half (from 2 s).
+/// and runs once). 4 s: the offset reference ramps at 180 deg/s along the shorter
+/// arc, holding 180 degrees, the farthest, from 1.18 s on (docs/tuning.md,
+/// "Defaults and why"), and `mean_velocity` is over the second half (from 2 s).
 pub const TINY_GRID: [&str; 6] = [
     "--speeds",
     "2750:3000:250",
