@@ -109,9 +109,18 @@ fn the_page_is_self_contained_deterministic_and_holds_the_trace() {
     }
     assert!(page.contains("<canvas id=\"scene\"") && page.contains("window.vibro"));
 
+    // The outline drawn is the one the fundament check follows
+    // (`host_sim::plant::outline`): the convex hull of the feet and the
+    // eccentric circles, not a box.
+    let data = embedded(&page);
+    let machine = host_sim::machine::Machine::load(&root().join("examples/vibro-driver.toml"), &[])
+        .expect("the reference machine");
+    let polygon = &host_sim::plant::outline::outlines(&machine)[0].polygon;
+    assert_eq!(data["scene"]["bodies"][0]["outline"], json!(polygon));
+    assert!(polygon.len() > 4, "{polygon:?}");
+
     // The frames: the trace's rows every 2 ms (the 1 ms output step's every
     // second row), the run's end included.
-    let data = embedded(&page);
     let t = column(&data, "t");
     assert_eq!(data["frames"].as_u64(), Some(t.len() as u64));
     assert_eq!(t.len(), 501, "1 s / 2 ms + the frame at 0");
@@ -712,6 +721,28 @@ fn the_page_in_a_browser_shows_the_summary_count_and_true_shapes_magnified() {
     );
     assert_eq!(b.eval("vibro.magnification()"), json!(1));
     assert_eq!(b.eval("vibro.ticks().numbered"), json!(true));
+    // At true scale the platform's outline is drawn where the frame's pose puts
+    // the scene's polygon: every vertex p at height y + R(angle) p along the
+    // normal, each foot's vertex on the floor while it presses on it.
+    let outline: Vec<[f64; 2]> =
+        serde_json::from_value(data["scene"]["bodies"][0]["outline"].clone())
+            .expect("the outline's vertices");
+    for i in (0..t.len()).step_by(97) {
+        b.eval(&format!("vibro.seek({})", t[i]));
+        let drawn = b.eval("vibro.outlines()[0]");
+        let drawn = drawn.as_array().unwrap();
+        assert_eq!(drawn.len(), outline.len());
+        let (s, co) = angle[i].sin_cos();
+        for (v, p) in drawn.iter().zip(&outline) {
+            let h = y[i] + s * p[0] + co * p[1];
+            let shown = v["h"].as_f64().unwrap();
+            assert!(
+                (shown - h).abs() <= 1.5e-9,
+                "t = {}: vertex {p:?} at {h} m drawn at {shown}",
+                t[i]
+            );
+        }
+    }
     shoot(&mut b, "animation-x1.png");
     assert_eq!(b.console_errors(), Vec::<String>::new());
 }

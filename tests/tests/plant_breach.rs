@@ -4,11 +4,14 @@
 //! - the reference machine standing, travelling either way, holding offsets at
 //!   speeds drawn at random, open loop, on a level floor and on tilted ones (the
 //!   whole machine turned with its floor and gravity), and the paper's Fig. 8
-//!   machine, never trigger it;
+//!   machine, never trigger it; nor does the reference machine on narrow feet
+//!   (x = +-0.01 m), which rocks about them by a few degrees (issue 23: the
+//!   bounding box's corner beside a foot, no part of the machine, went 1.3 mm
+//!   through the floor);
 //! - a platform falling head first (its only foot on top) is found at the first
-//!   trace row after its outline's lowest corner is 1 mm below the floor, on level
-//!   and tilted floors at heights drawn at random: free fall along the floor's
-//!   normal, `h(t) = h_0 - g t^2 / 2`;
+//!   trace row after its eccentric circle's lowest point is 1 mm below the floor,
+//!   on level and tilted floors at heights drawn at random: free fall along the
+//!   floor's normal, `h(t) = h_0 - g t^2 / 2`;
 //! - a platform whose centre of mass starts below the floor is found at t = 0;
 //! - a free body turned past `[simulation] max_tilt` is found at the first row
 //!   past it, and not below it.
@@ -121,6 +124,32 @@ fn the_reference_machine_never_goes_through_its_floor() {
 }
 
 #[test]
+fn the_reference_machine_on_narrow_feet_rocks_without_going_through() {
+    // Its feet at x = +-0.01 m, under its rotor axes' inner sides: holding the
+    // offset 180 degrees (the force straight up and down) it hops and rocks about
+    // one foot, then the other. Its eccentric circles' lowest points pass 9.3 mm
+    // above the floor at its largest rock; the bounding box's lower left corner
+    // (x = -0.05 m at the feet's height) went 1.3 mm below it at t = 2.8 s.
+    let m = Machine::load(
+        &reference_path(),
+        &[
+            "contacts.K1.point=[-0.01, 0.0]".into(),
+            "contacts.K2.point=[0.01, 0.0]".into(),
+        ],
+    )
+    .expect("the narrow-footed machine");
+    let hold = Command::HoldOffset {
+        speed_rpm: 3000.0,
+        offset_deg: 180.0,
+    };
+    let run = commanded(&m, hold, 3.0);
+    assert_kept(&run.summary, "narrow feet, holding 180 deg");
+    // It rocked: more than a degree either way (the reach the box's corner had).
+    let most = run.rows.iter().map(|r| r.angle.abs()).fold(0.0, f64::max);
+    assert!(most > 1f64.to_radians(), "largest rock {most} rad");
+}
+
+#[test]
 fn the_paper_fig8_machine_never_goes_through_its_floor() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/paper-fig8.toml");
     let m = Machine::load(&path, &[]).expect("paper-fig8");
@@ -132,7 +161,7 @@ fn the_paper_fig8_machine_never_goes_through_its_floor() {
 /// A platform at `[0, h]` on a floor through the origin tilted by `a` rad, its
 /// gravity along the floor's normal, one rotor at its centre of mass
 /// (eccentricity 0.02 m) and its only contact point 0.1 m above it: it falls
-/// head first, its outline `[-0.02, -0.02, 0.02, 0.1]` in its own frame.
+/// head first, its outline the eccentric circle and the point above it.
 fn head_first(h: f64, a: f64) -> Machine {
     let text = format!(
         "[fundament]\nnormal = {n}\ngravity = {g}\n\
@@ -158,11 +187,10 @@ fn a_platform_falling_head_first_is_found_when_it_crosses_the_floor() {
     for _ in 0..8 {
         let (h, a) = (rng.uniform(0.05, 0.4), rng.uniform(-0.3, 0.3));
         let m = head_first(h, a);
-        // Its lowest probe: a lower corner of its outline, [+-e, -e] in its frame
-        // (angle 0), at height (c + p) . n with n = (-sin a, cos a): the centre's
-        // h cos a less e (|sin a| + cos a). Free fall along n: it is 1 mm below
-        // the floor at t* = sqrt(2 (h_low + 1 mm) / g).
-        let low = h * a.cos() - e * (a.sin().abs() + a.cos());
+        // Its lowest probe: its eccentric circle's lowest point along
+        // n = (-sin a, cos a), e below the centre's h cos a. Free fall along n: it
+        // is 1 mm below the floor at t* = sqrt(2 (h_low + 1 mm) / g).
+        let low = h * a.cos() - e;
         let t_star = (2.0 * (low + BELOW_TOLERANCE) / g).sqrt();
         let run = open_loop(&m, OpenLoop::Voltage(0.0), t_star + 0.01);
         let s = &run.summary;
@@ -177,12 +205,10 @@ fn a_platform_falling_head_first_is_found_when_it_crosses_the_floor() {
         let BreachKind::Fundament { first, .. } = &b.kind else {
             panic!("{what}");
         };
-        let corner = if a >= 0.0 {
-            "lower right"
-        } else {
-            "lower left"
-        };
-        assert_eq!(first, &format!("its outline's {corner} corner"), "{what}");
+        assert_eq!(
+            first, "the lowest point of rotor \"centre\"'s eccentric circle",
+            "{what}"
+        );
         assert_eq!(
             s.not_a_travel().as_deref(),
             Some(

@@ -1,7 +1,9 @@
 //! Every scenario file in `tests/scenarios/` runs through the library (the same code
 //! as `host-sim scenario FILE`) and every expectation must hold: each injected fault
 //! reaches its safe state within its detection bound, the platform travels as
-//! commanded, and nothing panics. A failure prints the whole report.
+//! commanded, and nothing panics. No body goes through the fundament or tips over
+//! in a scenario that does not expect it (only `one-foot.toml` does, by design). A
+//! failure prints the whole report.
 //!
 //! One test per file, so that they run in parallel and a failure names its file;
 //! [`every_scenario_file_has_a_test`] keeps the list and the directory in step.
@@ -9,6 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use host_sim::machine::input;
+use host_sim::scenario::file::Expectation;
 use host_sim::scenario::{file, judge, report};
 
 /// The directory of the scenario files.
@@ -28,6 +31,17 @@ fn check(name: &str) {
         "{name}: some expectations fail\n{}",
         report::table(&report)
     );
+    let expects_breach = s
+        .expectations
+        .iter()
+        .any(|(_, e)| matches!(e, Expectation::Breach { .. }));
+    if !expects_breach {
+        let breach = report
+            .warnings
+            .iter()
+            .find(|w| w.contains("through the fundament") || w.contains("tipped over"));
+        assert_eq!(breach, None, "{name}: a body left the model unexpected");
+    }
 }
 
 /// One test per scenario file, named after it.

@@ -39,6 +39,20 @@ pub fn decimals(x: f64, places: usize) -> String {
     trim_zeros(&fixed(x, places))
 }
 
+/// `x` rounded to `places` decimals, as a number, for a quantity that is known
+/// no finer (then shown with [`sig`]): `rounded(2.5e-19, 9)` is `0` (never `-0`),
+/// `rounded(1.234567891e-7, 9)` is `1.23e-7`; a number too large to hold `places`
+/// decimals (beyond 2^52 units of the last), `NaN` and `inf` as they are.
+pub fn rounded(x: f64, places: i32) -> f64 {
+    let scale = 10f64.powi(places);
+    let units = x * scale;
+    if !units.is_finite() || units.abs() >= 2f64.powi(52) {
+        return x;
+    }
+    // `+ 0.0` turns a `-0.0` into `0.0`.
+    units.round() / scale + 0.0
+}
+
 /// [`sig`] with an explicit sign: `+0.0123`, `-1.5`.
 pub fn signed(x: f64) -> String {
     let s = sig(x);
@@ -161,6 +175,16 @@ impl Table {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rounded_drops_what_is_below_its_decimals() {
+        assert_eq!(rounded(2.53331e-19, 9), 0.0);
+        assert_eq!(rounded(-7.51015e-18, 9).to_bits(), 0f64.to_bits(), "no -0");
+        assert_eq!(sig(rounded(1.234567891e-7, 9)), "1.23e-7");
+        assert_eq!(sig(rounded(-0.0853493123456, 9)), "-0.0853493");
+        assert_eq!(rounded(1e300, 9), 1e300);
+        assert!(rounded(f64::NAN, 9).is_nan());
+    }
 
     #[test]
     fn significant_digits() {

@@ -116,6 +116,13 @@ pub fn summary_json(s: &Summary) -> String {
     text
 }
 
+/// The decimals the table gives the platform's motion (the mean velocity, the
+/// distance and the final state; m, m/s, rad, rad/s): 1e-9, as the animation's
+/// pose. What the solver leaves below that is noise (a level platform at rest
+/// ends at an angle of 2.5e-19 rad), so a motion that is zero shows as 0; the JSON
+/// keeps every digit.
+pub const MOTION_DECIMALS: i32 = 9;
+
 /// The summary for people: one quantity a line with its unit, then the faults and
 /// the warnings.
 pub fn summary_table(s: &Summary) -> String {
@@ -144,14 +151,16 @@ pub fn summary_table(s: &Summary) -> String {
     let mut row = |name: &str, value: String, unit: &str| {
         t.row(vec![name.to_string(), value, unit.to_string()]);
     };
+    let motion = |x: f64| text::rounded(x, MOTION_DECIMALS);
+    let motion2 = |v: [f64; 2]| text::vec2([motion(v[0]), motion(v[1])]);
     match s.not_a_travel() {
         None => {
             row(
                 "mean velocity (second half)",
-                text::signed(s.mean_velocity),
+                text::signed(motion(s.mean_velocity)),
                 "m/s",
             );
-            row("distance", text::signed(s.distance), "m");
+            row("distance", text::signed(motion(s.distance)), "m");
         }
         Some(_) => {
             row("mean velocity (second half)", NOT_A_TRAVEL.to_string(), "");
@@ -172,20 +181,21 @@ pub fn summary_table(s: &Summary) -> String {
         row("phase error (RMS)", text::sig(s.phase_error_deg_rms), "deg");
     }
     let f = &s.final_state;
-    row("final position", text::vec2(f.position), "m");
+    row("final position", motion2(f.position), "m");
+    let angle = motion(f.angle);
     row(
         "final angle",
         format!(
             "{} ({} deg)",
-            text::sig(f.angle),
-            text::sig(f.angle.to_degrees())
+            text::sig(angle),
+            text::sig(angle.to_degrees())
         ),
         "rad",
     );
-    row("final velocity", text::vec2(f.velocity), "m/s");
+    row("final velocity", motion2(f.velocity), "m/s");
     row(
         "final angular velocity",
-        text::sig(f.angular_velocity),
+        text::sig(motion(f.angular_velocity)),
         "rad/s",
     );
     out.push_str(&t.render());
@@ -234,6 +244,14 @@ mod tests {
         }
     }
 
+    /// The line of table `t` that starts with `start`.
+    fn line_of(t: &str, start: &str) -> String {
+        t.lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no {start} line in\n{t}"))
+            .to_string()
+    }
+
     fn keys(v: &Value) -> Vec<&str> {
         v.as_object().unwrap().keys().map(String::as_str).collect()
     }
@@ -279,12 +297,7 @@ mod tests {
             t.starts_with("run to t = 10 s, controller state: running"),
             "{t}"
         );
-        let line = |start: &str| {
-            t.lines()
-                .find(|l| l.starts_with(start))
-                .unwrap_or_else(|| panic!("no {start} line in\n{t}"))
-                .to_string()
-        };
+        let line = |start: &str| line_of(&t, start);
         assert!(line("mean velocity").ends_with("+0.0125  m/s"), "{t}");
         assert!(line("rotor 1 speed").ends_with("3000.5  rpm"), "{t}");
         assert!(line("phase offset").ends_with("90.25  deg"), "{t}");
@@ -292,6 +305,39 @@ mod tests {
         assert!(line("impacts").contains("42"), "{t}");
         assert!(t.contains("faults:\n  - overcurrent\n"), "{t}");
         assert!(t.contains("warnings:\n  - w1\n"), "{t}");
+    }
+
+    /// Issue 23: a level platform at rest printed `final angle -7.51015e-18
+    /// (-4.303e-16 deg)`, its position and velocities with such noise too.
+    #[test]
+    fn the_table_gives_the_motion_to_1e_9_and_the_json_every_digit() {
+        let mut s = summary();
+        s.mean_velocity = 1.70341e-21;
+        s.distance = -1.32191e-21;
+        s.final_state = FinalState {
+            position: [-1.32191e-21, 0.030000000000000002],
+            angle: -7.51015e-18,
+            velocity: [1.26047e-21, -6.74353e-21],
+            angular_velocity: 6.87237e-20,
+        };
+        let t = summary_table(&s);
+        let line = |start: &str| line_of(&t, start);
+        assert!(line("mean velocity").ends_with(" 0  m/s"), "{t}");
+        assert!(line("distance").ends_with(" 0  m"), "{t}");
+        assert!(line("final position").ends_with(" [0, 0.03]  m"), "{t}");
+        assert!(line("final angle").ends_with(" 0 (0 deg)  rad"), "{t}");
+        assert!(line("final velocity").ends_with(" [0, 0]  m/s"), "{t}");
+        assert!(line("final angular velocity").ends_with(" 0  rad/s"), "{t}");
+        // What is not noise keeps 6 significant digits down to 1e-9.
+        s.final_state.angle = 2.913081234e-3;
+        s.final_state.position = [1.234567891e-7, 0.0301146];
+        let t = summary_table(&s);
+        assert!(t.contains(" 0.00291308 (0.166907 deg)  rad"), "{t}");
+        assert!(t.contains(" [1.23e-7, 0.0301146]  m"), "{t}");
+        // The JSON: every digit.
+        let doc: Value = serde_json::from_str(&summary_json(&s)).unwrap();
+        assert_eq!(doc["final"]["angular_velocity"], 6.87237e-20);
+        assert_eq!(doc["distance"], -1.32191e-21);
     }
 
     /// [`summary`] with the platform through the fundament at 0.25 s.

@@ -7,11 +7,13 @@
 //! Checked at every trace row (every `output_step` and around every event), body
 //! by body, from the row's poses:
 //!
-//! - **through the fundament**: a probe of the body ([`crate::plant::outline`]: its
-//!   centre of mass, each rotor axis on it, each corner of its outline that is not
-//!   a declared contact point) lies more than [`BELOW_TOLERANCE`] below the
-//!   fundament: its signed distance `(p - P) . n < -BELOW_TOLERANCE`, with `P` and
-//!   `n` the fundament's point and normal from the machine file;
+//! - **through the fundament**: a probe of the body ([`crate::plant::outline`]:
+//!   each vertex of its outline, the convex hull of what it carries, that is not a
+//!   contact point on the fundament, and the lowest point of each eccentric circle
+//!   on it) lies more than [`BELOW_TOLERANCE`] below the fundament: its signed
+//!   distance `(p - P) . n - r < -BELOW_TOLERANCE`, with `P` and `n` the
+//!   fundament's point and normal from the machine file and `r` the circle's
+//!   radius (0 for a point);
 //! - **tipped over**: a free body (a tree's root that no joint holds to the
 //!   fundament: the platform, a loose block) has turned by more than
 //!   `[simulation] max_tilt` from its angle at t = 0. A body hinged to another
@@ -28,8 +30,8 @@ use crate::plant::outline::{outlines, Outline};
 /// The plant holds the contact points on the fundament to far better than that
 /// (contacts within 1e-7 m of it take part in one impact, a closed contact is
 /// projected back onto it after every step); 1 mm is 10^4 times that, so no
-/// rounding or drift of the solver reaches it, and still less than the smallest
-/// outline's half size (2.5 mm), so a body sunk by its own size is caught.
+/// rounding or drift of the solver reaches it, and small against the reference
+/// machine (its eccentric circles stand 10 mm above the floor).
 pub const BELOW_TOLERANCE: f64 = 1e-3;
 
 /// What went wrong with a body.
@@ -176,9 +178,10 @@ impl BreachWatch {
             // A probe p (centre-of-mass frame) is at c + R(theta) p.
             let (s, c) = angle.sin_cos();
             for probe in &w.outline.probes {
+                // Its height along n, less its radius: a circle's lowest point.
                 let [px, py] = probe.point;
                 let world = [cx + c * px - s * py, cy + s * px + c * py];
-                let h = (world[0] - p0[0]) * n[0] + (world[1] - p0[1]) * n[1];
+                let h = (world[0] - p0[0]) * n[0] + (world[1] - p0[1]) * n[1] - probe.radius;
                 if h < -BELOW_TOLERANCE {
                     let depth = -h;
                     match &mut w.below {
@@ -258,39 +261,67 @@ mod tests {
             .unwrap_or_else(|p| panic!("{}", crate::machine::input::render(&p)))
     }
 
+    /// The lowest point of the reference platform's rotor "left"'s eccentric
+    /// circle, its first probe.
+    const LEFT_CIRCLE: &str = "the lowest point of rotor \"left\"'s eccentric circle";
+
     #[test]
     fn a_probe_counts_below_only_past_the_tolerance() {
         // The reference platform (centre of mass 30 mm up, its rotor axes at its
-        // height, its lower corners the feet) moved down by `drop`, level.
+        // height with eccentric circles of 20 mm: their lowest points 10 mm up)
+        // moved down by `drop`, level.
         let m = machine("");
         let sunk = |drop: f64| {
             let mut w = BreachWatch::new(&m);
             w.row(0.5, |_| [0.0, 0.03 - drop, 0.0]);
             w.finish()
         };
-        // 0.5 mm below: within the tolerance.
-        assert_eq!(sunk(0.0305), []);
-        // 1.5 mm below: the centre of mass (the first probe) and the axes.
-        let found = sunk(0.0315);
+        // 0.5 mm below: within the tolerance. The feet, 10.5 mm below, may lie on
+        // the floor or be pressed below it: they are the plant's to hold, not
+        // probes.
+        assert_eq!(sunk(0.0105), []);
+        // 1.5 mm below: the circles' lowest points (the left one first).
+        let found = sunk(0.0115);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!((found[0].body.as_str(), found[0].t), ("platform", 0.5));
         let BreachKind::Fundament { first, deepest, .. } = &found[0].kind else {
             panic!("{found:?}");
         };
-        assert_eq!(first, "its centre of mass");
+        assert_eq!(first, LEFT_CIRCLE);
         assert!((deepest - 1.5e-3).abs() < 1e-12, "{deepest}");
-        // The feet themselves may lie on the floor or be pressed below it: they
-        // are the plant's to hold, not probes.
-        assert_eq!(sunk(0.02), []);
+    }
+
+    #[test]
+    fn a_circle_is_probed_at_its_lowest_point_whatever_the_turn() {
+        // The reference platform turned by a quarter turn about its centre of
+        // mass, held at height y: rotor "left"'s axis (-0.03, 0) in its frame is
+        // then at (0, -0.03) below the centre, its circle's lowest point 50 mm
+        // below it, whichever way the eccentric points. 0.5 mm and 1.5 mm deep.
+        let m = machine("");
+        for (y, through) in [(0.0495, false), (0.0485, true)] {
+            let mut w = BreachWatch::new(&m);
+            w.row(0.0, |_| [0.0, y, std::f64::consts::FRAC_PI_2]);
+            let found = w.finish();
+            let below = found.iter().find(|b| b.through_fundament());
+            assert_eq!(below.is_some(), through, "{y}: {found:?}");
+            if let Some(b) = below {
+                let BreachKind::Fundament { first, deepest, .. } = &b.kind else {
+                    panic!("{b:?}");
+                };
+                assert_eq!(first, LEFT_CIRCLE);
+                assert!((deepest - 1.5e-3).abs() < 1e-12, "{deepest}");
+            }
+        }
     }
 
     #[test]
     fn the_first_finding_and_the_worst_are_kept() {
         let m = machine("");
         let mut w = BreachWatch::new(&m);
-        // Down 2 mm at 0.1 s, 5 mm at 0.2 s, 3 mm at 0.3 s below the floor.
+        // The circles' lowest points 10 mm up, then 2 mm below the floor at
+        // 0.1 s, 5 mm at 0.2 s, 3 mm at 0.3 s.
         for (t, below) in [(0.0, -0.01), (0.1, 0.002), (0.2, 0.005), (0.3, 0.003)] {
-            w.row(t, |_| [0.0, -below, 0.0]);
+            w.row(t, |_| [0.0, 0.02 - below, 0.0]);
         }
         let found = w.finish();
         let b = &found[0];
@@ -304,7 +335,7 @@ mod tests {
         assert!((deepest - 0.005).abs() < 1e-12 && deepest_t == 0.2, "{b:?}");
         assert_eq!(
             b.warning(),
-            "platform went through the fundament (only contact points meet it): first its centre of mass, more than 1 mm below at t = 0.1 s; deepest 5 mm below (its centre of mass, t = 0.2 s)"
+            format!("platform went through the fundament (only contact points meet it): first {LEFT_CIRCLE}, more than 1 mm below at t = 0.1 s; deepest 5 mm below ({LEFT_CIRCLE}, t = 0.2 s)")
         );
     }
 
@@ -336,14 +367,14 @@ mod tests {
     fn a_tilted_fundament_is_measured_along_its_normal() {
         // The floor through [0, 1] with its normal 30 degrees from +y, towards -x;
         // the platform turned with it (its centre of mass 30 mm along the normal
-        // when standing on its feet), then sunk by 30.5 mm and by 31.5 mm: its
-        // centre of mass and rotor axes 0.5 mm, then 1.5 mm, behind the floor.
+        // when standing on its feet), then sunk by 10.5 mm and by 11.5 mm: its
+        // eccentric circles' lowest points 0.5 mm, then 1.5 mm, behind the floor.
         let a = 30f64.to_radians();
         let n = [-a.sin(), a.cos()];
         let mut m = machine("");
         m.fundament.point = [0.0, 1.0];
         m.fundament.normal = n;
-        for (sunk, through) in [(0.0305, false), (0.0315, true)] {
+        for (sunk, through) in [(0.0105, false), (0.0115, true)] {
             let mut w = BreachWatch::new(&m);
             let h = 0.03 - sunk;
             w.row(0.0, |_| [h * n[0], 1.0 + h * n[1], a]);

@@ -24,9 +24,9 @@ pub fn machine() -> PathBuf {
 }
 
 /// The tuning tests' tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0
-/// and runs once). 4 s, not less: the offset reference ramps at 180 deg/s and
-/// passes 180 on its way to 270, holding it from 1.7 s on, and `mean_velocity` is
-/// over the second half (from 2 s).
+/// and runs once). 4 s: the offset reference ramps at 180 deg/s along the shorter
+/// arc, holding 180 degrees, the farthest, from 1.18 s on (docs/tuning.md,
+/// "Defaults and why"), and `mean_velocity` is over the second half (from 2 s).
 pub const TINY_GRID: [&str; 6] = [
     "--speeds",
     "2750:3000:250",
@@ -69,11 +69,65 @@ pub fn uncertain_machine(tag: &str, ranges: &str) -> PathBuf {
     path
 }
 
-/// A path `name` in a scratch directory of this test binary (`tag` names it).
+/// A path `name` in a scratch directory of this test binary (`tag` names it),
+/// removed when the binary ends if no test failed ([`remove_scratch_at_exit`]).
 pub fn scratch(tag: &str, name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("host-sim-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch directory");
+    remove_scratch_at_exit(&dir);
     dir.join(name)
+}
+
+/// The scratch directories this test binary made.
+static SCRATCH: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Whether a test of this binary panicked (failed) since the first scratch
+/// directory was made.
+static FAILED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Removes `dir` when the test binary ends, unless a test failed: then every
+/// scratch directory is kept for a look, and their names are printed. The test
+/// harness ends through the C library's `exit` whether its tests pass or fail, so
+/// a handler registered with `atexit` runs after the last test; a panic hook that
+/// keeps the harness's own notes whether one failed.
+pub fn remove_scratch_at_exit(dir: &Path) {
+    use std::sync::atomic::Ordering;
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            FAILED.store(true, Ordering::SeqCst);
+            previous(info);
+        }));
+        #[cfg(unix)]
+        // SAFETY: `atexit` takes a plain function of no arguments, called once at
+        // exit; `remove_scratch` touches only this module's statics.
+        unsafe {
+            nix::libc::atexit(remove_scratch);
+        }
+    });
+    let mut made = SCRATCH.lock().unwrap_or_else(|e| e.into_inner());
+    if !made.iter().any(|d| d == dir) {
+        made.push(dir.to_path_buf());
+    }
+}
+
+/// At exit: every scratch directory removed, or all kept when a test failed.
+extern "C" fn remove_scratch() {
+    use std::sync::atomic::Ordering;
+    let made = SCRATCH.lock().unwrap_or_else(|e| e.into_inner());
+    if FAILED.load(Ordering::SeqCst) {
+        for dir in made.iter().filter(|d| d.exists()) {
+            eprintln!(
+                "a test failed: its scratch directory {} is kept",
+                dir.display()
+            );
+        }
+        return;
+    }
+    for dir in made.iter() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
 }
 
 /// A copy of the directory `from` (its files and folders) at `to`.
@@ -159,7 +213,6 @@ pub fn finish_within(cmd: Command, limit: Duration) -> Run {
 
 /// [`finish_within`], telling `started` the child's process id once it runs.
 pub fn finish_within_with(mut cmd: Command, limit: Duration, started: impl FnOnce(u32)) -> Run {
-    use std::io::Read;
     use std::process::Stdio;
     let start = Instant::now();
     let mut child = cmd
@@ -168,6 +221,14 @@ pub fn finish_within_with(mut cmd: Command, limit: Duration, started: impl FnOnc
         .spawn()
         .expect("host-sim runs");
     started(child.id());
+    wait_within(&mut child, start, limit)
+}
+
+/// Waits for `child` (started at `start`, its stdout and stderr piped) to end, at
+/// most until `limit` after `start`; one still going then is killed and the test
+/// fails. Never a panic in its stderr.
+pub fn wait_within(child: &mut std::process::Child, start: Instant, limit: Duration) -> Run {
+    use std::io::Read;
     // Drain both pipes on threads so a chatty run cannot block on a full pipe.
     let drain = |mut r: Box<dyn Read + Send>| {
         std::thread::spawn(move || {

@@ -153,8 +153,8 @@
   var extent = (function () {
     var s0 = Infinity, s1 = -Infinity, h0 = 0, h1 = -Infinity;
     S.bodies.forEach(function (b, k) {
-      var st = START[k], c = Math.cos(st.a), sn = Math.sin(st.a), bx = b.box;
-      [[bx[0], bx[1]], [bx[2], bx[1]], [bx[2], bx[3]], [bx[0], bx[3]]].forEach(function (p) {
+      var st = START[k], c = Math.cos(st.a), sn = Math.sin(st.a);
+      b.outline.forEach(function (p) {
         var w = [finite(poseCols[k].x[0], 0) + c * p[0] - sn * p[1],
           finite(poseCols[k].y[0], 0) + sn * p[0] + c * p[1]];
         s0 = Math.min(s0, along(w)); s1 = Math.max(s1, along(w));
@@ -163,7 +163,9 @@
     });
     return { s0: s0, s1: s1, h0: h0, h1: h1 };
   })();
-  var scale = Math.min(0.6 * W / (extent.s1 - extent.s0), 0.55 * H / (extent.h1 - extent.h0));
+  // (At least 5 mm each way: a machine whose bodies are points or lines.)
+  var scale = Math.min(0.6 * W / Math.max(extent.s1 - extent.s0, 0.005),
+    0.55 * H / Math.max(extent.h1 - extent.h0, 0.005));
   var camS = 0.5 * (extent.s0 + extent.s1) - START[0].s;
   var camH = 0.5 * (extent.h0 + extent.h1);
 
@@ -276,21 +278,21 @@
     var poses = [];
     for (var b = 0; b < nBodies; b++) poses.push(shown(snap, b));
 
-    // The bodies: outline, centre of mass.
+    // The bodies: outline (the convex hull the fundament check follows), centre
+    // of mass, the name by the outline's upper left.
     S.bodies.forEach(function (body, k) {
-      var x = body.box, pose = poses[k];
-      var corners = [[x[0], x[1]], [x[2], x[1]], [x[2], x[3]], [x[0], x[3]]].map(function (p) {
-        return bodyPoint(pose, p, cs);
-      });
+      var pose = poses[k];
+      var vertices = body.outline.map(function (p) { return bodyPoint(pose, p, cs); });
       sc.fillStyle = k === 0 ? "rgba(31,119,180,0.12)" : "rgba(148,103,189,0.12)";
       sc.strokeStyle = k === 0 ? "#1f77b4" : "#9467bd"; sc.lineWidth = 2;
-      sc.beginPath(); sc.moveTo(corners[0][0], corners[0][1]);
-      for (var c = 1; c < 4; c++) sc.lineTo(corners[c][0], corners[c][1]);
+      sc.beginPath(); sc.moveTo(vertices[0][0], vertices[0][1]);
+      for (var c = 1; c < vertices.length; c++) sc.lineTo(vertices[c][0], vertices[c][1]);
       sc.closePath(); sc.fill(); sc.stroke();
       var cm = bodyPoint(pose, [0, 0], cs);
       sc.fillStyle = "#222"; sc.beginPath(); sc.arc(cm[0], cm[1], 3, 0, 2 * Math.PI); sc.fill();
+      var corner = vertices.reduce(function (a, v) { return v[0] + v[1] < a[0] + a[1] ? v : a; });
       sc.font = "12px sans-serif"; sc.textAlign = "left";
-      sc.fillText(body.name, corners[3][0] + 4, corners[3][1] + 14);
+      sc.fillText(body.name, corner[0] + 4, corner[1] + 14);
     });
 
     // The joints, a spring drawn as a coil around them.
@@ -597,7 +599,11 @@
   // displacement from its start (the hop, the pitch at its ends; not the travel)
   // within a quarter of its height.
   (function () {
-    var box = S.bodies[0].box, size = box[3] - box[1], reach = Math.max(box[2], -box[0]);
+    var outline = S.bodies[0].outline, reach = 0, low = Infinity, high = -Infinity;
+    outline.forEach(function (p) {
+      reach = Math.max(reach, Math.abs(p[0])); low = Math.min(low, p[1]); high = Math.max(high, p[1]);
+    });
+    var size = high - low;
     var c = poseCols[0], dev = 0;
     for (var i = 0; i < N; i++) {
       var d = Math.abs(height([c.x[i], c.y[i]]) - START[0].h) + Math.abs(c.a[i] - START[0].a) * reach;
@@ -721,6 +727,15 @@
       var im = impactsAt(state.t), impulses = {};
       S.contacts.forEach(function (c, k) { impulses[c.name] = im.feet[k]; });
       return { instants: im.instants, impulses: impulses };
+    },
+    outlines: function () {
+      return S.bodies.map(function (body, k) {
+        var pose = shown(lastDrawn, k);
+        return body.outline.map(function (p) {
+          var d = drawnPoint(pose, p);
+          return { s: d[0], h: d[1] };
+        });
+      });
     },
     feet: function () {
       return S.contacts.map(function (c) {

@@ -10,8 +10,8 @@
 //! there, and at time t it is drawn at `c(t) + R(theta(t)) R(-theta_0) (p - c_0)`.
 //!
 //! The machine file describes no shape, only points: a body's **outline** is
-//! [`crate::plant::outline`]'s, the bounding box of what it carries (the shape the
-//! fundament check follows too); the page says so.
+//! [`crate::plant::outline`]'s polygon, the convex hull of what it carries (the
+//! shape the fundament check follows too); the page says so.
 
 use serde_json::{json, Value};
 
@@ -21,10 +21,11 @@ use crate::plant::outline::{bodies, outlines};
 
 /// What the page says of the outlines.
 pub const OUTLINE_NOTE: &str =
-    "outlines: bounding box of each body's feet, rotors and joints (the machine file gives no shape)";
+    "outlines: convex hull of each body's centre of mass, feet, eccentric circles and joints (the machine file gives no shape)";
 
 /// The scene of `machine` as JSON (the module doc's frames; m, rad, N):
-/// `{"bodies": [{"name", "box": [x_min, y_min, x_max, y_max]}], "outline_note",
+/// `{"bodies": [{"name", "outline": [[x, y], ...]}] (the outline's vertices
+/// counter-clockwise), "outline_note",
 /// "rotors": [{"name", "body", "axis", "eccentricity", "sense"}], "contacts":
 /// [{"name", "body", "point", "friction", "against", "face", "normal"}] (`against`
 /// -1 for the fundament, whose `face` and `normal` are world), "joints": [{"name",
@@ -89,7 +90,7 @@ pub fn scene(machine: &Machine) -> Value {
 
     let outlines: Vec<Value> = outlines(machine)
         .iter()
-        .map(|o| json!({"name": o.name, "box": o.bounds}))
+        .map(|o| json!({"name": o.name, "outline": o.polygon}))
         .collect();
     let mass = machine.platform.mass
         + machine.bodies.iter().map(|b| b.rigid.mass).sum::<f64>()
