@@ -21,38 +21,95 @@ use common::Run;
 
 use host_sim::device::commands::TABLE_HEADER;
 use host_sim::device::report::CSV_HEADER;
-use host_sim::device::serve::{serve, Endpoint};
+use host_sim::device::serve::{serve_watched, Endpoint, Watch};
 use host_sim::device::sim::{Noise, SimDevice};
 use host_sim::machine::tuning_file;
-use shared::protocol::{MessageId, Request, Response};
+use shared::controller::{Faults, SelfTestStatus, State};
+use shared::protocol::link::no_telemetry;
+use shared::protocol::{MessageId, Request, Response, StatusReport};
 use shared::storage;
+
+/// The bound against a hang: a command, or a wait for what the device shows.
+const HANG: Duration = Duration::from_secs(120);
 
 /// A simulated device served over TCP on this machine until dropped.
 struct Device {
     port: String,
     stop: Arc<AtomicBool>,
+    /// While set, the device's clock stands once its self-test runs
+    /// ([`HoldSelfTest`]).
+    hold: Arc<AtomicBool>,
     thread: Option<JoinHandle<SimDevice>>,
 }
 
+/// How the test's device is served: until the test stops it (or ten minutes,
+/// whatever happens to the test), its clock held while `hold` is set and its
+/// self-test runs.
+struct HoldSelfTest {
+    stop: Arc<AtomicBool>,
+    hold: Arc<AtomicBool>,
+    end: Instant,
+}
+
+impl Watch for HoldSelfTest {
+    fn go_on(&mut self) -> bool {
+        !self.stop.load(Ordering::SeqCst) && Instant::now() < self.end
+    }
+
+    fn held(&mut self, device: &SimDevice) -> bool {
+        self.hold.load(Ordering::SeqCst)
+            && device.link_state().self_test.status == SelfTestStatus::Running
+    }
+}
+
 impl Device {
+    /// The device with the test's long link timeout
+    /// ([`common::device_sim::LINK_TIMEOUT_S`]): the link handed from one
+    /// `host-sim device` process to the next never times out on a loaded
+    /// machine.
     fn start(noise: Noise) -> Device {
+        let link_timeout: f32 = common::device_sim::LINK_TIMEOUT_S.parse().unwrap();
+        Device::on(SimDevice::new(None, noise).with_link_timeout(link_timeout))
+    }
+
+    /// `device` served.
+    fn on(mut device: SimDevice) -> Device {
         let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
         let port = endpoint.port_name();
         let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
+        let hold = Arc::new(AtomicBool::new(false));
+        let mut watch = HoldSelfTest {
+            stop: stop.clone(),
+            hold: hold.clone(),
+            end: Instant::now() + Duration::from_secs(600),
+        };
         let thread = std::thread::spawn(move || {
-            let mut device = SimDevice::new(None, noise);
-            // At most a minute, whatever happens to the test.
-            let end = Instant::now() + Duration::from_secs(60);
-            serve(&mut endpoint, &mut device, || {
-                !flag.load(Ordering::SeqCst) && Instant::now() < end
-            });
+            serve_watched(&mut endpoint, &mut device, &mut watch);
             device
         });
         Device {
             port,
             stop,
+            hold,
             thread: Some(thread),
+        }
+    }
+
+    /// The status until `done` says it shows what is awaited (at most [`HANG`]);
+    /// that status.
+    fn status_until(&self, what: &str, done: impl Fn(&str) -> bool) -> String {
+        let start = Instant::now();
+        loop {
+            let s = self.run(&["status"]);
+            if done(s.ok()) {
+                return s.stdout;
+            }
+            assert!(
+                start.elapsed() < HANG,
+                "{what}: not after {HANG:?}:\n{}",
+                s.stdout
+            );
+            std::thread::sleep(Duration::from_millis(50));
         }
     }
 
@@ -108,11 +165,11 @@ impl Outcome for Run {
     }
 }
 
-/// Runs `host-sim` with `args`, no standard input.
+/// Runs `host-sim` with `args`, no standard input, at most [`HANG`].
 fn host_sim(args: &[&str]) -> Run {
     let mut cmd = common::host_sim();
     cmd.args(args).stdin(Stdio::null());
-    common::finish(cmd)
+    common::finish_within(cmd, HANG)
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -128,7 +185,7 @@ fn field<'a>(status: &'a str, key: &str) -> &'a str {
 }
 
 #[test]
-fn status_travel_stop_hold_and_reset() {
+fn status_travel_stop_and_a_refused_table_write() {
     let dev = Device::start(Noise::default());
     let s = dev.run(&["status"]);
     assert_eq!(field(s.ok(), "state"), "idle");
@@ -144,21 +201,46 @@ fn status_travel_stop_hold_and_reset() {
     let state = field(s.ok(), "state");
     assert!(state == "starting" || state == "running", "{}", s.stdout);
 
+    // A device refusal is exit 1 with the reason: no table write while the
+    // rotors are driven.
+    let file = scratch("refused.toml");
+    std::fs::write(&file, tuning_file::write(&[(3000.0, 80.0, 280.0)], "t")).unwrap();
+    let w = dev.run(&["table", "write", file.to_str().unwrap()]);
+    assert_eq!(w.status, 1, "{}{}", w.stdout, w.stderr);
+    assert!(
+        w.stderr
+            .contains("refused WriteTuningTable: the motors must be stopped"),
+        "{}",
+        w.stderr
+    );
+
     let t = dev.run(&["stop"]);
     assert_eq!(t.ok(), "stop: accepted\n");
     let s = dev.run(&["status"]);
     let state = field(s.ok(), "state");
     assert!(state == "stopping" || state == "idle", "{}", s.stdout);
+    dev.finish();
+}
 
-    // Hold an offset for a while (heartbeats keep the link), then stop.
-    let h = dev.run(&["hold", "--offset", "120", "--speed", "2800", "--for", "1.5"]);
+/// `hold --for` keeps the link alive with its heartbeats for longer than the
+/// device's link timeout (2 s here: forty heartbeats of 50 ms may go missing
+/// before it), then stops and waits for rest.
+#[test]
+fn hold_for_keeps_the_link_then_stops_at_rest() {
+    let dev = Device::on(SimDevice::new(None, Noise::default()).with_link_timeout(2.0));
+    let h = dev.run(&["hold", "--offset", "120", "--speed", "2800", "--for", "5"]);
     let out = h.ok();
     assert!(
         out.contains("hold offset 120 deg at 2800 rpm: accepted"),
         "{out}"
     );
-    assert!(out.contains("running"), "{out}");
-    assert!(out.contains("(target 120.0)"), "{out}");
+    let after = out
+        .lines()
+        .find(|l| l.starts_with("after "))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(after.contains(" running "), "{out}");
+    assert!(after.contains("(target 120.0)"), "{out}");
+    assert!(after.ends_with("faults none"), "{out}");
     assert!(
         out.contains("stop: accepted\nstop: at rest after "),
         "{out}"
@@ -170,28 +252,33 @@ fn status_travel_stop_hold_and_reset() {
     std::fs::write(&at_rest, tuning_file::write(&[(3000.0, 90.0, 270.0)], "t")).unwrap();
     let w = dev.run(&["table", "write", at_rest.to_str().unwrap()]);
     assert!(w.ok().starts_with("table write: 1 row "), "{}", w.stdout);
+    dev.finish();
+}
 
-    // Travel without heartbeats: the controller latches link_lost; reset clears it.
+/// Travel without heartbeats on a device with the firmware's link timeout
+/// (0.5 s): the controller latches link_lost; reset clears it. The status is
+/// asked a second apart (a request keeps the link alive), until the fault
+/// shows.
+#[test]
+fn a_lost_link_latches_link_lost_and_reset_clears_it() {
+    let dev = Device::on(SimDevice::new(None, Noise::default()));
     dev.run(&["travel", "left", "--speed", "3000"]).ok();
-    std::thread::sleep(Duration::from_millis(900));
-    let s = dev.run(&["status"]);
-    assert_eq!(field(s.ok(), "state"), "fault");
-    assert_eq!(field(s.ok(), "faults"), "link_lost");
+    let start = Instant::now();
+    let s = loop {
+        std::thread::sleep(Duration::from_secs(1));
+        let s = dev.run(&["status"]);
+        if field(s.ok(), "state") == "fault" {
+            break s;
+        }
+        assert!(
+            start.elapsed() < HANG,
+            "no fault after {HANG:?}:\n{}",
+            s.stdout
+        );
+    };
+    assert_eq!(field(&s.stdout, "faults"), "link_lost", "{}", s.stdout);
     let r = dev.run(&["reset"]);
     assert_eq!(r.ok(), "reset: accepted; state idle, faults none\n");
-
-    // A device refusal is exit 1 with the reason: no table write while the
-    // rotors still coast.
-    let file = scratch("refused.toml");
-    std::fs::write(&file, tuning_file::write(&[(3000.0, 80.0, 280.0)], "t")).unwrap();
-    let w = dev.run(&["table", "write", file.to_str().unwrap()]);
-    assert_eq!(w.status, 1, "{}{}", w.stdout, w.stderr);
-    assert!(
-        w.stderr
-            .contains("refused WriteTuningTable: the motors must be stopped"),
-        "{}",
-        w.stderr
-    );
     dev.finish();
 }
 
@@ -342,7 +429,6 @@ fn a_device_that_never_answers_is_a_clear_timeout() {
         "{}",
         r.stderr
     );
-    assert!(r.took < Duration::from_secs(10), "{:?}", r.took);
 }
 
 #[test]
@@ -480,7 +566,7 @@ fn bad_input_is_refused_with_exit_2() {
 #[test]
 fn device_sim_serves_a_pseudo_terminal() {
     let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["device-sim", "--duration", "20"])
+        .args(["device-sim", "--duration", common::device_sim::LIFETIME_S])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -533,19 +619,23 @@ fn ctrl_c_ends_the_stream_cleanly() {
     assert_eq!(device.link_state().telemetry_period_ms, 0);
 }
 
+/// The self-test on request: too short a `--timeout` is a clear error while the
+/// test still runs on the device, a second request meanwhile is refused as
+/// busy. The device's clock is held while its self-test runs (the link still
+/// answers), so the second request finds it running however long the machine
+/// took to start the process; let go, the stop aborts it. Then it runs whole.
 #[test]
 fn the_self_test_runs_and_reports_each_rotor() {
     let dev = Device::start(Noise::default());
-    // Too short a timeout: a clear error, the test still running on the device.
-    let t = dev.run(&["self-test", "--timeout", "0.2"]);
+    dev.hold.store(true, Ordering::SeqCst);
+    let t = dev.run(&["self-test", "--timeout", "3"]);
     assert_eq!(t.status, 1, "{}{}", t.stdout, t.stderr);
     assert!(
         t.stderr
-            .contains("the self-test did not finish within 0.2 s (--timeout); status: running"),
+            .contains("the self-test did not finish within 3 s (--timeout); status: running"),
         "{}",
         t.stderr
     );
-    // A second one while it runs is refused.
     let busy = dev.run(&["self-test"]);
     assert_eq!(busy.status, 1, "{}{}", busy.stdout, busy.stderr);
     assert!(
@@ -554,20 +644,30 @@ fn the_self_test_runs_and_reports_each_rotor() {
         busy.stderr
     );
     dev.run(&["stop"]).ok();
-    // Wait until the stop has aborted it and the rotors rest, then run it whole.
-    let start = Instant::now();
-    let t = loop {
-        let t = dev.run(&["self-test"]);
-        if t.status == 0 || start.elapsed() > Duration::from_secs(10) {
-            break t;
-        }
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    dev.hold.store(false, Ordering::SeqCst);
+    // The stop aborts it; once the rotors rest, it runs whole.
+    dev.status_until("idle at rest", |s| {
+        field(s, "state") == "idle" && speeds(s).iter().all(|v| v.abs() <= 10.0)
+    });
+    let t = dev.run(&["self-test"]);
     let out = t.ok();
     assert!(out.starts_with("self-test       done\n"), "{out}");
     assert_eq!(out.matches("PASS").count(), 2, "{out}");
     assert_eq!(out.matches("counts per rev     4096").count(), 2, "{out}");
     dev.finish();
+}
+
+/// The two rotor speeds of `host-sim device status` output, rpm.
+fn speeds(status: &str) -> [f64; 2] {
+    // `2999.0 / 3001.0 rpm (rotor 1 / rotor 2)`
+    let words: Vec<&str> = field(status, "speed").split_whitespace().collect();
+    let rpm = |k: usize| -> f64 {
+        words
+            .get(k)
+            .and_then(|w| w.parse().ok())
+            .unwrap_or_else(|| panic!("no speed in\n{status}"))
+    };
+    [rpm(0), rpm(2)]
 }
 
 /// Regression: `device stop` printed "stop: accepted" (exit 0) when the device
@@ -673,7 +773,7 @@ fn a_stream_that_never_comes_ends_the_run() {
         all.extend_from_slice(args);
         let mut cmd = common::host_sim();
         cmd.args(&all).stdin(Stdio::null());
-        let r = common::finish_within(cmd, Duration::from_secs(15));
+        let r = common::finish_within(cmd, HANG);
         assert_eq!(r.status, 1, "{args:?}: {}{}", r.stdout, r.stderr);
         let expected = format!("error: no telemetry from the device in {quiet_s:.1} s");
         assert!(r.stderr.starts_with(&expected), "{args:?}: {}", r.stderr);
@@ -682,12 +782,44 @@ fn a_stream_that_never_comes_ends_the_run() {
             "{args:?}: {}",
             r.stderr
         );
-        assert!(
-            r.took < Duration::from_secs_f64(quiet_s + 2.0),
-            "{args:?}: {:?}",
-            r.took
-        );
     }
+}
+
+/// A status report of the fake devices: `state` with `faults` at `uptime_ms`,
+/// the rotors at rest.
+fn report(uptime_ms: u32, state: State, faults: Faults) -> StatusReport {
+    StatusReport {
+        uptime_ms,
+        state,
+        faults,
+        telemetry: no_telemetry(),
+        rx_dropped: 0,
+    }
+}
+
+/// Regression: `device reset` slept 20 ms after the Ack and printed the status
+/// then, so a device whose control tick came later (a busy machine running
+/// `device-sim`) was reported still in fault. The controller takes the reset at
+/// its next tick: the command now asks until the status is of a later tick
+/// than the first one asked. Here a device whose clock stands for the first
+/// status after the reset (still the fault) and moves on at the next.
+#[test]
+fn reset_reports_the_status_after_the_controllers_tick() {
+    use std::sync::atomic::AtomicU32;
+    static ASKED: AtomicU32 = AtomicU32::new(0);
+    let port = fake_device::answering(|request| match request {
+        Request::GetStatus => {
+            let n = ASKED.fetch_add(1, Ordering::SeqCst);
+            vec![Response::Status(if n == 0 {
+                report(1000, State::Fault, Faults::LINK_LOST)
+            } else {
+                report(1001 + n, State::Idle, Faults::NONE)
+            })]
+        }
+        _ => vec![ack(request)],
+    });
+    let r = host_sim(&["device", "--port", &port, "reset"]);
+    assert_eq!(r.ok(), "reset: accepted; state idle, faults none\n");
 }
 
 /// Regression: `device-sim --listen` on a port already taken exited 1, the

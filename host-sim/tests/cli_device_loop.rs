@@ -91,10 +91,12 @@ fn measure(dev: &DeviceSim, truth: &Path, measured: &Path) -> String {
     let stdout = BufReader::new(child.stdout.take().expect("piped"));
     let mut said = String::new();
     let mut start = None;
-    let limit = Instant::now() + Duration::from_secs(150);
+    // A bound against a hang, not a speed: the sweep keeps the device's wall
+    // clock (7 points of about 6 s each), however busy the machine.
+    let limit = Instant::now() + Duration::from_secs(600);
     for line in stdout.lines() {
         let line = line.expect("stdout");
-        assert!(Instant::now() < limit, "the sweep is too slow:\n{said}");
+        assert!(Instant::now() < limit, "the sweep hangs:\n{said}");
         if line.starts_with("mark: ") {
             start = Some(x_now(truth));
         } else if line.starts_with("end: ") {

@@ -178,7 +178,7 @@ fn a_network_address_needs_allow_remote_and_a_bad_one_is_refused() {
 
 #[test]
 fn the_routes_over_plain_http() {
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     // At a frame every 50 ms; 4 s covers the requests below with time to spare.
     let served = dev.serve(&["127.0.0.1:0", "--period", "50", "--duration", "4"]);
     let addr = served.addr().to_string();
@@ -300,7 +300,7 @@ fn the_routes_over_plain_http() {
 
 #[test]
 fn a_network_address_with_allow_remote_warns_on_the_page() {
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     let served = dev.serve(&["0.0.0.0:0", "--allow-remote", "--duration", "1.5"]);
     // The line after the address.
     let warning = served.stderr.recv_timeout(Duration::from_secs(5));
@@ -333,7 +333,7 @@ fn the_live_page_in_a_browser_shows_the_stream_and_its_stop_stops_the_device() {
     let Some(mut b) = browser::Browser::launch() else {
         return;
     };
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     // The travel returns at once; the page's server takes over the link within
     // the controller's 0.5 s link timeout (a process start, a connection).
     let t = dev.run(&["travel", "right", "--speed", "3000"]);
@@ -475,7 +475,7 @@ fn the_live_page_draws_the_offset_only_while_driven_and_clean_axis_labels() {
     let Some(mut b) = browser::Browser::launch() else {
         return;
     };
-    let dev = DeviceSim::start(&["--duration", "90"]);
+    let dev = DeviceSim::start(&[]);
     let t = dev.run(&["travel", "right", "--speed", "3000"]);
     assert_eq!(t.status, 0, "{}", t.stderr);
     let served = dev.serve(&["127.0.0.1:0", "--period", "50"]);

@@ -42,8 +42,6 @@ fn the_truth_shows_the_platform_travel_right_then_left() {
         machine.to_str().unwrap(),
         "--truth",
         truth.to_str().unwrap(),
-        "--duration",
-        "40",
     ]);
     let t0 = dev.uptime();
     let hold = dev.device(&["hold", "--offset", "90", "--speed", "3000", "--for", "4"]);
@@ -152,7 +150,7 @@ fn bad_input_is_refused_before_serving() {
 #[cfg(unix)]
 #[test]
 fn without_a_machine_the_simple_rotors_serve() {
-    let dev = DeviceSim::start(&["--duration", "20"]);
+    let dev = DeviceSim::start(&[]);
     assert!(dev.uptime() >= 0.0);
     let (status, stderr) = dev.interrupt();
     assert_eq!(status, 0, "{stderr}");

@@ -91,7 +91,7 @@ fn marks(stdout: &str) -> Vec<&str> {
 
 #[test]
 fn answers_are_recorded_resumed_and_made_into_a_table() {
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     let csv = scratch("sweep.csv");
     let table = scratch("sweep.toml");
 
@@ -169,7 +169,7 @@ fn answers_are_recorded_resumed_and_made_into_a_table() {
 
 #[test]
 fn a_file_in_its_own_column_order_is_resumed_and_continued_in_it() {
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     let csv = scratch("reordered.csv");
     // A file as `calibrate` reads it, written by hand: a comment, the columns in
     // another order with weights, 0 deg and -270 deg (90 deg) measured.
@@ -241,7 +241,7 @@ fn one_row(name: &str) -> (PathBuf, &'static str) {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
-    let dev = DeviceSim::start(&["--duration", "60"]);
+    let dev = DeviceSim::start(&[]);
     let (csv, rows) = one_row("ctrl-c.csv");
     let r = interrupt_after_mark(&dev.port, &csv, |child| {
         // Ctrl-C to the child this test started, by its id.
@@ -268,7 +268,7 @@ fn ctrl_c_stops_the_machine_and_keeps_the_rows() {
 
 #[test]
 fn a_lost_link_ends_the_sweep_with_the_rows_kept() {
-    let mut dev = DeviceSim::start(&["--duration", "60"]);
+    let mut dev = DeviceSim::start(&[]);
     let (csv, rows) = one_row("lost.csv");
     // The device dies while the point is measured.
     let port = dev.port.clone();

@@ -233,7 +233,7 @@ fn a_direction_given_to_one_rotor_is_said_to_be_ignored() {
 #[test]
 fn a_one_rotor_device_says_the_direction_is_ignored() {
     let one = one_rotor();
-    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&one), "--duration", "30"]);
+    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&one)]);
     let r = run(&[
         "device", "--port", &dev.port, "travel", "left", "--speed", "3000", "--for", "1",
     ]);
@@ -246,7 +246,7 @@ fn a_one_rotor_device_says_the_direction_is_ignored() {
     );
     // A two-rotor board says nothing of the kind.
     let two = common::machine();
-    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&two), "--duration", "30"]);
+    let dev = common::device_sim::DeviceSim::start(&["--machine", path(&two)]);
     let r = run(&[
         "device", "--port", &dev.port, "travel", "left", "--speed", "3000", "--for", "1",
     ]);

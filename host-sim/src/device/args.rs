@@ -290,6 +290,12 @@ pub struct DeviceSimArgs {
     /// Exit after S seconds (default: at Ctrl-C).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub duration: Option<f64>,
+    /// The simulated board's link timeout, s: while the motors start or run, the
+    /// controller stops them (fault link_lost) this long after the last request
+    /// (default: the firmware's 0.5 s). Longer for a slow or busy host, whose
+    /// next command may come later than 0.5 s after the last.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub link_timeout: Option<f64>,
 }
 
 #[cfg(test)]

@@ -184,9 +184,7 @@ fn run_on(
         }
         DeviceCommand::Reset => {
             command(client, &Request::ResetFaults)?;
-            // The controller clears the faults at its next tick.
-            std::thread::sleep(Duration::from_millis(20));
-            let s = client.status()?;
+            let s = after_a_tick(client)?;
             out.print(&format!(
                 "reset: accepted; state {}, faults {}\n",
                 s.state.name(),
@@ -216,6 +214,28 @@ fn run_on(
         }
     }
     Ok(())
+}
+
+/// The longest wait for the device's next control tick, s: the board ticks
+/// every millisecond; a device whose uptime stands this long has its status
+/// reported as it is.
+const TICK_WAIT_S: f64 = 1.0;
+
+/// The status once the controller has taken the command just acknowledged,
+/// which it does at its next control tick: a status whose uptime differs from
+/// that of the first status asked after the Ack (that one may still be from
+/// the tick before the command came), asked every few milliseconds, at most
+/// [`TICK_WAIT_S`].
+fn after_a_tick(client: &mut Client) -> Result<StatusReport, Failure> {
+    let first = client.status()?;
+    let start = Instant::now();
+    loop {
+        client.pump(Duration::from_millis(2))?;
+        let s = client.status()?;
+        if s.uptime_ms != first.uptime_ms || start.elapsed().as_secs_f64() >= TICK_WAIT_S {
+            return Ok(s);
+        }
+    }
 }
 
 fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<(), Failure> {
@@ -315,6 +335,9 @@ fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
 fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     interrupt::catch();
     command(client, &Request::RunSelfTest)?;
+    // Until the controller takes the request at its next tick, the device
+    // reports the previous self-test's outcome: not this one's.
+    after_a_tick(client)?;
     let start = Instant::now();
     let timeout = Duration::from_secs_f64(a.timeout);
     // A device that accepted the test but never reports it running.

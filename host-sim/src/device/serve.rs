@@ -142,6 +142,15 @@ pub trait Watch {
         true
     }
 
+    /// Whether the device's clock stands still now: no control tick runs while
+    /// the link task still answers, as on a board whose control task a debugger
+    /// holds. Asked between reads of the port; the time held is not caught up
+    /// after. Never by default (a test's device holds its self-test running
+    /// until the test has seen what a second host is told meanwhile).
+    fn held(&mut self, _device: &SimDevice) -> bool {
+        false
+    }
+
     /// The loop fell more than [`MAX_CATCH_UP_TICKS`] behind the wall clock and
     /// skipped `skipped` of it: the device's uptime lags the clock by that much
     /// more. Nothing by default.
@@ -190,6 +199,18 @@ pub fn serve_watched(
     'serving: while watch.go_on() {
         let n = endpoint.read(&mut buf, Duration::from_millis(1));
         device.push_rx(&buf[..n]);
+        if watch.held(device) {
+            // The clock stands: the ticks due start from here once let go.
+            let run = Duration::from_nanos(
+                u64::try_from(tick.as_nanos())
+                    .unwrap_or(u64::MAX)
+                    .saturating_mul(served.ticks),
+            );
+            origin = Instant::now().checked_sub(run).unwrap_or(origin);
+            let out = device.receive();
+            endpoint.write(&out);
+            continue;
+        }
         let mut due = (origin.elapsed().as_nanos() / tick.as_nanos().max(1)) as u64;
         if due > served.ticks + MAX_CATCH_UP_TICKS {
             // Fell far behind (a suspended process, a machine too slow to
@@ -291,11 +312,17 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             )));
         }
     }
-    if let Some(d) = args.duration {
-        if !(d.is_finite() && d > 0.0) {
-            return Err(Failure::Usage(format!(
-                "error: --duration: must be a number of seconds above 0 (got {d})"
-            )));
+    for (flag, v) in [
+        ("--duration", args.duration),
+        ("--link-timeout", args.link_timeout),
+    ] {
+        match v {
+            Some(s) if !(s.is_finite() && s > 0.0) => {
+                return Err(Failure::Usage(format!(
+                    "error: {flag}: must be a number of seconds above 0 (got {s})"
+                )))
+            }
+            _ => {}
         }
     }
     // The machine, if any, and its controller, built before any port is opened.
@@ -303,7 +330,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         flip_every: args.flip_every,
         garbage_every: args.garbage_every,
     };
-    let (mut device, what) = match &args.machine {
+    let (device, mut what) = match &args.machine {
         None => (
             SimDevice::new(table, noise),
             "the reference controller at 1000 Hz on simulated rotors".to_string(),
@@ -322,6 +349,13 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
                     machine.controller.rate_hz
                 ),
             )
+        }
+    };
+    let mut device = match args.link_timeout {
+        None => device,
+        Some(s) => {
+            what += &format!(", link timeout {} s (--link-timeout)", text::sig(s));
+            device.with_link_timeout(s as f32)
         }
     };
     let endpoint = match &args.listen {
@@ -459,11 +493,13 @@ mod tests {
         );
     }
 
-    /// Holds the loop up once, for `stall`, at tick 10, then serves 100 more ticks.
+    /// Holds the loop up once, for `stall`, at tick 10, then serves until tick
+    /// 110 is due (the ticks of one catch-up all run: serving ends between reads).
     struct Stall {
         stall: Duration,
         ticks: u64,
-        skipped: Vec<Duration>,
+        /// Each skip, with the ticks run before it.
+        skipped: Vec<(u64, Duration)>,
     }
 
     impl Watch for Stall {
@@ -480,16 +516,18 @@ mod tests {
         }
 
         fn fell_behind(&mut self, skipped: Duration) {
-            self.skipped.push(skipped);
+            self.skipped.push((self.ticks, skipped));
         }
     }
 
     /// A loop held up for 500 ticks' time at tick 10 catches up 200 ticks at once
     /// ([`MAX_CATCH_UP_TICKS`]) and reports the rest as skipped, never a silent
-    /// drift: 10 ms + 500 ms due, 10 + 200 run, about 300 ms skipped. The sleep
-    /// lasts at least its 500 ms, so at least 290 ms (10 ms for rounding); a busy
-    /// machine may delay the loop further, up to 150 ms allowed, but without the
-    /// catch-up all 500 ms would be skipped.
+    /// drift. Nothing here bounds how long the machine took: the sleep lasts at
+    /// least its 500 ms, so at least 290 ms are skipped (500 less the 200 caught
+    /// up, 10 ms for rounding), and the ticks tell the catch-up: the last skip
+    /// is followed by exactly 200 ticks in one go (without the catch-up, by none
+    /// before serving ends), and the device's time plus the time skipped never
+    /// runs ahead of the wall clock.
     #[test]
     fn falling_behind_is_caught_up_then_reported() {
         let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
@@ -500,13 +538,19 @@ mod tests {
             skipped: Vec::new(),
         };
         let served = serve_watched(&mut endpoint, &mut device, &mut watch);
-        assert!(!watch.skipped.is_empty());
-        let skipped: Duration = watch.skipped.iter().sum();
+        let skipped: Duration = watch.skipped.iter().map(|(_, s)| *s).sum();
         assert_eq!(served.skipped, skipped);
-        assert!(
-            skipped >= Duration::from_millis(290) && skipped <= Duration::from_millis(450),
+        assert!(skipped >= Duration::from_millis(290), "{:?}", watch.skipped);
+        let &(before, _) = watch.skipped.last().expect("a skip");
+        assert!(before >= 10, "{:?}", watch.skipped);
+        assert_eq!(
+            served.ticks,
+            before + MAX_CATCH_UP_TICKS,
             "{:?}",
             watch.skipped
         );
+        let tick = Duration::from_millis(u64::from(device.tick_ms()));
+        let device_time = tick * u32::try_from(served.ticks).unwrap();
+        assert!(device_time + skipped <= served.wall, "{served:?}");
     }
 }

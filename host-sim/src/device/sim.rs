@@ -165,6 +165,24 @@ impl SimDevice {
         }
     }
 
+    /// The device with its controller's link timeout (`FaultLimits::link_timeout_s`,
+    /// the firmware's 0.5 s by default) set to `link_timeout_s` seconds, above 0:
+    /// the controller stops the motors (fault `link_lost`) that long after the
+    /// last request while they start or run. Taken before the first tick: the
+    /// controller is built anew from its parameters with that one limit changed.
+    pub fn with_link_timeout(mut self, link_timeout_s: f32) -> SimDevice {
+        debug_assert_eq!(self.uptime_ms, 0, "set before the device runs");
+        let mut params = self.controller.params().clone();
+        params.limits.link_timeout_s = link_timeout_s;
+        self.controller = Controller::new(&params, ResetCause::PowerOn);
+        self
+    }
+
+    /// The controller's link timeout, s.
+    pub fn link_timeout_s(&self) -> f32 {
+        self.controller.params().limits.link_timeout_s
+    }
+
     /// Milliseconds per control tick.
     pub fn tick_ms(&self) -> u32 {
         self.tick_ms
@@ -271,7 +289,7 @@ impl SimDevice {
 mod tests {
     use super::*;
     use shared::controller::SelfTestStatus;
-    use shared::controller::{Command, Direction, State};
+    use shared::controller::{Command, Direction, Faults, State};
 
     fn run(dev: &mut SimDevice, ms: u32) {
         for _ in 0..ms / dev.tick_ms() {
@@ -304,6 +322,31 @@ mod tests {
         let s = dev.link_state().status;
         assert_eq!(s.state, State::Idle, "{s:?}");
         assert!(s.faults.is_empty(), "{s:?}");
+    }
+
+    /// Travel without a heartbeat: the firmware's controller latches `link_lost`
+    /// 0.5 s after the command (taken at the first tick, 1 ms, the fault 500
+    /// ticks later); with the link timeout set to 2 s, 2000 ticks later.
+    #[test]
+    fn the_link_timeout_is_the_one_set() {
+        let lost_after = |dev: &mut SimDevice| {
+            dev.state.command = Some(Command::Travel {
+                direction: Direction::Right,
+                speed_rpm: 3000.0,
+            });
+            let start = dev.uptime_ms();
+            while !dev.link_state().status.faults.contains(Faults::LINK_LOST) {
+                dev.tick();
+                assert!(dev.uptime_ms() - start < 10_000, "no link_lost");
+            }
+            dev.uptime_ms() - start
+        };
+        let mut dev = SimDevice::new(None, Noise::default());
+        assert_eq!(dev.link_timeout_s(), 0.5);
+        assert_eq!(lost_after(&mut dev), 501);
+        let mut dev = SimDevice::new(None, Noise::default()).with_link_timeout(2.0);
+        assert_eq!(dev.link_timeout_s(), 2.0);
+        assert_eq!(lost_after(&mut dev), 2001);
     }
 
     #[test]

@@ -14,6 +14,19 @@ fn host_sim(args: &[&str]) -> Run {
     super::finish(cmd)
 }
 
+/// The link timeout of the device-sims the tests start, s, unless a test names
+/// its own (`--link-timeout 0.5`, the firmware's, where the test is about it):
+/// a test hands the link from one `host-sim device` process to the next (a
+/// `travel` returns at once, the next command keeps the link), and on a loaded
+/// machine a process may start later than the firmware's 0.5 s after the last
+/// request. Five minutes is a hang, not a slow start.
+pub const LINK_TIMEOUT_S: &str = "300";
+
+/// How long the device-sims the tests start run at most, s, unless a test names
+/// its own `--duration`: each is killed by its handle when its test ends, so
+/// this only ends one whose test was killed; ten minutes is no test's wait.
+pub const LIFETIME_S: &str = "600";
+
 /// A `host-sim device-sim` process this test started, killed by its handle if
 /// the test ends early.
 pub struct DeviceSim {
@@ -37,11 +50,21 @@ impl DeviceSim {
         DeviceSim::spawn(args)
     }
 
-    /// `host-sim device-sim args...`, its port read from its first line.
+    /// `host-sim device-sim args...`, its port read from its first line; with
+    /// `--link-timeout` [`LINK_TIMEOUT_S`] and `--duration` [`LIFETIME_S`]
+    /// unless `args` name them.
     fn spawn(args: &[&str]) -> DeviceSim {
-        let mut child = super::host_sim()
-            .arg("device-sim")
-            .args(args)
+        let mut cmd = super::host_sim();
+        cmd.arg("device-sim").args(args);
+        for (flag, default) in [
+            ("--link-timeout", LINK_TIMEOUT_S),
+            ("--duration", LIFETIME_S),
+        ] {
+            if !args.contains(&flag) {
+                cmd.args([flag, default]);
+            }
+        }
+        let mut child = cmd
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
