@@ -657,7 +657,7 @@ fn a_run_through_the_floor_is_no_travel() {
     let r = run(&[&args[..], &["--format", "json"]].concat());
     assert_eq!(r.status, 0, "{}", r.stderr);
     let c: Value = serde_json::from_str(&r.stdout).unwrap();
-    let why = "platform went through the fundament at t = 0.015 s";
+    let why = "platform went through the fundament at t = 0.053 s";
     for item in [&c["rows"][0], &c["rows"][1], &c["points"][0]] {
         assert_eq!(item["not_a_travel"], why, "{item}");
         assert!(item["not_held"].is_null(), "{item}");

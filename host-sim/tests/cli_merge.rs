@@ -134,7 +134,7 @@ fn runs_through_the_floor_merge_as_no_travel() {
     assert_eq!(p["version"], 3);
     assert_eq!(
         p["runs"][0]["not_a_travel"],
-        "platform went through the fundament at t = 0.015 s"
+        "platform went through the fundament at t = 0.053 s"
     );
     assert!(p["runs"][0]["not_held"].is_null());
     let merged = merge(&d, &["p1.json", "p2.json", "--format", "json"]);

@@ -62,9 +62,10 @@ impl fmt::Display for LinkError {
                 heard,
             } if heard.bytes == 0 => write!(
                 f,
-                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms, \
+                "no answer from the device to {request} after {} of {timeout_ms} ms, \
                  and no byte at all (is the port right, the device powered, its firmware running \
-                 at 115200 baud?)"
+                 at 115200 baud?)",
+                tries_text(*tries)
             ),
             LinkError::NoAnswer {
                 request,
@@ -73,10 +74,11 @@ impl fmt::Display for LinkError {
                 heard,
             } => write!(
                 f,
-                "no answer from the device to {request} after {tries} tries of {timeout_ms} ms, \
+                "no answer from the device to {request} after {} of {timeout_ms} ms, \
                  though {} bytes came back ({} rejected as corrupt{}): a noisy line (a loose, \
                  long or unshielded cable, interference, or another baud rate than 115200; \
                  more --retries may get through)",
+                tries_text(*tries),
                 heard.bytes,
                 count(heard.rejected, "frame"),
                 match heard.stale {
@@ -107,10 +109,14 @@ pub struct Heard {
 
 /// `1 frame`, `3 frames`.
 fn count(n: u32, what: &str) -> String {
-    if n == 1 {
-        format!("1 {what}")
-    } else {
-        format!("{n} {what}s")
+    crate::output::text::count(n as usize, what)
+}
+
+/// `1 try`, `3 tries`.
+fn tries_text(n: u32) -> String {
+    match n {
+        1 => "1 try".to_string(),
+        n => format!("{n} tries"),
     }
 }
 
@@ -489,7 +495,7 @@ mod tests {
             .unwrap_err();
         assert_eq!(
             e.to_string(),
-            "no answer from the device to GetStatus after 1 tries of 100 ms, and no byte at all \
+            "no answer from the device to GetStatus after 1 try of 100 ms, and no byte at all \
              (is the port right, the device powered, its firmware running at 115200 baud?)"
         );
     }
