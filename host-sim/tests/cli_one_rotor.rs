@@ -226,6 +226,41 @@ fn a_direction_given_to_one_rotor_is_said_to_be_ignored() {
     );
 }
 
+/// A one-rotor run that went through the fundament names no way it went: the
+/// summary has no travel, and the warning says so instead of a speed (the
+/// one-rotor machine without its foot K2 tips onto its side).
+#[test]
+fn a_one_rotor_run_through_the_fundament_names_no_way() {
+    let text = std::fs::read_to_string(one_rotor()).unwrap();
+    let k2 =
+        "[[contacts]]\nname = \"K2\"\npoint = [0.08, 0.0]\nrestitution = 0.3\nfriction = 0.4\n";
+    assert!(text.contains(k2), "the fixture's K2 moved");
+    let one_foot = scratch("cli-one-rotor", "one-foot.toml");
+    std::fs::write(&one_foot, text.replace(k2, "")).unwrap();
+    let r = run(&[
+        "run",
+        path(&one_foot),
+        "--command",
+        "left",
+        "--speed",
+        "3000",
+        "--t-end",
+        "1",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).expect("one JSON document");
+    assert!(v["mean_velocity"].is_null(), "{v}");
+    let warnings = v["warnings"].to_string();
+    assert!(warnings.contains("through the fundament"), "{warnings}");
+    assert!(
+        warnings.contains("ignores `left`, and the platform goes where its rotor and feet take it: this run was no travel (see the warning of its breach)"),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("this run went"), "{warnings}");
+}
+
 /// The same through the link: `device travel left --for` on a simulated
 /// one-rotor board warns that the direction is ignored, from the status
 /// (rotor 2's speed reference 0 while rotor 1 is driven).

@@ -307,11 +307,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let frames = film.frames;
     watch.finish()?;
     result.summary.warnings.extend(warnings);
-    result.summary.warnings.extend(one_rotor_direction(
-        args.command,
-        &machine,
-        result.summary.mean_velocity,
-    ));
+    // A run through the fundament or tipped over has no travel to speak of.
+    let travel = Some(result.summary.mean_velocity).filter(|_| result.summary.breaches.is_empty());
+    result
+        .summary
+        .warnings
+        .extend(one_rotor_direction(args.command, &machine, travel));
 
     // 3. The plot and the animation, then the summary.
     let title = format!("host-sim run {} ({how})", args.machine.path.display());
@@ -487,11 +488,12 @@ fn controller_schedule(
 /// The warning of `--command right|left` on a one-rotor machine (`None`
 /// otherwise): it has no direction to choose, its controller runs the rotor at
 /// the speed and ignores the direction, and the platform goes where its rotor
-/// and feet take it, here at `mean_velocity`, m/s.
+/// and feet take it, here at `mean_velocity`, m/s (`None`: the run was no
+/// travel, a body went through the fundament or tipped over).
 fn one_rotor_direction(
     command: Option<CommandArg>,
     machine: &Machine,
-    mean_velocity: f64,
+    mean_velocity: Option<f64>,
 ) -> Option<String> {
     let asked = match command {
         Some(CommandArg::Right) => "right",
@@ -501,17 +503,22 @@ fn one_rotor_direction(
     if machine.rotors.len() != 1 {
         return None;
     }
-    let went = if mean_velocity > 0.0 {
-        "right"
-    } else if mean_velocity < 0.0 {
-        "left"
-    } else {
-        "nowhere"
+    let went = match mean_velocity {
+        None => "was no travel (see the warning of its breach)".to_string(),
+        Some(v) => {
+            let way = if v > 0.0 {
+                "right"
+            } else if v < 0.0 {
+                "left"
+            } else {
+                "nowhere"
+            };
+            format!("went {way} ({} m/s over the second half)", signed(v))
+        }
     };
     Some(format!(
-        "--command {asked}: the machine has one rotor ({:?}): it has no direction to choose; the controller runs the rotor at the speed and ignores `{asked}`, and the platform goes where its rotor and feet take it: this run went {went} ({} m/s over the second half)",
+        "--command {asked}: the machine has one rotor ({:?}): it has no direction to choose; the controller runs the rotor at the speed and ignores `{asked}`, and the platform goes where its rotor and feet take it: this run {went}",
         machine.rotors[0].name,
-        signed(mean_velocity)
     ))
 }
 
