@@ -6,6 +6,7 @@
 
 use std::path::PathBuf;
 use std::process::Stdio;
+use std::time::{Duration, Instant};
 
 mod common;
 use common::device_sim::{truth_rows, x_at, DeviceSim};
@@ -156,4 +157,34 @@ fn without_a_machine_the_simple_rotors_serve() {
     assert_eq!(status, 0, "{stderr}");
     assert!(stderr.contains("on simulated rotors"), "{stderr}");
     assert!(!stderr.contains("travelled"), "{stderr}");
+}
+
+/// A machine whose platform goes through the fundament behind the link (the
+/// reference machine without its foot K2 tips onto its side) is watched as
+/// `host-sim run` watches its trace: the warning names it, and the last note
+/// gives no travel instead of the distance the platform fell.
+#[cfg(unix)]
+#[test]
+fn a_platform_through_the_fundament_is_no_travel() {
+    let one_foot = common::root().join("tests/fixtures/one-foot-machine.toml");
+    let dev = DeviceSim::start(&["--machine", one_foot.to_str().unwrap()]);
+    // Half a second of device time: the platform falls within it, unpowered.
+    let start = Instant::now();
+    while dev.uptime() < 0.5 {
+        assert!(start.elapsed() < Duration::from_secs(120), "no uptime");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let (status, stderr) = dev.interrupt();
+    assert_eq!(status, 0, "{stderr}");
+    assert!(
+        stderr.contains("; no travel to report: platform went through the fundament at t = "),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("travelled"), "{stderr}");
+    assert!(
+        stderr.contains(
+            "device-sim: warning: platform went through the fundament (only contact points meet it): first "
+        ),
+        "{stderr}"
+    );
 }

@@ -41,4 +41,11 @@ pub trait Mechanics: Send {
     fn warnings(&self) -> Vec<String> {
         Vec::new()
     }
+
+    /// Why the platform's motion so far is no travel, in a few words (a body went
+    /// through the fundament or tipped over, [`crate::simulation::breach`]);
+    /// `None` while it is one.
+    fn no_travel(&self) -> Option<String> {
+        None
+    }
 }

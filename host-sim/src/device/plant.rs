@@ -15,7 +15,10 @@
 //!    rest (the plant's each name their time, so a run of hours could pile up a
 //!    warning a tick);
 //! 3. the sensors read there ([`BoardSensors::read`]): encoders, index pulses and
-//!    currents averaged over the tick, with the machine's noise and seed.
+//!    currents averaged over the tick, with the machine's noise and seed;
+//! 4. every body's pose checked as `host-sim run` checks its trace rows
+//!    ([`BreachWatch`]): a body through the fundament or tipped over is a warning,
+//!    and the platform's motion is no travel from then on.
 
 use shared::controller::Outputs;
 
@@ -25,6 +28,7 @@ use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{Holds, Plant, Settings};
 use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
+use crate::simulation::breach::{Breach, BreachWatch};
 use crate::simulation::closed_loop::Injected;
 
 /// The plant's warnings kept word for word; those after are only counted.
@@ -45,6 +49,8 @@ pub struct PlantMechanics {
     rate_hz: f64,
     /// Nominal supply voltage, V.
     supply: f64,
+    /// Every body's pose at every tick, against the fundament and the tilt limit.
+    breaches: BreachWatch,
 }
 
 impl PlantMechanics {
@@ -69,7 +75,13 @@ impl PlantMechanics {
             ticks: 0,
             rate_hz: machine.controller.rate_hz,
             supply: machine.drive.supply_voltage,
+            breaches: BreachWatch::new(machine),
         }
+    }
+
+    /// What the watch found so far (the watch goes on).
+    fn breaches_so_far(&self) -> Vec<Breach> {
+        self.breaches.clone().finish()
     }
 
     /// The plant's new warnings into the bounded list, the plant's own emptied.
@@ -108,7 +120,14 @@ impl Mechanics for PlantMechanics {
         self.plant.events.clear();
         self.take_warnings();
         // 3. The sensors.
-        self.sensors.read(t, &self.plant, &Injected::default())
+        let readings = self.sensors.read(t, &self.plant, &Injected::default());
+        // 4. The bodies against the fundament and the tilt limit.
+        let plant = &self.plant;
+        self.breaches.row(t, |b| {
+            let [x, y, angle, ..] = plant.model.body_motion(b, &plant.y);
+            [x, y, angle]
+        });
+        readings
     }
 
     fn supply(&self) -> f32 {
@@ -130,7 +149,8 @@ impl Mechanics for PlantMechanics {
     }
 
     fn warnings(&self) -> Vec<String> {
-        let mut all = self.warnings.clone();
+        let mut all: Vec<String> = self.breaches_so_far().iter().map(Breach::warning).collect();
+        all.extend(self.warnings.iter().cloned());
         if self.more_warnings > 0 {
             all.push(format!(
                 "{} more warnings of the plant after these",
@@ -138,6 +158,10 @@ impl Mechanics for PlantMechanics {
             ));
         }
         all
+    }
+
+    fn no_travel(&self) -> Option<String> {
+        self.breaches_so_far().first().map(Breach::short)
     }
 }
 

@@ -413,7 +413,8 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
 }
 
 /// The last line on stderr: device time, how fast the simulation ran against the
-/// clock, and the platform's travel from `start` if there is a platform.
+/// clock, and the platform's travel from `start` if there is a platform and its
+/// motion is a travel (no body through the fundament, none tipped over).
 fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>) -> String {
     let uptime = f64::from(device.uptime_ms()) / 1000.0;
     let mut note = format!("device-sim: stopped after {uptime:.1} s of device time");
@@ -425,7 +426,9 @@ fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>
             uptime / busy
         );
     }
-    if let (Some(a), Some(b)) = (start, device.platform()) {
+    if let Some(why) = device.no_travel() {
+        note += &format!("; no travel to report: {why} (see the warnings)");
+    } else if let (Some(a), Some(b)) = (start, device.platform()) {
         note += &format!(
             "; the platform travelled {} m (x from {} to {} m)",
             text::fixed_signed(b.x - a.x, 4),

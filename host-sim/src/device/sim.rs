@@ -225,6 +225,12 @@ impl SimDevice {
         self.mechanics.warnings()
     }
 
+    /// Why the platform's motion is no travel (a body through the fundament or
+    /// tipped over), `None` while it is one.
+    pub fn no_travel(&self) -> Option<String> {
+        self.mechanics.no_travel()
+    }
+
     /// One control tick, as the firmware's control task.
     pub fn tick(&mut self) {
         self.uptime_ms = self.uptime_ms.wrapping_add(self.tick_ms);
