@@ -108,7 +108,7 @@ impl RunOutcome {
     /// refuses), if it does not: a mean velocity beyond [`MAX_VELOCITY_MPS`], or
     /// not a number where the run held its offset and travelled, or a number
     /// where it was no travel; more plant warnings or longer texts than
-    /// [`RunOutcome::bounded`] keeps. The texts quoted cut.
+    /// `RunOutcome::bounded` keeps. The texts quoted cut.
     pub fn problem(&self) -> Option<String> {
         let v = self.mean_velocity;
         let quoted = |s: &str| format!("{:?}", text::cut(s, text::MAX_QUOTED));
