@@ -619,6 +619,52 @@ fn ctrl_c_ends_the_stream_cleanly() {
     assert_eq!(device.link_state().telemetry_period_ms, 0);
 }
 
+/// Ctrl-C during `travel --for` ends the hold early but not the command's care:
+/// the motors are stopped and awaited at rest as after the whole time, the time
+/// actually held is said, and the command fails naming the signal (it did not
+/// do what was asked: exit 1).
+#[test]
+fn ctrl_c_during_travel_for_stops_at_rest_and_says_so() {
+    let dev = Device::start(Noise::default());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args([
+            "device", "--port", &dev.port, "travel", "right", "--speed", "3000",
+        ])
+        .args(["--for", "600"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("host-sim runs");
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let first = lines.next().expect("a line").unwrap();
+    assert_eq!(first, "travel right at 3000 rpm: accepted");
+    let pid = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
+    let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
+    let status = child.wait().unwrap();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
+    let out = rest.join("\n");
+    assert_eq!(status.code(), Some(1), "{out}\n{stderr}");
+    // The time held, not the 600 s asked.
+    let held: f64 = rest[0]
+        .strip_prefix("after ")
+        .and_then(|l| l.split(" s: ").next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(held < 600.0, "{out}");
+    assert_eq!(rest[1], "stop: accepted", "{out}");
+    assert!(rest[2].starts_with("stop: at rest after "), "{out}");
+    assert!(
+        stderr.starts_with(&format!(
+            "error: interrupted by SIGINT (Ctrl-C) after {held:.1} s of --for 600 s; the motors were stopped and are at rest"
+        )),
+        "{stderr}"
+    );
+    dev.finish();
+}
+
 /// The self-test on request: too short a `--timeout` is a clear error while the
 /// test still runs on the device, a second request meanwhile is refused as
 /// busy. The device's clock is held while its self-test runs (the link still

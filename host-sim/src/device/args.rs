@@ -105,7 +105,9 @@ pub struct TravelArgs {
     /// Rotor speed, rpm (> 0; the device refuses speeds outside its range).
     #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
     pub speed: f32,
-    /// Keep the link alive for S seconds (a heartbeat every 50 ms), then stop.
+    /// Keep the link alive for S seconds (a heartbeat every 50 ms), then stop and
+    /// wait until the rotors are at rest (below 10 rpm, at most 10 s), so a
+    /// `table write` may follow; Ctrl-C ends the hold early the same way, exit 1.
     /// Without it the command returns at once and the device stops the motors
     /// (fault link_lost) 0.5 s after the last request, unless another command
     /// (`telemetry`) keeps the link alive.
@@ -122,7 +124,8 @@ pub struct HoldArgs {
     /// Rotor speed, rpm (> 0).
     #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
     pub speed: f32,
-    /// Keep the link alive for S seconds, then stop (as for `travel`).
+    /// Keep the link alive for S seconds, then stop and wait for rest (as for
+    /// `travel`).
     #[arg(long = "for", value_name = "S", allow_negative_numbers = true)]
     pub for_s: Option<f64>,
 }

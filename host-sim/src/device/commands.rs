@@ -243,6 +243,7 @@ fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<
         DirectionArg::Right => (Direction::Right, "right"),
         DirectionArg::Left => (Direction::Left, "left"),
     };
+    catch_for(a.for_s);
     command(
         client,
         &Request::Travel {
@@ -269,6 +270,7 @@ fn one_rotor_direction(s: &StatusReport, name: &str) -> Option<String> {
 }
 
 fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), Failure> {
+    catch_for(a.for_s);
     command(
         client,
         &Request::HoldOffset {
@@ -283,8 +285,18 @@ fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), 
     keep_alive(client, a.for_s, None, out)
 }
 
+/// With `--for`, signals are caught before the motion command goes out: one
+/// that comes as the device starts the motors then ends the hold as one during
+/// it does, with the motors stopped ([`keep_alive`]), never the process alone.
+fn catch_for(for_s: Option<f64>) {
+    if for_s.is_some() {
+        interrupt::catch();
+    }
+}
+
 /// After a motion command: return at once (`None`), or keep the link alive for
-/// `for_s` seconds (Ctrl-C ends it early), say so if the status then shows a
+/// `for_s` seconds (a signal ends it early: the time held is said, the motors
+/// stopped and awaited as after the whole time, then exit 1 naming it), say so if the status then shows a
 /// one-rotor device given a direction (`direction`: `travel`'s), then stop and
 /// ask the status until
 /// the rotors are at rest ([`await_rest`], at most [`REST_TIMEOUT_S`]), so that
@@ -298,17 +310,23 @@ fn keep_alive(
     let Some(for_s) = for_s else {
         return Ok(());
     };
-    interrupt::catch();
-    let end = Instant::now() + Duration::from_secs_f64(for_s);
+    let started = Instant::now();
+    let end = started + Duration::from_secs_f64(for_s);
     while Instant::now() < end && !interrupt::interrupted() {
         client.request(&Request::Heartbeat)?;
         client.pump(HEARTBEAT_EVERY.min(end.saturating_duration_since(Instant::now())))?;
     }
+    // The time held: all of --for, or up to the signal.
+    let interrupted = interrupt::interrupted();
+    let held = if interrupted {
+        started.elapsed().as_secs_f64().min(for_s)
+    } else {
+        for_s
+    };
     let s = client.status()?;
     command(client, &Request::Stop)?;
     out.print(&format!(
-        "after {:.1} s: {}\nstop: accepted\n",
-        for_s,
+        "after {held:.1} s: {}\nstop: accepted\n",
         report::telemetry_line(&s).trim_start()
     ));
     if let Some(w) = direction.and_then(|d| one_rotor_direction(&s, d)) {
@@ -322,6 +340,12 @@ fn keep_alive(
         )));
     }
     out.print(&format!("stop: {}\n", rest.describe()));
+    if interrupted {
+        return Err(Failure::Device(format!(
+            "error: {} after {held:.1} s of --for {for_s} s; the motors were stopped and are at rest",
+            interrupt::interruption()
+        )));
+    }
     Ok(())
 }
 
@@ -373,9 +397,13 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
         }
         if interrupt::interrupted() {
             command(client, &Request::Stop)?;
-            return Err(Failure::Device(
-                "error: interrupted: the self-test was stopped".into(),
-            ));
+            after_a_tick(client)?;
+            let after = read_self_test(client)?;
+            return Err(Failure::Device(format!(
+                "error: {}: the self-test was stopped (Stop accepted); its status now: {}",
+                interrupt::interruption(),
+                report::self_test_status(after.status)
+            )));
         }
         client.pump(SELF_TEST_POLL)?;
     }
