@@ -1,5 +1,6 @@
 //! The simulated vibro driver: bodies, rotors, motors, contacts, sensors.
 //!
+//! - [`contact`]: a contact's mode between events, the contact forces at a state;
 //! - [`model`]: the constant model (body-frame geometry, the coordinates of the
 //!   bodies' trees) from a machine file;
 //! - [`dynamics`]: equations of motion (`(x, y, theta, phi_1, phi_2)` for a single
@@ -12,6 +13,7 @@
 // Numeric kernels index several parallel arrays with one loop variable.
 #![allow(clippy::needless_range_loop)]
 pub mod bridge;
+pub mod contact;
 pub mod dynamics;
 pub mod integrator;
 pub mod model;

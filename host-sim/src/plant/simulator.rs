@@ -50,54 +50,19 @@ mod modes;
 
 use events::Crossing;
 use forces::CachedEvaluation;
-use shared::impact::{SlipState, MAX_CONTACTS};
 
 use super::bridge::{Bridge, BridgeCommand};
 use super::dynamics::{Frame, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::{Mount, PlantModel, MAX_DOF};
 use super::motor::{DcMotor, Winding};
-use crate::simulation::trace::EventRow;
+use crate::event::EventRow;
 
 /// Events handled at one instant without progress before the step is taken anyway.
 const MAX_STALLED_EVENTS: u32 = 16;
 
+pub use super::contact::{ContactForces, ContactMode};
 pub use super::model::NY;
-
-/// The mode of a contact between events.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ContactMode {
-    /// Not touching, or touching and separating.
-    Open,
-    /// Touching, held by a normal force; tangential velocity held at zero.
-    Stick,
-    /// Touching, slipping along `+t`.
-    SlipPositive,
-    /// Touching, slipping along `-t`.
-    SlipNegative,
-}
-
-impl ContactMode {
-    fn from_slip(s: SlipState) -> Self {
-        match s {
-            SlipState::Stick => ContactMode::Stick,
-            SlipState::SlipPositive => ContactMode::SlipPositive,
-            SlipState::SlipNegative => ContactMode::SlipNegative,
-        }
-    }
-
-    fn slip_state(self) -> SlipState {
-        match self {
-            ContactMode::SlipPositive => SlipState::SlipPositive,
-            ContactMode::SlipNegative => SlipState::SlipNegative,
-            _ => SlipState::Stick,
-        }
-    }
-
-    fn closed(self) -> bool {
-        self != ContactMode::Open
-    }
-}
 
 /// Numerical settings, with the reasons for their defaults.
 #[derive(Clone, Copy, Debug)]
@@ -715,17 +680,6 @@ impl Plant {
         let frame = Frame::new(&self.model, &q);
         frame.kinetic_energy(&self.v()) + frame.potential_energy(&self.model, &q)
     }
-}
-
-/// The contact forces of persistent contact at a state, in the modes of that
-/// moment: per contact in file order, N (0 for open contacts; impacts are
-/// impulses, reported as events).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ContactForces {
-    /// Normal force `lambda_n` of each contact, N (along the fundament's normal).
-    pub normal: [f64; MAX_CONTACTS],
-    /// Tangential force `lambda_t` of each contact, N (along `t = (-n_y, n_x)`).
-    pub tangential: [f64; MAX_CONTACTS],
 }
 
 /// An accepted step's dense output, as the plant reports states: the 4th-order

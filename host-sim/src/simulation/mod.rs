@@ -15,7 +15,7 @@
 //! A machine with one rotor: its driver commands rotor 2's H-bridge off
 //! (`BridgeCommand::Off`), and the plant, which has no rotor 2, writes the
 //! trace's rotor 2 columns (`phi2`, `omega2`, `i2`, `duty2`) as 0
-//! ([`crate::plant::model::PlantModel::row`]).
+//! ([`TraceRow::of`]).
 
 pub mod board;
 pub mod breach;
@@ -295,7 +295,7 @@ impl Recorder<'_, '_> {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        let row = self.model.row(t, y, self.duty, forces);
+        let row = TraceRow::of(&self.model, t, y, self.duty, forces);
         self.summary.push(&row);
         self.observer.row(&row);
         if self.keep_rows {

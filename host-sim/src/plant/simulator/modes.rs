@@ -9,7 +9,7 @@ use shared::impact::MAX_CONTACTS;
 use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
 use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
-use crate::simulation::trace::{EventKind, EventRow};
+use crate::event::{EventKind, EventRow};
 
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
