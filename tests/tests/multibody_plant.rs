@@ -82,7 +82,7 @@ fn turning_points(plant: &mut Plant, omega: usize, t_end: f64) -> Vec<f64> {
     let mut t = 0.0;
     while t < t_end {
         t += dt;
-        plant.advance_to(t, &mut |_| {});
+        plant.advance_to(t, &mut |_| {}).unwrap();
         let w = plant.y[omega];
         if let Some((t0, w0)) = last {
             if w0 > 0.0 && w <= 0.0 {
@@ -290,11 +290,13 @@ fn swing(restitution: f64, friction: f64, t_end: f64) -> (Vec<Seen>, Plant) {
         }
     };
     let mut seen = vec![seen_at(Kind::Step, 0.0, &plant.y)];
-    plant.advance_to(t_end, &mut |out| match out {
-        Output::Dense(step, upto) => seen.push(seen_at(Kind::Step, upto, &step.at(upto))),
-        Output::Before(at) => seen.push(seen_at(Kind::Before, at.t, at.y)),
-        Output::After(at) => seen.push(seen_at(Kind::After, at.t, at.y)),
-    });
+    plant
+        .advance_to(t_end, &mut |out| match out {
+            Output::Dense(step, upto) => seen.push(seen_at(Kind::Step, upto, &step.at(upto))),
+            Output::Before(at) => seen.push(seen_at(Kind::Before, at.t, at.y)),
+            Output::After(at) => seen.push(seen_at(Kind::After, at.t, at.y)),
+        })
+        .unwrap();
     (seen, plant)
 }
 

@@ -36,6 +36,17 @@ impl ContactMode {
     pub(super) fn closed(self) -> bool {
         self != ContactMode::Open
     }
+
+    /// The mode's name (the events CSV's detail, messages): `open`, `stick`,
+    /// `slip+`, `slip-`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ContactMode::Open => "open",
+            ContactMode::Stick => "stick",
+            ContactMode::SlipPositive => "slip+",
+            ContactMode::SlipNegative => "slip-",
+        }
+    }
 }
 
 /// The contact forces of persistent contact at a state, in the modes of that

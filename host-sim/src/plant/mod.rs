@@ -19,5 +19,6 @@ pub mod integrator;
 pub mod model;
 pub mod motor;
 pub mod outline;
+pub mod progress;
 pub mod sensors;
 pub mod simulator;

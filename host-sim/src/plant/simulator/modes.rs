@@ -45,16 +45,6 @@ fn least_change_in<const D: usize>(rows: &[(Vector, Vector, f64)]) -> Option<Vec
     Some(dx)
 }
 
-/// The name of a mode in the events CSV's detail.
-pub(super) fn mode_name(m: ContactMode) -> &'static str {
-    match m {
-        ContactMode::Open => "open",
-        ContactMode::Stick => "stick",
-        ContactMode::SlipPositive => "slip+",
-        ContactMode::SlipNegative => "slip-",
-    }
-}
-
 impl Plant {
     /// At an event: impacts where contacts approach, then the contacts' modes from
     /// the complementarity problem at acceleration level.
@@ -230,7 +220,7 @@ impl Plant {
                 normal_impulse: 0.0,
                 tangential_impulse: 0.0,
                 case: None,
-                detail: mode_name(b).into(),
+                detail: b.name().into(),
             });
         }
         self.modes = new;
