@@ -8,6 +8,8 @@
 //! - [`motor`]: the brushed DC motors and their driver;
 //! - [`integrator`]: Dormand-Prince 5(4) with dense output;
 //! - [`simulator`]: the hybrid simulation (modes, events, impacts, Zeno, Painleve);
+//! - [`progress`]: the progress guard (a budget of work per simulated
+//!   millisecond) and why a run stopped early;
 //! - [`sensors`]: encoders with index pulses, current measurement;
 //! - [`outline`]: every body's outline (drawn, and kept off the fundament).
 // Numeric kernels index several parallel arrays with one loop variable.
