@@ -8,8 +8,9 @@
 //! (`--set platform.angular_velocity=500`), whose steps shrink to 1e-10 s once it
 //! lands at 3.53 s; eight collinear feet, whose mode decision finds no consistent
 //! contact force at 0.544 s and takes seconds each time it is asked again. Before
-//! the guard both ran for hours. Each run here is bounded by [`LIMIT`] only to stop
-//! a hang, never timed.
+//! the guard the first took days (some 50 s of CPU a simulated millisecond), the
+//! second months. Each run here is bounded by [`LIMIT`] only to stop a hang, never
+//! timed.
 
 use std::fs;
 use std::path::PathBuf;
