@@ -5,7 +5,7 @@
 //! | kind | exit status | examples |
 //! | --- | --- | --- |
 //! | [`Failure::Usage`] | 2 ([`EXIT_USAGE`]) | a bad or missing file, key or option, an output that cannot be written, a port that cannot be opened |
-//! | [`Failure::Run`] | 1 ([`EXIT_FAILURE`]) | the solver gave up, a scenario's expectation does not hold, a run stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) |
+//! | [`Failure::Run`] | 1 ([`EXIT_FAILURE`]) | the solver gave up, a scenario's expectation does not hold, a run stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) or by the plant's progress guard |
 //! | [`Failure::Device`] | 1 ([`EXIT_FAILURE`]) | the device refused (Nack), did not answer, answered something else, or the port failed in use |
 //!
 //! Messages are whole lines as the user reads them (`error: FILE: KEY: what is

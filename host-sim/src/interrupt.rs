@@ -44,6 +44,13 @@ pub fn interrupted() -> bool {
     CAUGHT.load(Ordering::SeqCst) != 0
 }
 
+/// The flag itself, non-zero once a signal arrived since [`catch`]: for a loop
+/// that checks it more often than a command does, without knowing of signals
+/// (the plant's integrator, [`crate::plant::simulator::Plant::stop_when`]).
+pub fn flag() -> &'static AtomicUsize {
+    &CAUGHT
+}
+
 /// What ended the command, for its message: "interrupted by SIGTERM" (the signal's
 /// name), or "interrupted" where none was caught (a test's stand-in operator).
 pub fn interruption() -> String {

@@ -9,6 +9,8 @@
 //! - [`measured`]: the measured travel file, one row per run on the real machine,
 //!   which `device tune` writes and `calibrate` reads;
 //! - [`plant`]: the simulated platform, rotors, motors, contacts and sensors;
+//! - [`event`]: what happened at an instant of a run (the `--events` rows), which
+//!   the plant and the controller in the loop both write;
 //! - [`simulation`]: a whole run, tick by tick, with the `shared` controller in the
 //!   loop, its trace, events and summary statistics;
 //! - [`output`]: whole files, CSV, SVG pieces and text for people;
@@ -26,6 +28,7 @@ pub mod args;
 pub mod calibrate;
 pub mod cli;
 pub mod device;
+pub mod event;
 pub mod failure;
 pub mod help;
 pub mod impact;

@@ -6,19 +6,23 @@
 //! output (its open descriptors, read from `/proc`), never after a guessed delay.
 //! A process that does not end after its signal is killed and the test fails
 //! (within [`LIMIT`]); one that ignores it ends by itself within seconds (a short
-//! `--t-end`), never filling the disk; a failing test kills what it started.
+//! `--t-end`), never filling the disk; a failing test kills what it started. A
+//! run stalled inside one control tick sees its signal within one integrator
+//! attempt, not at the tick's end.
 #![cfg(target_os = "linux")]
 
 use std::fs;
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 
 mod common;
-use common::{host_sim, machine, root};
+use common::{host_sim, machine, root, whole_csv};
 
 /// Long enough for the process to start writing, and to end after a signal, on a
 /// loaded machine; a defect that never writes or never ends fails here instead of
@@ -170,10 +174,7 @@ fn sigint_sigterm_and_sighup_end_a_run_with_its_files_whole_and_named_in_the_mes
             "{name}: {stderr}"
         );
         assert_eq!(names(&dir), ["e.csv", "p.svg", "t.csv"], "{name}");
-        let trace = fs::read_to_string(dir.join("t.csv")).unwrap();
-        let columns = trace.lines().next().unwrap().split(',').count();
-        assert!(trace.ends_with('\n'), "{name}: the trace's last row cut");
-        assert!(trace.lines().all(|l| l.split(',').count() == columns));
+        whole_csv(&dir.join("t.csv"));
         let plot = fs::read_to_string(dir.join("p.svg")).unwrap();
         assert!(plot.trim_end().ends_with("</svg>"), "{name}: the plot cut");
         fs::remove_dir_all(&dir).unwrap();
@@ -241,4 +242,94 @@ fn a_signal_during_calibrate_writes_nothing_and_leaves_nothing() {
         }
         fs::remove_dir_all(&dir).unwrap();
     }
+}
+
+/// A run stalled inside one control tick: the reference machine set spinning at
+/// 500 rad/s lands at 3.53 s, and from there its steps are 1e-10 s, so the tick
+/// from 3.529 s would take hours (the progress guard's budget raised out of the
+/// way). SIGTERM once the progress line of that tick's start is out ends it
+/// within one integrator attempt, at a time inside the tick, with its files whole.
+/// It used to be seen only at the end of the tick.
+#[test]
+fn a_signal_ends_a_run_stalled_inside_a_control_tick_with_its_files_whole() {
+    let dir = empty_dir("stalled");
+    let (t, e) = (dir.join("t.csv"), dir.join("e.csv"));
+    let m = machine();
+    let mut started = Started(
+        host_sim()
+            // A progress line at every control tick: the one of 3.529 s says the
+            // run is in the tick that stalls.
+            .env("VIBRO_PROGRESS_EVERY", "0")
+            .args([
+                "run",
+                m.to_str().unwrap(),
+                "--command",
+                "right",
+                "--set",
+                "platform.angular_velocity=500",
+                "--set",
+                "simulation.progress_budget=1000000000000",
+                "--out",
+                t.to_str().unwrap(),
+                "--events",
+                e.to_str().unwrap(),
+            ])
+            .current_dir(root())
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("host-sim starts"),
+    );
+    // Every line of stderr, as it comes, to `lines`; the whole at the end.
+    let (lines, seen) = mpsc::channel();
+    let stderr = started.0.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            all += &line;
+            all.push('\n');
+            let _ = lines.send(line);
+        }
+        all
+    });
+    let start = Instant::now();
+    loop {
+        let line = seen
+            .recv_timeout(LIMIT.saturating_sub(start.elapsed()))
+            .expect("host-sim reaches the tick at 3.529 s");
+        if line.starts_with("run: 3529/10000 ms simulated") {
+            break;
+        }
+    }
+    let child = &mut started.0;
+    kill(Pid::from_raw(child.id() as i32), Signal::SIGTERM).unwrap();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < LIMIT, "the stalled run ignored SIGTERM");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stderr = reader.join().unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let message = stderr
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or_else(|| panic!("no error line: {stderr}"));
+    let at: f64 = message
+        .strip_prefix("error: run: interrupted by SIGTERM at t = ")
+        .and_then(|m| m.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{message}"));
+    assert!((3.529..3.53).contains(&at), "{message}");
+    assert!(
+        message.ends_with(" s of 10 s; the files asked for hold the run up to there, no summary"),
+        "{message}"
+    );
+    assert_eq!(names(&dir), ["e.csv", "t.csv"]);
+    let last: f64 = whole_csv(&t).last().unwrap()[0].parse().unwrap();
+    assert!((3.529..3.53).contains(&last), "the trace ends at {last}");
+    whole_csv(&e);
+    fs::remove_dir_all(&dir).unwrap();
 }

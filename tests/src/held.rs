@@ -58,8 +58,8 @@ pub fn held_plant(m: &Machine, rpm: f64, settings: Settings, holds: Holds) -> Pl
 /// The mean velocity of the platform's centre of mass from `t0` to `t1`,
 /// `(x(t1) - x(t0)) / (t1 - t0)`, m/s, advancing `plant` to `t1`.
 pub fn mean_velocity(plant: &mut Plant, t0: f64, t1: f64) -> f64 {
-    plant.advance_to(t0, &mut |_| {});
+    plant.advance_to(t0, &mut |_| {}).unwrap();
     let x0 = plant.platform_motion()[0];
-    plant.advance_to(t1, &mut |_| {});
+    plant.advance_to(t1, &mut |_| {}).unwrap();
     (plant.platform_motion()[0] - x0) / (t1 - t0)
 }

@@ -193,7 +193,7 @@ fn slide(v0: f64) {
     let (mut worst_v, mut worst_x, mut worst_f) = (0.0f64, 0.0f64, 0.0f64);
     for k in 1..=steps {
         let t = k as f64 * dt;
-        plant.advance_to(t, &mut |_| {});
+        plant.advance_to(t, &mut |_| {}).unwrap();
         let [xp, yp, thp, vxp, vyp, wp] = plant.platform_motion();
         let [xb, yb, thb, vxb, vyb, wb] = plant.model.body_motion(1, &plant.y);
         let f = plant.contact_forces();
@@ -484,7 +484,7 @@ fn two_plates_on_one_hinge_strike_as_two_bodies_on_one_axis() {
         };
         let mut plant = Plant::new(model, initial_state(&m), Settings::default(), holds);
         assert!(plant.modes.iter().all(|m| *m == ContactMode::Open));
-        plant.advance_to(2.0 * T_HIT, &mut |_| {});
+        plant.advance_to(2.0 * T_HIT, &mut |_| {}).unwrap();
         assert!(plant.warnings.is_empty(), "{case}: {:?}", plant.warnings);
         let impacts: Vec<_> = plant
             .events

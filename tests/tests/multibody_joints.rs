@@ -201,31 +201,33 @@ fn platform_held() -> Holds {
 /// the last bit. The sign of `y[w]` before the crossing comes with it.
 fn crossings(plant: &mut Plant, w: usize, t_end: f64) -> Vec<(f64, [f64; NY], f64)> {
     let mut found = Vec::new();
-    plant.advance_to(t_end, &mut |out| {
-        if let Output::Dense(step, upto) = out {
-            let f = |t: f64| step.at(t)[w];
-            let (mut lo, mut hi) = (step.t0, upto);
-            let (f_lo, f_hi) = (f(lo), f(hi));
-            if !((f_lo > 0.0 && f_hi <= 0.0) || (f_lo < 0.0 && f_hi >= 0.0)) {
-                return;
-            }
-            let before = f_lo.signum();
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if mid <= lo || mid >= hi {
-                    break;
+    plant
+        .advance_to(t_end, &mut |out| {
+            if let Output::Dense(step, upto) = out {
+                let f = |t: f64| step.at(t)[w];
+                let (mut lo, mut hi) = (step.t0, upto);
+                let (f_lo, f_hi) = (f(lo), f(hi));
+                if !((f_lo > 0.0 && f_hi <= 0.0) || (f_lo < 0.0 && f_hi >= 0.0)) {
+                    return;
                 }
-                if f(mid) * before > 0.0 {
-                    lo = mid;
-                } else {
-                    hi = mid;
+                let before = f_lo.signum();
+                for _ in 0..200 {
+                    let mid = 0.5 * (lo + hi);
+                    if mid <= lo || mid >= hi {
+                        break;
+                    }
+                    if f(mid) * before > 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
                 }
+                // The end nearer zero.
+                let t = if f(lo).abs() < f(hi).abs() { lo } else { hi };
+                found.push((t, step.at(t), before));
             }
-            // The end nearer zero.
-            let t = if f(lo).abs() < f(hi).abs() { lo } else { hi };
-            found.push((t, step.at(t), before));
-        }
-    });
+        })
+        .unwrap();
     found
 }
 
@@ -481,7 +483,7 @@ fn a_preloaded_spring_balances_gravity_with_the_sign_of_the_joint_order() {
             f(expected)
         );
         let (mut plant, angle) = preload_plant(g, bodies, k, c, Some(alpha0), angle0);
-        plant.advance_to(3.0, &mut |_| {});
+        plant.advance_to(3.0, &mut |_| {}).unwrap();
         let n = plant.model.dof;
         let got = plant.y[angle];
         eprintln!(
@@ -510,12 +512,14 @@ fn a_preloaded_spring_balances_gravity_with_the_sign_of_the_joint_order() {
         let (mut plant, angle) = preload_plant(0.0, bodies, k, c, None, angle0);
         let n = plant.model.dof;
         let mut worst: f64 = 0.0;
-        plant.advance_to(1.0, &mut |out| {
-            if let Output::Dense(step, upto) = out {
-                let y = step.at(upto);
-                worst = worst.max((y[angle] - angle0).abs()).max(y[n + angle].abs());
-            }
-        });
+        plant
+            .advance_to(1.0, &mut |out| {
+                if let Output::Dense(step, upto) = out {
+                    let y = step.at(upto);
+                    worst = worst.max((y[angle] - angle0).abs()).max(y[n + angle].abs());
+                }
+            })
+            .unwrap();
         eprintln!("no preload {bodies:?}: the arm moved {worst:.3e} rad (tol 1e-15)");
         assert!(
             worst <= 1e-15,
@@ -687,48 +691,51 @@ fn a_joint_spring_damper_on_a_free_platform_keeps_momentum_and_the_energy_balanc
         (0.906_179_845_938_664, 0.236_926_885_056_189_1),
         (-0.906_179_845_938_664, 0.236_926_885_056_189_1),
     ];
-    plant.advance_to(2.0, &mut |out| {
-        let Output::Dense(step, upto) = out else {
-            panic!("no event expected");
-        };
-        let (t0, h) = (step.t0, upto - step.t0);
-        let rate = |y: &[f64; NY]| y[n + arm] - y[n + 2];
-        let mut d = 0.0;
-        let mut fastest: f64 = 0.0;
-        for (x, w) in gauss {
-            let y = step.at(t0 + 0.5 * h * (1.0 + x));
-            d += 0.5 * h * w * c * rate(&y).powi(2);
-            fastest = fastest.max(rate(&y).abs());
-        }
-        dissipated += d;
-        let y = step.at(upto);
-        steps += 1;
-        let s = two_bodies(&y, n, arm);
-        travel = travel.max((s.angle[1] - s.angle[0] - FREE_ARM_ANGLE + FREE_PLATFORM_ANGLE).abs());
-        let foot = add(
-            s.c[0],
-            rot(s.angle[0], rot(-FREE_PLATFORM_ANGLE, [-0.08, -0.03])),
-        );
-        lowest_foot = lowest_foot.min(foot[1]);
-        let sc_rate = rtol * (1.0 + y[n + arm].abs() + y[n + 2].abs());
-        for (i, f) in quantities.iter().enumerate() {
-            allowed[i] += step_allowance(&allowance_model, 2.0, *f, &y, rtol);
-            let mut got = f(&y);
-            if i == 3 {
-                allowed[i] += 2.0 * c * fastest * sc_rate * h;
-                got += dissipated;
+    plant
+        .advance_to(2.0, &mut |out| {
+            let Output::Dense(step, upto) = out else {
+                panic!("no event expected");
+            };
+            let (t0, h) = (step.t0, upto - step.t0);
+            let rate = |y: &[f64; NY]| y[n + arm] - y[n + 2];
+            let mut d = 0.0;
+            let mut fastest: f64 = 0.0;
+            for (x, w) in gauss {
+                let y = step.at(t0 + 0.5 * h * (1.0 + x));
+                d += 0.5 * h * w * c * rate(&y).powi(2);
+                fastest = fastest.max(rate(&y).abs());
             }
-            let drift = (got - start[i]).abs();
-            worst[i] = worst[i].max(drift);
-            let tol = allowed[i] + 1e-13 * scale0;
-            assert!(
-                drift <= tol,
-                "quantity {i} (P_x, P_y, L_O, E + D) at t = {upto}: {got:.15e}, \
-                 at the start {:.15e}: drift {drift:.3e} > allowed {tol:.3e}",
-                start[i]
+            dissipated += d;
+            let y = step.at(upto);
+            steps += 1;
+            let s = two_bodies(&y, n, arm);
+            travel =
+                travel.max((s.angle[1] - s.angle[0] - FREE_ARM_ANGLE + FREE_PLATFORM_ANGLE).abs());
+            let foot = add(
+                s.c[0],
+                rot(s.angle[0], rot(-FREE_PLATFORM_ANGLE, [-0.08, -0.03])),
             );
-        }
-    });
+            lowest_foot = lowest_foot.min(foot[1]);
+            let sc_rate = rtol * (1.0 + y[n + arm].abs() + y[n + 2].abs());
+            for (i, f) in quantities.iter().enumerate() {
+                allowed[i] += step_allowance(&allowance_model, 2.0, *f, &y, rtol);
+                let mut got = f(&y);
+                if i == 3 {
+                    allowed[i] += 2.0 * c * fastest * sc_rate * h;
+                    got += dissipated;
+                }
+                let drift = (got - start[i]).abs();
+                worst[i] = worst[i].max(drift);
+                let tol = allowed[i] + 1e-13 * scale0;
+                assert!(
+                    drift <= tol,
+                    "quantity {i} (P_x, P_y, L_O, E + D) at t = {upto}: {got:.15e}, \
+                 at the start {:.15e}: drift {drift:.3e} > allowed {tol:.3e}",
+                    start[i]
+                );
+            }
+        })
+        .unwrap();
     assert!(plant.events.is_empty(), "events: {:?}", plant.events.len());
     assert!(lowest_foot > 0.5, "the foot came down to {lowest_foot} m");
     // The arm swung relative to the platform and the damper took energy.
@@ -1030,30 +1037,32 @@ sense = "ccw"
     let (mut worst_l, mut worst_rate): (f64, f64) = (0.0, 0.0);
     let mut tol_l: f64 = 0.0;
     let (mut fastest, mut turned) = (0.0f64, 0.0f64);
-    plant.advance_to(1.0, &mut |out| {
-        let Output::Dense(step, upto) = out else {
-            panic!("no event expected");
-        };
-        steps += 1;
-        let y = step.at(upto);
-        let (w, w_phi) = (y[n + angle], y[n + phi]);
-        terms = terms.max(j_o * w.abs() + i_k * (w + w_phi).abs());
-        tol_l = f64::from(steps) * 7.0 * 4.0 * 1.1e-16 * terms;
-        let l = l_o(&y);
-        assert!(
-            l.abs() <= tol_l,
-            "{to}: L_O = {l:.3e} N m s at t = {upto} (allowed {tol_l:.3e})"
-        );
-        let expected = -i_k * w_phi / (j_o + i_k);
-        assert!(
-            (w - expected).abs() <= tol_l / (j_o + i_k),
-            "{to}: theta' = {w} rad/s at t = {upto}, -I_k phi' / (J_O + I_k) = {expected}"
-        );
-        worst_l = worst_l.max(l.abs());
-        worst_rate = worst_rate.max((w - expected).abs());
-        fastest = fastest.max(w_phi.abs());
-        turned = turned.max((y[angle] - angle0).abs());
-    });
+    plant
+        .advance_to(1.0, &mut |out| {
+            let Output::Dense(step, upto) = out else {
+                panic!("no event expected");
+            };
+            steps += 1;
+            let y = step.at(upto);
+            let (w, w_phi) = (y[n + angle], y[n + phi]);
+            terms = terms.max(j_o * w.abs() + i_k * (w + w_phi).abs());
+            tol_l = f64::from(steps) * 7.0 * 4.0 * 1.1e-16 * terms;
+            let l = l_o(&y);
+            assert!(
+                l.abs() <= tol_l,
+                "{to}: L_O = {l:.3e} N m s at t = {upto} (allowed {tol_l:.3e})"
+            );
+            let expected = -i_k * w_phi / (j_o + i_k);
+            assert!(
+                (w - expected).abs() <= tol_l / (j_o + i_k),
+                "{to}: theta' = {w} rad/s at t = {upto}, -I_k phi' / (J_O + I_k) = {expected}"
+            );
+            worst_l = worst_l.max(l.abs());
+            worst_rate = worst_rate.max((w - expected).abs());
+            fastest = fastest.max(w_phi.abs());
+            turned = turned.max((y[angle] - angle0).abs());
+        })
+        .unwrap();
     eprintln!(
         "rotor on the arm hinged to {to}, {steps} steps: phi' up to {fastest:.1} rad/s, the arm \
          turned {turned:.2} rad; |L_O| up to {worst_l:.3e} N m s (allowed {tol_l:.3e}), \

@@ -26,6 +26,7 @@ use host_sim::machine::Machine;
 use host_sim::plant::dynamics::{Frame, Pose, Vector};
 use host_sim::plant::model::{initial_state, Mount, PlantModel, MAX_DOF};
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
+use host_sim::simulation::trace::TraceRow;
 use tests::Rng;
 
 /// The reference machine's text with `replace` applied and `extra` appended.
@@ -81,7 +82,7 @@ fn turning_points(plant: &mut Plant, omega: usize, t_end: f64) -> Vec<f64> {
     let mut t = 0.0;
     while t < t_end {
         t += dt;
-        plant.advance_to(t, &mut |_| {});
+        plant.advance_to(t, &mut |_| {}).unwrap();
         let w = plant.y[omega];
         if let Some((t0, w0)) = last {
             if w0 > 0.0 && w <= 0.0 {
@@ -212,7 +213,7 @@ const ROTOR_INERTIA: f64 = 6e-6;
 /// after the first impact, 1.7e-8 J between two steps). The velocities are the
 /// row's, the plant's own (`PlantModel::body_motion`: the arm's centre's velocity
 /// through its Jacobian); [`centre_x`] is the independent side.
-fn momentum_and_energy(r: &host_sim::simulation::trace::TraceRow) -> (f64, f64) {
+fn momentum_and_energy(r: &TraceRow) -> (f64, f64) {
     let g = 9.81;
     let platform = (
         PLATFORM.0,
@@ -235,7 +236,7 @@ fn momentum_and_energy(r: &host_sim::simulation::trace::TraceRow) -> (f64, f64) 
 
 /// The machine's horizontal centre of mass from a trace row's positions alone,
 /// `(m_p x_p + m_a x_a) / (m_p + m_a)`, m (the rotors carry no eccentric mass).
-fn centre_x(r: &host_sim::simulation::trace::TraceRow) -> f64 {
+fn centre_x(r: &TraceRow) -> f64 {
     (PLATFORM.0 * r.x + ARM.0 * r.bodies[0][0]) / (PLATFORM.0 + ARM.0)
 }
 
@@ -277,7 +278,7 @@ fn swing(restitution: f64, friction: f64, t_end: f64) -> (Vec<Seen>, Plant) {
     );
     let forces = Default::default();
     let seen_at = |kind: Kind, t: f64, y: &[f64; host_sim::plant::model::NY]| {
-        let r = row_model.row(t, y, [0.0; 2], &forces);
+        let r = TraceRow::of(&row_model, t, y, [0.0; 2], &forces);
         let (momentum, energy) = momentum_and_energy(&r);
         Seen {
             kind,
@@ -289,11 +290,13 @@ fn swing(restitution: f64, friction: f64, t_end: f64) -> (Vec<Seen>, Plant) {
         }
     };
     let mut seen = vec![seen_at(Kind::Step, 0.0, &plant.y)];
-    plant.advance_to(t_end, &mut |out| match out {
-        Output::Dense(step, upto) => seen.push(seen_at(Kind::Step, upto, &step.at(upto))),
-        Output::Before(at) => seen.push(seen_at(Kind::Before, at.t, at.y)),
-        Output::After(at) => seen.push(seen_at(Kind::After, at.t, at.y)),
-    });
+    plant
+        .advance_to(t_end, &mut |out| match out {
+            Output::Dense(step, upto) => seen.push(seen_at(Kind::Step, upto, &step.at(upto))),
+            Output::Before(at) => seen.push(seen_at(Kind::Before, at.t, at.y)),
+            Output::After(at) => seen.push(seen_at(Kind::After, at.t, at.y)),
+        })
+        .unwrap();
     (seen, plant)
 }
 

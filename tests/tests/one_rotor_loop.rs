@@ -76,7 +76,9 @@ fn the_driver_holds_rotor_1_and_leaves_rotor_2_off() {
             running_at = Some(t);
         }
         plant.set_bridges(commands);
-        plant.advance_to((tick + 1) as f64 / rate, &mut |_| {});
+        plant
+            .advance_to((tick + 1) as f64 / rate, &mut |_| {})
+            .unwrap();
     }
     // The ramp reaches 3000 rpm in about 0.72 s (no phase loop to wait for);
     // rotor 1 then holds it. Rotor 1 is ccw: its driven speed is +phi_1'.
@@ -168,7 +170,7 @@ fn the_held_platform_takes_the_weight_less_the_eccentric_pull() {
         let (mut worst_f, mut worst_m) = (0.0f64, 0.0f64);
         for k in 1..=360 {
             let t = period * k as f64 / 360.0;
-            plant.advance_to(t, &mut |_| {});
+            plant.advance_to(t, &mut |_| {}).unwrap();
             let h = plant.holding_force();
             let psi = phi0 + w * t;
             let (s, c) = psi.sin_cos();
@@ -228,7 +230,7 @@ fn the_platform_on_frictionless_feet_moves_opposite_to_the_eccentric() {
         let n = 2000;
         for k in 1..=n {
             let t = t_end * k as f64 / n as f64;
-            plant.advance_to(t, &mut |_| {});
+            plant.advance_to(t, &mut |_| {}).unwrap();
             let [x, y, theta, ..] = plant.platform_motion();
             let psi = phi0 + w * t;
             let expected =

@@ -98,22 +98,24 @@ fn period_means(decay: &str, rpm: f64, duty: f64, count: usize) -> Vec<f64> {
     let mut next = 0usize;
     let mut sums = vec![0.0; count];
     let mut last: Option<f64> = None;
-    plant.advance_to(count as f64 * T, &mut |out| {
-        if let Output::Dense(step, upto) = out {
-            while next <= total {
-                let t = next as f64 * dt;
-                if t > upto {
-                    break;
+    plant
+        .advance_to(count as f64 * T, &mut |out| {
+            if let Output::Dense(step, upto) = out {
+                while next <= total {
+                    let t = next as f64 * dt;
+                    if t > upto {
+                        break;
+                    }
+                    let i = step.at(t)[10];
+                    if let Some(prev) = last {
+                        sums[(next - 1) / per_period] += 0.5 * (prev + i) * dt;
+                    }
+                    last = Some(i);
+                    next += 1;
                 }
-                let i = step.at(t)[10];
-                if let Some(prev) = last {
-                    sums[(next - 1) / per_period] += 0.5 * (prev + i) * dt;
-                }
-                last = Some(i);
-                next += 1;
             }
-        }
-    });
+        })
+        .unwrap();
     assert_eq!(next, total + 1, "sampled every point");
     sums.iter().map(|s| s / T).collect()
 }
@@ -281,9 +283,11 @@ fn the_current_a_tick_reads_is_the_closed_form_mean() {
         let (_, mut plant) = held(decay, rpm);
         plant.set_bridges([BridgeCommand::Duty(d), BridgeCommand::Off]);
         for k in 1..=settled_ticks {
-            plant.advance_to(k as f64 * tick, &mut |_| {});
+            plant.advance_to(k as f64 * tick, &mut |_| {}).unwrap();
         }
-        plant.advance_to((settled_ticks + 1) as f64 * tick, &mut |_| {});
+        plant
+            .advance_to((settled_ticks + 1) as f64 * tick, &mut |_| {})
+            .unwrap();
         let got = plant.mean_currents()[0];
         let want = match decay {
             "slow" => (d * VS - K * rpm * PI / 30.0) / R,
@@ -320,32 +324,36 @@ fn the_bridge_switches_as_the_timer_does() {
     // decay's 3 A... after 50 periods of d = 0.5 at standstill.
     let (_, mut plant) = held("slow", 0.0);
     plant.set_bridges([BridgeCommand::Duty(0.5), BridgeCommand::Off]);
-    plant.advance_to(50.0 * T, &mut |_| {});
+    plant.advance_to(50.0 * T, &mut |_| {}).unwrap();
     let i_on = plant.currents()[0];
     assert!(
         (i_on - 3.0 * (1.0 - (-50.0 * T / (L / R)).exp())).abs() < 1e-6,
         "{i_on}"
     );
-    plant.advance_to(50.3 * T, &mut |_| {});
+    plant.advance_to(50.3 * T, &mut |_| {}).unwrap();
     let t_off = plant.t;
     plant.set_bridges([BridgeCommand::Off, BridgeCommand::Off]);
     // It decays under -V_s - R i: zero at tau ln(1 + i R / V_s).
     let i_cut = plant.currents()[0];
     let t_zero = (L / R) * (1.0 + i_cut * R / VS).ln();
-    plant.advance_to(t_off + 0.99 * t_zero, &mut |_| {});
+    plant
+        .advance_to(t_off + 0.99 * t_zero, &mut |_| {})
+        .unwrap();
     assert!(plant.currents()[0] > 0.0, "still flowing");
-    plant.advance_to(t_off + 1.01 * t_zero, &mut |_| {});
+    plant
+        .advance_to(t_off + 1.01 * t_zero, &mut |_| {})
+        .unwrap();
     assert_eq!(plant.currents()[0], 0.0, "died at {t_zero} s");
-    plant.advance_to(t_off + 20.0 * T, &mut |_| {});
+    plant.advance_to(t_off + 20.0 * T, &mut |_| {}).unwrap();
     assert_eq!(plant.currents()[0], 0.0, "and stays dead");
 
     // A duty commanded in the middle of a period waits for the next period start.
     let (_, mut plant) = held("slow", 0.0);
-    plant.advance_to(2.4 * T, &mut |_| {});
+    plant.advance_to(2.4 * T, &mut |_| {}).unwrap();
     plant.set_bridges([BridgeCommand::Duty(1.0), BridgeCommand::Off]);
-    plant.advance_to(2.99 * T, &mut |_| {});
+    plant.advance_to(2.99 * T, &mut |_| {}).unwrap();
     assert_eq!(plant.currents()[0], 0.0, "nothing before the period start");
-    plant.advance_to(3.5 * T, &mut |_| {});
+    plant.advance_to(3.5 * T, &mut |_| {}).unwrap();
     let i = plant.currents()[0];
     let want = (VS / R) * (1.0 - (-0.5 * T / (L / R)).exp());
     assert!((i - want).abs() < 1e-6, "{i} vs {want}");
@@ -364,15 +372,15 @@ fn above_50_khz_a_duty_waits_for_the_update_every_few_periods() {
         Settings::default(),
         all_held(),
     );
-    plant.advance_to(1.5 * t, &mut |_| {});
+    plant.advance_to(1.5 * t, &mut |_| {}).unwrap();
     plant.set_bridges([BridgeCommand::Duty(1.0), BridgeCommand::Off]);
-    plant.advance_to(3.99 * t, &mut |_| {});
+    plant.advance_to(3.99 * t, &mut |_| {}).unwrap();
     assert_eq!(
         plant.currents()[0],
         0.0,
         "nothing before the update at period 4"
     );
-    plant.advance_to(5.0 * t, &mut |_| {});
+    plant.advance_to(5.0 * t, &mut |_| {}).unwrap();
     let i = plant.currents()[0];
     let want = (VS / R) * (1.0 - (-t / (L / R)).exp());
     assert!((i - want).abs() < 1e-6, "{i} vs {want}");

@@ -150,7 +150,7 @@ fn painleve_is_reported_and_resolved_by_a_tangential_impact() {
     let mut lowest = f64::INFINITY;
     let mut highest_energy = f64::NEG_INFINITY;
     for k in 1..=200 {
-        plant.advance_to(k as f64 * 0.005, &mut |_| {});
+        plant.advance_to(k as f64 * 0.005, &mut |_| {}).unwrap();
         let q = plant.q();
         let (s, c) = q[2].sin_cos();
         let foot_y = q[1] + s * R1[0] + c * R1[1];

@@ -76,7 +76,7 @@ fn cone_violations(t_end: f64) -> (f64, f64, usize) {
     let (mut worst_both, mut worst_other, mut both) = (0.0f64, 0.0f64, 0);
     let samples = (t_end / 1e-4).round() as usize;
     for k in 1..=samples {
-        plant.advance_to(k as f64 * 1e-4, &mut |_| {});
+        plant.advance_to(k as f64 * 1e-4, &mut |_| {}).unwrap();
         let forces = plant.contact_forces();
         let both_stick = plant.modes.iter().all(|m| *m == ContactMode::Stick);
         let mut worst = 0.0f64;

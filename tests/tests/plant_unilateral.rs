@@ -92,7 +92,9 @@ fn sample(plant: &mut Plant, t_end: f64, n: usize) -> Samples {
         states: Vec::with_capacity(n),
     };
     for k in 1..=n {
-        plant.advance_to(t_end * k as f64 / n as f64, &mut |_| {});
+        plant
+            .advance_to(t_end * k as f64 / n as f64, &mut |_| {})
+            .unwrap();
         let f = plant.contact_forces();
         let both = plant.modes.iter().all(|m| *m != ContactMode::Open);
         s.rows.push((plant.t, both, [f[0][0], f[1][0]]));
@@ -178,21 +180,23 @@ fn plant_apexes(m: &Machine, rpm: f64, t_end: f64, from: f64) -> Vec<f64> {
     let mut apex = vec![0.0f64; revs];
     let mut next = 0usize;
     let per_rev = 400;
-    plant.advance_to(t_end, &mut |out| {
-        if let Output::Dense(step, upto) = out {
-            loop {
-                let t = next as f64 * period / per_rev as f64;
-                if t > upto {
-                    break;
+    plant
+        .advance_to(t_end, &mut |out| {
+            if let Output::Dense(step, upto) = out {
+                loop {
+                    let t = next as f64 * period / per_rev as f64;
+                    if t > upto {
+                        break;
+                    }
+                    let r = next / per_rev;
+                    if r < revs && t >= from {
+                        apex[r] = apex[r].max(step.at(t)[1] - y_rest);
+                    }
+                    next += 1;
                 }
-                let r = next / per_rev;
-                if r < revs && t >= from {
-                    apex[r] = apex[r].max(step.at(t)[1] - y_rest);
-                }
-                next += 1;
             }
-        }
-    });
+        })
+        .unwrap();
     apex.drain(..(from / period).round() as usize);
     apex
 }
@@ -295,7 +299,7 @@ fn event_differences(m: &Machine, osc: &Oscillator, rpm: f64, t_end: f64, rtol: 
         ..Settings::default()
     };
     let mut plant = held_rotors(m, rpm, settings);
-    plant.advance_to(t_end, &mut |_| {});
+    plant.advance_to(t_end, &mut |_| {}).unwrap();
     let got = k1_events(&plant);
     let want = oscillator_events(osc, t_end);
     assert_eq!(got.len(), want.len(), "rtol {rtol}: event counts");
@@ -362,13 +366,15 @@ fn heights_at(m: &Machine, rpm: f64, times: &[f64]) -> Vec<f64> {
     let y_rest = m.platform.position[1];
     let mut out = Vec::with_capacity(times.len());
     let t_end = times.last().copied().unwrap_or(0.0);
-    plant.advance_to(t_end, &mut |o| {
-        if let Output::Dense(step, upto) = o {
-            while out.len() < times.len() && times[out.len()] <= upto {
-                out.push(step.at(times[out.len()])[1] - y_rest);
+    plant
+        .advance_to(t_end, &mut |o| {
+            if let Output::Dense(step, upto) = o {
+                while out.len() < times.len() && times[out.len()] <= upto {
+                    out.push(step.at(times[out.len()])[1] - y_rest);
+                }
             }
-        }
-    });
+        })
+        .unwrap();
     out
 }
 
@@ -386,7 +392,7 @@ fn hop_at_2600_rpm_locks_to_the_orbit_from_rest() {
     let m = machine(180.0, &[]);
     let osc = oscillator(rpm);
     let mut plant = held(&m, rpm);
-    plant.advance_to(t_end, &mut |_| {});
+    plant.advance_to(t_end, &mut |_| {}).unwrap();
     let got = k1_events(&plant);
     let want = oscillator_events(&osc, t_end);
     assert_eq!(got.len(), want.len(), "event counts");
@@ -821,7 +827,9 @@ fn advancing_in_steps_of_any_size_gives_the_same_trajectory() {
         let run = |calls: usize| {
             let mut plant = held(&m, 3000.0);
             for k in 1..=calls {
-                plant.advance_to(t_end * k as f64 / calls as f64, &mut |_| {});
+                plant
+                    .advance_to(t_end * k as f64 / calls as f64, &mut |_| {})
+                    .unwrap();
             }
             plant
         };
@@ -865,7 +873,9 @@ fn the_hop_at_180_degrees_does_not_depend_on_the_calls() {
         let mut plant = held(&m, 3000.0);
         let calls = (per_rev * revs).max(1);
         for k in 1..=calls {
-            plant.advance_to(revs as f64 * period * k as f64 / calls as f64, &mut |_| {});
+            plant
+                .advance_to(revs as f64 * period * k as f64 / calls as f64, &mut |_| {})
+                .unwrap();
         }
         let mut struck = vec![false; revs];
         for e in plant.events.iter().filter(|e| e.kind == EventKind::Impact) {

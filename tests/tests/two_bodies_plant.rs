@@ -205,11 +205,13 @@ fn run(pair: &Pair, contact: &Contact) -> Run {
         Holds::default(),
     );
     let (mut before, mut after) = (Vec::new(), Vec::new());
-    plant.advance_to(2.0 * T_HIT, &mut |out| match out {
-        Output::Before(at) => before.push(seen(at.t, at.y)),
-        Output::After(at) => after.push(seen(at.t, at.y)),
-        Output::Dense(..) => {}
-    });
+    plant
+        .advance_to(2.0 * T_HIT, &mut |out| match out {
+            Output::Before(at) => before.push(seen(at.t, at.y)),
+            Output::After(at) => after.push(seen(at.t, at.y)),
+            Output::Dense(..) => {}
+        })
+        .unwrap();
     Run {
         before,
         after,

@@ -229,6 +229,10 @@ pub struct Simulation {
     /// How far a free body (the platform, a body not hinged to anything) may turn
     /// from its angle at t = 0 before the run says it tipped over, rad.
     pub max_tilt: f64,
+    /// The progress guard: the most integrator steps and events the plant may
+    /// take within one millisecond of simulated time before it ends the run
+    /// (docs/plant-model.md, "The progress guard").
+    pub progress_budget: u64,
 }
 
 /// A checked machine file.
@@ -460,6 +464,13 @@ pub const DEFAULT_RTOL: f64 = 1.0e-8;
 /// foot at `atan(0.08 m / 0.03 m)` = 69 degrees, so a platform turned by 60 has
 /// tipped over or is about to.
 pub const DEFAULT_MAX_TILT: f64 = std::f64::consts::FRAC_PI_3;
+/// Default `[simulation].progress_budget`: integrator steps (accepted or
+/// rejected) and events within one millisecond of simulated time. The most any
+/// run took (benchmarks/plant.md, "The progress guard"): 902 for the Fig. 8
+/// machine at its defaults, 7 032 for the reference machine with fast decay, PWM
+/// and control ticks at 50 kHz and rtol 1e-12; 100 000 is 14 times that. A run
+/// that stops advancing (steps of 1e-10 s) spends it in about 2 s of CPU.
+pub const DEFAULT_PROGRESS_BUDGET: u64 = 100_000;
 /// The range of `[simulation].rtol`: below 1e-12 the positions' absolute
 /// tolerance (1e-3 rtol m) nears the rounding of f64 coordinates; up to 1e-3 the
 /// reference machine's tuning sweep gives the same table and every grid point's
@@ -885,7 +896,7 @@ fn read_controller(s: &Section, dir: &Path) -> Option<ControllerSettings> {
 }
 
 /// `[simulation]`: t_end > 0, output step > 0, seed a non-negative integer, rtol
-/// within [`RTOL_RANGE`], max_tilt > 0.
+/// within [`RTOL_RANGE`], max_tilt > 0, progress_budget a positive integer.
 fn read_simulation(s: &Section) -> Option<Simulation> {
     let t_end = s.number("t_end", Need::Default(DEFAULT_T_END), Limit::Positive);
     let output_step = s.number(
@@ -900,6 +911,12 @@ fn read_simulation(s: &Section) -> Option<Simulation> {
         Limit::Between(RTOL_RANGE.0, RTOL_RANGE.1),
     );
     let max_tilt = s.number("max_tilt", Need::Default(DEFAULT_MAX_TILT), Limit::Positive);
+    let progress_budget = s.integer(
+        "progress_budget",
+        // Far below i64::MAX: the cast is exact.
+        Need::Default(DEFAULT_PROGRESS_BUDGET as i64),
+        Limit::Positive,
+    );
     s.finish();
     Some(Simulation {
         t_end: t_end?,
@@ -908,6 +925,8 @@ fn read_simulation(s: &Section) -> Option<Simulation> {
         seed: u64::try_from(seed?).ok()?,
         rtol: rtol?,
         max_tilt: max_tilt?,
+        // An i64 > 0 always fits a u64.
+        progress_budget: u64::try_from(progress_budget?).ok()?,
     })
 }
 

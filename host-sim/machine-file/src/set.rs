@@ -182,6 +182,7 @@ pub const SCHEMA: &[(&str, Node)] = &[
             ("seed", Node::Value),
             ("rtol", Node::Value),
             ("max_tilt", Node::Value),
+            ("progress_budget", Node::Value),
         ]),
     ),
 ];
@@ -667,13 +668,14 @@ mod tests {
         assert!(paths.contains(&"simulation.seed".to_string()));
         assert!(paths.contains(&"simulation.rtol".to_string()));
         assert!(paths.contains(&"simulation.max_tilt".to_string()));
+        assert!(paths.contains(&"simulation.progress_budget".to_string()));
         assert!(paths.contains(&"joints.NAME.stiffness".to_string()));
         assert!(paths.contains(&"bodies.NAME.mass".to_string()));
         // fundament, platform, bodies, joints, contacts, rotors (with their motor),
         // motor, drive, sensors, controller, impact, simulation.
         assert_eq!(
             paths.len(),
-            3 + 6 + 7 + 7 + 9 + 9 + 6 + 6 + 3 + 3 + 3 + 1 + 5
+            3 + 6 + 7 + 7 + 9 + 9 + 6 + 6 + 3 + 3 + 3 + 1 + 6
         );
     }
 }

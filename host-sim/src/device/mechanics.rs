@@ -48,4 +48,11 @@ pub trait Mechanics: Send {
     fn no_travel(&self) -> Option<String> {
         None
     }
+
+    /// Why the simulation cannot go on, if it cannot: the plant stopped advancing
+    /// (its progress guard, a step size underflow; [`crate::plant::progress`]).
+    /// `None` while it goes on.
+    fn stopped(&self) -> Option<String> {
+        None
+    }
 }

@@ -9,7 +9,9 @@
 //! 1. the controller's last outputs on the H-bridges
 //!    ([`crate::simulation::board::bridge_commands`]; open windings before the
 //!    first step);
-//! 2. the plant integrated to the tick's end, `t_k = k / rate_hz`; its events dropped
+//! 2. the plant integrated to the tick's end, `t_k = k / rate_hz` (a plant that
+//!    stopped advancing, [`crate::plant::progress`], stays where it stopped and
+//!    says so: [`Mechanics::stopped`]); its events dropped
 //!    (nobody records them here, and a long run must not pile them up), its
 //!    warnings taken into a list of at most [`MAX_WARNINGS`] and a count of the
 //!    rest (the plant's each name their time, so a run of hours could pile up a
@@ -26,7 +28,7 @@ use super::mechanics::{Mechanics, PlatformPose};
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
-use crate::plant::simulator::{Holds, Plant, Settings};
+use crate::plant::simulator::{Holds, Plant, Settings, Stop};
 use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
 use crate::simulation::breach::{Breach, BreachWatch};
 use crate::simulation::closed_loop::Injected;
@@ -51,6 +53,8 @@ pub struct PlantMechanics {
     supply: f64,
     /// Every body's pose at every tick, against the fundament and the tilt limit.
     breaches: BreachWatch,
+    /// Why the plant stopped, once it has.
+    stopped: Option<Stop>,
 }
 
 impl PlantMechanics {
@@ -59,14 +63,17 @@ impl PlantMechanics {
     pub fn new(machine: &Machine) -> Self {
         let settings = Settings {
             rtol: machine.simulation.rtol,
+            progress_budget: machine.simulation.progress_budget,
             ..Settings::default()
         };
-        let plant = Plant::new(
+        let mut plant = Plant::new(
             PlantModel::new(machine),
             initial_state(machine),
             settings,
             Holds::default(),
         );
+        // A signal ends a tick that takes long (device-sim's Ctrl-C).
+        plant.stop_when(crate::interrupt::flag());
         PlantMechanics {
             plant,
             warnings: Vec::new(),
@@ -76,6 +83,7 @@ impl PlantMechanics {
             rate_hz: machine.controller.rate_hz,
             supply: machine.drive.supply_voltage,
             breaches: BreachWatch::new(machine),
+            stopped: None,
         }
     }
 
@@ -116,7 +124,9 @@ impl Mechanics for PlantMechanics {
         // 2. To the tick's end.
         self.ticks += 1;
         let t = self.ticks as f64 / self.rate_hz;
-        self.plant.advance_to(t, &mut |_| {});
+        if let Err(stop) = self.plant.advance_to(t, &mut |_| {}) {
+            self.stopped.get_or_insert(stop);
+        }
         self.plant.events.clear();
         self.take_warnings();
         // 3. The sensors.
@@ -162,6 +172,14 @@ impl Mechanics for PlantMechanics {
 
     fn no_travel(&self) -> Option<String> {
         self.breaches_so_far().first().map(Breach::short)
+    }
+
+    fn stopped(&self) -> Option<String> {
+        // A signal is device-sim's own end, not the plant's failure.
+        self.stopped
+            .as_ref()
+            .filter(|s| !matches!(s, Stop::Interrupted { .. }))
+            .map(Stop::to_string)
     }
 }
 

@@ -242,13 +242,16 @@ pub fn serve_watched(
 }
 
 /// `host-sim device-sim`'s watch: Ctrl-C and `--duration` end it, the truth file
-/// takes its rows, falling behind is said on stderr.
+/// takes its rows, falling behind is said on stderr, a plant that stopped
+/// advancing ends it (exit 1).
 struct DeviceSimWatch<'c, 'w> {
     console: &'c mut Console<'w>,
     end: Option<Instant>,
     truth: Option<TruthFile>,
     /// Why the truth file could not be written on.
     failed: Option<String>,
+    /// Why the plant stopped advancing, ending the device ([`SimDevice::stopped`]).
+    stalled: Option<String>,
     /// Device time skipped so far.
     skipped: Duration,
 }
@@ -259,6 +262,12 @@ impl Watch for DeviceSimWatch<'_, '_> {
     }
 
     fn ticked(&mut self, device: &SimDevice) -> bool {
+        if let Some(why) = device.stopped() {
+            self.stalled = Some(format!(
+                "error: device-sim: the machine's plant stopped: {why}"
+            ));
+            return false;
+        }
         let (Some(truth), Some(pose)) = (self.truth.as_mut(), device.platform()) else {
             return true;
         };
@@ -392,6 +401,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             .map(|d| Instant::now() + Duration::from_secs_f64(d)),
         truth,
         failed: None,
+        stalled: None,
         skipped: Duration::ZERO,
     };
     // The truth at power-on, then after every tick.
@@ -399,6 +409,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     let served = serve_watched(&mut endpoint, &mut device, &mut watch);
     // The truth at the last tick, where the stop fell between two rows.
     let mut failed = watch.failed.take();
+    let stalled = watch.stalled.take();
     if let (Some(truth), Some(pose), None) = (watch.truth.as_mut(), device.platform(), &failed) {
         failed = truth.finish(u64::from(device.uptime_ms()), pose).err();
     }
@@ -406,7 +417,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     for w in device.warnings() {
         console.note(&format!("device-sim: warning: {w}\n"));
     }
-    match failed {
+    match failed.or(stalled) {
         Some(e) => Err(Failure::Run(e)),
         None => Ok(()),
     }

@@ -231,6 +231,12 @@ impl SimDevice {
         self.mechanics.no_travel()
     }
 
+    /// Why the simulation cannot go on (the plant stopped advancing), if it
+    /// cannot.
+    pub fn stopped(&self) -> Option<String> {
+        self.mechanics.stopped()
+    }
+
     /// One control tick, as the firmware's control task.
     pub fn tick(&mut self) {
         self.uptime_ms = self.uptime_ms.wrapping_add(self.tick_ms);

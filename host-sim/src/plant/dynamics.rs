@@ -36,7 +36,7 @@
 //! the same order, as the closed forms this module had before it took several
 //! bodies (a machine file without further bodies gives the same numbers to the bit).
 
-use super::model::{Face, Mount, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS};
+use super::model::{Face, Mount, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS, NY};
 
 /// A vector of generalized coordinates (a machine uses the first
 /// [`PlantModel::dof`]).
@@ -353,6 +353,27 @@ impl Pose {
         k.u_n = row_dot(&k.j_n, v, model.dof);
         k.u_t = row_dot(&k.j_t, v, model.dof);
         k
+    }
+}
+
+// A body's motion is the model's reading of a state, but away from the free
+// root's own coordinates it needs a pose: it lives here, beside `Pose`, so that
+// the model stays below the dynamics (`model.rs` uses no sibling).
+impl PlantModel {
+    /// Body `b`'s motion in state `y`: centre of mass (m, m), angle (rad), its
+    /// velocity (m/s, m/s) and angular velocity (rad/s).
+    pub fn body_motion(&self, b: usize, y: &[f64; NY]) -> [f64; 6] {
+        let n = self.dof;
+        let body = &self.bodies[b];
+        let (angle, omega) = (y[body.angle], y[n + body.angle]);
+        if let Mount::Free { x } = body.mount {
+            return [y[x], y[x + 1], angle, y[n + x], y[n + x + 1], omega];
+        }
+        let (q, v) = (self.q(y), self.v(y));
+        let pose = Pose::new(self, &q);
+        let com = pose.centre_of_mass(self, b);
+        let u = com.velocity(&v);
+        [com.p[0], com.p[1], angle, u[0], u[1], omega]
     }
 }
 

@@ -19,11 +19,8 @@
 
 use shared::impact::{ContactLaw, ImpactLaw};
 
-use super::dynamics::Pose;
-use super::simulator::ContactForces;
 use crate::machine::bodies::{FUNDAMENT, PLATFORM};
 use crate::machine::{Machine, MotorParams};
-use crate::simulation::trace::TraceRow;
 
 pub use crate::machine::bodies::{MAX_BODIES, MAX_DOF, MAX_ROTORS};
 
@@ -489,61 +486,6 @@ impl PlantModel {
             y[rotor.phi] = r.angle;
         }
         y
-    }
-}
-
-impl PlantModel {
-    /// Body `b`'s motion in state `y`: centre of mass (m, m), angle (rad), its
-    /// velocity (m/s, m/s) and angular velocity (rad/s).
-    pub fn body_motion(&self, b: usize, y: &[f64; NY]) -> [f64; 6] {
-        let n = self.dof;
-        let body = &self.bodies[b];
-        let (angle, omega) = (y[body.angle], y[n + body.angle]);
-        if let Mount::Free { x } = body.mount {
-            return [y[x], y[x + 1], angle, y[n + x], y[n + x + 1], omega];
-        }
-        let (q, v) = (self.q(y), self.v(y));
-        let pose = Pose::new(self, &q);
-        let com = pose.centre_of_mass(self, b);
-        let u = com.velocity(&v);
-        [com.p[0], com.p[1], angle, u[0], u[1], omega]
-    }
-
-    /// The trace row of state `y` at `t` with duties `duty` and the contact
-    /// forces `forces` at that state; a rotor the machine does not have reads 0,
-    /// its duty included (the trace's columns are fixed: docs/cli-run.md, `--out`).
-    pub fn row(&self, t: f64, y: &[f64; NY], duty: [f64; 2], forces: &ContactForces) -> TraceRow {
-        let n = self.dof;
-        let [x, yc, angle, vx, vy, omega] = self.body_motion(0, y);
-        let rotor = |k: usize| match self.rotors.get(k) {
-            Some(r) => (y[r.phi], y[n + r.phi], y[self.current(k)]),
-            None => (0.0, 0.0, 0.0),
-        };
-        let ((phi1, omega1, i1), (phi2, omega2, i2)) = (rotor(0), rotor(1));
-        let mut bodies = [[0.0; 6]; MAX_BODIES - 1];
-        for (b, row) in bodies.iter_mut().enumerate().take(self.bodies.len() - 1) {
-            *row = self.body_motion(b + 1, y);
-        }
-        TraceRow {
-            t,
-            x,
-            y: yc,
-            angle,
-            vx,
-            vy,
-            omega,
-            phi1,
-            phi2,
-            omega1,
-            omega2,
-            i1,
-            i2,
-            duty1: duty[0],
-            duty2: if self.rotors.len() > 1 { duty[1] } else { 0.0 },
-            normal_force: forces.normal,
-            tangential_force: forces.tangential,
-            bodies,
-        }
     }
 }
 

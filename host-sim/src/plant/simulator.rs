@@ -42,62 +42,37 @@
 //! `sum_k 2 v+ e^k / a = 2 v+ / (a (1 - e))` (a geometric series). The threshold is
 //! far below every velocity that matters (1e-6 m/s by default): halving or doubling
 //! it moves the rest point by less than the event tolerance.
+//!
+//! **Progress**: every integrator attempt and every event handled counts against
+//! the budget of a simulated millisecond ([`super::progress`]); past it, or where
+//! a rejected step would go below 1e-14 s, or once the caller's stop flag is set
+//! ([`Plant::stop_when`], checked before every attempt), [`Plant::advance_to`]
+//! ends at the state it reached and says why ([`Stop`]).
 
 mod events;
 mod forces;
 mod impacts;
 mod modes;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use events::Crossing;
 use forces::CachedEvaluation;
-use shared::impact::{SlipState, MAX_CONTACTS};
 
 use super::bridge::{Bridge, BridgeCommand};
-use super::dynamics::{Frame, Vector};
+use super::dynamics::{Frame, Pose, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
 use super::model::{Mount, PlantModel, MAX_DOF};
 use super::motor::{DcMotor, Winding};
-use crate::simulation::trace::EventRow;
+use super::progress::{ContactState, Progress, Situation, MIN_STEP};
+use crate::event::{EventKind, EventRow};
 
 /// Events handled at one instant without progress before the step is taken anyway.
 const MAX_STALLED_EVENTS: u32 = 16;
 
+pub use super::contact::{ContactForces, ContactMode};
 pub use super::model::NY;
-
-/// The mode of a contact between events.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ContactMode {
-    /// Not touching, or touching and separating.
-    Open,
-    /// Touching, held by a normal force; tangential velocity held at zero.
-    Stick,
-    /// Touching, slipping along `+t`.
-    SlipPositive,
-    /// Touching, slipping along `-t`.
-    SlipNegative,
-}
-
-impl ContactMode {
-    fn from_slip(s: SlipState) -> Self {
-        match s {
-            SlipState::Stick => ContactMode::Stick,
-            SlipState::SlipPositive => ContactMode::SlipPositive,
-            SlipState::SlipNegative => ContactMode::SlipNegative,
-        }
-    }
-
-    fn slip_state(self) -> SlipState {
-        match self {
-            ContactMode::SlipPositive => SlipState::SlipPositive,
-            ContactMode::SlipNegative => SlipState::SlipNegative,
-            _ => SlipState::Stick,
-        }
-    }
-
-    fn closed(self) -> bool {
-        self != ContactMode::Open
-    }
-}
+pub use super::progress::Stop;
 
 /// Numerical settings, with the reasons for their defaults.
 #[derive(Clone, Copy, Debug)]
@@ -129,6 +104,10 @@ pub struct Settings {
     /// enough to change nothing that matters (a lift-off delayed by
     /// `eps_F / (d lambda_n / dt)`, 2e-9 s at 3000 rpm).
     pub force_tolerance: f64,
+    /// The progress guard's budget: integrator steps and events within one
+    /// millisecond of simulated time ([`super::progress`]; the machine file's
+    /// `[simulation] progress_budget`).
+    pub progress_budget: u64,
 }
 
 impl Default for Settings {
@@ -141,6 +120,7 @@ impl Default for Settings {
             event_time_tolerance: 1e-12,
             velocity_tolerance: 1e-7,
             force_tolerance: 1e-6,
+            progress_budget: crate::machine::DEFAULT_PROGRESS_BUDGET,
         }
     }
 }
@@ -225,6 +205,15 @@ pub struct Plant {
     /// `(integral i dt, duration)` of the winding currents over the current (or
     /// last) `advance_to`, A s and s.
     current_integral: ([f64; 2], f64),
+    /// The work of the current window against the budget ([`super::progress`]).
+    progress: Progress,
+    /// The last contact event handled, and its time, s (the events themselves go
+    /// to whoever takes [`Plant::events`]).
+    last_event: Option<(EventKind, f64)>,
+    /// When set (non-zero), [`Plant::advance_to`] stops before its next attempt.
+    stop_flag: Option<&'static AtomicUsize>,
+    /// Why the plant stopped, once it has.
+    stopped: Option<Stop>,
 }
 
 impl Plant {
@@ -263,8 +252,13 @@ impl Plant {
             last_winding: std::cell::Cell::new([Winding::Open, Winding::Open]),
             scratch,
             current_integral: ([0.0; 2], 0.0),
+            progress: Progress::new(settings.progress_budget),
+            last_event: None,
+            stop_flag: None,
+            stopped: None,
         };
         plant.settle();
+        plant.last_event = plant.events.last().map(|e| (e.kind, e.t));
         plant
     }
 
@@ -450,9 +444,26 @@ impl Plant {
         }
     }
 
+    /// From now on, [`Plant::advance_to`] stops before its next integrator
+    /// attempt once `flag` is non-zero (a signal's flag: within one attempt, even
+    /// where a control tick takes minutes).
+    pub fn stop_when(&mut self, flag: &'static AtomicUsize) {
+        self.stop_flag = Some(flag);
+    }
+
     /// Integrates until `t_target`, handling every event on the way; `record` is
-    /// called with the states to output (see [`Output`]).
-    pub fn advance_to(&mut self, t_target: f64, record: &mut dyn FnMut(Output<'_>)) {
+    /// called with the states to output (see [`Output`]). Ends early, at a
+    /// consistent state, where the run stops advancing (the progress guard), the
+    /// step size underflows or the stop flag is set ([`Stop`]); every later call
+    /// ends the same way.
+    pub fn advance_to(
+        &mut self,
+        t_target: f64,
+        record: &mut dyn FnMut(Output<'_>),
+    ) -> Result<(), Stop> {
+        if let Some(stop) = &self.stopped {
+            return Err(stop.clone());
+        }
         let tol = self.tolerance();
         // The event functions at the start: kept from the last call while the state
         // and the windings are unchanged (a control tick does not move the state).
@@ -463,6 +474,13 @@ impl Plant {
         let mut stalled = 0u32;
         self.current_integral = ([0.0; 2], 0.0);
         while self.t < t_target {
+            if self
+                .stop_flag
+                .is_some_and(|f| f.load(Ordering::Relaxed) != 0)
+            {
+                return self.stop(Stop::Interrupted { t: self.t });
+            }
+            self.progress.at(self.t);
             // A bridge switching now (a PWM edge, a duty taking effect).
             if let Some(ts) = self.next_switch().filter(|ts| *ts <= self.t) {
                 if self.switch_bridges(ts) {
@@ -488,16 +506,18 @@ impl Plant {
                 let mut rhs = |_t: f64, yy: &[f64; NY]| this.evaluate(yy).ydot;
                 attempt(&mut rhs, t, &y, &f0, h, &tol)
             };
+            if !self.progress.spend() {
+                return self.no_progress();
+            }
             match outcome {
                 Attempt::Rejected(next) => {
                     self.h = next;
-                    if self.h < 1e-14 {
-                        self.warn(format!(
-                            "integrator: step size underflow at t = {:.9} s; state held",
-                            self.t
-                        ));
-                        self.t = t_target;
-                        return;
+                    if self.h < MIN_STEP {
+                        let stop = Stop::StepUnderflow {
+                            at: self.situation(),
+                            h: self.h,
+                        };
+                        return self.stop(stop);
                     }
                 }
                 Attempt::Accepted(step, next) => {
@@ -522,6 +542,9 @@ impl Plant {
                             self.fsal = None;
                             self.clamp_currents();
                             ev0 = self.event_values(&self.y);
+                            if !self.progress.spend() {
+                                return self.no_progress();
+                            }
                         }
                         Some(Crossing { t: te, y: ye, .. })
                             if te > step.t0 || stalled < MAX_STALLED_EVENTS =>
@@ -538,12 +561,18 @@ impl Plant {
                             }));
                             self.fsal = None;
                             self.settle();
+                            if let Some(e) = self.events.last() {
+                                self.last_event = Some((e.kind, e.t));
+                            }
                             record(Output::After(At {
                                 t: self.t,
                                 y: &self.y,
                                 plant: self,
                             }));
                             ev0 = self.event_values(&self.y);
+                            if !self.progress.spend() {
+                                return self.no_progress();
+                            }
                         }
                         found => {
                             if found.is_some() {
@@ -584,6 +613,45 @@ impl Plant {
             }
         }
         self.ev_cache = Some((self.y, ev0));
+        Ok(())
+    }
+
+    /// Ends the run at the current state with `stop`, for good.
+    fn stop(&mut self, stop: Stop) -> Result<(), Stop> {
+        self.stopped = Some(stop.clone());
+        Err(stop)
+    }
+
+    /// The progress guard's stop ([`super::progress`]).
+    fn no_progress(&mut self) -> Result<(), Stop> {
+        let stop = Stop::NoProgress {
+            at: self.situation(),
+            budget: self.progress.budget,
+        };
+        self.stop(stop)
+    }
+
+    /// The time, every contact's mode and gap, and the last event.
+    fn situation(&self) -> Situation {
+        let q = self.q();
+        let pose = Pose::new(&self.model, &q);
+        let contacts = self
+            .model
+            .contacts
+            .iter()
+            .zip(&self.modes)
+            .enumerate()
+            .map(|(j, (c, mode))| ContactState {
+                name: c.name.clone(),
+                mode: *mode,
+                gap: pose.gap(&self.model, j),
+            })
+            .collect();
+        Situation {
+            t: self.t,
+            contacts,
+            last_event: self.last_event,
+        }
     }
 
     /// The integrator's tolerances: relative `rtol`; absolute `1e-3 rtol` m on the
@@ -715,17 +783,6 @@ impl Plant {
         let frame = Frame::new(&self.model, &q);
         frame.kinetic_energy(&self.v()) + frame.potential_energy(&self.model, &q)
     }
-}
-
-/// The contact forces of persistent contact at a state, in the modes of that
-/// moment: per contact in file order, N (0 for open contacts; impacts are
-/// impulses, reported as events).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ContactForces {
-    /// Normal force `lambda_n` of each contact, N (along the fundament's normal).
-    pub normal: [f64; MAX_CONTACTS],
-    /// Tangential force `lambda_t` of each contact, N (along `t = (-n_y, n_x)`).
-    pub tangential: [f64; MAX_CONTACTS],
 }
 
 /// An accepted step's dense output, as the plant reports states: the 4th-order

@@ -19,6 +19,7 @@ pub mod plot;
 pub mod report;
 
 use std::path::PathBuf;
+use std::sync::atomic::AtomicUsize;
 
 use clap::{Args, ValueEnum};
 use shared::controller::{Command, Direction};
@@ -38,7 +39,7 @@ use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
-    limits, simulate_observed, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
+    limits, simulate_observed, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions, Stop,
 };
 use plot::plot_svg;
 use report::{summary_json, summary_table};
@@ -322,15 +323,21 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     if let (Some(i), Some(mut frames)) = (animation, frames) {
         staged.write(i, &animate::page(&title, &machine, &mut frames))?;
     }
-    if let Some(t) = result.stopped_at {
-        // A signal: what was simulated is written whole; no summary of
-        // half a run.
+    if let Some(stop) = &result.stopped {
+        // A signal, or a plant that stopped advancing: what was simulated is
+        // written whole; no summary of part of a run.
         staged.commit()?;
+        let why = match stop {
+            Stop::Interrupted { t } => format!(
+                "{} at t = {} s of {} s",
+                interrupt::interruption(),
+                sig(*t),
+                sig(t_end)
+            ),
+            other => other.to_string(),
+        };
         return Err(Failure::Run(format!(
-            "error: run: {} at t = {} s of {} s; the files asked for hold the run up to there, no summary",
-            interrupt::interruption(),
-            sig(t),
-            sig(t_end)
+            "error: run: {why}; the files asked for hold the run up to there, no summary"
         )));
     }
     staged.commit()?;
@@ -416,6 +423,10 @@ impl Observer for Watch<'_> {
     fn go_on(&mut self, t: f64) -> bool {
         self.progress.set_position((t * 1e3) as u64);
         self.error.is_none() && !interrupt::interrupted()
+    }
+
+    fn stop_flag(&self) -> Option<&'static AtomicUsize> {
+        Some(interrupt::flag())
     }
 }
 

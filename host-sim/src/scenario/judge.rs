@@ -14,7 +14,7 @@ use super::file::TIME_EPS;
 use crate::machine::input::Problem;
 use crate::output::text::sig;
 use crate::simulation::breach::Breach;
-use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions};
+use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions, Stop};
 
 /// How one expectation came out.
 #[derive(Clone, Debug, PartialEq)]
@@ -60,8 +60,9 @@ pub struct Report {
     pub detections: Vec<Detection>,
     /// The controller's state at the end.
     pub final_state: String,
-    /// The run was ended early by Ctrl-C at this time, s (nothing judged).
-    pub stopped_at: Option<f64>,
+    /// Why the run ended early, if it did (nothing judged): Ctrl-C, or a plant
+    /// that stopped advancing.
+    pub stopped: Option<Stop>,
     /// The run's warnings (`host-sim run`'s): a body through the fundament, a
     /// Painleve configuration, ...
     pub warnings: Vec<String>,
@@ -138,7 +139,7 @@ pub fn run_observed(
         outcomes,
         detections,
         final_state: driver.state(),
-        stopped_at: result.stopped_at,
+        stopped: result.stopped,
         warnings: result.summary.warnings,
     })
 }

@@ -25,7 +25,7 @@ use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::file::Staged;
-use crate::simulation::{limits, Interruptible};
+use crate::simulation::{limits, Interruptible, Stop};
 
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
@@ -85,11 +85,17 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
         staged.write(i, &animate::page(&title, &scenario.machine, &mut frames))?;
     }
     staged.commit()?;
-    if let Some(t) = report.stopped_at {
+    if let Some(stop) = &report.stopped {
+        let why = match stop {
+            Stop::Interrupted { t } => format!(
+                "{} at t = {} s",
+                crate::interrupt::interruption(),
+                crate::output::text::sig(*t)
+            ),
+            other => other.to_string(),
+        };
         return Err(Failure::Run(format!(
-            "error: scenario: {} at t = {} s: nothing judged{}",
-            crate::interrupt::interruption(),
-            crate::output::text::sig(t),
+            "error: scenario: {why}: nothing judged{}",
             if args.animate.is_some() {
                 "; the animation holds the run up to there"
             } else {

@@ -15,7 +15,7 @@
 //! A machine with one rotor: its driver commands rotor 2's H-bridge off
 //! (`BridgeCommand::Off`), and the plant, which has no rotor 2, writes the
 //! trace's rotor 2 columns (`phi2`, `omega2`, `i2`, `duty2`) as 0
-//! ([`crate::plant::model::PlantModel::row`]).
+//! ([`TraceRow::of`]).
 
 pub mod board;
 pub mod breach;
@@ -24,12 +24,17 @@ pub mod limits;
 pub mod summary;
 pub mod trace;
 
+use std::sync::atomic::AtomicUsize;
+
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
 use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
+
+/// Why a run ended early ([`RunResult::stopped`]): the plant's own word for it.
+pub use crate::plant::simulator::Stop;
 
 /// What drives the windings, asked at every control tick.
 pub trait Driver {
@@ -144,8 +149,8 @@ impl Driver for OpenLoopDriver {
 pub struct RunOptions {
     /// End time, s.
     pub t_end: f64,
-    /// Numerical settings of the plant; its `rtol` is the machine file's
-    /// `[simulation].rtol`, like the file's output step and seed.
+    /// Numerical settings of the plant; its `rtol` and `progress_budget` are the
+    /// machine file's (`[simulation]`), like the file's output step and seed.
     pub settings: Settings,
     /// Coordinates held still (tests only; the command holds nothing).
     pub holds: Holds,
@@ -184,6 +189,12 @@ pub trait Observer {
     fn go_on(&mut self, _t: f64) -> bool {
         true
     }
+    /// A flag that ends the run within one integrator attempt once it is
+    /// non-zero, inside a control tick too (the signals' flag,
+    /// [`crate::interrupt::flag`]); none by default.
+    fn stop_flag(&self) -> Option<&'static AtomicUsize> {
+        None
+    }
 }
 
 /// An observer that watches nothing.
@@ -212,6 +223,10 @@ impl Observer for Interruptible {
     fn go_on(&mut self, _t: f64) -> bool {
         !crate::interrupt::interrupted()
     }
+
+    fn stop_flag(&self) -> Option<&'static AtomicUsize> {
+        Some(crate::interrupt::flag())
+    }
 }
 
 /// What a run produced.
@@ -222,8 +237,11 @@ pub struct RunResult {
     pub rows: Vec<TraceRow>,
     /// The last trace row.
     pub last_row: Option<TraceRow>,
-    /// The run ended before `t_end` because the observer said so.
-    pub stopped_at: Option<f64>,
+    /// Why the run ended before `t_end`, if it did: the observer said so or its
+    /// stop flag was set ([`Stop::Interrupted`]), or the plant stopped advancing
+    /// ([`Stop::NoProgress`], [`Stop::StepUnderflow`]). The rows, events and
+    /// summary are then of the run up to there.
+    pub stopped: Option<Stop>,
     /// Events, in time order (empty unless [`RunOptions::keep_events`]).
     pub events: Vec<EventRow>,
     /// The summary.
@@ -295,7 +313,7 @@ impl Recorder<'_, '_> {
     }
 
     fn push(&mut self, t: f64, y: &[f64; NY], forces: &ContactForces) {
-        let row = self.model.row(t, y, self.duty, forces);
+        let row = TraceRow::of(&self.model, t, y, self.duty, forces);
         self.summary.push(&row);
         self.observer.row(&row);
         if self.keep_rows {
@@ -322,9 +340,13 @@ pub fn simulate_observed(
     let model = PlantModel::new(machine);
     let settings = Settings {
         rtol: machine.simulation.rtol,
+        progress_budget: machine.simulation.progress_budget,
         ..options.settings
     };
     let mut plant = Plant::new(model, initial_state(machine), settings, options.holds);
+    if let Some(flag) = observer.stop_flag() {
+        plant.stop_when(flag);
+    }
 
     // 2.-3. Tick by tick.
     let rate = machine.controller.rate_hz;
@@ -340,7 +362,7 @@ pub fn simulate_observed(
         duty: [0.0; 2],
     };
     let mut tick: u64 = 0;
-    let mut stopped_at = None;
+    let mut stopped = None;
     let mut events = Events {
         kept: Vec::new(),
         keep: options.keep_events,
@@ -362,10 +384,14 @@ pub fn simulate_observed(
         }
         tick += 1;
         let t_next = (tick as f64 / rate).min(options.t_end);
-        plant.advance_to(t_next, &mut |out| rec.take(out));
+        let advanced = plant.advance_to(t_next, &mut |out| rec.take(out));
         events.take(&mut plant, driver, rec.observer);
+        if let Err(stop) = advanced {
+            stopped = Some(stop);
+            break;
+        }
         if t_next < options.t_end && !rec.observer.go_on(t_next) {
-            stopped_at = Some(t_next);
+            stopped = Some(Stop::Interrupted { t: t_next });
             break;
         }
     }
@@ -387,7 +413,7 @@ pub fn simulate_observed(
     RunResult {
         rows: rec.rows,
         last_row: rec.last,
-        stopped_at,
+        stopped,
         events: events.kept,
         summary,
         steps: plant.steps,

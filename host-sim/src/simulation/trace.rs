@@ -2,7 +2,10 @@
 
 use shared::impact::MAX_CONTACTS;
 
+pub use crate::event::{EventKind, EventRow};
 use crate::machine::bodies::MAX_BODIES;
+use crate::plant::contact::ContactForces;
+use crate::plant::model::{PlantModel, NY};
 use crate::simulation::breach::Breach;
 
 /// One row of the `--out` trace. On a machine with one rotor, rotor 2's columns
@@ -52,82 +55,47 @@ pub struct TraceRow {
     pub bodies: [[f64; 6]; MAX_BODIES - 1],
 }
 
-/// The kind of an event (docs/cli-run.md, `--events`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EventKind {
-    /// An impact at a contact.
-    Impact,
-    /// A contact closes (persistent contact begins).
-    Contact,
-    /// A contact opens.
-    Liftoff,
-    /// A slipping contact sticks.
-    Stick,
-    /// A sticking contact slips.
-    Slip,
-    /// An accumulation of impacts ends in persistent contact.
-    Zeno,
-    /// A controller fault.
-    Fault,
-    /// A controller state change.
-    State,
-    /// A Painleve configuration (no or several consistent contact forces).
-    Painleve,
-}
-
-impl EventKind {
-    /// The name in the events CSV.
-    pub fn name(self) -> &'static str {
-        match self {
-            EventKind::Impact => "impact",
-            EventKind::Contact => "contact",
-            EventKind::Liftoff => "liftoff",
-            EventKind::Stick => "stick",
-            EventKind::Slip => "slip",
-            EventKind::Zeno => "zeno",
-            EventKind::Fault => "fault",
-            EventKind::State => "state",
-            EventKind::Painleve => "painleve",
+impl TraceRow {
+    /// The row of `model`'s state `y` at `t` with duties `duty` and the contact
+    /// forces `forces` at that state; a rotor the machine does not have reads 0,
+    /// its duty included (the trace's columns are fixed: docs/cli-run.md, `--out`).
+    pub fn of(
+        model: &PlantModel,
+        t: f64,
+        y: &[f64; NY],
+        duty: [f64; 2],
+        forces: &ContactForces,
+    ) -> TraceRow {
+        let n = model.dof;
+        let [x, yc, angle, vx, vy, omega] = model.body_motion(0, y);
+        let rotor = |k: usize| match model.rotors.get(k) {
+            Some(r) => (y[r.phi], y[n + r.phi], y[model.current(k)]),
+            None => (0.0, 0.0, 0.0),
+        };
+        let ((phi1, omega1, i1), (phi2, omega2, i2)) = (rotor(0), rotor(1));
+        let mut bodies = [[0.0; 6]; MAX_BODIES - 1];
+        for (b, row) in bodies.iter_mut().enumerate().take(model.bodies.len() - 1) {
+            *row = model.body_motion(b + 1, y);
         }
-    }
-}
-
-/// One row of the `--events` CSV: one contact at one event.
-#[derive(Clone, Debug, PartialEq)]
-pub struct EventRow {
-    /// Time, s (the rows of one simultaneous impact share it).
-    pub t: f64,
-    /// What happened.
-    pub kind: EventKind,
-    /// The contact's name (empty for controller events).
-    pub contact: String,
-    /// Normal velocity of the contact point before, m/s.
-    pub normal_velocity_before: f64,
-    /// Normal velocity after, m/s.
-    pub normal_velocity_after: f64,
-    /// Normal impulse, N s (impacts).
-    pub normal_impulse: f64,
-    /// Tangential impulse, N s (impacts).
-    pub tangential_impulse: f64,
-    /// The paper's interaction case (impacts), else `None`.
-    pub case: Option<u8>,
-    /// The state or fault name, or other detail.
-    pub detail: String,
-}
-
-impl EventRow {
-    /// A controller event at `t`: no contact, no velocities, impulses or case.
-    pub fn controller(t: f64, kind: EventKind, detail: String) -> Self {
-        EventRow {
+        TraceRow {
             t,
-            kind,
-            contact: String::new(),
-            normal_velocity_before: 0.0,
-            normal_velocity_after: 0.0,
-            normal_impulse: 0.0,
-            tangential_impulse: 0.0,
-            case: None,
-            detail,
+            x,
+            y: yc,
+            angle,
+            vx,
+            vy,
+            omega,
+            phi1,
+            phi2,
+            omega1,
+            omega2,
+            i1,
+            i2,
+            duty1: duty[0],
+            duty2: if model.rotors.len() > 1 { duty[1] } else { 0.0 },
+            normal_force: forces.normal,
+            tangential_force: forces.tangential,
+            bodies,
         }
     }
 }

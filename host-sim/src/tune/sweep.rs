@@ -16,7 +16,7 @@ use crate::output::progress::Progress;
 use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
-use crate::simulation::{simulate_observed, Interruptible, RunOptions};
+use crate::simulation::{simulate_observed, Interruptible, RunOptions, Stop};
 
 /// What the sweep covers.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,9 +65,11 @@ pub struct RunOutcome {
     /// controller faulted or never reached `running` in time, or the phase error
     /// was large. `None` for a run that was no travel (`not_a_travel` says why).
     pub not_held: Option<String>,
-    /// Why the run was no travel, if it was not: a body went through the
-    /// fundament or tipped over ([`crate::simulation::breach`]), or the mean
-    /// velocity is beyond [`MAX_VELOCITY_MPS`]. Its mean velocity is then NaN.
+    /// Why the run was no travel, if it was not: the plant stopped advancing
+    /// (the progress guard, a step size underflow: [`Stop`]'s message), a body
+    /// went through the fundament or tipped over ([`crate::simulation::breach`]),
+    /// or the mean velocity is beyond [`MAX_VELOCITY_MPS`]. Its mean velocity is
+    /// then NaN.
     pub not_a_travel: Option<String>,
     /// Warnings of the plant (e.g. a Painleve configuration): at most
     /// [`MAX_PLANT_WARNINGS`], then one counting the others.
@@ -322,8 +324,9 @@ pub fn offset_held(state: State, t: &Telemetry) -> bool {
 /// One closed-loop run of `machine` to `t_end` with the controller holding
 /// `offset_deg` at `speed_rpm` from `t = 0`. The offset counts as held when the
 /// controller ends `running`, got there by `T/2`, and its phase error over the
-/// second half is within [`HELD_ERROR_DEG_RMS`]. A run in which a body went
-/// through the fundament or tipped over ([`crate::simulation::breach`]), or whose
+/// second half is within [`HELD_ERROR_DEG_RMS`]. A run whose plant stopped
+/// advancing ([`Stop`]), one in which a body went through the fundament or
+/// tipped over ([`crate::simulation::breach`]), or one whose
 /// mean velocity is beyond [`MAX_VELOCITY_MPS`] either way (no travel by impacts
 /// goes that fast: the measured file's bound), is no travel: `not_a_travel` says
 /// why, and it has no mean velocity (NaN).
@@ -358,18 +361,26 @@ fn simulate_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64
     options.keep_events = false;
     let result = simulate_observed(machine, &mut driver, &options, &mut Interruptible::new());
     let s = &result.summary;
-    // A body through the fundament or tipped over: no travel to count (the
-    // run's own summary gives no number either); nor a speed no travel by
-    // impacts reaches.
-    outcome.not_a_travel = s.not_a_travel().or_else(|| {
-        (s.mean_velocity.abs() > MAX_VELOCITY_MPS).then(|| {
-            format!(
-                "mean velocity {} m/s, beyond the {} m/s of any travel by impacts",
-                text::sig(s.mean_velocity),
-                text::sig(MAX_VELOCITY_MPS)
-            )
-        })
-    });
+    // A plant that stopped advancing: the run is not a travel, and says why (a
+    // signal is the sweep's to report: `refuse_interrupted`). A body through the
+    // fundament or tipped over: no travel to count (the run's own summary gives
+    // no number either); nor a speed no travel by impacts reaches.
+    let stalled = result
+        .stopped
+        .as_ref()
+        .filter(|stop| !matches!(stop, Stop::Interrupted { .. }));
+    outcome.not_a_travel = stalled
+        .map(Stop::to_string)
+        .or_else(|| s.not_a_travel())
+        .or_else(|| {
+            (s.mean_velocity.abs() > MAX_VELOCITY_MPS).then(|| {
+                format!(
+                    "mean velocity {} m/s, beyond the {} m/s of any travel by impacts",
+                    text::sig(s.mean_velocity),
+                    text::sig(MAX_VELOCITY_MPS)
+                )
+            })
+        });
     outcome.mean_velocity = match outcome.not_a_travel {
         None => s.mean_velocity,
         Some(_) => f64::NAN,

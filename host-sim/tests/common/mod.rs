@@ -144,6 +144,22 @@ pub fn copy_dir(from: &Path, to: &Path) {
     }
 }
 
+/// The rows of a CSV written whole (a header, then rows of its columns, the last
+/// ended), each split into its cells; a cut or ragged file fails the test.
+pub fn whole_csv(path: &Path) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    assert!(text.ends_with('\n'), "{}: its last row cut", path.display());
+    let mut lines = text.lines();
+    let columns = lines.next().unwrap().split(',').count();
+    lines
+        .map(|l| {
+            let cells: Vec<String> = l.split(',').map(str::to_string).collect();
+            assert_eq!(cells.len(), columns, "{}: {l}", path.display());
+            cells
+        })
+        .collect()
+}
+
 /// What a run of the binary gave.
 pub struct Run {
     /// Exit status (-1 when killed by a signal).

@@ -81,6 +81,10 @@ impl Observer for Film<'_> {
     fn go_on(&mut self, t: f64) -> bool {
         self.inner.go_on(t)
     }
+
+    fn stop_flag(&self) -> Option<&'static std::sync::atomic::AtomicUsize> {
+        self.inner.stop_flag()
+    }
 }
 
 /// The page for the run of `machine` filmed in `frames`, titled `title`.

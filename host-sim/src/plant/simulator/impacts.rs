@@ -7,7 +7,7 @@ use shared::impact::{solve, ImpactLaw};
 use super::super::dynamics::row_dot;
 use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
-use crate::simulation::trace::{EventKind, EventRow};
+use crate::event::{EventKind, EventRow};
 
 impl Plant {
     /// One impact of the contacts `set` (all within the together gap).

@@ -9,7 +9,7 @@ use shared::impact::MAX_CONTACTS;
 use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
 use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
-use crate::simulation::trace::{EventKind, EventRow};
+use crate::event::{EventKind, EventRow};
 
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
@@ -43,16 +43,6 @@ fn least_change_in<const D: usize>(rows: &[(Vector, Vector, f64)]) -> Option<Vec
         }
     }
     Some(dx)
-}
-
-/// The name of a mode in the events CSV's detail.
-pub(super) fn mode_name(m: ContactMode) -> &'static str {
-    match m {
-        ContactMode::Open => "open",
-        ContactMode::Stick => "stick",
-        ContactMode::SlipPositive => "slip+",
-        ContactMode::SlipNegative => "slip-",
-    }
 }
 
 impl Plant {
@@ -230,7 +220,7 @@ impl Plant {
                 normal_impulse: 0.0,
                 tangential_impulse: 0.0,
                 case: None,
-                detail: mode_name(b).into(),
+                detail: b.name().into(),
             });
         }
         self.modes = new;

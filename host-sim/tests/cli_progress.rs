@@ -1,0 +1,310 @@
+//! The progress guard through the real binary (docs/plant-model.md, "The progress
+//! guard"): a run whose plant stops advancing in simulated time ends with exit 1
+//! and a message naming the time, the contacts and their modes, its files whole;
+//! a step size underflow ends it the same way; `tune`, `calibrate`, `scenario`
+//! and `device-sim` each report such a run as what it is.
+//!
+//! The machines that stall: the reference machine set spinning at 500 rad/s
+//! (`--set platform.angular_velocity=500`), whose steps shrink to 1e-10 s once it
+//! lands at 3.53 s; eight collinear feet, whose mode decision finds no consistent
+//! contact force at 0.544 s and takes seconds each time it is asked again. Before
+//! the guard the first took days (some 50 s of CPU a simulated millisecond), the
+//! second months. Each run here is bounded by [`LIMIT`] only to stop a hang, never
+//! timed.
+
+use std::fs;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde_json::Value;
+
+mod common;
+use common::{finish_within, host_sim, reference_without_uncertainty, root, whole_csv};
+
+/// A run that the guard fails to end is killed after this and the test fails.
+const LIMIT: Duration = Duration::from_secs(600);
+
+/// `host-sim args` from the repository root, bounded by [`LIMIT`].
+fn run(args: &[&str]) -> common::Run {
+    let mut cmd = host_sim();
+    cmd.args(args).current_dir(root());
+    finish_within(cmd, LIMIT)
+}
+
+/// A scratch path `name`.
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("cli-progress", name)
+}
+
+/// The reference machine standing on `feet` collinear feet: K1 and K2 where the
+/// file has them, the others spread evenly between, alike
+/// (`benchmarks/contacts_scaling.py`'s variants), written as `name`.
+fn on_feet(feet: usize, name: &str) -> PathBuf {
+    let text = reference_without_uncertainty();
+    let (x1, x2) = (-0.08f64, 0.08f64);
+    assert!(text.contains("point = [-0.08, 0.0]") && text.contains("point = [0.08, 0.0]"));
+    let mut extra = String::new();
+    for i in 1..feet - 1 {
+        let x = x1 + (x2 - x1) * i as f64 / (feet - 1) as f64;
+        extra += &format!(
+            "[[contacts]]\nname = \"K{}\"\npoint = [{x:?}, 0.0]\nrestitution = 0.3\nfriction = 0.4\nweight = 1.0\n\n",
+            i + 2
+        );
+    }
+    let at = text.find("[[rotors]]").expect("a [[rotors]] table");
+    let path = scratch(name);
+    fs::write(&path, format!("{}{extra}{}", &text[..at], &text[at..])).unwrap();
+    path
+}
+
+/// The reference machine with `lines` added to its `[simulation]`, written as
+/// `name`.
+fn with_simulation(lines: &str, name: &str) -> PathBuf {
+    let text = reference_without_uncertainty();
+    assert!(text.contains("\n[simulation]\n"));
+    let path = scratch(name);
+    fs::write(
+        &path,
+        text.replace("\n[simulation]\n", &format!("\n[simulation]\n{lines}\n")),
+    )
+    .unwrap();
+    path
+}
+
+/// The time a message's `at t = T s` names.
+fn time_in(message: &str, after: &str) -> f64 {
+    let rest = &message[message
+        .find(after)
+        .unwrap_or_else(|| panic!("{after:?} in {message}"))
+        + after.len()..];
+    rest.split(' ').next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn a_run_that_stops_advancing_ends_with_the_time_the_contacts_and_their_modes_its_files_whole() {
+    let (trace, events) = (scratch("spin-trace.csv"), scratch("spin-events.csv"));
+    let m = root().join("examples/vibro-driver.toml");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--set",
+        "platform.angular_velocity=500",
+        "--out",
+        trace.to_str().unwrap(),
+        "--events",
+        events.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status, 1, "{}", r.stderr);
+    assert!(r.stdout.is_empty(), "no summary: {}", r.stdout);
+    assert!(
+        r.stderr.starts_with("error: run: no progress at t = "),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        r.stderr.contains(": more than 100000 integrator steps and events within 1 ms of simulated time (simulation.progress_budget); contacts K1 open (gap "),
+        "{}",
+        r.stderr
+    );
+    assert!(r.stderr.contains(", K2 open (gap "), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .trim_end()
+            .ends_with("; the files asked for hold the run up to there, no summary"),
+        "{}",
+        r.stderr
+    );
+    // Stopped where it stalled, after the landing (at 3.53 s), long before 10 s.
+    let t = time_in(&r.stderr, "no progress at t = ");
+    assert!((3.5..3.6).contains(&t), "{}", r.stderr);
+    let last_impact = time_in(&r.stderr, "last event impact at t = ");
+    assert!(last_impact <= t && last_impact > 3.5, "{}", r.stderr);
+    // The trace up to the stop, its last row there; the events up to their last.
+    let rows = whole_csv(&trace);
+    let last: f64 = rows.last().unwrap()[0].parse().unwrap();
+    assert!((last - t).abs() < 1e-9, "last row at {last}, stop at {t}");
+    let events = whole_csv(&events);
+    let impact: f64 = events.last().unwrap()[0].parse().unwrap();
+    assert!((impact - last_impact).abs() < 1e-9);
+}
+
+#[test]
+fn eight_collinear_feet_stall_at_their_painleve_configuration_and_end_there() {
+    // Each mode decision of the eight feet takes seconds and the run advances a
+    // step every 17 of them: the default budget (100 000 a millisecond) would
+    // take days. 30 is more than the run needs before it stalls (22 at most), so
+    // the guard ends it at the stall, in a minute.
+    let m = on_feet(8, "eight.toml");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--set",
+        "simulation.progress_budget=30",
+    ]);
+    assert_eq!(r.status, 1, "{}", r.stderr);
+    assert!(
+        r.stderr.contains(": more than 30 integrator steps and events within 1 ms of simulated time (simulation.progress_budget); contacts K1 stick, K2 stick, K3 stick, K4 stick, K5 stick, K6 stick, K7 stick, K8 stick; last event painleve at t = "),
+        "{}",
+        r.stderr
+    );
+    let t = time_in(&r.stderr, "no progress at t = ");
+    assert!((0.54..0.55).contains(&t), "{}", r.stderr);
+}
+
+#[test]
+fn a_step_size_underflow_ends_the_run_instead_of_holding_the_state() {
+    // Fast decay at rtol 1e-12: the steps shrink below 1e-14 s at 1.4 us (the
+    // winding's current meets a corner no event function marks). The run used to
+    // hold the state to the end of the tick, warn, and give a summary.
+    let m = root().join("examples/vibro-driver.toml");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--set",
+        "drive.decay=fast",
+        "--set",
+        "simulation.rtol=1e-12",
+        "--t-end",
+        "0.01",
+    ]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(r.stdout.is_empty(), "{}", r.stdout);
+    assert!(
+        r.stderr.starts_with(
+            "error: run: integrator step size underflow at t = 0.000001400 s: the next step, "
+        ),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        r.stderr
+            .contains(" s, is below 1e-14 s; contacts K1 stick, K2 stick; last event "),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn tune_and_calibrate_count_a_run_that_stops_advancing_as_no_travel_and_say_why() {
+    // A budget below what the runs need (some 30 a millisecond) ends each early.
+    let m = root().join("examples/vibro-driver.toml");
+    let r = run(&[
+        "tune",
+        m.to_str().unwrap(),
+        "--speeds",
+        "3000:3000:250",
+        "--offsets",
+        "0:90:90",
+        "--t-end",
+        "1",
+        "--set",
+        "simulation.progress_budget=10",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let v: Value = serde_json::from_str(&r.stdout).unwrap();
+    let grid = v["grid"].as_array().unwrap();
+    assert_eq!(grid.len(), 2);
+    for p in grid {
+        assert!(p["mean_velocity"].is_null(), "{p}");
+        let why = p["not_a_travel"].as_str().unwrap();
+        assert!(
+            why.starts_with("no progress at t = ")
+                && why.contains("more than 10 integrator steps and events"),
+            "{why}"
+        );
+    }
+
+    let measured = scratch("measured.csv");
+    fs::write(
+        &measured,
+        "speed_rpm,offset_deg,velocity_mps\n3000,90,0.03\n",
+    )
+    .unwrap();
+    let m = common::uncertain_machine("cli-progress", "\"contacts.*.friction\" = [0.2, 0.6]\n");
+    let r = run(&[
+        "calibrate",
+        m.to_str().unwrap(),
+        "--measured",
+        measured.to_str().unwrap(),
+        "--fit",
+        "contacts.*.friction",
+        "--set",
+        "simulation.progress_budget=10",
+        "--set",
+        "simulation.t_end=1",
+    ]);
+    let all = r.stdout + &r.stderr;
+    assert!(
+        all.contains(
+            "3000 rpm 90 deg: the simulated run was no travel at the fit (no progress at t = "
+        ),
+        "{all}"
+    );
+}
+
+#[test]
+fn a_scenario_whose_plant_stops_advancing_judges_nothing() {
+    let m = with_simulation("", "spinning.toml");
+    let text = fs::read_to_string(&m)
+        .unwrap()
+        .replace("angular_velocity = 0.0 ", "angular_velocity = 500.0 ");
+    assert!(text.contains("angular_velocity = 500.0 "));
+    fs::write(&m, text).unwrap();
+    let s = scratch("spinning-scenario.toml");
+    fs::write(
+        &s,
+        format!(
+            "machine = '{}'\nt_end = 4.0\n\n[[commands]]\nt = 0.0\ncommand = \"right\"\nspeed_rpm = 3000\n\n[[expect]]\nkind = \"state\"\nstate = \"running\"\nwithin = [1.0, 4.0]\n",
+            m.display()
+        ),
+    )
+    .unwrap();
+    let r = run(&["scenario", s.to_str().unwrap()]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    assert!(r.stdout.is_empty(), "{}", r.stdout);
+    assert!(
+        r.stderr
+            .starts_with("error: scenario: no progress at t = 3.5"),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        r.stderr.trim_end().ends_with(": nothing judged"),
+        "{}",
+        r.stderr
+    );
+}
+
+#[test]
+fn device_sim_ends_when_its_plant_stops_advancing() {
+    let m = with_simulation("progress_budget = 10", "budget-10.toml");
+    let r = run(&[
+        "device-sim",
+        "--machine",
+        m.to_str().unwrap(),
+        "--listen",
+        "tcp:127.0.0.1:0",
+    ]);
+    assert_eq!(r.status, 1, "{}{}", r.stdout, r.stderr);
+    // Within its first millisecond: the run needs more than 10 there.
+    assert!(
+        r.stderr
+            .contains("error: device-sim: the machine's plant stopped: no progress at t = 0.000"),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        r.stderr
+            .contains(": more than 10 integrator steps and events within 1 ms"),
+        "{}",
+        r.stderr
+    );
+}
