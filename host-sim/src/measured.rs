@@ -60,11 +60,9 @@ pub const MAX_SPEED_RPM: f64 = 60_000.0;
 /// 3000 in the offset column would wrap to 120 deg unnoticed).
 pub const MAX_OFFSET_DEG: f64 = 360.0;
 
-/// Fastest travel of a row either way, m/s: the eccentric's own speed at 60 000
-/// rpm and 2 cm is 126 m/s, but travel by impacts is a small part of it (the
-/// reference machine: 20 to 50 mm/s); 10 m/s is 200 times that, and catches
-/// mm/s written as m/s (30 for 0.03).
-pub const MAX_VELOCITY_MPS: f64 = 10.0;
+/// Fastest travel of a row either way, m/s: that of a simulated run
+/// (`simulation::trace::MAX_VELOCITY_MPS`, 10 m/s), one bound for both.
+pub use crate::simulation::trace::MAX_VELOCITY_MPS;
 
 /// Smallest and largest weight of a row. Weights are relative (the weighted
 /// mean and the fit's estimates do not change when every weight is multiplied

@@ -636,17 +636,19 @@ fn ctrl_c_during_travel_for_stops_at_rest_and_says_so() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("host-sim runs");
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let first = lines.next().expect("a line").unwrap();
-    assert_eq!(first, "travel right at 3000 rpm: accepted");
+    let start = Instant::now();
+    // The first line only: the command prints nothing more until the signal.
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
+    let mut first = String::new();
+    reader.read_line(&mut first).expect("a line");
+    assert_eq!(first, "travel right at 3000 rpm: accepted\n");
+    child.stdout = Some(reader.into_inner());
     let pid = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
     nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
-    let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
-    let status = child.wait().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
-    let out = rest.join("\n");
-    assert_eq!(status.code(), Some(1), "{out}\n{stderr}");
+    let r = common::wait_within(&mut child, start, HANG);
+    let (out, stderr) = (r.stdout.trim_end().to_string(), r.stderr);
+    let rest: Vec<&str> = out.lines().collect();
+    assert_eq!(r.status, 1, "{out}\n{stderr}");
     // The time held, not the 600 s asked.
     let held: f64 = rest[0]
         .strip_prefix("after ")

@@ -129,6 +129,16 @@ fn bad_input_is_refused_before_serving() {
                 fast.display()
             ),
         ),
+        // The controller keeps the link timeout as f32: 1e-46 would be 0 there
+        // (link_lost at the first tick), 1e39 infinite (never).
+        (
+            vec!["--link-timeout", "1e-46"],
+            "error: --link-timeout: must be a number of seconds above 0 (got 1e-46)".to_string(),
+        ),
+        (
+            vec!["--link-timeout", "1e39"],
+            "error: --link-timeout: must be a number of seconds above 0 (got 1e39)".to_string(),
+        ),
     ];
     for (args, expect) in cases {
         let mut all = vec![
@@ -184,6 +194,27 @@ fn a_platform_through_the_fundament_is_no_travel() {
     assert!(
         stderr.contains("; no travel to report: platform went through the fundament at t = "),
         "{stderr}"
+    );
+    // When: as `host-sim run` finds it on the same machine, windings open as on
+    // the idle device (a second path to the same fall: its trace rows every
+    // 1 ms against the device's ticks), within a tick or two.
+    let at = |text: &str| -> f64 {
+        let rest = &text[text.find("through the fundament at t = ").expect(text) + 29..];
+        rest[..rest.find(" s").expect(text)].parse().expect(text)
+    };
+    let r = common::host_sim()
+        .args(["run", one_foot.to_str().unwrap(), "--open-loop", "coast"])
+        .args(["--t-end", "0.2", "--format", "json"])
+        .output()
+        .expect("host-sim run");
+    let run: serde_json::Value = serde_json::from_slice(&r.stdout).expect("JSON");
+    let (device_t, run_t) = (
+        at(&stderr),
+        at(run["not_a_travel"].as_str().expect("no travel")),
+    );
+    assert!(
+        (device_t - run_t).abs() <= 0.002,
+        "device-sim {device_t} s, run {run_t} s"
     );
     assert!(!stderr.contains("travelled"), "{stderr}");
     assert!(

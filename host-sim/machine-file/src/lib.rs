@@ -467,9 +467,9 @@ pub const DEFAULT_MAX_TILT: f64 = std::f64::consts::FRAC_PI_3;
 /// Default `[simulation].progress_budget`: integrator steps (accepted or
 /// rejected) and events within one millisecond of simulated time. The most any
 /// run took (benchmarks/plant.md, "The progress guard"): 902 for the Fig. 8
-/// machine at its defaults, 7 032 for the reference machine with fast decay, PWM
-/// and control ticks at 50 kHz and rtol 1e-12; 100 000 is 14 times that. A run
-/// that stops advancing (steps of 1e-10 s) spends it in about 2 s of CPU.
+/// machine at its defaults, 8 606 for the reference machine with fast decay, PWM
+/// and control ticks at 50 kHz and rtol 1e-11; 100 000 is 11 times that. A run
+/// that stops advancing (steps of 1e-10 s) spends it in about 0.2 s of CPU.
 pub const DEFAULT_PROGRESS_BUDGET: u64 = 100_000;
 /// The range of `[simulation].rtol`: below 1e-12 the positions' absolute
 /// tolerance (1e-3 rtol m) nears the rounding of f64 coordinates; up to 1e-3 the

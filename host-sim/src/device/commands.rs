@@ -184,11 +184,12 @@ fn run_on(
         }
         DeviceCommand::Reset => {
             command(client, &Request::ResetFaults)?;
-            let s = after_a_tick(client)?;
+            let (s, ticked) = after_a_tick(client)?;
             out.print(&format!(
-                "reset: accepted; state {}, faults {}\n",
+                "reset: accepted; state {}, faults {}{}\n",
                 s.state.name(),
-                report::faults_text(s.faults)
+                report::faults_text(s.faults),
+                stood(ticked, "reset")
             ));
         }
         DeviceCommand::Telemetry(a) => {
@@ -217,24 +218,38 @@ fn run_on(
 }
 
 /// The longest wait for the device's next control tick, s: the board ticks
-/// every millisecond; a device whose uptime stands this long has its status
-/// reported as it is.
+/// every millisecond; a device whose uptime stands this long is said to.
 const TICK_WAIT_S: f64 = 1.0;
 
 /// The status once the controller has taken the command just acknowledged,
 /// which it does at its next control tick: a status whose uptime differs from
 /// that of the first status asked after the Ack (that one may still be from
 /// the tick before the command came), asked every few milliseconds, at most
-/// [`TICK_WAIT_S`].
-fn after_a_tick(client: &mut Client) -> Result<StatusReport, Failure> {
+/// [`TICK_WAIT_S`]; with whether the device ticked (if not, the status may be
+/// from before the command, and the caller must say so).
+fn after_a_tick(client: &mut Client) -> Result<(StatusReport, bool), Failure> {
     let first = client.status()?;
     let start = Instant::now();
     loop {
         client.pump(Duration::from_millis(2))?;
         let s = client.status()?;
-        if s.uptime_ms != first.uptime_ms || start.elapsed().as_secs_f64() >= TICK_WAIT_S {
-            return Ok(s);
+        if s.uptime_ms != first.uptime_ms {
+            return Ok((s, true));
         }
+        if start.elapsed().as_secs_f64() >= TICK_WAIT_S {
+            return Ok((s, false));
+        }
+    }
+}
+
+/// What a status after a command says when the device did not tick.
+fn stood(ticked: bool, command: &str) -> String {
+    if ticked {
+        String::new()
+    } else {
+        format!(
+            " (the device's uptime stood for {TICK_WAIT_S} s: this status may be from before the {command})"
+        )
     }
 }
 
@@ -334,8 +349,16 @@ fn keep_alive(
     }
     let rest = await_rest(client, REST_TIMEOUT_S)?;
     if !rest.reached {
+        let why = if interrupted {
+            format!(
+                "{} after {held:.1} s of --for {for_s} s; ",
+                interrupt::interruption()
+            )
+        } else {
+            String::new()
+        };
         return Err(Failure::Device(format!(
-            "error: stop: accepted, but {}; stop it by hand (E-stop) or again with `host-sim device --port PORT stop`, and ask `host-sim device --port PORT status` until state idle with both rotors below 10 rpm (a table write and the self-test need that)",
+            "error: {why}stop: accepted, but {}; stop it by hand (E-stop) or again with `host-sim device --port PORT stop`, and ask `host-sim device --port PORT status` until state idle with both rotors below 10 rpm (a table write and the self-test need that)",
             rest.describe()
         )));
     }
@@ -361,7 +384,11 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
     command(client, &Request::RunSelfTest)?;
     // Until the controller takes the request at its next tick, the device
     // reports the previous self-test's outcome: not this one's.
-    after_a_tick(client)?;
+    if !after_a_tick(client)?.1 {
+        return Err(Failure::Device(format!(
+            "error: the device accepted the self-test but its uptime stood for {TICK_WAIT_S} s: its report cannot be told from the last test's; ask `host-sim device --port PORT status` until its uptime moves, then again"
+        )));
+    }
     let start = Instant::now();
     let timeout = Duration::from_secs_f64(a.timeout);
     // A device that accepted the test but never reports it running.
@@ -397,12 +424,13 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
         }
         if interrupt::interrupted() {
             command(client, &Request::Stop)?;
-            after_a_tick(client)?;
+            let ticked = after_a_tick(client)?.1;
             let after = read_self_test(client)?;
             return Err(Failure::Device(format!(
-                "error: {}: the self-test was stopped (Stop accepted); its status now: {}",
+                "error: {}: the self-test was stopped (Stop accepted); its status now: {}{}",
                 interrupt::interruption(),
-                report::self_test_status(after.status)
+                report::self_test_status(after.status),
+                stood(ticked, "stop")
             )));
         }
         client.pump(SELF_TEST_POLL)?;

@@ -87,11 +87,6 @@ impl PlantMechanics {
         }
     }
 
-    /// What the watch found so far (the watch goes on).
-    fn breaches_so_far(&self) -> Vec<Breach> {
-        self.breaches.clone().finish()
-    }
-
     /// The plant's new warnings into the bounded list, the plant's own emptied.
     fn take_warnings(&mut self) {
         for w in self.plant.warnings.drain(..) {
@@ -159,7 +154,7 @@ impl Mechanics for PlantMechanics {
     }
 
     fn warnings(&self) -> Vec<String> {
-        let mut all: Vec<String> = self.breaches_so_far().iter().map(Breach::warning).collect();
+        let mut all: Vec<String> = self.breaches.found().iter().map(Breach::warning).collect();
         all.extend(self.warnings.iter().cloned());
         if self.more_warnings > 0 {
             all.push(format!(
@@ -171,14 +166,14 @@ impl Mechanics for PlantMechanics {
     }
 
     fn no_travel(&self) -> Option<String> {
-        self.breaches_so_far().first().map(Breach::short)
+        self.breaches.found().first().map(Breach::short)
     }
 
     fn stopped(&self) -> Option<String> {
         // A signal is device-sim's own end, not the plant's failure.
         self.stopped
             .as_ref()
-            .filter(|s| !matches!(s, Stop::Interrupted { .. }))
+            .filter(|s| !s.is_signal())
             .map(Stop::to_string)
     }
 }

@@ -321,14 +321,26 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             )));
         }
     }
-    for (flag, v) in [
-        ("--duration", args.duration),
-        ("--link-timeout", args.link_timeout),
+    // The link timeout goes to the controller as f32 (the firmware's type): it
+    // must stay a positive finite number there too (1e-46 would become 0, 1e39
+    // infinity).
+    let as_f32 = |s: f64| {
+        let f = s as f32;
+        f.is_finite() && f > 0.0
+    };
+    for (flag, v, fits) in [
+        ("--duration", args.duration, true),
+        (
+            "--link-timeout",
+            args.link_timeout,
+            args.link_timeout.is_none_or(as_f32),
+        ),
     ] {
         match v {
-            Some(s) if !(s.is_finite() && s > 0.0) => {
+            Some(s) if !(s.is_finite() && s > 0.0 && fits) => {
                 return Err(Failure::Usage(format!(
-                    "error: {flag}: must be a number of seconds above 0 (got {s})"
+                    "error: {flag}: must be a number of seconds above 0 (got {})",
+                    text::sig(s)
                 )))
             }
             _ => {}

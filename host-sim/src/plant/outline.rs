@@ -142,6 +142,12 @@ pub fn outlines(machine: &Machine) -> Vec<Outline> {
             let e = r.eccentricity;
             if e > 0.0 {
                 carried[b].extend(circle(axis, e).map(|point| Carried { point, what: None }));
+            } else {
+                // No eccentric circle: the axis itself lies inside the outline.
+                carried[b].push(Carried {
+                    point: axis,
+                    what: None,
+                });
             }
             circles[b].push(Probe {
                 what: if e > 0.0 {

@@ -123,6 +123,12 @@ impl Stop {
             Stop::NoProgress { at, .. } | Stop::StepUnderflow { at, .. } => at.t,
         }
     }
+
+    /// Whether the caller's stop flag (a signal) ended the run, not the plant:
+    /// the command reports the signal; a sweep ends, it does not count the run.
+    pub fn is_signal(&self) -> bool {
+        matches!(self, Stop::Interrupted { .. })
+    }
 }
 
 impl fmt::Display for Situation {

@@ -39,7 +39,7 @@ use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
-    limits, simulate_observed, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions, Stop,
+    limits, simulate_observed, stop_message, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
 };
 use plot::plot_svg;
 use report::{summary_json, summary_table};
@@ -308,8 +308,10 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let frames = film.frames;
     watch.finish()?;
     result.summary.warnings.extend(warnings);
-    // A run through the fundament or tipped over has no travel to speak of.
-    let travel = Some(result.summary.mean_velocity).filter(|_| result.summary.breaches.is_empty());
+    // A run that is no travel (through the fundament, tipped over) has no way
+    // it went.
+    let travel =
+        Some(result.summary.mean_velocity).filter(|_| result.summary.not_a_travel().is_none());
     result
         .summary
         .warnings
@@ -327,15 +329,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // A signal, or a plant that stopped advancing: what was simulated is
         // written whole; no summary of part of a run.
         staged.commit()?;
-        let why = match stop {
-            Stop::Interrupted { t } => format!(
-                "{} at t = {} s of {} s",
-                interrupt::interruption(),
-                sig(*t),
-                sig(t_end)
-            ),
-            other => other.to_string(),
-        };
+        let why = stop_message(stop, Some(t_end));
         return Err(Failure::Run(format!(
             "error: run: {why}; the files asked for hold the run up to there, no summary"
         )));

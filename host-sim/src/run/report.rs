@@ -140,7 +140,12 @@ pub fn summary_table(s: &Summary) -> String {
         out.push('\n');
     }
     if let Some(why) = s.not_a_travel() {
-        out.push_str(&format!("{NOT_A_TRAVEL}: {why} (the warnings say more)\n"));
+        let more = if s.breaches.is_empty() {
+            ""
+        } else {
+            " (the warnings say more)"
+        };
+        out.push_str(&format!("{NOT_A_TRAVEL}: {why}{more}\n"));
     }
     out.push('\n');
     let mut t = Table::new(&[
@@ -388,6 +393,29 @@ mod tests {
         assert!(line("distance").ends_with("not a travel"), "{t}");
         assert!(!t.contains("+0.0125"), "{t}");
         assert!(t.contains("  - platform went through the fundament"), "{t}");
+    }
+
+    /// A mean velocity beyond 10 m/s is no travel in `run` as in `tune`: one rule
+    /// (`Summary::not_a_travel`), no warning to point to where no body breached.
+    #[test]
+    fn a_speed_no_travel_by_impacts_reaches_is_no_travel() {
+        let mut s = summary();
+        s.mean_velocity = 411.0;
+        let doc: Value = serde_json::from_str(&summary_json(&s)).unwrap();
+        assert!(doc["mean_velocity"].is_null(), "{doc}");
+        assert_eq!(
+            doc["not_a_travel"],
+            "mean velocity 411 m/s, beyond the 10 m/s of any travel by impacts"
+        );
+        let t = summary_table(&s);
+        assert_eq!(
+            t.lines().nth(1),
+            Some("not a travel: mean velocity 411 m/s, beyond the 10 m/s of any travel by impacts"),
+            "{t}"
+        );
+        // At the bound, a travel still.
+        s.mean_velocity = -10.0;
+        assert_eq!(s.not_a_travel(), None);
     }
 
     /// The summary of a one-rotor machine's controller run.

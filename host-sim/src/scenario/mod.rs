@@ -25,7 +25,7 @@ use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::file::Staged;
-use crate::simulation::{limits, Interruptible, Stop};
+use crate::simulation::{limits, Interruptible};
 
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
@@ -86,14 +86,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     }
     staged.commit()?;
     if let Some(stop) = &report.stopped {
-        let why = match stop {
-            Stop::Interrupted { t } => format!(
-                "{} at t = {} s",
-                crate::interrupt::interruption(),
-                crate::output::text::sig(*t)
-            ),
-            other => other.to_string(),
-        };
+        let why = crate::simulation::stop_message(stop, None);
         return Err(Failure::Run(format!(
             "error: scenario: {why}: nothing judged{}",
             if args.animate.is_some() {

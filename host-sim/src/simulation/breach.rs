@@ -216,25 +216,31 @@ impl BreachWatch {
     /// What was found, by time of first finding (a body's fundament before its
     /// tilt at equal times).
     pub fn finish(self) -> Vec<Breach> {
+        self.found()
+    }
+
+    /// What was found so far, as [`BreachWatch::finish`] gives it; the watch
+    /// goes on (a device's plant asks while it runs).
+    pub fn found(&self) -> Vec<Breach> {
         let limit = self.max_tilt;
         let mut found = Vec::new();
-        for w in self.bodies {
-            let body = w.outline.name;
-            if let Some((t, first, deepest, deepest_what, deepest_t)) = w.below {
+        for w in &self.bodies {
+            let body = &w.outline.name;
+            if let Some((t, first, deepest, deepest_what, deepest_t)) = &w.below {
                 found.push(Breach {
                     body: body.clone(),
-                    t,
+                    t: *t,
                     kind: BreachKind::Fundament {
-                        first,
-                        deepest,
-                        deepest_what,
-                        deepest_t,
+                        first: first.clone(),
+                        deepest: *deepest,
+                        deepest_what: deepest_what.clone(),
+                        deepest_t: *deepest_t,
                     },
                 });
             }
             if let Some((t, largest, largest_t)) = w.tilt {
                 found.push(Breach {
-                    body,
+                    body: body.clone(),
                     t,
                     kind: BreachKind::Tilt {
                         limit,

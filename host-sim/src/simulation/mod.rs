@@ -27,6 +27,7 @@ pub mod trace;
 use std::sync::atomic::AtomicUsize;
 
 use crate::machine::Machine;
+use crate::output::text::sig;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::{initial_state, PlantModel};
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
@@ -35,6 +36,23 @@ use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
 
 /// Why a run ended early ([`RunResult::stopped`]): the plant's own word for it.
 pub use crate::plant::simulator::Stop;
+
+/// Why a run ended early, for a command's message: the signal by its name and
+/// the time (`interrupted by SIGTERM at t = 1.5 s`, then ` of T s` where
+/// `t_end` is given), or the plant's own reason ([`Stop`]'s text).
+pub fn stop_message(stop: &Stop, t_end: Option<f64>) -> String {
+    match stop {
+        Stop::Interrupted { t } => {
+            let of = t_end.map_or(String::new(), |t_end| format!(" of {} s", sig(t_end)));
+            format!(
+                "{} at t = {} s{of}",
+                crate::interrupt::interruption(),
+                sig(*t)
+            )
+        }
+        other => other.to_string(),
+    }
+}
 
 /// What drives the windings, asked at every control tick.
 pub trait Driver {

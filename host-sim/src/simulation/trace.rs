@@ -4,9 +4,17 @@ use shared::impact::MAX_CONTACTS;
 
 pub use crate::event::{EventKind, EventRow};
 use crate::machine::bodies::MAX_BODIES;
+use crate::output::text::sig;
 use crate::plant::contact::ContactForces;
 use crate::plant::model::{PlantModel, NY};
 use crate::simulation::breach::Breach;
+
+/// Fastest travel either way, m/s: the eccentric's own speed at 60 000 rpm and
+/// 2 cm is 126 m/s, but travel by impacts is a small part of it (the reference
+/// machine: 20 to 50 mm/s); 10 m/s is 200 times that. A run's mean velocity
+/// beyond it is no travel ([`Summary::not_a_travel`]), and a measured file's
+/// row beyond it is refused (it catches mm/s written as m/s: 30 for 0.03).
+pub const MAX_VELOCITY_MPS: f64 = 10.0;
 
 /// One row of the `--out` trace. On a machine with one rotor, rotor 2's columns
 /// (`phi2`, `omega2`, `i2`, `duty2`) stay, as 0 (the columns are fixed:
@@ -151,9 +159,19 @@ pub struct Summary {
 
 impl Summary {
     /// Why the run's `mean_velocity` and `distance` are no travel, if they are
-    /// not: the first breach ([`crate::simulation::breach`]), in a few words.
+    /// not, in a few words: the first breach ([`crate::simulation::breach`]), or
+    /// a mean velocity beyond [`MAX_VELOCITY_MPS`] either way. The one rule of
+    /// `run`, `scenario`, `tune`, `merge` and `calibrate`.
     pub fn not_a_travel(&self) -> Option<String> {
-        self.breaches.first().map(Breach::short)
+        self.breaches.first().map(Breach::short).or_else(|| {
+            (self.mean_velocity.abs() > MAX_VELOCITY_MPS).then(|| {
+                format!(
+                    "mean velocity {} m/s, beyond the {} m/s of any travel by impacts",
+                    sig(self.mean_velocity),
+                    sig(MAX_VELOCITY_MPS)
+                )
+            })
+        })
     }
 
     /// The machine's rotors, 1 or 2: one speed each.

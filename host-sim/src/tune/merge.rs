@@ -29,7 +29,6 @@ use super::{
 };
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
-use crate::output::text;
 
 /// Arguments of `host-sim merge`.
 #[derive(Debug, Args)]
@@ -99,8 +98,10 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
     let grid = first.sweep.grid();
     // The range texts as the messages quote them: cut (a part is anyone's file).
-    let quote = |s: &str| text::cut(s, text::MAX_QUOTED);
-    let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
+    let (speeds, offsets) = (
+        part::quote(&first.sweep.speeds),
+        part::quote(&first.sweep.offsets),
+    );
     let refused = grid_problems(&machine, &grid, &speeds, &offsets);
     if !refused.is_empty() {
         // The parts are one sweep (checked): the first one names it.

@@ -449,7 +449,7 @@ pub(crate) fn run_shard(
 
 /// A field of a part for a message: [`text::cut`] at [`text::MAX_QUOTED`] (a
 /// part is a file anyone can write: a 10 MB field must not make a 10 MB line).
-fn quote(field: &str) -> String {
+pub(crate) fn quote(field: &str) -> String {
     text::cut(field, text::MAX_QUOTED)
 }
 
@@ -530,14 +530,14 @@ pub fn read(path: &Path) -> Result<Part, String> {
     // have is not opened, and no output names it.
     if !is_sha256(&part.machine.sha256) {
         return Err(damaged(format!(
-            "machine.sha256 {:?}: not a SHA-256 (64 lowercase hex digits)",
-            quote(&part.machine.sha256)
+            "machine.sha256 {}: not a SHA-256 (64 lowercase hex digits)",
+            input::quoted(&part.machine.sha256)
         )));
     }
     if part.machine.path.len() > input::MAX_PATH_SHOWN {
         return Err(damaged(format!(
-            "machine.path {:?}: longer than a path a file can be opened by ({} bytes)",
-            quote(&part.machine.path),
+            "machine.path {}: longer than a path a file can be opened by ({} bytes)",
+            input::quoted(&part.machine.path),
             input::MAX_PATH_SHOWN
         )));
     }

@@ -360,7 +360,9 @@ pub fn conclude(
                     ));
                     list.push(b);
                 }
-                None => warnings.push(format!("{every}: no run held its offset, no best offset")),
+                None => warnings.push(format!(
+                    "{every}: no run held its offset and travelled, no best offset"
+                )),
             }
         }
     }
@@ -424,7 +426,7 @@ pub fn run(
         if let Some((i, p)) = &write {
             let Some(text) = table_file(&robust, request, p) else {
                 return Err(Failure::Run(
-                    "error: --write: no speed has a best offset both ways (no run there held its offset; see the warnings): nothing written; the sweep is above\n".into(),
+                    "error: --write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above\n".into(),
                 ));
             };
             staged.write(*i, &text)?;
@@ -493,7 +495,7 @@ fn rows(r: &Robust) -> Vec<(&RobustBest, &RobustBest)> {
 }
 
 /// The tuning table file (`--write`), `None` when no speed has a best offset both
-/// ways (robust or the least bad: no point held its offset on a run).
+/// ways (robust or the least bad: no point held its offset and travelled on a run).
 pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String> {
     let both = rows(r);
     if both.is_empty() {

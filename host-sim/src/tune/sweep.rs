@@ -113,7 +113,6 @@ impl RunOutcome {
     /// `RunOutcome::bounded` keeps. The texts quoted cut.
     pub fn problem(&self) -> Option<String> {
         let v = self.mean_velocity;
-        let quoted = |s: &str| format!("{:?}", text::cut(s, text::MAX_QUOTED));
         if v.is_finite() && v.abs() > MAX_VELOCITY_MPS {
             return Some(format!(
                 "mean_velocity {} m/s: beyond the {} m/s of any travel by impacts (tune writes no such run)",
@@ -126,7 +125,7 @@ impl RunOutcome {
                 return Some(format!(
                     "mean_velocity {} with not_a_travel {}: a run that was no travel has no mean velocity (NaN) and no not_held",
                     text::sig(v),
-                    quoted(why)
+                    input::quoted(why)
                 ));
             }
         } else if self.not_held.is_none() && !v.is_finite() {
@@ -151,7 +150,7 @@ impl RunOutcome {
             if s.len() > text::cut_bound(MAX_REASON_BYTES) {
                 return Some(format!(
                     "{what} {}: tune cuts such a text at {MAX_REASON_BYTES} bytes",
-                    quoted(s)
+                    input::quoted(s)
                 ));
             }
         }
@@ -365,22 +364,8 @@ fn simulate_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64
     // signal is the sweep's to report: `refuse_interrupted`). A body through the
     // fundament or tipped over: no travel to count (the run's own summary gives
     // no number either); nor a speed no travel by impacts reaches.
-    let stalled = result
-        .stopped
-        .as_ref()
-        .filter(|stop| !matches!(stop, Stop::Interrupted { .. }));
-    outcome.not_a_travel = stalled
-        .map(Stop::to_string)
-        .or_else(|| s.not_a_travel())
-        .or_else(|| {
-            (s.mean_velocity.abs() > MAX_VELOCITY_MPS).then(|| {
-                format!(
-                    "mean velocity {} m/s, beyond the {} m/s of any travel by impacts",
-                    text::sig(s.mean_velocity),
-                    text::sig(MAX_VELOCITY_MPS)
-                )
-            })
-        });
+    let stalled = result.stopped.as_ref().filter(|stop| !stop.is_signal());
+    outcome.not_a_travel = stalled.map(Stop::to_string).or_else(|| s.not_a_travel());
     outcome.mean_velocity = match outcome.not_a_travel {
         None => s.mean_velocity,
         Some(_) => f64::NAN,
