@@ -35,16 +35,34 @@ const PLANT_USES: [&str; 2] = ["machine", "event"];
 /// A source file's code: comment lines dropped, and its test module (from
 /// `#[cfg(test)]` on) cut off.
 fn code(path: &Path) -> Vec<(usize, String)> {
-    let text = fs::read_to_string(path).unwrap();
-    let mut lines = Vec::new();
+    lines_of(&fs::read_to_string(path).unwrap())
+}
+
+/// [`code`] of `text`, with its line numbers: a `use` statement over several
+/// lines (rustfmt's form of a long list) joined into its first, so that every
+/// path it names is read.
+fn lines_of(text: &str) -> Vec<(usize, String)> {
+    let mut lines: Vec<(usize, String)> = Vec::new();
+    let mut open_use = false;
     for (i, line) in text.lines().enumerate() {
         let t = line.trim_start();
         if t.starts_with("#[cfg(test)]") {
             break;
         }
-        if !t.starts_with("//") {
+        if t.starts_with("//") {
+            continue;
+        }
+        if open_use {
+            let last = lines.last_mut().expect("the statement's first line");
+            last.1.push(' ');
+            last.1.push_str(t);
+        } else {
             lines.push((i + 1, line.to_string()));
         }
+        let is_use = ["use ", "pub use ", "pub(crate) use ", "pub(super) use "]
+            .iter()
+            .any(|u| t.starts_with(u));
+        open_use = (open_use || is_use) && !t.contains(';');
     }
     lines
 }
@@ -238,6 +256,16 @@ fn the_plants_modules_form_no_circle() {
 
 #[test]
 fn paths_are_read_as_the_compiler_reads_them() {
+    // A list over several lines, as rustfmt writes a long one.
+    let lines =
+        lines_of("use super::{\n    dynamics::Pose,\n    model::{Mount, NY},\n};\nfn f() {}\n");
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert_eq!(lines[0].0, 1);
+    assert_eq!(
+        first_segments(&lines[0].1, "super::"),
+        ["dynamics", "model"]
+    );
+    assert_eq!(lines[1], (5, "fn f() {}".to_string()));
     let line = "use super::super::{dynamics::{Frame, Vector}, model::MAX_DOF};";
     assert_eq!(
         first_segments(line, "super::super::"),

@@ -16,7 +16,7 @@
 //!    offset from `t = 0`), all the runs of a batch of points in parallel; a run
 //!    that does not hold its offset gives its point the residual
 //!    [`NOT_HELD_RESIDUAL_MPS`];
-//! 3. the simulator's numerical noise at the fit: every point run again at finer
+//! 3. the simulator's numerical noise at the fit: every point run again at other
 //!    tolerances ([`numerical`]); the standard errors, the measurements' scatter
 //!    and that noise both in them, and the keys not identified ([`precision`]);
 //! 4. the outputs ([`report`]): `--write` (the machine file with the fitted values,
@@ -193,7 +193,7 @@ pub struct Calibration {
     pub std_error_measurement: Vec<Option<f64>>,
     /// Its part from the simulator's numerical noise, in the key's units.
     pub std_error_numerical: Vec<Option<f64>>,
-    /// The runs at finer tolerances and the numerical noise of each point.
+    /// The runs at the other tolerances and the numerical noise of each point.
     pub noise: numerical::Noise,
     /// How far each key's fit may lie from the least-squares point by the
     /// search's last step, in its units.
@@ -461,7 +461,7 @@ pub fn calibrate(
 }
 
 /// The most evaluations of a fit of `p` keys with `settings`: the search's and
-/// the runs again at finer tolerances ([`numerical::DIVISORS`]).
+/// the runs again at the other tolerances ([`numerical::DIVISORS`]).
 pub fn most_evaluations(settings: &Settings, p: usize) -> usize {
     settings.most_evaluations(1, p) + numerical::DIVISORS.len()
 }

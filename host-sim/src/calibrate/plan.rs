@@ -8,7 +8,7 @@
 //! time ~= runs x (seconds of the run timed) / threads
 //! ```
 //!
-//! The most evaluations count the two of the numerical noise's runs at finer
+//! The most evaluations count the two of the numerical noise's runs at the other
 //! tolerances ([`super::numerical`]), which cost a little more than the others.
 //! An upper bound on the runs (the search usually stops at 70 to 80 % of its
 //! budget) and a rough one on the time (runs differ in cost by their gait).

@@ -170,12 +170,19 @@ pub fn numerical_warnings(
         })
         .collect();
     let rtols: Vec<String> = noise.rtols.iter().map(|r| text::sig(*r)).collect();
+    // A finer tolerance is advice only where there is one: at the lowest the
+    // file allows the runs went coarser.
+    let finer = if noise.rtols[1] < noise.rtols[0] {
+        " or a finer simulation.rtol"
+    } else {
+        ""
+    };
     let mut out = Vec::new();
     for (i, k) in keys.iter().enumerate() {
         if let (Some(m), Some(x)) = (measurement[i], numerical[i]) {
             if x > m {
                 out.push(format!(
-                    "{}: the simulator's numerical noise makes more of its standard error ({}) than the measurements' scatter ({}): speeds change with the tolerance ({}) by up to {}; leaving such points out (a chaotic gait's speed changes at any tolerance) or a finer simulation.rtol narrows it (docs/calibration.md, \"Numerical noise\")",
+                    "{}: the simulator's numerical noise makes more of its standard error ({}) than the measurements' scatter ({}): speeds change with the tolerance ({}) by up to {}; leaving such points out (a chaotic gait's speed changes at any tolerance){finer} narrows it (docs/calibration.md, \"Numerical noise\")",
                     k.key,
                     text::sig(x),
                     text::sig(m),
@@ -273,13 +280,13 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         super::count(c.fit.evaluations, "evaluation"),
         super::count(c.runs, "run")
     );
-    let finer: Vec<String> = c.noise.rtols[1..].iter().map(|r| text::sig(*r)).collect();
+    let others: Vec<String> = c.noise.rtols[1..].iter().map(|r| text::sig(*r)).collect();
     let _ = writeln!(
         out,
         "numerical noise: each point run again at rtol {}: the rows' numerical column is the standard deviation of its speeds over the {} tolerances, the keys' that noise's part of the standard error",
-        match finer.split_last() {
+        match others.split_last() {
             Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
-            _ => finer.join(""),
+            _ => others.join(""),
         },
         c.noise.rtols.len()
     );
@@ -503,6 +510,54 @@ fn set_value(root: &mut Table, key_path: &str, x: f64) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibrate::keys::Bound;
+
+    /// The noise warning advises a finer tolerance only where the noise runs
+    /// went finer: at 1e-12, the lowest the file allows, they went coarser.
+    #[test]
+    fn a_finer_tolerance_is_advised_only_where_there_is_one() {
+        let key = FitKey {
+            key: "contacts.*.restitution".into(),
+            targets: vec![],
+            key_paths: vec![],
+            low: 0.2,
+            high: 0.6,
+            bound: Bound::Uncertainty,
+            nominal: 0.4,
+        };
+        let point = Point {
+            speed_rpm: 3000.0,
+            offset_deg: 90.0,
+            rows: 1,
+            weight: 1.0,
+            mean_mps: 0.03,
+            scatter: 0.0,
+        };
+        let warning = |rtols: Vec<f64>| {
+            let noise = Noise {
+                rtols,
+                speeds: vec![vec![Some(0.03); 5]],
+                sd: vec![1e-3],
+                ssr: vec![0.0; 5],
+            };
+            numerical_warnings(
+                std::slice::from_ref(&key),
+                &[Some(1e-3)],
+                &[Some(2e-3)],
+                std::slice::from_ref(&point),
+                &noise,
+            )
+        };
+        let finer = warning(vec![1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]);
+        assert_eq!(finer.len(), 1);
+        assert!(
+            finer[0].contains(" or a finer simulation.rtol narrows it"),
+            "{finer:?}"
+        );
+        let coarser = warning(vec![1e-12, 2e-12, 4e-12, 8e-12, 1.6e-11]);
+        assert_eq!(coarser.len(), 1);
+        assert!(!coarser[0].contains("finer"), "{coarser:?}");
+    }
 
     #[test]
     fn values_change_and_nothing_else() {

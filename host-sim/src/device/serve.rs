@@ -519,25 +519,37 @@ mod tests {
         );
     }
 
-    /// Holds the loop up once, for `stall`, at tick 10, then serves until tick
-    /// 110 is due (the ticks of one catch-up all run: serving ends between reads).
+    /// Holds the loop up once, for `stall`, between two reads once 10 ticks have
+    /// run (never inside a catch-up), then serves 300 ticks more.
     struct Stall {
         stall: Duration,
         ticks: u64,
+        /// The ticks run when the loop was held up.
+        stalled_at: Option<u64>,
+        /// The ticks run at the next look between reads after the hold-up.
+        after_stall: Option<u64>,
         /// Each skip, with the ticks run before it.
         skipped: Vec<(u64, Duration)>,
     }
 
     impl Watch for Stall {
         fn go_on(&mut self) -> bool {
-            self.ticks < 110
+            match self.stalled_at {
+                None if self.ticks >= 10 => {
+                    std::thread::sleep(self.stall);
+                    self.stalled_at = Some(self.ticks);
+                    true
+                }
+                None => true,
+                Some(at) => {
+                    self.after_stall.get_or_insert(self.ticks);
+                    self.ticks < at + 300
+                }
+            }
         }
 
         fn ticked(&mut self, _device: &SimDevice) -> bool {
             self.ticks += 1;
-            if self.ticks == 10 {
-                std::thread::sleep(self.stall);
-            }
             true
         }
 
@@ -546,14 +558,14 @@ mod tests {
         }
     }
 
-    /// A loop held up for 500 ticks' time at tick 10 catches up 200 ticks at once
+    /// A loop held up for 500 ticks' time catches up 200 ticks at once
     /// ([`MAX_CATCH_UP_TICKS`]) and reports the rest as skipped, never a silent
-    /// drift. Nothing here bounds how long the machine took: the sleep lasts at
-    /// least its 500 ms, so at least 290 ms are skipped (500 less the 200 caught
-    /// up, 10 ms for rounding), and the ticks tell the catch-up: the last skip
-    /// is followed by exactly 200 ticks in one go (without the catch-up, by none
-    /// before serving ends), and the device's time plus the time skipped never
-    /// runs ahead of the wall clock.
+    /// drift. Nothing here bounds how long the machine took (a loaded machine
+    /// may add skips of its own, before or after): the hold-up lasts at least its
+    /// 500 ms, so the skip it causes is at least 290 ms (500 less the 200 caught
+    /// up, 10 ms for rounding); the next look between reads comes exactly 200
+    /// ticks later (the catch-up in one go); and the device's time plus the time
+    /// skipped never runs ahead of the wall clock.
     #[test]
     fn falling_behind_is_caught_up_then_reported() {
         let mut endpoint = Endpoint::tcp("127.0.0.1:0").expect("listens");
@@ -561,17 +573,23 @@ mod tests {
         let mut watch = Stall {
             stall: Duration::from_millis(500),
             ticks: 0,
+            stalled_at: None,
+            after_stall: None,
             skipped: Vec::new(),
         };
         let served = serve_watched(&mut endpoint, &mut device, &mut watch);
         let skipped: Duration = watch.skipped.iter().map(|(_, s)| *s).sum();
         assert_eq!(served.skipped, skipped);
-        assert!(skipped >= Duration::from_millis(290), "{:?}", watch.skipped);
-        let &(before, _) = watch.skipped.last().expect("a skip");
-        assert!(before >= 10, "{:?}", watch.skipped);
+        let at = watch.stalled_at.expect("held up");
+        let (_, after) = watch
+            .skipped
+            .iter()
+            .find(|(ticks, _)| *ticks == at)
+            .unwrap_or_else(|| panic!("no skip after the hold-up: {:?}", watch.skipped));
+        assert!(*after >= Duration::from_millis(290), "{:?}", watch.skipped);
         assert_eq!(
-            served.ticks,
-            before + MAX_CATCH_UP_TICKS,
+            watch.after_stall,
+            Some(at + MAX_CATCH_UP_TICKS),
             "{:?}",
             watch.skipped
         );

@@ -258,7 +258,6 @@ impl Plant {
             stopped: None,
         };
         plant.settle();
-        plant.last_event = plant.events.last().map(|e| (e.kind, e.t));
         plant
     }
 
@@ -506,9 +505,7 @@ impl Plant {
                 let mut rhs = |_t: f64, yy: &[f64; NY]| this.evaluate(yy).ydot;
                 attempt(&mut rhs, t, &y, &f0, h, &tol)
             };
-            if !self.progress.spend() {
-                return self.no_progress();
-            }
+            self.charge()?;
             match outcome {
                 Attempt::Rejected(next) => {
                     self.h = next;
@@ -542,9 +539,7 @@ impl Plant {
                             self.fsal = None;
                             self.clamp_currents();
                             ev0 = self.event_values(&self.y);
-                            if !self.progress.spend() {
-                                return self.no_progress();
-                            }
+                            self.charge()?;
                         }
                         Some(Crossing { t: te, y: ye, .. })
                             if te > step.t0 || stalled < MAX_STALLED_EVENTS =>
@@ -561,18 +556,13 @@ impl Plant {
                             }));
                             self.fsal = None;
                             self.settle();
-                            if let Some(e) = self.events.last() {
-                                self.last_event = Some((e.kind, e.t));
-                            }
                             record(Output::After(At {
                                 t: self.t,
                                 y: &self.y,
                                 plant: self,
                             }));
                             ev0 = self.event_values(&self.y);
-                            if !self.progress.spend() {
-                                return self.no_progress();
-                            }
+                            self.charge()?;
                         }
                         found => {
                             if found.is_some() {
@@ -620,6 +610,16 @@ impl Plant {
     fn stop(&mut self, stop: Stop) -> Result<(), Stop> {
         self.stopped = Some(stop.clone());
         Err(stop)
+    }
+
+    /// One unit of work against the progress guard's budget; past it, the
+    /// guard's stop ([`super::progress`]).
+    fn charge(&mut self) -> Result<(), Stop> {
+        if self.progress.spend() {
+            Ok(())
+        } else {
+            self.no_progress()
+        }
     }
 
     /// The progress guard's stop ([`super::progress`]).

@@ -47,8 +47,17 @@ fn least_change_in<const D: usize>(rows: &[(Vector, Vector, f64)]) -> Option<Vec
 
 impl Plant {
     /// At an event: impacts where contacts approach, then the contacts' modes from
-    /// the complementarity problem at acceleration level.
+    /// the complementarity problem at acceleration level; the last event handled
+    /// is kept for a stop's message (the events themselves go to the caller).
     pub(super) fn settle(&mut self) {
+        self.settle_contacts();
+        if let Some(e) = self.events.last() {
+            self.last_event = Some((e.kind, e.t));
+        }
+    }
+
+    /// [`Plant::settle`]'s impacts and modes.
+    fn settle_contacts(&mut self) {
         // A current that reached its driver's limit is held there.
         self.clamp_currents();
         for _ in 0..16 {
