@@ -23,6 +23,7 @@
 use std::f64::consts::PI;
 use std::path::Path;
 
+use host_sim::machine::joint_limits::effective_inertia;
 use host_sim::machine::Machine;
 use host_sim::plant::model::{initial_state, Mount, PlantModel};
 use host_sim::plant::motor::Winding;
@@ -761,6 +762,83 @@ fn a_joint_spring_damper_on_a_free_platform_keeps_momentum_and_the_energy_balanc
         start[3],
         worst[3],
         allowed[3]
+    );
+}
+
+/// A free platform and its arm, no gravity, nothing held, the spring relaxed at
+/// t = 0, the platform at rest and the arm turning about the hinge at `W0` rad/s.
+/// The pair swings about each other (and drifts and turns slowly as a whole, with
+/// the momentum the arm was given) in the one mode whose inertia is the least the
+/// joint's relative rotation can have: the `J` by which the machine file limits a
+/// joint's rate (`host_sim::machine::joint_limits`: the two bodies pinned at the
+/// hinge, otherwise free). So the relative swing's period is `2 pi sqrt(J / k)`.
+/// The arm's angular velocity is the relative swing's share plus the whole pair's
+/// slow turn: it crosses zero once a half period, the crossings alternately early
+/// and late by the same amount, so every second crossing is one period on. The
+/// file's `J` comes from its own 4x4 mass matrix at the file's configuration; the
+/// plant integrates its own generalized coordinates: two methods.
+///
+/// Tolerances: `J` changes with the relative angle (the centres' distance
+/// products): the swing, of amplitude `a = W0 / omega` = 1.7e-4 rad about the
+/// file's configuration, moves the period by `O(a^2)`, some 1e-8 relative; the
+/// whole pair's turn, at about `W0 J_h / (J_p + J_h)` = 4e-3 rad/s against the
+/// swing's 58 rad/s, adds a centrifugal `O((4e-3 / 58)^2)` = 5e-9; the crossing
+/// times carry the integrator's phase error, a few 1e-8 of the period (the damped
+/// swing's budget above). 1e-6 covers these and is 3e5 times smaller than what the
+/// held platform's inertia would give (`J_h = 4e-3` against this pair's 1.5e-3
+/// kg m^2: 64 % in the period).
+#[test]
+fn a_free_pair_swings_with_the_least_relative_inertia_the_file_limits_by() {
+    const W0: f64 = 0.01;
+    let k = 5.0;
+    let hinge = FREE_HINGE;
+    let centre = add(hinge, scale(ARM_D, unit(FREE_ARM_ANGLE)));
+    let extra = format!(
+        "{}{}",
+        moving_body(
+            "arm",
+            ARM_MASS,
+            ARM_INERTIA,
+            centre,
+            FREE_ARM_ANGLE,
+            spin(W0, sub(centre, hinge)),
+            W0
+        ),
+        joint("hinge", "platform", "arm", hinge, k, 0.0, None)
+    );
+    let m = machine(0.0, "", INERT_ROTOR, FRICTIONLESS_MOTOR, &extra);
+    let inertia = effective_inertia(Some(&m.platform), Some(&m.bodies[0].rigid), hinge);
+    let held = ARM_J_HINGE;
+    assert!(
+        inertia < 0.9 * held,
+        "J = {inertia} kg m^2 against {held} held: the test would not tell them apart"
+    );
+    let model = PlantModel::new(&m);
+    let omega = model.dof + model.bodies[1].angle;
+    let mut plant = Plant::new(
+        model,
+        initial_state(&m),
+        Settings::default(),
+        Holds::default(),
+    );
+    let period = 2.0 * PI * (inertia / k).sqrt();
+    let found = crossings(&mut plant, omega, 6.2 * period);
+    assert!(found.len() >= 12, "{} crossings", found.len());
+    let mut worst = 0.0f64;
+    for w in found.windows(3) {
+        let error = (w[2].0 - w[0].0 - period) / period;
+        worst = worst.max(error.abs());
+        assert!(
+            error.abs() < 1e-6,
+            "the arm's rate crosses zero at {} s and again at {} s: {} s apart; 2 pi sqrt(J / k) = {period} s with J = {inertia} kg m^2",
+            w[0].0,
+            w[2].0,
+            w[2].0 - w[0].0
+        );
+    }
+    eprintln!(
+        "free pair: J = {inertia:.6e} kg m^2 (held: {held:.1e}); {} crossings, worst relative error of the period {worst:.2e} (tol 1e-6)",
+        found.len()
     );
 }
 

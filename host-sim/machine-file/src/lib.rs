@@ -38,6 +38,7 @@
 
 pub mod bodies;
 pub mod input;
+pub mod joint_limits;
 pub mod kind;
 pub mod rotors;
 pub mod set;
@@ -597,6 +598,15 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Ma
     let rotor_bodies: Vec<String> = rotors.iter().map(|r| r.body.clone()).collect();
     let bodies_ok = bodies::check(&root, &further, &joints, &contacts, &rotor_bodies)
         && bodies::check_size_and_motion(&root, platform.as_ref(), &further, &joints, rotors.len());
+    let rigid = |name: &str| match name {
+        bodies::PLATFORM => platform.as_ref(),
+        _ => further
+            .iter()
+            .filter_map(|b| b.value.as_ref())
+            .find(|b| b.name == name)
+            .map(|b| &b.rigid),
+    };
+    let bodies_ok = joint_limits::check(&root, &joints, rigid) && bodies_ok;
 
     let further = further
         .into_iter()

@@ -228,6 +228,24 @@ fn every_rule_is_refused_with_its_key() {
             "must be a number",
         ),
         (
+            "stiffness = 40.0",
+            "stiffness = 1e12",
+            "joints[0].stiffness",
+            "swings the joint at sqrt(k / J) =",
+        ),
+        (
+            "damping = 0.01",
+            "damping = 1e12",
+            "joints[0].damping",
+            "relaxes the joint at c / J =",
+        ),
+        (
+            "rest_angle = 0.1",
+            "rest_angle = 1e6",
+            "joints[1].rest_angle",
+            "winds the spring by -1000000 rad at t = 0",
+        ),
+        (
             "face = [0.1, 0.08]",
             "face = [0.1]",
             "contacts[2].face",
@@ -331,4 +349,43 @@ fn the_plant_limits_are_refused_with_the_numbers() {
     );
     // Three free bodies with two rotors: 11 coordinates, accepted.
     read(&free_bodies(2)).expect("11 coordinates");
+}
+
+/// A joint's rate and preload limits: the bound each message names is allowed, and
+/// one a thousandth beyond it is refused (the figure rounded towards the allowed
+/// side; `joint_limits::MAX_JOINT_RATE` and `MAX_PRELOAD` against the two bodies'
+/// least relative inertia).
+#[test]
+fn the_bound_a_joint_limit_names_is_allowed_and_a_little_more_is_not() {
+    for (from, key, unit) in [
+        ("stiffness = 40.0", "joints[0].stiffness", "N m/rad here"),
+        ("damping = 0.01", "joints[0].damping", "N m s/rad here"),
+        (
+            "rest_angle = 0.1",
+            "joints[1].rest_angle",
+            "rad (half a turn)",
+        ),
+    ] {
+        let name = from.split(' ').next().unwrap();
+        let e = read(&TWO_BODIES.replacen(from, &format!("{name} = 1e9"), 1)).expect_err(key);
+        let line = e
+            .lines()
+            .find(|l| l.contains(key))
+            .unwrap_or_else(|| panic!("{e}"));
+        let bound: f64 = line
+            .split("at most ")
+            .last()
+            .and_then(|rest| rest.split(' ').next())
+            .and_then(|x| x.parse().ok())
+            .unwrap_or_else(|| panic!("no bound in {line:?}"));
+        assert!(line.contains(unit), "{line}");
+        // The rest angle winds the spring by its distance from the t = 0 angle (0).
+        let allowed = TWO_BODIES.replacen(from, &format!("{name} = {bound:?}"), 1);
+        if let Err(e) = read(&allowed) {
+            panic!("{key} = {bound} (the bound named) refused:\n{e}");
+        }
+        let beyond = TWO_BODIES.replacen(from, &format!("{name} = {:?}", bound * 1.001), 1);
+        let e = read(&beyond).expect_err(key);
+        assert!(e.contains(&format!("m.toml: {key}:")), "{e}");
+    }
 }
