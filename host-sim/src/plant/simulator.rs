@@ -56,7 +56,7 @@ mod modes;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use events::Crossing;
+use events::{Crossing, StageForces};
 use forces::CachedEvaluation;
 
 use super::bridge::{Bridge, BridgeCommand};
@@ -500,9 +500,15 @@ impl Plant {
             let remaining = t_stop - self.t;
             let h = self.h.min(self.settings.max_step).min(remaining);
             let (t, y) = (self.t, self.y);
+            // The contact forces at the interior stages, for the dip test.
+            let mut stages = StageForces::default();
             let outcome = {
                 let this = &*self;
-                let mut rhs = |_t: f64, yy: &[f64; NY]| this.evaluate(yy).ydot;
+                let mut rhs = |_t: f64, yy: &[f64; NY]| {
+                    let e = this.evaluate(yy);
+                    stages.record(&e);
+                    e.ydot
+                };
                 attempt(&mut rhs, t, &y, &f0, h, &tol)
             };
             self.charge()?;
@@ -526,7 +532,7 @@ impl Plant {
                     }
                     let at_switch = h == remaining && t_switch.is_some();
                     let ev1 = self.event_values(&step.y1);
-                    match self.first_crossing(&step, &ev0, &ev1) {
+                    match self.first_crossing(&step, &ev0, &ev1, &stages) {
                         Some(c) if c.current_only && c.t > step.t0 => {
                             // A winding's event: the current clamped (held at its
                             // limit, or zero behind the diodes), nothing else; no
