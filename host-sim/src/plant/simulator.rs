@@ -200,7 +200,7 @@ pub struct Plant {
     /// Inside the resolution of a Painleve configuration.
     resolving_painleve: bool,
     /// Event functions of the state left by the last `advance_to`.
-    ev_cache: Option<([f64; NY], Vec<f64>)>,
+    ev_cache: Option<([f64; NY], events::EventValues)>,
     /// The last evaluation in the current modes, with its state.
     last_evaluation: std::cell::RefCell<Option<CachedEvaluation>>,
     /// The windings of the last evaluation.

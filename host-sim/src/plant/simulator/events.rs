@@ -11,6 +11,7 @@ use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{ContactKinematics, Pose, Vector};
 use super::super::integrator::{Step, INTERIOR_STAGES};
+use super::super::model::MAX_ROTORS;
 use super::super::motor::Winding;
 use super::forces::Evaluation;
 use super::{ContactMode, Plant, NY};
@@ -42,6 +43,24 @@ pub(super) struct Crossing {
     pub(super) t: f64,
     pub(super) y: [f64; NY],
     pub(super) current_only: bool,
+}
+
+/// Event function slots: two per contact, one per motor driver.
+const EVENT_SLOTS: usize = 2 * MAX_CONTACTS + MAX_ROTORS;
+
+/// The event functions at a state ([`Plant::event_values`]), in place (no
+/// allocation: they are made at every step).
+#[derive(Clone, Copy)]
+pub(super) struct EventValues {
+    values: [f64; EVENT_SLOTS],
+    len: usize,
+}
+
+impl std::ops::Deref for EventValues {
+    type Target = [f64];
+    fn deref(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
 }
 
 /// The contact forces the integrator's interior stages computed in an attempt
@@ -115,16 +134,21 @@ impl Plant {
     /// function at least that far from zero (the mode decision's own tolerance is
     /// a thousandth of it), so a crossing is a change of sign, never a value that
     /// was already zero.
-    pub(super) fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
+    pub(super) fn event_values(&self, y: &[f64; NY]) -> EventValues {
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
         // One pose for every contact's kinematics at `y`.
         let v = self.model.v(y);
         let pose = Pose::new(&self.model, &self.model.q(y));
         let at = Kinematics::Pose(&pose, &v);
-        (0..2 * self.modes.len() + self.model.rotors.len())
-            .map(|i| self.event_value(self.watch(i), y, at, ev.as_ref()))
-            .collect()
+        let mut values = EventValues {
+            values: [f64::INFINITY; EVENT_SLOTS],
+            len: 2 * self.modes.len() + self.model.rotors.len(),
+        };
+        for i in 0..values.len {
+            values.values[i] = self.event_value(self.watch(i), y, at, ev.as_ref());
+        }
+        values
     }
 
     /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `at`
