@@ -558,10 +558,9 @@ impl Frame {
     /// block is written, nothing of the capacity is zeroed or copied (this runs at
     /// every evaluation of the equations of motion). Returns the generalized forces
     /// at `motion = (v, tau)` (zero without). One free body carrying its rotors
-    /// (the reference machine) takes the closed forms
-    /// ([`Frame::one_free_body_into`]); every other machine the generic pass over
-    /// its point masses ([`Frame::generic_into`]), which the tests hold the closed
-    /// forms to.
+    /// (the reference machine) takes the closed forms (`Frame::one_free_body_into`);
+    /// every other machine the generic pass over its point masses
+    /// (`Frame::generic_into`), which the tests hold the closed forms to.
     pub fn assemble_into(
         &mut self,
         model: &PlantModel,

@@ -32,8 +32,8 @@
 //!    consistent solution is a **Painleve** configuration, resolved by a
 //!    tangential impact;
 //! 3. otherwise accept the step, project the closed contacts back onto their
-//!    constraints (the integrator's drift, far below its tolerance) and record
-//!    output rows.
+//!    constraints once the integrator's drift off them is measurable (it stays
+//!    far below its tolerance; `Plant::drifted`) and record output rows.
 //!
 //! **Zeno**: an impact whose rebound is slower than [`Settings::zeno_velocity`] is
 //! the tail of an accumulation of impacts. It is closed plastically at once and the
