@@ -36,7 +36,7 @@
 //! the same order, as the closed forms this module had before it took several
 //! bodies (a machine file without further bodies gives the same numbers to the bit).
 
-use super::model::{Face, Mount, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS, NY};
+use super::model::{Face, Mount, OneFreeBody, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS, NY};
 
 /// A vector of generalized coordinates (a machine uses the first
 /// [`PlantModel::dof`]).
@@ -557,7 +557,10 @@ impl Frame {
     /// [`Frame::with_forces`] make theirs, in place: only the machine's `n x n`
     /// block is written, nothing of the capacity is zeroed or copied (this runs at
     /// every evaluation of the equations of motion). Returns the generalized forces
-    /// at `motion = (v, tau)` (zero without).
+    /// at `motion = (v, tau)` (zero without). One free body carrying its rotors
+    /// (the reference machine) takes the closed forms (`Frame::one_free_body_into`);
+    /// every other machine the generic pass over its point masses
+    /// (`Frame::generic_into`), which the tests hold the closed forms to.
     pub fn assemble_into(
         &mut self,
         model: &PlantModel,
@@ -575,8 +578,38 @@ impl Frame {
         frame.locked = [false; MAX_DOF];
         frame.any_locked = false;
 
-        // M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T), upper triangle, then mirrored;
-        // the forces element by element alongside.
+        let mut forces = match &model.one_free_body {
+            Some(c) => frame.one_free_body_into(c, model.gravity, motion),
+            None => frame.generic_into(model, motion),
+        };
+        let m = &mut frame.mass;
+        for i in 0..n {
+            for j in 0..i {
+                m[i][j] = m[j][i];
+            }
+        }
+        // The Schur complement in the factor's place, then factored there (or
+        // inverted by the adjugate when 3x3).
+        frame.schur_into_factor();
+        if nb == 3 {
+            frame.schur_inv = inverse3(&frame.factor);
+        } else {
+            cholesky_in_place(&mut frame.factor, nb);
+        }
+        if let Some((v, _)) = motion {
+            add_spring_forces(model, q, v, &mut forces);
+        }
+        frame.hold(locked);
+        forces
+    }
+
+    /// The mass matrix's upper triangle (the first `n` rows and columns) and the
+    /// generalized forces at `motion` (zero without) of any machine:
+    /// `M = sum_e (m_e J_e^T J_e + I_e s_e s_e^T)` over the point masses, the forces
+    /// element by element alongside ([`Frame::with_forces`]).
+    fn generic_into(&mut self, model: &PlantModel, motion: Option<(&Vector, &[f64])>) -> Vector {
+        let frame = self;
+        let n = model.dof;
         let mut forces = [0.0; MAX_DOF];
         if motion.is_some() {
             forces = root_weights(model);
@@ -612,23 +645,85 @@ impl Frame {
                 }
             }
         }
-        for i in 0..n {
-            for j in 0..i {
-                m[i][j] = m[j][i];
+        forces
+    }
+
+    /// [`Frame::generic_into`] in closed form for one free body carrying its
+    /// rotors (`c`, the constants; the pose and eccentrics already set). With the
+    /// body's centre of mass at `w_b = R(theta) com` and rotor `k`'s eccentric at
+    /// `w_k = R(theta) axis_k + eps_k` from the reference point (`eps_k` from its
+    /// axis, turning at `theta' + phi_k'`), `z x w = (-w_y, w_x)`, `M_tot` the
+    /// whole mass and `I_tot` every inertia:
+    ///
+    /// ```text
+    ///   M_xx = M_yy = M_tot,   M_x,theta = -sum_e m_e w_e,y,   M_y,theta = sum_e m_e w_e,x
+    ///   M_theta,theta = I_tot + sum_e m_e |w_e|^2
+    ///   M_x,phi_k = -m_k eps_k,y,   M_y,phi_k = m_k eps_k,x
+    ///   M_theta,phi_k = m_k w_k . eps_k + I_k,   M_phi_k,phi_k = m_k |eps_k|^2 + I_k
+    /// ```
+    ///
+    /// and the forces `Q = sum_e J_e^T m_e a_e` with `a_b = g + theta'^2 w_b`,
+    /// `a_k = g + theta'^2 R(theta) axis_k + (theta' + phi_k')^2 eps_k` (the
+    /// velocity-product terms moved to the right-hand side), plus `tau_k` on
+    /// `phi_k`. The same sums as the generic pass, without its chains.
+    fn one_free_body_into(
+        &mut self,
+        c: &OneFreeBody,
+        g: [f64; 2],
+        motion: Option<(&Vector, &[f64])>,
+    ) -> Vector {
+        let (x, y, th) = (c.x, c.x + 1, c.theta);
+        let cs = self.pose.cs[0];
+        let n = self.n;
+        let m = &mut self.mass;
+        for row in m.iter_mut().take(n) {
+            row[..n].fill(0.0);
+        }
+        let mut set = |i: usize, j: usize, value: f64| {
+            m[i][j] = value;
+            m[j][i] = value;
+        };
+        set(x, x, c.total_mass);
+        set(y, y, c.total_mass);
+        let mut forces = [0.0; MAX_DOF];
+        let w_th2 = motion.map(|(v, _)| v[th] * v[th]);
+        // The body's centre of mass.
+        let wb = rotate(cs, c.com);
+        let mut m_w = [c.mass * wb[0], c.mass * wb[1]];
+        let mut m_th = c.total_inertia + c.mass * dot(wb, wb);
+        if let Some(w2) = w_th2 {
+            let fe = [c.mass * (g[0] + w2 * wb[0]), c.mass * (g[1] + w2 * wb[1])];
+            forces[x] = c.total_mass * g[0] + (fe[0] - c.mass * g[0]);
+            forces[y] = c.total_mass * g[1] + (fe[1] - c.mass * g[1]);
+            forces[th] = cross(wb, fe);
+        }
+        // Each rotor's eccentric.
+        for (k, &(phi, axis, mass, inertia)) in c.rotors[..n - 3].iter().enumerate() {
+            let (ra, eps) = (rotate(cs, axis), self.eps[k]);
+            let w = [ra[0] + eps[0], ra[1] + eps[1]];
+            m_w = [m_w[0] + mass * w[0], m_w[1] + mass * w[1]];
+            m_th += mass * dot(w, w);
+            set(x, phi, -mass * eps[1]);
+            set(y, phi, mass * eps[0]);
+            set(th, phi, mass * dot(w, eps) + inertia);
+            set(phi, phi, mass * dot(eps, eps) + inertia);
+            if let (Some(w2), Some((v, tau))) = (w_th2, motion) {
+                let s = v[th] + v[phi];
+                let s2 = s * s;
+                let a = [
+                    g[0] + w2 * ra[0] + s2 * eps[0],
+                    g[1] + w2 * ra[1] + s2 * eps[1],
+                ];
+                let fe = [mass * a[0], mass * a[1]];
+                forces[x] += fe[0] - mass * g[0];
+                forces[y] += fe[1] - mass * g[1];
+                forces[th] += cross(w, fe);
+                forces[phi] = cross(eps, fe) + tau[k];
             }
         }
-        // The Schur complement in the factor's place, then factored there (or
-        // inverted by the adjugate when 3x3).
-        frame.schur_into_factor();
-        if nb == 3 {
-            frame.schur_inv = inverse3(&frame.factor);
-        } else {
-            cholesky_in_place(&mut frame.factor, nb);
-        }
-        if let Some((v, _)) = motion {
-            add_spring_forces(model, q, v, &mut forces);
-        }
-        frame.hold(locked);
+        set(x, th, -m_w[1]);
+        set(y, th, m_w[0]);
+        set(th, th, m_th);
         forces
     }
 
@@ -957,6 +1052,74 @@ mod tests {
                             "{name} case {k} {how}: residual {r}"
                         );
                     }
+                }
+            }
+        }
+    }
+
+    /// The closed forms of one free body give the generic pass's mass matrix,
+    /// Schur inverse and forces to rounding, at random configurations, velocities
+    /// and torques of the reference machine, and of it with the centre of mass off
+    /// the reference point under slanted gravity.
+    #[test]
+    fn one_free_body_closed_forms_match_the_generic_pass() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = |lo: f64, hi: f64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            lo + (hi - lo) * (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let reference = PlantModel::new(&machine(""));
+        let mut off_centre = reference.clone();
+        off_centre.bodies[0].com = [0.013, -0.021];
+        off_centre.gravity = [1.5, -9.7];
+        off_centre.one_free_body = OneFreeBody::of(&off_centre);
+        for (name, closed) in [("reference", reference), ("off-centre", off_centre)] {
+            assert!(closed.one_free_body.is_some(), "{name}: no closed forms");
+            let mut generic = closed.clone();
+            generic.one_free_body = None;
+            let n = closed.dof;
+            for case in 0..500 {
+                let mut q = [0.0; MAX_DOF];
+                let mut v = [0.0; MAX_DOF];
+                for i in 0..n {
+                    q[i] = uniform(-7.0, 7.0);
+                    v[i] = uniform(-700.0, 700.0);
+                }
+                let tau = [uniform(-0.5, 0.5), uniform(-0.5, 0.5)];
+                let mut a = Frame::empty(&closed);
+                let mut b = Frame::empty(&generic);
+                let fa = a.assemble_into(&closed, &q, &[false; MAX_DOF], Some((&v, &tau)));
+                let fb = b.assemble_into(&generic, &q, &[false; MAX_DOF], Some((&v, &tau)));
+                let scale_m = (0..n).map(|i| b.mass[i][i]).fold(0.0, f64::max);
+                let scale_f = (0..n).map(|i| fb[i].abs()).fold(1.0, f64::max);
+                for i in 0..n {
+                    assert!(
+                        (fa[i] - fb[i]).abs() <= 1e-13 * scale_f,
+                        "{name} case {case}: force {i}: {} against {}",
+                        fa[i],
+                        fb[i]
+                    );
+                    for j in 0..n {
+                        assert!(
+                            (a.mass[i][j] - b.mass[i][j]).abs() <= 1e-14 * scale_m,
+                            "{name} case {case}: M[{i}][{j}]: {} against {}",
+                            a.mass[i][j],
+                            b.mass[i][j]
+                        );
+                    }
+                }
+                let x = b.solve(&fb);
+                let y = a.solve(&fa);
+                let scale_x = (0..n).map(|i| x[i].abs()).fold(1.0, f64::max);
+                for i in 0..n {
+                    assert!(
+                        (x[i] - y[i]).abs() <= 1e-10 * scale_x,
+                        "{name} case {case}: acceleration {i}: {} against {}",
+                        y[i],
+                        x[i]
+                    );
                 }
             }
         }

@@ -100,6 +100,13 @@ const D5: f64 = 701980252875.0 / 199316789632.0;
 const D6: f64 = -1453857185.0 / 822651844.0;
 const D7: f64 = 69997945.0 / 29380423.0;
 
+/// The fractions of the step at which [`attempt`] calls `rhs` first, in this
+/// order (stages 2 to 5: `c_2 .. c_5` of the tableau); its last two calls are at
+/// the step's end (stage 6, then the accepted state, FSAL). A caller's `rhs` can
+/// keep what it computes at these interior stages (the plant's dip test reads the
+/// contact forces there).
+pub const INTERIOR_STAGES: [f64; 4] = [C2, C3, C4, C5];
+
 /// Result of one attempted step.
 pub enum Attempt<const N: usize> {
     /// Accepted; the next step size to try.

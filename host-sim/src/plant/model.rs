@@ -179,6 +179,58 @@ pub struct PlantModel {
     pub supply_voltage: f64,
     /// The H-bridges as wired (`[drive] decay`, `pwm_hz`).
     pub bridge: shared::drive::BridgeConfig,
+    /// The machine's constants where it is one free body carrying its rotors
+    /// (the reference machine, every single-platform file): the mass matrix and
+    /// forces then have closed forms ([`super::dynamics::Frame::assemble_into`]).
+    pub one_free_body: Option<OneFreeBody>,
+}
+
+/// One free body and its rotors, the constants of the closed forms of its mass
+/// matrix and forces (coordinates `x, y` of its reference point, its angle, each
+/// rotor's `phi`).
+#[derive(Clone, Debug)]
+pub struct OneFreeBody {
+    /// The reference point's `x` coordinate (`y` follows).
+    pub x: usize,
+    /// The body's angle coordinate.
+    pub theta: usize,
+    /// The body's mass, kg.
+    pub mass: f64,
+    /// The body's centre of mass from its reference point (body frame, m).
+    pub com: [f64; 2],
+    /// The whole machine's mass, kg.
+    pub total_mass: f64,
+    /// Every inertia about its own point, summed, kg m^2: the body's and the
+    /// rotors' (all turn with the body's angle).
+    pub total_inertia: f64,
+    /// Each rotor: its `phi` coordinate, its axis from the body's reference point
+    /// (body frame, m), its eccentric mass, kg, and inertia about it, kg m^2.
+    pub rotors: [(usize, [f64; 2], f64, f64); MAX_ROTORS],
+}
+
+impl OneFreeBody {
+    /// The constants of `model` if it is one free body carrying every rotor.
+    pub fn of(model: &PlantModel) -> Option<Self> {
+        let [body] = &model.bodies[..] else {
+            return None;
+        };
+        let Mount::Free { x } = body.mount else {
+            return None;
+        };
+        let mut rotors = [(0, [0.0; 2], 0.0, 0.0); MAX_ROTORS];
+        for (k, r) in model.rotors.iter().enumerate() {
+            rotors[k] = (r.phi, r.axis, r.mass, r.inertia);
+        }
+        Some(OneFreeBody {
+            x,
+            theta: body.angle,
+            mass: body.mass,
+            com: body.com,
+            total_mass: body.mass + model.rotors.iter().map(|r| r.mass).sum::<f64>(),
+            total_inertia: body.inertia + model.rotors.iter().map(|r| r.inertia).sum::<f64>(),
+            rotors,
+        })
+    }
 }
 
 /// `R(-angle) v`: a world vector in a body's frame.
@@ -396,7 +448,9 @@ impl PlantModel {
             law: m.law,
             supply_voltage: m.drive.supply_voltage,
             bridge: m.drive.bridge,
+            one_free_body: None,
         };
+        model.one_free_body = OneFreeBody::of(&model);
         model.free_roots = (0..model.bodies.len())
             .filter_map(|b| match model.bodies[b].mount {
                 Mount::Free { x } => Some((x, model.tree_mass(b))),

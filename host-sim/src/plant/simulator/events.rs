@@ -7,9 +7,13 @@
 //! step), located by Illinois false position on the dense output
 //! ([`Plant::locate`]).
 
+use shared::impact::MAX_CONTACTS;
+
 use super::super::dynamics::{ContactKinematics, Pose, Vector};
-use super::super::integrator::Step;
+use super::super::integrator::{Step, INTERIOR_STAGES};
+use super::super::model::MAX_ROTORS;
 use super::super::motor::Winding;
+use super::forces::Evaluation;
 use super::{ContactMode, Plant, NY};
 
 /// What an event function watches: each is positive until its event, and one
@@ -39,6 +43,50 @@ pub(super) struct Crossing {
     pub(super) t: f64,
     pub(super) y: [f64; NY],
     pub(super) current_only: bool,
+}
+
+/// Event function slots: two per contact, one per motor driver.
+const EVENT_SLOTS: usize = 2 * MAX_CONTACTS + MAX_ROTORS;
+
+/// The event functions at a state ([`Plant::event_values`]), in place (no
+/// allocation: they are made at every step).
+#[derive(Clone, Copy)]
+pub(super) struct EventValues {
+    values: [f64; EVENT_SLOTS],
+    len: usize,
+}
+
+impl std::ops::Deref for EventValues {
+    type Target = [f64];
+    fn deref(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+}
+
+/// The contact forces the integrator's interior stages computed in an attempt
+/// ([`INTERIOR_STAGES`]: 1/5, 3/10, 4/5 and 8/9 of the step): the dip test of a
+/// force or cone function reads them instead of evaluating the step's middle.
+#[derive(Clone, Copy, Default)]
+pub(super) struct StageForces {
+    /// Stages recorded so far.
+    count: usize,
+    /// Normal force of each contact at each stage, N.
+    lambda_n: [[f64; MAX_CONTACTS]; 4],
+    /// Tangential force of each contact at each stage, N.
+    lambda_t: [[f64; MAX_CONTACTS]; 4],
+}
+
+impl StageForces {
+    /// Keeps the forces of `e`, the evaluation of the next interior stage (the
+    /// calls after the fourth are the step's end, which the event functions at
+    /// the end already have).
+    pub(super) fn record(&mut self, e: &Evaluation) {
+        if self.count < INTERIOR_STAGES.len() {
+            self.lambda_n[self.count] = e.lambda_n;
+            self.lambda_t[self.count] = e.lambda_t;
+            self.count += 1;
+        }
+    }
 }
 
 /// Where an event function gets its contacts' kinematics: a pose (and the
@@ -86,16 +134,21 @@ impl Plant {
     /// function at least that far from zero (the mode decision's own tolerance is
     /// a thousandth of it), so a crossing is a change of sign, never a value that
     /// was already zero.
-    pub(super) fn event_values(&self, y: &[f64; NY]) -> Vec<f64> {
+    pub(super) fn event_values(&self, y: &[f64; NY]) -> EventValues {
         let needs_forces = self.modes.iter().any(|m| m.closed());
         let ev = needs_forces.then(|| self.evaluate(y));
         // One pose for every contact's kinematics at `y`.
         let v = self.model.v(y);
         let pose = Pose::new(&self.model, &self.model.q(y));
         let at = Kinematics::Pose(&pose, &v);
-        (0..2 * self.modes.len() + self.model.rotors.len())
-            .map(|i| self.event_value(self.watch(i), y, at, ev.as_ref()))
-            .collect()
+        let mut values = EventValues {
+            values: [f64::INFINITY; EVENT_SLOTS],
+            len: 2 * self.modes.len() + self.model.rotors.len(),
+        };
+        for i in 0..values.len {
+            values.values[i] = self.event_value(self.watch(i), y, at, ev.as_ref());
+        }
+        values
     }
 
     /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `at`
@@ -125,13 +178,11 @@ impl Plant {
                 (e.lambda_n[j], e.lambda_t[j])
             }
         };
-        let eps_f = self.force_tolerance();
         match watch {
             Watch::Gap(j) => gap(j),
-            Watch::NormalForce(j) => forces(j).0 + eps_f,
-            Watch::Cone(j) => {
+            Watch::NormalForce(j) | Watch::Cone(j) => {
                 let (ln, lt) = forces(j);
-                self.model.contacts[j].law.friction * ln - lt.abs() + eps_f
+                self.force_value(watch, ln, lt)
             }
             Watch::SlipEnds(j) => {
                 let s = if self.modes[j] == ContactMode::SlipNegative {
@@ -154,6 +205,21 @@ impl Plant {
         }
     }
 
+    /// A force or cone function (`watch`) of a contact whose forces are
+    /// `lambda_n`, `lambda_t`, N: `lambda_n + eps_F`, or
+    /// `mu lambda_n - |lambda_t| + eps_F` (see [`Plant::event_values`]).
+    fn force_value(&self, watch: Watch, lambda_n: f64, lambda_t: f64) -> f64 {
+        let eps_f = self.force_tolerance();
+        match watch {
+            Watch::NormalForce(_) => lambda_n + eps_f,
+            Watch::Cone(j) => {
+                self.model.contacts[j].law.friction * lambda_n - lambda_t.abs() + eps_f
+            }
+            // Not a force function (never asked for one).
+            _ => f64::INFINITY,
+        }
+    }
+
     /// The earliest event in `step`, located on its dense output.
     ///
     /// A function that changes sign between the step's ends is located by
@@ -162,9 +228,9 @@ impl Plant {
     /// - an open contact **grazing** the fundament inside the step, or making a
     ///   **whole flight** inside it (its gap, below);
     /// - a closed contact's function (normal force, cone, slip) that **dips**
-    ///   below zero and comes back inside the step: the parabola through its
-    ///   values at the step's start, middle and end ([`Plant::dip`]) predicts the
-    ///   minimum, and the function there is checked on the dense output;
+    ///   below zero and comes back inside the step ([`Plant::dip`]): a force or
+    ///   cone function sampled at the integrator's interior stages (`stages`, the
+    ///   forces that came with the step), a slip at the step's middle;
     /// - a closed contact whose normal force is already below `-eps_F` at the
     ///   step's start (a mode left inconsistent, which the mode decision should
     ///   never produce): the event is at the start, so a contact never stays
@@ -174,6 +240,7 @@ impl Plant {
         step: &Step<NY>,
         ev0: &[f64],
         ev1: &[f64],
+        stages: &StageForces,
     ) -> Option<Crossing> {
         // The earliest time, and whether only a winding's current crossed there.
         let mut best: Option<(f64, bool)> = None;
@@ -182,9 +249,8 @@ impl Plant {
             Some((b, _)) if te > *b => {}
             _ => best = Some((te, current)),
         };
-        // The event functions at the step's middle, computed once if needed.
-        let t_mid = step.t0 + 0.5 * step.h;
-        let mut mid: Option<Vec<f64>> = None;
+        // The state at the step's middle, made once if a slip needs it.
+        let mut mid: Option<[f64; NY]> = None;
         for i in 0..ev0.len() {
             let watch = self.watch(i);
             let f = |y: &[f64; NY]| self.event_value(watch, y, Kinematics::FromState, None);
@@ -202,8 +268,23 @@ impl Plant {
                 }
                 Watch::NormalForce(_) | Watch::Cone(_) | Watch::SlipEnds(_) => {
                     if ev0[i] > 0.0 && ev1[i] > 0.0 {
-                        let fm = mid.get_or_insert_with(|| self.event_values(&step.at(t_mid)))[i];
-                        if let Some(te) = self.dip(step, &f, [ev0[i], fm, ev1[i]]) {
+                        let mut samples = [(0.0, ev0[i]); 6];
+                        let n = match watch {
+                            Watch::NormalForce(j) | Watch::Cone(j) if stages.count == 4 => {
+                                for (k, &c) in INTERIOR_STAGES.iter().enumerate() {
+                                    let (ln, lt) = (stages.lambda_n[k][j], stages.lambda_t[k][j]);
+                                    samples[k + 1] = (c, self.force_value(watch, ln, lt));
+                                }
+                                6
+                            }
+                            _ => {
+                                let ym = mid.get_or_insert_with(|| step.at(step.t0 + 0.5 * step.h));
+                                samples[1] = (0.5, f(ym));
+                                3
+                            }
+                        };
+                        samples[n - 1] = (1.0, ev1[i]);
+                        if let Some(te) = self.dip(step, &f, &samples[..n]) {
                             consider(te);
                         }
                     } else if ev0[i] <= 0.0 && matches!(watch, Watch::NormalForce(_)) {
@@ -226,31 +307,44 @@ impl Plant {
     }
 
     /// A dip of a function below zero inside `step` although it is positive at
-    /// both ends: `values` at the start, the middle and the end. The parabola
-    /// through them, `f(s) = f0 + b s + c s^2` on `s in [0, 1]` with
-    /// `c = 2 (f1 - 2 fm + f0)`, `b = f1 - f0 - c`, has its minimum
-    /// `f0 - b^2 / (4 c)` at `s = -b / (2 c)`; where that is `<= 0` inside the step
-    /// (or the middle value itself is), the function is evaluated there on the
-    /// dense output and, if it is past its event, the crossing before it is
-    /// located.
+    /// both ends: `samples` are `(s, f)` at fractions `s` of the step, from the
+    /// start (`s = 0`) to the end (`s = 1`), the inner ones possibly from the
+    /// integrator's stages rather than the dense output. Around the smallest
+    /// inner sample `(s_k, f_k)` and its neighbours, the parabola through the
+    /// three (Newton's divided differences: `d_1 = (f_k - f_a) / (s_k - s_a)`,
+    /// `d_2 = (f_b - f_k) / (s_b - s_k)`, `c = (d_2 - d_1) / (s_b - s_a)`,
+    /// `p(s) = f_a + d_1 (s - s_a) + c (s - s_a)(s - s_k)`) has its minimum at
+    /// `s* = (s_a + s_k) / 2 - d_1 / (2 c)`; where the sample itself is `<= 0`, or
+    /// the minimum is inside `(s_a, s_b)` and `p(s*) <= 0`, the function is
+    /// evaluated there on the dense output and, if it is past its event, the
+    /// crossing before it is located.
     pub(super) fn dip(
         &self,
         step: &Step<NY>,
         f: &dyn Fn(&[f64; NY]) -> f64,
-        values: [f64; 3],
+        samples: &[(f64, f64)],
     ) -> Option<f64> {
-        let [f0, fm, f1] = values;
         let t_at = |s: f64| step.t0 + s * step.h;
-        if fm <= 0.0 {
-            return Some(self.locate(step, f, step.t0, t_at(0.5), f0, fm));
+        let f0 = samples[0].1;
+        let inner = 1..samples.len() - 1;
+        let k = inner.min_by(|&a, &b| samples[a].1.total_cmp(&samples[b].1))?;
+        let ((sa, fa), (sk, fk), (sb, fb)) = (samples[k - 1], samples[k], samples[k + 1]);
+        if fk <= 0.0 {
+            let fd = f(&step.at(t_at(sk)));
+            if fd <= 0.0 {
+                return Some(self.locate(step, f, step.t0, t_at(sk), f0, fd));
+            }
         }
-        let c = 2.0 * (f1 - 2.0 * fm + f0);
+        let d1 = (fk - fa) / (sk - sa);
+        let d2 = (fb - fk) / (sb - sk);
+        let c = (d2 - d1) / (sb - sa);
         if c <= 0.0 {
             return None;
         }
-        let b = f1 - f0 - c;
-        let s_min = -b / (2.0 * c);
-        if !(s_min > 0.0 && s_min < 1.0) || f0 - b * b / (4.0 * c) > 0.0 {
+        let s_min = 0.5 * (sa + sk) - d1 / (2.0 * c);
+        if !(s_min > sa && s_min < sb)
+            || fa + d1 * (s_min - sa) + c * (s_min - sa) * (s_min - sk) > 0.0
+        {
             return None;
         }
         let f_min = f(&step.at(t_at(s_min)));

@@ -96,6 +96,7 @@ impl Plant {
 
     /// Accelerations and contact forces at `y` with the contacts in `modes`.
     pub(super) fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
+        self.evaluations.set(self.evaluations.get() + 1);
         let n = self.model.dof;
         let q = self.model.q(y);
         let v = self.model.v(y);
