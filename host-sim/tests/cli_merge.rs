@@ -331,7 +331,7 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
     // A held run without a mean velocity: no run makes that.
     for (k, v) in [f64::NAN, f64::INFINITY].into_iter().enumerate() {
         let name = format!("value{k}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             r.mean_velocity = v;
         });
@@ -424,7 +424,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         .enumerate()
     {
         let name = format!("fast{k}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             r.mean_velocity = v;
             r.not_held = not_held.map(String::from);
@@ -438,7 +438,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         );
     }
     // A run that was no travel has no mean velocity.
-    resealed(&d, "p2.json", "travel.json", |p| {
+    resealed(&d, "p2.json", "travel.json", |p: &mut Part| {
         let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
         r.not_a_travel = Some("platform went through the fundament".into());
     });
@@ -447,7 +447,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         &format!("{}mean_velocity ", damaged("travel.json")),
     );
     // More plant warnings than a run keeps, or a longer one.
-    resealed(&d, "p2.json", "many.json", |p| {
+    resealed(&d, "p2.json", "many.json", |p: &mut Part| {
         let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
         r.plant_warnings = vec!["contacts: Painleve configuration".into(); 100];
     });
@@ -457,7 +457,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     );
     for field in ["warning", "not_held"] {
         let name = format!("long-{field}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             match field {
                 "warning" => r.plant_warnings = vec![long.clone()],
@@ -481,11 +481,11 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         &merged("version.json"),
         "version.json: partial result version \"qqq",
     );
-    resealed(&d, "p2.json", "host.json", |p| {
+    resealed(&d, "p2.json", "host.json", |p: &mut Part| {
         p.sweep.host_sim_version = long.clone()
     });
     refused_short(&merged("host.json"), "host.json: a part of host-sim qqq");
-    resealed(&d, "p2.json", "shard.json", |p| {
+    resealed(&d, "p2.json", "shard.json", |p: &mut Part| {
         p.machine.path = long.clone()
     });
     refused_short(&merged("shard.json"), "... (10000000 bytes)");

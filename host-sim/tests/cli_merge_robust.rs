@@ -9,11 +9,11 @@
 
 use std::path::{Path, PathBuf};
 
+use host_sim::tune::part::Part;
 use serde_json::Value;
 
 mod common;
-use common::machine;
-use common::parts::{bytes, merge, merges_to_the_whole, resealed, run_in};
+use common::parts::{bytes, merge, merges_to_the_whole, resealed, run_in, scratch_with_machine};
 use common::Run;
 
 /// The sweep: 3000 rpm, four offsets, 2 s, the loosest tolerance (as
@@ -38,17 +38,7 @@ const ROBUST: [&str; 13] = [
 /// A fresh scratch directory `name` of this test binary, with the reference
 /// machine file (and its tuning table) copied in as `m.toml`.
 fn dir(name: &str) -> PathBuf {
-    let d = common::scratch("cli-merge-robust", name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("scratch directory");
-    let examples = machine().parent().unwrap().to_path_buf();
-    std::fs::copy(machine(), d.join("m.toml")).unwrap();
-    std::fs::copy(
-        examples.join("vibro-driver.tuning.toml"),
-        d.join("vibro-driver.tuning.toml"),
-    )
-    .unwrap();
-    d
+    scratch_with_machine("cli-merge-robust", name)
 }
 
 /// `host-sim tune m.toml ROBUST extra...` in `cwd`.
@@ -141,11 +131,13 @@ fn merge_refuses_robust_parts_that_are_not_one_sweep_or_were_edited() {
     edited["runs"][0]["mean_velocity"] = 0.05.into();
     std::fs::write(d.join("edited.json"), edited.to_string()).unwrap();
     // Resealed: a run moved to another machine; a run dropped; no samples.
-    resealed(&d, "p2.json", "moved.json", |p| p.runs[0].machine += 1);
-    resealed(&d, "p2.json", "dropped.json", |p| {
+    resealed(&d, "p2.json", "moved.json", |p: &mut Part| {
+        p.runs[0].machine += 1
+    });
+    resealed(&d, "p2.json", "dropped.json", |p: &mut Part| {
         p.runs.pop();
     });
-    resealed(&d, "p2.json", "zero.json", |p| {
+    resealed(&d, "p2.json", "zero.json", |p: &mut Part| {
         p.sweep.robust.as_mut().unwrap().samples = 0
     });
 

@@ -236,7 +236,7 @@ impl Part {
 }
 
 /// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
-mod maybe_finite {
+pub(crate) mod maybe_finite {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     #[derive(Serialize, Deserialize)]
@@ -279,8 +279,9 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
-/// `sweep_sha256` ([module doc](self)).
-pub fn sweep_sha256(machine_sha256: &str, sweep: &Sweep) -> String {
+/// `sweep_sha256` ([module doc](self)), and a fit's part's `fit_sha256` alike:
+/// SHA-256 of the machine's hash, a line feed, and `sweep` as compact JSON.
+pub fn sweep_sha256<T: Serialize>(machine_sha256: &str, sweep: &T) -> String {
     let mut bytes = format!("{machine_sha256}\n").into_bytes();
     bytes.extend(serde_json::to_vec(sweep).unwrap_or_default());
     sha256_hex(&bytes)
@@ -544,18 +545,58 @@ pub(crate) fn quote(field: &str) -> String {
 }
 
 /// Whether `s` is a SHA-256 as a part writes it: 64 lowercase hex digits.
-fn is_sha256(s: &str) -> bool {
+pub(crate) fn is_sha256(s: &str) -> bool {
     s.len() == 64
         && s.bytes()
             .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
-/// "error: FILE: not a partial result of `host-sim tune --shard`: why".
-fn not_a_part(path: &Path, why: &str) -> String {
-    format!(
-        "error: {}: not a partial result of `host-sim tune --shard`: {why}",
-        path.display()
-    )
+/// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`]) of
+/// `format` and `version`, written by `command` (for the messages): JSON, its
+/// `format` and `version` (before its fields, so that a file of another kind or
+/// version is named so), then its fields, every one there and of its type (no
+/// other). The one reader of `tune`'s and `calibrate`'s parts.
+pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
+    path: &Path,
+    format: &str,
+    version: u64,
+    command: &str,
+) -> Result<P, String> {
+    let not_a_part = |why: &str| {
+        format!(
+            "error: {}: not a partial result of `{command}`: {why}",
+            path.display()
+        )
+    };
+    let text = input::read_text_at_most(path, MAX_BYTES)
+        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
+    let value: Value =
+        serde_json::from_str(&text).map_err(|e| not_a_part(&format!("not JSON ({e})")))?;
+    match value.get("format") {
+        Some(Value::String(f)) if f == format => {}
+        Some(f) => {
+            return Err(not_a_part(&format!(
+                "its format is {}, not {format:?}",
+                quote(&f.to_string())
+            )))
+        }
+        None => return Err(not_a_part(&format!("no \"format\": {format:?}"))),
+    }
+    if value.get("version").and_then(Value::as_u64) != Some(version) {
+        return Err(format!(
+            "error: {}: partial result version {}: this host-sim reads version {version}",
+            path.display(),
+            quote(&value.get("version").unwrap_or(&Value::Null).to_string())
+        ));
+    }
+    // serde's message quotes the value it refused: cut as the reader's are.
+    serde_json::from_value(value).map_err(|e| {
+        format!(
+            "error: {}: a damaged partial result: {}",
+            path.display(),
+            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
+        )
+    })
 }
 
 /// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`])
@@ -565,38 +606,7 @@ fn not_a_part(path: &Path, why: &str) -> String {
 ///
 /// [`run_point`]: super::sweep::run_point
 pub fn read(path: &Path) -> Result<Part, String> {
-    let text = input::read_text_at_most(path, MAX_BYTES)
-        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
-    let value: Value =
-        serde_json::from_str(&text).map_err(|e| not_a_part(path, &format!("not JSON ({e})")))?;
-    match value.get("format") {
-        Some(Value::String(f)) if f == FORMAT => {}
-        Some(f) => {
-            return Err(not_a_part(
-                path,
-                &format!("its format is {}, not {FORMAT:?}", quote(&f.to_string())),
-            ))
-        }
-        None => return Err(not_a_part(path, &format!("no \"format\": {FORMAT:?}"))),
-    }
-    match value.get("version").and_then(Value::as_u64) {
-        Some(VERSION) => {}
-        _ => {
-            return Err(format!(
-                "error: {}: partial result version {}: this host-sim reads version {VERSION}",
-                path.display(),
-                quote(&value.get("version").unwrap_or(&Value::Null).to_string())
-            ))
-        }
-    }
-    // serde's message quotes the value it refused: cut as the reader's are.
-    let part: Part = serde_json::from_value(value).map_err(|e| {
-        format!(
-            "error: {}: a damaged partial result: {}",
-            path.display(),
-            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
-        )
-    })?;
+    let part: Part = read_as(path, FORMAT, VERSION, "host-sim tune --shard")?;
     let damaged =
         |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
     if part.sweep_sha256 != sweep_sha256(&part.machine.sha256, &part.sweep) {
@@ -675,6 +685,45 @@ pub fn read(path: &Path) -> Result<Part, String> {
     Ok(part)
 }
 
+/// What is wrong with the shards `given` (each part's file and shard, all of one
+/// N, the first's): a part given twice, a part missing (`whole` names what the N
+/// parts make, `a sweep` or `a fit`); one line each.
+pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
+    let mut problems = Vec::new();
+    let Some(count) = given.first().map(|g| g.1.count) else {
+        return problems;
+    };
+    let mut seen: Vec<Option<&Path>> = vec![None; count];
+    for &(path, shard) in given {
+        match seen[shard.index - 1] {
+            Some(other) => problems.push(format!(
+                "error: {}: part {shard} again ({} is part {shard} too)",
+                path.display(),
+                other.display(),
+            )),
+            None => seen[shard.index - 1] = Some(path),
+        }
+    }
+    let missing: Vec<String> = (1..=count)
+        .filter(|i| seen[i - 1].is_none())
+        .map(|i| i.to_string())
+        .collect();
+    if !missing.is_empty() {
+        let shown: Vec<String> = seen
+            .iter()
+            .zip(1..)
+            .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
+            .collect();
+        problems.push(format!(
+            "error: merge: part{} {} of {count} missing: given {}; {whole} in {count} parts needs all of them",
+            if missing.len() == 1 { "" } else { "s" },
+            missing.join(", "),
+            shown.join(", ")
+        ));
+    }
+    problems
+}
+
 /// The parts `(file, part)` as one sweep: the first part's, with every run's
 /// outcome in run order ([`Sweep::runs`]: the grid's points in grid order,
 /// machine by machine). Refused, every problem one line naming the
@@ -709,37 +758,11 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
         }
     }
     if problems.is_empty() {
-        let count = first.shard.count;
-        let mut seen: Vec<Option<&Path>> = vec![None; count];
-        for (path, part) in parts {
-            match seen[part.shard.index - 1] {
-                Some(other) => problems.push(format!(
-                    "error: {}: part {} again ({} is part {} too)",
-                    path.display(),
-                    part.shard,
-                    other.display(),
-                    part.shard
-                )),
-                None => seen[part.shard.index - 1] = Some(path),
-            }
-        }
-        let missing: Vec<String> = (1..=count)
-            .filter(|i| seen[i - 1].is_none())
-            .map(|i| i.to_string())
+        let given: Vec<(&Path, Shard)> = parts
+            .iter()
+            .map(|(p, part)| (p.as_path(), part.shard))
             .collect();
-        if !missing.is_empty() {
-            let given: Vec<String> = seen
-                .iter()
-                .zip(1..)
-                .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
-                .collect();
-            problems.push(format!(
-                "error: merge: part{} {} of {count} missing: given {}; a sweep in {count} parts needs all of them",
-                if missing.len() == 1 { "" } else { "s" },
-                missing.join(", "),
-                given.join(", ")
-            ));
-        }
+        problems.extend(shard_problems(&given, "a sweep"));
     }
     if !problems.is_empty() {
         return Err(problems.join("\n") + "\n");

@@ -8,6 +8,23 @@ use host_sim::tune::part::Part;
 
 use super::Run;
 
+/// A fresh scratch directory `name` of the test binary `tag`, with the reference
+/// machine file copied in as `m.toml` (its tuning table beside it, as the file
+/// names it), so that every directory names the machine alike.
+pub fn scratch_with_machine(tag: &str, name: &str) -> PathBuf {
+    let d = super::scratch(tag, name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("scratch directory");
+    let examples = super::machine().parent().unwrap().to_path_buf();
+    std::fs::copy(super::machine(), d.join("m.toml")).unwrap();
+    std::fs::copy(
+        examples.join("vibro-driver.tuning.toml"),
+        d.join("vibro-driver.tuning.toml"),
+    )
+    .unwrap();
+    d
+}
+
 /// Runs `host-sim` with `args` in directory `cwd`.
 pub fn run_in(cwd: &Path, args: &[&str]) -> Run {
     let mut cmd = super::host_sim();
@@ -27,10 +44,28 @@ pub fn bytes(p: PathBuf) -> Vec<u8> {
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
+/// A partial result whose hashes can be computed again: a sweep's or a fit's.
+pub trait Sealed: serde::Serialize + serde::de::DeserializeOwned {
+    /// Sets its hashes from its contents.
+    fn seal(&mut self);
+}
+
+impl Sealed for Part {
+    fn seal(&mut self) {
+        Part::seal(self)
+    }
+}
+
+impl Sealed for host_sim::calibrate::part::Part {
+    fn seal(&mut self) {
+        host_sim::calibrate::part::Part::seal(self)
+    }
+}
+
 /// Part `name` in `d` with `edit` made and its hashes computed again, written as
 /// `out`: what someone who recomputes them makes.
-pub fn resealed(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut Part)) {
-    let mut part: Part = serde_json::from_slice(&bytes(d.join(name))).unwrap();
+pub fn resealed<P: Sealed>(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut P)) {
+    let mut part: P = serde_json::from_slice(&bytes(d.join(name))).unwrap();
     edit(&mut part);
     part.seal();
     let text = serde_json::to_string_pretty(&part).unwrap();
