@@ -1,5 +1,6 @@
 //! `host-sim calibrate MACHINE --measured FILE.csv --fit KEY[,KEY...]
-//! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...`
+//! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...
+//! [--shard I/N [--out-part FILE.json]]`
 //!
 //! Fits keys of the machine file to the travel speeds measured on the real
 //! machine (docs/calibration.md): by least squares

@@ -3,7 +3,9 @@
 //!
 //! Combines the partial results of `host-sim tune --shard I/N` ([`super::part`])
 //! into the output of the whole sweep, byte for byte what `host-sim tune` without
-//! `--shard` prints and writes (docs/scale-out.md):
+//! `--shard` prints and writes, `tune --robust` as well (docs/scale-out.md; a
+//! fit's parts, `calibrate --shard`, go to `crate::calibrate::part::merge`, which
+//! the command line picks by the first part's format):
 //! 1. read and check every part on its own ([`part::read`]), then together
 //!    ([`part::assemble`]): one sweep, the same N, each part once, none missing;
 //!    every problem at once, exit 2, before any run;
@@ -43,8 +45,9 @@ use crate::help::epilogue;
     &["docs/scale-out.md", "docs/tuning.md"],
 ))]
 pub struct MergeArgs {
-    /// The partial results of `host-sim tune --shard I/N`: all N parts of one
-    /// sweep, in any order.
+    /// The partial results of `host-sim tune --shard I/N` (with or without
+    /// `--robust`) or of `host-sim calibrate --shard I/N`: all N parts of one
+    /// sweep or fit, in any order.
     #[arg(value_name = "PART.json", required = true)]
     pub parts: Vec<PathBuf>,
     /// The machine file the parts were made from, when it is not where they name
