@@ -5,7 +5,7 @@
 //! their runs as the evaluations of those starts and goes on with the fit from
 //! there: the best starts, the local searches from them, the Jacobian, the
 //! numerical noise and the outputs, through the very code of the unsharded
-//! `calibrate` ([`super::fit_and_report`]), so its result is the unsharded one byte
+//! `calibrate` (`fit_and_report`), so its result is the unsharded one byte
 //! for byte. docs/scale-out.md describes the format for people.
 //!
 //! The hashes are those of a sweep's parts ([`crate::tune::part`]):
@@ -434,7 +434,7 @@ fn differences(a: &Part, b: &Part, fa: &str, fb: &str) -> Vec<String> {
 /// fit, the same N, each part once, none missing), the machine and measured
 /// files read where the parts name them and checked against their hashes, the
 /// starts checked against those the fit makes, then the fit from the parts'
-/// evaluations on ([`fit_and_report`]).
+/// evaluations on (`fit_and_report`).
 pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let mut refused = Vec::new();
     if args.machine.is_some() {
