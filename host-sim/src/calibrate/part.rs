@@ -199,7 +199,7 @@ pub(crate) fn run_shard(
     let p = inputs.keys.len();
     let settings = Settings::for_keys(p);
     let starts = distinct_starts(p, &[nominal_start(&inputs.keys)], &settings);
-    let mine = shard.runs(starts.len());
+    let mine: Vec<usize> = shard.runs(starts.len()).collect();
     let batch: Vec<Vec<f64>> = mine.iter().map(|&k| starts[k].clone()).collect();
     let points = inputs.data.speeds_offsets();
     let started = Instant::now();
@@ -346,8 +346,12 @@ pub fn read(path: &Path) -> Result<Part, String> {
             "shard {index}/{count}: not 1 <= I <= N <= {most}"
         )));
     }
-    let mine = part.shard.runs(part.fit.starts);
-    if part.starts.iter().map(|s| s.start).ne(mine.iter().copied()) {
+    if part
+        .starts
+        .iter()
+        .map(|s| s.start)
+        .ne(part.shard.runs(part.fit.starts))
+    {
         return Err(damaged(format!(
             "its starts are not the starts of part {}",
             part.shard

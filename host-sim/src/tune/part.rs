@@ -76,9 +76,10 @@ impl Shard {
         j % self.count == self.index - 1
     }
 
-    /// The runs of this part among `runs`, ascending.
-    pub fn runs(self, runs: usize) -> Vec<usize> {
-        (0..runs).filter(|&j| self.holds(j)).collect()
+    /// The runs of this part among `runs`, ascending (an iterator: `runs` may
+    /// be a number a damaged part claims).
+    pub fn runs(self, runs: usize) -> impl ExactSizeIterator<Item = usize> {
+        (self.index - 1..runs).step_by(self.count)
     }
 }
 
@@ -309,13 +310,15 @@ impl Sweep {
         self.robust.map_or(1, |r| r.samples * STARTS)
     }
 
-    /// Every run of the sweep, `(machine, grid point)` in run order (`j = m P +
-    /// k`, machine by machine).
-    pub fn runs(&self) -> Vec<(usize, usize)> {
+    /// The runs of the sweep: `M P` for `M` machines and `P` grid points.
+    pub fn run_count(&self) -> usize {
+        self.machines() * self.speeds_rpm.len() * self.offsets_deg.len()
+    }
+
+    /// Run `j`, `(machine, grid point)`: `j = m P + k`, machine by machine.
+    pub fn run(&self, j: usize) -> (usize, usize) {
         let points = self.speeds_rpm.len() * self.offsets_deg.len();
-        (0..self.machines())
-            .flat_map(|m| (0..points).map(move |k| (m, k)))
-            .collect()
+        (j / points, j % points)
     }
 
     /// The grid.
@@ -445,8 +448,8 @@ pub(crate) fn run_shard(
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
     let sweep = Sweep::new(&grid, request, robust);
-    let all = sweep.runs();
-    let mine = shard.runs(all.len());
+    let all = sweep.run_count();
+    let held = shard.runs(all).len();
     let command = if robust.is_some() {
         "tune --robust"
     } else {
@@ -454,14 +457,15 @@ pub(crate) fn run_shard(
     };
     // A part merge reads: at most as many runs as the largest grid
     // ([`MAX_BYTES`] holds them with every warning kept).
-    if mine.len() > MAX_POINTS {
+    if held > MAX_POINTS {
         return Err(Failure::Usage(format!(
             "error: {command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}\n",
-            mine.len(),
-            all.len(),
-            all.len().div_ceil(MAX_POINTS)
+            held,
+            all,
+            all.div_ceil(MAX_POINTS)
         )));
     }
+    let mine: Vec<usize> = shard.runs(all).collect();
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
     let output = staged.add("--out-part", &out)?;
@@ -472,7 +476,7 @@ pub(crate) fn run_shard(
     let runs: Vec<RunOutcome> = mine
         .par_iter()
         .map(|&j| {
-            let (m, k) = all[j];
+            let (m, k) = sweep.run(j);
             let (speed, offset) = points[k];
             let outcome = run_point(machines[m], speed, offset, grid.t_end);
             progress.inc(1);
@@ -490,15 +494,15 @@ pub(crate) fn run_shard(
             path: request.machine_path.display().to_string(),
             sha256: request.machine_sha256.clone(),
         },
-        sweep,
+        sweep: sweep.clone(),
         sweep_sha256: String::new(),
         shard,
         runs: mine
             .iter()
             .zip(runs)
             .map(|(&j, r)| PartRun {
-                point: all[j].1,
-                machine: all[j].0,
+                point: sweep.run(j).1,
+                machine: sweep.run(j).0,
                 speed_rpm: r.speed_rpm,
                 offset_deg: r.offset_deg,
                 mean_velocity: r.mean_velocity,
@@ -521,7 +525,7 @@ pub(crate) fn run_shard(
     console.note(&format!(
         "{command}: part {shard}: {} of {} {} in {:.1} s on {}, written to {}\n",
         part.runs.len(),
-        all.len(),
+        all,
         if robust.is_some() {
             "runs"
         } else {
@@ -648,12 +652,13 @@ pub fn read(path: &Path) -> Result<Part, String> {
         )));
     }
     let points = part.sweep.grid().points();
-    let all = part.sweep.runs();
-    let mine = part.shard.runs(all.len());
-    let same = part.runs.len() == mine.len()
-        && part.runs.iter().zip(&mine).all(|(r, &j)| {
-            (r.machine, r.point) == all[j] && (r.speed_rpm, r.offset_deg) == points[r.point]
-        });
+    let mut mine = part.shard.runs(part.sweep.run_count());
+    let same = part.runs.iter().all(|r| {
+        mine.next().is_some_and(|j| {
+            (r.machine, r.point) == part.sweep.run(j)
+                && (r.speed_rpm, r.offset_deg) == points[r.point]
+        })
+    }) && mine.next().is_none();
     if !same {
         return Err(damaged(format!(
             "its runs are not the runs of part {}",
@@ -769,7 +774,7 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
     }
     // The grid's own speeds and offsets (equal to the runs', checked by `read`).
     let points = first.sweep.grid().points();
-    let all = first.sweep.runs().len();
+    let all = first.sweep.run_count();
     let count = points.len();
     let mut runs: Vec<Option<RunOutcome>> = vec![None; all];
     for (_, part) in parts {
@@ -801,7 +806,7 @@ mod tests {
         }
         // Every point in exactly one part.
         let parts: Vec<Vec<usize>> = (1..=3)
-            .map(|index| Shard { index, count: 3 }.runs(8))
+            .map(|index| Shard { index, count: 3 }.runs(8).collect())
             .collect();
         assert_eq!(parts, [vec![0, 3, 6], vec![1, 4, 7], vec![2, 5]]);
     }
