@@ -730,7 +730,7 @@ pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
 }
 
 /// The parts `(file, part)` as one sweep: the first part's, with every run's
-/// outcome in run order ([`Sweep::runs`]: the grid's points in grid order,
+/// outcome in run order ([`Sweep::run`]: the grid's points in grid order,
 /// machine by machine). Refused, every problem one line naming the
 /// files: parts of different sweeps (what differs), parts that disagree on N, a
 /// part given twice, a part missing.
