@@ -182,6 +182,12 @@ fn merge_refuses_robust_parts_that_are_not_one_sweep_or_were_edited() {
         r.refused(message);
         assert!(r.stdout.is_empty(), "{bad}: {}", r.stdout);
     }
+    // A part of the format before robust parts (version 3, no run's machine).
+    let mut old = read(d.join("p3.json"));
+    old["version"] = 3.into();
+    std::fs::write(d.join("old.json"), old.to_string()).unwrap();
+    merge(&d, &["p1.json", "p2.json", "old.json", "p4.json"])
+        .refused("error: old.json: partial result version 3: this host-sim reads version 4");
     // The four parts as written merge.
     let r = merge(&d, &["p1.json", "p2.json", "p3.json", "p4.json"]);
     assert_eq!(r.status, 0, "{}", r.stderr);
