@@ -4,8 +4,10 @@
 # a scratch directory and started, deploy/slurm/submit.sh submits a small grid as
 # an array job of 3 parts and a dependent merge job, and the merged outputs (the
 # JSON, the --write tuning table and the --plot SVG) must equal the unsharded
-# sweep's byte for byte. The daemons this script started are stopped on exit,
-# whatever happened.
+# sweep's byte for byte; likewise a small robust sweep (tune --robust, 3 parts)
+# and a small fit's multistart (COMMAND=calibrate, 3 parts: its JSON and --write
+# machine file). The daemons this script started are stopped on exit, whatever
+# happened.
 #
 #   scripts/slurm-check.sh        # needs root (apt, munged, slurmd), or the
 #                                 # packages installed and a running munged
@@ -17,6 +19,19 @@ cd "$ROOT"
 HOST_SIM="$ROOT/target/release/host-sim"
 # The grid: 2 speeds x 4 offsets, 2 s each (the tests' tiny grid, shorter).
 GRID=(--speeds 2750:3000:250 --offsets 0:360:90 --t-end 2)
+# The robust sweep: 1 speed x 4 offsets on 2 machines x 3 starts (24 runs of 2 s,
+# the loosest tolerance; about a second of one core).
+ROBUST=(--speeds 3000 --offsets 0:360:90 --t-end 2 --set simulation.rtol=1e-3
+    --robust --samples 2)
+# The fit: restitution from two measured points (7 starts, some 25 evaluations of
+# 2 runs of 2 s, the loosest tolerance; a few seconds of one core).
+FIT=(--measured measured.csv --fit 'contacts.*.restitution' --t-end 2
+    --set simulation.rtol=1e-3)
+MEASURED='speed_rpm,offset_deg,velocity_mps
+3000,90,0.030
+3000,270,-0.031
+'
+
 PARTS=3
 TIMEOUT_S=300
 
@@ -115,14 +130,27 @@ for _ in $(seq 1 30); do
 done
 sinfo
 
-# 4. The sweep in parts, through the scripts users submit, from its own folder.
-mkdir -p "$WORK/parts-run" "$WORK/whole-run"
-cp examples/vibro-driver.toml "$WORK/parts-run/"
-cp examples/vibro-driver.toml "$WORK/whole-run/"
+# 4. The sweeps and the fit in parts, through the scripts users submit, each from
+# its own folder (its parts, logs and outputs apart), all submitted at once.
+for run in parts-run whole-run robust-parts robust-whole fit-parts fit-whole; do
+    mkdir -p "$WORK/$run"
+    cp examples/vibro-driver.toml examples/vibro-driver.tuning.toml "$WORK/$run/"
+    printf '%s' "$MEASURED" >"$WORK/$run/measured.csv"
+done
 (
     cd "$WORK/parts-run"
     HOST_SIM="$HOST_SIM" "$ROOT/deploy/slurm/submit.sh" "$PARTS" vibro-driver.toml "${GRID[@]}" \
         -- --write tuning.toml --plot tune.svg --format json
+)
+(
+    cd "$WORK/robust-parts"
+    HOST_SIM="$HOST_SIM" "$ROOT/deploy/slurm/submit.sh" "$PARTS" vibro-driver.toml "${ROBUST[@]}" \
+        -- --write tuning.toml --plot tune.svg --format json
+)
+(
+    cd "$WORK/fit-parts"
+    COMMAND=calibrate HOST_SIM="$HOST_SIM" "$ROOT/deploy/slurm/submit.sh" "$PARTS" \
+        vibro-driver.toml "${FIT[@]}" -- --write fitted.toml --format json
 )
 waited=0
 while [[ -n "$(squeue -h)" ]]; do
@@ -134,17 +162,31 @@ while [[ -n "$(squeue -h)" ]]; do
     sleep 1
     waited=$((waited + 1))
 done
-echo "the array job and the merge job finished in about $waited s"
-ls "$WORK/parts-run"
+echo "the array jobs and the merge jobs finished in about $waited s"
+ls "$WORK/parts-run" "$WORK/robust-parts" "$WORK/fit-parts"
 
-# 5. The same sweep unsharded, with the same relative names.
+# 5. The same unsharded, with the same relative names, and the merged outputs
+# compared byte for byte.
 (
     cd "$WORK/whole-run"
     "$HOST_SIM" tune vibro-driver.toml "${GRID[@]}" --write tuning.toml --plot tune.svg \
         --format json >tune.json
+    cd "$WORK/robust-whole"
+    "$HOST_SIM" tune vibro-driver.toml "${ROBUST[@]}" --write tuning.toml --plot tune.svg \
+        --format json >tune.json
+    cd "$WORK/fit-whole"
+    "$HOST_SIM" calibrate vibro-driver.toml "${FIT[@]}" --write fitted.toml --format json \
+        >tune.json
 )
-merge_log=("$WORK"/parts-run/tune-merge-*.log)
-cmp "$WORK/whole-run/tune.json" "${merge_log[0]}"
-cmp "$WORK/whole-run/tuning.toml" "$WORK/parts-run/tuning.toml"
-cmp "$WORK/whole-run/tune.svg" "$WORK/parts-run/tune.svg"
-echo "slurm: $PARTS parts merged = the unsharded sweep, byte for byte (JSON, tuning table, plot)"
+for pair in parts-run:whole-run robust-parts:robust-whole fit-parts:fit-whole; do
+    parts=${pair%%:*}
+    whole=${pair##*:}
+    merge_log=("$WORK/$parts"/tune-merge-*.log)
+    cmp "$WORK/$whole/tune.json" "${merge_log[0]}"
+    for file in tuning.toml tune.svg fitted.toml; do
+        if [[ -e "$WORK/$whole/$file" ]]; then
+            cmp "$WORK/$whole/$file" "$WORK/$parts/$file"
+        fi
+    done
+done
+echo "slurm: $PARTS parts merged = unsharded, byte for byte: the sweep and the robust sweep (JSON, tuning table, plot), the fit (JSON, machine file)"

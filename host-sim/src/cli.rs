@@ -103,6 +103,10 @@ pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
         Command::Run(args) => run::run(&args, console),
         Command::Scenario(args) => scenario::run(&args, console),
         Command::Tune(args) => tune::run(&args, console),
+        // A fit's parts (calibrate --shard) or a sweep's (tune --shard).
+        Command::Merge(args) if calibrate::part::names_a_fit(&args.parts) => {
+            calibrate::part::merge(&args, console)
+        }
         Command::Merge(args) => tune::merge::run(&args, console),
         Command::Calibrate(args) => calibrate::run(&args, console),
         Command::Device(args) => device::commands::run(&args, console),

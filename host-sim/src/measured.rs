@@ -215,7 +215,7 @@ pub fn read_each(
 /// The text of the file at `path` through the one reader of input files (a
 /// regular file, at most [`MAX_BYTES`] of it read: a device, a FIFO or a file
 /// that never ends is refused too); a file too large is told how to shrink.
-fn read_bounded(path: &Path) -> Result<String, String> {
+pub fn read_bounded(path: &Path) -> Result<String, String> {
     input::read_text_at_most(path, MAX_BYTES).map_err(|mut p| {
         if p.message.contains("too large") {
             p.message += ": a measured file holds one row a run; average repeated runs into one row, with their count as its weight";

@@ -12,6 +12,7 @@ use host_sim::tune::part::Part;
 use serde_json::Value;
 
 mod common;
+use common::parts::{bytes, merge, merges_to_the_whole, resealed, run_in};
 use common::{machine, Run, TINY_GRID as GRID};
 
 /// A fresh scratch directory `name` of this test binary.
@@ -20,13 +21,6 @@ fn dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("scratch directory");
     d
-}
-
-/// Runs `host-sim` with `args` in directory `cwd`.
-fn run_in(cwd: &Path, args: &[&str]) -> Run {
-    let mut cmd = common::host_sim();
-    cmd.args(args).current_dir(cwd);
-    common::finish(cmd)
 }
 
 /// `host-sim tune MACHINE GRID extra...` in `cwd`, the machine named by its
@@ -44,17 +38,6 @@ fn part(cwd: &Path, machine: &Path, grid: &[&str], shard: &str, name: &str) {
     assert_eq!(r.status, 0, "{}", r.stderr);
     assert!(r.stdout.is_empty(), "{}", r.stdout);
     assert!(cwd.join(name).is_file());
-}
-
-/// `host-sim merge args...` in `cwd`.
-fn merge(cwd: &Path, args: &[&str]) -> Run {
-    let mut all = vec!["merge"];
-    all.extend_from_slice(args);
-    run_in(cwd, &all)
-}
-
-fn bytes(p: PathBuf) -> Vec<u8> {
-    std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
 #[test]
@@ -82,31 +65,16 @@ fn three_parts_merge_to_the_output_of_the_whole_sweep() {
     assert_eq!(to_stdout.status, 0, "{}", to_stdout.stderr);
     assert_eq!(to_stdout.stdout.as_bytes(), bytes(sharded.join("p2.json")));
 
-    let mut args = vec!["p1.json", "p2.json", "p3.json"];
-    args.extend_from_slice(&outputs);
-    let merged = merge(&sharded, &args);
-    assert_eq!(merged.status, 0, "{}", merged.stderr);
-    assert!(
-        merged.stderr.contains("merge: 3 parts of 8 grid runs"),
-        "{}",
-        merged.stderr
-    );
-    assert_eq!(merged.stdout, table.stdout);
     assert!(table.stdout.contains("best offsets"), "{}", table.stdout);
-    for file in ["t.tuning.toml", "p.svg"] {
-        assert_eq!(
-            bytes(sharded.join(file)),
-            bytes(whole.join(file)),
-            "{file} differs"
-        );
-    }
     // Any order of the parts; JSON as well.
-    let merged = merge(
+    merges_to_the_whole(
         &sharded,
-        &["p3.json", "p1.json", "p2.json", "--format", "json"],
+        &whole,
+        &["p1.json", "p2.json", "p3.json"],
+        &outputs,
+        (&table, &json),
+        "merge: 3 parts of 8 grid runs",
     );
-    assert_eq!(merged.status, 0, "{}", merged.stderr);
-    assert_eq!(merged.stdout, json.stdout);
 }
 
 /// Runs through the floor (the one-foot machine) go through the parts as no
@@ -131,7 +99,7 @@ fn runs_through_the_floor_merge_as_no_travel() {
     part(&d, &m, &grid, "1/2", "p1.json");
     part(&d, &m, &grid, "2/2", "p2.json");
     let p: Value = serde_json::from_slice(&bytes(d.join("p1.json"))).unwrap();
-    assert_eq!(p["version"], 3);
+    assert_eq!(p["version"], 4);
     assert_eq!(
         p["runs"][0]["not_a_travel"],
         "platform went through the fundament at t = 0.053 s"
@@ -277,16 +245,6 @@ fn hand_edited(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut Value)) {
     std::fs::write(d.join(out), text).unwrap();
 }
 
-/// Part `name` in `d` with `edit` made and its hashes computed again, written as
-/// `out`: what someone who recomputes them makes.
-fn resealed(d: &Path, name: &str, out: &str, edit: impl FnOnce(&mut Part)) {
-    let mut part: Part = serde_json::from_slice(&bytes(d.join(name))).unwrap();
-    edit(&mut part);
-    part.seal();
-    let text = serde_json::to_string_pretty(&part).unwrap();
-    std::fs::write(d.join(out), text).unwrap();
-}
-
 /// `host-sim merge args...` in `cwd`, failing (not hanging) if it runs on past
 /// [`WATCHDOG`].
 fn merge_within(cwd: &Path, args: &[&str]) -> Run {
@@ -373,7 +331,7 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
     // A held run without a mean velocity: no run makes that.
     for (k, v) in [f64::NAN, f64::INFINITY].into_iter().enumerate() {
         let name = format!("value{k}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             r.mean_velocity = v;
         });
@@ -466,7 +424,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         .enumerate()
     {
         let name = format!("fast{k}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             r.mean_velocity = v;
             r.not_held = not_held.map(String::from);
@@ -480,7 +438,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         );
     }
     // A run that was no travel has no mean velocity.
-    resealed(&d, "p2.json", "travel.json", |p| {
+    resealed(&d, "p2.json", "travel.json", |p: &mut Part| {
         let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
         r.not_a_travel = Some("platform went through the fundament".into());
     });
@@ -489,7 +447,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         &format!("{}mean_velocity ", damaged("travel.json")),
     );
     // More plant warnings than a run keeps, or a longer one.
-    resealed(&d, "p2.json", "many.json", |p| {
+    resealed(&d, "p2.json", "many.json", |p: &mut Part| {
         let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
         r.plant_warnings = vec!["contacts: Painleve configuration".into(); 100];
     });
@@ -499,7 +457,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     );
     for field in ["warning", "not_held"] {
         let name = format!("long-{field}.json");
-        resealed(&d, "p2.json", &name, |p| {
+        resealed(&d, "p2.json", &name, |p: &mut Part| {
             let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
             match field {
                 "warning" => r.plant_warnings = vec![long.clone()],
@@ -523,11 +481,11 @@ fn merge_bounds_the_values_of_a_resealed_part() {
         &merged("version.json"),
         "version.json: partial result version \"qqq",
     );
-    resealed(&d, "p2.json", "host.json", |p| {
+    resealed(&d, "p2.json", "host.json", |p: &mut Part| {
         p.sweep.host_sim_version = long.clone()
     });
     refused_short(&merged("host.json"), "host.json: a part of host-sim qqq");
-    resealed(&d, "p2.json", "shard.json", |p| {
+    resealed(&d, "p2.json", "shard.json", |p: &mut Part| {
         p.machine.path = long.clone()
     });
     refused_short(&merged("shard.json"), "... (10000000 bytes)");

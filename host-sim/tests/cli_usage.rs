@@ -72,6 +72,16 @@ fn an_unwritable_output_is_refused_naming_its_option() {
             "--out-part",
             nowhere("p.json"),
         ),
+        (
+            [
+                &["tune", m][..],
+                &grid,
+                &["--robust", "--shard", "1/2", "--out-part"],
+            ]
+            .concat(),
+            "--out-part",
+            nowhere("r.json"),
+        ),
         // The device commands check their files before the port is opened.
         (
             vec!["device", "--port", "/dev/null", "telemetry", "--csv"],
@@ -100,17 +110,20 @@ fn an_unwritable_output_is_refused_naming_its_option() {
     .unwrap();
     let out = nowhere("c.toml");
     let measured = measured.to_str().unwrap();
-    run(&[
+    let fit = [
         "calibrate",
         m,
         "--measured",
         measured,
         "--fit",
         "contacts.*.restitution",
-        "--write",
-        &out,
-    ])
-    .refused(&format!("error: --write: cannot write {out}: "));
+    ];
+    run(&[&fit[..], &["--write", &out]].concat())
+        .refused(&format!("error: --write: cannot write {out}: "));
+    // calibrate --shard --out-part: likewise, before its starts run.
+    let part = nowhere("c.json");
+    run(&[&fit[..], &["--shard", "1/2", "--out-part", &part]].concat())
+        .refused(&format!("error: --out-part: cannot write {part}: "));
     // device tune --write: with its measured file, before the port.
     let csv = common::scratch("cli-usage", "device-tune.csv");
     let _ = std::fs::remove_file(&csv);

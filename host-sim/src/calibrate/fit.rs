@@ -158,6 +158,14 @@ impl Memo<'_, '_> {
     }
 }
 
+/// The starts of stage 1 in `p` dimensions: those `given`, then the Latin
+/// hypercube of [`Settings::starts`] points (seeded: the same every time).
+pub fn starts(p: usize, given: &[Vec<f64>], settings: &Settings) -> Vec<Vec<f64>> {
+    let mut starts: Vec<Vec<f64>> = given.to_vec();
+    starts.extend(latin_hypercube(settings.starts, p, settings.seed));
+    starts
+}
+
 /// Stages 1 to 3 of the module doc in `p` dimensions from the starts `given`.
 pub fn fit(
     p: usize,
@@ -171,8 +179,7 @@ pub fn fit(
     };
 
     // 1. The starts.
-    let mut starts: Vec<Vec<f64>> = given.to_vec();
-    starts.extend(latin_hypercube(settings.starts, p, settings.seed));
+    let starts = starts(p, given, settings);
     let values: Vec<f64> = memo.get(&starts)?.iter().map(|r| ssr(r)).collect();
     let mut order: Vec<usize> = (0..starts.len())
         .filter(|&i| values[i].is_finite())

@@ -1,5 +1,6 @@
 //! `host-sim calibrate MACHINE --measured FILE.csv --fit KEY[,KEY...]
-//! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...`
+//! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...
+//! [--shard I/N [--out-part FILE.json]]`
 //!
 //! Fits keys of the machine file to the travel speeds measured on the real
 //! machine (docs/calibration.md): by least squares
@@ -27,6 +28,7 @@
 pub mod fit;
 pub mod keys;
 pub mod numerical;
+pub mod part;
 pub mod plan;
 pub mod points;
 pub mod precision;
@@ -47,6 +49,7 @@ use crate::measured;
 use crate::output::file::Staged;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
+use crate::tune::part::{sha256_hex, Shard};
 use crate::tune::report::count;
 use crate::tune::sweep::{run_point, RunOutcome};
 use crate::tune::{load_machine, progress_bar, read_machine_file, warning_count, DEFAULT_T_END};
@@ -96,6 +99,15 @@ pub struct CalibrateArgs {
     /// Overrides.
     #[command(flatten)]
     pub set: SetArgs,
+    /// Evaluate only part I of N of the multistart's starts (the starts k with
+    /// k % N == I - 1) and write a partial result for `host-sim merge` instead of
+    /// the outputs (see docs/scale-out.md).
+    #[arg(long, value_name = "I/N", value_parser = crate::tune::part::parse_shard, conflicts_with_all = ["write", "format"])]
+    pub shard: Option<Shard>,
+    /// Where `--shard` writes its partial result, written whole (`-`: stdout)
+    /// [default: -].
+    #[arg(long, value_name = "FILE.json", requires = "shard")]
+    pub out_part: Option<PathBuf>,
 }
 
 pub use points::NOT_HELD_RESIDUAL_MPS;
@@ -108,12 +120,14 @@ pub struct Inputs {
     pub keys: Vec<FitKey>,
     /// The measured rows, gathered by their distinct points.
     pub data: Gathered,
+    /// SHA-256 of the measured file's text, as read.
+    pub measured_sha256: String,
     /// End time of each run, s.
     pub t_end: f64,
 }
 
 /// Stage 1 (without the output).
-fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
+pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
     let path = &args.machine.path;
     let (text, _) = read_machine_file(path)?;
     let machine = load_machine(path, &text, &args.set.keys)?;
@@ -127,7 +141,13 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
         f64::from(params.max_speed_rpm),
     );
     let mut data = Gathered::default();
-    let rows = measured::read_each(&args.measured, Some(speeds), &mut |r| data.add(r))
+    let mut measured_sha256 = String::new();
+    let rows = measured::read_bounded(&args.measured)
+        .and_then(|text| {
+            measured_sha256 = sha256_hex(text.as_bytes());
+            let file = args.measured.display().to_string();
+            measured::parse_each(&file, &text, Some(speeds), &mut |r| data.add(r))
+        })
         .and_then(|_| {
             let file = args.measured.display();
             // A file with a header alone (a sweep stopped before its first
@@ -161,6 +181,7 @@ fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
             text,
             keys,
             data,
+            measured_sha256,
             t_end,
         }),
         _ => Err(problems
@@ -212,10 +233,25 @@ pub struct Calibration {
     pub warnings: Vec<String>,
 }
 
-/// Runs the command (stages of the module doc).
+/// Runs the command (stages of the module doc); with `--shard`, its part of
+/// the starts ([`part`]).
 pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failure> {
-    // 1. Inputs, then the output, before any run; then what the fit will cost.
+    if let Some(shard) = args.shard {
+        return part::run_shard(args, shard, console);
+    }
     let inputs = read_options(args).map_err(Failure::Usage)?;
+    fit_and_report(args, inputs, HashMap::new(), console)
+}
+
+/// Stages 2 to 4 on the checked `inputs`, the trial points `preset` evaluated
+/// already (by the parts of a fit in parts).
+pub(crate) fn fit_and_report(
+    args: &CalibrateArgs,
+    inputs: Inputs,
+    preset: HashMap<Vec<u64>, Evaluated>,
+    console: &mut Console<'_>,
+) -> Result<(), Failure> {
+    // 1. The output before any run; then what the fit will cost.
     let mut staged = Staged::new();
     let out = staged.add_optional("--write", args.write.as_deref())?;
     let settings = Settings::for_keys(inputs.keys.len());
@@ -224,7 +260,7 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
 
     // 2. and 3. The fit, with a progress bar on stderr (on a terminal).
     let started = Instant::now();
-    let mut calibration = calibrate(args, inputs, &settings)?;
+    let mut calibration = calibrate(args, inputs, &settings, preset)?;
     calibration.warnings.extend(plan.warnings);
     let seconds = started.elapsed().as_secs_f64();
 
@@ -266,11 +302,18 @@ struct Trials<'a> {
     progress: crate::output::progress::Progress,
     /// The runs of every point evaluated, by the bits of its coordinates.
     outcomes: HashMap<Vec<u64>, Vec<RunOutcome>>,
+    /// Trial points evaluated already (by the parts of a fit in parts, `merge`):
+    /// their runs, or the reader's refusal, by the bits of their coordinates.
+    preset: HashMap<Vec<u64>, Evaluated>,
     /// The reader's refusal of each trial point it refused.
     refused: Vec<String>,
     /// Runs made.
     runs: usize,
 }
+
+/// One trial point's evaluation: a run per measured point, in their order, or
+/// the machine reader's refusal of its values.
+pub type Evaluated = Result<Vec<RunOutcome>, String>;
 
 /// The key of a point in [`Trials::outcomes`].
 fn bits(u: &[f64]) -> Vec<u64> {
@@ -278,34 +321,43 @@ fn bits(u: &[f64]) -> Vec<u64> {
 }
 
 impl Trials<'_> {
-    /// The weighted residuals of every trial point of `batch`, one per measured
-    /// point (not numbers for a trial point the reader refuses); `Err` on Ctrl-C.
-    fn residuals(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> {
+    /// The runs of every trial point of `batch` (those in [`Trials::preset`]
+    /// taken from there), in order; `Err` on Ctrl-C.
+    fn evaluate(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Evaluated>, String> {
         let Inputs {
-            text,
-            keys,
-            data,
-            t_end,
+            text, keys, t_end, ..
         } = self.inputs;
         let points = &self.points;
-        // The machines, in order (a point the reader refuses has none).
-        let machines: Vec<Option<_>> = batch
-            .iter()
-            .map(|u| {
-                let mut sets = self.args.set.keys.clone();
-                sets.extend(keys::sets_at(keys, u));
-                load_machine(&self.args.machine.path, text, &sets)
-                    .map_err(|e| self.refused.push(e.trim_end().to_string()))
-                    .ok()
-            })
-            .collect();
+        // The machines, in order (a point evaluated already or refused has none).
+        let mut done: Vec<Option<Evaluated>> = Vec::new();
+        let mut machines = Vec::new();
+        for u in batch {
+            if let Some(e) = self.preset.remove(&bits(u)) {
+                self.runs += e.as_ref().map_or(0, Vec::len);
+                done.push(Some(e));
+                machines.push(None);
+                continue;
+            }
+            let mut sets = self.args.set.keys.clone();
+            sets.extend(keys::sets_at(keys, u));
+            match load_machine(&self.args.machine.path, text, &sets) {
+                Ok(m) => {
+                    done.push(None);
+                    machines.push(Some(m));
+                }
+                Err(e) => {
+                    done.push(Some(Err(e.trim_end().to_string())));
+                    machines.push(None);
+                }
+            }
+        }
         // Their runs, in parallel, collected in order.
         let jobs: Vec<(usize, usize)> = (0..batch.len())
             .filter(|&c| machines[c].is_some())
             .flat_map(|c| (0..points.len()).map(move |k| (c, k)))
             .collect();
         let progress = &self.progress;
-        let done: Vec<RunOutcome> = jobs
+        let ran: Vec<RunOutcome> = jobs
             .par_iter()
             .map(|&(c, k)| {
                 let (speed, offset) = points[k];
@@ -315,27 +367,46 @@ impl Trials<'_> {
                 o
             })
             .collect();
-        self.runs += done.len();
+        self.runs += ran.len();
         if crate::interrupt::interrupted() {
             return Err(format!(
                 "error: calibrate: {}: the fit is incomplete, nothing written",
                 crate::interrupt::interruption()
             ));
         }
-        // The residuals, trial point by trial point.
-        let mut done = done.into_iter();
+        let mut ran = ran.into_iter();
+        Ok(done
+            .into_iter()
+            .map(|e| e.unwrap_or_else(|| Ok(ran.by_ref().take(points.len()).collect())))
+            .collect())
+    }
+
+    /// The weighted residuals of every trial point of `batch`, one per measured
+    /// point (not numbers for a trial point the reader refuses); `Err` on Ctrl-C.
+    fn residuals(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> {
+        let evaluated = self.evaluate(batch)?;
+        let data = &self.inputs.data;
         let mut out = Vec::new();
-        for (u, m) in batch.iter().zip(&machines) {
-            if m.is_none() {
-                out.push(vec![f64::NAN; points.len()]);
-                continue;
+        for (u, e) in batch.iter().zip(evaluated) {
+            match e {
+                Ok(sims) => {
+                    out.push(point_residuals(&data.points, &sims));
+                    self.outcomes.insert(bits(u), sims);
+                }
+                Err(refusal) => {
+                    self.refused.push(refusal);
+                    out.push(vec![f64::NAN; self.points.len()]);
+                }
             }
-            let sims: Vec<RunOutcome> = done.by_ref().take(points.len()).collect();
-            out.push(point_residuals(&data.points, &sims));
-            self.outcomes.insert(bits(u), sims);
         }
         Ok(out)
     }
+}
+
+/// The start given to the multistart: the machine file's values of `keys`,
+/// normalised.
+pub fn nominal_start(keys: &[FitKey]) -> Vec<f64> {
+    keys.iter().map(|k| k.u_of(k.nominal)).collect()
 }
 
 /// Stages 2 and 3 on checked inputs, with the search's `settings`.
@@ -343,6 +414,7 @@ pub fn calibrate(
     args: &CalibrateArgs,
     inputs: Inputs,
     settings: &Settings,
+    preset: HashMap<Vec<u64>, Evaluated>,
 ) -> Result<Calibration, Failure> {
     let keys = &inputs.keys;
     let p = keys.len();
@@ -356,11 +428,13 @@ pub fn calibrate(
         progress: progress_bar("calibrate", most_evaluations(settings, p) * points.len()),
         points,
         outcomes: HashMap::new(),
+        preset,
         refused: Vec::new(),
         runs: 0,
     };
-    let start: Vec<f64> = keys.iter().map(|k| k.u_of(k.nominal)).collect();
-    let found = fit::fit(p, &[start], settings, &mut |b| trials.residuals(b));
+    let found = fit::fit(p, &[nominal_start(keys)], settings, &mut |b| {
+        trials.residuals(b)
+    });
     let found = found.map_err(|e| {
         trials.progress.finish_and_clear();
         Failure::Run(e)

@@ -3,7 +3,9 @@
 //!
 //! Combines the partial results of `host-sim tune --shard I/N` ([`super::part`])
 //! into the output of the whole sweep, byte for byte what `host-sim tune` without
-//! `--shard` prints and writes (docs/scale-out.md):
+//! `--shard` prints and writes, `tune --robust` as well (docs/scale-out.md; a
+//! fit's parts, `calibrate --shard`, go to `crate::calibrate::part::merge`, which
+//! the command line picks by the first part's format):
 //! 1. read and check every part on its own ([`part::read`]), then together
 //!    ([`part::assemble`]): one sweep, the same N, each part once, none missing;
 //!    every problem at once, exit 2, before any run;
@@ -23,6 +25,7 @@ use clap::Args;
 
 use super::part;
 use super::report::count;
+use super::robust;
 use super::{
     conclude, grid_problems, load_machine, progress_bar, read_machine_file, refuse_interrupted,
     table_problems, warning_count, Report, TuneOutputs,
@@ -42,8 +45,9 @@ use crate::help::epilogue;
     &["docs/scale-out.md", "docs/tuning.md"],
 ))]
 pub struct MergeArgs {
-    /// The partial results of `host-sim tune --shard I/N`: all N parts of one
-    /// sweep, in any order.
+    /// The partial results of `host-sim tune --shard I/N` (with or without
+    /// `--robust`) or of `host-sim calibrate --shard I/N`: all N parts of one
+    /// sweep or fit, in any order.
     #[arg(value_name = "PART.json", required = true)]
     pub parts: Vec<PathBuf>,
     /// The machine file the parts were made from, when it is not where they name
@@ -124,19 +128,43 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         }
     }
 
-    // 3. As `tune` from its runs on.
+    // 3. As `tune` (or `tune --robust`) from its runs on.
     let report = Report::open(&args.output)?;
+    let request = first.sweep.request(&first.machine);
     let started = Instant::now();
+    let parts_count = count(first.shard.count, "part");
+    if let Some(r) = first.sweep.robust {
+        // The machines the parts ran on, drawn again from the file as tune drew
+        // them; their runs machine by machine.
+        let (uncertainty, machines) =
+            robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)
+                .map_err(Failure::Usage)?;
+        let by_machine: Vec<Vec<_>> = runs
+            .chunks(grid.points().len())
+            .map(<[_]>::to_vec)
+            .collect();
+        let robust = robust::conclude(grid, uncertainty, r.seed, &machines, &by_machine);
+        robust::finish(&robust, &by_machine[0], report, &request, console)?;
+        console.note(&format!(
+            "merge: {parts_count} of {} robust runs ({} x {} starts x {}) in {:.1} s{}\n",
+            runs.len(),
+            count(r.samples, "machine"),
+            robust::STARTS,
+            count(robust.points.len(), "point"),
+            started.elapsed().as_secs_f64(),
+            warning_count(&robust.warnings)
+        ));
+        return Ok(());
+    }
     let progress = progress_bar("merge", super::best::most_checks(&grid));
     let grid_runs = runs.len();
     let tuning = conclude(&machine, grid, runs, &progress);
     progress.finish_and_clear();
     refuse_interrupted("merge", "the check runs are incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
-    report.finish(&tuning, &first.sweep.request(&first.machine), console)?;
+    report.finish(&tuning, &request, console)?;
     console.note(&format!(
-        "merge: {} of {grid_runs} grid runs, {} in {:.1} s on {}{}\n",
-        count(first.shard.count, "part"),
+        "merge: {parts_count} of {grid_runs} grid runs, {} in {:.1} s on {}{}\n",
         count(tuning.run_count - grid_runs, "check run"),
         seconds,
         count(rayon::current_num_threads(), "thread"),

@@ -28,6 +28,9 @@
 //! ([`part`]); `host-sim merge` ([`merge`]) reads the N parts back into the whole
 //! grid's outcomes and goes on with stages 3 to 5 through the same functions
 //! ([`conclude`], [`Report`]), so its output is the unsharded one byte for byte.
+//! With `--robust --shard I/N` the parts split the robust runs (point `k` on
+//! machine `m` is run `j = m P + k`), and `merge` goes on through
+//! [`robust::conclude`] and [`robust::finish`].
 //!
 //! With `--robust` ([`robust`]) stage 2 runs every point on the machines the
 //! file's `[uncertainty]` allows, from three starts each, and stages 3 to 5 are
@@ -106,9 +109,10 @@ pub struct TuneArgs {
     /// Overrides.
     #[command(flatten)]
     pub set: SetArgs,
-    /// Run only part I of N of the grid (the points k with k % N == I - 1, in
-    /// grid order) and write a partial result for `host-sim merge` instead of the
-    /// outputs (see docs/scale-out.md).
+    /// Run only part I of N of the runs (the grid points k with k % N == I - 1,
+    /// in grid order; with --robust, the runs j = m P + k of point k on machine
+    /// m with j % N == I - 1) and write a partial result for `host-sim merge`
+    /// instead of the outputs (see docs/scale-out.md).
     #[arg(long, value_name = "I/N", value_parser = part::parse_shard, conflicts_with_all = ["write", "plot", "format"])]
     pub shard: Option<Shard>,
     /// Where `--shard` writes its partial result, written whole (`-`: stdout)
@@ -118,7 +122,7 @@ pub struct TuneArgs {
     /// Evaluate every point on machines drawn from the file's `[uncertainty]`, from
     /// three starts each, and choose the offsets that travel their way on all of
     /// them with the best 10th percentile (see docs/tuning.md, "Robust tuning").
-    #[arg(long, conflicts_with = "shard")]
+    #[arg(long)]
     pub robust: bool,
     /// Machines of `--robust`: the nominal one and N - 1 drawn [default: 8].
     #[arg(long, value_name = "N", requires = "robust", value_parser = parse_samples)]
@@ -386,10 +390,20 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
     let (machine, grid, request, text) = read_options(args).map_err(Failure::Usage)?;
     if args.robust {
-        return robust::run(args, &text, grid, &request, console);
+        let (path, sets) = (&args.machine.path, &args.set.keys);
+        let samples = args.samples.unwrap_or(robust::DEFAULT_SAMPLES);
+        let seed = args.seed.unwrap_or(robust::DEFAULT_SEED);
+        let (uncertainty, machines) =
+            robust::machines(path, &text, sets, samples, seed).map_err(Failure::Usage)?;
+        if let Some(shard) = args.shard {
+            let on: Vec<&Machine> = machines.iter().map(|m| &m.2).collect();
+            let robust = Some(part::RobustSweep { samples, seed });
+            return part::run_shard(args, shard, &on, robust, grid, &request, console);
+        }
+        return robust::run(args, uncertainty, &machines, grid, &request, console);
     }
     if let Some(shard) = args.shard {
-        return part::run_shard(args, shard, &machine, grid, &request, console);
+        return part::run_shard(args, shard, &[&machine], None, grid, &request, console);
     }
     // The output files, checked and opened before the sweep: a path that cannot
     // be written is refused at once, not after minutes of runs.

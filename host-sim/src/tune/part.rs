@@ -35,7 +35,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 
-use super::sweep::{run_points, Grid, RunOutcome};
+use rayon::prelude::*;
+
+use super::robust::{MAX_SAMPLES, STARTS};
+use super::sweep::{run_point, Grid, RunOutcome};
 use super::{progress_bar, refuse_interrupted, Request, TuneArgs, MAX_POINTS};
 use crate::failure::{Console, Failure};
 use crate::machine::{input, Machine};
@@ -46,8 +49,9 @@ use crate::output::text;
 pub const FORMAT: &str = "host-sim-tune-part";
 
 /// The `version` of the format this host-sim writes and reads (2: with
-/// `part_sha256`; 3: with each run's `not_a_travel`).
-pub const VERSION: u64 = 3;
+/// `part_sha256`; 3: with each run's `not_a_travel`; 4: with `sweep.robust` and
+/// each run's `machine`).
+pub const VERSION: u64 = 4;
 
 /// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
 /// 200 bytes, so the largest grid, 10 000 runs, about 2 MB; with the most plant
@@ -66,14 +70,16 @@ pub struct Shard {
 }
 
 impl Shard {
-    /// Whether grid point `k` (0-based) is this part's.
-    pub fn holds(self, k: usize) -> bool {
-        k % self.count == self.index - 1
+    /// Whether run `j` (0-based: grid point `k` on machine `m` is run
+    /// `j = m P + k` of a grid of `P` points) is this part's.
+    pub fn holds(self, j: usize) -> bool {
+        j % self.count == self.index - 1
     }
 
-    /// The grid points of this part among `points`, ascending.
-    pub fn points(self, points: usize) -> Vec<usize> {
-        (0..points).filter(|&k| self.holds(k)).collect()
+    /// The runs of this part among `runs`, ascending (an iterator: `runs` may
+    /// be a number a damaged part claims).
+    pub fn runs(self, runs: usize) -> impl ExactSizeIterator<Item = usize> {
+        (self.index - 1..runs).step_by(self.count)
     }
 }
 
@@ -134,14 +140,32 @@ pub struct Sweep {
     pub offsets_deg: Vec<f64>,
     /// End time of each run, s.
     pub t_end: f64,
+    /// `tune --robust`'s machines, `null` for the plain sweep (the nominal
+    /// machine alone).
+    pub robust: Option<RobustSweep>,
 }
 
-/// The outcome of grid point `point`.
+/// The machines of a robust sweep (`tune --robust --samples S --seed X`): the
+/// nominal one and `S - 1` drawn from the file's `[uncertainty]`, each from
+/// [`STARTS`] starts: machine `m` is sample `m / STARTS` from start `m % STARTS`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobustSweep {
+    /// `--samples`.
+    pub samples: usize,
+    /// `--seed`.
+    pub seed: u64,
+}
+
+/// The outcome of grid point `point` on machine `machine`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PartRun {
     /// Its index in grid order, from 0.
     pub point: usize,
+    /// The machine it ran on: 0 in the plain sweep; in a robust one, sample
+    /// `machine / 3` from start `machine % 3` ([`RobustSweep`]).
+    pub machine: usize,
     /// Rotor speed, rpm.
     pub speed_rpm: f64,
     /// Offset held, degrees.
@@ -213,7 +237,7 @@ impl Part {
 }
 
 /// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
-mod maybe_finite {
+pub(crate) mod maybe_finite {
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     #[derive(Serialize, Deserialize)]
@@ -256,16 +280,18 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
-/// `sweep_sha256` ([module doc](self)).
-pub fn sweep_sha256(machine_sha256: &str, sweep: &Sweep) -> String {
+/// `sweep_sha256` ([module doc](self)), and a fit's part's `fit_sha256` alike:
+/// SHA-256 of the machine's hash, a line feed, and `sweep` as compact JSON.
+pub fn sweep_sha256<T: Serialize>(machine_sha256: &str, sweep: &T) -> String {
     let mut bytes = format!("{machine_sha256}\n").into_bytes();
     bytes.extend(serde_json::to_vec(sweep).unwrap_or_default());
     sha256_hex(&bytes)
 }
 
 impl Sweep {
-    /// The sweep of `grid` as `request` asked for it.
-    pub fn new(grid: &Grid, request: &Request) -> Sweep {
+    /// The sweep of `grid` as `request` asked for it, on the machines of
+    /// `robust` (`None`: the plain sweep).
+    pub fn new(grid: &Grid, request: &Request, robust: Option<RobustSweep>) -> Sweep {
         Sweep {
             host_sim_version: env!("CARGO_PKG_VERSION").to_string(),
             set: request.set.clone(),
@@ -274,7 +300,25 @@ impl Sweep {
             speeds_rpm: grid.speeds_rpm.clone(),
             offsets_deg: grid.offsets_deg.clone(),
             t_end: grid.t_end,
+            robust,
         }
+    }
+
+    /// The machines each grid point runs on: 1 in the plain sweep, `S` times
+    /// [`STARTS`] in a robust one.
+    pub fn machines(&self) -> usize {
+        self.robust.map_or(1, |r| r.samples * STARTS)
+    }
+
+    /// The runs of the sweep: `M P` for `M` machines and `P` grid points.
+    pub fn run_count(&self) -> usize {
+        self.machines() * self.speeds_rpm.len() * self.offsets_deg.len()
+    }
+
+    /// Run `j`, `(machine, grid point)`: `j = m P + k`, machine by machine.
+    pub fn run(&self, j: usize) -> (usize, usize) {
+        let points = self.speeds_rpm.len() * self.offsets_deg.len();
+        (j / points, j % points)
     }
 
     /// The grid.
@@ -351,12 +395,20 @@ impl Sweep {
                 format!("{} s", text::sig(other.t_end)),
             );
         }
+        if self.robust != other.robust {
+            let robust = |r: Option<RobustSweep>| match r {
+                Some(r) => format!("--samples {} --seed {}", r.samples, r.seed),
+                None => "none: the plain sweep".to_string(),
+            };
+            differ("--robust", robust(self.robust), robust(other.robust));
+        }
         out
     }
 
     /// Why the grid is not one `tune` makes (a hand-made or damaged file), if it
     /// is not: ranges empty, not ascending, offsets outside [0, 360), too many
-    /// points, an end time that is not a positive number.
+    /// points, an end time that is not a positive number, a robust sweep's
+    /// samples not from 1 to [`MAX_SAMPLES`].
     fn problem(&self) -> Option<String> {
         let ascending = |v: &[f64]| v.windows(2).all(|w| w[0] < w[1]);
         let (s, o) = (&self.speeds_rpm, &self.offsets_deg);
@@ -369,31 +421,68 @@ impl Sweep {
         } else if !(self.t_end.is_finite() && self.t_end > 0.0) {
             Some("t_end: not a positive number of seconds".into())
         } else {
-            None
+            self.robust
+                .filter(|r| !(1..=MAX_SAMPLES).contains(&r.samples))
+                .map(|r| {
+                    format!(
+                        "robust.samples {}: not a count of machines from 1 to {MAX_SAMPLES}",
+                        r.samples
+                    )
+                })
         }
     }
 }
 
-/// `tune --shard`: runs the part's grid points and writes the partial result to
+/// `tune --shard` (and `tune --robust --shard`): runs the part's runs, grid
+/// points on `machines` (the one machine of the plain sweep; a robust sweep's
+/// machines of [`RobustSweep`] in their order), and writes the partial result to
 /// `--out-part` (stdout by default), whole or not at all.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_shard(
     args: &TuneArgs,
     shard: Shard,
-    machine: &Machine,
+    machines: &[&Machine],
+    robust: Option<RobustSweep>,
     grid: Grid,
     request: &Request,
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
+    let sweep = Sweep::new(&grid, request, robust);
+    let all = sweep.run_count();
+    let held = shard.runs(all).len();
+    let command = if robust.is_some() {
+        "tune --robust"
+    } else {
+        "tune"
+    };
+    // A part merge reads: at most as many runs as the largest grid
+    // ([`MAX_BYTES`] holds them with every warning kept).
+    if held > MAX_POINTS {
+        return Err(Failure::Usage(format!(
+            "error: {command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}\n",
+            held,
+            all,
+            all.div_ceil(MAX_POINTS)
+        )));
+    }
+    let mine: Vec<usize> = shard.runs(all).collect();
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
     let output = staged.add("--out-part", &out)?;
 
     let started = Instant::now();
-    let all = grid.points();
-    let mine = shard.points(all.len());
-    let points: Vec<(f64, f64)> = mine.iter().map(|&k| all[k]).collect();
-    let progress = progress_bar("tune", points.len());
-    let runs = run_points(machine, &points, grid.t_end, &progress);
+    let points = grid.points();
+    let progress = progress_bar(command, mine.len());
+    let runs: Vec<RunOutcome> = mine
+        .par_iter()
+        .map(|&j| {
+            let (m, k) = sweep.run(j);
+            let (speed, offset) = points[k];
+            let outcome = run_point(machines[m], speed, offset, grid.t_end);
+            progress.inc(1);
+            outcome
+        })
+        .collect();
     progress.finish_and_clear();
     refuse_interrupted("tune", "the part is incomplete")?;
     let seconds = started.elapsed().as_secs_f64();
@@ -405,14 +494,15 @@ pub(crate) fn run_shard(
             path: request.machine_path.display().to_string(),
             sha256: request.machine_sha256.clone(),
         },
-        sweep: Sweep::new(&grid, request),
+        sweep: sweep.clone(),
         sweep_sha256: String::new(),
         shard,
         runs: mine
             .iter()
             .zip(runs)
-            .map(|(&point, r)| PartRun {
-                point,
+            .map(|(&j, r)| PartRun {
+                point: sweep.run(j).1,
+                machine: sweep.run(j).0,
                 speed_rpm: r.speed_rpm,
                 offset_deg: r.offset_deg,
                 mean_velocity: r.mean_velocity,
@@ -426,16 +516,21 @@ pub(crate) fn run_shard(
     part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
         Failure::Run(format!(
-            "error: tune --shard {shard}: the part does not serialize: {e}"
+            "error: {command} --shard {shard}: the part does not serialize: {e}"
         ))
     })?;
     text.push('\n');
     staged.write(output, &text)?;
     staged.commit()?;
     console.note(&format!(
-        "tune: part {shard}: {} of {} grid runs in {:.1} s on {}, written to {}\n",
+        "{command}: part {shard}: {} of {} {} in {:.1} s on {}, written to {}\n",
         part.runs.len(),
-        all.len(),
+        all,
+        if robust.is_some() {
+            "runs"
+        } else {
+            "grid runs"
+        },
         seconds,
         super::report::count(rayon::current_num_threads(), "thread"),
         if out.as_os_str() == "-" {
@@ -454,18 +549,58 @@ pub(crate) fn quote(field: &str) -> String {
 }
 
 /// Whether `s` is a SHA-256 as a part writes it: 64 lowercase hex digits.
-fn is_sha256(s: &str) -> bool {
+pub(crate) fn is_sha256(s: &str) -> bool {
     s.len() == 64
         && s.bytes()
             .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
-/// "error: FILE: not a partial result of `host-sim tune --shard`: why".
-fn not_a_part(path: &Path, why: &str) -> String {
-    format!(
-        "error: {}: not a partial result of `host-sim tune --shard`: {why}",
-        path.display()
-    )
+/// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`]) of
+/// `format` and `version`, written by `command` (for the messages): JSON, its
+/// `format` and `version` (before its fields, so that a file of another kind or
+/// version is named so), then its fields, every one there and of its type (no
+/// other). The one reader of `tune`'s and `calibrate`'s parts.
+pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
+    path: &Path,
+    format: &str,
+    version: u64,
+    command: &str,
+) -> Result<P, String> {
+    let not_a_part = |why: &str| {
+        format!(
+            "error: {}: not a partial result of `{command}`: {why}",
+            path.display()
+        )
+    };
+    let text = input::read_text_at_most(path, MAX_BYTES)
+        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
+    let value: Value =
+        serde_json::from_str(&text).map_err(|e| not_a_part(&format!("not JSON ({e})")))?;
+    match value.get("format") {
+        Some(Value::String(f)) if f == format => {}
+        Some(f) => {
+            return Err(not_a_part(&format!(
+                "its format is {}, not {format:?}",
+                quote(&f.to_string())
+            )))
+        }
+        None => return Err(not_a_part(&format!("no \"format\": {format:?}"))),
+    }
+    if value.get("version").and_then(Value::as_u64) != Some(version) {
+        return Err(format!(
+            "error: {}: partial result version {}: this host-sim reads version {version}",
+            path.display(),
+            quote(&value.get("version").unwrap_or(&Value::Null).to_string())
+        ));
+    }
+    // serde's message quotes the value it refused: cut as the reader's are.
+    serde_json::from_value(value).map_err(|e| {
+        format!(
+            "error: {}: a damaged partial result: {}",
+            path.display(),
+            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
+        )
+    })
 }
 
 /// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`])
@@ -475,38 +610,7 @@ fn not_a_part(path: &Path, why: &str) -> String {
 ///
 /// [`run_point`]: super::sweep::run_point
 pub fn read(path: &Path) -> Result<Part, String> {
-    let text = input::read_text_at_most(path, MAX_BYTES)
-        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
-    let value: Value =
-        serde_json::from_str(&text).map_err(|e| not_a_part(path, &format!("not JSON ({e})")))?;
-    match value.get("format") {
-        Some(Value::String(f)) if f == FORMAT => {}
-        Some(f) => {
-            return Err(not_a_part(
-                path,
-                &format!("its format is {}, not {FORMAT:?}", quote(&f.to_string())),
-            ))
-        }
-        None => return Err(not_a_part(path, &format!("no \"format\": {FORMAT:?}"))),
-    }
-    match value.get("version").and_then(Value::as_u64) {
-        Some(VERSION) => {}
-        _ => {
-            return Err(format!(
-                "error: {}: partial result version {}: this host-sim reads version {VERSION}",
-                path.display(),
-                quote(&value.get("version").unwrap_or(&Value::Null).to_string())
-            ))
-        }
-    }
-    // serde's message quotes the value it refused: cut as the reader's are.
-    let part: Part = serde_json::from_value(value).map_err(|e| {
-        format!(
-            "error: {}: a damaged partial result: {}",
-            path.display(),
-            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
-        )
-    })?;
+    let part: Part = read_as(path, FORMAT, VERSION, "host-sim tune --shard")?;
     let damaged =
         |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
     if part.sweep_sha256 != sweep_sha256(&part.machine.sha256, &part.sweep) {
@@ -547,17 +651,17 @@ pub fn read(path: &Path) -> Result<Part, String> {
             "shard {index}/{count}: not 1 <= I <= N <= {MAX_POINTS}"
         )));
     }
-    let all = part.sweep.grid().points();
-    let mine = part.shard.points(all.len());
-    let same = part.runs.len() == mine.len()
-        && part
-            .runs
-            .iter()
-            .zip(&mine)
-            .all(|(r, &k)| r.point == k && (r.speed_rpm, r.offset_deg) == all[k]);
+    let points = part.sweep.grid().points();
+    let mut mine = part.shard.runs(part.sweep.run_count());
+    let same = part.runs.iter().all(|r| {
+        mine.next().is_some_and(|j| {
+            (r.machine, r.point) == part.sweep.run(j)
+                && (r.speed_rpm, r.offset_deg) == points[r.point]
+        })
+    }) && mine.next().is_none();
     if !same {
         return Err(damaged(format!(
-            "its runs are not the grid points of part {}",
+            "its runs are not the runs of part {}",
             part.shard
         )));
     }
@@ -570,8 +674,13 @@ pub fn read(path: &Path) -> Result<Part, String> {
     // As `run_point` makes them ([`RunOutcome::problem`]).
     for r in &part.runs {
         if let Some(why) = r.outcome().problem() {
+            let on = if part.sweep.robust.is_some() {
+                format!(" on machine {}", r.machine)
+            } else {
+                String::new()
+            };
             return Err(damaged(format!(
-                "run {} ({} rpm, {} deg): {why}",
+                "run {}{on} ({} rpm, {} deg): {why}",
                 r.point,
                 text::sig(r.speed_rpm),
                 text::sig(r.offset_deg),
@@ -581,8 +690,48 @@ pub fn read(path: &Path) -> Result<Part, String> {
     Ok(part)
 }
 
-/// The parts `(file, part)` as one sweep: the first part's, with every grid
-/// point's outcome in grid order. Refused, every problem one line naming the
+/// What is wrong with the shards `given` (each part's file and shard, all of one
+/// N, the first's): a part given twice, a part missing (`whole` names what the N
+/// parts make, `a sweep` or `a fit`); one line each.
+pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
+    let mut problems = Vec::new();
+    let Some(count) = given.first().map(|g| g.1.count) else {
+        return problems;
+    };
+    let mut seen: Vec<Option<&Path>> = vec![None; count];
+    for &(path, shard) in given {
+        match seen[shard.index - 1] {
+            Some(other) => problems.push(format!(
+                "error: {}: part {shard} again ({} is part {shard} too)",
+                path.display(),
+                other.display(),
+            )),
+            None => seen[shard.index - 1] = Some(path),
+        }
+    }
+    let missing: Vec<String> = (1..=count)
+        .filter(|i| seen[i - 1].is_none())
+        .map(|i| i.to_string())
+        .collect();
+    if !missing.is_empty() {
+        let shown: Vec<String> = seen
+            .iter()
+            .zip(1..)
+            .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
+            .collect();
+        problems.push(format!(
+            "error: merge: part{} {} of {count} missing: given {}; {whole} in {count} parts needs all of them",
+            if missing.len() == 1 { "" } else { "s" },
+            missing.join(", "),
+            shown.join(", ")
+        ));
+    }
+    problems
+}
+
+/// The parts `(file, part)` as one sweep: the first part's, with every run's
+/// outcome in run order ([`Sweep::run`]: the grid's points in grid order,
+/// machine by machine). Refused, every problem one line naming the
 /// files: parts of different sweeps (what differs), parts that disagree on N, a
 /// part given twice, a part missing.
 pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), String> {
@@ -614,58 +763,33 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
         }
     }
     if problems.is_empty() {
-        let count = first.shard.count;
-        let mut seen: Vec<Option<&Path>> = vec![None; count];
-        for (path, part) in parts {
-            match seen[part.shard.index - 1] {
-                Some(other) => problems.push(format!(
-                    "error: {}: part {} again ({} is part {} too)",
-                    path.display(),
-                    part.shard,
-                    other.display(),
-                    part.shard
-                )),
-                None => seen[part.shard.index - 1] = Some(path),
-            }
-        }
-        let missing: Vec<String> = (1..=count)
-            .filter(|i| seen[i - 1].is_none())
-            .map(|i| i.to_string())
+        let given: Vec<(&Path, Shard)> = parts
+            .iter()
+            .map(|(p, part)| (p.as_path(), part.shard))
             .collect();
-        if !missing.is_empty() {
-            let given: Vec<String> = seen
-                .iter()
-                .zip(1..)
-                .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
-                .collect();
-            problems.push(format!(
-                "error: merge: part{} {} of {count} missing: given {}; a sweep in {count} parts needs all of them",
-                if missing.len() == 1 { "" } else { "s" },
-                missing.join(", "),
-                given.join(", ")
-            ));
-        }
+        problems.extend(shard_problems(&given, "a sweep"));
     }
     if !problems.is_empty() {
         return Err(problems.join("\n") + "\n");
     }
     // The grid's own speeds and offsets (equal to the runs', checked by `read`).
-    let all = first.sweep.grid().points();
-    let points = all.len();
-    let mut runs: Vec<Option<RunOutcome>> = vec![None; points];
+    let points = first.sweep.grid().points();
+    let all = first.sweep.run_count();
+    let count = points.len();
+    let mut runs: Vec<Option<RunOutcome>> = vec![None; all];
     for (_, part) in parts {
         for r in &part.runs {
-            runs[r.point] = Some(RunOutcome {
-                speed_rpm: all[r.point].0,
-                offset_deg: all[r.point].1,
+            runs[r.machine * count + r.point] = Some(RunOutcome {
+                speed_rpm: points[r.point].0,
+                offset_deg: points[r.point].1,
                 ..r.outcome()
             });
         }
     }
-    // Every point is some part's (each part checked on its own, none missing).
+    // Every run is some part's (each part checked on its own, none missing).
     let runs = runs.into_iter().flatten().collect::<Vec<_>>();
-    if runs.len() != points {
-        return Err("error: merge: the parts do not cover the grid (an internal error)\n".into());
+    if runs.len() != all {
+        return Err("error: merge: the parts do not cover the sweep (an internal error)\n".into());
     }
     Ok((first.clone(), runs))
 }
@@ -682,7 +806,7 @@ mod tests {
         }
         // Every point in exactly one part.
         let parts: Vec<Vec<usize>> = (1..=3)
-            .map(|index| Shard { index, count: 3 }.points(8))
+            .map(|index| Shard { index, count: 3 }.runs(8).collect())
             .collect();
         assert_eq!(parts, [vec![0, 3, 6], vec![1, 4, 7], vec![2, 5]]);
     }
@@ -704,6 +828,7 @@ mod tests {
         for v in values {
             let run = PartRun {
                 point: 0,
+                machine: 0,
                 speed_rpm: 3000.0,
                 offset_deg: 0.1 * 3.0,
                 mean_velocity: v,

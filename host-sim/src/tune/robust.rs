@@ -389,57 +389,26 @@ pub fn conclude(
     }
 }
 
-/// `tune --robust`: the machines, the sweep, the outputs (`text`: the machine
-/// file's, as checked).
+/// `tune --robust` on the machines of [`machines`] (the ranges `uncertainty`
+/// they were drawn from): the sweep, then the outputs ([`finish`]).
 pub fn run(
     args: &TuneArgs,
-    text_in: &str,
+    uncertainty: Uncertainty,
+    machines: &Machines,
     grid: Grid,
     request: &Request,
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
-    let (path, sets, output) = (&args.machine.path, &args.set.keys, &args.output);
-    let samples = args.samples.unwrap_or(DEFAULT_SAMPLES);
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
-    let (uncertainty, machines) =
-        machines(path, text_in, sets, samples, seed).map_err(Failure::Usage)?;
     // The output files, checked and opened before the sweep, as the plain one's.
-    let Report {
-        mut staged,
-        table: write,
-        plot,
-        format,
-    } = Report::open(output)?;
+    let report = Report::open(&args.output)?;
     let started = std::time::Instant::now();
     let progress = super::progress_bar("tune --robust", machines.len() * grid.points().len());
-    let runs = sweep(&machines, &grid, &progress);
+    let runs = sweep(machines, &grid, &progress);
     progress.finish_and_clear();
     super::refuse_interrupted("tune", "the sweep is incomplete")?;
-    let robust = conclude(grid, uncertainty, seed, &machines, &runs);
-    let result = match format {
-        Format::Json => json(&robust),
-        Format::Table => table(&robust, path),
-    };
-    // The files (all or none), then the sweep, printed whether or not they could
-    // be written: its runs are not thrown away; their error comes after it.
-    let mut files = || -> Result<(), Failure> {
-        if let Some((i, p)) = &write {
-            let Some(text) = table_file(&robust, request, p) else {
-                return Err(Failure::Run(
-                    "error: --write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above\n".into(),
-                ));
-            };
-            staged.write(*i, &text)?;
-        }
-        if let Some(i) = plot {
-            let title = format!("host-sim tune --robust {}", path.display());
-            staged.write(i, &plot_svg(&robust, &runs[0], &title))?;
-        }
-        Ok(())
-    };
-    let written = files().and_then(|()| staged.commit());
-    console.print(&result);
-    written?;
+    let robust = conclude(grid, uncertainty, seed, machines, &runs);
+    finish(&robust, &runs[0], report, request, console)?;
     console.note(&format!(
         "tune --robust: {} runs ({} x {STARTS} starts x {}) in {:.1} s on {}{}\n",
         machines.len() * robust.points.len(),
@@ -450,6 +419,49 @@ pub fn run(
         super::warning_count(&robust.warnings)
     ));
     Ok(())
+}
+
+/// The outputs of a robust sweep (`nominal`: the nominal machine's runs from the
+/// file's start), for `tune --robust` and for `merge` of its parts alike: the
+/// files of `report` (all or none), then the result on stdout, printed whether
+/// or not they could be written (the runs are not thrown away; their error comes
+/// after it). The outputs name the machine file as `request` does.
+pub fn finish(
+    robust: &Robust,
+    nominal: &[RunOutcome],
+    report: Report,
+    request: &Request,
+    console: &mut Console<'_>,
+) -> Result<(), Failure> {
+    let Report {
+        mut staged,
+        table: write,
+        plot,
+        format,
+    } = report;
+    let path = &request.machine_path;
+    let result = match format {
+        Format::Json => json(robust),
+        Format::Table => table(robust, path),
+    };
+    let mut files = || -> Result<(), Failure> {
+        if let Some((i, p)) = &write {
+            let Some(text) = table_file(robust, request, p) else {
+                return Err(Failure::Run(
+                    "error: --write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above\n".into(),
+                ));
+            };
+            staged.write(*i, &text)?;
+        }
+        if let Some(i) = plot {
+            let title = format!("host-sim tune --robust {}", path.display());
+            staged.write(i, &plot_svg(robust, nominal, &title))?;
+        }
+        Ok(())
+    };
+    let written = files().and_then(|()| staged.commit());
+    console.print(&result);
+    written
 }
 
 /// `--plot`: the plain sweep's figure of the nominal runs (`nominal`, the nominal

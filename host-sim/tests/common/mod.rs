@@ -12,6 +12,7 @@ use serde_json::Value;
 pub mod device_sim;
 pub mod docs;
 pub mod fake_device;
+pub mod parts;
 
 /// The repository root.
 pub fn root() -> PathBuf {
