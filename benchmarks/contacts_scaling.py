@@ -94,8 +94,9 @@ def run(binary, path, t_end, timeout):
     if done is None:
         return cpu, None, f"stopped after {timeout:g} s of wall time"
     if done.returncode == 1:
-        first = (done.stderr.strip().splitlines() or ["no message"])[0]
-        return cpu, None, f"exit 1: {first}"
+        lines = done.stderr.strip().splitlines()
+        said = next((l for l in lines if l.startswith("error")), lines[-1] if lines else "no message")
+        return cpu, None, f"exit 1: {said[:160]}"
     if done.returncode != 0:
         fail(f"{path}: host-sim exited {done.returncode}: {done.stderr.strip()}")
     return cpu, json.loads(done.stdout), None

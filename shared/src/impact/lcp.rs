@@ -946,10 +946,11 @@ fn weighted_norm<T: Real, const N: usize>(
 /// reaching their targets, sticking forces inside the cones, slips moving their way.
 /// `None` when it fails; else whether the rates were moved ([`Split::Moved`]).
 ///
-/// Where the candidate's system was singular and it has a sticking contact, the
-/// normal rates and the sticking forces are checked on the best split of the
-/// internal forces ([`super::split`]): the minimum-norm split may overload one
-/// sticking contact while another has friction to spare. When a split inside every
+/// Where the candidate's system was singular, the normal rates and the sticking
+/// forces are checked on the best split of the internal forces
+/// ([`super::split`]): the minimum-norm split may overload one sticking contact
+/// while another has friction to spare, or pull at one of several slipping
+/// contacts while the others could push more. When a split inside every
 /// cone exists, `d` takes it (its velocity rates are unchanged: internal forces
 /// change no contact velocity). `normals_free`: the normal rates were unknowns.
 /// `d`'s rates are unspecified when it fails.
@@ -964,7 +965,9 @@ fn admissible<T: Real, const N: usize>(
     d: &mut Direction<T, N>,
     tol: &Tolerances<T>,
 ) -> Option<Split> {
-    let sticking = (0..p.len).any(|i| cand.active[i] && cand.mode[i] == SlipState::Stick);
+    // Internal forces exist among slipping contacts too (three slipping feet of
+    // one rigid body): their normal rates are then moved to >= 0 as well.
+    let sticking = (0..p.len).any(|i| cand.active[i]);
     let mut split = Split::Inside;
     if how == Solved::MinimumNorm && sticking {
         split = within_cones(
