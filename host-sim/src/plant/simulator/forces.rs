@@ -8,8 +8,9 @@
 //! 3. the forces from the modes' equations (`shared::impact::lcp::solve_states`):
 //!    closed contacts at zero normal acceleration, sticking ones at zero
 //!    tangential acceleration, slipping ones with `lambda_t = -mu s lambda_n`;
-//! 4. where sticking feet leave internal forces free, the split inside every
-//!    cone ([`Plant::share_within_cones`], `shared::impact::split`);
+//! 4. where redundant feet (sticking or slipping) leave internal forces free,
+//!    the split with every normal force `>= 0` and every sticking force inside
+//!    its cone ([`Plant::share_within_cones`], `shared::impact::split`);
 //! 5. `q'' = a_0 + M^-1 J^T lambda`.
 
 use shared::impact::lcp::{solve_states_into, Direction};
@@ -172,7 +173,9 @@ impl Plant {
     }
 
     /// The closed contacts' forces with the internal forces chosen so that every
-    /// sticking contact is inside its cone, where the equations left them
+    /// normal force is `>= 0` and every sticking contact is inside its cone (three
+    /// slipping feet of one body can also share their load in more than one
+    /// way: the mode decision takes one where none pulls), where the equations left them
     /// undetermined ([`shared::impact::split`], the same split the mode decision's
     /// stick check uses). Where no split holds every cone, the forces are left where
     /// the largest violation is smallest, and the stick event function
@@ -200,14 +203,14 @@ impl Plant {
                         || y[r].abs() <= sys.problem.contacts[r].friction * x[r] + tol)
             })
         };
-        if inside(&x, &y)
-            || how == Solved::Unique
-            || !mode[..closed.len()].contains(&SlipState::Stick)
-        {
+        if inside(&x, &y) || how == Solved::Unique {
             return (x, y);
         }
         let scale =
             (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
+        // Never finer than the mode decision's tolerance on forces (a thousandth of
+        // eps_F, `decide_modes`): a split the decision found within it is found
+        // here too, rather than replaced by the least violation.
         within_cones(
             &sys.problem,
             &active,
@@ -215,7 +218,7 @@ impl Plant {
             true,
             &mut x,
             &mut y,
-            1e-9 * scale,
+            (1e-9 * scale).max(1e-3 * self.force_tolerance()),
         );
         (x, y)
     }

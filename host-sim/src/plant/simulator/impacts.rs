@@ -140,14 +140,18 @@ impl Plant {
     /// impact: the impulse-space problem of the touching contacts, which under
     /// friction develops a normal impulse even from zero normal velocity until the
     /// slip stops (Genot & Brogliato 1999).
-    pub(super) fn painleve(&mut self, set: &[usize]) {
+    ///
+    /// `why`: how the mode decision ended (Lemke's method: a ray after so many
+    /// pivots, or its cap), named in the warning.
+    pub(super) fn painleve(&mut self, set: &[usize], why: &str) {
         self.mark(
             set,
             EventKind::Painleve,
             "no consistent contact force; tangential impact",
         );
         self.warn(format!(
-            "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
+            "contacts: Painleve configuration at t = {:.9} s (the mode decision ended at {why}), \
+             resolved by a tangential impact",
             self.t
         ));
         // Tangential impact (Genot & Brogliato 1999): the impulse-space problem of

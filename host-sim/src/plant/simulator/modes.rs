@@ -3,6 +3,7 @@
 //! state onto the closed contacts' constraints.
 
 use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
+use shared::impact::lemke::Outcome;
 use shared::impact::linalg::{solve_weighted_in, DIM};
 use shared::impact::MAX_CONTACTS;
 
@@ -20,6 +21,7 @@ pub(super) fn least_change(rows: &[(Vector, Vector, f64)]) -> Option<Vector> {
         0 => None,
         1..=4 => least_change_in::<4>(rows),
         5..=8 => least_change_in::<8>(rows),
+        9..=16 => least_change_in::<16>(rows),
         _ => least_change_in::<DIM>(rows),
     }
 }
@@ -193,8 +195,18 @@ impl Plant {
                 NormalRule::TargetAll(&zeros),
                 &tol,
             );
+            // No consistent modes found within Lemke's pivot cap (a ray, the cap,
+            // or an answer that failed its check): the Painleve rule, once.
             if !d.consistent || !d.ends_at_one {
-                self.painleve(&candidates);
+                let why = match d.outcome {
+                    Outcome::Ray { pivots, .. } => format!("a ray after {pivots} pivots"),
+                    Outcome::Cap { pivots } => format!("no decision within {pivots} pivots"),
+                    Outcome::Inexact { pivots } => {
+                        format!("an answer that failed its check after {pivots} pivots")
+                    }
+                    Outcome::Solved { .. } => "no consistent friction states".into(),
+                };
+                self.painleve(&candidates, &why);
                 return;
             }
             // The active set is closed, in its friction states; the rest open. A
