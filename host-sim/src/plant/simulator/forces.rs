@@ -33,6 +33,29 @@ pub(super) struct Evaluation {
     pub(super) lambda_n: [f64; MAX_CONTACTS],
     /// Tangential force of each contact, N.
     pub(super) lambda_t: [f64; MAX_CONTACTS],
+    /// Each closed slipping contact's normal coefficient relative to its normal
+    /// compliance, `(W_nn - mu s W_nt) / W_nn` ([`normal_coefficient`]; `+inf` for
+    /// the other contacts): the dynamic jam's event function.
+    pub(super) jam: [f64; MAX_CONTACTS],
+}
+
+/// A slipping contact's normal coefficient relative to its normal compliance,
+/// `(W_nn - mu s W_nt) / W_nn` (dimensionless), row `r` of `problem`, `s` the sign
+/// of its slip. Its normal acceleration is `A lambda_n + B` with
+/// `A = W_nn - mu s W_nt` (its own row: the friction `lambda_t = -mu s lambda_n`
+/// slipping against `s`), so where the ratio falls to zero a pressing contact's
+/// force `-B / A` grows without bound: the dynamic jam of Genot and Brogliato
+/// (*New results on Painleve paradoxes*, 1999; Painleve's rod at 45 degrees in
+/// `examples/painleve-rod.toml`). It is the contact's own coefficient: with other
+/// closed contacts it leaves out their coupling, exact for one closed contact.
+pub(super) fn normal_coefficient(
+    problem: &ImpactProblem<f64, MAX_CONTACTS>,
+    r: usize,
+    s: f64,
+) -> f64 {
+    let mu = problem.contacts[r].friction;
+    let w_nn = problem.w_nn[r][r];
+    (w_nn - mu * s * problem.w_nt[r][r]) / w_nn
 }
 
 /// A contact problem assembled for a set of contacts (the first
@@ -115,6 +138,7 @@ impl Plant {
         // Closed contacts: forces from their mode's equations.
         let mut lambda_n = [0.0; MAX_CONTACTS];
         let mut lambda_t = [0.0; MAX_CONTACTS];
+        let mut jam = [f64::INFINITY; MAX_CONTACTS];
         // The closed contacts, without allocating (this runs at every stage).
         let mut closed_buf = [0usize; MAX_CONTACTS];
         let mut n_closed = 0;
@@ -133,6 +157,11 @@ impl Plant {
             for (r, &j) in closed.iter().enumerate() {
                 active[r] = true;
                 mode[r] = modes[j].slip_state();
+                if let Some(s) = modes[j].slip_sign() {
+                    if sys.problem.contacts[r].friction > 0.0 {
+                        jam[j] = normal_coefficient(&sys.problem, r, s);
+                    }
+                }
             }
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
@@ -169,6 +198,7 @@ impl Plant {
             ydot,
             lambda_n,
             lambda_t,
+            jam,
         }
     }
 
