@@ -17,8 +17,11 @@ Usage (from the repository root, after `cargo build --release -p host-sim`):
 The variants are written beside the machine file (its relative paths, the tuning
 table, then hold), as .contacts-scaling-N.toml, and removed at the end.
 
-Standard library only (Python >= 3.11 for tomllib). Exit status 2 on bad
-arguments, a machine file it cannot vary, or a failed run.
+A run that ends with exit 1 (the plant's progress guard) or outlasts
+`--timeout` wall seconds is reported in the table as not finished, with its
+reason, and the script then exits 1 after the table. Standard library only
+(Python >= 3.11 for tomllib). Exit status 2 on bad arguments, a machine file it
+cannot vary, or a run that fails otherwise.
 """
 
 import argparse
@@ -28,6 +31,10 @@ import resource
 import subprocess
 import sys
 import tomllib
+
+
+# The plant's limit on contacts (shared::impact::MAX_CONTACTS).
+MAX_CONTACTS = 16
 
 
 def fail(message):
@@ -40,8 +47,8 @@ def counts(text):
         values = [int(v) for v in text.split(",") if v]
     except ValueError:
         fail(f"--feet: not a comma-separated list of integers: {text!r}")
-    if not values or any(v < 2 or v > 8 for v in values):
-        fail(f"--feet: counts from 2 to 8 (the plant's limit), got {text!r}")
+    if not values or any(v < 2 or v > MAX_CONTACTS for v in values):
+        fail(f"--feet: counts from 2 to {MAX_CONTACTS} (the plant's limit), got {text!r}")
     return values
 
 
@@ -69,17 +76,30 @@ def variant(text, machine, feet):
     return text[:at] + "".join(extra) + text[at:]
 
 
-def run(binary, path, t_end):
+def run(binary, path, t_end, timeout):
+    """The run's CPU time and summary; the summary is None for a run that failed
+    (exit 1: the progress guard) or took longer than `timeout` s of wall time,
+    and then the CPU time is what it took and the reason is returned instead."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    done = subprocess.run(
-        [binary, "run", path, "--command", "right", "--t-end", f"{t_end:g}", "--format", "json"],
-        capture_output=True, text=True,
-    )
+    try:
+        done = subprocess.run(
+            [binary, "run", path, "--command", "right", "--t-end", f"{t_end:g}",
+             "--format", "json"],
+            capture_output=True, text=True, timeout=timeout,
+        )
+    except subprocess.TimeoutExpired:
+        done = None
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if done is None:
+        return cpu, None, f"stopped after {timeout:g} s of wall time"
+    if done.returncode == 1:
+        lines = done.stderr.strip().splitlines()
+        said = next((l for l in lines if l.startswith("error")), lines[-1] if lines else "no message")
+        return cpu, None, f"exit 1: {said[:160]}"
     if done.returncode != 0:
         fail(f"{path}: host-sim exited {done.returncode}: {done.stderr.strip()}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, json.loads(done.stdout)
+    return cpu, json.loads(done.stdout), None
 
 
 def main():
@@ -89,6 +109,8 @@ def main():
     ap.add_argument("--feet", default="2,3,4,6,8")
     ap.add_argument("--t-end", type=float, default=10.0)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--timeout", type=float, default=None,
+                    help="wall seconds after which a run is stopped and reported (default: none)")
     a = ap.parse_args()
     feet = counts(a.feet)
     if not (a.t_end > 0) or a.repeats < 1:
@@ -111,11 +133,13 @@ def main():
             written.append(path)
             with open(path, "w", encoding="utf-8") as f:
                 f.write(variant(text, machine, n) if n > 2 else text)
-            best, summary = None, None
+            best, summary, why = None, None, None
             for _ in range(a.repeats):
-                cpu, summary = run(a.host_sim, path, a.t_end)
+                cpu, summary, why = run(a.host_sim, path, a.t_end, a.timeout)
                 best = cpu if best is None else min(best, cpu)
-            rows.append((n, best, summary))
+                if why:
+                    break
+            rows.append((n, best, summary, why))
     finally:
         for path in written:
             if os.path.exists(path):
@@ -124,9 +148,14 @@ def main():
     print(f"{a.t_end:g} s simulated, --command right, least CPU of {a.repeats} runs\n")
     print("| feet | CPU | against the first | real-time factor | mean velocity (mm/s) | impact instants |")
     print("|---|---|---|---|---|---|")
-    for n, cpu, s in rows:
+    for n, cpu, s, why in rows:
+        if why:
+            print(f"| {n} | {cpu:.3f} s | {cpu / base:.2f} | did not finish | {why} | |")
+            continue
         print(f"| {n} | {cpu:.3f} s | {cpu / base:.2f} | {a.t_end / cpu:.1f} "
               f"| {s['mean_velocity'] * 1e3:+.3f} | {s['impacts']} |")
+    if any(why for *_, why in rows):
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -270,7 +270,7 @@ mod tests {
             "--t-end (or simulation.t_end): at most 3600 s",
             "at most 1e7",
             "--animate: runs of at most 600 s",
-            "[[contacts]]: 1 to 8",
+            "[[contacts]]: 1 to 16",
         ] {
             assert!(help.contains(said), "{said:?} not in {help}");
         }

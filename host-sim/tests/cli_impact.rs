@@ -164,13 +164,13 @@ fn no_contact_is_refused() {
 }
 
 #[test]
-fn more_than_eight_contacts_are_refused() {
+fn more_than_sixteen_contacts_are_refused() {
     let mut text = GOOD.to_string();
-    for i in 2..=9 {
+    for i in 2..=17 {
         text += &SECOND.replace("\"K2\"", &format!("\"K{i}\""));
     }
     let e = refused(&text);
-    says(&e, "contacts", "9 contacts; at most 8");
+    says(&e, "contacts", "17 contacts; at most 16");
 }
 
 #[test]

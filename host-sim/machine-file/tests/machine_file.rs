@@ -537,15 +537,23 @@ fn no_contact() {
 }
 
 #[test]
-fn at_most_eight_contacts() {
+fn at_most_sixteen_contacts() {
     let contact = "[[contacts]]\npoint = [0.0, 0.0]\nrestitution = 0.3\nfriction = 0.4\n";
-    let nine = MINIMAL.replacen("[[rotors]]", &format!("{}[[rotors]]", contact.repeat(7)), 1);
-    let e = refused(&nine, &[]);
-    assert_problem(&e, "contacts", "9 contacts; at most 8 are allowed");
-    // Eight are fine; the unnamed ones are K3 to K8.
-    let eight = MINIMAL.replacen("[[rotors]]", &format!("{}[[rotors]]", contact.repeat(6)), 1);
-    let m = load(&eight, &[]).unwrap_or_else(|e| panic!("{}", render(&e)));
-    assert_eq!(m.contacts[7].name, "K8");
+    let seventeen = MINIMAL.replacen(
+        "[[rotors]]",
+        &format!("{}[[rotors]]", contact.repeat(15)),
+        1,
+    );
+    let e = refused(&seventeen, &[]);
+    assert_problem(&e, "contacts", "17 contacts; at most 16 are allowed");
+    // Sixteen are fine; the unnamed ones are K3 to K16.
+    let sixteen = MINIMAL.replacen(
+        "[[rotors]]",
+        &format!("{}[[rotors]]", contact.repeat(14)),
+        1,
+    );
+    let m = load(&sixteen, &[]).unwrap_or_else(|e| panic!("{}", render(&e)));
+    assert_eq!(m.contacts[15].name, "K16");
 }
 
 #[test]

@@ -37,6 +37,16 @@ impl ContactMode {
         self != ContactMode::Open
     }
 
+    /// The sign of a slipping contact's slip velocity, `None` when it sticks or is
+    /// open.
+    pub(super) fn slip_sign(self) -> Option<f64> {
+        match self {
+            ContactMode::SlipPositive => Some(1.0),
+            ContactMode::SlipNegative => Some(-1.0),
+            ContactMode::Stick | ContactMode::Open => None,
+        }
+    }
+
     /// The mode's name (the events CSV's detail, messages): `open`, `stick`,
     /// `slip+`, `slip-`.
     pub fn name(self) -> &'static str {

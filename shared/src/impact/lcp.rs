@@ -11,8 +11,7 @@
 //!   paper's hypothesis that the impacts end together; Newton's restitution:
 //!   `g = -R u_n0`). Contacts whose share would be negative are released, which
 //!   makes it a linear complementarity problem:
-//!   `x >= 0, v = u_n + (W_eff x) - g >= 0, x . v = 0`,
-//!   solved by enumerating active sets (at most 2^8), largest first.
+//!   `x >= 0, v = u_n + (W_eff x) - g >= 0, x . v = 0`.
 //!   Contacts above their target take no share (they join at an event of the
 //!   path); [`NormalRule::TargetAll`] lets every contact take one (persistent
 //!   contact at acceleration level).
@@ -20,24 +19,40 @@
 //!
 //! Friction (Coulomb): a slipping contact's tangential rate is `y = -mu s x`; a
 //! sticking one's `y` is whatever holds its tangential velocity, if
-//! `|y| <= mu x`. For a contact at zero slip the states stick, slip+, slip- are
-//! tried in that order; a slip state is consistent when the tangential velocity
-//! then moves in its direction. Where the equations leave the impulses
+//! `|y| <= mu x`; a contact at zero slip sticks, or slips the way its tangential
+//! velocity then moves.
+//!
+//! **The method.** Normal rates, friction states and the split of the friction
+//! of contacts at zero slip between the cone's two edges are one linear
+//! complementarity problem (Stewart & Trinkle's form, `ContactLcp`), solved by
+//! Lemke's method ([`super::lemke`]) within its pivot cap: `O(m)` pivots of
+//! `O(m^2)` each for `m <= 4` unknowns per contact, so polynomial in the contacts.
+//! (It replaced the enumeration of active sets and friction states, `4^k`
+//! candidates for `k` contacts at zero slip, kept in the tests as their oracle.)
+//! The modes are read off its solution with the enumeration's tie-breaks (larger
+//! active sets, stick first), and the rates are then those of the modes'
+//! equations ([`solve_states`]): where the equations leave the impulses
 //! undetermined (a singular Delassus matrix), the weighted minimum-norm solution
-//! with the contacts' weights is taken ([`super::linalg`]); where that split of
-//! the internal forces puts a normal rate below zero or a sticking contact outside
-//! its cone, the candidate is checked, and taken, at the closest split inside
-//! every cone ([`super::split`]), so that several sticking contacts share their
-//! friction as the cones allow rather than one cone at a time.
+//! with the contacts' weights ([`super::linalg`]), moved to the closest split
+//! inside every cone where it leaves one ([`super::split`]). Lemke's own rates,
+//! which are complementary, are taken where those fail the check at a boundary.
+//! Where Lemke's path ends at a secondary ray or its cap, the direction is not
+//! `consistent` (or, for a `Target` rule, does not end at one): with a slipping
+//! contact the problem's matrix need not be copositive (Painleve's
+//! `W_nn - mu s W_nt < 0`), and the callers apply their rule for it.
 
+use super::lemke::{pivot_cap, Lcp, Lemke, Outcome};
 use super::linalg::{solve_weighted_into, Solved, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
 use super::split::{within_cones, Split};
+use super::MAX_CONTACTS;
 use crate::real::Real;
 
-/// Most candidate (active set, friction states) pairs tried for one direction.
-const CANDIDATE_BUDGET: u32 = 20_000;
+#[cfg(test)]
+mod oracle;
+#[cfg(test)]
+mod tests;
 
 /// Tolerances of one impact, scaled to its velocities and impulses.
 #[derive(Clone, Copy, Debug)]
@@ -96,11 +111,14 @@ pub struct Direction<T, const N: usize> {
     pub ends_at_one: bool,
     /// A consistent set of states was found.
     pub consistent: bool,
+    /// How the last Lemke solve of the direction ended (its pivots; a ray or
+    /// the cap where no consistent states were found).
+    pub outcome: Outcome,
 }
 
 /// What the rates of a piece add to, and the slip velocities.
 #[derive(Clone, Copy)]
-struct Base<'a, T, const N: usize> {
+pub(crate) struct Base<'a, T, const N: usize> {
     u_n: &'a [T; N],
     u_t: &'a [T; N],
     slip: &'a [T; N],
@@ -127,6 +145,7 @@ impl<T: Real, const N: usize> Default for Direction<T, N> {
             active: [false; N],
             ends_at_one: false,
             consistent: false,
+            outcome: Outcome::Solved { pivots: 0 },
         }
     }
 }
@@ -161,7 +180,49 @@ pub fn find_direction_into<T: Real, const N: usize>(
     tol: &Tolerances<T>,
     out: &mut Direction<T, N>,
 ) {
-    let mut budget = CANDIDATE_BUDGET;
+    #[cfg(test)]
+    if tests::USE_ORACLE.with(|o| o.get()) {
+        return oracle::enumerated_direction(p, u_n, u_t, slip, rule, tol, out);
+    }
+    direction_by(
+        p,
+        (u_n, u_t, slip),
+        rule,
+        tol,
+        out,
+        complementary_direction,
+        fixed_direction,
+    );
+}
+
+/// The direction of a rule with the two solvers given, into `out`: `fixed` for a
+/// `Fixed` rule; `complementary` for a `Target` rule, again with the slips within
+/// `zero_slip` taken as zero where it finds nothing, and else the jamming
+/// fallback: `fixed` with every contact short of its target pushed in proportion
+/// to its weight (`ends_at_one` false), keeping the complementary solve's
+/// `outcome` to say why.
+#[allow(clippy::type_complexity)]
+pub(crate) fn direction_by<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    (u_n, u_t, slip): (&[T; N], &[T; N], &[T; N]),
+    rule: NormalRule<'_, T, N>,
+    tol: &Tolerances<T>,
+    out: &mut Direction<T, N>,
+    mut complementary: impl FnMut(
+        &ImpactProblem<T, N>,
+        &Base<'_, T, N>,
+        &[T; N],
+        &Tolerances<T>,
+        &mut Direction<T, N>,
+    ) -> bool,
+    mut fixed: impl FnMut(
+        &ImpactProblem<T, N>,
+        &Base<'_, T, N>,
+        &[T; N],
+        &Tolerances<T>,
+        &mut Direction<T, N>,
+    ),
+) {
     let all = matches!(rule, NormalRule::TargetAll(_));
     let base = Base {
         u_n,
@@ -170,11 +231,12 @@ pub fn find_direction_into<T: Real, const N: usize>(
         all,
     };
     match rule {
-        NormalRule::Fixed(x) => fixed_direction(p, &base, x, tol, &mut budget, out),
+        NormalRule::Fixed(x) => fixed(p, &base, x, tol, out),
         NormalRule::Target(g) | NormalRule::TargetAll(g) => {
-            if complementary_direction(p, &base, g, tol, &mut budget, out) {
+            if complementary(p, &base, g, tol, out) {
                 return;
             }
+            let outcome = out.outcome;
             // No consistent proportion with the states the slips impose: take the
             // slips within `zero_slip` as zero (their states then chosen), if any.
             let mut loose = *slip;
@@ -186,12 +248,11 @@ pub fn find_direction_into<T: Real, const N: usize>(
                 }
             }
             if loosened {
-                let mut budget = CANDIDATE_BUDGET;
                 let base = Base {
                     slip: &loose,
                     ..base
                 };
-                if complementary_direction(p, &base, g, tol, &mut budget, out) {
+                if complementary(p, &base, g, tol, out) {
                     return;
                 }
             }
@@ -205,9 +266,9 @@ pub fn find_direction_into<T: Real, const N: usize>(
                     x[i] = p.contacts[i].weight;
                 }
             }
-            let mut budget = CANDIDATE_BUDGET;
-            fixed_direction(p, &base, &x, tol, &mut budget, out);
+            fixed(p, &base, &x, tol, out);
             out.ends_at_one = false;
+            out.outcome = outcome;
         }
     }
 }
@@ -224,94 +285,56 @@ fn kinematic_state<T: Real>(u_t: T, tol: T) -> Option<SlipState> {
     }
 }
 
-/// The complementarity problem of a `Target` rule, by enumeration of active sets
-/// from the largest, into `out`. Returns false when no consistent solution exists
-/// (`out` then unspecified).
+/// The largest contact problem: a normal force and three friction unknowns (two
+/// cone edges and the slip rate) per contact.
+pub const MAX_LCP: usize = 4 * MAX_CONTACTS;
+
+/// The complementarity problem of a `Target` rule by Lemke's method, into `out`.
+/// Returns false when no consistent solution was found (`out.outcome` says why;
+/// the rest of `out` then unspecified).
 fn complementary_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     g: &[T; N],
     tol: &Tolerances<T>,
-    budget: &mut u32,
     out: &mut Direction<T, N>,
 ) -> bool {
-    let n = p.len;
-    // Only contacts at or below their target can take impulse; a contact above it
-    // (separating) joins when its normal velocity comes down to the target, which
-    // is an event of the path (see `released_event`), not a choice made here.
-    let mut candidate_mask = 0u32;
-    for i in 0..n {
-        if base.all || base.u_n[i] <= g[i] + tol.velocity {
-            candidate_mask |= 1 << i;
-        }
-    }
-    // The candidates after the first of a size are solved here, and copied to
-    // `out` only when better.
-    let mut scratch: Option<Direction<T, N>> = None;
-    for size in (0..=candidate_mask.count_ones() as usize).rev() {
-        // The weighted norm of the best candidate of this size, held in `out`.
-        let mut best: Option<T> = None;
-        for mask in 0u32..(1u32 << n) {
-            if mask & !candidate_mask != 0 || mask.count_ones() as usize != size {
-                continue;
-            }
-            let mut active = [false; N];
-            for (i, a) in active.iter_mut().enumerate().take(n) {
-                *a = mask & (1 << i) != 0;
-            }
-            let first = best.is_none();
-            let d = if first {
-                &mut *out
-            } else {
-                scratch.get_or_insert_with(Direction::default)
-            };
-            let Some((score, how)) =
-                first_consistent_states(p, base, &active, Some(g), None, tol, budget, d)
-            else {
-                if *budget == 0 {
-                    return false;
-                }
-                continue;
-            };
-            // A unique solution of a full-rank system is the answer; where the
-            // system was singular, keep the weighted minimum norm of this size.
-            if how == Solved::Unique && first {
-                return true;
-            }
-            if best.is_none_or(|s| score < s) {
-                if !first {
-                    if let Some(d) = &scratch {
-                        *out = *d;
-                    }
-                }
-                best = Some(score);
-            }
-        }
-        if best.is_some() {
-            return true;
-        }
-    }
-    false
+    let lcp = ContactLcp::new(p, base, Some(g), None, tol);
+    decide(&lcp, base, tol, out)
 }
 
-/// The direction of a `Fixed` rule: friction states only, into `out`.
+/// The direction of a `Fixed` rule: friction states only, by Lemke's method on
+/// the friction unknowns, into `out`.
 fn fixed_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
     base: &Base<'_, T, N>,
     x: &[T; N],
     tol: &Tolerances<T>,
-    budget: &mut u32,
+    out: &mut Direction<T, N>,
+) {
+    let lcp = ContactLcp::new(p, base, None, Some(x), tol);
+    if decide(&lcp, base, tol, out) {
+        return;
+    }
+    let outcome = out.outcome;
+    clipped_direction(p, base, x, tol, out);
+    out.outcome = outcome;
+}
+
+/// The fallback of a `Fixed` rule with no consistent friction states, into `out`:
+/// every contact at zero slip taken as sticking, with its force clipped to the
+/// cone (the closest admissible), and `consistent` false to say so.
+fn clipped_direction<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    base: &Base<'_, T, N>,
+    x: &[T; N],
+    tol: &Tolerances<T>,
     out: &mut Direction<T, N>,
 ) {
     let mut active = [false; N];
     for i in 0..p.len {
         active[i] = x[i] > T::ZERO;
     }
-    if first_consistent_states(p, base, &active, None, Some(x), tol, budget, out).is_some() {
-        return;
-    }
-    // No consistent friction states: take every undecided contact as sticking,
-    // with its force clipped to the cone (the closest admissible), and say so.
     let mut mode = [SlipState::Stick; N];
     for i in 0..p.len {
         if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
@@ -332,6 +355,384 @@ fn fixed_direction<T: Real, const N: usize>(
     d.consistent = false;
 }
 
+/// The contact problem of one piece as a linear complementarity problem
+/// (Stewart & Trinkle, *An implicit time-stepping scheme for rigid body dynamics
+/// with inelastic collisions and Coulomb friction*, 1996, in the plane). The
+/// contacts that can take a share (`all` of them, or those at or below their
+/// target) are split by their slip: slipping ones (`S`, sign `s`) have their
+/// friction fixed, `y = -mu s x`; those at zero slip (`Z`) have theirs as two
+/// cone edges `y = b+ - b-` with the slip rate `sigma`:
+///
+/// ```text
+///   w_n   =  W^_nn x + W_nZ (b+ - b-)       + u_n - g   >= 0  _|_  x   >= 0
+///   w_+   =  W^_Zn x + W_ZZ (b+ - b-) + sig + u_t       >= 0  _|_  b+  >= 0
+///   w_-   = -W^_Zn x - W_ZZ (b+ - b-) + sig - u_t       >= 0  _|_  b-  >= 0
+///   w_sig =  mu x - b+ - b-                             >= 0  _|_  sig >= 0
+/// ```
+///
+/// with `W^_.n[:, j] = W_.n[:, j] - mu_j s_j W_.t[:, j]` (a slipping contact's
+/// friction folded into its normal column). `sig` is the slip rate `|du_t|`: where
+/// it is positive the friction is on the cone's edge against it; where zero the
+/// contact sticks with `|y| <= mu x`. With the normal rates `fixed`, the unknowns
+/// are the friction ones only and `mu x` is part of `q`. The forces are scaled by
+/// `s = max_i W_nn,ii` (`x' = s x`), so that every entry is a velocity (or an
+/// acceleration) and the pivots compare like with like.
+struct ContactLcp<'a, T, const N: usize> {
+    p: &'a ImpactProblem<T, N>,
+    /// The contacts with a normal unknown (empty when fixed).
+    xs: [usize; N],
+    nx: usize,
+    /// The contacts at zero slip taking a share: friction unknowns.
+    zs: [usize; N],
+    nz: usize,
+    /// Contacts in the problem (a share possible).
+    member: [bool; N],
+    /// [`slip_coeff`] of the slipping members (0 at zero slip).
+    coeff: [T; N],
+    /// `q` of the normal rows, the `b+` rows and the `sigma` rows.
+    q_n: [T; N],
+    q_t: [T; N],
+    q_s: [T; N],
+    /// The force scale `s`.
+    scale: T,
+    target: Option<&'a [T; N]>,
+    fixed: Option<&'a [T; N]>,
+}
+
+impl<'a, T: Real, const N: usize> ContactLcp<'a, T, N> {
+    fn new(
+        p: &'a ImpactProblem<T, N>,
+        base: &Base<'_, T, N>,
+        target: Option<&'a [T; N]>,
+        fixed: Option<&'a [T; N]>,
+        tol: &Tolerances<T>,
+    ) -> Self {
+        let n = p.len;
+        let mut lcp = ContactLcp {
+            p,
+            xs: [0; N],
+            nx: 0,
+            zs: [0; N],
+            nz: 0,
+            member: [false; N],
+            coeff: [T::ZERO; N],
+            q_n: [T::ZERO; N],
+            q_t: [T::ZERO; N],
+            q_s: [T::ZERO; N],
+            scale: T::ONE,
+            target,
+            fixed,
+        };
+        let mut scale = T::ZERO;
+        for i in 0..n {
+            scale = scale.max(p.w_nn[i][i].abs()).max(p.w_tt[i][i].abs());
+            lcp.member[i] = match (target, fixed) {
+                // Only contacts at or below their target can take impulse; one
+                // above it (separating) joins when its normal velocity comes down
+                // to the target, an event of the path, not a choice made here.
+                (Some(g), _) => base.all || base.u_n[i] <= g[i] + tol.velocity,
+                (None, Some(x)) => x[i] > T::ZERO,
+                (None, None) => false,
+            };
+            let state = kinematic_state(base.slip[i], tol.velocity);
+            if let Some(s) = state {
+                lcp.coeff[i] = -p.contacts[i].friction * s.sign::<T>();
+            }
+            if !lcp.member[i] {
+                continue;
+            }
+            if let Some(g) = target {
+                lcp.xs[lcp.nx] = i;
+                lcp.nx += 1;
+                lcp.q_n[i] = base.u_n[i] - g[i];
+            }
+            if state.is_none() {
+                lcp.zs[lcp.nz] = i;
+                lcp.nz += 1;
+            }
+        }
+        if scale > T::ZERO && scale.is_finite() {
+            lcp.scale = scale;
+        }
+        for l in 0..lcp.nz {
+            let c = lcp.zs[l];
+            let mut q = base.u_t[c];
+            if let Some(x) = fixed {
+                // The fixed normal rates' share: (W^_tn x)_c, and mu x in the sigma row.
+                for j in 0..n {
+                    if x[j] != T::ZERO {
+                        q += lcp.w_tn(c, j) * x[j];
+                    }
+                }
+                lcp.q_s[l] = p.contacts[c].friction * x[c] * lcp.scale;
+            }
+            lcp.q_t[l] = q;
+        }
+        lcp
+    }
+
+    /// `W^_nn[i][j]`: contact i's normal rate per unit normal rate at j, with j's
+    /// friction when it slips.
+    fn w_nn(&self, i: usize, j: usize) -> T {
+        self.p.w_nn[i][j] + self.p.w_nt[i][j] * self.coeff[j]
+    }
+
+    /// `W^_tn[i][j]`: contact i's tangential rate per unit normal rate at j.
+    fn w_tn(&self, i: usize, j: usize) -> T {
+        self.p.w_nt[j][i] + self.p.w_tt[i][j] * self.coeff[j]
+    }
+
+    /// The tangential-normal block's transpose: contact i's normal rate per unit
+    /// tangential rate at j.
+    fn w_nt(&self, i: usize, j: usize) -> T {
+        self.p.w_nt[i][j]
+    }
+
+    /// The rates of the modes `c` ([`solve_states_into`]: the weighted
+    /// minimum-norm split, moved within the cones) into `d` where admissible.
+    fn take(
+        &self,
+        base: &Base<'_, T, N>,
+        c: &Candidate<N>,
+        tol: &Tolerances<T>,
+        d: &mut Direction<T, N>,
+    ) -> bool {
+        let p = self.p;
+        let (g, fixed) = (self.target, self.fixed);
+        match solve_states_into(p, base.u_n, base.u_t, &c.active, &c.mode, g, fixed, d) {
+            Some((_, how)) => admissible(p, base, c, g, fixed.is_none(), how, d, tol).is_some(),
+            None => false,
+        }
+    }
+
+    /// The enumeration's first candidate, which it took when admissible: every
+    /// member active, those at zero slip sticking.
+    fn first_candidate(&self, base: &Base<'_, T, N>, tol: &Tolerances<T>) -> Candidate<N> {
+        let mut c = Candidate {
+            active: self.member,
+            mode: [SlipState::Stick; N],
+        };
+        for i in 0..self.p.len {
+            if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
+                c.mode[i] = s;
+            }
+        }
+        c
+    }
+
+    /// Offsets of the `b+`, `b-`, `sigma` blocks.
+    fn blocks(&self) -> (usize, usize, usize) {
+        (self.nx, self.nx + self.nz, self.nx + 2 * self.nz)
+    }
+}
+
+impl<T: Real, const N: usize> Lcp<T> for ContactLcp<'_, T, N> {
+    fn size(&self) -> usize {
+        self.nx + 3 * self.nz
+    }
+
+    fn q(&self, r: usize) -> T {
+        let (bp, bm, sg) = self.blocks();
+        if r < bp {
+            self.q_n[self.xs[r]]
+        } else if r < bm {
+            self.q_t[r - bp]
+        } else if r < sg {
+            -self.q_t[r - bm]
+        } else {
+            self.q_s[r - sg]
+        }
+    }
+
+    fn column(&self, c: usize, out: &mut [T]) {
+        let (bp, bm, sg) = self.blocks();
+        let inv = T::ONE / self.scale;
+        out.fill(T::ZERO);
+        if c < bp {
+            // x'_j: W^_nn / s in the normal rows, W^_Zn / s in b+, minus in b-, mu
+            // in its own sigma row.
+            let j = self.xs[c];
+            for (r, &i) in self.xs[..self.nx].iter().enumerate() {
+                out[r] = self.w_nn(i, j) * inv;
+            }
+            for (l, &k) in self.zs[..self.nz].iter().enumerate() {
+                let v = self.w_tn(k, j) * inv;
+                out[bp + l] = v;
+                out[bm + l] = -v;
+                if k == j {
+                    out[sg + l] = self.p.contacts[j].friction;
+                }
+            }
+        } else if c < sg {
+            // b+'_l (sign 1) or b-'_l (sign -1).
+            let (l, sign) = if c < bm {
+                (c - bp, T::ONE)
+            } else {
+                (c - bm, -T::ONE)
+            };
+            let j = self.zs[l];
+            for (r, &i) in self.xs[..self.nx].iter().enumerate() {
+                out[r] = sign * self.w_nt(i, j) * inv;
+            }
+            for (l2, &k) in self.zs[..self.nz].iter().enumerate() {
+                let v = sign * self.p.w_tt[k][j] * inv;
+                out[bp + l2] = v;
+                out[bm + l2] = -v;
+            }
+            out[sg + l] = -T::ONE;
+        } else {
+            // sigma_l: 1 in its b+ and b- rows.
+            let l = c - sg;
+            out[bp + l] = T::ONE;
+            out[bm + l] = T::ONE;
+        }
+    }
+}
+
+/// Solves the contact problem by Lemke's method in a workspace sized to it, and
+/// reads the direction off a solution into `d`: true when consistent.
+///
+/// First the one candidate that the enumeration tried first and took when
+/// admissible (every member active, stick at zero slip: the common case of feet
+/// at rest), so that the decision is the enumeration's wherever that holds; then
+/// Lemke's method.
+///
+/// The workspace lives on the stack of a call that is not inlined, sized to the
+/// problem (`8`, `16`, `32` or [`MAX_LCP`] unknowns), so that a small problem never
+/// reserves the largest one's basis inverse.
+fn decide<T: Real, const N: usize>(
+    lcp: &ContactLcp<'_, T, N>,
+    base: &Base<'_, T, N>,
+    tol: &Tolerances<T>,
+    d: &mut Direction<T, N>,
+) -> bool {
+    if lcp.take(base, &lcp.first_candidate(base, tol), tol, d) {
+        d.outcome = Outcome::Solved { pivots: 0 };
+        return true;
+    }
+    match lcp.size() {
+        0..=8 => decide_in::<T, N, 8>(lcp, base, tol, d),
+        9..=16 => decide_in::<T, N, 16>(lcp, base, tol, d),
+        17..=32 => decide_in::<T, N, 32>(lcp, base, tol, d),
+        _ => decide_in::<T, N, MAX_LCP>(lcp, base, tol, d),
+    }
+}
+
+/// [`decide`] in a workspace of `C` unknowns.
+#[inline(never)]
+fn decide_in<T: Real, const N: usize, const C: usize>(
+    lcp: &ContactLcp<'_, T, N>,
+    base: &Base<'_, T, N>,
+    tol: &Tolerances<T>,
+    d: &mut Direction<T, N>,
+) -> bool {
+    let mut work: Lemke<T, C> = Lemke::new();
+    let n = lcp.size();
+    let outcome = work.solve(lcp, pivot_cap(n));
+    d.outcome = outcome;
+    if !outcome.solved() {
+        return false;
+    }
+    read_direction(lcp, base, work.z(), work.w(), tol, d);
+    true
+}
+
+/// The direction from a solution `(z, w)` of the contact problem, into `d`.
+///
+/// The modes: a contact is active (held at its target) where its normal rate is
+/// positive, and also where both its rate and its normal row are zero (the larger
+/// set, as the enumeration's tie-break was); a contact at zero slip slips where its
+/// slip rate `sigma` is positive, the way its tangential row then moves, and
+/// sticks otherwise (stick first). The rates are then those of
+/// [`solve_states_into`] for these modes (the weighted minimum-norm split, moved
+/// within the cones), as for a given set of modes; where those fail the check
+/// (rounding at a boundary), Lemke's own rates, which are complementary.
+fn read_direction<T: Real, const N: usize>(
+    lcp: &ContactLcp<'_, T, N>,
+    base: &Base<'_, T, N>,
+    z: &[T],
+    w: &[T],
+    tol: &Tolerances<T>,
+    d: &mut Direction<T, N>,
+) {
+    let p = lcp.p;
+    let inv = T::ONE / lcp.scale;
+    let (bp, bm, sg) = lcp.blocks();
+    let mut cand = Candidate {
+        active: [false; N],
+        mode: [SlipState::Stick; N],
+    };
+    let mut x = lcp.fixed.copied().unwrap_or([T::ZERO; N]);
+    let mut y = [T::ZERO; N];
+    for i in 0..p.len {
+        if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
+            cand.mode[i] = s;
+        }
+        cand.active[i] = lcp.fixed.is_some() && lcp.member[i];
+    }
+    for (r, &i) in lcp.xs[..lcp.nx].iter().enumerate() {
+        x[i] = z[r] * inv;
+        cand.active[i] = x[i] > tol.impulse || w[r] <= tol.velocity;
+    }
+    for (l, &i) in lcp.zs[..lcp.nz].iter().enumerate() {
+        let sigma = z[sg + l];
+        y[i] = (z[bp + l] - z[bm + l]) * inv;
+        if sigma > tol.velocity {
+            // w_+ = du_t + sigma: the tangential row's sign.
+            let du_t = w[bp + l] - sigma;
+            cand.mode[i] = if du_t > T::ZERO {
+                SlipState::SlipPositive
+            } else {
+                SlipState::SlipNegative
+            };
+        }
+    }
+    for i in 0..p.len {
+        if cand.active[i] && cand.mode[i] != SlipState::Stick {
+            y[i] = slip_coeff(p, &cand.mode, i) * x[i];
+        }
+        if !cand.active[i] {
+            x[i] = T::ZERO;
+            y[i] = T::ZERO;
+        }
+    }
+    let outcome = d.outcome;
+    let g = lcp.target;
+    // Stick first: where Lemke's solution slips a contact from zero slip, the
+    // same set with those contacts sticking, if admissible (a problem with
+    // several solutions; the enumeration tried stick first).
+    let mut sticking = Candidate {
+        active: cand.active,
+        mode: cand.mode,
+    };
+    let mut slipped = false;
+    for &i in &lcp.zs[..lcp.nz] {
+        if sticking.mode[i] != SlipState::Stick {
+            sticking.mode[i] = SlipState::Stick;
+            slipped = true;
+        }
+    }
+    let tries = if slipped {
+        [Some(&sticking), Some(&cand)]
+    } else {
+        [Some(&cand), None]
+    };
+    for c in tries.into_iter().flatten() {
+        if lcp.take(base, c, tol, d) {
+            d.outcome = outcome;
+            return;
+        }
+    }
+    d.x = x;
+    d.y = y;
+    p.velocity_change_into(&d.x, &d.y, &mut d.du_n, &mut d.du_t);
+    d.mode = cand.mode;
+    d.active = cand.active;
+    d.ends_at_one = g.is_some();
+    d.consistent = true;
+    d.outcome = outcome;
+}
+
 /// A direction with normal rates `x` and no friction, into `d`.
 fn zero_direction<T: Real, const N: usize>(
     p: &ImpactProblem<T, N>,
@@ -345,75 +746,6 @@ fn zero_direction<T: Real, const N: usize>(
     d.active = core::array::from_fn(|i| i < p.len && x[i] > T::ZERO);
     d.ends_at_one = false;
     d.consistent = false;
-}
-
-/// For one active set, tries the friction states of the contacts at zero slip
-/// (stick first) and returns the weighted norm of the first consistent solution
-/// and how its system was solved, the solution in `d`; `None` (with `d`
-/// unspecified) where no state is consistent.
-#[allow(clippy::too_many_arguments)]
-fn first_consistent_states<T: Real, const N: usize>(
-    p: &ImpactProblem<T, N>,
-    base: &Base<'_, T, N>,
-    active: &[bool; N],
-    target: Option<&[T; N]>,
-    fixed: Option<&[T; N]>,
-    tol: &Tolerances<T>,
-    budget: &mut u32,
-    d: &mut Direction<T, N>,
-) -> Option<(T, Solved)> {
-    let n = p.len;
-    let mut cand = Candidate {
-        active: *active,
-        mode: [SlipState::Stick; N],
-    };
-    let mut undecided = [0usize; N];
-    let mut count = 0;
-    for i in 0..n {
-        match kinematic_state(base.slip[i], tol.velocity) {
-            Some(s) => cand.mode[i] = s,
-            None if active[i] => {
-                undecided[count] = i;
-                count += 1;
-            }
-            None => {}
-        }
-    }
-    let combos = 3u32.pow(count as u32);
-    for code in 0..combos {
-        if *budget == 0 {
-            return None;
-        }
-        *budget -= 1;
-        let mut c = code;
-        for &i in undecided.iter().take(count) {
-            cand.mode[i] = match c % 3 {
-                0 => SlipState::Stick,
-                1 => SlipState::SlipPositive,
-                _ => SlipState::SlipNegative,
-            };
-            c /= 3;
-        }
-        let Some((score, how)) = solve_states_into(
-            p,
-            base.u_n,
-            base.u_t,
-            &cand.active,
-            &cand.mode,
-            target,
-            fixed,
-            d,
-        ) else {
-            continue;
-        };
-        match admissible(p, base, &cand, target, fixed.is_none(), how, d, tol) {
-            // The split moved along the internal forces: its norm.
-            Some(Split::Moved) => return Some((weighted_norm(p, &cand.active, &d.x, &d.y), how)),
-            Some(_) => return Some((score, how)),
-            None => {}
-        }
-    }
-    None
 }
 
 /// Solves the equations of given contact states, without checking inequalities:
@@ -484,12 +816,13 @@ pub fn solve_states_into<T: Real, const N: usize>(
         target,
         fixed_x: fixed.unwrap_or(&zeros),
     };
-    // Storage sized to the system (a 4-contact problem fits 8 x 8): the same
-    // arithmetic, a quarter of the copies of the largest size. The solution goes
-    // straight into the rates.
+    // Storage sized to the system (a 4-contact problem fits 8 x 8, an 8-contact
+    // one 16 x 16): the same arithmetic without the copies and zero fills of the
+    // largest size. The solution goes straight into the rates.
     let how = match nx + nk {
         0..=4 => system.solve::<4>(&mut d.x, &mut d.y)?,
         5..=8 => system.solve::<8>(&mut d.x, &mut d.y)?,
+        9..=16 => system.solve::<16>(&mut d.x, &mut d.y)?,
         _ => system.solve::<DIM>(&mut d.x, &mut d.y)?,
     };
     let score = weighted_norm(p, active, &d.x, &d.y);
@@ -613,10 +946,11 @@ fn weighted_norm<T: Real, const N: usize>(
 /// reaching their targets, sticking forces inside the cones, slips moving their way.
 /// `None` when it fails; else whether the rates were moved ([`Split::Moved`]).
 ///
-/// Where the candidate's system was singular and it has a sticking contact, the
-/// normal rates and the sticking forces are checked on the best split of the
-/// internal forces ([`super::split`]): the minimum-norm split may overload one
-/// sticking contact while another has friction to spare. When a split inside every
+/// Where the candidate's system was singular, the normal rates and the sticking
+/// forces are checked on the best split of the internal forces
+/// ([`super::split`]): the minimum-norm split may overload one sticking contact
+/// while another has friction to spare, or pull at one of several slipping
+/// contacts while the others could push more. When a split inside every
 /// cone exists, `d` takes it (its velocity rates are unchanged: internal forces
 /// change no contact velocity). `normals_free`: the normal rates were unknowns.
 /// `d`'s rates are unspecified when it fails.
@@ -631,7 +965,9 @@ fn admissible<T: Real, const N: usize>(
     d: &mut Direction<T, N>,
     tol: &Tolerances<T>,
 ) -> Option<Split> {
-    let sticking = (0..p.len).any(|i| cand.active[i] && cand.mode[i] == SlipState::Stick);
+    // Internal forces exist among slipping contacts too (three slipping feet of
+    // one rigid body): their normal rates are then moved to >= 0 as well.
+    let sticking = (0..p.len).any(|i| cand.active[i]);
     let mut split = Split::Inside;
     if how == Solved::MinimumNorm && sticking {
         split = within_cones(

@@ -20,6 +20,7 @@
 
 pub mod body;
 pub mod lcp;
+pub mod lemke;
 pub mod linalg;
 pub mod outcome;
 pub mod problem;
@@ -34,6 +35,6 @@ pub use problem::{ContactLaw, ImpactLaw, ImpactProblem};
 pub use solver::{solve, ImpactError};
 
 /// Most contacts one impact problem can hold.
-pub const MAX_CONTACTS: usize = 8;
+pub const MAX_CONTACTS: usize = 16;
 /// Most history segments recorded per contact.
 pub const MAX_SEGMENTS: usize = 16;

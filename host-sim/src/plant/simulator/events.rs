@@ -29,6 +29,10 @@ pub(super) enum Watch {
     Cone(usize),
     /// Slipping contact `j`: `s u_t + eps_v`, m/s (the slip ends).
     SlipEnds(usize),
+    /// Slipping contact `j` with friction: its normal coefficient relative to its
+    /// normal compliance less [`JAM_RATIO`], `(W_nn - mu s W_nt) / W_nn - JAM_RATIO`
+    /// (the dynamic jam: its normal force would grow without bound).
+    Jam(usize),
     /// Motor `k`'s current, A: driven, `I_lim - |i|` (the current limit is
     /// reached); coasting with a current, `s i` (it dies through the diodes).
     Current(usize),
@@ -45,8 +49,19 @@ pub(super) struct Crossing {
     pub(super) current_only: bool,
 }
 
-/// Event function slots: two per contact, one per motor driver.
-const EVENT_SLOTS: usize = 2 * MAX_CONTACTS + MAX_ROTORS;
+/// Event function slots: three per contact, one per motor driver.
+const EVENT_SLOTS: usize = SLOTS_PER_CONTACT * MAX_CONTACTS + MAX_ROTORS;
+
+/// Event function slots of one contact.
+const SLOTS_PER_CONTACT: usize = 3;
+
+/// Where a slipping contact's normal coefficient `(W_nn - mu s W_nt) / W_nn` falls
+/// to this, its dynamic jam's event: 1e-6, so that its force `-B / A` is still
+/// finite there (Painleve's rod: some 1 800 N, against 43 N 15 ms before) and the
+/// event is within `1e-6 / (dA / dt)` of the singular point (the rod: 2e-7 s). The
+/// mode decision ([`super::modes`]) never leaves a contact slipping below twice
+/// it, so the function starts at least its margin from zero.
+pub(super) const JAM_RATIO: f64 = 1e-6;
 
 /// The event functions at a state ([`Plant::event_values`]), in place (no
 /// allocation: they are made at every step).
@@ -99,34 +114,38 @@ pub(super) enum Kinematics<'a> {
 }
 
 impl Plant {
-    /// What event function `i` watches (see [`Watch`]): two slots per contact,
+    /// What event function `i` watches (see [`Watch`]): three slots per contact,
     /// then one per motor driver.
     pub(super) fn watch(&self, i: usize) -> Watch {
         let n = self.modes.len();
-        if i >= 2 * n {
-            return Watch::Current(i - 2 * n);
+        if i >= SLOTS_PER_CONTACT * n {
+            return Watch::Current(i - SLOTS_PER_CONTACT * n);
         }
-        let j = i / 2;
-        match (self.modes[j], i % 2) {
+        let j = i / SLOTS_PER_CONTACT;
+        match (self.modes[j], i % SLOTS_PER_CONTACT) {
             (ContactMode::Open, 0) => Watch::Gap(j),
             (ContactMode::Open, _) => Watch::Nothing,
             (_, 0) => Watch::NormalForce(j),
-            (ContactMode::Stick, _) => Watch::Cone(j),
-            // Without friction the slip's direction changes no force: no event.
+            (ContactMode::Stick, 1) => Watch::Cone(j),
+            (ContactMode::Stick, _) => Watch::Nothing,
+            // Without friction the slip's direction changes no force and the
+            // normal coefficient is W_nn: no event.
             (_, _) if self.model.contacts[j].law.friction == 0.0 => Watch::Nothing,
-            (_, _) => Watch::SlipEnds(j),
+            (_, 1) => Watch::SlipEnds(j),
+            (_, _) => Watch::Jam(j),
         }
     }
 
     /// The event functions at `y`, each positive until its event and `<= 0`
     /// once it happened, one function per condition (never combined: a function
-    /// that cannot change sign must not hide another's crossing). Slots `2j` and
-    /// `2j + 1` are contact `j`'s:
+    /// that cannot change sign must not hide another's crossing). Slots `3j`,
+    /// `3j + 1` and `3j + 2` are contact `j`'s:
     ///
-    /// | mode | slot `2j` | slot `2j + 1` |
-    /// | --- | --- | --- |
-    /// | open | gap, m | (none: `+inf`) |
-    /// | closed | `lambda_n + eps_F`, N (lift-off) | stick: `mu lambda_n - abs(lambda_t) + eps_F`, N (cone exceeded); slip: `s u_t + eps_v`, m/s (slip ends) |
+    /// | mode | slot `3j` | slot `3j + 1` | slot `3j + 2` |
+    /// | --- | --- | --- | --- |
+    /// | open | gap, m | (none: `+inf`) | (none) |
+    /// | stick | `lambda_n + eps_F`, N (lift-off) | `mu lambda_n - abs(lambda_t) + eps_F`, N (cone exceeded) | (none) |
+    /// | slip | `lambda_n + eps_F`, N (lift-off) | `s u_t + eps_v`, m/s (slip ends) | `(W_nn - mu s W_nt) / W_nn - JAM_RATIO` (dynamic jam) |
     ///
     /// then each motor driver's `I_lim - |i|` (the current limit: the current's
     /// equation switches there). `eps_F` is [`Plant::force_tolerance`] and
@@ -143,7 +162,7 @@ impl Plant {
         let at = Kinematics::Pose(&pose, &v);
         let mut values = EventValues {
             values: [f64::INFINITY; EVENT_SLOTS],
-            len: 2 * self.modes.len() + self.model.rotors.len(),
+            len: SLOTS_PER_CONTACT * self.modes.len() + self.model.rotors.len(),
         };
         for i in 0..values.len {
             values.values[i] = self.event_value(self.watch(i), y, at, ev.as_ref());
@@ -178,6 +197,10 @@ impl Plant {
                 (e.lambda_n[j], e.lambda_t[j])
             }
         };
+        let jam = |j: usize| match ev {
+            Some(e) => e.jam[j],
+            None => self.evaluate(y).jam[j],
+        };
         match watch {
             Watch::Gap(j) => gap(j),
             Watch::NormalForce(j) | Watch::Cone(j) => {
@@ -192,6 +215,7 @@ impl Plant {
                 };
                 s * kinematics(j).u_t + self.settings.velocity_tolerance
             }
+            Watch::Jam(j) => jam(j) - JAM_RATIO,
             Watch::Current(k) => match self.winding[k] {
                 Winding::Voltage(_) => {
                     self.model.rotors[k].motor.current_limit - y[self.model.current(k)].abs()
@@ -291,7 +315,9 @@ impl Plant {
                         consider(step.t0);
                     }
                 }
-                Watch::Current(_) | Watch::Nothing => {}
+                // A normal coefficient depends on the configuration only: smooth
+                // over a step, no dip to look for.
+                Watch::Jam(_) | Watch::Current(_) | Watch::Nothing => {}
             }
         }
         best.map(|(te, current_only)| {

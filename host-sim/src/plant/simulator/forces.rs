@@ -8,8 +8,9 @@
 //! 3. the forces from the modes' equations (`shared::impact::lcp::solve_states`):
 //!    closed contacts at zero normal acceleration, sticking ones at zero
 //!    tangential acceleration, slipping ones with `lambda_t = -mu s lambda_n`;
-//! 4. where sticking feet leave internal forces free, the split inside every
-//!    cone ([`Plant::share_within_cones`], `shared::impact::split`);
+//! 4. where redundant feet (sticking or slipping) leave internal forces free,
+//!    the split with every normal force `>= 0` and every sticking force inside
+//!    its cone ([`Plant::share_within_cones`], `shared::impact::split`);
 //! 5. `q'' = a_0 + M^-1 J^T lambda`.
 
 use shared::impact::lcp::{solve_states_into, Direction};
@@ -32,6 +33,29 @@ pub(super) struct Evaluation {
     pub(super) lambda_n: [f64; MAX_CONTACTS],
     /// Tangential force of each contact, N.
     pub(super) lambda_t: [f64; MAX_CONTACTS],
+    /// Each closed slipping contact's normal coefficient relative to its normal
+    /// compliance, `(W_nn - mu s W_nt) / W_nn` ([`normal_coefficient`]; `+inf` for
+    /// the other contacts): the dynamic jam's event function.
+    pub(super) jam: [f64; MAX_CONTACTS],
+}
+
+/// A slipping contact's normal coefficient relative to its normal compliance,
+/// `(W_nn - mu s W_nt) / W_nn` (dimensionless), row `r` of `problem`, `s` the sign
+/// of its slip. Its normal acceleration is `A lambda_n + B` with
+/// `A = W_nn - mu s W_nt` (its own row: the friction `lambda_t = -mu s lambda_n`
+/// slipping against `s`), so where the ratio falls to zero a pressing contact's
+/// force `-B / A` grows without bound: the dynamic jam of Genot and Brogliato
+/// (*New results on Painleve paradoxes*, 1999; Painleve's rod at 45 degrees in
+/// `examples/painleve-rod.toml`). It is the contact's own coefficient: with other
+/// closed contacts it leaves out their coupling, exact for one closed contact.
+pub(super) fn normal_coefficient(
+    problem: &ImpactProblem<f64, MAX_CONTACTS>,
+    r: usize,
+    s: f64,
+) -> f64 {
+    let mu = problem.contacts[r].friction;
+    let w_nn = problem.w_nn[r][r];
+    (w_nn - mu * s * problem.w_nt[r][r]) / w_nn
 }
 
 /// A contact problem assembled for a set of contacts (the first
@@ -114,6 +138,7 @@ impl Plant {
         // Closed contacts: forces from their mode's equations.
         let mut lambda_n = [0.0; MAX_CONTACTS];
         let mut lambda_t = [0.0; MAX_CONTACTS];
+        let mut jam = [f64::INFINITY; MAX_CONTACTS];
         // The closed contacts, without allocating (this runs at every stage).
         let mut closed_buf = [0usize; MAX_CONTACTS];
         let mut n_closed = 0;
@@ -132,6 +157,11 @@ impl Plant {
             for (r, &j) in closed.iter().enumerate() {
                 active[r] = true;
                 mode[r] = modes[j].slip_state();
+                if let Some(s) = modes[j].slip_sign() {
+                    if sys.problem.contacts[r].friction > 0.0 {
+                        jam[j] = normal_coefficient(&sys.problem, r, s);
+                    }
+                }
             }
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
@@ -168,11 +198,14 @@ impl Plant {
             ydot,
             lambda_n,
             lambda_t,
+            jam,
         }
     }
 
     /// The closed contacts' forces with the internal forces chosen so that every
-    /// sticking contact is inside its cone, where the equations left them
+    /// normal force is `>= 0` and every sticking contact is inside its cone (three
+    /// slipping feet of one body can also share their load in more than one
+    /// way: the mode decision takes one where none pulls), where the equations left them
     /// undetermined ([`shared::impact::split`], the same split the mode decision's
     /// stick check uses). Where no split holds every cone, the forces are left where
     /// the largest violation is smallest, and the stick event function
@@ -200,14 +233,14 @@ impl Plant {
                         || y[r].abs() <= sys.problem.contacts[r].friction * x[r] + tol)
             })
         };
-        if inside(&x, &y)
-            || how == Solved::Unique
-            || !mode[..closed.len()].contains(&SlipState::Stick)
-        {
+        if inside(&x, &y) || how == Solved::Unique {
             return (x, y);
         }
         let scale =
             (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
+        // Never finer than the mode decision's tolerance on forces (a thousandth of
+        // eps_F, `decide_modes`): a split the decision found within it is found
+        // here too, rather than replaced by the least violation.
         within_cones(
             &sys.problem,
             &active,
@@ -215,7 +248,7 @@ impl Plant {
             true,
             &mut x,
             &mut y,
-            1e-9 * scale,
+            (1e-9 * scale).max(1e-3 * self.force_tolerance()),
         );
         (x, y)
     }

@@ -140,14 +140,14 @@ impl Plant {
     /// impact: the impulse-space problem of the touching contacts, which under
     /// friction develops a normal impulse even from zero normal velocity until the
     /// slip stops (Genot & Brogliato 1999).
-    pub(super) fn painleve(&mut self, set: &[usize]) {
-        self.mark(
-            set,
-            EventKind::Painleve,
-            "no consistent contact force; tangential impact",
-        );
+    ///
+    /// `detail`: the events' detail (which configuration); `why`: what the mode
+    /// decision found (Lemke's method ended at a ray after so many pivots, or its
+    /// cap; a dynamic jam), named in the warning.
+    pub(super) fn painleve(&mut self, set: &[usize], detail: &str, why: &str) {
+        self.mark(set, EventKind::Painleve, detail);
         self.warn(format!(
-            "contacts: Painleve configuration at t = {:.9} s, resolved by a tangential impact",
+            "contacts: Painleve configuration at t = {:.9} s ({why}), resolved by a tangential impact",
             self.t
         ));
         // Tangential impact (Genot & Brogliato 1999): the impulse-space problem of

@@ -3,11 +3,14 @@
 //! state onto the closed contacts' constraints.
 
 use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
+use shared::impact::lemke::Outcome;
 use shared::impact::linalg::{solve_weighted_in, DIM};
 use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
 use super::super::model::MAX_DOF;
+use super::events::JAM_RATIO;
+use super::forces::normal_coefficient;
 use super::{ContactMode, Plant};
 use crate::event::{EventKind, EventRow};
 
@@ -20,6 +23,7 @@ pub(super) fn least_change(rows: &[(Vector, Vector, f64)]) -> Option<Vector> {
         0 => None,
         1..=4 => least_change_in::<4>(rows),
         5..=8 => least_change_in::<8>(rows),
+        9..=16 => least_change_in::<16>(rows),
         _ => least_change_in::<DIM>(rows),
     }
 }
@@ -185,7 +189,7 @@ impl Plant {
                 zero_slip: 0.0,
             };
             let zeros = [0.0; MAX_CONTACTS];
-            let d = find_direction(
+            let mut d = find_direction(
                 &sys.problem,
                 &sys.base_n,
                 &sys.base_t,
@@ -193,9 +197,56 @@ impl Plant {
                 NormalRule::TargetAll(&zeros),
                 &tol,
             );
+            // No consistent modes found within Lemke's pivot cap (a ray, the cap,
+            // or an answer that failed its check): the Painleve rule, once.
             if !d.consistent || !d.ends_at_one {
-                self.painleve(&candidates);
+                let why = match d.outcome {
+                    Outcome::Ray { pivots, .. } => format!("a ray after {pivots} pivots"),
+                    Outcome::Cap { pivots } => format!("no decision within {pivots} pivots"),
+                    Outcome::Inexact { pivots } => {
+                        format!("an answer that failed its check after {pivots} pivots")
+                    }
+                    Outcome::Solved { .. } => "no consistent friction states".into(),
+                };
+                self.painleve(
+                    &candidates,
+                    "no consistent contact force; tangential impact",
+                    &format!("the mode decision ended at {why}"),
+                );
                 return;
+            }
+            // A contact left slipping at its dynamic jam (its normal coefficient
+            // `(W_nn - mu s W_nt) / W_nn` at most twice the jam event's ratio: the
+            // force `-B / A` grows without bound with a bounded impulse, Genot and
+            // Brogliato 1999): pressing, it takes an impact without collision, the
+            // tangential impact of the Painleve rule, which stops its slip; not
+            // pressing, it lifts off (the zero-force solution, which needs no
+            // impulse). A rigid contact cannot choose between the two where both
+            // are consistent (beyond the jam `A < 0`: lift-off, or a slip whose
+            // force only compliance could say is unstable); this rule takes the one
+            // that gains no energy and never loops: after the impact the contact
+            // sticks.
+            for (r, &j) in candidates.iter().enumerate() {
+                let Some(s) = ContactMode::from_slip(d.mode[r]).slip_sign() else {
+                    continue;
+                };
+                if !d.active[r]
+                    || sys.problem.contacts[r].friction == 0.0
+                    || normal_coefficient(&sys.problem, r, s) > 2.0 * JAM_RATIO
+                {
+                    continue;
+                }
+                if d.x[r] > tol_f {
+                    let why = format!(
+                        "a dynamic jam of {}: its normal coefficient (W_nn - mu s W_nt) / W_nn = {:.3e}, its force {:.6} N and growing without bound",
+                        self.model.contacts[j].name,
+                        normal_coefficient(&sys.problem, r, s),
+                        d.x[r]
+                    );
+                    self.painleve(&candidates, "dynamic jam; tangential impact", &why);
+                    return;
+                }
+                d.active[r] = false;
             }
             // The active set is closed, in its friction states; the rest open. A
             // contact at the boundary (no force and no acceleration) is active

@@ -1,0 +1,293 @@
+//! Lemke's direction against the enumeration it replaced ([`super::oracle`]), on
+//! random contact problems of at most four contacts.
+
+extern crate std;
+
+use super::oracle::enumerated_direction;
+use super::*;
+use crate::impact::problem::{ContactLaw, ImpactLaw};
+use std::format;
+use std::string::String;
+use std::vec::Vec;
+
+std::thread_local! {
+    /// [`find_direction_into`] runs the enumeration instead (on this thread).
+    pub(super) static USE_ORACLE: core::cell::Cell<bool> = const { core::cell::Cell::new(false) };
+}
+
+/// A small deterministic generator (64-bit LCG, Knuth's MMIX constants), so that
+/// the cases are the same on every run.
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in `[a, b)`.
+    fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.next()
+    }
+}
+
+/// A random problem of `k` contacts on a mechanism of `dof` coordinates with the
+/// identity mass matrix: `W = J J^T` (rank `min(2k, dof)`: redundant contacts
+/// where `dof < 2k`), normal velocities in `[-1, 1]`, tangential ones zero for
+/// about half of the contacts, friction in `[0, 1.5]`.
+fn random_problem(rng: &mut Lcg, k: usize, dof: usize) -> ImpactProblem<f64, 4> {
+    let mut jn = [[0.0; 6]; 4];
+    let mut jt = [[0.0; 6]; 4];
+    for i in 0..k {
+        for c in 0..dof {
+            jn[i][c] = rng.range(-1.0, 1.0);
+            jt[i][c] = rng.range(-1.0, 1.0);
+        }
+    }
+    let dot = |a: &[f64; 6], b: &[f64; 6]| (0..dof).map(|c| a[c] * b[c]).sum::<f64>();
+    let mut p = ImpactProblem::new(ImpactLaw::Newton);
+    p.len = k;
+    for i in 0..k {
+        for j in 0..k {
+            p.w_nn[i][j] = dot(&jn[i], &jn[j]);
+            p.w_nt[i][j] = dot(&jn[i], &jt[j]);
+            p.w_tt[i][j] = dot(&jt[i], &jt[j]);
+        }
+        p.u_n[i] = rng.range(-1.0, 1.0);
+        p.u_t[i] = if rng.next() < 0.5 {
+            0.0
+        } else {
+            rng.range(-1.0, 1.0)
+        };
+        p.contacts[i] = ContactLaw {
+            restitution: 0.0,
+            friction: rng.range(0.0, 1.5),
+            weight: rng.range(0.5, 2.0),
+        };
+    }
+    p
+}
+
+const TOL: Tolerances<f64> = Tolerances {
+    velocity: 1e-10,
+    impulse: 1e-10,
+    zero_slip: 0.0,
+};
+
+/// The direction satisfies the complementarity conditions of its rule (to `1e-7`):
+/// active contacts with a normal rate `>= 0` reaching their target, the others at
+/// or above it (`all`, or at or below it before); sticking contacts inside their
+/// cone holding their tangential row at zero; slipping ones on the cone's edge
+/// against the way they (then) move.
+fn check(
+    p: &ImpactProblem<f64, 4>,
+    g: Option<&[f64; 4]>,
+    all: bool,
+    d: &Direction<f64, 4>,
+) -> Result<(), String> {
+    let tol = 1e-7;
+    for i in 0..p.len {
+        let mu = p.contacts[i].friction;
+        let un = p.u_n[i] + d.du_n[i];
+        let ut = p.u_t[i] + d.du_t[i];
+        if d.active[i] {
+            if d.x[i] < -tol {
+                return Err(format!("contact {i}: x = {}", d.x[i]));
+            }
+            if let Some(g) = g {
+                if (un - g[i]).abs() > tol {
+                    return Err(format!("contact {i}: active, u_n = {un}"));
+                }
+            }
+            match d.mode[i] {
+                SlipState::Stick => {
+                    if d.y[i].abs() > mu * d.x[i] + tol {
+                        return Err(format!("contact {i}: |y| > mu x"));
+                    }
+                    if p.u_t[i] == 0.0 && ut.abs() > tol {
+                        return Err(format!("contact {i}: sticks but u_t = {ut}"));
+                    }
+                }
+                s => {
+                    let sign = s.sign::<f64>();
+                    if (d.y[i] + mu * sign * d.x[i]).abs() > tol {
+                        return Err(format!("contact {i}: slip off the cone's edge"));
+                    }
+                    if p.u_t[i] == 0.0 && sign * ut < -tol {
+                        return Err(format!("contact {i}: slips against its motion"));
+                    }
+                    if p.u_t[i] != 0.0 && sign * p.u_t[i] < 0.0 {
+                        return Err(format!("contact {i}: slip state against its slip"));
+                    }
+                }
+            }
+        } else if let Some(g) = g {
+            if (all || p.u_n[i] <= g[i]) && un < g[i] - tol {
+                return Err(format!("contact {i}: released below its target, {un}"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// On 3000 random problems of one to four contacts (with redundant contacts
+/// where the mechanism has fewer coordinates than twice the contacts), for the
+/// `TargetAll`, `Target` and `Fixed` rules: Lemke's answers are complementary,
+/// and Lemke finds one wherever the enumeration does, except where a slipping
+/// contact takes part: its friction folded into its normal column can make the
+/// matrix lose copositivity (Painleve's `W_nn - mu s W_nt < 0` for one contact),
+/// and then a ray is no proof that nothing is consistent. Those cases are counted
+/// and listed (printed with `--nocapture`; 10 of the 9000 directions, each with
+/// a slipping contact, when this was written), and the plant and the impact
+/// solver take their Painleve rule there. Pivots stay under the cap; the most
+/// taken is printed (17).
+#[test]
+fn lemke_agrees_with_the_enumeration() {
+    let mut rng = Lcg(24);
+    let mut missed: Vec<String> = Vec::new();
+    let (mut both, mut neither, mut lemke_only, mut most_pivots) = (0, 0, 0, 0);
+    let zeros = [0.0; 4];
+    for case in 0..3000 {
+        let k = 1 + case % 4;
+        let dof = 2 + (case / 4) % 5;
+        let p = random_problem(&mut rng, k, dof);
+        let mut fixed = [0.0; 4];
+        for f in fixed.iter_mut().take(k) {
+            *f = if rng.next() < 0.3 {
+                0.0
+            } else {
+                rng.range(0.0, 1.0)
+            };
+        }
+        let rules = [
+            (NormalRule::TargetAll(&zeros), Some(&zeros), true),
+            (NormalRule::Target(&zeros), Some(&zeros), false),
+            (NormalRule::Fixed(&fixed), None, false),
+        ];
+        for (rule, g, all) in rules {
+            let old = {
+                let mut d = Direction::default();
+                enumerated_direction(&p, &p.u_n, &p.u_t, &p.u_t, rule, &TOL, &mut d);
+                d
+            };
+            let new = find_direction(&p, &p.u_n, &p.u_t, &p.u_t, rule, &TOL);
+            most_pivots = most_pivots.max(new.outcome.pivots());
+            assert!(
+                new.outcome.pivots() <= pivot_cap(4 * k),
+                "case {case}: {:?}",
+                new.outcome
+            );
+            let old_found = old.consistent && (g.is_none() || old.ends_at_one);
+            let new_found = new.consistent && (g.is_none() || new.ends_at_one);
+            if new_found {
+                if let Err(e) = check(&p, g, all, &new) {
+                    panic!("case {case} ({k} contacts, {dof} dof, {rule:?}): {e}\n{p:?}\n{new:?}");
+                }
+            }
+            match (old_found, new_found) {
+                (true, true) => both += 1,
+                (false, false) => neither += 1,
+                (false, true) => lemke_only += 1,
+                (true, false) => {
+                    // Only a slipping contact makes the matrix lose copositivity.
+                    let slipping = (0..k).any(|i| p.u_t[i] != 0.0);
+                    assert!(
+                        slipping,
+                        "case {case}: Lemke missed with every contact at zero slip\n{p:?}"
+                    );
+                    assert_eq!(
+                        check(&p, g, all, &old),
+                        Ok(()),
+                        "case {case}: the oracle's answer"
+                    );
+                    missed.push(format!(
+                        "case {case} ({k} contacts, {dof} dof, {rule:?}): {:?}; slips {:?}",
+                        new.outcome,
+                        &p.u_t[..k]
+                    ));
+                }
+            }
+        }
+    }
+    std::println!(
+        "both {both}, neither {neither}, Lemke only {lemke_only}, enumeration only {}; \
+         most pivots {most_pivots}",
+        missed.len()
+    );
+    std::println!(
+        "Lemke found none where the enumeration did:\n{}",
+        missed.join("\n")
+    );
+    assert!(
+        missed.len() * 100 < both,
+        "more than one case in a hundred missed"
+    );
+}
+
+/// The impact solver on 2000 random problems (one to four contacts, the three
+/// impact laws, restitution in `[0, 1]`) with Lemke's directions and with the
+/// enumeration's: the impulses agree to `1e-6` of their scale, and the interaction
+/// cases agree, except where the enumeration's direction has no Lemke
+/// counterpart (counted as in `lemke_agrees_with_the_enumeration`).
+#[test]
+fn impact_solver_agrees_with_the_enumeration() {
+    let mut rng = Lcg(13);
+    let (mut same, mut differ) = (0, Vec::new());
+    for case in 0..2000 {
+        let k = 1 + case % 4;
+        let dof = 2 + (case / 4) % 5;
+        let mut p = random_problem(&mut rng, k, dof);
+        p.law = ImpactLaw::ALL[case % 3];
+        for c in p.contacts.iter_mut().take(k) {
+            c.restitution = rng.next();
+        }
+        let new = crate::impact::solve(&p);
+        USE_ORACLE.with(|o| o.set(true));
+        let old = crate::impact::solve(&p);
+        USE_ORACLE.with(|o| o.set(false));
+        let (new, old) = match (new, old) {
+            (Ok(new), Ok(old)) => (new, old),
+            (Err(a), Err(b)) if a == b => {
+                same += 1;
+                continue;
+            }
+            (new, old) => {
+                differ.push(format!(
+                    "case {case}: Lemke's {:?}, the enumeration's {:?}",
+                    new.err(),
+                    old.err()
+                ));
+                continue;
+            }
+        };
+        let scale = (0..k).fold(1e-12f64, |s, i| {
+            s.max(old.contacts[i].normal_impulse.abs())
+                .max(old.contacts[i].tangential_impulse.abs())
+        });
+        let agree = (0..k).all(|i| {
+            let (a, b) = (&new.contacts[i], &old.contacts[i]);
+            (a.normal_impulse - b.normal_impulse).abs() <= 1e-6 * scale
+                && (a.tangential_impulse - b.tangential_impulse).abs() <= 1e-6 * scale
+                && a.case == b.case
+        });
+        if agree {
+            same += 1;
+        } else {
+            differ.push(format!(
+                "case {case} ({k} contacts, {dof} dof, {:?})",
+                p.law
+            ));
+        }
+    }
+    std::println!(
+        "impacts: {same} agree, {} differ:\n{}",
+        differ.len(),
+        differ.join("\n")
+    );
+    assert!(
+        differ.len() * 100 < same,
+        "more than one impact in a hundred differs"
+    );
+}
