@@ -158,6 +158,77 @@ fn eight_collinear_feet_pass_their_former_stall_and_finish() {
     );
 }
 
+/// The reference machine on eight feet at `points` (platform frame at t = 0, m),
+/// each with `restitution`, written as `name`: its two feet replaced.
+fn on_points(points: &[[f64; 2]], restitution: f64, name: &str) -> PathBuf {
+    let text = reference_without_uncertainty();
+    let first = text.find("[[contacts]]").expect("a [[contacts]] table");
+    let rotors = text.find("[[rotors]]").expect("a [[rotors]] table");
+    let mut feet = String::new();
+    for (i, p) in points.iter().enumerate() {
+        feet += &format!(
+            "[[contacts]]\nname = \"K{}\"\npoint = [{:?}, {:?}]\nrestitution = {restitution:?}\nfriction = 0.4\n\n",
+            i + 1,
+            p[0],
+            p[1]
+        );
+    }
+    let path = scratch(name);
+    fs::write(
+        &path,
+        format!("{}{feet}{}", &text[..first], &text[rotors..]),
+    )
+    .unwrap();
+    path
+}
+
+/// Machines that ran past 300 s of CPU before the mode decision by Lemke's method
+/// (issue 24), each with eight feet: at heights 0 to 7 mm in no order (not
+/// collinear), in two coincident groups of four (the two feet of the file, each
+/// four times), and collinear with restitution 1. Each finishes 2 s of the closed
+/// loop with its summary, at the default progress budget, without a step taken
+/// past an event, and travels (the platform neither through the floor nor tipped).
+#[test]
+fn degenerate_feet_finish_and_travel() {
+    let x = |i: usize| -0.08 + 0.16 * i as f64 / 7.0;
+    let heights = [0.0, 7.0, 1.0, 6.0, 2.0, 5.0, 3.0, 4.0];
+    let uneven: Vec<[f64; 2]> = (0..8).map(|i| [x(i), 1e-3 * heights[i]]).collect();
+    let pairs: Vec<[f64; 2]> = (0..8)
+        .map(|i| [if i < 4 { -0.08 } else { 0.08 }, 0.0])
+        .collect();
+    let collinear: Vec<[f64; 2]> = (0..8).map(|i| [x(i), 0.0]).collect();
+    for (name, points, restitution) in [
+        ("uneven.toml", &uneven, 0.3),
+        ("pairs.toml", &pairs, 0.3),
+        ("elastic.toml", &collinear, 1.0),
+    ] {
+        let m = on_points(points, restitution, name);
+        let r = run(&[
+            "run",
+            m.to_str().unwrap(),
+            "--command",
+            "right",
+            "--t-end",
+            "2",
+            "--format",
+            "json",
+        ]);
+        assert_eq!(r.status, 0, "{name}: {}", r.stderr);
+        let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
+        assert_eq!(summary["t_end"], 2.0, "{name}: {}", r.stdout);
+        assert!(
+            summary["mean_velocity"].is_number(),
+            "{name}: no travel: {}",
+            r.stdout
+        );
+        assert!(
+            !r.stderr.contains("no progress"),
+            "{name}: a step was taken past an event: {}",
+            r.stderr
+        );
+    }
+}
+
 #[test]
 fn a_step_size_underflow_ends_the_run_instead_of_holding_the_state() {
     // Fast decay at rtol 1e-12: the steps shrink below 1e-14 s at 1.4 us (the
