@@ -61,11 +61,14 @@ impl ContactSystem {
 }
 
 /// What every evaluation fills and reads, kept from one to the next so that
-/// nothing of the capacity (12 coordinates, 8 contacts: 8 KB) is zeroed or copied
-/// at each of the integrator's stages.
+/// nothing of the capacity (12 coordinates, 16 contacts: 13 KB a contact
+/// problem) is zeroed or copied at each of the integrator's stages.
 pub(super) struct Scratch {
     pub(super) frame: Frame,
     system: ContactSystem,
+    /// The contact problem of the last impact or mode decision, handed back
+    /// ([`Plant::recycle`]) for the next one ([`Plant::contact_system`]).
+    spare: Option<Box<ContactSystem>>,
 }
 
 impl Scratch {
@@ -73,6 +76,7 @@ impl Scratch {
         Scratch {
             frame: Frame::empty(model),
             system: ContactSystem::new(model.law),
+            spare: None,
         }
     }
 }
@@ -226,16 +230,25 @@ impl Plant {
     /// The contact problem of the contacts `set`: Delassus matrix
     /// `W = J M^-1 J^T` (rotors free unless held), `M^-1 J^T`, and, given the
     /// accelerations without contact forces, the contact accelerations they add to.
+    /// In the storage the last one handed back ([`Plant::recycle`]), where there is
+    /// one: only its first `set.len()` rows are written and read, so that an
+    /// impact or a mode decision neither zeroes nor moves the problem's capacity.
     pub(super) fn contact_system(
         &self,
         frame: &Frame,
         v: &Vector,
         set: &[usize],
         acc_free: Option<&Vector>,
-    ) -> ContactSystem {
-        let mut sys = ContactSystem::new(self.model.law);
+    ) -> Box<ContactSystem> {
+        let spare = self.scratch.borrow_mut().spare.take();
+        let mut sys = spare.unwrap_or_else(|| Box::new(ContactSystem::new(self.model.law)));
         self.fill_contact_system(frame, v, set, acc_free, &mut sys);
         sys
+    }
+
+    /// Hands a contact problem from [`Plant::contact_system`] back for the next.
+    pub(super) fn recycle(&self, sys: Box<ContactSystem>) {
+        self.scratch.borrow_mut().spare = Some(sys);
     }
 
     /// [`Plant::contact_system`] written into `sys`: its first `set.len()` rows.
@@ -249,6 +262,7 @@ impl Plant {
     ) {
         let dof = self.model.dof;
         sys.problem.len = set.len();
+        sys.problem.law = self.model.law;
         for (r, &j) in set.iter().enumerate() {
             let k = frame.contact(&self.model, j, v);
             sys.minv_jn[r] = frame.solve(&k.j_n);

@@ -15,8 +15,10 @@ impl Plant {
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
-        let sys = self.contact_system(&frame, &v, set, None);
-        let outcome = match solve(&sys.problem) {
+        let mut sys = self.contact_system(&frame, &v, set, None);
+        // The outcomes read where they are (each holds the capacity's histories).
+        let solved = solve(&sys.problem);
+        let outcome = match &solved {
             Ok(o) => o,
             Err(e) => {
                 self.warn(format!("impact at t = {:.9} s not solved: {e:?}", self.t));
@@ -34,12 +36,13 @@ impl Plant {
         // Zeno: a rebound slower than the threshold ends an accumulation; close it
         // plastically and report the accumulation point.
         let zeno = rebound > 0.0 && rebound < self.settings.zeno_velocity;
+        let plastic;
         let outcome = if zeno {
-            let mut plastic = sys.problem.clone();
             for r in 0..set.len() {
-                plastic.contacts[r].restitution = 0.0;
+                sys.problem.contacts[r].restitution = 0.0;
             }
-            solve(&plastic).unwrap_or(outcome)
+            plastic = solve(&sys.problem);
+            plastic.as_ref().unwrap_or(outcome)
         } else {
             outcome
         };
@@ -68,8 +71,10 @@ impl Plant {
         }
         self.impacts += 1;
         self.fsal = None;
-        if !outcome.warnings.is_empty() {
-            let w = outcome.warnings;
+        let warnings = outcome.warnings;
+        self.recycle(sys);
+        if !warnings.is_empty() {
+            let w = warnings;
             use shared::impact::Warnings as W;
             if w.contains(W::ENERGY_GAINED) && self.model.law != ImpactLaw::Newton {
                 self.warn(

@@ -173,10 +173,10 @@ impl Plant {
             // reached -eps_F opens, a sticking contact whose friction left its
             // cone by eps_F slips.
             let eps_f = self.force_tolerance();
-            let scale_a = sys
-                .base_n
+            let m = candidates.len();
+            let scale_a = sys.base_n[..m]
                 .iter()
-                .chain(sys.base_t.iter())
+                .chain(sys.base_t[..m].iter())
                 .fold(1.0, |m: f64, a| m.max(a.abs()));
             let mass = self.model.total_mass();
             let tol_f = (1e-3 * eps_f).max(1e-13 * scale_a * mass);
@@ -195,6 +195,7 @@ impl Plant {
                 NormalRule::TargetAll(&zeros),
                 &tol,
             );
+            self.recycle(sys);
             // No consistent modes found within Lemke's pivot cap (a ray, the cap,
             // or an answer that failed its check): the Painleve rule, once.
             if !d.consistent || !d.ends_at_one {
