@@ -16,7 +16,7 @@
 use shared::impact::lcp::{solve_states_into, Direction};
 use shared::impact::linalg::Solved;
 use shared::impact::split::within_cones;
-use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
+use shared::impact::{ImpactOutcome, ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
 use super::super::model::MAX_DOF;
@@ -25,8 +25,10 @@ use super::{ContactMode, Plant, NY};
 /// An evaluation with the state and modes it was made at.
 pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
 
-/// Contact forces and accelerations at a state, in the current modes.
-#[derive(Clone)]
+/// Contact forces and accelerations at a state, in the current modes. Entries
+/// past the model's (its state's [`super::super::model::PlantModel::ny`], its
+/// contacts) are zero: [`Plant::evaluate_with_modes_into`] never writes them.
+#[derive(Clone, Default)]
 pub(super) struct Evaluation {
     pub(super) ydot: [f64; NY],
     /// Normal force of each contact (0 when open), N.
@@ -44,6 +46,9 @@ pub(super) struct ContactSystem {
     pub(super) kin: [ContactKinematics; MAX_CONTACTS],
     pub(super) base_n: [f64; MAX_CONTACTS],
     pub(super) base_t: [f64; MAX_CONTACTS],
+    /// Where an impact of these contacts is solved (`shared::impact::solve_into`):
+    /// its outcome, and a Zeno closure's plastic one.
+    pub(super) outcomes: [ImpactOutcome<f64, MAX_CONTACTS>; 2],
 }
 
 impl ContactSystem {
@@ -56,6 +61,7 @@ impl ContactSystem {
             kin: [ContactKinematics::default(); MAX_CONTACTS],
             base_n: [0.0; MAX_CONTACTS],
             base_t: [0.0; MAX_CONTACTS],
+            outcomes: Default::default(),
         }
     }
 }
@@ -84,23 +90,49 @@ impl Scratch {
 impl Plant {
     /// Accelerations and contact forces at `y` in the current modes.
     pub(super) fn evaluate(&self, y: &[f64; NY]) -> Evaluation {
-        // The last evaluation is kept: the event functions at a step's end ask
-        // for the state the integrator's last stage has just evaluated (FSAL).
+        self.with_evaluation(y, Evaluation::clone)
+    }
+
+    /// `read` of the evaluation at `y` in the current modes, where it is kept: the
+    /// last one is (the event functions at a step's end ask for the state the
+    /// integrator's last stage has just evaluated, FSAL), and a new one is made in
+    /// its place, so that neither is copied whole (`read` takes what it needs).
+    /// `read` must not evaluate the plant itself.
+    pub(super) fn with_evaluation<R>(
+        &self,
+        y: &[f64; NY],
+        read: impl FnOnce(&Evaluation) -> R,
+    ) -> R {
         let mut modes = [ContactMode::Open; MAX_CONTACTS];
         modes[..self.modes.len()].copy_from_slice(&self.modes);
-        if let Some((yc, mc, e)) = self.last_evaluation.borrow().as_ref() {
-            if yc == y && *mc == modes && self.winding == self.last_winding.get() {
-                return e.clone();
-            }
+        let mut cache = self.last_evaluation.borrow_mut();
+        let kept = matches!(cache.as_ref(), Some((yc, mc, _))
+            if yc == y && *mc == modes && self.winding == self.last_winding.get());
+        let (yc, mc, e) = cache.get_or_insert_with(|| ([0.0; NY], modes, Evaluation::default()));
+        if !kept {
+            self.evaluate_with_modes_into(y, &self.modes, e);
+            *yc = *y;
+            *mc = modes;
+            self.last_winding.set(self.winding);
         }
-        let e = self.evaluate_with_modes(y, &self.modes);
-        *self.last_evaluation.borrow_mut() = Some((*y, modes, e.clone()));
-        self.last_winding.set(self.winding);
-        e
+        read(e)
     }
 
     /// Accelerations and contact forces at `y` with the contacts in `modes`.
     pub(super) fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
+        let mut e = Evaluation::default();
+        self.evaluate_with_modes_into(y, modes, &mut e);
+        e
+    }
+
+    /// [`Plant::evaluate_with_modes`] written into `out`: the entries of the
+    /// model's state and contacts.
+    pub(super) fn evaluate_with_modes_into(
+        &self,
+        y: &[f64; NY],
+        modes: &[ContactMode],
+        out: &mut Evaluation,
+    ) {
         self.evaluations.set(self.evaluations.get() + 1);
         let n = self.model.dof;
         let q = self.model.q(y);
@@ -117,8 +149,9 @@ impl Plant {
         let mut acc = frame.solve(&f);
 
         // Closed contacts: forces from their mode's equations.
-        let mut lambda_n = [0.0; MAX_CONTACTS];
-        let mut lambda_t = [0.0; MAX_CONTACTS];
+        let (lambda_n, lambda_t) = (&mut out.lambda_n, &mut out.lambda_t);
+        lambda_n[..modes.len()].fill(0.0);
+        lambda_t[..modes.len()].fill(0.0);
         // The closed contacts, without allocating (this runs at every stage).
         let mut closed_buf = [0usize; MAX_CONTACTS];
         let mut n_closed = 0;
@@ -163,16 +196,11 @@ impl Plant {
                 }
             }
         }
-        let mut ydot = [0.0; NY];
+        let ydot = &mut out.ydot;
         ydot[..n].copy_from_slice(&v[..n]);
         ydot[n..2 * n].copy_from_slice(&acc[..n]);
         for k in 0..self.model.rotors.len() {
             ydot[self.model.current(k)] = di[k];
-        }
-        Evaluation {
-            ydot,
-            lambda_n,
-            lambda_t,
         }
     }
 

@@ -2,7 +2,7 @@
 //! accumulations closed plastically, and Painleve configurations resolved by a
 //! tangential impact (Genot & Brogliato 1999).
 
-use shared::impact::{solve, ImpactLaw};
+use shared::impact::{solve, solve_into, ImpactLaw};
 
 use super::super::dynamics::row_dot;
 use super::super::model::MAX_DOF;
@@ -15,11 +15,13 @@ impl Plant {
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
-        let mut sys = self.contact_system(&frame, &v, set, None);
-        // The outcomes read where they are (each holds the capacity's histories).
-        let solved = solve(&sys.problem);
-        let outcome = match &solved {
-            Ok(o) => o,
+        let mut kept = self.contact_system(&frame, &v, set, None);
+        // The outcomes solved where they are read, in the storage kept with the
+        // problem (each holds the capacity's histories).
+        let sys = &mut *kept;
+        let [first, plastic] = &mut sys.outcomes;
+        let outcome = match solve_into(&sys.problem, first) {
+            Ok(()) => &*first,
             Err(e) => {
                 self.warn(format!("impact at t = {:.9} s not solved: {e:?}", self.t));
                 return;
@@ -36,13 +38,14 @@ impl Plant {
         // Zeno: a rebound slower than the threshold ends an accumulation; close it
         // plastically and report the accumulation point.
         let zeno = rebound > 0.0 && rebound < self.settings.zeno_velocity;
-        let plastic;
         let outcome = if zeno {
             for r in 0..set.len() {
                 sys.problem.contacts[r].restitution = 0.0;
             }
-            plastic = solve(&sys.problem);
-            plastic.as_ref().unwrap_or(outcome)
+            match solve_into(&sys.problem, plastic) {
+                Ok(()) => &*plastic,
+                Err(_) => outcome,
+            }
         } else {
             outcome
         };
@@ -72,7 +75,7 @@ impl Plant {
         self.impacts += 1;
         self.fsal = None;
         let warnings = outcome.warnings;
-        self.recycle(sys);
+        self.recycle(kept);
         if !warnings.is_empty() {
             let w = warnings;
             use shared::impact::Warnings as W;
