@@ -72,6 +72,8 @@ impl ContactSystem {
 pub(super) struct Scratch {
     pub(super) frame: Frame,
     system: ContactSystem,
+    /// The closed contacts' forces and rates (every field written by each solve).
+    direction: Direction<f64, MAX_CONTACTS>,
     /// The contact problem of the last impact or mode decision, handed back
     /// ([`Plant::recycle`]) for the next one ([`Plant::contact_system`]).
     spare: Option<Box<ContactSystem>>,
@@ -82,6 +84,7 @@ impl Scratch {
         Scratch {
             frame: Frame::empty(model),
             system: ContactSystem::new(model.law),
+            direction: Direction::default(),
             spare: None,
         }
     }
@@ -174,7 +177,7 @@ impl Plant {
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
             // mode is re-decided at the next event).
-            let mut d = Direction::default();
+            let d = &mut scratch.direction;
             if let Some((_, how)) = solve_states_into(
                 &sys.problem,
                 &sys.base_n,
@@ -183,9 +186,9 @@ impl Plant {
                 &mode,
                 Some(&zeros),
                 None,
-                &mut d,
+                d,
             ) {
-                let (x, y) = self.share_within_cones(closed, modes, sys, &d, how);
+                let (x, y) = self.share_within_cones(closed, modes, sys, d, how);
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
@@ -292,7 +295,8 @@ impl Plant {
         sys.problem.len = set.len();
         sys.problem.law = self.model.law;
         for (r, &j) in set.iter().enumerate() {
-            let k = frame.contact(&self.model, j, v);
+            sys.kin[r] = frame.contact(&self.model, j, v);
+            let k = &sys.kin[r];
             sys.minv_jn[r] = frame.solve(&k.j_n);
             sys.minv_jt[r] = frame.solve(&k.j_t);
             sys.problem.u_n[r] = k.u_n;
@@ -307,7 +311,6 @@ impl Plant {
             };
             sys.base_n[r] = base_n;
             sys.base_t[r] = base_t;
-            sys.kin[r] = k;
         }
         for r in 0..set.len() {
             for c in 0..set.len() {
