@@ -501,7 +501,7 @@ impl Plant {
             let f0 = match self.fsal {
                 Some(f) => f,
                 None => {
-                    let f = self.evaluate(&self.y).ydot;
+                    let f = self.with_evaluation(&self.y, |e| e.ydot);
                     self.fsal = Some(f);
                     f
                 }
@@ -517,9 +517,10 @@ impl Plant {
             let outcome = {
                 let this = &*self;
                 let mut rhs = |_t: f64, yy: &[f64; NY]| {
-                    let e = this.evaluate(yy);
-                    stages.record(&e);
-                    e.ydot
+                    this.with_evaluation(yy, |e| {
+                        stages.record(e, this.modes.len());
+                        e.ydot
+                    })
                 };
                 attempt(&mut rhs, t, &y, &f0, h, &tol)
             };
@@ -828,11 +829,10 @@ impl Plant {
         if !self.modes.iter().any(|m| m.closed()) {
             return ContactForces::default();
         }
-        let e = self.evaluate(y);
-        ContactForces {
+        self.with_evaluation(y, |e| ContactForces {
             normal: e.lambda_n,
             tangential: e.lambda_t,
-        }
+        })
     }
 
     /// Total mechanical energy (kinetic plus gravity's potential), J.

@@ -32,7 +32,7 @@ pub use outcome::{
     ContactOutcome, ImpactOutcome, InteractionCase, Phase, Segment, SlipState, Warnings,
 };
 pub use problem::{ContactLaw, ImpactLaw, ImpactProblem};
-pub use solver::{solve, ImpactError};
+pub use solver::{solve, solve_into, ImpactError};
 
 /// Most contacts one impact problem can hold.
 pub const MAX_CONTACTS: usize = 16;

@@ -146,6 +146,24 @@ pub struct ContactOutcome<T> {
     pub truncated: bool,
 }
 
+impl<T: Real> ContactOutcome<T> {
+    /// Back to the default (no impulse, no history) in place: the history's
+    /// storage is not rewritten, only emptied.
+    pub fn clear(&mut self) {
+        self.normal_impulse = T::ZERO;
+        self.tangential_impulse = T::ZERO;
+        self.compression = [T::ZERO; 2];
+        self.restitution = [T::ZERO; 2];
+        self.normal_velocity_before = T::ZERO;
+        self.normal_velocity_after = T::ZERO;
+        self.tangential_velocity_before = T::ZERO;
+        self.tangential_velocity_after = T::ZERO;
+        self.case = InteractionCase::Inactive;
+        self.segments.clear();
+        self.truncated = false;
+    }
+}
+
 impl<T: Real> Default for ContactOutcome<T> {
     fn default() -> Self {
         ContactOutcome {
@@ -208,4 +226,16 @@ pub struct ImpactOutcome<T, const N: usize> {
     pub energy_change: T,
     /// Warnings raised.
     pub warnings: Warnings,
+}
+
+impl<T: Real, const N: usize> Default for ImpactOutcome<T, N> {
+    /// No contact: storage for [`super::solver::solve_into`].
+    fn default() -> Self {
+        ImpactOutcome {
+            len: 0,
+            contacts: core::array::from_fn(|_| ContactOutcome::default()),
+            energy_change: T::ZERO,
+            warnings: Warnings::default(),
+        }
+    }
 }

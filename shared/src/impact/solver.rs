@@ -76,6 +76,23 @@ pub fn solve<T: Real, const N: usize>(
     result
 }
 
+/// [`solve`] into `outcome`, whatever it held before (every contact reset): a
+/// caller that keeps its outcome where it reads it need not have one moved to
+/// it (an outcome holds every contact's history at the capacity: 11.8 kB for 16
+/// contacts in `f64`). On an error `outcome` is left unspecified.
+pub fn solve_into<T: Real, const N: usize>(
+    problem: &ImpactProblem<T, N>,
+    outcome: &mut ImpactOutcome<T, N>,
+) -> Result<(), ImpactError> {
+    const { assert!(N <= MAX_CONTACTS, "at most MAX_CONTACTS contacts") };
+    check(problem)?;
+    outcome.len = problem.len;
+    for c in outcome.contacts.iter_mut() {
+        c.clear();
+    }
+    integrate(problem, outcome)
+}
+
 /// The stages of [`solve`] on a checked problem, into `outcome`.
 fn integrate<T: Real, const N: usize>(
     problem: &ImpactProblem<T, N>,

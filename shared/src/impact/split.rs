@@ -69,7 +69,7 @@
 //! reports the violation.
 
 use super::lemke::{pivot_cap, Lcp, Lemke};
-use super::linalg::{rank_tolerance, Matrix, Vector, DIM};
+use super::linalg::{rank_tolerance, DIM};
 use super::outcome::SlipState;
 use super::problem::ImpactProblem;
 use crate::real::Real;
@@ -101,9 +101,9 @@ impl Split {
 }
 
 /// The unknowns of a candidate: contact index and kind (normal or tangential).
-struct Unknowns {
-    contact: [usize; DIM],
-    normal: [bool; DIM],
+struct Unknowns<const D: usize> {
+    contact: [usize; D],
+    normal: [bool; D],
     len: usize,
 }
 
@@ -126,10 +126,39 @@ pub fn within_cones<T: Real, const N: usize>(
     y: &mut [T; N],
     tol: T,
 ) -> Split {
-    let n = p.len;
     if satisfied(p, active, mode, x, y, tol) {
         return Split::Inside;
     }
+    // Storage sized to the active contacts (`D` >= 2 unknowns and `C` >= 3
+    // constraints each; never more than `N` contacts): the same arithmetic as in
+    // the capacity's, without zeroing it (16 contacts: 48 constraints in 32
+    // coordinates) at every split.
+    let a = (0..p.len).filter(|&i| active[i]).count();
+    if a <= 2 || N <= 2 {
+        split_in::<T, N, 4, 6>(p, active, mode, normals_free, x, y, tol)
+    } else if a <= 4 || N <= 4 {
+        split_in::<T, N, 8, 12>(p, active, mode, normals_free, x, y, tol)
+    } else if a <= 8 || N <= 8 {
+        split_in::<T, N, 16, 24>(p, active, mode, normals_free, x, y, tol)
+    } else {
+        split_in::<T, N, DIM, MAX_CONSTRAINTS>(p, active, mode, normals_free, x, y, tol)
+    }
+}
+
+/// [`within_cones`] for rates outside the cones, in storage of `D` unknowns and
+/// `C` constraints.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
+    p: &ImpactProblem<T, N>,
+    active: &[bool; N],
+    mode: &[SlipState; N],
+    normals_free: bool,
+    x: &mut [T; N],
+    y: &mut [T; N],
+    tol: T,
+) -> Split {
+    let n = p.len;
     // The unknowns and their contact impulses: a normal unknown of contact i puts
     // (1, slip_coeff(i)) on (P_n,i, P_t,i); a tangential one (0, 1).
     let slip_coeff = |i: usize| -> T {
@@ -138,9 +167,9 @@ pub fn within_cones<T: Real, const N: usize>(
             s => -p.contacts[i].friction * s.sign::<T>(),
         }
     };
-    let mut u = Unknowns {
-        contact: [0; DIM],
-        normal: [false; DIM],
+    let mut u = Unknowns::<D> {
+        contact: [0; D],
+        normal: [false; D],
         len: 0,
     };
     for i in 0..n {
@@ -171,7 +200,7 @@ pub fn within_cones<T: Real, const N: usize>(
         }
     };
     // Q = E^T W E.
-    let mut q: Matrix<T> = [[T::ZERO; DIM]; DIM];
+    let mut q = [[T::ZERO; D]; D];
     for a in 0..m {
         let (na, ta) = comp(a);
         let i = u.contact[a];
@@ -184,11 +213,11 @@ pub fn within_cones<T: Real, const N: usize>(
                 + ta * tb * p.w_tt[i][j];
         }
     }
-    let mut weights: Vector<T> = [T::ONE; DIM];
+    let mut weights = [T::ONE; D];
     for (r, w) in weights.iter_mut().enumerate().take(m) {
         *w = p.contacts[u.contact[r]].weight;
     }
-    let mut basis: Matrix<T> = [[T::ZERO; DIM]; DIM];
+    let mut basis = [[T::ZERO; D]; D];
     let k = null_space(&mut q, m, &mut basis);
     let k = orthonormalize(&mut basis, k, m, &weights);
     if k == 0 {
@@ -196,8 +225,8 @@ pub fn within_cones<T: Real, const N: usize>(
         return Split::Infeasible;
     }
     // The basis vectors as changes of (x, y) per contact.
-    let mut dx = [[T::ZERO; N]; DIM];
-    let mut dy = [[T::ZERO; N]; DIM];
+    let mut dx = [[T::ZERO; N]; D];
+    let mut dy = [[T::ZERO; N]; D];
     for c in 0..k {
         for r in 0..m {
             let i = u.contact[r];
@@ -211,20 +240,20 @@ pub fn within_cones<T: Real, const N: usize>(
     }
     let scale = (0..n).fold(T::ZERO, |s, i| s.max(x[i].abs()).max(y[i].abs()));
     // The constraints a_l . c + b_l >= 0 in the coordinates c of the basis.
-    let mut a_rows = [[T::ZERO; DIM]; MAX_CONSTRAINTS];
-    let mut b_rows = [T::ZERO; MAX_CONSTRAINTS];
+    let mut a_rows = [[T::ZERO; D]; C];
+    let mut b_rows = [T::ZERO; C];
     let mut count = 0;
     for c in 0..k {
-        let mut cs = [(T::ZERO, T::ZERO); MAX_CONSTRAINTS];
+        let mut cs = [(T::ZERO, T::ZERO); C];
         count = constraints(p, active, mode, x, y, &dx[c], &dy[c], &mut cs);
         for (l, &(a, b)) in cs.iter().enumerate().take(count) {
             a_rows[l][c] = a;
             b_rows[l] = b;
         }
     }
-    let mut coef: Vector<T> = [T::ZERO; DIM];
+    let mut coef = [T::ZERO; D];
     let found = if k == 1 {
-        let mut cs = [(T::ZERO, T::ZERO); MAX_CONSTRAINTS];
+        let mut cs = [(T::ZERO, T::ZERO); C];
         for l in 0..count {
             cs[l] = (a_rows[l][0], b_rows[l]);
         }
@@ -236,13 +265,13 @@ pub fn within_cones<T: Real, const N: usize>(
     if !found {
         // No feasible split found: primal coordinate descent from the start on
         // the least largest violation, so that the rates miss by least.
-        coef = [T::ZERO; DIM];
+        coef = [T::ZERO; D];
         let (mut cx, mut cy) = (*x, *y);
         let step_tol = T::EPSILON * scale;
         for _ in 0..SWEEPS {
             let mut largest_step = T::ZERO;
             for c in 0..k {
-                let mut cs = [(T::ZERO, T::ZERO); MAX_CONSTRAINTS];
+                let mut cs = [(T::ZERO, T::ZERO); C];
                 let count = constraints(p, active, mode, &cx, &cy, &dx[c], &dy[c], &mut cs);
                 let t = best_step(&cs[..count], -coef[c]);
                 if t != T::ZERO {
@@ -290,13 +319,13 @@ pub fn within_cones<T: Real, const N: usize>(
 /// Thm. 4.4.13): an infeasible split is found out within the pivot cap
 /// ([`super::lemke::pivot_cap`] of `count`), each pivot `O(count^2)`. Returns true
 /// with `c` where solved; false otherwise (no split, or the cap).
-fn closest_split<T: Real>(
-    a: &[[T; DIM]; MAX_CONSTRAINTS],
-    b: &[T; MAX_CONSTRAINTS],
+fn closest_split<T: Real, const D: usize, const C: usize>(
+    a: &[[T; D]; C],
+    b: &[T; C],
     count: usize,
     k: usize,
     tol: T,
-    c: &mut Vector<T>,
+    c: &mut [T; D],
 ) -> bool {
     let problem = Projection {
         a,
@@ -307,14 +336,18 @@ fn closest_split<T: Real>(
     };
     // The workspace sized to the constraints, on the stack of a call that is not
     // inlined (a few constraints never reserve the largest basis inverse).
-    let mu = &mut [T::ZERO; MAX_CONSTRAINTS];
-    let solved = match count {
-        0..=8 => project_in::<T, 8>(&problem, mu),
-        9..=16 => project_in::<T, 16>(&problem, mu),
-        17..=32 => project_in::<T, 32>(&problem, mu),
-        _ => project_in::<T, MAX_CONSTRAINTS>(&problem, mu),
+    let mu = &mut [T::ZERO; C];
+    // (`count <= C`: the sizes above `C` are never taken.)
+    let solved = if count <= 8 || C <= 8 {
+        project_in::<T, D, 8>(&problem, mu)
+    } else if count <= 16 || C <= 16 {
+        project_in::<T, D, 16>(&problem, mu)
+    } else if count <= 32 || C <= 32 {
+        project_in::<T, D, 32>(&problem, mu)
+    } else {
+        project_in::<T, D, MAX_CONSTRAINTS>(&problem, mu)
     };
-    *c = [T::ZERO; DIM];
+    *c = [T::ZERO; D];
     if !solved {
         return false;
     }
@@ -329,11 +362,11 @@ fn closest_split<T: Real>(
 /// [`closest_split`]'s problem in a workspace of `C` constraints: `mu` where
 /// solved.
 #[inline(never)]
-fn project_in<T: Real, const C: usize>(
-    p: &Projection<'_, T>,
-    mu: &mut [T; MAX_CONSTRAINTS],
+fn project_in<T: Real, const D: usize, const L: usize>(
+    p: &Projection<'_, T, D>,
+    mu: &mut [T],
 ) -> bool {
-    let mut work: Lemke<T, C> = Lemke::new();
+    let mut work: Lemke<T, L> = Lemke::new();
     if !work.solve(p, pivot_cap(p.count)).solved() {
         return false;
     }
@@ -342,15 +375,15 @@ fn project_in<T: Real, const C: usize>(
 }
 
 /// The projection's complementarity problem: `M = A A^T`, `q = b + shift`.
-struct Projection<'a, T> {
-    a: &'a [[T; DIM]; MAX_CONSTRAINTS],
-    b: &'a [T; MAX_CONSTRAINTS],
+struct Projection<'a, T, const D: usize> {
+    a: &'a [[T; D]],
+    b: &'a [T],
     count: usize,
     k: usize,
     shift: T,
 }
 
-impl<T: Real> Lcp<T> for Projection<'_, T> {
+impl<T: Real, const D: usize> Lcp<T> for Projection<'_, T, D> {
     fn size(&self) -> usize {
         self.count
     }
@@ -395,7 +428,7 @@ fn constraints<T: Real, const N: usize>(
     y: &[T; N],
     dx: &[T; N],
     dy: &[T; N],
-    out: &mut [(T, T); MAX_CONSTRAINTS],
+    out: &mut [(T, T)],
 ) -> usize {
     let mut count = 0;
     for i in 0..p.len {
@@ -475,11 +508,15 @@ fn best_step<T: Real>(cs: &[(T, T)], target: T) -> T {
 /// A basis of the null space of the leading `m x m` block of `q` (destroyed), by
 /// Gauss-Jordan elimination with partial pivoting; its vectors in the rows of
 /// `basis`. Returns their number.
-fn null_space<T: Real>(q: &mut Matrix<T>, m: usize, basis: &mut Matrix<T>) -> usize {
+fn null_space<T: Real, const D: usize>(
+    q: &mut [[T; D]; D],
+    m: usize,
+    basis: &mut [[T; D]; D],
+) -> usize {
     let scale = (0..m).fold(T::ZERO, |s, i| (0..m).fold(s, |s, j| s.max(q[i][j].abs())));
     let tol = rank_tolerance::<T>() * scale;
-    let mut pivot_col = [0usize; DIM];
-    let mut is_pivot = [false; DIM];
+    let mut pivot_col = [0usize; D];
+    let mut is_pivot = [false; D];
     let mut rank = 0;
     for col in 0..m {
         if rank == m {
@@ -520,7 +557,7 @@ fn null_space<T: Real>(q: &mut Matrix<T>, m: usize, basis: &mut Matrix<T>) -> us
             continue;
         }
         let v = &mut basis[k];
-        *v = [T::ZERO; DIM];
+        *v = [T::ZERO; D];
         v[free] = T::ONE;
         for (r, &pc) in pivot_col.iter().enumerate().take(rank) {
             v[pc] = -q[r][free];
@@ -533,8 +570,13 @@ fn null_space<T: Real>(q: &mut Matrix<T>, m: usize, basis: &mut Matrix<T>) -> us
 /// Makes the first `k` rows of `basis` orthonormal in the inner product
 /// `<u, v> = sum u_r v_r / w_r` (modified Gram-Schmidt), dropping dependent ones.
 /// Returns how many remain.
-fn orthonormalize<T: Real>(basis: &mut Matrix<T>, k: usize, m: usize, w: &Vector<T>) -> usize {
-    let dot = |a: &Vector<T>, b: &Vector<T>| (0..m).fold(T::ZERO, |s, r| s + a[r] * b[r] / w[r]);
+fn orthonormalize<T: Real, const D: usize>(
+    basis: &mut [[T; D]; D],
+    k: usize,
+    m: usize,
+    w: &[T; D],
+) -> usize {
+    let dot = |a: &[T; D], b: &[T; D]| (0..m).fold(T::ZERO, |s, r| s + a[r] * b[r] / w[r]);
     let mut kept = 0;
     for c in 0..k {
         let mut v = basis[c];

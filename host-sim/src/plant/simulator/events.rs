@@ -92,13 +92,13 @@ pub(super) struct StageForces {
 }
 
 impl StageForces {
-    /// Keeps the forces of `e`, the evaluation of the next interior stage (the
-    /// calls after the fourth are the step's end, which the event functions at
-    /// the end already have).
-    pub(super) fn record(&mut self, e: &Evaluation) {
+    /// Keeps the forces of the first `contacts` contacts of `e`, the evaluation of
+    /// the next interior stage (the calls after the fourth are the step's end,
+    /// which the event functions at the end already have).
+    pub(super) fn record(&mut self, e: &Evaluation, contacts: usize) {
         if self.count < INTERIOR_STAGES.len() {
-            self.lambda_n[self.count] = e.lambda_n;
-            self.lambda_t[self.count] = e.lambda_t;
+            self.lambda_n[self.count][..contacts].copy_from_slice(&e.lambda_n[..contacts]);
+            self.lambda_t[self.count][..contacts].copy_from_slice(&e.lambda_t[..contacts]);
             self.count += 1;
         }
     }
@@ -154,20 +154,27 @@ impl Plant {
     /// a thousandth of it), so a crossing is a change of sign, never a value that
     /// was already zero.
     pub(super) fn event_values(&self, y: &[f64; NY]) -> EventValues {
-        let needs_forces = self.modes.iter().any(|m| m.closed());
-        let ev = needs_forces.then(|| self.evaluate(y));
         // One pose for every contact's kinematics at `y`.
         let v = self.model.v(y);
         let pose = Pose::new(&self.model, &self.model.q(y));
         let at = Kinematics::Pose(&pose, &v);
-        let mut values = EventValues {
-            values: [f64::INFINITY; EVENT_SLOTS],
-            len: SLOTS_PER_CONTACT * self.modes.len() + self.model.rotors.len(),
+        let values = |ev: Option<&Evaluation>| {
+            let mut values = EventValues {
+                values: [f64::INFINITY; EVENT_SLOTS],
+                len: SLOTS_PER_CONTACT * self.modes.len() + self.model.rotors.len(),
+            };
+            for i in 0..values.len {
+                values.values[i] = self.event_value(self.watch(i), y, at, ev);
+            }
+            values
         };
-        for i in 0..values.len {
-            values.values[i] = self.event_value(self.watch(i), y, at, ev.as_ref());
+        // The forces read where the evaluation is kept (`event_value` evaluates
+        // nothing when given them).
+        if self.modes.iter().any(|m| m.closed()) {
+            self.with_evaluation(y, |e| values(Some(e)))
+        } else {
+            values(None)
         }
-        values
     }
 
     /// One event function, `watch`, at `y` (see [`Plant::event_values`]); `at`
@@ -192,14 +199,11 @@ impl Plant {
         };
         let forces = |j: usize| match ev {
             Some(e) => (e.lambda_n[j], e.lambda_t[j]),
-            None => {
-                let e = self.evaluate(y);
-                (e.lambda_n[j], e.lambda_t[j])
-            }
+            None => self.with_evaluation(y, |e| (e.lambda_n[j], e.lambda_t[j])),
         };
         let jam = |j: usize| match ev {
             Some(e) => e.jam[j],
-            None => self.evaluate(y).jam[j],
+            None => self.with_evaluation(y, |e| e.jam[j]),
         };
         match watch {
             Watch::Gap(j) => gap(j),

@@ -16,7 +16,7 @@
 use shared::impact::lcp::{solve_states_into, Direction};
 use shared::impact::linalg::Solved;
 use shared::impact::split::within_cones;
-use shared::impact::{ImpactProblem, SlipState, MAX_CONTACTS};
+use shared::impact::{ImpactOutcome, ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
 use super::super::model::MAX_DOF;
@@ -25,8 +25,10 @@ use super::{ContactMode, Plant, NY};
 /// An evaluation with the state and modes it was made at.
 pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);
 
-/// Contact forces and accelerations at a state, in the current modes.
-#[derive(Clone)]
+/// Contact forces and accelerations at a state, in the current modes. Entries
+/// past the model's (its state's [`super::super::model::PlantModel::ny`], its
+/// contacts) are zero: [`Plant::evaluate_with_modes_into`] never writes them.
+#[derive(Clone, Default)]
 pub(super) struct Evaluation {
     pub(super) ydot: [f64; NY],
     /// Normal force of each contact (0 when open), N.
@@ -67,6 +69,9 @@ pub(super) struct ContactSystem {
     pub(super) kin: [ContactKinematics; MAX_CONTACTS],
     pub(super) base_n: [f64; MAX_CONTACTS],
     pub(super) base_t: [f64; MAX_CONTACTS],
+    /// Where an impact of these contacts is solved (`shared::impact::solve_into`):
+    /// its outcome, and a Zeno closure's plastic one.
+    pub(super) outcomes: [ImpactOutcome<f64, MAX_CONTACTS>; 2],
 }
 
 impl ContactSystem {
@@ -79,16 +84,22 @@ impl ContactSystem {
             kin: [ContactKinematics::default(); MAX_CONTACTS],
             base_n: [0.0; MAX_CONTACTS],
             base_t: [0.0; MAX_CONTACTS],
+            outcomes: Default::default(),
         }
     }
 }
 
 /// What every evaluation fills and reads, kept from one to the next so that
-/// nothing of the capacity (12 coordinates, 8 contacts: 8 KB) is zeroed or copied
-/// at each of the integrator's stages.
+/// nothing of the capacity (12 coordinates, 16 contacts: 13 KB a contact
+/// problem) is zeroed or copied at each of the integrator's stages.
 pub(super) struct Scratch {
     pub(super) frame: Frame,
     system: ContactSystem,
+    /// The closed contacts' forces and rates (every field written by each solve).
+    direction: Direction<f64, MAX_CONTACTS>,
+    /// The contact problem of the last impact or mode decision, handed back
+    /// ([`Plant::recycle`]) for the next one ([`Plant::contact_system`]).
+    spare: Option<Box<ContactSystem>>,
 }
 
 impl Scratch {
@@ -96,6 +107,8 @@ impl Scratch {
         Scratch {
             frame: Frame::empty(model),
             system: ContactSystem::new(model.law),
+            direction: Direction::default(),
+            spare: None,
         }
     }
 }
@@ -103,23 +116,49 @@ impl Scratch {
 impl Plant {
     /// Accelerations and contact forces at `y` in the current modes.
     pub(super) fn evaluate(&self, y: &[f64; NY]) -> Evaluation {
-        // The last evaluation is kept: the event functions at a step's end ask
-        // for the state the integrator's last stage has just evaluated (FSAL).
+        self.with_evaluation(y, Evaluation::clone)
+    }
+
+    /// `read` of the evaluation at `y` in the current modes, where it is kept: the
+    /// last one is (the event functions at a step's end ask for the state the
+    /// integrator's last stage has just evaluated, FSAL), and a new one is made in
+    /// its place, so that neither is copied whole (`read` takes what it needs).
+    /// `read` must not evaluate the plant itself.
+    pub(super) fn with_evaluation<R>(
+        &self,
+        y: &[f64; NY],
+        read: impl FnOnce(&Evaluation) -> R,
+    ) -> R {
         let mut modes = [ContactMode::Open; MAX_CONTACTS];
         modes[..self.modes.len()].copy_from_slice(&self.modes);
-        if let Some((yc, mc, e)) = self.last_evaluation.borrow().as_ref() {
-            if yc == y && *mc == modes && self.winding == self.last_winding.get() {
-                return e.clone();
-            }
+        let mut cache = self.last_evaluation.borrow_mut();
+        let kept = matches!(cache.as_ref(), Some((yc, mc, _))
+            if yc == y && *mc == modes && self.winding == self.last_winding.get());
+        let (yc, mc, e) = cache.get_or_insert_with(|| ([0.0; NY], modes, Evaluation::default()));
+        if !kept {
+            self.evaluate_with_modes_into(y, &self.modes, e);
+            *yc = *y;
+            *mc = modes;
+            self.last_winding.set(self.winding);
         }
-        let e = self.evaluate_with_modes(y, &self.modes);
-        *self.last_evaluation.borrow_mut() = Some((*y, modes, e.clone()));
-        self.last_winding.set(self.winding);
-        e
+        read(e)
     }
 
     /// Accelerations and contact forces at `y` with the contacts in `modes`.
     pub(super) fn evaluate_with_modes(&self, y: &[f64; NY], modes: &[ContactMode]) -> Evaluation {
+        let mut e = Evaluation::default();
+        self.evaluate_with_modes_into(y, modes, &mut e);
+        e
+    }
+
+    /// [`Plant::evaluate_with_modes`] written into `out`: the entries of the
+    /// model's state and contacts.
+    pub(super) fn evaluate_with_modes_into(
+        &self,
+        y: &[f64; NY],
+        modes: &[ContactMode],
+        out: &mut Evaluation,
+    ) {
         self.evaluations.set(self.evaluations.get() + 1);
         let n = self.model.dof;
         let q = self.model.q(y);
@@ -136,9 +175,10 @@ impl Plant {
         let mut acc = frame.solve(&f);
 
         // Closed contacts: forces from their mode's equations.
-        let mut lambda_n = [0.0; MAX_CONTACTS];
-        let mut lambda_t = [0.0; MAX_CONTACTS];
-        let mut jam = [f64::INFINITY; MAX_CONTACTS];
+        let (lambda_n, lambda_t, jam) = (&mut out.lambda_n, &mut out.lambda_t, &mut out.jam);
+        lambda_n[..modes.len()].fill(0.0);
+        lambda_t[..modes.len()].fill(0.0);
+        jam[..modes.len()].fill(f64::INFINITY);
         // The closed contacts, without allocating (this runs at every stage).
         let mut closed_buf = [0usize; MAX_CONTACTS];
         let mut n_closed = 0;
@@ -166,7 +206,7 @@ impl Plant {
             let zeros = [0.0; MAX_CONTACTS];
             // No solution of the closed contacts' equations: no contact force (the
             // mode is re-decided at the next event).
-            let mut d = Direction::default();
+            let d = &mut scratch.direction;
             if let Some((_, how)) = solve_states_into(
                 &sys.problem,
                 &sys.base_n,
@@ -175,9 +215,9 @@ impl Plant {
                 &mode,
                 Some(&zeros),
                 None,
-                &mut d,
+                d,
             ) {
-                let (x, y) = self.share_within_cones(closed, modes, sys, &d, how);
+                let (x, y) = self.share_within_cones(closed, modes, sys, d, how);
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
@@ -188,17 +228,11 @@ impl Plant {
                 }
             }
         }
-        let mut ydot = [0.0; NY];
+        let ydot = &mut out.ydot;
         ydot[..n].copy_from_slice(&v[..n]);
         ydot[n..2 * n].copy_from_slice(&acc[..n]);
         for k in 0..self.model.rotors.len() {
             ydot[self.model.current(k)] = di[k];
-        }
-        Evaluation {
-            ydot,
-            lambda_n,
-            lambda_t,
-            jam,
         }
     }
 
@@ -256,16 +290,25 @@ impl Plant {
     /// The contact problem of the contacts `set`: Delassus matrix
     /// `W = J M^-1 J^T` (rotors free unless held), `M^-1 J^T`, and, given the
     /// accelerations without contact forces, the contact accelerations they add to.
+    /// In the storage the last one handed back ([`Plant::recycle`]), where there is
+    /// one: only its first `set.len()` rows are written and read, so that an
+    /// impact or a mode decision neither zeroes nor moves the problem's capacity.
     pub(super) fn contact_system(
         &self,
         frame: &Frame,
         v: &Vector,
         set: &[usize],
         acc_free: Option<&Vector>,
-    ) -> ContactSystem {
-        let mut sys = ContactSystem::new(self.model.law);
+    ) -> Box<ContactSystem> {
+        let spare = self.scratch.borrow_mut().spare.take();
+        let mut sys = spare.unwrap_or_else(|| Box::new(ContactSystem::new(self.model.law)));
         self.fill_contact_system(frame, v, set, acc_free, &mut sys);
         sys
+    }
+
+    /// Hands a contact problem from [`Plant::contact_system`] back for the next.
+    pub(super) fn recycle(&self, sys: Box<ContactSystem>) {
+        self.scratch.borrow_mut().spare = Some(sys);
     }
 
     /// [`Plant::contact_system`] written into `sys`: its first `set.len()` rows.
@@ -279,8 +322,10 @@ impl Plant {
     ) {
         let dof = self.model.dof;
         sys.problem.len = set.len();
+        sys.problem.law = self.model.law;
         for (r, &j) in set.iter().enumerate() {
-            let k = frame.contact(&self.model, j, v);
+            sys.kin[r] = frame.contact(&self.model, j, v);
+            let k = &sys.kin[r];
             sys.minv_jn[r] = frame.solve(&k.j_n);
             sys.minv_jt[r] = frame.solve(&k.j_t);
             sys.problem.u_n[r] = k.u_n;
@@ -295,7 +340,6 @@ impl Plant {
             };
             sys.base_n[r] = base_n;
             sys.base_t[r] = base_t;
-            sys.kin[r] = k;
         }
         for r in 0..set.len() {
             for c in 0..set.len() {

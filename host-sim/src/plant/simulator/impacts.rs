@@ -2,7 +2,7 @@
 //! accumulations closed plastically, and Painleve configurations resolved by a
 //! tangential impact (Genot & Brogliato 1999).
 
-use shared::impact::{solve, ImpactLaw};
+use shared::impact::{solve, solve_into, ImpactLaw};
 
 use super::super::dynamics::row_dot;
 use super::super::model::MAX_DOF;
@@ -15,9 +15,13 @@ impl Plant {
         let q = self.q();
         let v = self.v();
         let frame = self.frame(&q);
-        let sys = self.contact_system(&frame, &v, set, None);
-        let outcome = match solve(&sys.problem) {
-            Ok(o) => o,
+        let mut kept = self.contact_system(&frame, &v, set, None);
+        // The outcomes solved where they are read, in the storage kept with the
+        // problem (each holds the capacity's histories).
+        let sys = &mut *kept;
+        let [first, plastic] = &mut sys.outcomes;
+        let outcome = match solve_into(&sys.problem, first) {
+            Ok(()) => &*first,
             Err(e) => {
                 self.warn(format!("impact at t = {:.9} s not solved: {e:?}", self.t));
                 return;
@@ -35,11 +39,13 @@ impl Plant {
         // plastically and report the accumulation point.
         let zeno = rebound > 0.0 && rebound < self.settings.zeno_velocity;
         let outcome = if zeno {
-            let mut plastic = sys.problem.clone();
             for r in 0..set.len() {
-                plastic.contacts[r].restitution = 0.0;
+                sys.problem.contacts[r].restitution = 0.0;
             }
-            solve(&plastic).unwrap_or(outcome)
+            match solve_into(&sys.problem, plastic) {
+                Ok(()) => &*plastic,
+                Err(_) => outcome,
+            }
         } else {
             outcome
         };
@@ -68,8 +74,10 @@ impl Plant {
         }
         self.impacts += 1;
         self.fsal = None;
-        if !outcome.warnings.is_empty() {
-            let w = outcome.warnings;
+        let warnings = outcome.warnings;
+        self.recycle(kept);
+        if !warnings.is_empty() {
+            let w = warnings;
             use shared::impact::Warnings as W;
             if w.contains(W::ENERGY_GAINED) && self.model.law != ImpactLaw::Newton {
                 self.warn(

@@ -175,10 +175,10 @@ impl Plant {
             // reached -eps_F opens, a sticking contact whose friction left its
             // cone by eps_F slips.
             let eps_f = self.force_tolerance();
-            let scale_a = sys
-                .base_n
+            let m = candidates.len();
+            let scale_a = sys.base_n[..m]
                 .iter()
-                .chain(sys.base_t.iter())
+                .chain(sys.base_t[..m].iter())
                 .fold(1.0, |m: f64, a| m.max(a.abs()));
             let mass = self.model.total_mass();
             let tol_f = (1e-3 * eps_f).max(1e-13 * scale_a * mass);
@@ -197,6 +197,15 @@ impl Plant {
                 NormalRule::TargetAll(&zeros),
                 &tol,
             );
+            // Each slipping contact's normal coefficient, for the dynamic jam below.
+            let mut coefficient = [f64::INFINITY; MAX_CONTACTS];
+            for (r, c) in coefficient.iter_mut().enumerate().take(candidates.len()) {
+                let s = ContactMode::from_slip(d.mode[r]).slip_sign();
+                if let (Some(s), true) = (s, sys.problem.contacts[r].friction > 0.0) {
+                    *c = normal_coefficient(&sys.problem, r, s);
+                }
+            }
+            self.recycle(sys);
             // No consistent modes found within Lemke's pivot cap (a ray, the cap,
             // or an answer that failed its check): the Painleve rule, once.
             if !d.consistent || !d.ends_at_one {
@@ -227,20 +236,14 @@ impl Plant {
             // that gains no energy and never loops: after the impact the contact
             // sticks.
             for (r, &j) in candidates.iter().enumerate() {
-                let Some(s) = ContactMode::from_slip(d.mode[r]).slip_sign() else {
-                    continue;
-                };
-                if !d.active[r]
-                    || sys.problem.contacts[r].friction == 0.0
-                    || normal_coefficient(&sys.problem, r, s) > 2.0 * JAM_RATIO
-                {
+                if !d.active[r] || coefficient[r] > 2.0 * JAM_RATIO {
                     continue;
                 }
                 if d.x[r] > tol_f {
                     let why = format!(
                         "a dynamic jam of {}: its normal coefficient (W_nn - mu s W_nt) / W_nn = {:.3e}, its force {:.6} N and growing without bound",
                         self.model.contacts[j].name,
-                        normal_coefficient(&sys.problem, r, s),
+                        coefficient[r],
                         d.x[r]
                     );
                     self.painleve(&candidates, "dynamic jam; tangential impact", &why);

@@ -291,3 +291,41 @@ fn impact_solver_agrees_with_the_enumeration() {
         "more than one impact in a hundred differs"
     );
 }
+
+/// `solve_into` on one outcome kept from impact to impact (one to four
+/// contacts, the three laws, in turn) gives what `solve` gives to the bit: every
+/// contact reset, the entries past the problem's default, no history left over
+/// from a longer impact before.
+#[test]
+fn solve_into_a_kept_outcome_is_solve() {
+    let mut rng = Lcg(29);
+    let mut kept = crate::impact::ImpactOutcome::default();
+    let mut solved = 0;
+    for case in 0..400 {
+        let k = 4 - case % 4;
+        let mut p = random_problem(&mut rng, k, 2 + (case / 4) % 5);
+        p.law = ImpactLaw::ALL[case % 3];
+        for c in p.contacts.iter_mut().take(k) {
+            c.restitution = rng.next();
+        }
+        match (
+            crate::impact::solve(&p),
+            crate::impact::solve_into(&p, &mut kept),
+        ) {
+            (Ok(fresh), Ok(())) => {
+                assert_eq!(fresh.len, kept.len, "case {case}");
+                assert_eq!(fresh.contacts, kept.contacts, "case {case}");
+                assert_eq!(
+                    fresh.energy_change.to_bits(),
+                    kept.energy_change.to_bits(),
+                    "case {case}"
+                );
+                assert_eq!(fresh.warnings, kept.warnings, "case {case}");
+                solved += 1;
+            }
+            (Err(a), Err(b)) => assert_eq!(a, b, "case {case}"),
+            (a, b) => panic!("case {case}: solve {:?}, solve_into {b:?}", a.err()),
+        }
+    }
+    assert!(solved > 200, "only {solved} of 400 impacts solved");
+}
