@@ -944,16 +944,23 @@ mod tests {
     /// The reference machine at rest on both feet (windings open), its start's
     /// mode decision made: every contact closed.
     fn resting() -> Plant {
+        resting_with(&[], Settings::default())
+    }
+
+    /// [`resting`] with the machine file's keys `sets` (`KEY=VALUE`, as
+    /// `--set` takes them) and the plant's `settings`.
+    pub(super) fn resting_with(sets: &[&str], settings: Settings) -> Plant {
         let text = std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../examples/vibro-driver.toml"
         ))
         .unwrap();
-        let m = Machine::from_text("m.toml", &text, std::path::Path::new("."), &[]).unwrap();
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let m = Machine::from_text("m.toml", &text, std::path::Path::new("."), &sets).unwrap();
         let plant = Plant::new(
             PlantModel::new(&m),
             initial_state(&m),
-            Settings::default(),
+            settings,
             Holds::default(),
         );
         assert!(plant.modes.iter().all(|m| m.closed()), "{:?}", plant.modes);
