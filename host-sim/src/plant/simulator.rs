@@ -918,7 +918,9 @@ mod tests {
 
     /// A step with closed contacts and no event costs the integrator's six
     /// evaluations and nothing more: the dip test reads the stages' forces, and
-    /// the step's last stage stands for the state after the projection. The
+    /// the step's last stage is the next step's first (the projection, after
+    /// which the first stage and the event functions are evaluated again, does
+    /// not run: the drift stays below its threshold, [`Plant::drifted`]). The
     /// reference machine at rest on both feet (windings open) for 0.2 s: beyond
     /// six an attempt, only the first event functions' evaluation, which the
     /// first step's derivative reuses (before: two more a step, the middle's and
