@@ -21,6 +21,13 @@ of the ladder's speeds. The table then says per rtol and point: pass (within the
 limit), band (chaotic, inside the band), or FAIL; and per rtol whether it meets
 the criterion everywhere.
 
+The ladder's spread cannot tell chaos from a reference not yet converged: a
+point whose speed moves steadily with the tolerance spreads as wide. The ladder
+table flags such a point (column "moves with rtol"): the ladder's steps from one
+tolerance to the next that exceed the limit are two or more, all of one sign. Such
+a point is still given its band; a band from an ensemble of perturbed initial
+states at one tight tolerance would tell the two apart.
+
 Usage (from the repository root, after `cargo build --release -p host-sim`):
 
   python3 benchmarks/rtol_sweep.py target/release/host-sim examples/vibro-driver.toml \
@@ -126,8 +133,10 @@ def main():
         "\nladder's range). The points that miss the limit at some rtol, alone at the ladder"
         "\n(mm/s):\n"
     )
-    print("| point | " + " | ".join(f"{r:g}" for r in ladder) + " | chaotic | band |")
-    print("|---|" + "---|" * (len(ladder) + 2))
+    print(
+        "| point | " + " | ".join(f"{r:g}" for r in ladder) + " | chaotic | band | moves with rtol |"
+    )
+    print("|---|" + "---|" * (len(ladder) + 3))
     bands = {}
     for speed, offset in sorted(missed):
         speeds = []
@@ -150,7 +159,11 @@ def main():
             bands[(speed, offset)] = (lo, hi)
         cells = " | ".join(f"{v * 1e3:+.4f}" for v in speeds)
         band = f"{lo * 1e3:+.4f} to {hi * 1e3:+.4f}" if chaotic else ""
-        print(f"| {speed:g} rpm, {offset:g} deg | {cells} | {'yes' if chaotic else 'no'} | {band} |")
+        drifts = "yes" if chaotic and moves_with_rtol(ladder, speeds, ref_grid[(speed, offset)]) else ""
+        print(
+            f"| {speed:g} rpm, {offset:g} deg | {cells} | {'yes' if chaotic else 'no'} | {band} "
+            f"| {drifts} |"
+        )
     print("\nPer rtol, the points that miss the limit (pass elsewhere):\n")
     print("| rtol | band (chaotic, inside its band) | FAIL | meets the criterion |")
     print("|---|---|---|---|")
@@ -167,6 +180,17 @@ def main():
             f"| {rtol:g} | {', '.join(inside) or '-'} | {', '.join(failed) or '-'} "
             f"| {'yes' if not failed else 'no'} |"
         )
+
+
+def moves_with_rtol(ladder, speeds, reference):
+    """Whether the speeds at the ladder's tolerances move steadily with the
+    tolerance: ordered by tolerance, the steps from one to the next larger than
+    the limit are two or more and all of one sign (a reference perhaps not
+    converged, rather than chaos: the tight runs then drift one way instead of
+    scattering)."""
+    ordered = [v for _, v in sorted(zip(ladder, speeds))]
+    steps = [b - a for a, b in zip(ordered, ordered[1:]) if abs(b - a) > limit(reference)]
+    return len(steps) >= 2 and (all(d > 0 for d in steps) or all(d < 0 for d in steps))
 
 
 def limit(reference):

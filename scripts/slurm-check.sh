@@ -23,8 +23,9 @@ GRID=(--speeds 2750:3000:250 --offsets 0:360:90 --t-end 2)
 # the loosest tolerance; about a second of one core).
 ROBUST=(--speeds 3000 --offsets 0:360:90 --t-end 2 --set simulation.rtol=1e-3
     --robust --samples 2)
-# The fit: restitution from two measured points (7 starts, some 25 evaluations of
-# 2 runs of 2 s, the loosest tolerance; a few seconds of one core).
+# The fit: restitution from two measured points (7 starts; `calibrate` prints
+# "26 evaluations (60 runs)": 2 runs of 2 s each and 8 for the numerical noise,
+# at the loosest tolerance; a few seconds of one core).
 FIT=(--measured measured.csv --fit 'contacts.*.restitution' --t-end 2
     --set simulation.rtol=1e-3)
 MEASURED='speed_rpm,offset_deg,velocity_mps

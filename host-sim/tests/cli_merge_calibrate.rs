@@ -99,7 +99,20 @@ fn three_parts_of_a_fit_merge_to_the_whole_fit() {
         &["c1.json", "c2.json", "c3.json"],
         &outputs,
         (&table, &json),
-        "calibrate: ",
+        // The closing line: the runs the parts made are not the merge's seconds'.
+        ", 7 evaluations of them (14 runs) made in the parts, the other ",
+    );
+    // The plan: the seven starts' runs made in the parts, the time the rest's
+    // (54 evaluations x 2 points = 108 runs, 94 left).
+    let merged = merge(&sharded, &["c1.json", "c2.json", "c3.json"]);
+    assert_eq!(merged.status, 0, "{}", merged.stderr);
+    let plan = merged.stderr.lines().next().unwrap_or_default();
+    assert!(
+        plan.starts_with(
+            "calibrate: up to 54 evaluations x 2 points = 108 runs of 2 s, 7 evaluations of them (14 runs) made in the parts; one took "
+        ) && plan.ends_with(" for the other 94 runs"),
+        "{}",
+        merged.stderr
     );
 }
 

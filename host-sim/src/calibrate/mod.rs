@@ -255,7 +255,15 @@ pub(crate) fn fit_and_report(
     let mut staged = Staged::new();
     let out = staged.add_optional("--write", args.write.as_deref())?;
     let settings = Settings::for_keys(inputs.keys.len());
-    let plan = plan::plan(args, &inputs, &settings);
+    // What the parts evaluated already: the plan and the closing line say so.
+    let in_parts = (!preset.is_empty()).then(|| plan::InParts {
+        evaluations: preset.len(),
+        runs: preset
+            .values()
+            .map(|e| e.as_ref().map_or(0, Vec::len))
+            .sum(),
+    });
+    let plan = plan::plan(args, &inputs, &settings, in_parts);
     console.note(&plan.render(rayon::current_num_threads()));
 
     // 2. and 3. The fit, with a progress bar on stderr (on a terminal).
@@ -281,8 +289,18 @@ pub(crate) fn fit_and_report(
         crate::args::Format::Table => report::table(&calibration, args),
     });
     written?;
+    // Of a merge, the runs the parts made are not the seconds': said apart.
+    let here = match in_parts {
+        Some(done) => format!(
+            ", {} of them ({}) made in the parts, the other {}",
+            count(done.evaluations, "evaluation"),
+            count(done.runs, "run"),
+            count(calibration.runs.saturating_sub(done.runs), "run")
+        ),
+        None => String::new(),
+    };
     console.note(&format!(
-        "calibrate: {} ({}) in {:.1} s on {}{}\n",
+        "calibrate: {} ({}){here} in {:.1} s on {}{}\n",
         count(calibration.fit.evaluations, "evaluation"),
         count(calibration.runs, "run"),
         seconds,

@@ -36,6 +36,18 @@ pub struct Plan {
     pub seconds_per_run: Option<f64>,
     /// Warnings for the result too: a file of very many points.
     pub warnings: Vec<String>,
+    /// The evaluations and runs the parts of a fit in parts made already
+    /// (`merge`): the merge makes the rest.
+    pub in_parts: Option<InParts>,
+}
+
+/// What the parts of a fit in parts evaluated before the merge: the starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InParts {
+    /// Evaluations (the starts the parts ran or the reader refused).
+    pub evaluations: usize,
+    /// Their runs (none for a refused start).
+    pub runs: usize,
 }
 
 impl Plan {
@@ -44,19 +56,35 @@ impl Plan {
         self.evaluations * self.points
     }
 
-    /// The planned cost, one line, then the warnings: for stderr.
+    /// The planned cost, one line, then the warnings: for stderr. Of a merge,
+    /// the evaluations the parts made are named, and the time is the rest's.
     pub fn render(&self, threads: usize) -> String {
+        let (parts, left) = match self.in_parts {
+            Some(done) => (
+                format!(
+                    ", {} of them ({}) made in the parts",
+                    count(done.evaluations, "evaluation"),
+                    count(done.runs, "run")
+                ),
+                Some(self.runs().saturating_sub(done.runs)),
+            ),
+            None => (String::new(), None),
+        };
         let time = match self.seconds_per_run {
             Some(s) => format!(
-                "; one took {} s, so up to about {} on {}",
+                "; one took {} s, so up to about {} on {}{}",
                 text::sig(round2(s)),
-                duration(self.runs() as f64 * s / threads.max(1) as f64),
-                count(threads, "thread")
+                duration(left.unwrap_or(self.runs()) as f64 * s / threads.max(1) as f64),
+                count(threads, "thread"),
+                left.map_or(String::new(), |n| format!(
+                    " for the other {}",
+                    count(n, "run")
+                ))
             ),
             None => String::new(),
         };
         let mut out = format!(
-            "calibrate: up to {} x {} = {} of {} s{time}\n",
+            "calibrate: up to {} x {} = {} of {} s{parts}{time}\n",
             count(self.evaluations, "evaluation"),
             count(self.points, "point"),
             count(self.runs(), "run"),
@@ -69,8 +97,14 @@ impl Plan {
     }
 }
 
-/// The plan of a fit with `settings` on `inputs`, one run timed.
-pub fn plan(args: &CalibrateArgs, inputs: &Inputs, settings: &Settings) -> Plan {
+/// The plan of a fit with `settings` on `inputs`, one run timed; `in_parts`,
+/// what the parts of a fit in parts evaluated already.
+pub fn plan(
+    args: &CalibrateArgs,
+    inputs: &Inputs,
+    settings: &Settings,
+    in_parts: Option<InParts>,
+) -> Plan {
     let p = inputs.keys.len();
     let points = inputs.data.points.len();
     let seconds_per_run = inputs.data.points.first().and_then(|first| {
@@ -94,6 +128,7 @@ pub fn plan(args: &CalibrateArgs, inputs: &Inputs, settings: &Settings) -> Plan 
         t_end: inputs.t_end,
         seconds_per_run,
         warnings,
+        in_parts,
     }
 }
 
@@ -130,11 +165,26 @@ mod tests {
             t_end: 5.0,
             seconds_per_run: Some(0.0912),
             warnings: vec!["many".into()],
+            in_parts: None,
         };
         // 1440 runs x 0.0912 s / 2 threads = 65.7 s.
         assert_eq!(
             plan.render(2),
             "calibrate: up to 96 evaluations x 15 points = 1440 runs of 5 s; one took 0.091 s, so up to about 66 s on 2 threads\nwarning: many\n"
+        );
+        // A merge: 7 evaluations (14 runs) made in the parts, the time of the
+        // other 1426 runs: 1426 x 0.0912 s / 2 = 65.0 s.
+        let merge = Plan {
+            in_parts: Some(InParts {
+                evaluations: 7,
+                runs: 14,
+            }),
+            warnings: vec![],
+            ..plan
+        };
+        assert_eq!(
+            merge.render(2),
+            "calibrate: up to 96 evaluations x 15 points = 1440 runs of 5 s, 7 evaluations of them (14 runs) made in the parts; one took 0.091 s, so up to about 65 s on 2 threads for the other 1426 runs\n"
         );
         assert_eq!(duration(4000.0), "67 min");
         assert_eq!(duration(36000.0), "10 h");

@@ -179,15 +179,16 @@ pub struct PlantModel {
     pub supply_voltage: f64,
     /// The H-bridges as wired (`[drive] decay`, `pwm_hz`).
     pub bridge: shared::drive::BridgeConfig,
-    /// The machine's constants where it is one free body carrying its rotors
-    /// (the reference machine, every single-platform file): the mass matrix and
-    /// forces then have closed forms ([`super::dynamics::Frame::assemble_into`]).
-    pub one_free_body: Option<OneFreeBody>,
+    /// Whether the closed forms of one free body carrying its rotors are used
+    /// where the model is one ([`PlantModel::one_free_body`]); off only to test
+    /// them against the generic pass.
+    closed_forms: bool,
 }
 
 /// One free body and its rotors, the constants of the closed forms of its mass
 /// matrix and forces (coordinates `x, y` of its reference point, its angle, each
-/// rotor's `phi`).
+/// rotor's `phi`), read from the model where they are used
+/// ([`PlantModel::one_free_body`]): never kept, so never older than the model.
 #[derive(Clone, Debug)]
 pub struct OneFreeBody {
     /// The reference point's `x` coordinate (`y` follows).
@@ -210,7 +211,7 @@ pub struct OneFreeBody {
 
 impl OneFreeBody {
     /// The constants of `model` if it is one free body carrying every rotor.
-    pub fn of(model: &PlantModel) -> Option<Self> {
+    fn of(model: &PlantModel) -> Option<Self> {
         let [body] = &model.bodies[..] else {
             return None;
         };
@@ -448,9 +449,8 @@ impl PlantModel {
             law: m.law,
             supply_voltage: m.drive.supply_voltage,
             bridge: m.drive.bridge,
-            one_free_body: None,
+            closed_forms: true,
         };
-        model.one_free_body = OneFreeBody::of(&model);
         model.free_roots = (0..model.bodies.len())
             .filter_map(|b| match model.bodies[b].mount {
                 Mount::Free { x } => Some((x, model.tree_mass(b))),
@@ -458,6 +458,28 @@ impl PlantModel {
             })
             .collect();
         model
+    }
+
+    /// The constants of the closed forms where the machine is one free body
+    /// carrying its rotors (the reference machine, every single-platform file):
+    /// its mass matrix and forces then have closed forms
+    /// ([`super::dynamics::Frame::assemble_into`]). Read from the bodies and
+    /// rotors as they are now, at every use: a model edited after
+    /// [`PlantModel::new`] takes the closed forms of what it became.
+    pub fn one_free_body(&self) -> Option<OneFreeBody> {
+        if self.closed_forms {
+            OneFreeBody::of(self)
+        } else {
+            None
+        }
+    }
+
+    /// The model without the closed forms: every evaluation by the generic pass
+    /// (to test the closed forms against it).
+    #[cfg(test)]
+    pub(crate) fn without_closed_forms(mut self) -> Self {
+        self.closed_forms = false;
+        self
     }
 
     /// Length of the integrated state: `q`, `q'`, one current per rotor.

@@ -599,17 +599,20 @@ impl Plant {
                             self.t = step.t1();
                             self.y = step.y1;
                             self.clamp_currents();
-                            // The projection moves the state by the integrator's
-                            // drift off the closed contacts' constraints (far
-                            // below its tolerance), and only once that drift is
-                            // measurable ([`Plant::drifted`]): the derivative and
-                            // the event functions at the step's end stand for the
-                            // projected state too (FSAL kept; the change they miss
-                            // is of the drift's order), which saves an evaluation
-                            // a step.
-                            self.fsal = Some(step.f1);
-                            if self.drifted() {
+                            // The projection moves the state back onto the closed
+                            // contacts' constraints, and only once the integrator's
+                            // drift off them is measurable ([`Plant::drifted`]).
+                            // Without it the derivative at the step's end is the
+                            // next step's first (FSAL), which saves an evaluation
+                            // a step; with it, the state is no longer the one
+                            // `step.f1` and `ev1` were evaluated at, so both are
+                            // evaluated again at the projected state.
+                            let projected = self.drifted();
+                            if projected {
                                 self.project();
+                                self.fsal = None;
+                            } else {
+                                self.fsal = Some(step.f1);
                             }
                             // Exactly at the switch, whatever the rounding of t.
                             let switched = at_switch && {
@@ -617,8 +620,8 @@ impl Plant {
                                 self.switch_bridges(t_stop)
                             };
                             // The event functions at the new start: the step's end
-                            // unless the windings moved since.
-                            ev0 = if switched {
+                            // unless the projection or the windings moved it since.
+                            ev0 = if projected || switched {
                                 self.event_values(&self.y)
                             } else {
                                 ev1
@@ -915,26 +918,16 @@ mod tests {
 
     /// A step with closed contacts and no event costs the integrator's six
     /// evaluations and nothing more: the dip test reads the stages' forces, and
-    /// the step's last stage stands for the state after the projection. The
+    /// the step's last stage is the next step's first (the projection, after
+    /// which the first stage and the event functions are evaluated again, does
+    /// not run: the drift stays below its threshold, [`Plant::drifted`]). The
     /// reference machine at rest on both feet (windings open) for 0.2 s: beyond
     /// six an attempt, only the first event functions' evaluation, which the
     /// first step's derivative reuses (before: two more a step, the middle's and
     /// the projected state's, 421 over 210 attempts).
     #[test]
     fn a_step_in_persistent_contact_costs_six_evaluations() {
-        let text = std::fs::read_to_string(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../examples/vibro-driver.toml"
-        ))
-        .unwrap();
-        let m = Machine::from_text("m.toml", &text, std::path::Path::new("."), &[]).unwrap();
-        let mut plant = Plant::new(
-            PlantModel::new(&m),
-            initial_state(&m),
-            Settings::default(),
-            Holds::default(),
-        );
-        assert!(plant.modes.iter().all(|m| m.closed()), "{:?}", plant.modes);
+        let mut plant = resting();
         // The contacts' closing at t = 0 (the start's mode decision).
         plant.events.clear();
         let at_start = plant.evaluations();
@@ -947,6 +940,107 @@ mod tests {
             "{} evaluations beyond the stages over {} attempts",
             beyond_stages,
             plant.attempts
+        );
+    }
+
+    /// The reference machine at rest on both feet (windings open), its start's
+    /// mode decision made: every contact closed.
+    fn resting() -> Plant {
+        resting_with(&[], Settings::default())
+    }
+
+    /// [`resting`] with the machine file's keys `sets` (`KEY=VALUE`, as
+    /// `--set` takes them) and the plant's `settings`.
+    pub(super) fn resting_with(sets: &[&str], settings: Settings) -> Plant {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../examples/vibro-driver.toml"
+        ))
+        .unwrap();
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let m = Machine::from_text("m.toml", &text, std::path::Path::new("."), &sets).unwrap();
+        let plant = Plant::new(
+            PlantModel::new(&m),
+            initial_state(&m),
+            settings,
+            Holds::default(),
+        );
+        assert!(plant.modes.iter().all(|m| m.closed()), "{:?}", plant.modes);
+        plant
+    }
+
+    /// The resting machine with its platform's height raised by `dy`, m, and its
+    /// upward velocity set to `du`, m/s (every foot's gap and normal velocity
+    /// then `dy` and `du`), advanced by one step (the first, 1e-5 s): the largest
+    /// gap and normal velocity of a foot after it, and the plant.
+    fn pushed(dy: f64, du: f64) -> (f64, f64, Plant) {
+        let mut plant = resting();
+        let n = plant.model.dof;
+        plant.y[1] += dy;
+        plant.y[n + 1] += du;
+        plant.fsal = None;
+        plant.ev_cache = None;
+        plant.events.clear();
+        let h = plant.h;
+        plant.advance_to(h, &mut |_| {}).unwrap();
+        assert_eq!(plant.steps, 1, "one step");
+        assert!(plant.events.is_empty(), "{:?}", plant.events);
+        let (mut gap, mut u_n) = (0.0f64, 0.0f64);
+        for j in 0..plant.modes.len() {
+            let k = plant.contact_at(&plant.y, j);
+            gap = gap.max(k.gap.abs());
+            u_n = u_n.max(k.u_n.abs());
+        }
+        (gap, u_n, plant)
+    }
+
+    /// A resting machine pushed off its feet' constraints beyond the drift
+    /// threshold ([`Plant::drifted`]: a gap beyond `1e-6 rtol` m, a normal
+    /// velocity beyond `1e-3 rtol` m/s, 1e-14 m and 1e-11 m/s at the default
+    /// 1e-8) is projected back after one step; pushed below it, it is left as
+    /// it is (the step keeps a closed contact's normal velocity: its
+    /// acceleration is zero). And after a projection the next step starts from
+    /// the projected state: its first stage (FSAL) and its event functions are
+    /// the projected state's, not the step's end's before the projection.
+    #[test]
+    fn a_drifted_state_is_projected_back_and_the_next_step_starts_there() {
+        let rtol = Settings::default().rtol;
+        let (gap_limit, velocity_limit) = (1e-6 * rtol, 1e-3 * rtol);
+        // Beyond: gap 5 times, velocity 10 times the threshold, each alone.
+        for (dy, du) in [(5.0 * gap_limit, 0.0), (0.0, 10.0 * velocity_limit)] {
+            let (gap, u_n, plant) = pushed(dy, du);
+            assert!(
+                gap < 0.1 * gap_limit,
+                "pushed by {dy:e} m: gap {gap:e} m left"
+            );
+            assert!(
+                u_n < 0.1 * velocity_limit,
+                "pushed by {du:e} m/s: normal velocity {u_n:e} m/s left"
+            );
+            let here = plant.evaluate(&plant.y).ydot;
+            let first = plant.fsal.unwrap_or(here);
+            assert_eq!(
+                first, here,
+                "the next step's first stage is not the projected state's"
+            );
+            let (y, ev) = plant.ev_cache.expect("event functions kept");
+            assert_eq!(y, plant.y);
+            assert_eq!(
+                *ev,
+                *plant.event_values(&plant.y),
+                "event functions of another state"
+            );
+        }
+        // Below: half the threshold, kept (to the step's rounding).
+        let (gap, _, _) = pushed(0.5 * gap_limit, 0.0);
+        assert!(
+            (gap - 0.5 * gap_limit).abs() < 1e-2 * gap_limit,
+            "pushed by half the gap threshold: gap {gap:e} m"
+        );
+        let (_, u_n, _) = pushed(0.0, 0.5 * velocity_limit);
+        assert!(
+            (u_n - 0.5 * velocity_limit).abs() < 1e-3 * velocity_limit,
+            "pushed by half the velocity threshold: normal velocity {u_n:e} m/s"
         );
     }
 }

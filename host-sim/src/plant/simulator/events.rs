@@ -509,3 +509,200 @@ impl Plant {
         b
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    use super::super::super::integrator::{attempt, Attempt, Tolerance};
+    use super::super::tests::resting_with;
+    use super::super::{Output, Settings};
+    use super::*;
+    use crate::event::EventKind;
+
+    /// A step of 1 ms from t0 = 2 s along which the state's first component goes
+    /// from 0 to 1 at a constant rate: the dense output there is `s`, the
+    /// fraction of the step, exactly.
+    fn linear_step() -> Step<NY> {
+        let (t0, h) = (2.0, 1e-3);
+        let mut rate = [0.0; NY];
+        rate[0] = 1.0 / h;
+        let tol = Tolerance {
+            rtol: 1e-8,
+            atol: [1e-8; NY],
+            len: NY,
+        };
+        match attempt(&mut |_, _| rate, t0, &[0.0; NY], &rate, h, &tol) {
+            Attempt::Accepted(step, _) => *step,
+            Attempt::Rejected(_) => panic!("a step of constant slope rejected"),
+        }
+    }
+
+    /// The samples of `f` at the step's ends and at the integrator's interior
+    /// stages (1/5, 3/10, 4/5, 8/9), as [`Plant::first_crossing`] hands them over.
+    fn stage_samples(f: impl Fn(f64) -> f64) -> Vec<(f64, f64)> {
+        let mut s = vec![(0.0, f(0.0))];
+        s.extend(INTERIOR_STAGES.iter().map(|&c| (c, f(c))));
+        s.push((1.0, f(1.0)));
+        s
+    }
+
+    /// [`Plant::dip`] on synthetic functions of the fraction `s` of a step:
+    /// - `(s - 1/2)^2 - 0.01` is positive at every sample (the stages are at
+    ///   least 0.2 from 1/2) and below zero from 0.4 to 0.6: the parabola through
+    ///   the smallest stage (3/10) and its neighbours (1/5, 4/5) has its minimum
+    ///   at 1/2, below zero, so the dip is found and located at its start, 0.4;
+    /// - `(s - 6/5)^2 - 0.01` has its minimum beyond the step's end: the
+    ///   parabola's minimum lies outside the neighbours of the smallest inner
+    ///   sample (8/9, between 4/5 and 1), nothing is found (and there is nothing);
+    /// - a stage sample `<= 0` where the dense output there is `> 0` (a stage's
+    ///   evaluation is not the dense output's) is not taken for a dip: the
+    ///   function, `(s - 1/2)^2 + 0.01`, never dips.
+    #[test]
+    fn dip_finds_a_dip_between_stage_samples_and_nothing_else() {
+        let plant = resting_with(&[], Settings::default());
+        let step = linear_step();
+        let s_of = |y: &[f64; NY]| y[0];
+        let t_of = |s: f64| step.t0 + s * step.h;
+
+        let dips = |s: f64| (s - 0.5) * (s - 0.5) - 0.01;
+        let f = |y: &[f64; NY]| dips(s_of(y));
+        let samples = stage_samples(dips);
+        assert!(samples.iter().all(|&(_, v)| v > 0.0), "{samples:?}");
+        let te = plant
+            .dip(&step, &f, &samples)
+            .expect("the dip between the stages");
+        assert!(
+            (te - t_of(0.4)).abs() <= 1e-9,
+            "located at s = {}, not 0.4",
+            (te - step.t0) / step.h
+        );
+        assert!(f(&step.at(te)) <= 0.0);
+
+        let beyond = |s: f64| (s - 1.2) * (s - 1.2) - 0.01;
+        let f = |y: &[f64; NY]| beyond(s_of(y));
+        assert_eq!(plant.dip(&step, &f, &stage_samples(beyond)), None);
+
+        let above = |s: f64| (s - 0.5) * (s - 0.5) + 0.01;
+        let f = |y: &[f64; NY]| above(s_of(y));
+        let mut samples = stage_samples(above);
+        samples[2].1 = -1e-3;
+        assert_eq!(plant.dip(&step, &f, &samples), None);
+    }
+
+    /// The lowest normal force function of a foot at `y`, `lambda_n + eps_F`, N,
+    /// in `plant`'s modes.
+    fn lowest(plant: &Plant, y: &[f64; NY]) -> f64 {
+        let e = plant.evaluate(y);
+        let eps_f = plant.force_tolerance();
+        (0..plant.modes.len())
+            .map(|j| e.lambda_n[j] + eps_f)
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// A closed contact's normal force that goes below zero and comes back inside
+    /// one step is a lift-off, located: the reference machine resting on both
+    /// feet (rotors without friction, `rtol` 1e-6: steps of `max_step`, 1 ms),
+    /// its rotors set at t_a = 10 ms to turn in mirror image at the speed whose
+    /// upward pull `2 m e w^2 sin psi` exceeds the weight only for 0.3 ms around
+    /// `psi = 90 deg`, which it reaches at t_a + 0.5 ms. The step from t_a to
+    /// t_a + 1 ms has every foot's normal force positive at its ends and at its
+    /// stages (at 1/5, 3/10, 4/5, 8/9 of it) and negative from 0.35 to 0.65 of it:
+    /// only the dip test ([`Plant::dip`]) finds the lift-off, at t_a + 0.35 ms.
+    #[test]
+    fn a_normal_force_dipping_below_zero_inside_a_step_lifts_the_foot() {
+        let settings = Settings {
+            rtol: 1e-6,
+            ..Settings::default()
+        };
+        let sets = ["motor.coulomb_friction=0", "motor.viscous_friction=0"];
+        let mut plant = resting_with(&sets, settings);
+        // The contacts' closing at t = 0 (the start's mode decision).
+        plant.events.clear();
+        let (t_a, h) = (0.01, plant.settings.max_step);
+        plant.advance_to(t_a, &mut |_| {}).unwrap();
+        assert!(plant.events.is_empty(), "{:?}", plant.events);
+        let n = plant.model.dof;
+        let (p1, p2) = (plant.model.rotors[0].phi, plant.model.rotors[1].phi);
+        // The rotors at angle psi (the right one mirrored: pi - psi) turning at
+        // w (the right one the other way): the upward pull is 2 m e w^2 sin psi.
+        let at = |y0: &[f64; NY], psi: f64, w: f64| {
+            let mut y = *y0;
+            (y[p1], y[p2], y[n + p1], y[n + p2]) = (psi, PI - psi, w, -w);
+            y
+        };
+        let y0 = plant.y;
+        // At psi = 90 deg it is a - b w^2 (two speeds give a and b); the pull
+        // exceeds the weight within alpha of 90 deg where
+        // a - b w^2 cos(alpha) = 0, alpha = w 0.15 ms.
+        let (w1, w2) = (200.0, 240.0);
+        let (l1, l2) = (
+            lowest(&plant, &at(&y0, FRAC_PI_2, w1)),
+            lowest(&plant, &at(&y0, FRAC_PI_2, w2)),
+        );
+        let b = (l1 - l2) / (w2 * w2 - w1 * w1);
+        let a = l1 + b * w1 * w1;
+        let mut w = (a / b).sqrt();
+        for _ in 0..20 {
+            w = (a / (b * (w * 0.15e-3).cos())).sqrt();
+        }
+        let psi0 = FRAC_PI_2 - w * 0.5 * h;
+        // The premise: positive at the step's ends and its stages, negative at
+        // its middle (at the speed w throughout: the slowing below only makes
+        // the ends and stages more positive).
+        let sampled: Vec<f64> = [0.0, 0.2, 0.3, 0.8, 8.0 / 9.0, 1.0]
+            .iter()
+            .map(|s| lowest(&plant, &at(&y0, psi0 + w * s * h, w)))
+            .collect();
+        assert!(sampled.iter().all(|&v| v > 0.0), "{sampled:?}");
+        assert!(lowest(&plant, &at(&y0, FRAC_PI_2, w)) < 0.0);
+
+        // Where the pull first exceeds the weight (in the modes at t_a, all
+        // closed): the rotors' speed there from their energy (gravity on the
+        // eccentrics slows them on the way up:
+        // w(psi)^2 = w^2 - c (sin psi - sin psi0), c = -2 psi'' / cos psi at
+        // psi0, 4e-5 of w^2 by 90 deg, which moves the crossing by 6 us), the
+        // crossing by bisection, the time at the mean speed of the way there.
+        let c = -2.0 * plant.evaluate(&at(&y0, psi0, w)).ydot[n + p1] / psi0.cos();
+        let speed = |psi: f64| (w * w - c * (psi.sin() - psi0.sin())).sqrt();
+        let (mut lo, mut hi) = (psi0, FRAC_PI_2);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if lowest(&plant, &at(&y0, mid, speed(mid))) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let expected = t_a + (hi - psi0) / (0.5 * (w + speed(hi)));
+        plant.y = at(&y0, psi0, w);
+        plant.fsal = None;
+        plant.ev_cache = None;
+        // The first step's start and size, from its dense output.
+        let mut first = None;
+        plant
+            .advance_to(t_a + h, &mut |out| {
+                if let Output::Dense(d, _) = out {
+                    first.get_or_insert((d.t0, d.step.h));
+                }
+            })
+            .unwrap();
+        let (t0, h0) = first.expect("a step");
+        assert!(
+            t0 == t_a && (h0 - h).abs() < 1e-15,
+            "the first step from {t0} s of {h0} s, not the 1 ms from t_a the premise is of"
+        );
+        let lift = plant
+            .events
+            .iter()
+            .find(|e| e.kind == EventKind::Liftoff)
+            .unwrap_or_else(|| panic!("no lift-off; events {:?}", plant.events));
+        assert!(
+            (lift.t - expected).abs() < 1e-7,
+            "lift-off at t_a + {:.5} ms, expected t_a + {:.5} ms",
+            (lift.t - t_a) * 1e3,
+            (expected - t_a) * 1e3
+        );
+        assert!(lift.t - t_a > 0.3 * h && lift.t - t_a < 0.8 * h);
+    }
+}
