@@ -453,7 +453,7 @@ fn the_numerical_noise_is_in_the_standard_error() {
             }
         }
         assert!(
-            left >= 2 && left < 8,
+            (2..8).contains(&left),
             "{rtol}: {left} of 8 rows below 0.1 mm/s of noise"
         );
         let quiet_file = scratch("quiet.csv");
