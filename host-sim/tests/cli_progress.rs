@@ -158,6 +158,34 @@ fn eight_collinear_feet_pass_their_former_stall_and_finish() {
     );
 }
 
+/// Sixteen collinear feet through 0.576 s, where the run used to end by the
+/// guard: the platform rocks about K2, the fifteen other feet hop in flights
+/// shorter than a step (1.5e-4 s), so every step started with their gaps at
+/// rounding size and ended below the fundament, and the gap's root was found
+/// within 5e-14 s of the step's start (rounding there too), not at the landing
+/// after the apex; the same event again at each step. The landing after the apex
+/// is located, and the run finishes 1 s of the closed loop with its summary,
+/// travelling right.
+#[test]
+fn sixteen_collinear_feet_pass_their_rocking_hops_and_finish() {
+    let m = on_feet(16, "sixteen.toml");
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--t-end",
+        "1",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{}", r.stderr);
+    let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
+    assert_eq!(summary["t_end"], 1.0, "{}", r.stdout);
+    let v = summary["mean_velocity"].as_f64().expect("a mean velocity");
+    assert!(v > 0.0, "not travelling right: {}", r.stdout);
+}
+
 /// The reference machine on eight feet at `points` (platform frame at t = 0, m),
 /// each with `restitution`, written as `name`: its two feet replaced.
 fn on_points(points: &[[f64; 2]], restitution: f64, name: &str) -> PathBuf {

@@ -284,6 +284,17 @@ impl Plant {
             let f = |y: &[f64; NY]| self.event_value(watch, y, Kinematics::FromState, None);
             let mut consider = |te: f64| consider_kind(te, false);
             if ev0[i] > 0.0 && ev1[i] <= 0.0 {
+                // A gap that starts at rounding size while the contact separates
+                // lands after its apex: false position from there would stop
+                // within rounding of the start, where the gap is rounding too.
+                if let Watch::Gap(j) = watch {
+                    if ev0[i] <= self.settings.together_gap {
+                        if let Some(te) = self.landing_after_apex(step, j, ev1[i]) {
+                            consider(te);
+                            continue;
+                        }
+                    }
+                }
                 let te = self.locate(step, &f, step.t0, step.t1(), ev0[i], ev1[i]);
                 consider_kind(te, matches!(watch, Watch::Current(_)));
                 continue;
@@ -411,17 +422,11 @@ impl Plant {
         }
         // An open contact that starts at the fundament (just after an impact or a
         // lift-off) and ends the step below it, approaching: a whole flight inside
-        // the step. Bracket its apex (u_n from + to -), then the gap's root after
-        // it.
-        let apex = if u0 > 0.0 {
-            self.locate(step, &un, step.t0, step.t1(), u0, u1)
-        } else {
-            step.t0
+        // the step, located after its apex.
+        let apex = match self.apex(step, j, u0, u1, g1) {
+            Ok(te) => return Some(te),
+            Err(apex) => apex,
         };
-        let g_apex = gap(&step.at(apex));
-        if g_apex > 0.0 {
-            return Some(self.locate(step, &gap, apex, step.t1(), g_apex, g1));
-        }
         // Touching at the apex and sinking from there (a contact left open with
         // zero velocity whose force would have been negligible): the event is
         // where it sinks below the together gap, which it may not do within this
@@ -444,6 +449,41 @@ impl Plant {
             Some(self.locate(step, &approach, apex, step.t1(), a0, a1))
         } else {
             Some(apex)
+        }
+    }
+
+    /// The landing of open contact `j` inside `step` whose gap starts at rounding
+    /// size (within the together gap) and ends at `g1 <= 0`, when the contact
+    /// separates at the step's start (`u_n > 0`) and approaches at its end: a
+    /// flight shorter than the step (a rocking foot's hop). `None` where it does
+    /// not separate, or does not come back (then the crossing is the gap's own).
+    fn landing_after_apex(&self, step: &Step<NY>, j: usize, g1: f64) -> Option<f64> {
+        let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
+        let (u0, u1) = (un(&step.y0), un(&step.y1));
+        if u0 <= 0.0 || u1 >= 0.0 {
+            return None;
+        }
+        self.apex(step, j, u0, u1, g1).ok()
+    }
+
+    /// A flight of open contact `j` inside `step` whose normal velocity goes
+    /// from `u0` to `u1 < 0` and whose gap ends at `g1 <= 0`: its apex (the root
+    /// of `u_n` from + to -, or the step's start where `u0 <= 0`), then, where
+    /// the gap there is positive, `Ok` with the gap's root after it (the
+    /// landing); `Err` with the apex where the gap is not positive there.
+    fn apex(&self, step: &Step<NY>, j: usize, u0: f64, u1: f64, g1: f64) -> Result<f64, f64> {
+        let gap = |y: &[f64; NY]| self.gap_at(y, j);
+        let un = |y: &[f64; NY]| self.contact_at(y, j).u_n;
+        let apex = if u0 > 0.0 {
+            self.locate(step, &un, step.t0, step.t1(), u0, u1)
+        } else {
+            step.t0
+        };
+        let g_apex = gap(&step.at(apex));
+        if g_apex > 0.0 {
+            Ok(self.locate(step, &gap, apex, step.t1(), g_apex, g1))
+        } else {
+            Err(apex)
         }
     }
 
