@@ -363,7 +363,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
 /// rough function of the key (0.4 and 0.468 give 24.3 and 25.0 (mm/s)^2 at 1e-8),
 /// so a fit lands wherever the roughness hides the trend, and every change of the
 /// plant's rounding moves it (issue 24's speed work: 0.410 to 0.468 at 1e-8, 4 of
-/// its standard errors; a later change 0.468 to 0.401 at 1e-3 in the debug build).
+/// its standard errors; a fresh-clone CI run of a later change fitted 0.401 at 1e-3).
 /// On the two periodic points alone the fit is 0.386 with a standard error of
 /// 0.0002: their speeds hardly change with restitution there, and the standard
 /// error, a linearisation, does not show it (docs/calibration.md, "Numerical
