@@ -130,6 +130,31 @@ fn a_run_that_stops_advancing_ends_with_the_time_the_contacts_and_their_modes_it
     assert!((impact - last_impact).abs() < 1e-9);
 }
 
+/// `run MACHINE --command right --t-end T --format json` finishes: exit 0, a JSON
+/// summary to `t_end`, and no step taken past an event. The summary.
+fn closed_loop_finishes(m: &std::path::Path, t_end: f64, what: &str) -> Value {
+    let t = t_end.to_string();
+    let r = run(&[
+        "run",
+        m.to_str().unwrap(),
+        "--command",
+        "right",
+        "--t-end",
+        &t,
+        "--format",
+        "json",
+    ]);
+    assert_eq!(r.status, 0, "{what}: {}", r.stderr);
+    let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
+    assert_eq!(summary["t_end"], t_end, "{what}: {}", r.stdout);
+    assert!(
+        !r.stderr.contains("no progress"),
+        "{what}: a step was taken past an event: {}",
+        r.stderr
+    );
+    summary
+}
+
 /// Eight collinear feet through 0.544 s, where their mode decision used to find
 /// no consistent contact force after 40 000 candidates and the run stalled (the
 /// guard ended it there, with `progress_budget` lowered to 30): the decision by
@@ -137,25 +162,7 @@ fn a_run_that_stops_advancing_ends_with_the_time_the_contacts_and_their_modes_it
 /// summary and without a step taken past an event.
 #[test]
 fn eight_collinear_feet_pass_their_former_stall_and_finish() {
-    let m = on_feet(8, "eight.toml");
-    let r = run(&[
-        "run",
-        m.to_str().unwrap(),
-        "--command",
-        "right",
-        "--t-end",
-        "1",
-        "--format",
-        "json",
-    ]);
-    assert_eq!(r.status, 0, "{}", r.stderr);
-    let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
-    assert_eq!(summary["t_end"], 1.0, "{}", r.stdout);
-    assert!(
-        !r.stderr.contains("no progress"),
-        "a step was taken past an event: {}",
-        r.stderr
-    );
+    closed_loop_finishes(&on_feet(8, "eight.toml"), 1.0, "eight feet");
 }
 
 /// Sixteen collinear feet through 0.576 s, where the run used to end by the
@@ -168,22 +175,9 @@ fn eight_collinear_feet_pass_their_former_stall_and_finish() {
 /// travelling right.
 #[test]
 fn sixteen_collinear_feet_pass_their_rocking_hops_and_finish() {
-    let m = on_feet(16, "sixteen.toml");
-    let r = run(&[
-        "run",
-        m.to_str().unwrap(),
-        "--command",
-        "right",
-        "--t-end",
-        "1",
-        "--format",
-        "json",
-    ]);
-    assert_eq!(r.status, 0, "{}", r.stderr);
-    let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
-    assert_eq!(summary["t_end"], 1.0, "{}", r.stdout);
+    let summary = closed_loop_finishes(&on_feet(16, "sixteen.toml"), 1.0, "sixteen feet");
     let v = summary["mean_velocity"].as_f64().expect("a mean velocity");
-    assert!(v > 0.0, "not travelling right: {}", r.stdout);
+    assert!(v > 0.0, "not travelling right: {summary}");
 }
 
 /// The reference machine on eight feet at `points` (platform frame at t = 0, m),
@@ -230,29 +224,10 @@ fn degenerate_feet_finish_and_travel() {
         ("pairs.toml", &pairs, 0.3),
         ("elastic.toml", &collinear, 1.0),
     ] {
-        let m = on_points(points, restitution, name);
-        let r = run(&[
-            "run",
-            m.to_str().unwrap(),
-            "--command",
-            "right",
-            "--t-end",
-            "2",
-            "--format",
-            "json",
-        ]);
-        assert_eq!(r.status, 0, "{name}: {}", r.stderr);
-        let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
-        assert_eq!(summary["t_end"], 2.0, "{name}: {}", r.stdout);
+        let summary = closed_loop_finishes(&on_points(points, restitution, name), 2.0, name);
         assert!(
             summary["mean_velocity"].is_number(),
-            "{name}: no travel: {}",
-            r.stdout
-        );
-        assert!(
-            !r.stderr.contains("no progress"),
-            "{name}: a step was taken past an event: {}",
-            r.stderr
+            "{name}: no travel: {summary}"
         );
     }
 }
