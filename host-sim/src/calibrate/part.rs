@@ -37,8 +37,8 @@ use crate::output::file::Staged;
 use crate::output::text;
 use crate::tune::merge::MergeArgs;
 use crate::tune::part::{
-    is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, sweep_sha256, MachineFile,
-    Shard, MAX_BYTES,
+    is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, sweep_sha256,
+    unsealed_sha256, MachineFile, Shard, MAX_BYTES,
 };
 use crate::tune::report::count;
 use crate::tune::sweep::RunOutcome;
@@ -152,11 +152,7 @@ impl Part {
     /// `part_sha256`: SHA-256 of this part as compact JSON with `part_sha256`
     /// the empty string.
     pub fn hash(&self) -> String {
-        let unsealed = Part {
-            part_sha256: String::new(),
-            ..self.clone()
-        };
-        sha256_hex(&serde_json::to_vec(&unsealed).unwrap_or_default())
+        unsealed_sha256(self, |p| p.part_sha256.clear())
     }
 
     /// Sets `fit_sha256` and `part_sha256` from the contents.

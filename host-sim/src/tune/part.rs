@@ -222,11 +222,7 @@ impl Part {
     /// (keys in the order of [`Part`], numbers in shortest round-trip form) with
     /// `part_sha256` the empty string.
     pub fn hash(&self) -> String {
-        let unsealed = Part {
-            part_sha256: String::new(),
-            ..self.clone()
-        };
-        sha256_hex(&serde_json::to_vec(&unsealed).unwrap_or_default())
+        unsealed_sha256(self, |p| p.part_sha256.clear())
     }
 
     /// Sets `sweep_sha256` and `part_sha256` from the contents.
@@ -278,6 +274,14 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect()
+}
+
+/// SHA-256 of `part` as compact JSON with its own hash field emptied by `unseal`
+/// (a part's `part_sha256`: tune's and calibrate's parts).
+pub fn unsealed_sha256<T: Serialize + Clone>(part: &T, unseal: impl FnOnce(&mut T)) -> String {
+    let mut unsealed = part.clone();
+    unseal(&mut unsealed);
+    sha256_hex(&serde_json::to_vec(&unsealed).unwrap_or_default())
 }
 
 /// `sweep_sha256` ([module doc](self)), and a fit's part's `fit_sha256` alike:
