@@ -11,8 +11,8 @@ drawn from the layout's seed (the same seed writes the same file):
   x in [0.105, 0.205] m, its centre of mass at [0.155, 0.015], joined to the
   platform by a revolute joint "hitch" at [0.1025, 0.015] with a torsional
   spring-damper (stiffness log-uniform in [10, 1e4] N m/rad, damping in
-  [1e-3, 1] N m s/rad: at most 2 500 rad/s and 625 1/s on the joint's least
-  inertia of about 1.6e-3 kg m^2, far within the reader's 100 000), at rest at
+  [1e-3, 1] N m s/rad: at most 3 600 rad/s and 1 300 1/s on the joint's least
+  inertia, 7.66e-4 kg m^2 as the reader computes it, far within its 100 000), at rest at
   t = 0; N = 4 to 8 feet, split at random between the two bodies, at least two
   on each (each body then stands on its own feet and the spring carries nothing
   at rest; three feet on two bodies are not drawn).
@@ -21,8 +21,8 @@ On each body two feet stand on the floor (height 0) at x = a and x = b, one on
 each side of its centre of mass and at least 1 cm from it and from the body's
 ends, so the body rests on them at t = 0; its other feet are at random x outside
 [a, b] (at least 1 mm from a and b), raised on the parabola y = k (x - a) (x - b),
-k drawn log-uniform in [1e-4, 0.1] 1/m: heights from nanometres to about a
-millimetre, no three feet collinear, every foot a corner of the lower convex hull
+k drawn log-uniform in [1e-4, 0.1] 1/m: heights from 2 nanometres to 1.7
+millimetres, no three feet collinear, every foot a corner of the lower convex hull
 of the feet. A foot above that hull (between a and b, or higher than the parabola)
 could never touch the floor while the other feet hold the body up, and one raised
 by millimetres never does in the reference gait (the platform's hops and rocking
@@ -37,15 +37,24 @@ Each layout is run once as a closed loop (`host-sim run FILE --command right
 two feet: the reference of the CPU column). Reported per layout: its seed, the
 feet (on the platform + on the sled), the CPU time (user + system of the child),
 its ratio to the reference's, the mean velocity, the impact instants, how many
-feet took an impact (a normal impulse > 0 in the events file), the least normal
-impulse of any impact row (the solver keeps it >= 0), and `not_a_travel` (the
-run's own check that no body went through the floor or tipped over).
+feet took an impact (a normal impulse > 0 in the events file), the impact rows
+outside their foot's friction cone (`P_n < 0`, or `|P_t| > mu P_n` beyond
+rounding), the steps the plant took past an event (its warning "a step was taken
+past an event": the same event handled again and again at one instant), the
+other warnings (the two-body machines' note that the controller's constants are a
+single platform's aside), and notes: a controller state other than running, a
+fault, or the run's `not_a_travel` (a body through the floor or tipped over).
+Under the table, each layout's warnings by kind: how many, and the first in full.
+With `--forces` each run writes its trace too (`--out`, the reference's as well,
+so the CPU column includes writing it), and the table counts the trace's rows
+where a closed foot pulls: a normal force below -eps_F, 1e-6 of the machine's
+weight, which docs/cli-run.md says a closed contact never passes.
 
 Usage (from the repository root, after `cargo build --release -p host-sim`):
 
   python3 benchmarks/contacts_random.py target/release/host-sim examples/vibro-driver.toml \\
       [--bodies 1,2] [--layouts 10] [--seed 1] [--feet 3,8] [--t-end 10] \\
-      [--timeout 300] [--keep]
+      [--timeout 300] [--keep] [--forces]
 
 `--seed S --layouts L` runs the seeds S .. S + L - 1 on each count of bodies;
 `--seed 7 --layouts 1 --bodies 2` reruns one layout alone. The layouts are
@@ -66,6 +75,7 @@ import csv
 import math
 import os
 import random
+import re
 import sys
 import tempfile
 import tomllib
@@ -75,11 +85,12 @@ from contacts_scaling import MAX_CONTACTS, fail, read_machine, run
 # The platform's extent along x (m) and its centre of mass's x; the sled's.
 PLATFORM = (-0.10, 0.10, 0.0)
 SLED = (0.105, 0.205, 0.155)
+SLED_MASS = 0.5
 SLED_TEXT = """
 # The second body of contacts_random.py's two-body layouts.
 [[bodies]]
 name = "sled"
-mass = 0.5
+mass = {mass!r}
 inertia = 4.5e-4
 position = [0.155, 0.015]
 
@@ -91,6 +102,12 @@ point = [0.1025, 0.015]
 stiffness = {stiffness!r}
 damping = {damping!r}
 """
+# The warning every run of a two-body layout gives (the controller's constants
+# are a single platform's); the table counts the others.
+SEVERAL_BODIES = "the controller's constants (lift-off band, resonance) are a single platform's"
+# The end of the warning of a step taken past an event (the same event handled
+# again and again at one instant without effect).
+PAST_AN_EVENT = "a step was taken past an event"
 # A standing foot's least distance from its body's centre of mass and ends along
 # x (m); a raised foot's least distance from a standing one.
 STANCE = 0.01
@@ -160,7 +177,7 @@ def machine_text(text, machine, feet, spring):
     )
     out = text[:start] + tables + text[end:]
     if spring:
-        out += SLED_TEXT.format(stiffness=spring[0], damping=spring[1])
+        out += SLED_TEXT.format(mass=SLED_MASS, stiffness=spring[0], damping=spring[1])
     written = tomllib.loads(out)
     if len(written["contacts"]) != len(feet) or written["rotors"] != machine["rotors"]:
         fail("the feet replaced did not read back as written: is the file laid out as "
@@ -168,19 +185,58 @@ def machine_text(text, machine, feet, spring):
     return out
 
 
-def struck(events):
+def struck(events, feet):
     """From an events file: the names of the contacts that took a normal impulse
-    > 0 in an impact, and the least normal impulse of any impact row (N s)."""
-    names, least = set(), None
+    > 0 in an impact, and the count of impact rows outside their foot's friction
+    cone (`P_n >= 0` exactly, `|P_t| <= mu P_n` to rounding)."""
+    mu = {f"K{i + 1}": f["friction"] for i, f in enumerate(feet)}
+    names, outside = set(), 0
     with open(events, newline="", encoding="utf-8") as f:
         for row in csv.DictReader(f):
             if row["kind"] != "impact":
                 continue
-            p = float(row["normal_impulse"])
-            least = p if least is None else min(least, p)
-            if p > 0:
+            p_n, p_t = float(row["normal_impulse"]), float(row["tangential_impulse"])
+            if p_n < 0 or abs(p_t) > mu[row["contact"]] * p_n * (1 + 1e-12) + 1e-300:
+                outside += 1
+            if p_n > 0:
                 names.add(row["contact"])
-    return names, least
+    return names, outside
+
+
+def weight(machine, spring):
+    """The machine's weight (N): the platform, the eccentric masses and, on two
+    bodies (a `spring`), the sled, times the magnitude of gravity."""
+    g = machine.get("fundament", {}).get("gravity", [0.0, -9.81])
+    mass = machine["platform"]["mass"] + sum(r["eccentric_mass"] for r in machine["rotors"])
+    return math.hypot(*g) * (mass + (SLED_MASS if spring else 0.0))
+
+
+def pulling(trace, w):
+    """From a trace: how many rows have a closed foot pulling, its normal force
+    below -eps_F = -1e-6 of the weight `w` (docs/cli-run.md, `--out`: a closed
+    contact never pulls beyond it; the row just before a lift-off is at it, to
+    the lift-off's location: the reference machine's own 10 s closed loop reaches
+    1.00016 eps_F, so 1 % more is allowed), and the least normal force of all
+    rows (N)."""
+    limit = -1e-6 * w * 1.01
+    count, least = 0, 0.0
+    with open(trace, newline="", encoding="utf-8") as f:
+        reader = csv.reader(f)
+        columns = [i for i, name in enumerate(next(reader)) if name.startswith("fn_")]
+        for row in reader:
+            low = min(float(row[i]) for i in columns)
+            least = min(least, low)
+            count += low < limit
+    return count, least
+
+
+def kinds(warnings):
+    """The warnings grouped by their text with every number in it replaced,
+    in the order of each kind's first."""
+    told = {}
+    for w in warnings:
+        told.setdefault(re.sub(r"[0-9]+(\.[0-9]+)?", "#", w), []).append(w)
+    return told
 
 
 def numbers(text, name, low, high, count=None):
@@ -206,6 +262,8 @@ def main():
     ap.add_argument("--timeout", type=float, default=300.0,
                     help="wall seconds after which a run is stopped and reported")
     ap.add_argument("--keep", action="store_true", help="keep every layout's file")
+    ap.add_argument("--forces", action="store_true",
+                    help="write each run's trace too and count its rows where a closed foot pulls")
     a = ap.parse_args()
     bodies = sorted(set(numbers(a.bodies, "--bodies", 1, 2)))
     low, high = numbers(a.feet, "--feet", 3, MAX_CONTACTS, count=2)
@@ -220,12 +278,16 @@ def main():
     text, machine, folder = read_machine(a.host_sim, a.machine)
     rows, written, kept = [], [], []
     with tempfile.TemporaryDirectory() as scratch:
-        events = os.path.join(scratch, "events.csv")
-        extra = ("--events", events)
+        events, trace = os.path.join(scratch, "events.csv"), os.path.join(scratch, "trace.csv")
+        extra = ("--events", events) + (("--out", trace) if a.forces else ())
         cpu, summary, why = run(a.host_sim, a.machine, a.t_end, a.timeout, extra)
         if why:
             fail(f"{a.machine}: the reference run did not finish: {why}")
         reference = cpu
+        checked = ""
+        if a.forces:
+            count, least = pulling(trace, weight(machine, None))
+            checked = f", {count} trace rows with a foot pulling (least force {least:.6g} N)"
         try:
             for b in bodies:
                 for seed in range(a.seed, a.seed + a.layouts):
@@ -235,33 +297,53 @@ def main():
                     with open(path, "w", encoding="utf-8") as f:
                         f.write(machine_text(text, machine, feet, spring))
                     cpu, summary, why = run(a.host_sim, path, a.t_end, a.timeout, extra)
-                    hit, least = struck(events) if os.path.exists(events) else (set(), None)
-                    if os.path.exists(events):
-                        os.remove(events)
+                    hit, outside = struck(events, feet) if os.path.exists(events) else (set(), 0)
+                    pull = None
+                    if a.forces and os.path.exists(trace):
+                        pull = pulling(trace, weight(machine, spring))
+                    for done in (events, trace):
+                        if os.path.exists(done):
+                            os.remove(done)
                     if why:
                         kept.append((path, why))
-                    rows.append((seed, b, feet, spring, cpu, summary, why, hit, least))
+                    rows.append((seed, b, feet, spring, cpu, summary, why, hit, outside, pull))
         finally:
             for path in written:
                 if os.path.exists(path) and not a.keep and path not in (p for p, _ in kept):
                     os.remove(path)
     print(f"{a.t_end:g} s simulated, --command right, one run each; reference: "
-          f"{a.machine} (two feet), {reference:.3f} s of CPU\n")
+          f"{a.machine} (two feet), {reference:.3f} s of CPU{checked}\n")
     print("| seed | bodies | feet (platform + sled) | CPU | against the reference "
-          "| mean velocity (mm/s) | impact instants | feet that struck | least normal impulse (N s) "
-          "| not a travel |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for seed, b, feet, spring, cpu, s, why, hit, least in rows:
+          "| mean velocity (mm/s) | impact instants | feet that struck | impacts outside the cones "
+          "| trace rows with a foot pulling (least force) | steps past an event | other warnings "
+          "| notes |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    warned = []
+    for seed, b, feet, spring, cpu, s, why, hit, outside, pull in rows:
         on = sum(f["body"] == "platform" for f in feet)
         split = f"{len(feet)}" if b == 1 else f"{len(feet)} ({on} + {len(feet) - on})"
-        head = f"| {seed} | {b} | {split} | {cpu:.3f} s | {cpu / reference:.2f} "
+        head = (f"| {seed} | {b} | {split} | {cpu:.3f} s | {cpu / reference:.2f} ")
+        pulls = "not checked" if pull is None else (
+            f"{pull[0]} ({pull[1]:.4g} N)" if pull[0] else "0")
         if why:
-            print(head + f"| did not finish (below) | | {len(hit)} of {len(feet)} | | |")
+            print(head + f"| did not finish (below) | | {len(hit)} of {len(feet)} | {outside} "
+                  f"| {pulls} | | | |")
             continue
-        lp = "none" if least is None else f"{least:.3g}"
         v = "null" if s["mean_velocity"] is None else f"{s['mean_velocity'] * 1e3:+.3f}"
-        print(head + f"| {v} | {s['impacts']} | {len(hit)} of {len(feet)} | {lp} "
-              f"| {s['not_a_travel'] or ''} |")
+        told = kinds(w for w in s["warnings"] if not w.startswith(SEVERAL_BODIES))
+        past = sum(len(ws) for k, ws in told.items() if k.endswith(PAST_AN_EVENT))
+        other = sum(len(ws) for k, ws in told.items() if not k.endswith(PAST_AN_EVENT))
+        notes = [] if s["state"] == "running" and not s["faults"] else [
+            "controller " + " ".join([s["state"], *s["faults"]])]
+        if s["not_a_travel"]:
+            notes.append(s["not_a_travel"])
+        print(head + f"| {v} | {s['impacts']} | {len(hit)} of {len(feet)} | {outside} "
+              f"| {pulls} | {past} | {other} | {'; '.join(notes)} |")
+        warned.extend((seed, b, ws) for ws in told.values())
+    if warned:
+        print("\nThe warnings, by kind (the numbers in them aside): how many, the first.")
+    for seed, b, ws in warned:
+        print(f"\n- seed {seed}, {b} {'body' if b == 1 else 'bodies'}: {len(ws)} x {ws[0]}")
     for path, why in kept:
         rel = os.path.relpath(path)
         print(f"\nnot finished: {a.host_sim} run {rel} --command right --t-end {a.t_end:g} "
