@@ -38,7 +38,10 @@ MAX_CONTACTS = 16
 
 
 def fail(message):
-    print(f"contacts_scaling: {message}", file=sys.stderr)
+    """Exit 2 with `message`, named by the script that runs (this one, or one that
+    imports its helpers)."""
+    name = os.path.splitext(os.path.basename(sys.argv[0]))[0]
+    print(f"{name}: {message}", file=sys.stderr)
     sys.exit(2)
 
 
@@ -76,15 +79,32 @@ def variant(text, machine, feet):
     return text[:at] + "".join(extra) + text[at:]
 
 
-def run(binary, path, t_end, timeout):
+def read_machine(binary, path):
+    """The machine file's text, its tables and its folder, where its variants are
+    written (its relative paths, the tuning table, then hold there); the binary
+    and the file checked to exist."""
+    for name in (binary, path):
+        if not os.path.isfile(name):
+            fail(f"{name}: no such file")
+    with open(path, encoding="utf-8") as f:
+        text = f.read()
+    try:
+        machine = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        fail(f"{path}: {e}")
+    return text, machine, os.path.dirname(os.path.abspath(path))
+
+
+def run(binary, path, t_end, timeout, extra=()):
     """The run's CPU time and summary; the summary is None for a run that failed
     (exit 1: the progress guard) or took longer than `timeout` s of wall time,
-    and then the CPU time is what it took and the reason is returned instead."""
+    and then the CPU time is what it took and the reason is returned instead (the
+    tool's whole message). `extra`: more arguments of `host-sim run`."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     try:
         done = subprocess.run(
             [binary, "run", path, "--command", "right", "--t-end", f"{t_end:g}",
-             "--format", "json"],
+             "--format", "json", *extra],
             capture_output=True, text=True, timeout=timeout,
         )
     except subprocess.TimeoutExpired:
@@ -96,7 +116,7 @@ def run(binary, path, t_end, timeout):
     if done.returncode == 1:
         lines = done.stderr.strip().splitlines()
         said = next((l for l in lines if l.startswith("error")), lines[-1] if lines else "no message")
-        return cpu, None, f"exit 1: {said[:160]}"
+        return cpu, None, f"exit 1: {said}"
     if done.returncode != 0:
         fail(f"{path}: host-sim exited {done.returncode}: {done.stderr.strip()}")
     return cpu, json.loads(done.stdout), None
@@ -115,17 +135,7 @@ def main():
     feet = counts(a.feet)
     if not (a.t_end > 0) or a.repeats < 1:
         fail("--t-end must be > 0 and --repeats >= 1")
-    for path in (a.host_sim, a.machine):
-        if not os.path.isfile(path):
-            fail(f"{path}: no such file")
-    with open(a.machine, encoding="utf-8") as f:
-        text = f.read()
-    try:
-        machine = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        fail(f"{a.machine}: {e}")
-    # Beside the machine file: its relative paths (the tuning table) hold there.
-    folder = os.path.dirname(os.path.abspath(a.machine))
+    text, machine, folder = read_machine(a.host_sim, a.machine)
     rows, written = [], []
     try:
         for n in feet:
@@ -150,7 +160,7 @@ def main():
     print("|---|---|---|---|---|---|")
     for n, cpu, s, why in rows:
         if why:
-            print(f"| {n} | {cpu:.3f} s | {cpu / base:.2f} | did not finish | {why} | |")
+            print(f"| {n} | {cpu:.3f} s | {cpu / base:.2f} | did not finish | {why[:160]} | |")
             continue
         print(f"| {n} | {cpu:.3f} s | {cpu / base:.2f} | {a.t_end / cpu:.1f} "
               f"| {s['mean_velocity'] * 1e3:+.3f} | {s['impacts']} |")

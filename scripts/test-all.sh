@@ -129,15 +129,25 @@ step_scripts() {
         --from 0.3 --to 0.5
     grep -q '<polyline' "$dir/fig9.svg"
     python3 scripts/paper-fig8-sweep.py --voltages x 2>/dev/null && return 1
-    # The benchmark scripts: the contacts' scaling on a short run (its variants
-    # removed afterwards), the tolerance sweep's refusal of a bad argument.
+    # The benchmark scripts: the contacts' scaling and the random layouts on a
+    # short run (their files removed afterwards), the tolerance sweep's and the
+    # random layouts' refusal of a bad argument.
     python3 benchmarks/contacts_scaling.py target/release/host-sim examples/vibro-driver.toml \
         --feet 2,3 --t-end 0.2 --repeats 1 >"$dir/scaling.md"
     grep -q '^| 3 |' "$dir/scaling.md"
     if ls examples/.contacts-scaling-* 2>/dev/null; then return 1; fi
+    python3 benchmarks/contacts_random.py target/release/host-sim examples/vibro-driver.toml \
+        --layouts 1 --t-end 0.5 >"$dir/random.md"
+    grep -q '^| 1 | 1 | 4 |' "$dir/random.md"
+    grep -q '^| 1 | 2 | 5 (2 + 3) |' "$dir/random.md"
+    if ls examples/.contacts-random-* 2>/dev/null; then return 1; fi
     local rc=0
     python3 benchmarks/rtol_sweep.py target/release/host-sim examples/vibro-driver.toml \
         --rtols x 2>/dev/null || rc=$?
+    [ "$rc" -eq 2 ] || return 1
+    rc=0
+    python3 benchmarks/contacts_random.py target/release/host-sim examples/vibro-driver.toml \
+        --feet 3,9x 2>/dev/null || rc=$?
     [ "$rc" -eq 2 ] || return 1
     rm -rf "$dir"
 }
