@@ -36,8 +36,8 @@
 //! SysTick, reads a model of the rotors instead of the board, stores parameters in
 //! RAM ([`shared::storage::SimFlash`]) and runs a scripted host in `idle`; it logs
 //! over semihosting and exits with the result of its checks. The control stages
-//! that touch no peripheral ([`start`], [`take_link`], [`publish`]) are the ones
-//! below, shared by both apps. See `docs/firmware-qemu.md`.
+//! that touch no peripheral ([`start`], [`link_port`]) are the ones below, shared
+//! by both apps, and both run their tick through [`shared::tick::run`]. See `docs/firmware-qemu.md`.
 #![no_std]
 #![no_main]
 
@@ -92,9 +92,9 @@ mod machine {
 }
 
 use embedded_storage::nor_flash::ReadNorFlash;
-use shared::controller::{
-    Command, Controller, Outputs, Params, ResetCause, SelfTestReport, TuningTable,
-};
+use shared::controller::{Controller, Params, ResetCause, TuningTable};
+#[cfg(feature = "qemu")]
+use shared::controller::{Outputs, SelfTestReport};
 use shared::protocol::link::{use_stored, LinkState};
 use shared::storage;
 
@@ -135,32 +135,26 @@ fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller, Lin
     (controller, link)
 }
 
-/// Control stage 1, the link's part: take the pending command, hand a newly
-/// stored tuning table to the controller, start a requested self-test (a refusal
-/// is flagged for idle's log).
-fn take_link(
-    controller: &mut Controller,
-    link: &mut impl rtic::Mutex<T = LinkState>,
-) -> Option<Command> {
-    let taken = link.lock(|l| l.take_for_tick(controller));
+/// Control stages 2 and 5 over the link's state ([`shared::tick::Port`]): the
+/// pending command taken (a newly stored tuning table handed to the controller,
+/// a requested self-test started), the status and the self-test's published.
+/// What the controller refused is flagged for idle's log after the tick
+/// ([`log_refusals`]).
+fn link_port<M: rtic::Mutex<T = LinkState>>(
+    link: &mut M,
+    uptime_ms: u32,
+) -> shared::tick::LinkPort<Locked<'_, M>> {
+    shared::tick::LinkPort::new(Locked(link), uptime_ms)
+}
+
+/// Flags for idle's log what the controller refused in a tick's port.
+fn log_refusals(taken: &shared::protocol::link::ForTick) {
     if taken.tuning_refused {
         log::note(log::Event::TuningRefused);
     }
     if taken.self_test_refused {
         log::note(log::Event::SelfTestRefused);
     }
-    taken.command
-}
-
-/// Control stage 4: publish the tick's status and the self-test's for the link
-/// (and for idle's log, `log`).
-fn publish(
-    link: &mut impl rtic::Mutex<T = LinkState>,
-    uptime_ms: u32,
-    out: &Outputs,
-    self_test: SelfTestReport,
-) {
-    link.lock(|l| l.publish(uptime_ms, out, self_test));
 }
 
 /// SysTick counts of one `qemu` control tick.
@@ -175,13 +169,82 @@ pub struct TickCounts {
     pub tick: u32,
 }
 
-/// One control tick of the `qemu` builds on the rotor model, the same stages as
-/// the board's `control`: sample the model and take the command, step the
-/// controller with the nominal tick and the tick's `timing`, write the bridges'
-/// inputs through the board's driver (both coasting when the controller does not
-/// enable or the E-stop is open, as the board's E-stop handler and break cut
-/// them), run the model for one tick with `injected`, publish. Timed in SysTick
-/// counts ([`TickCounts`]).
+/// The board of the `qemu` builds ([`shared::tick::Board`]): the rotor model
+/// sampled, the bridges' inputs written through the board's driver (both coasting
+/// when the controller does not enable them or the E-stop is open, as the board's
+/// E-stop handler and break cut them), then the model run for one tick with
+/// `injected`. The model's integration stands in for the motors, not for code the
+/// board runs: its SysTick counts are kept apart (`model`), and so are the
+/// instants around the controller's step (`stepping`, `stepped`).
+#[cfg(feature = "qemu")]
+struct QemuBoard<'a> {
+    plant: &'a mut qemu::plant::Plant,
+    drive: &'a mut drive::Drive<qemu::pwm::SimPwm>,
+    injected: &'a qemu::plant::Injected,
+    timing: shared::controller::TickTiming,
+    /// SysTick counts of the model's tick.
+    model: u32,
+    /// When the sample was taken (the step follows the command's take).
+    sampled: u32,
+    /// When the outputs came to be applied (the step's end).
+    stepped: u32,
+}
+
+#[cfg(feature = "qemu")]
+impl shared::tick::Board for QemuBoard<'_> {
+    fn sample(&mut self) -> shared::controller::Inputs {
+        let s = self.plant.sample();
+        let sample = shared::controller::Inputs {
+            encoder: s.encoder,
+            index: s.index,
+            current: s.current,
+            supply_voltage: s.supply_voltage,
+            estop: self.injected.estop_open,
+            command: None,
+            timing: self.timing,
+        };
+        self.sampled = qemu::cycles::now();
+        sample
+    }
+
+    fn apply(&mut self, out: &Outputs) {
+        use qemu::cycles::{elapsed, now};
+        self.stepped = now();
+        let estop = self.injected.estop_open;
+        self.drive
+            .apply(out.duty, out.bridges.map(|on| on && !estop));
+        let model_start = now();
+        self.plant.step(self.injected);
+        self.model = elapsed(model_start, now());
+    }
+}
+
+/// The link's port of the `qemu` builds: the board's, with the instant the
+/// command was taken (the controller's step starts there).
+#[cfg(feature = "qemu")]
+struct QemuPort<P> {
+    port: P,
+    taken: u32,
+}
+
+#[cfg(feature = "qemu")]
+impl<P: shared::tick::Port> shared::tick::Port for QemuPort<P> {
+    fn take(&mut self, controller: &mut Controller) -> Option<shared::controller::Command> {
+        let command = self.port.take(controller);
+        self.taken = qemu::cycles::now();
+        command
+    }
+
+    fn publish(&mut self, out: &Outputs, self_test: SelfTestReport) {
+        self.port.publish(out, self_test);
+    }
+}
+
+/// One control tick of the `qemu` builds on the rotor model: [`shared::tick::run`]
+/// on the [`QemuBoard`], with the nominal tick and the tick's `timing`. Timed in
+/// SysTick counts ([`TickCounts`]): the step from the command's take to the
+/// outputs' apply (the step and the copy of its inputs), the whole tick without
+/// the model.
 #[cfg(feature = "qemu")]
 fn qemu_tick(
     controller: &mut Controller,
@@ -194,34 +257,24 @@ fn qemu_tick(
 ) -> (Outputs, TickCounts) {
     use qemu::cycles::{elapsed, now};
     let start = now();
-    // Stage 1: sample the model and take the command.
-    let sample = plant.sample();
-    let command = take_link(controller, link);
-    let inputs = shared::controller::Inputs {
-        encoder: sample.encoder,
-        index: sample.index,
-        current: sample.current,
-        supply_voltage: sample.supply_voltage,
-        estop: injected.estop_open,
-        command,
+    let mut board = QemuBoard {
+        plant,
+        drive,
+        injected,
         timing,
+        model: 0,
+        sampled: start,
+        stepped: start,
     };
-
-    // Stage 2: the controller, with the nominal tick.
+    let mut port = QemuPort {
+        port: link_port(link, uptime_ms),
+        taken: start,
+    };
     let dt = controller.params().tick_s();
-    let before = now();
-    let out = controller.step(&inputs, dt);
-    let step = elapsed(before, now());
-
-    // Stage 3: the bridges' inputs, then the model for one tick (not counted).
-    drive.apply(out.duty, out.bridges.map(|on| on && !injected.estop_open));
-    let model_start = now();
-    plant.step(injected);
-    let model = elapsed(model_start, now());
-
-    // Stage 4: publish.
-    publish(link, uptime_ms, &out, controller.self_test_report());
-    let tick = elapsed(start, now()).saturating_sub(model);
+    let out = shared::tick::run(controller, &mut board, &mut port, dt);
+    log_refusals(&port.port.taken);
+    let step = elapsed(port.taken, board.stepped);
+    let tick = elapsed(start, now()).saturating_sub(board.model);
     (out, TickCounts { step, tick })
 }
 
@@ -232,7 +285,7 @@ mod app {
 
     use cortex_m::peripheral::DWT;
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, Inputs, CONTROL_RATE_HZ};
+    use shared::controller::{Controller, Inputs, TickTiming, CONTROL_RATE_HZ};
     use shared::protocol::link::{Link, LinkState};
     use shared::timing::TickClock;
     use stm32f4xx_hal::gpio::{Input, PB0, PC4, PC5};
@@ -370,6 +423,39 @@ mod app {
         });
     }
 
+    /// The board at a control tick ([`shared::tick::Board`]): the encoders, the
+    /// index counts latched by the index tasks, the ADC's means, the E-stop, the
+    /// tick's timing; the outputs to TIM8 through `motor_out`.
+    struct BoardIo<'a, I> {
+        encoders: &'a mut Encoders,
+        index: &'a mut I,
+        sense: &'a mut Sense,
+        motors: &'a mut MotorOut,
+        timing: TickTiming,
+    }
+
+    impl<I: rtic::Mutex<T = [Option<u32>; 2]>> shared::tick::Board for BoardIo<'_, I> {
+        fn sample(&mut self) -> Inputs {
+            let encoder = self.encoders.counts();
+            let index = self.index.lock(core::mem::take);
+            board::index_rearm();
+            let analog = self.sense.read();
+            Inputs {
+                encoder,
+                index,
+                current: analog.current,
+                supply_voltage: analog.supply_voltage,
+                estop: crate::estop::take_latch() | crate::estop::open(),
+                command: None,
+                timing: self.timing,
+            }
+        }
+
+        fn apply(&mut self, out: &shared::controller::Outputs) {
+            self.motors.apply(out.duty, out.bridges);
+        }
+    }
+
     /// The control tick at CONTROL_RATE_HZ: time, sample, step, write, publish,
     /// feed the watchdog. No log line is formatted here (`log`).
     #[task(
@@ -388,38 +474,21 @@ mod app {
         *cx.local.uptime_ms = cx.local.uptime_ms.wrapping_add(crate::TICK_MS);
         UPTIME_MS.store(*cx.local.uptime_ms, Ordering::Relaxed);
 
-        // Stage 1: sample the inputs and take the latched index counts, the
-        // latched E-stop and the command; the index lines held off are re-armed.
-        let encoder = cx.local.encoders.counts();
-        let index = cx.shared.index.lock(core::mem::take);
-        board::index_rearm();
-        let analog = cx.local.sense.read();
-        let estop = crate::estop::take_latch() | crate::estop::open();
-        let command = crate::take_link(cx.local.controller, &mut cx.shared.link);
-        let inputs = Inputs {
-            encoder,
-            index,
-            current: analog.current,
-            supply_voltage: analog.supply_voltage,
-            estop,
-            command,
+        // Stages 1 to 4: sample (the latched index counts and E-stop taken, the
+        // index lines held off re-armed), take the command, step with the
+        // nominal tick, write the outputs (fresh every tick; cut unless enabled),
+        // publish the status for the link.
+        let mut hw = BoardIo {
+            encoders: cx.local.encoders,
+            index: &mut cx.shared.index,
+            sense: cx.local.sense,
+            motors: cx.local.motors,
             timing,
         };
-
-        // Stage 2: the controller, with the nominal tick.
+        let mut port = crate::link_port(&mut cx.shared.link, *cx.local.uptime_ms);
         let dt = cx.local.controller.params().tick_s();
-        let out = cx.local.controller.step(&inputs, dt);
-
-        // Stage 3: write the outputs (fresh every tick; cut unless enabled).
-        cx.local.motors.apply(out.duty, out.bridges);
-
-        // Stage 4: publish the status for the link.
-        crate::publish(
-            &mut cx.shared.link,
-            *cx.local.uptime_ms,
-            &out,
-            cx.local.controller.self_test_report(),
-        );
+        shared::tick::run(cx.local.controller, &mut hw, &mut port, dt);
+        crate::log_refusals(&port.taken);
 
         // Stage 5: the tick completed: feed the watchdog. Also in Fault (a defined
         // safe state with the motors off): not feeding there would turn every

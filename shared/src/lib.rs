@@ -18,12 +18,14 @@
 //!   version, a sequence number and a CRC-32;
 //! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
 //!   decoder that never trusts a length, the messages and the answer to every frame;
+//! - [`tick`]: one control tick for every board (sample, command, step, apply,
+//!   publish) over a [`tick::Board`] and a [`tick::Port`];
 //! - [`timing`]: the control tick's lateness and duration from a cycle counter, for
 //!   the controller's deadline check;
 //! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
 //!
-//! The controller is the bottom layer; `codec` uses it, `storage` uses both, and
-//! `protocol` uses all three.
+//! The controller is the bottom layer; `codec` uses it, `storage` uses both,
+//! `protocol` uses all three, and `tick` the controller and the protocol's link.
 #![no_std]
 #![warn(missing_docs)]
 // Numeric kernels index several parallel arrays with one loop variable; iterator
@@ -37,6 +39,7 @@ pub mod impact;
 pub mod protocol;
 pub mod real;
 pub mod storage;
+pub mod tick;
 pub mod timing;
 
 pub use real::Real;

@@ -15,9 +15,11 @@
 
 use std::collections::VecDeque;
 
-use shared::controller::{Controller, Inputs, MachineConstants, Params, ResetCause, TuningTable};
+use shared::controller::Inputs;
+use shared::controller::{Controller, MachineConstants, Outputs, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, Link, LinkState};
 use shared::storage::{self, SimFlash};
+use shared::tick::{self, Board, LinkPort};
 
 use super::mechanics::{Mechanics, PlatformPose};
 use super::plant::PlantMechanics;
@@ -102,7 +104,37 @@ pub struct SimDevice {
     /// Milliseconds per control tick (1 at the reference 1 kHz).
     tick_ms: u32,
     noise: NoiseState,
-    last: Option<shared::controller::Outputs>,
+    last: Option<Outputs>,
+}
+
+/// The board of the simulated device ([`shared::tick::Board`]): its sample is the
+/// mechanics advanced one tick under the last outputs, which [`Board::apply`]
+/// keeps for the next; the E-stop closed, the ticks on time.
+struct MechanicsBoard<'a> {
+    mechanics: &'a mut dyn Mechanics,
+    /// The outputs of the tick before (none before the first).
+    last: &'a mut Option<Outputs>,
+    /// The tick, s.
+    dt: f64,
+}
+
+impl Board for MechanicsBoard<'_> {
+    fn sample(&mut self) -> Inputs {
+        let readings = self.mechanics.advance(self.last.as_ref(), self.dt);
+        Inputs {
+            encoder: readings.encoder,
+            index: readings.index,
+            current: readings.current,
+            supply_voltage: self.mechanics.supply(),
+            estop: false,
+            timing: Default::default(),
+            command: None,
+        }
+    }
+
+    fn apply(&mut self, out: &Outputs) {
+        *self.last = Some(*out);
+    }
 }
 
 impl SimDevice {
@@ -237,26 +269,17 @@ impl SimDevice {
         self.mechanics.stopped()
     }
 
-    /// One control tick, as the firmware's control task.
+    /// One control tick, as the firmware's control task ([`shared::tick::run`]).
     pub fn tick(&mut self) {
         self.uptime_ms = self.uptime_ms.wrapping_add(self.tick_ms);
         let dt = f64::from(self.tick_ms) / 1000.0;
-        let readings = self.mechanics.advance(self.last.as_ref(), dt);
-        // The firmware's control-task glue, as on the board.
-        let command = self.state.take_for_tick(&mut self.controller).command;
-        let inputs = Inputs {
-            encoder: readings.encoder,
-            index: readings.index,
-            current: readings.current,
-            supply_voltage: self.mechanics.supply(),
-            estop: false,
-            command,
-            timing: Default::default(),
+        let mut board = MechanicsBoard {
+            mechanics: self.mechanics.as_mut(),
+            last: &mut self.last,
+            dt,
         };
-        let out = self.controller.step(&inputs, dt as f32);
-        let report = self.controller.self_test_report();
-        self.state.publish(self.uptime_ms, &out, report);
-        self.last = Some(out);
+        let mut port = LinkPort::new(&mut self.state, self.uptime_ms);
+        tick::run(&mut self.controller, &mut board, &mut port, dt as f32);
     }
 
     /// Bytes received from the host (corrupted first, if noise is set).

@@ -8,13 +8,38 @@
 //! rotor 2 reads at rest (counter 0, no index, 0 A), and its bridge stays off as
 //! long as the controller does not drive it (it never does on one rotor).
 
-use shared::controller::Outputs;
+use shared::controller::{Inputs, Outputs, TickTiming};
+use shared::tick::Board;
 
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::sensors::{CurrentSensor, Encoder};
 use crate::plant::simulator::Plant;
-use crate::simulation::closed_loop::Injected;
+
+/// Faults injected from outside the controller (scenarios).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Injected {
+    /// Encoder signals lost: the counter and index of rotor k stop.
+    pub encoder_dropout: [bool; 2],
+    /// Supply voltage instead of the nominal one, V.
+    pub supply_voltage: Option<f64>,
+    /// Offset added to the current measurement of rotor k, A.
+    pub current_offset: [f64; 2],
+    /// Commands and heartbeats from the host are lost.
+    pub link_lost: bool,
+    /// The E-stop input is active.
+    pub estop: bool,
+    /// Encoder channels A and B of rotor k swapped: the controller sees its counter
+    /// and index latch negated (counting down when the rotor turns forward).
+    pub encoder_reversed: [bool; 2],
+    /// Motor leads of rotor k swapped between the H-bridge and the motor (and its
+    /// current sense): the winding gets `-duty x supply`; the current measured in
+    /// the winding follows it.
+    pub motor_reversed: [bool; 2],
+    /// How late the control ticks start, s (a starved loop on the board; the
+    /// simulation's ticks are otherwise on time).
+    pub tick_late_s: f64,
+}
 
 /// What the sensors read at a control tick: the controller's
 /// [`shared::controller::Inputs`] from the plant.
@@ -98,4 +123,46 @@ pub fn bridge_commands(out: &Outputs, motor_reversed: [bool; 2]) -> ([BridgeComm
         (true, true) => BridgeCommand::Duty(-duty[k]),
     });
     (commands, duty)
+}
+
+/// The board of a simulated machine at one control tick ([`shared::tick::Board`]):
+/// the plant's sensors at time `t` with the faults injected, the supply the
+/// bridges see, and the bridges' commands the tick's outputs make.
+pub struct PlantBoard<'a> {
+    /// The sensors, sampled at `t`.
+    pub sensors: &'a mut BoardSensors,
+    /// The plant, its state at `t`.
+    pub plant: &'a Plant,
+    /// The tick's time, s.
+    pub t: f64,
+    /// Faults injected now.
+    pub injected: &'a Injected,
+    /// The supply the bridges see, V (the nominal, or the injected sag).
+    pub supply: f64,
+    /// What [`Board::apply`] wrote: the bridges' commands and the duties to record.
+    pub bridges: ([BridgeCommand; 2], [f64; 2]),
+}
+
+impl Board for PlantBoard<'_> {
+    fn sample(&mut self) -> Inputs {
+        let r = self.sensors.read(self.t, self.plant, self.injected);
+        Inputs {
+            encoder: r.encoder,
+            index: r.index,
+            current: r.current,
+            supply_voltage: self.supply as f32,
+            estop: self.injected.estop,
+            command: None,
+            // A lockstep simulation's ticks are on time, unless late ones are
+            // injected.
+            timing: TickTiming {
+                late_s: self.injected.tick_late_s as f32,
+                busy_s: 0.0,
+            },
+        }
+    }
+
+    fn apply(&mut self, out: &Outputs) {
+        self.bridges = bridge_commands(out, self.injected.motor_reversed);
+    }
 }

@@ -2,7 +2,9 @@
 //! stepped at the machine's control rate, seeing the simulated sensors and
 //! driving the simulated motors.
 //!
-//! Each control tick ([`ControllerDriver::bridges`]):
+//! Each control tick ([`ControllerDriver::bridges`]) is the firmware's,
+//! [`shared::tick::run`], on the plant's board ([`PlantBoard`]) and the scenario's
+//! link (its scheduled commands):
 //! 1. sample the sensors from the plant's state: quadrature encoders (quantised,
 //!    wrapping 32-bit counters, index pulses, edge jitter) and the current
 //!    measurement (noise, offset), all from the machine's seed;
@@ -14,8 +16,7 @@
 //!    disables its outputs;
 //! 5. record the controller's state changes and faults as events.
 //!
-//! Steps 1 and 4 are [`super::board`]'s, which `host-sim device-sim --machine`
-//! shares.
+//! Steps 1 and 4 are [`super::board`]'s.
 //!
 //! A machine with one rotor ([`RotorCount::One`], from its machine file): only
 //! rotor 1's encoder and current are sampled (`Plant::rotor_angle(0)` and
@@ -28,42 +29,19 @@
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Inputs, Outputs, Params, ResetCause, RotorCount, State, TickTiming,
+    Command, Controller, Outputs, Params, ResetCause, RotorCount, SelfTestReport, State,
 };
+use shared::tick::{self, Port};
 
 use crate::machine::input::Problem;
 use crate::machine::tuning_file;
 use crate::machine::{machine_constants, Machine};
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
-use crate::simulation::board::{bridge_commands, BoardSensors};
+pub use crate::simulation::board::Injected;
+use crate::simulation::board::{BoardSensors, PlantBoard};
 use crate::simulation::trace::{EventKind, EventRow};
 use crate::simulation::Driver;
-
-/// Faults injected from outside the controller (scenarios).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Injected {
-    /// Encoder signals lost: the counter and index of rotor k stop.
-    pub encoder_dropout: [bool; 2],
-    /// Supply voltage instead of the nominal one, V.
-    pub supply_voltage: Option<f64>,
-    /// Offset added to the current measurement of rotor k, A.
-    pub current_offset: [f64; 2],
-    /// Commands and heartbeats from the host are lost.
-    pub link_lost: bool,
-    /// The E-stop input is active.
-    pub estop: bool,
-    /// Encoder channels A and B of rotor k swapped: the controller sees its counter
-    /// and index latch negated (counting down when the rotor turns forward).
-    pub encoder_reversed: [bool; 2],
-    /// Motor leads of rotor k swapped between the H-bridge and the motor (and its
-    /// current sense): the winding gets `-duty x supply`; the current measured in
-    /// the winding follows it.
-    pub motor_reversed: [bool; 2],
-    /// How late the control ticks start, s (a starved loop on the board; the
-    /// simulation's ticks are otherwise on time).
-    pub tick_late_s: f64,
-}
 
 /// The controller in the loop.
 pub struct ControllerDriver {
@@ -177,46 +155,24 @@ impl Driver for ControllerDriver {
     }
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
-        // 1. Sensors.
-        let readings = self.sensors.read(t, plant, &self.injected);
-        let supply = self.injected.supply_voltage.unwrap_or(self.supply);
-
-        // 2. Commands due, else a heartbeat.
-        let mut command = None;
-        while self
-            .schedule
-            .first()
-            .is_some_and(|(tc, _)| *tc <= t + 1e-12)
-        {
-            let (_, c) = self.schedule.remove(0);
-            command = Some(c);
-        }
-        if self.injected.link_lost {
-            command = None;
-        } else if command.is_none() {
-            command = Some(Command::Heartbeat);
-        }
-
-        // 3. Step (a self-test due starts first).
-        if self.self_test_at.is_some_and(|ts| ts <= t + 1e-12) {
-            self.self_test_at = None;
-            let started = self.controller.start_self_test();
-            // Started, the state change shows as an event of the step below.
-            self.self_test_started = Some((t, started));
-        }
-        let inputs = Inputs {
-            encoder: readings.encoder,
-            index: readings.index,
-            current: readings.current,
-            supply_voltage: supply as f32,
-            estop: self.injected.estop,
-            command,
-            timing: TickTiming {
-                late_s: self.injected.tick_late_s as f32,
-                busy_s: 0.0,
-            },
+        // 1 and 4: the board (sensors, bridges); 2: the commands due; 3: the step.
+        let mut board = PlantBoard {
+            sensors: &mut self.sensors,
+            plant,
+            t,
+            injected: &self.injected,
+            supply: self.injected.supply_voltage.unwrap_or(self.supply),
+            bridges: ([BridgeCommand::Off; 2], [0.0; 2]),
         };
-        let out = self.controller.step(&inputs, self.dt);
+        let mut port = SchedulePort {
+            t,
+            schedule: &mut self.schedule,
+            link_lost: self.injected.link_lost,
+            self_test_at: &mut self.self_test_at,
+            self_test_started: &mut self.self_test_started,
+        };
+        let out = tick::run(&mut self.controller, &mut board, &mut port, self.dt);
+        let bridges = board.bridges;
 
         // 5. Events: state changes and new faults.
         let (old_state, old_faults) = self
@@ -234,10 +190,7 @@ impl Driver for ControllerDriver {
         if self.record_history {
             self.history.push((t, out));
         }
-
-        // 4. The H-bridges: those the controller drives (rotor 2's never on one
-        // rotor), the others off.
-        bridge_commands(&out, self.injected.motor_reversed)
+        bridges
     }
 
     fn state(&self) -> String {
@@ -264,4 +217,49 @@ impl Driver for ControllerDriver {
     fn events(&mut self) -> Vec<EventRow> {
         std::mem::take(&mut self.events)
     }
+}
+
+/// The link of the closed loop ([`shared::tick::Port`]): the scheduled commands
+/// due at the tick, else a heartbeat (the host is present), none while the link
+/// is lost; a self-test due is started before the step, as the firmware's link
+/// starts a requested one. Nothing is published (the driver records the outputs).
+struct SchedulePort<'a> {
+    /// The tick's time, s.
+    t: f64,
+    /// Commands still to send: (time, command), in time order.
+    schedule: &'a mut Vec<(f64, Command)>,
+    /// Commands and heartbeats from the host are lost.
+    link_lost: bool,
+    /// When to start a self-test, s (taken once tried).
+    self_test_at: &'a mut Option<f64>,
+    /// When the self-test was asked for, and whether it started.
+    self_test_started: &'a mut Option<(f64, bool)>,
+}
+
+impl Port for SchedulePort<'_> {
+    fn take(&mut self, controller: &mut Controller) -> Option<Command> {
+        let t = self.t;
+        let mut command = None;
+        while self
+            .schedule
+            .first()
+            .is_some_and(|(tc, _)| *tc <= t + 1e-12)
+        {
+            let (_, c) = self.schedule.remove(0);
+            command = Some(c);
+        }
+        if self.link_lost {
+            command = None;
+        } else if command.is_none() {
+            command = Some(Command::Heartbeat);
+        }
+        if self.self_test_at.is_some_and(|ts| ts <= t + 1e-12) {
+            *self.self_test_at = None;
+            // Started, the state change shows as an event of the step.
+            *self.self_test_started = Some((t, controller.start_self_test()));
+        }
+        command
+    }
+
+    fn publish(&mut self, _out: &Outputs, _self_test: SelfTestReport) {}
 }

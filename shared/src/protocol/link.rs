@@ -184,7 +184,7 @@ impl LinkState {
 }
 
 /// What [`LinkState::take_for_tick`] took for the control tick.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ForTick {
     /// The command for this tick, if one came.
     pub command: Option<Command>,
