@@ -139,9 +139,21 @@ fn a_run_that_stops_advancing_ends_with_the_time_the_contacts_and_their_modes_it
 /// `run MACHINE --command right --t-end T --format json` finishes: exit 0, a JSON
 /// summary to `t_end`, and no step taken past an event. The summary.
 fn closed_loop_finishes(m: &std::path::Path, t_end: f64, what: &str) -> Value {
+    closed_loop_finishes_with(m, t_end, what, FEET_FRICTION, &[])
+}
+
+/// [`closed_loop_finishes`] with `extra` arguments, every impact in the cone of
+/// the largest friction coefficient `mu` of the machine's feet.
+fn closed_loop_finishes_with(
+    m: &std::path::Path,
+    t_end: f64,
+    what: &str,
+    mu: f64,
+    extra: &[&str],
+) -> Value {
     let t = t_end.to_string();
     let events = m.with_extension("events.csv");
-    let r = run(&[
+    let mut args = vec![
         "run",
         m.to_str().unwrap(),
         "--command",
@@ -152,15 +164,19 @@ fn closed_loop_finishes(m: &std::path::Path, t_end: f64, what: &str) -> Value {
         events.to_str().unwrap(),
         "--format",
         "json",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let r = run(&args);
     assert_eq!(r.status, 0, "{what}: {}", r.stderr);
-    impacts_inside_cones(&events, FEET_FRICTION, what);
+    impacts_inside_cones(&events, mu, what);
     let summary: Value = serde_json::from_str(&r.stdout).expect("a JSON summary");
     assert_eq!(summary["t_end"], t_end, "{what}: {}", r.stdout);
+    // The warning is in the summary (and on stderr when the run is not JSON).
     assert!(
-        !r.stderr.contains("no progress"),
-        "{what}: a step was taken past an event: {}",
-        r.stderr
+        !r.stderr.contains("no progress") && !r.stdout.contains("no progress"),
+        "{what}: a step was taken past an event: {}{}",
+        r.stderr,
+        r.stdout
     );
     summary
 }
@@ -434,4 +450,87 @@ fn device_sim_ends_when_its_plant_stops_advancing() {
         "{}",
         r.stderr
     );
+}
+
+/// Two bodies hinged by a spring, on eight feet along one line (the layout of
+/// `benchmarks/contacts_random.py --seed 9 --bodies 2`): the platform on K1 to K4,
+/// a 0.5 kg sled on K5 to K8. At 0.5163 s the four standing feet go from stick to
+/// slip together. Their equations then leave the normal forces undetermined (four
+/// slipping feet on two bodies joined by a pin, on one line), and their
+/// weighted minimum-norm split put K5, which the mode decision left at zero
+/// force, at -0.563 N: below the lift-off threshold right after the decision, so
+/// the same event came back at the same instant until a step was taken past it
+/// (284 times in 10 s). Now a foot the decision leaves at the boundary opens where
+/// closing it would make it pull, and the forces are split among every solution
+/// of the modes' equations where the internal forces alone cannot keep every foot
+/// pushing. Checked: 1 s finishes without a step past an event, every impact in its
+/// cone, and no trace row between events with a foot pulling below the lift-off
+/// threshold. (The row written at an event, before its decision, can still show
+/// the old modes' forces outside the threshold: benchmarks/plant.md.)
+#[test]
+fn two_hinged_bodies_on_feet_along_one_line_keep_every_foot_pushing() {
+    let feet: [(&str, &str, [f64; 2], f64, f64); 8] = [
+        ("K1", "platform", [-0.0429, 4.34e-06], 0.46, 0.21),
+        ("K2", "platform", [-0.0415, 3.97e-06], 0.46, 0.34),
+        ("K3", "platform", [-0.022, 0.0], 0.13, 0.24),
+        ("K4", "platform", [0.0295, 0.0], 0.33, 0.78),
+        ("K5", "sled", [0.1195, 0.0], 0.53, 0.58),
+        ("K6", "sled", [0.1664, 0.0], 0.54, 0.8),
+        ("K7", "sled", [0.1703, 2.74e-06], 0.13, 0.72),
+        ("K8", "sled", [0.1923, 2.6e-05], 0.13, 0.68),
+    ];
+    let text = reference_without_uncertainty();
+    let first = text.find("[[contacts]]").expect("a [[contacts]] table");
+    let rotors = text.find("[[rotors]]").expect("a [[rotors]] table");
+    let mut tables = String::new();
+    for (name, body, p, e, mu) in feet {
+        tables += &format!(
+            "[[contacts]]\nname = \"{name}\"\nbody = \"{body}\"\npoint = [{:?}, {:?}]\nrestitution = {e:?}\nfriction = {mu:?}\n\n",
+            p[0], p[1]
+        );
+    }
+    let sled = "\n[[bodies]]\nname = \"sled\"\nmass = 0.5\ninertia = 4.5e-4\nposition = [0.155, 0.015]\n\n[[joints]]\nname = \"hitch\"\nkind = \"revolute\"\nbodies = [\"platform\", \"sled\"]\npoint = [0.1025, 0.015]\nstiffness = 2500.0\ndamping = 0.00162\n";
+    let path = scratch("two-bodies.toml");
+    fs::write(
+        &path,
+        format!("{}{tables}{}{sled}", &text[..first], &text[rotors..]),
+    )
+    .unwrap();
+    let trace = path.with_extension("trace.csv");
+    let mu_most = feet.iter().map(|f| f.4).fold(0.0, f64::max);
+    closed_loop_finishes_with(
+        &path,
+        1.0,
+        "two bodies",
+        mu_most,
+        &["--out", trace.to_str().unwrap()],
+    );
+    let events = path.with_extension("events.csv");
+    // Rows between events: no closed foot below the lift-off threshold -eps_F
+    // (Settings::force_tolerance, 1e-6, of the machine's weight; 1 % more for
+    // the lift-off's location).
+    let at_events: std::collections::HashSet<String> = whole_csv(&events)
+        .into_iter()
+        .map(|r| r[0].clone())
+        .collect();
+    let text = fs::read_to_string(&trace).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let forces: Vec<usize> = (0..header.len())
+        .filter(|&c| header[c].starts_with("fn_"))
+        .collect();
+    assert_eq!(forces.len(), 8, "{header:?}");
+    let weight = (2.02 + 0.5) * 9.81;
+    let eps_f = 1e-6 * weight;
+    let mut between = 0;
+    for row in whole_csv(&trace) {
+        if at_events.contains(&row[0]) {
+            continue;
+        }
+        between += 1;
+        for &c in &forces {
+            let f: f64 = row[c].parse().unwrap();
+            assert!(f >= -1.01 * eps_f, "t = {}: {} = {f} N", row[0], header[c]);
+        }
+    }
+    assert!(between > 900, "{between} rows between events");
 }

@@ -126,6 +126,58 @@ pub fn within_cones<T: Real, const N: usize>(
     y: &mut [T; N],
     tol: T,
 ) -> Split {
+    split(p, active, mode, normals_free, Freedom::Internal, x, y, tol)
+}
+
+/// [`within_cones`] along every solution of the candidate's equations, not only
+/// its internal forces: the closest split (to the weighted minimum-norm one the
+/// rates are) among all rates that keep every active contact's normal rate at
+/// its value (`(W E z)_n = 0`) and every sticking contact's tangential one
+/// (`(W E z)_t = 0`), with every normal rate `>= 0` and every sticking contact
+/// inside its cone.
+///
+/// With slipping contacts this is a larger set than the internal forces: a
+/// change of the normal rates may change the slipping contacts' tangential rates
+/// (the motion), which their equations leave free. Where several bodies' feet
+/// slip on one line, the equations leave such a choice, and the internal forces
+/// alone cannot reach a split with every normal rate `>= 0` although the mode
+/// decision found one. The null space is then that of the equations' own square
+/// matrix `A = S W E` (`S` selecting the rows they hold, one per unknown); `z0`,
+/// the weighted minimum-norm solution of `A z = -b`, is `D`-orthogonal to it, so
+/// the reduction to the least `|c|` holds as for the internal forces.
+#[allow(clippy::too_many_arguments)]
+pub fn within_mode_equations<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    active: &[bool; N],
+    mode: &[SlipState; N],
+    x: &mut [T; N],
+    y: &mut [T; N],
+    tol: T,
+) -> Split {
+    split(p, active, mode, true, Freedom::ModeEquations, x, y, tol)
+}
+
+/// Which changes of the rates a split may make.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Freedom {
+    /// Internal forces only (`G z = 0`): the motion is unchanged.
+    Internal,
+    /// Any solution of the candidate's equations (`S W E z = 0`).
+    ModeEquations,
+}
+
+/// [`within_cones`] with the changes `freedom` allows.
+#[allow(clippy::too_many_arguments)]
+fn split<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    active: &[bool; N],
+    mode: &[SlipState; N],
+    normals_free: bool,
+    freedom: Freedom,
+    x: &mut [T; N],
+    y: &mut [T; N],
+    tol: T,
+) -> Split {
     if satisfied(p, active, mode, x, y, tol) {
         return Split::Inside;
     }
@@ -134,14 +186,15 @@ pub fn within_cones<T: Real, const N: usize>(
     // the capacity's, without zeroing it (16 contacts: 48 constraints in 32
     // coordinates) at every split.
     let a = (0..p.len).filter(|&i| active[i]).count();
+    let args = (p, active, mode, normals_free, freedom);
     if a <= 2 || N <= 2 {
-        split_in::<T, N, 4, 6>(p, active, mode, normals_free, x, y, tol)
+        split_in::<T, N, 4, 6>(args, x, y, tol)
     } else if a <= 4 || N <= 4 {
-        split_in::<T, N, 8, 12>(p, active, mode, normals_free, x, y, tol)
+        split_in::<T, N, 8, 12>(args, x, y, tol)
     } else if a <= 8 || N <= 8 {
-        split_in::<T, N, 16, 24>(p, active, mode, normals_free, x, y, tol)
+        split_in::<T, N, 16, 24>(args, x, y, tol)
     } else {
-        split_in::<T, N, DIM, MAX_CONSTRAINTS>(p, active, mode, normals_free, x, y, tol)
+        split_in::<T, N, DIM, MAX_CONSTRAINTS>(args, x, y, tol)
     }
 }
 
@@ -149,11 +202,15 @@ pub fn within_cones<T: Real, const N: usize>(
 /// `C` constraints.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
+#[allow(clippy::type_complexity)]
 fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
-    p: &ImpactProblem<T, N>,
-    active: &[bool; N],
-    mode: &[SlipState; N],
-    normals_free: bool,
+    (p, active, mode, normals_free, freedom): (
+        &ImpactProblem<T, N>,
+        &[bool; N],
+        &[SlipState; N],
+        bool,
+        Freedom,
+    ),
     x: &mut [T; N],
     y: &mut [T; N],
     tol: T,
@@ -199,18 +256,42 @@ fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
             (T::ZERO, T::ONE)
         }
     };
-    // Q = E^T W E.
+    // Q = E^T W E (internal forces), or the equations' matrix A (all their
+    // solutions): the null space is taken of either.
     let mut q = [[T::ZERO; D]; D];
-    for a in 0..m {
-        let (na, ta) = comp(a);
-        let i = u.contact[a];
-        for b in 0..m {
-            let (nb, tb) = comp(b);
-            let j = u.contact[b];
-            q[a][b] = na * nb * p.w_nn[i][j]
-                + na * tb * p.w_nt[i][j]
-                + ta * nb * p.w_nt[j][i]
-                + ta * tb * p.w_tt[i][j];
+    match freedom {
+        Freedom::Internal => {
+            for a in 0..m {
+                let (na, ta) = comp(a);
+                let i = u.contact[a];
+                for b in 0..m {
+                    let (nb, tb) = comp(b);
+                    let j = u.contact[b];
+                    q[a][b] = na * nb * p.w_nn[i][j]
+                        + na * tb * p.w_nt[i][j]
+                        + ta * nb * p.w_nt[j][i]
+                        + ta * tb * p.w_tt[i][j];
+                }
+            }
+        }
+        Freedom::ModeEquations => {
+            // The equations' own square matrix A = S W E: one row per unknown,
+            // in the unknowns' order (contact i's normal row for its normal
+            // unknown, its tangential row for a sticking one's tangential).
+            // Row (i, normal) at unknown b: W_nn[i][j] n_b + W_nt[i][j] t_b; row
+            // (i, tangential): W_tn[i][j] n_b + W_tt[i][j] t_b.
+            for a in 0..m {
+                let i = u.contact[a];
+                for b in 0..m {
+                    let (nb, tb) = comp(b);
+                    let j = u.contact[b];
+                    q[a][b] = if u.normal[a] {
+                        nb * p.w_nn[i][j] + tb * p.w_nt[i][j]
+                    } else {
+                        nb * p.w_nt[j][i] + tb * p.w_tt[i][j]
+                    };
+                }
+            }
         }
     }
     let mut weights = [T::ONE; D];
@@ -634,6 +715,61 @@ mod tests {
         a[1][1] = 0.0;
         b[1] = 0.0;
         assert!(!closest_split(&a, &b, 2, 2, 1e-12, &mut c));
+    }
+
+    /// Three feet on one line, slipping, each with its own friction (not linear
+    /// in the feet's positions): the columns `J_n - mu s J_t` of the three are
+    /// independent, so there is no internal force, but the normal rows see only two of the body's three coordinates, so
+    /// the equations that hold the feet's normal rates leave one direction free
+    /// (it changes the slip's rate). A split with a foot pulling is out of reach of
+    /// the internal forces and within reach of the equations' solutions: moved
+    /// there, every normal rate is `>= 0` and every foot's normal velocity rate is
+    /// the one it had.
+    #[test]
+    fn slipping_feet_of_unequal_friction_share_along_the_equations() {
+        let body = PlanarBody {
+            mass: 2.0,
+            inertia: 7.3e-3,
+            position: [0.0, 0.03],
+            velocity: [0.0, 0.0],
+            angular_velocity: 0.0,
+        };
+        let feet = [(-0.1, 0.2), (0.0, 0.7), (0.1, 0.3)].map(|(x, mu)| BodyContact {
+            point: [x, 0.0],
+            normal: [0.0, 1.0],
+            law: ContactLaw {
+                restitution: 0.0,
+                friction: mu,
+                weight: 1.0,
+            },
+        });
+        let p: ImpactProblem<f64, 3> = body_problem(&body, None, &feet, ImpactLaw::Newton);
+        let active = [true; 3];
+        let mode = [SlipState::SlipPositive; 3];
+        let slip = |x: &[f64; 3]| core::array::from_fn(|i| -p.contacts[i].friction * x[i]);
+        let x0 = [5.0, -1.0, 5.0];
+        let (du_n0, _) = p.velocity_change(&x0, &slip(&x0));
+        let (mut x, mut y) = (x0, slip(&x0));
+        let internal = within_cones(&p, &active, &mode, true, &mut x, &mut y, 1e-9);
+        assert_eq!(internal, Split::Infeasible, "no internal force: {x:?}");
+        let (mut x, mut y) = (x0, slip(&x0));
+        let s = within_mode_equations(&p, &active, &mode, &mut x, &mut y, 1e-9);
+        assert_eq!(s, Split::Moved, "{x:?}");
+        assert!(x.iter().all(|&v| v >= -1e-9), "{x:?}");
+        let kept = slip(&x);
+        for i in 0..3 {
+            assert!(
+                (y[i] - kept[i]).abs() <= 1e-12,
+                "y = -mu s x: {y:?} against {kept:?}"
+            );
+        }
+        let (du_n, _) = p.velocity_change(&x, &y);
+        for i in 0..3 {
+            assert!(
+                (du_n[i] - du_n0[i]).abs() <= 1e-9 * du_n0[i].abs().max(1.0),
+                "{du_n:?} against {du_n0:?}"
+            );
+        }
     }
 
     /// A level platform (mass 2 kg, inertia 7.3e-3 kg m^2, centre at height h)

@@ -15,7 +15,7 @@
 
 use shared::impact::lcp::{solve_states_into, Direction};
 use shared::impact::linalg::Solved;
-use shared::impact::split::within_cones;
+use shared::impact::split::{within_cones, within_mode_equations};
 use shared::impact::{ImpactOutcome, ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
@@ -217,13 +217,15 @@ impl Plant {
                 None,
                 d,
             ) {
-                let (x, y) = self.share_within_cones(closed, modes, sys, d, how);
+                let (x, y, motion) = self.share_within_cones(closed, modes, sys, d, how);
+                // The internal forces do no work: accelerations from either split,
+                // unless the split changed the slipping contacts' motion.
+                let (fx, fy) = if motion { (&x, &y) } else { (&d.x, &d.y) };
                 for (r, &j) in closed.iter().enumerate() {
                     lambda_n[j] = x[r];
                     lambda_t[j] = y[r];
-                    // The internal forces do no work: accelerations from either split.
                     for i in 0..n {
-                        acc[i] += d.x[r] * sys.minv_jn[r][i] + d.y[r] * sys.minv_jt[r][i];
+                        acc[i] += fx[r] * sys.minv_jn[r][i] + fy[r] * sys.minv_jt[r][i];
                     }
                 }
             }
@@ -244,6 +246,15 @@ impl Plant {
     /// stick check uses). Where no split holds every cone, the forces are left where
     /// the largest violation is smallest, and the stick event function
     /// (`mu lambda_n - |lambda_t|`) reports it.
+    ///
+    /// Where no split of the internal forces keeps every normal force `>= 0` and
+    /// a closed contact slips, the split is sought among every solution of the
+    /// modes' equations (`shared::impact::split::within_mode_equations`): their
+    /// slipping contacts' motion is then not fixed by the equations, and the
+    /// mode decision chose one such solution where none pulls (two hinged bodies
+    /// slipping on feet along one line: the internal forces alone left a foot at
+    /// -0.56 N right after the decision). The third value is true when that split
+    /// is the one taken: the accelerations then follow from its forces.
     pub(super) fn share_within_cones(
         &self,
         closed: &[usize],
@@ -251,7 +262,7 @@ impl Plant {
         sys: &ContactSystem,
         d: &Direction<f64, MAX_CONTACTS>,
         how: Solved,
-    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS]) {
+    ) -> ([f64; MAX_CONTACTS], [f64; MAX_CONTACTS], bool) {
         let (mut x, mut y) = (d.x, d.y);
         let mut active = [false; MAX_CONTACTS];
         let mut mode = [SlipState::Stick; MAX_CONTACTS];
@@ -268,23 +279,24 @@ impl Plant {
             })
         };
         if inside(&x, &y) || how == Solved::Unique {
-            return (x, y);
+            return (x, y, false);
         }
         let scale =
             (0..closed.len()).fold(f64::MIN_POSITIVE, |s, r| s.max(x[r].abs()).max(y[r].abs()));
         // Never finer than the mode decision's tolerance on forces (a thousandth of
         // eps_F, `decide_modes`): a split the decision found within it is found
         // here too, rather than replaced by the least violation.
-        within_cones(
-            &sys.problem,
-            &active,
-            &mode,
-            true,
-            &mut x,
-            &mut y,
-            (1e-9 * scale).max(1e-3 * self.force_tolerance()),
-        );
-        (x, y)
+        let tol = (1e-9 * scale).max(1e-3 * self.force_tolerance());
+        let split = within_cones(&sys.problem, &active, &mode, true, &mut x, &mut y, tol);
+        let slipping = (0..closed.len()).any(|r| mode[r] != SlipState::Stick);
+        if split.feasible() || !slipping {
+            return (x, y, false);
+        }
+        let (mut mx, mut my) = (d.x, d.y);
+        if within_mode_equations(&sys.problem, &active, &mode, &mut mx, &mut my, tol).feasible() {
+            return (mx, my, true);
+        }
+        (x, y, false)
     }
 
     /// The contact problem of the contacts `set`: Delassus matrix
