@@ -657,7 +657,23 @@ fn decide_in<T: Real, const N: usize, const C: usize>(
 ) -> bool {
     let mut work: Lemke<T, C> = Lemke::new();
     let n = lcp.size();
-    let outcome = work.solve(lcp, pivot_cap(n));
+    let mut outcome = work.solve(lcp, pivot_cap(n));
+    // Where the path ends without a solution (a ray: the matrix is not
+    // copositive with a slipping contact; the cap; a failed check), the paths of
+    // two other covering vectors, rising and falling along the unknowns: a
+    // bounded number of extra solves, so the cost stays polynomial.
+    let rising = |i: usize| T::ONE + T::from_f64(i as f64 / n as f64);
+    let falling = |i: usize| T::ONE + T::from_f64((n - i) as f64 / n as f64);
+    if !outcome.solved() {
+        let first = outcome;
+        outcome = work.solve_covering(lcp, pivot_cap(n), rising);
+        if !outcome.solved() {
+            outcome = work.solve_covering(lcp, pivot_cap(n), falling);
+        }
+        if !outcome.solved() {
+            outcome = first;
+        }
+    }
     d.outcome = outcome;
     if !outcome.solved() {
         return false;

@@ -168,8 +168,23 @@ impl<T: Real, const C: usize> Lemke<T, C> {
         &self.w[..self.n]
     }
 
-    /// Solves `p` within `cap` pivots. Panics if `p.size() > C`.
+    /// Solves `p` within `cap` pivots, with the covering vector `(1, ..., 1)`.
+    /// Panics if `p.size() > C`.
     pub fn solve<P: Lcp<T>>(&mut self, p: &P, cap: usize) -> Outcome {
+        self.solve_covering(p, cap, |_| T::ONE)
+    }
+
+    /// [`Lemke::solve`] with the covering vector `d` (`d(i) > 0` for every `i`):
+    /// the start frees the row of the least `q_i / d_i`. Another covering vector
+    /// starts another path: where `M` is not copositive, one path can end at a
+    /// secondary ray while another reaches a solution (Cottle, Pang & Stone,
+    /// sec. 4.4, the role of `d`).
+    pub fn solve_covering<P: Lcp<T>>(
+        &mut self,
+        p: &P,
+        cap: usize,
+        d: impl Fn(usize) -> T,
+    ) -> Outcome {
         let n = p.size();
         assert!(n <= C, "LCP of size {n} in a workspace of {C}");
         self.n = n;
@@ -181,9 +196,9 @@ impl<T: Real, const C: usize> Lemke<T, C> {
             q_scale = q_scale.max(qi.abs());
             self.z[i] = T::ZERO;
             self.w[i] = qi;
-            // The row that z0 = max(-q_i) frees first; ties: the later row (the
-            // lexicographic rule on `(-q_i, -e_i)`).
-            let ratio = qi;
+            // The row that z0 = max(-q_i / d_i) frees first; ties: the later row
+            // (the lexicographic rule on `(-q_i, -e_i)`).
+            let ratio = qi / d(i);
             if ratio <= most_negative {
                 most_negative = ratio;
                 r = i;
@@ -207,7 +222,7 @@ impl<T: Real, const C: usize> Lemke<T, C> {
             self.binv[i][i] = T::ONE;
             self.xb[i] = p.q(i);
             self.basis[i] = i;
-            self.col[i] = -T::ONE;
+            self.col[i] = -d(i);
         }
         let z0 = 2 * n;
         self.pivot(r, n);

@@ -329,3 +329,168 @@ fn solve_into_a_kept_outcome_is_solve() {
     }
     assert!(solved > 200, "only {solved} of 400 impacts solved");
 }
+
+/// A plant's decision where the path of the covering vector `(1, ..., 1)` ends at
+/// a secondary ray although a solution exists (the enumeration finds one): four
+/// feet of two hinged bodies, all at zero slip, at t = 0.6017 s of
+/// `benchmarks/contacts_random.py --seed 6 --bodies 2` (its Delassus blocks and
+/// accelerations as the plant built them). Before the other covering vectors were
+/// tried, the plant took it for a Painleve configuration and gave the four feet a
+/// tangential impact, 35 times at that instant. Now a consistent direction is
+/// found: every normal rate `>= 0`, every normal acceleration `>= 0` and zero where
+/// the contact takes force, each slipping contact on its cone's edge and moving
+/// the way it slips.
+#[test]
+fn another_covering_vector_finds_what_the_first_path_missed() {
+    let mut p = ImpactProblem::<f64, 4>::new(ImpactLaw::Newton);
+    p.len = 4;
+    p.w_nn = [
+        [
+            0.9778672866393399,
+            -0.11911653557079555,
+            -0.19741033149299997,
+            0.07018903438855507,
+        ],
+        [
+            -0.11911653557079549,
+            1.1424162159703455,
+            0.9480455678103157,
+            -0.3370771117169793,
+        ],
+        [
+            -0.19741033149299997,
+            0.9480455678103159,
+            1.0090958298050967,
+            0.6585250726668469,
+        ],
+        [
+            0.070189034388555,
+            -0.33707711171697907,
+            0.658525072666847,
+            4.279197287141201,
+        ],
+    ];
+    p.w_nt = [
+        [
+            0.20847719646719592,
+            0.20847735516486873,
+            0.03379560991112361,
+            0.03379590702586675,
+        ],
+        [
+            -0.23845046136569936,
+            -0.23845064386821926,
+            0.17898785962551297,
+            0.1789864327578013,
+        ],
+        [
+            -0.2166254264635885,
+            -0.21662559217358512,
+            -0.018461511917876233,
+            -0.018461901155496924,
+        ],
+        [
+            0.07702044005916764,
+            0.07702049897725594,
+            -0.7680352668110316,
+            -0.7680312467899397,
+        ],
+    ];
+    p.w_tt = [
+        [
+            0.4820391765230291,
+            0.48203924117884056,
+            0.3699654584165445,
+            0.36996578445063627,
+        ],
+        [
+            0.4820392411788406,
+            0.4820393058347014,
+            0.3699654374119757,
+            0.3699657634463169,
+        ],
+        [
+            0.3699654584165446,
+            0.36996543741197574,
+            0.5513177263509828,
+            0.5513168941015755,
+        ],
+        [
+            0.3699657844506363,
+            0.3699657634463169,
+            0.5513168941015755,
+            0.5513160618570637,
+        ],
+    ];
+    let mu = [0.66, 0.38, 0.22, 0.37];
+    for i in 0..4 {
+        p.contacts[i] = ContactLaw {
+            restitution: 0.0,
+            friction: mu[i],
+            weight: 1.0,
+        };
+    }
+    let base_n = [
+        -18.5143974359369,
+        -18.954620299603743,
+        -16.41495749179006,
+        -7.471928092418011,
+    ];
+    let base_t = [
+        9.492611157494633,
+        9.492611221180479,
+        7.464838519045246,
+        7.464848448462957,
+    ];
+    let (velocity, impulse) = (9.810000000000001e-9, 2.4721199999999998e-8);
+    let tol = Tolerances {
+        velocity,
+        impulse,
+        zero_slip: 0.0,
+    };
+    let zeros = [0.0; 4];
+    let rule = NormalRule::TargetAll(&zeros);
+    let (b_n, b_t) = (&base_n, &base_t);
+    let mut oracle = Direction::default();
+    enumerated_direction(&p, b_n, b_t, &zeros, rule, &tol, &mut oracle);
+    assert!(
+        oracle.consistent && oracle.ends_at_one,
+        "the enumeration finds one: {oracle:?}"
+    );
+    let d = find_direction(&p, b_n, b_t, &zeros, rule, &tol);
+    assert!(d.consistent && d.ends_at_one, "{d:?}");
+    let scale = 1e-9 * 30.0;
+    for i in 0..4 {
+        let (un, ut) = (base_n[i] + d.du_n[i], base_t[i] + d.du_t[i]);
+        assert!(
+            d.x[i] >= 0.0 && un >= -scale,
+            "contact {i}: x {}, u_n {un}",
+            d.x[i]
+        );
+        assert!(
+            !d.active[i] || un.abs() <= scale,
+            "contact {i}: active, u_n {un}"
+        );
+        assert!(
+            d.active[i] || d.x[i] == 0.0,
+            "contact {i}: released with x {}",
+            d.x[i]
+        );
+        match d.mode[i] {
+            SlipState::Stick => {
+                assert!(d.y[i].abs() <= mu[i] * d.x[i] + scale && ut.abs() <= scale)
+            }
+            s => {
+                let sign = s.sign::<f64>();
+                assert!(
+                    (d.y[i] + mu[i] * sign * d.x[i]).abs() <= scale,
+                    "contact {i}: off the cone's edge"
+                );
+                assert!(
+                    sign * ut >= -scale,
+                    "contact {i}: slips against its motion, {ut}"
+                );
+            }
+        }
+    }
+}
