@@ -154,8 +154,11 @@ pub fn respond(
         reason(status),
         body.len()
     );
-    w.write_all(head.as_bytes())?;
-    w.write_all(body)?;
+    // One write: the head and the body leave together, so that a client never
+    // holds the head alone when the connection ends.
+    let mut whole = head.into_bytes();
+    whole.extend_from_slice(body);
+    w.write_all(&whole)?;
     w.flush()
 }
 

@@ -314,7 +314,56 @@ fn refuse(stream: TcpStream, status: u16, why: &str) {
 /// [`refuse`] with `extra` header lines (each ending in CRLF).
 fn refuse_with(mut stream: TcpStream, status: u16, extra: &str, why: &str) {
     let _ = stream.set_nonblocking(true);
-    let _ = http::respond_text(&mut stream, status, extra, why);
+    if http::respond_text(&mut stream, status, extra, why).is_ok() {
+        linger(stream);
+    }
+}
+
+/// Most refused connections closed lingering at once ([`linger`]); past it, a
+/// refused connection closes at once.
+const LINGERING: usize = 16;
+
+/// How long a refused connection is drained before it closes.
+const LINGER: Duration = Duration::from_secs(2);
+
+/// Refused connections lingering now.
+static LINGERING_NOW: AtomicUsize = AtomicUsize::new(0);
+
+/// Closes a connection whose answer was written while its client may still be
+/// sending (a request refused before it arrived whole): the end of the answer
+/// first (`shutdown(Write)`, after the answer's bytes), then what the client
+/// still sends read and dropped until it closes too, for at most [`LINGER`], on a
+/// thread of its own. A socket closed with bytes unread sends a reset, and a
+/// client that receives the reset before it has read the answer loses it (seen
+/// under load: a 408 whose body never arrived). At most [`LINGERING`] at once.
+fn linger(stream: TcpStream) {
+    if LINGERING_NOW.fetch_add(1, Ordering::SeqCst) >= LINGERING {
+        LINGERING_NOW.fetch_sub(1, Ordering::SeqCst);
+        return;
+    }
+    let spawned = std::thread::Builder::new()
+        .name("linger".into())
+        .spawn(move || {
+            let mut stream = stream;
+            let _ = stream.shutdown(std::net::Shutdown::Write);
+            let _ = stream.set_nonblocking(false);
+            let until = Instant::now() + LINGER;
+            let mut sink = [0u8; 512];
+            loop {
+                let left = until.saturating_duration_since(Instant::now());
+                if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
+                    break;
+                }
+                match stream.read(&mut sink) {
+                    Ok(0) | Err(_) => break,
+                    Ok(_) => {}
+                }
+            }
+            LINGERING_NOW.fetch_sub(1, Ordering::SeqCst);
+        });
+    if spawned.is_err() {
+        LINGERING_NOW.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 /// A whole request answered: refused here, or handed to a thread.
