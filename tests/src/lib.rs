@@ -9,6 +9,25 @@ pub mod two_bodies;
 
 use std::path::{Path, PathBuf};
 
+use host_sim::machine::Machine;
+use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::motor::Winding;
+use host_sim::plant::simulator::{Holds, Plant, Settings};
+
+/// The plant of `m` at its start state with the default settings, nothing held
+/// and both windings open: a mechanism left to its own motion (no motor torque),
+/// as the Painleve tests take it.
+pub fn unpowered_plant(m: &Machine) -> Plant {
+    let mut plant = Plant::new(
+        PlantModel::new(m),
+        initial_state(m),
+        Settings::default(),
+        Holds::default(),
+    );
+    plant.set_winding([Winding::Open, Winding::Open]);
+    plant
+}
+
 /// `text` written to the file `name` in the folder `dir` (created if missing), for
 /// a test that hands a file to a reader: a test passes its
 /// `env!("CARGO_TARGET_TMPDIR")` joined with a folder of its own.

@@ -7,10 +7,8 @@
 use std::path::Path;
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
-use host_sim::plant::motor::Winding;
-use host_sim::plant::simulator::{Holds, Plant, Settings};
 use host_sim::simulation::trace::EventKind;
+use tests::unpowered_plant;
 
 const G: f64 = 9.81;
 const MASS: f64 = 2.0;
@@ -82,14 +80,7 @@ fn the_configuration_has_no_consistent_contact_force() {
 
 #[test]
 fn painleve_is_reported_and_resolved_by_a_tangential_impact() {
-    let m = machine();
-    let mut plant = Plant::new(
-        PlantModel::new(&m),
-        initial_state(&m),
-        Settings::default(),
-        Holds::default(),
-    );
-    plant.set_winding([Winding::Open, Winding::Open]);
+    let mut plant = unpowered_plant(&machine());
     let energy0 = plant.mechanical_energy();
 
     // Reported at t = 0 for K1.

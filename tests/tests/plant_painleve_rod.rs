@@ -28,10 +28,10 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
-use host_sim::plant::motor::Winding;
-use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
+use host_sim::plant::model::PlantModel;
+use host_sim::plant::simulator::{Output, Plant};
 use host_sim::simulation::trace::EventKind;
+use tests::unpowered_plant;
 
 const M: f64 = 1.0;
 const L: f64 = 1.0;
@@ -135,15 +135,7 @@ fn plant_slide(plant: &Plant) -> (Slide, f64) {
 }
 
 fn plant() -> Plant {
-    let m = machine();
-    let mut plant = Plant::new(
-        PlantModel::new(&m),
-        initial_state(&m),
-        Settings::default(),
-        Holds::default(),
-    );
-    plant.set_winding([Winding::Open, Winding::Open]);
-    plant
+    unpowered_plant(&machine())
 }
 
 /// Before the jam the plant slides the rod as the slip equations do: its angle,

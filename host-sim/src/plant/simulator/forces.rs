@@ -270,13 +270,18 @@ impl Plant {
             active[r] = true;
             mode[r] = modes[j].slip_state();
         }
+        // How far contact r's forces miss: a pull, or a sticking force outside
+        // its cone, N (<= 0 when they hold).
+        let miss = |r: usize, x: &[f64; MAX_CONTACTS], y: &[f64; MAX_CONTACTS]| {
+            let cone = if mode[r] == SlipState::Stick {
+                y[r].abs() - sys.problem.contacts[r].friction * x[r]
+            } else {
+                f64::NEG_INFINITY
+            };
+            cone.max(-x[r])
+        };
         let inside = |x: &[f64; MAX_CONTACTS], y: &[f64; MAX_CONTACTS]| {
-            (0..closed.len()).all(|r| {
-                let tol = 1e-9 * (x[r].abs() + y[r].abs());
-                x[r] >= -tol
-                    && (mode[r] != SlipState::Stick
-                        || y[r].abs() <= sys.problem.contacts[r].friction * x[r] + tol)
-            })
+            (0..closed.len()).all(|r| miss(r, x, y) <= 1e-9 * (x[r].abs() + y[r].abs()))
         };
         if inside(&x, &y) || how == Solved::Unique {
             return (x, y, false);
@@ -302,14 +307,7 @@ impl Plant {
         // the forces (and the lift-off event's function) stay continuous there
         // rather than jumping to the internal forces' least violation.
         let violation = |x: &[f64; MAX_CONTACTS], y: &[f64; MAX_CONTACTS]| {
-            (0..closed.len()).fold(0.0f64, |v, r| {
-                let cone = if mode[r] == SlipState::Stick {
-                    y[r].abs() - sys.problem.contacts[r].friction * x[r]
-                } else {
-                    f64::NEG_INFINITY
-                };
-                v.max(-x[r]).max(cone)
-            })
+            (0..closed.len()).fold(0.0f64, |v, r| v.max(miss(r, x, y)))
         };
         if violation(&mx, &my) < violation(&x, &y) {
             (mx, my, true)

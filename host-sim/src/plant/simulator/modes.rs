@@ -313,7 +313,17 @@ impl Plant {
         tol_f: f64,
         new: &mut [ContactMode],
     ) {
+        // The common decision leaves no contact at the boundary: no evaluation.
+        let at_boundary = |new: &[ContactMode]| {
+            candidates
+                .iter()
+                .enumerate()
+                .any(|(r, &j)| new[j].closed() && x[r] <= tol_f)
+        };
         for _ in 0..candidates.len() {
+            if !at_boundary(new) {
+                return;
+            }
             let e = self.evaluate_with_modes(&self.y, new);
             let pulling = candidates
                 .iter()
