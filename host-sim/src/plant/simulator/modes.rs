@@ -65,12 +65,7 @@ impl Plant {
         // A current that reached its driver's limit is held there.
         self.clamp_currents();
         for _ in 0..16 {
-            let q = self.q();
-            let v = self.v();
-            let pose = Pose::new(&self.model, &q);
-            let kin: Vec<ContactKinematics> = (0..self.model.contacts.len())
-                .map(|j| pose.contact(&self.model, j, &v))
-                .collect();
+            let mut kin = self.kinematics();
             let touching: Vec<usize> = (0..kin.len())
                 .filter(|j| kin[*j].gap <= self.settings.together_gap)
                 .collect();
@@ -81,6 +76,9 @@ impl Plant {
                 self.impact(&touching);
                 continue;
             }
+            if self.end_slips(&touching, &kin) {
+                kin = self.kinematics();
+            }
             self.decide_modes(&touching, &kin);
             return;
         }
@@ -90,54 +88,88 @@ impl Plant {
         ));
     }
 
-    /// The modes of the touching contacts (not approaching) from the
-    /// complementarity problem at acceleration level; the rest open.
-    pub(super) fn decide_modes(&mut self, touching: &[usize], kin: &[ContactKinematics]) {
-        let old = self.modes.clone();
-        // A slip that ended (its event fires within the velocity tolerance of zero)
-        // ends exactly: the least mass-weighted velocity change that zeroes its
-        // slip and keeps the closed contacts' normal velocities, so the choice
-        // between stick and slip starts from zero slip and cannot chatter. Still
-        // needed with the cone-aware stick check (it is about the slip velocity,
-        // not the split): without it `closed_loop` takes 89 s instead of 1.6 s,
-        // `plant_references` 332 s instead of 0.3 s, and
-        // `both_feet_sticking_stay_inside_their_cones` fails.
-        // Only where friction can stop the slip: the snap is the friction impulse
-        // that would have ended it; a frictionless contact has none (and no
-        // slip-end event), so nothing may change its slip.
-        let ending: Vec<usize> = (0..old.len())
+    /// Every contact's kinematics at the current state.
+    fn kinematics(&self) -> Vec<ContactKinematics> {
+        let q = self.q();
+        let v = self.v();
+        let pose = Pose::new(&self.model, &q);
+        (0..self.model.contacts.len())
+            .map(|j| pose.contact(&self.model, j, &v))
+            .collect()
+    }
+
+    /// Ends exactly the slips that ended (their event fires within the velocity
+    /// tolerance of zero): the least mass-weighted velocity change that zeroes
+    /// their slip and keeps the closed contacts' normal velocities, so the choice
+    /// between stick and slip starts from zero slip and cannot chatter. Returns
+    /// true where it changed the velocities.
+    ///
+    /// The open contacts among the `touching` that the change would make approach
+    /// (a foot that has just struck, beside one whose slip ended: 3 mm/s) keep
+    /// their normal velocity too: the friction impulse is one the floor can give
+    /// without another impact. (Left free, such a foot closed while approaching,
+    /// and the decision made for it left its neighbour pulling, -1.6 N.)
+    ///
+    /// Still needed with the cone-aware stick check (it is about the slip
+    /// velocity, not the split): without it `closed_loop` takes 89 s instead of
+    /// 1.6 s, `plant_references` 332 s instead of 0.3 s, and
+    /// `both_feet_sticking_stay_inside_their_cones` fails. Only where friction can
+    /// stop the slip: the snap is the friction impulse that would have ended it; a
+    /// frictionless contact has none (and no slip-end event), so nothing may
+    /// change its slip.
+    fn end_slips(&mut self, touching: &[usize], kin: &[ContactKinematics]) -> bool {
+        let modes = &self.modes;
+        let ending: Vec<usize> = (0..modes.len())
             .filter(|&j| {
                 matches!(
-                    old[j],
+                    modes[j],
                     ContactMode::SlipPositive | ContactMode::SlipNegative
                 ) && kin[j].u_t.abs() <= 2.0 * self.settings.velocity_tolerance
                     && self.model.contacts[j].law.friction > 0.0
             })
             .collect();
-        let refreshed: Vec<ContactKinematics>;
-        let kin = if ending.is_empty() {
-            kin
-        } else {
-            let q = self.q();
-            let v = self.v();
-            let frame = self.frame(&q);
-            let mut rows = Vec::new();
-            for j in 0..old.len() {
-                if old[j].closed() {
-                    let k = frame.contact(&self.model, j, &v);
-                    rows.push((k.j_n, frame.solve(&k.j_n), k.u_n));
-                    if ending.contains(&j) || old[j] == ContactMode::Stick {
-                        rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
-                    }
+        if ending.is_empty() {
+            return false;
+        }
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let mut rows = Vec::new();
+        for (j, mode) in self.modes.iter().enumerate() {
+            if mode.closed() {
+                let k = frame.contact(&self.model, j, &v);
+                rows.push((k.j_n, frame.solve(&k.j_n), k.u_n));
+                if ending.contains(&j) || *mode == ContactMode::Stick {
+                    rows.push((k.j_t, frame.solve(&k.j_t), k.u_t));
                 }
             }
+        }
+        let before = self.y;
+        self.project_rows(&rows);
+        let tolerance = self.settings.velocity_tolerance;
+        let after = self.kinematics();
+        let turned: Vec<usize> = touching
+            .iter()
+            .copied()
+            .filter(|&j| {
+                !self.modes[j].closed() && kin[j].u_n >= -tolerance && after[j].u_n < -tolerance
+            })
+            .collect();
+        if !turned.is_empty() {
+            self.y = before;
+            for &j in &turned {
+                let k = frame.contact(&self.model, j, &v);
+                rows.push((k.j_n, frame.solve(&k.j_n), 0.0));
+            }
             self.project_rows(&rows);
-            let v = self.v();
-            refreshed = (0..old.len())
-                .map(|j| frame.contact(&self.model, j, &v))
-                .collect();
-            &refreshed
-        };
+        }
+        true
+    }
+
+    /// The modes of the touching contacts (not approaching) from the
+    /// complementarity problem at acceleration level; the rest open.
+    pub(super) fn decide_modes(&mut self, touching: &[usize], kin: &[ContactKinematics]) {
+        let old = self.modes.clone();
         let mut new = vec![ContactMode::Open; self.modes.len()];
         let candidates: Vec<usize> = touching
             .iter()
