@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The real `host-sim device` against the firmware in QEMU: builds the firmware's
-# `qemu-uart` build (the `qemu` build with the link served on the emulated USART2
-# instead of the scripted host), runs it on QEMU's netduinoplus2 (STM32F405) with
-# USART2 on a TCP port, and runs a sequence of `host-sim device --port tcp:...`
-# commands against it, checking each one's output:
+# binary `qemu-uart` (the controller on the rotor model, as in the binary `qemu`,
+# with the link served on the emulated USART2 instead of a scripted host), runs it
+# on QEMU's netduinoplus2 (STM32F405) with USART2 on a TCP port, and runs a
+# sequence of `host-sim device --port tcp:...` commands against it, checking each
+# one's output:
 #
 #   status (idle), table write + table read (the example table, then one with the
 #   right offsets +5 deg: read back equal), self-test (done, both rotors pass, 4096
@@ -38,16 +39,17 @@ TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/target}"
 FIRMWARE_TARGET_DIR="${CARGO_TARGET_DIR:-$ROOT/firmware/target}"
 case "$TARGET_DIR" in /*) ;; *) TARGET_DIR="$ROOT/$TARGET_DIR" ;; esac
 case "$FIRMWARE_TARGET_DIR" in /*) ;; *) FIRMWARE_TARGET_DIR="$ROOT/$FIRMWARE_TARGET_DIR" ;; esac
-ELF="$FIRMWARE_TARGET_DIR/thumbv7em-none-eabihf/release/firmware"
+ELF="$FIRMWARE_TARGET_DIR/thumbv7em-none-eabihf/release/qemu-uart"
 HOST_SIM="$TARGET_DIR/debug/host-sim"
 TABLE="examples/vibro-driver.tuning.toml"
 SPEED=3000
 
-(cd firmware && cargo build --release --locked --features qemu-uart)
+(cd firmware && cargo build --release --locked --features qemu --bin qemu-uart)
 cargo build --locked -p host-sim
 
 WORK="$(mktemp -d)"
-# The board and qemu builds write the same path: run a copy.
+# Run a copy, so that a build started meanwhile cannot swap the ELF under QEMU or
+# defmt-print.
 cp "$ELF" "$WORK/firmware-qemu-uart"
 ELF="$WORK/firmware-qemu-uart"
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the firmware's `qemu` build, runs it on QEMU's netduinoplus2 (STM32F405)
+# Builds the firmware's binary `qemu`, runs it on QEMU's netduinoplus2 (STM32F405)
 # and compares its decoded log with firmware/qemu/expected.txt.
 #
 #   bash scripts/firmware-qemu.sh            # build, run, compare
@@ -25,13 +25,13 @@ case "${1:-}" in
 esac
 
 EXPECTED="firmware/qemu/expected.txt"
-ELF="${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/firmware"
+ELF="${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/qemu"
 case "$ELF" in /*) ;; *) ELF="$ROOT/$ELF" ;; esac
 
-(cd firmware && cargo build --release --locked --features qemu)
+(cd firmware && cargo build --release --locked --features qemu --bin qemu)
 
-# The board build (no feature) is written to the same path: run a copy, so that a
-# board build started meanwhile cannot swap the ELF under QEMU or defmt-print.
+# Run a copy, so that a build started meanwhile cannot swap the ELF under QEMU or
+# defmt-print.
 WORK="$(mktemp -d)"
 trap 'rm -rf "$WORK"' EXIT
 cp "$ELF" "$WORK/firmware-qemu"

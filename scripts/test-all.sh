@@ -18,8 +18,8 @@ cd "$ROOT"
 # The STM32F405's core: Cortex-M4F with the single-precision FPU.
 FIRMWARE_TARGET="thumbv7em-none-eabihf"
 # The firmware is built from firmware/, so its target directory is firmware/target
-# unless CARGO_TARGET_DIR says otherwise.
-FIRMWARE_ELF="${CARGO_TARGET_DIR:-firmware/target}/$FIRMWARE_TARGET/release/firmware"
+# unless CARGO_TARGET_DIR says otherwise; the board's binary is `board`.
+FIRMWARE_ELF="${CARGO_TARGET_DIR:-firmware/target}/$FIRMWARE_TARGET/release/board"
 
 # The steps, in the order they run.
 STEPS=(
@@ -173,9 +173,10 @@ step_firmware_fmt() {
 }
 
 step_firmware_clippy() {
+    # The library and the board's binary; then with the feature `qemu`, which adds
+    # the `qemu` module and the binaries `qemu` and `qemu-uart`.
     (cd firmware && cargo clippy --release --locked -- -D warnings)
     (cd firmware && cargo clippy --release --locked --features qemu -- -D warnings)
-    (cd firmware && cargo clippy --release --locked --features qemu-uart -- -D warnings)
     # A one-rotor machine compiles too (motor 2's bridge never driven), in its own
     # target folder so that the default build is not redone.
     (cd firmware && VIBRO_MACHINE=../tests/fixtures/one-rotor-machine.toml \
@@ -209,14 +210,14 @@ step_firmware_size() {
     }'
 }
 
-# The `qemu` build on QEMU's STM32F405 (netduinoplus2): the controller, the link
+# The binary `qemu` on QEMU's STM32F405 (netduinoplus2): the controller, the link
 # and a scripted host; its checks and its log against firmware/qemu/expected.txt
 # (docs/firmware-qemu.md).
 step_firmware_qemu() {
     bash scripts/firmware-qemu.sh
 }
 
-# The real `host-sim device` against the `qemu-uart` build in QEMU, over the
+# The real `host-sim device` against the binary `qemu-uart` in QEMU, over the
 # emulated USART2 on a TCP port: status, table write/read, self-test, travel,
 # telemetry CSV, stop (docs/firmware-qemu.md, "The link on the emulated USART").
 step_firmware_qemu_device() {

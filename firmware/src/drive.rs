@@ -1,8 +1,8 @@
 //! The two H-bridges, driven by the shared driver (`shared::drive::HBridge`) over
-//! any PWM outputs: the board's TIM8 channels (`motor_out`), or the `qemu` build's
-//! emulated compare registers (`qemu::pwm`). The same code decides what each
-//! bridge input does in both builds; what is specific to the board (the timer's
-//! main output enable, its break input) stays in `motor_out`.
+//! any PWM outputs: the board's TIM8 channels (`motor_out`), or the `qemu`
+//! binaries' emulated compare registers (`qemu::pwm`). The same code decides what
+//! each bridge input does on the board and in QEMU; what is specific to the board
+//! (the timer's main output enable, its break input) stays in `motor_out`.
 //!
 //! The decay mode is the machine file's (`[drive] decay`, compiled in as
 //! `MACHINE.bridge`): slow decay by default, the mean winding voltage `duty x V_s`
@@ -18,7 +18,7 @@ pub const TIMER_HZ: u32 = 168_000_000;
 
 /// TIM8's setup for the machine's `[drive]`: centre-aligned at `pwm_hz`
 /// (`ARR = 4200` at 20 kHz), an update every `periods_per_update` periods. The
-/// board's timer (`motor_out`) and the `qemu` build's emulated compare registers
+/// board's timer (`motor_out`) and the `qemu` binaries' emulated compare registers
 /// (`qemu::pwm`) both take their full scale, `ARR`, from here.
 pub const PWM_TIMER: CentreAligned = CentreAligned::new(TIMER_HZ, crate::machine::MACHINE.bridge);
 

@@ -6,37 +6,127 @@
 //! | `panic` | a Rust panic (no input path panics; this is the last line) |
 //! | `HardFault` | a fault with its own handler disabled, a fault in a handler, or a stack overflow ([`guard_stack`]) |
 //! | `MemoryManagement`, `BusFault`, `UsageFault` | enabled at start ([`enable_fault_exceptions`]): a bad access, a bus error, an undefined instruction or a division by zero |
-//! | `NonMaskableInt` | the clock security system: the crystal (HSE) stopped ([`css_tripped`]) |
+//! | `NonMaskableInt` | the clock security system: the crystal (HSE) stopped ([`SafeState::clock_failed`]) |
 //! | `DefaultHandler` | an interrupt nothing is bound to (cortex-m-rt's own default is `loop {}`, which would leave the bridges at their last duty) |
 //!
-//! On the board, cutting is `motor_out::cut` (TIM8's main output enable off, every
-//! bridge input low: coast), then the log, then a wait with interrupts off for the
-//! independent watchdog, which nothing feeds any more: it resets the chip within
-//! `watchdog::Timeout::RUN` (34-94 ms over the LSI's spread). The next start
-//! reads the watchdog flag and the controller starts in `Fault` with
-//! `WATCHDOG_RESET` latched: the motors never restart on their own after a crash.
-//! (A debugger halting the core freezes the watchdog, so the state can be read.)
+//! Each binary defines them once, with
+//! [`exception_handlers!`](crate::exception_handlers) and the [`SafeState`] of
+//! its build: how it cuts, and how it stops.
 //!
-//! In the `qemu` builds (no motors, no watchdog): the emulated bridge inputs are
-//! zeroed (`qemu::pwm::cut`), then the log, then QEMU exits with a failure
-//! status, so a panic or a fault (a stack overflow, with flip-link) fails the run
-//! instead of hanging it. An unexpected interrupt is the exception: the scripted
-//! host pends one on purpose as its last step, and the handler checks that the
-//! bridges it found driven are now cut, then ends the run with the verdict
-//! (`qemu::script`).
+//! On the board ([`Board`]), cutting is `motor_out::cut` (TIM8's main output
+//! enable off, every bridge input low: coast), then the log, then a wait with
+//! interrupts off for the independent watchdog, which nothing feeds any more: it
+//! resets the chip within `watchdog::Timeout::RUN` (34-94 ms over the LSI's
+//! spread). The next start reads the watchdog flag and the controller starts in
+//! `Fault` with `WATCHDOG_RESET` latched: the motors never restart on their own
+//! after a crash. (A debugger halting the core freezes the watchdog, so the state
+//! can be read.)
+//!
+//! In the `qemu` binaries (no motors, no watchdog; `qemu::safe_state`): the
+//! emulated bridge inputs are zeroed (`qemu::pwm::cut`), then the log, then QEMU
+//! exits with a failure status, so a panic or a fault (a stack overflow, with
+//! flip-link) fails the run instead of hanging it. An unexpected interrupt is the
+//! exception in the scripted run: the scripted host pends one on purpose as its
+//! last step, and the handler checks that the bridges it found driven are now
+//! cut, then ends the run with the verdict (`qemu::script`).
 
 use core::panic::PanicInfo;
 
 use cortex_m::peripheral::scb::Exception;
 use cortex_m::peripheral::SCB;
+use cortex_m_rt::ExceptionFrame;
 
-/// Every bridge input off, from any context.
-#[inline(always)]
-fn cut() {
-    #[cfg(not(feature = "qemu"))]
-    crate::motor_out::cut();
-    #[cfg(feature = "qemu")]
-    crate::qemu::pwm::cut();
+/// How a build reaches its safe state from any context, the handlers' own
+/// included: the bridges cut, then a stop for good.
+pub trait SafeState {
+    /// Every bridge input off, from any context.
+    fn cut();
+    /// Whether any bridge was driven.
+    fn driven() -> bool;
+    /// Whether the clock security system found the crystal stopped (the NMI's
+    /// cause); clears its flag. `false` where there is none.
+    fn clock_failed() -> bool {
+        false
+    }
+    /// Stop after the cut and the log, with interrupts off.
+    fn halt() -> !;
+    /// After an unexpected interrupt's cut: `irqn` the interrupt, `driven`
+    /// whether a bridge was driven before the cut. [`SafeState::halt`] unless
+    /// the build expects one.
+    fn unexpected(irqn: i16, driven: bool) -> ! {
+        let _ = (irqn, driven);
+        Self::halt()
+    }
+}
+
+/// The board: [`motor_out::cut`](crate::motor_out::cut), then a wait for the
+/// watchdog's reset.
+pub struct Board;
+
+impl SafeState for Board {
+    #[inline(always)]
+    fn cut() {
+        crate::motor_out::cut();
+    }
+
+    fn driven() -> bool {
+        crate::motor_out::outputs_enabled()
+    }
+
+    fn clock_failed() -> bool {
+        css_tripped()
+    }
+
+    /// Wait with interrupts off for the watchdog reset.
+    fn halt() -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+}
+
+/// The panic handler, the fault, NMI and default handlers of a binary, each
+/// cutting through `$safe` ([`SafeState`]) first. Used once, in the binary's root;
+/// they come together, so a binary without them does not build (no panic handler)
+/// and none runs with cortex-m-rt's default handlers.
+#[macro_export]
+macro_rules! exception_handlers {
+    ($safe:ty) => {
+        #[panic_handler]
+        fn panic(info: &::core::panic::PanicInfo) -> ! {
+            $crate::exceptions::panic::<$safe>(info)
+        }
+
+        #[::cortex_m_rt::exception]
+        unsafe fn HardFault(frame: &::cortex_m_rt::ExceptionFrame) -> ! {
+            $crate::exceptions::hard_fault::<$safe>(frame)
+        }
+
+        #[::cortex_m_rt::exception]
+        fn MemoryManagement() -> ! {
+            $crate::exceptions::configurable_fault::<$safe>("memory management fault")
+        }
+
+        #[::cortex_m_rt::exception]
+        fn BusFault() -> ! {
+            $crate::exceptions::configurable_fault::<$safe>("bus fault")
+        }
+
+        #[::cortex_m_rt::exception]
+        fn UsageFault() -> ! {
+            $crate::exceptions::configurable_fault::<$safe>("usage fault")
+        }
+
+        #[::cortex_m_rt::exception]
+        unsafe fn NonMaskableInt() {
+            $crate::exceptions::non_maskable::<$safe>()
+        }
+
+        #[::cortex_m_rt::exception]
+        unsafe fn DefaultHandler(irqn: i16) {
+            $crate::exceptions::unexpected_interrupt::<$safe>(irqn)
+        }
+    };
 }
 
 /// Bytes at the bottom of the stack that the MPU forbids ([`guard_stack`]).
@@ -91,44 +181,31 @@ pub fn enable_fault_exceptions(scb: &mut SCB) {
     unsafe { scb.ccr.modify(|r| r | (1 << 4)) };
 }
 
-#[panic_handler]
-fn panic(info: &PanicInfo) -> ! {
+/// A Rust panic: cut, log, stop.
+#[inline(always)]
+pub fn panic<S: SafeState>(info: &PanicInfo) -> ! {
     // Motors off, with no task left to switch them on again: interrupts stay off.
     cortex_m::interrupt::disable();
-    cut();
+    S::cut();
     defmt::error!("panic: {}", defmt::Display2Format(info));
-    halt()
+    S::halt()
 }
 
-#[cortex_m_rt::exception]
-unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+/// HardFault: cut, log where, stop.
+#[inline(always)]
+pub fn hard_fault<S: SafeState>(frame: &ExceptionFrame) -> ! {
     cortex_m::interrupt::disable();
-    cut();
+    S::cut();
     defmt::error!("hard fault at pc {=u32:#010x}", frame.pc());
-    halt()
-}
-
-#[cortex_m_rt::exception]
-fn MemoryManagement() -> ! {
-    configurable_fault("memory management fault")
-}
-
-#[cortex_m_rt::exception]
-fn BusFault() -> ! {
-    configurable_fault("bus fault")
-}
-
-#[cortex_m_rt::exception]
-fn UsageFault() -> ! {
-    configurable_fault("usage fault")
+    S::halt()
 }
 
 /// The three configurable faults: cut, log the cause register, stop.
-fn configurable_fault(what: &str) -> ! {
+pub fn configurable_fault<S: SafeState>(what: &str) -> ! {
     cortex_m::interrupt::disable();
-    cut();
+    S::cut();
     defmt::error!("{=str}, CFSR {=u32:#010x}", what, cfsr());
-    halt()
+    S::halt()
 }
 
 /// The NMI: on this board only the clock security system raises it. The core
@@ -136,51 +213,28 @@ fn configurable_fault(what: &str) -> ! {
 /// hardware (RM0090: a clock failure is a break source of TIM1 and TIM8); cut
 /// anyway, clear the flag (an uncleared CSSF re-enters the NMI at once), and wait
 /// for the watchdog: the control loop's timing assumed the crystal.
-#[cortex_m_rt::exception]
-unsafe fn NonMaskableInt() {
+#[inline(always)]
+pub fn non_maskable<S: SafeState>() -> ! {
     cortex_m::interrupt::disable();
-    cut();
-    #[cfg(not(feature = "qemu"))]
-    let css = css_tripped();
-    #[cfg(feature = "qemu")]
-    let css = false;
+    S::cut();
+    let css = S::clock_failed();
     defmt::error!("NMI (clock security system: {=bool}): motors cut", css);
-    halt()
+    S::halt()
 }
 
 /// An interrupt without a task: cut, then stop (board) or check and end the run
-/// (qemu).
-#[cortex_m_rt::exception]
-unsafe fn DefaultHandler(irqn: i16) {
+/// (the scripted `qemu` run).
+#[inline(always)]
+pub fn unexpected_interrupt<S: SafeState>(irqn: i16) -> ! {
     cortex_m::interrupt::disable();
-    let driven = driven();
-    cut();
+    let driven = S::driven();
+    S::cut();
     defmt::error!(
         "unexpected interrupt {=i16}: motors cut (driven before: {=bool})",
         irqn,
         driven
     );
-    end_unexpected(irqn, driven)
-}
-
-/// Whether any bridge was driven.
-fn driven() -> bool {
-    #[cfg(not(feature = "qemu"))]
-    return crate::motor_out::outputs_enabled();
-    #[cfg(feature = "qemu")]
-    return crate::qemu::pwm::driven();
-}
-
-/// After an unexpected interrupt's cut: the scripted `qemu` run checks and ends.
-#[cfg(all(feature = "qemu", not(feature = "qemu-uart")))]
-fn end_unexpected(irqn: i16, driven: bool) -> ! {
-    crate::qemu::script::unexpected_interrupt(irqn, driven)
-}
-
-/// After an unexpected interrupt's cut: stop ([`halt`]).
-#[cfg(not(all(feature = "qemu", not(feature = "qemu-uart"))))]
-fn end_unexpected(_irqn: i16, _driven: bool) -> ! {
-    halt()
+    S::unexpected(irqn, driven)
 }
 
 /// The configurable fault status register (its bits name the fault's cause).
@@ -191,25 +245,10 @@ fn cfsr() -> u32 {
 
 /// Whether the clock security system found the HSE stopped (RCC_CIR.CSSF); clears
 /// the flag (CSSC), which the NMI needs to return or be left.
-#[cfg(not(feature = "qemu"))]
 fn css_tripped() -> bool {
     // SAFETY: reads RCC_CIR and writes its clear bit for CSSF only.
     let rcc = unsafe { &*stm32f4xx_hal::pac::RCC::ptr() };
     let tripped = rcc.cir().read().cssf().bit_is_set();
     rcc.cir().modify(|_, w| w.cssc().set_bit());
     tripped
-}
-
-/// Board: wait with interrupts off for the watchdog reset.
-#[cfg(not(feature = "qemu"))]
-fn halt() -> ! {
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-/// QEMU: exit with a failure status.
-#[cfg(feature = "qemu")]
-fn halt() -> ! {
-    crate::qemu::checks::exit(false)
 }

@@ -1,4 +1,4 @@
-//! The UART side of the host link, on the board and in the `qemu-uart` build.
+//! The UART side of the host link, on the board and in the binary `qemu-uart`.
 //! The protocol logic (decode, answer, telemetry, flash writes) is
 //! `shared::protocol::link`, tested on the host; this module holds only the byte
 //! ring between the RX interrupt and it, and the count of bytes lost on the way.

@@ -53,6 +53,12 @@ pub struct Logger {
     last_rx_dropped: u16,
 }
 
+impl Default for Logger {
+    fn default() -> Self {
+        Logger::new()
+    }
+}
+
 impl Logger {
     /// Nothing logged yet.
     pub const fn new() -> Self {

@@ -89,7 +89,7 @@ const NOT_RUN: &[(&str, &str, &str)] = &[
     ),
     (
         "docs/cli-device.md",
-        "--features qemu-uart",
+        "--bin qemu-uart",
         "the firmware in QEMU: the gate `firmware_qemu_device` (scripts/firmware-qemu-device.sh) runs these commands",
     ),
     (

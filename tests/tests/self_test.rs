@@ -542,8 +542,8 @@ fn the_state_travels_on_the_wire_as_code_5() {
     assert_eq!(State::SelfTest.name(), "self_test");
 }
 
-// The device end to end, as the firmware's control task is to glue it (the edit
-// proposed for firmware/src/main.rs): the link's RunSelfTest sets
+// The device end to end, as the firmware's control task glues it
+// (firmware/src/bin/board.rs): the link's RunSelfTest sets
 // `self_test_requested`; the control tick takes it and calls `start_self_test`
 // before its step, then publishes the status and copies the controller's report
 // into the link state (unless it is `NotRun`, which would hide the stored result),

@@ -1,4 +1,4 @@
-//! SysTick: the control tick of the `qemu` build, and the clock that times one
+//! SysTick: the control tick of the `qemu` binaries, and the clock that times one
 //! control step.
 //!
 //! QEMU's netduinoplus2 clocks SysTick (processor clock source) at a fixed
@@ -45,7 +45,7 @@ pub fn since_reload(reload: u32) -> u32 {
     reload.saturating_sub(now())
 }
 
-/// The control tick's timing in the `qemu` builds: [`TickClock`] on SysTick
+/// The control tick's timing in the `qemu` binaries: [`TickClock`] on SysTick
 /// counts, standing in for the board's TIM7 counter and DWT cycle counter. The
 /// free-running count is the ticks' whole periods plus the counts since the
 /// latest reload; exact while no tick is skipped (a skipped tick shows in the

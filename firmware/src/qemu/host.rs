@@ -52,6 +52,12 @@ pub struct Host {
     pub telemetry: TelemetryLog,
 }
 
+impl Default for Host {
+    fn default() -> Self {
+        Host::new()
+    }
+}
+
 impl Host {
     /// A host that has sent nothing.
     pub const fn new() -> Self {
@@ -117,7 +123,7 @@ impl Host {
             let busy = device.link.poll(
                 || input.next().copied(),
                 device.now_ms,
-                crate::Locked(state),
+                crate::port::Locked(state),
                 &mut *device.flash,
                 |frame_bytes| receive(decoder, answers, telemetry, bad, frame_bytes),
             );

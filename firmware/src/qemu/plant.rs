@@ -1,5 +1,5 @@
 //! A small model of the two rotors and their encoders, standing in for the board's
-//! sensors and H-bridges in the `qemu` build.
+//! sensors and H-bridges in the `qemu` binaries.
 //!
 //! Each rotor is a brushed DC motor with an inertia, at the reference machine's
 //! constants ([`MachineConstants::REFERENCE`]: `R = 2 ohm`, `k = 0.02 N m/A`,
@@ -114,6 +114,12 @@ impl Rotor {
 pub struct Plant {
     rotors: [Rotor; 2],
     m: MachineConstants,
+}
+
+impl Default for Plant {
+    fn default() -> Self {
+        Plant::new()
+    }
 }
 
 impl Plant {

@@ -1,4 +1,4 @@
-//! The `qemu` build's stand-in for TIM8's four compare registers (QEMU emulates no
+//! The `qemu` binaries' stand-in for TIM8's four compare registers (QEMU emulates no
 //! TIM8): PWM outputs for [`crate::drive::Drive`], the same driver the board runs,
 //! whose written values the rotor model ([`super::plant`]) reads as the bridges'
 //! inputs.

@@ -166,6 +166,12 @@ fn abs(x: f32) -> f32 {
     }
 }
 
+impl Default for Script {
+    fn default() -> Self {
+        Script::new()
+    }
+}
+
 impl Script {
     /// At its first step.
     pub const fn new() -> Self {
@@ -693,7 +699,7 @@ impl Script {
                         w.cost_self_test,
                     )
                 });
-                // Left out of the comparison as the other measurements (`main.rs`
+                // Left out of the comparison as the other measurements (`report`
                 // logs those, with the calibration to convert into instructions).
                 defmt::info!(
                     "measure: control step, self-test: {=u32} steps, mean {=u32} / max {=u32} SysTick counts",
@@ -999,10 +1005,19 @@ impl Script {
         self.step >= 28
     }
 
-    /// Whether the last step left the motors driven for the unexpected
-    /// interrupt ([`pend_unexpected`]).
-    pub fn armed(&self) -> bool {
-        self.armed
+    /// The run's end, after the measurements. When the last step left the motors
+    /// driven, the interrupt nothing is bound to is pended ([`pend_unexpected`]):
+    /// its default handler ends the run ([`unexpected_interrupt`]), and a run that
+    /// goes on past it fails. Otherwise the verdict.
+    pub fn end(&self) -> ! {
+        if self.armed {
+            pend_unexpected();
+            for _ in 0..1000 {
+                cortex_m::asm::nop();
+            }
+            check!(false, "the pended interrupt reached the default handler");
+        }
+        super::checks::finish()
     }
 }
 
@@ -1074,7 +1089,7 @@ pub fn pend_unexpected() {
     NVIC::pend(UNEXPECTED_IRQ);
 }
 
-/// The default handler's end of the run in the `qemu` build, after its cut:
+/// The default handler's end of the scripted run (binary `qemu`), after its cut:
 /// `irqn` the interrupt it took, `driven` whether a bridge input was high before
 /// the cut. Checks, then the verdict.
 pub fn unexpected_interrupt(irqn: i16, driven: bool) -> ! {

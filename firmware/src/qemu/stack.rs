@@ -102,7 +102,7 @@ pub fn paint_window(top: usize) {
     let mut p = top.saturating_sub(WINDOW).max(bottom);
     while p + 4 <= sp - MARGIN {
         // SAFETY: below this function's own frame: free stack (nothing preempts
-        // the control task in the qemu build).
+        // the control task in the binary `qemu`).
         unsafe { write_volatile(p as *mut u32, PAINT) };
         p += 4;
     }

@@ -1,4 +1,4 @@
-//! USART2 on QEMU's netduinoplus2: the link's UART in the `qemu-uart` build
+//! USART2 on QEMU's netduinoplus2: the link's UART in the binary `qemu-uart`
 //! (`docs/firmware-qemu.md`, "The link on the emulated USART").
 //!
 //! QEMU 7.2's STM32F2xx/F4 USART model implements SR, DR, BRR and CR1: a byte

@@ -5,8 +5,8 @@
 
 use shared::controller::{Faults, Outputs, State};
 
+use super::control::TickCounts;
 use super::plant::{Injected, Plant};
-use crate::TickCounts;
 
 /// The first tick in `Fault` after an injection, as the control task saw it.
 #[derive(Clone, Copy, Debug, PartialEq)]

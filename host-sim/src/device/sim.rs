@@ -1,7 +1,7 @@
 //! A device without hardware: the firmware's control task and link task, as
-//! `firmware/src/main.rs` runs them, on simulated [`Mechanics`] (the simple
-//! [`Rotors`] of the reference machine, or a machine file's whole plant,
-//! [`PlantMechanics`]) and a simulated flash.
+//! its board binary (`firmware/src/bin/board.rs`) runs them, on simulated
+//! [`Mechanics`] (the simple [`Rotors`] of the reference machine, or a machine
+//! file's whole plant, [`PlantMechanics`]) and a simulated flash.
 //!
 //! - control tick ([`SimDevice::tick`], at the controller's rate): advance the
 //!   mechanics one tick under the last outputs, take the command, a new tuning

@@ -1,0 +1,48 @@
+//! The controller and the link's state at start, on the board and in QEMU: the
+//! compiled-in machine ([`crate::machine`]) with the tuning table stored in flash,
+//! or the compiled-in one ([`crate::tuning`]) when none is stored.
+
+use embedded_storage::nor_flash::ReadNorFlash;
+use shared::controller::{Controller, Params, ResetCause, TuningTable};
+use shared::protocol::link::{use_stored, LinkState};
+use shared::storage;
+
+use crate::machine::MACHINE;
+use crate::tuning::TUNING_ROWS;
+
+/// The controller and the link's state at start: the compiled-in machine with the
+/// tuning table stored in `flash` (`&mut` the driver, or `&` a simulated flash), or
+/// the compiled-in one when none is stored (first start); the stored self-test
+/// result, if any.
+pub fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller, LinkState) {
+    let mut params = Params::from_machine(&MACHINE);
+    let stored = storage::load(flash);
+    match &stored {
+        Some(s) => defmt::info!("tuning table from flash, record {=u32}", s.sequence),
+        None => match TuningTable::from_rows(&TUNING_ROWS) {
+            Ok(table) => params.tuning = table,
+            Err(e) => defmt::error!("compiled-in tuning table rejected: {}", e),
+        },
+    }
+    use_stored(&mut params, stored.as_ref());
+    let controller = Controller::new(&params, reset_cause);
+    if let Some(e) = controller.params_error() {
+        defmt::error!(
+            "parameters invalid: {=str} must be {=str}",
+            e.field,
+            e.requirement
+        );
+    }
+    defmt::info!(
+        "vibro driver {=str}: reset cause {}, state {=str}, {=usize} tuning rows",
+        env!("CARGO_PKG_VERSION"),
+        reset_cause,
+        controller.state().name(),
+        TUNING_ROWS.len()
+    );
+    if !MACHINE.rotor_count.has_rotor2() {
+        defmt::info!("one rotor: its speed held, no phase loop; motor 2's bridge off");
+    }
+    let link = LinkState::at_start(&controller, stored.as_ref());
+    (controller, link)
+}
