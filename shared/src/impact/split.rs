@@ -297,7 +297,10 @@ fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
         *w = p.contacts[u.contact[r]].weight;
     }
     let mut basis = [[T::ZERO; D]; D];
-    let k = null_space(&mut q, m, &mut basis);
+    let k = match freedom {
+        Freedom::Internal => null_space(&mut q, m, &mut basis),
+        Freedom::ModeEquations => null_space_by_svd(&mut q, m, &mut basis),
+    };
     let k = orthonormalize(&mut basis, k, m, &weights);
     if k == 0 {
         // No internal force: the split is what the equations gave.
@@ -621,6 +624,86 @@ fn best_step<T: Real>(cs: &[(T, T)], target: T) -> T {
         }
     }
     best.1
+}
+
+/// Most sweeps of [`null_space_by_svd`]'s rotations (they converge
+/// quadratically: a few sweeps for the sizes here).
+const SVD_SWEEPS: usize = 30;
+
+/// A basis of the null space of the leading `m x m` block of `a` (destroyed), its
+/// vectors in the rows of `basis`, orthonormal; returns their number. By the
+/// one-sided Jacobi method (Hestenes 1958; Demmel & Veselic, *Jacobi's method is
+/// more accurate than QR*, SIAM J. Matrix Anal. Appl. 13, 1992): plane rotations
+/// `V` applied to the columns of `a` until every two are orthogonal, so that
+/// `a V = U S`; the columns of `V` whose column of `a V` has a norm (a singular
+/// value) within the rank tolerance of the largest span the null space.
+///
+/// The modes' equations' matrix can be close to losing two ranks (feet of two
+/// hinged bodies slipping on one line). There the null vector that Gauss-Jordan
+/// elimination returns depends on which pivots it takes, and changed direction
+/// between two states 1e-13 s apart, the split's forces and the lift-off's
+/// event function with it; the singular vector of the least singular value moves
+/// continuously while that value is simple.
+fn null_space_by_svd<T: Real, const D: usize>(
+    a: &mut [[T; D]; D],
+    m: usize,
+    basis: &mut [[T; D]; D],
+) -> usize {
+    let mut v = [[T::ZERO; D]; D];
+    for (i, row) in v.iter_mut().enumerate().take(m) {
+        row[i] = T::ONE;
+    }
+    for _ in 0..SVD_SWEEPS {
+        let mut rotated = false;
+        for p in 0..m {
+            for q in p + 1..m {
+                let (mut alpha, mut beta, mut gamma) = (T::ZERO, T::ZERO, T::ZERO);
+                for row in a.iter().take(m) {
+                    alpha += row[p] * row[p];
+                    beta += row[q] * row[q];
+                    gamma += row[p] * row[q];
+                }
+                if gamma.abs() <= T::EPSILON * (alpha * beta).sqrt() {
+                    continue;
+                }
+                rotated = true;
+                // The rotation that makes columns p and q orthogonal:
+                // zeta = (beta - alpha) / (2 gamma), t = sign(zeta) / (|zeta| +
+                // sqrt(1 + zeta^2)), c = 1 / sqrt(1 + t^2), s = c t.
+                let zeta = (beta - alpha) / (T::from_f64(2.0) * gamma);
+                let sign = if zeta < T::ZERO { -T::ONE } else { T::ONE };
+                let t = sign / (zeta.abs() + (T::ONE + zeta * zeta).sqrt());
+                let c = T::ONE / (T::ONE + t * t).sqrt();
+                let s = c * t;
+                for row in a.iter_mut().take(m).chain(v.iter_mut().take(m)) {
+                    let (x, y) = (row[p], row[q]);
+                    row[p] = c * x - s * y;
+                    row[q] = s * x + c * y;
+                }
+            }
+        }
+        if !rotated {
+            break;
+        }
+    }
+    let norm = |j: usize| {
+        a.iter()
+            .take(m)
+            .fold(T::ZERO, |s, row| s + row[j] * row[j])
+            .sqrt()
+    };
+    let largest = (0..m).fold(T::ZERO, |s, j| s.max(norm(j)));
+    let tol = rank_tolerance::<T>() * largest;
+    let mut k = 0;
+    for j in 0..m {
+        if norm(j) <= tol {
+            for (r, row) in v.iter().enumerate().take(m) {
+                basis[k][r] = row[j];
+            }
+            k += 1;
+        }
+    }
+    k
 }
 
 /// A basis of the null space of the leading `m x m` block of `q` (destroyed), by
@@ -1003,6 +1086,39 @@ mod tests {
             (least - 1e-9..least + 3e-3).contains(&largest),
             "{miss:?}: {x:?} {y:?}"
         );
+    }
+
+    /// The singular vectors' null space: of a rank-2 matrix the line through
+    /// (1, 1, -1), of a rank-1 one a plane, each orthonormal and annihilated.
+    #[test]
+    fn the_null_space_by_svd_is_orthonormal_and_annihilated() {
+        let cases: [([[f64; 3]; 3], usize); 2] = [
+            ([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [1.0, 0.0, 1.0]], 1),
+            ([[1.0, 1.0, 1.0], [2.0, 2.0, 2.0], [3.0, 3.0, 3.0]], 2),
+        ];
+        for (a, expected) in cases {
+            let mut work = a;
+            let mut basis = [[0.0; 3]; 3];
+            let k = null_space_by_svd(&mut work, 3, &mut basis);
+            assert_eq!(k, expected, "{a:?}");
+            for (i, u) in basis.iter().take(k).enumerate() {
+                for row in &a {
+                    let r: f64 = (0..3).map(|j| row[j] * u[j]).sum();
+                    assert!(r.abs() < 1e-12, "{a:?} {u:?}");
+                }
+                for (j, w) in basis.iter().take(k).enumerate() {
+                    let d: f64 = (0..3).map(|c| u[c] * w[c]).sum();
+                    let want = if i == j { 1.0 } else { 0.0 };
+                    assert!((d - want).abs() < 1e-12, "{basis:?}");
+                }
+            }
+        }
+        let mut a = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [1.0, 0.0, 1.0]];
+        let mut basis = [[0.0; 3]; 3];
+        null_space_by_svd(&mut a, 3, &mut basis);
+        let u = basis[0];
+        let along = (u[0] + u[1] - u[2]).abs() / 3f64.sqrt();
+        assert!((along - 1.0).abs() < 1e-12, "{u:?}");
     }
 
     /// A constraint the step cannot move, at `-1e-17` (a foot at zero force,
