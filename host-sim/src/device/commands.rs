@@ -379,12 +379,37 @@ fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
     }
 }
 
+/// Whether the controller took the self-test just acknowledged, asked every few
+/// milliseconds for at most [`TICK_WAIT_S`]: a self-test reported running is
+/// this one (a device refuses the request while one runs), and so is any
+/// report once the device's uptime moved past that of the first status asked
+/// after the Ack. (A device whose clock stands while its self-test runs, as a
+/// debugger can hold a board's control task, takes the test at the tick
+/// before that first status can be asked: its uptime never moves again, but
+/// the test is running.)
+fn self_test_taken(client: &mut Client) -> Result<bool, Failure> {
+    let first = client.status()?;
+    let start = Instant::now();
+    loop {
+        if read_self_test(client)?.status == SelfTestStatus::Running {
+            return Ok(true);
+        }
+        client.pump(Duration::from_millis(2))?;
+        if client.status()?.uptime_ms != first.uptime_ms {
+            return Ok(true);
+        }
+        if start.elapsed().as_secs_f64() >= TICK_WAIT_S {
+            return Ok(false);
+        }
+    }
+}
+
 fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     interrupt::catch();
     command(client, &Request::RunSelfTest)?;
     // Until the controller takes the request at its next tick, the device
     // reports the previous self-test's outcome: not this one's.
-    if !after_a_tick(client)?.1 {
+    if !self_test_taken(client)? {
         return Err(Failure::Device(format!(
             "error: the device accepted the self-test but its uptime stood for {TICK_WAIT_S} s: its report cannot be told from the last test's; ask `host-sim device --port PORT status` until its uptime moves, then again"
         )));
