@@ -89,9 +89,12 @@ impl FirmwareDriver {
         let mut session =
             Session::start(elf).map_err(|e| Failure::Run(format!("error: --firmware: {e}")))?;
         let mut buf = [0u8; Hello::LEN];
-        session
-            .receive(&mut buf)
-            .map_err(|e| Failure::Run(format!("error: --firmware {}: {e}", elf.display())))?;
+        session.receive(&mut buf).map_err(|e| {
+            Failure::Usage(format!(
+                "error: --firmware {}: no hello record from the firmware ({e}): is it the binary `pil`? build it with `{BUILD}`",
+                elf.display()
+            ))
+        })?;
         let hello = Hello::parse(&buf).map_err(|e| {
             Failure::Usage(format!(
                 "error: --firmware {}: its first record is no PIL hello ({e}): is it the binary `pil`? build it with `{BUILD}`",
@@ -101,14 +104,16 @@ impl FirmwareDriver {
         let crc = shared::codec::crc::crc32(&bytes);
         if (hello.machine_crc, hello.machine_len) != (crc, bytes.len() as u32) {
             return Err(Failure::Usage(format!(
-                "error: --firmware {}: built for the machine file {} (CRC-32 {:08x}, {} bytes), not for {} (CRC-32 {crc:08x}, {} bytes): rebuild it with `VIBRO_MACHINE={} {BUILD}` (a path relative to firmware/ or absolute)",
+                "error: --firmware {}: built for the machine file {} (CRC-32 {:08x}, {} bytes), not for {} (CRC-32 {crc:08x}, {} bytes): rebuild it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil`",
                 elf.display(),
                 String::from_utf8_lossy(hello.path_bytes()),
                 hello.machine_crc,
                 hello.machine_len,
                 machine_path.display(),
                 bytes.len(),
-                machine_path.display(),
+                std::fs::canonicalize(machine_path)
+                    .unwrap_or_else(|_| machine_path.to_path_buf())
+                    .display(),
             )));
         }
         let tick_us = (1e6 / rate).round() as u32;
@@ -215,13 +220,19 @@ impl Driver for FirmwareDriver {
     }
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
-        if self.failure.is_some() {
+        if self.failure.is_some() || self.session.is_none() {
             return ([BridgeCommand::Off; 2], [0.0; 2]);
         }
         match self.exchange(t, plant) {
             Ok(drive) => {
                 self.observe(t, drive.status);
                 self.bridges_of(&drive)
+            }
+            Err(_) if crate::interrupt::interrupted() => {
+                // Ctrl-C or SIGTERM: the run ends at this tick as any run does
+                // (its observer), with what was simulated up to there.
+                self.finish();
+                ([BridgeCommand::Off; 2], [0.0; 2])
             }
             Err(e) => {
                 self.failure = Some(format!(

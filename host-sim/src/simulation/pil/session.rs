@@ -155,7 +155,12 @@ impl Session {
         while done < buf.len() {
             let fd = self.from_firmware.as_raw_fd();
             let mut fds = [PollFd::new(fd, PollFlags::POLLIN)];
-            let ready = poll(&mut fds, 100).map_err(|e| format!("poll: {e}"))?;
+            let ready = match poll(&mut fds, 100) {
+                Ok(n) => n,
+                // A signal (Ctrl-C): its flag is looked at below.
+                Err(nix::errno::Errno::EINTR) => 0,
+                Err(e) => return Err(format!("poll: {e}")),
+            };
             if ready > 0 {
                 let n = self
                     .from_firmware
@@ -169,11 +174,11 @@ impl Session {
                 return Err(interrupt::interruption());
             }
             if let Some(status) = self.qemu.as_mut().and_then(|q| q.try_wait().ok().flatten()) {
-                return Err(format!("QEMU ended ({status}) {}", self.log_tail()));
+                return Err(format!("QEMU ended ({status}){}", self.log_tail()));
             }
             if since.elapsed() > Duration::from_secs(SILENCE_S) {
                 return Err(format!(
-                    "no record from the firmware for {SILENCE_S} s {}",
+                    "no record from the firmware for {SILENCE_S} s{}",
                     self.log_tail()
                 ));
             }
@@ -187,7 +192,7 @@ impl Session {
         let lines: Vec<&str> = log.lines().collect();
         let tail = lines[lines.len().saturating_sub(5)..].join("\n  ");
         if tail.is_empty() {
-            "(the firmware's log is empty)".to_string()
+            "; the firmware's log is empty".to_string()
         } else {
             format!("; the firmware's log ends:\n  {tail}")
         }
