@@ -97,7 +97,7 @@ fn the_firmware_in_the_loop_travels_as_the_controller_in_the_loop() {
     assert_eq!(p["state"], "running", "{p}");
     assert_eq!(p["faults"], s["faults"], "{p}");
     assert_eq!(p["firmware"]["log"], log.to_str().unwrap());
-    // The bar: mean velocity within 2 % of the controller in the loop's,
+    // The bar: mean velocity within 2 % of the controller in the loop's,
     // the phase error's RMS within 0.5 degree.
     let (vp, vs) = (number(&p, "mean_velocity"), number(&s, "mean_velocity"));
     assert!(
