@@ -8,7 +8,8 @@
 //!    and checks of `host-sim run`, and writes `OUT_DIR/machine.rs` with
 //!    `MACHINE: shared::controller::MachineConstants` from
 //!    `machine_file::machine_constants` (shared's formulas), for
-//!    `Params::from_machine(&MACHINE)` at init. The firmware ticks at
+//!    `Params::from_machine(&MACHINE)` at init, and the file's fingerprint
+//!    (`MACHINE_FILE_CRC32`, `MACHINE_FILE_LEN`) for the processor in the loop. The firmware ticks at
 //!    `CONTROL_RATE_HZ`: a machine file with another `rate_hz` fails. A machine
 //!    with one rotor builds: `MACHINE.rotor_count` is `RotorCount::One`, the
 //!    controller holds that rotor's speed and the second bridge stays off;
@@ -75,9 +76,11 @@ fn main() {
         )
     });
     let constants = machine_constants(&machine);
+    let machine_bytes = fs::read(&machine_path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", machine_path.display()));
     fs::write(
         out_dir.join("machine.rs"),
-        machine_rs(&constants, &machine_path),
+        machine_rs(&constants, &machine_path) + &fingerprint_rs(&machine_bytes),
     )
     .expect("cannot write machine.rs");
 
@@ -258,6 +261,22 @@ pub fn machine_rs(m: &MachineConstants, path: &Path) -> String {
         m.bridge.decay, m.bridge.pwm_hz
     ));
     code
+}
+
+/// The machine file's fingerprint for `OUT_DIR/machine.rs` (`host-sim run
+/// --firmware` compares it with the file it simulates, `shared::pil`):
+/// `MACHINE_FILE_CRC32`, CRC-32/ISO-HDLC of its bytes, and `MACHINE_FILE_LEN`.
+pub fn fingerprint_rs(bytes: &[u8]) -> String {
+    format!(
+        "\n/// CRC-32/ISO-HDLC of the machine file's bytes.\n\
+         #[allow(dead_code)]\n\
+         pub const MACHINE_FILE_CRC32: u32 = {:#010x};\n\
+         /// The machine file's length, bytes.\n\
+         #[allow(dead_code)]\n\
+         pub const MACHINE_FILE_LEN: u32 = {};\n",
+        shared::codec::crc::crc32(bytes),
+        bytes.len()
+    )
 }
 
 /// `OUT_DIR/tuning.rs`: the `TUNING_ROWS` constant, from the file at `path` (`None`:

@@ -107,6 +107,9 @@ step_doc() {
 
 # The host tests. The output is kept to total the counts at the end of the run.
 step_test() {
+    # The processor in the loop's tests (host-sim/tests/pil.rs) run the firmware's
+    # binary `pil` on QEMU; in CI they fail without it, so it is built first.
+    (cd firmware && cargo build --release --locked --features pil --bin pil)
     cargo test --workspace 2>&1 | tee "$TEST_LOG"
 }
 
@@ -177,6 +180,8 @@ step_firmware_clippy() {
     # the `qemu` module and the binaries `qemu` and `qemu-uart`.
     (cd firmware && cargo clippy --release --locked -- -D warnings)
     (cd firmware && cargo clippy --release --locked --features qemu -- -D warnings)
+    # The feature `pil` adds the `pil` module and the binary `pil` (docs/pil.md).
+    (cd firmware && cargo clippy --release --locked --features pil -- -D warnings)
     # A one-rotor machine compiles too (motor 2's bridge never driven), in its own
     # target folder so that the default build is not redone.
     (cd firmware && VIBRO_MACHINE=../tests/fixtures/one-rotor-machine.toml \
@@ -185,6 +190,7 @@ step_firmware_clippy() {
 
 step_firmware_build() {
     (cd firmware && cargo build --release --locked)
+    (cd firmware && cargo build --release --locked --features pil --bin pil)
 }
 
 # Flash and static RAM use of the release ELF, against the regions of memory.x.

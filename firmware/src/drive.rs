@@ -14,7 +14,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use shared::drive::{CentreAligned, Decay, HBridge};
 
 /// TIM8's clock, Hz: twice PCLK2 (84 MHz, `board::PCLK2_HZ`).
-pub const TIMER_HZ: u32 = 168_000_000;
+pub const TIMER_HZ: u32 = shared::drive::BOARD_TIMER_HZ;
 
 /// TIM8's setup for the machine's `[drive]`: centre-aligned at `pwm_hz`
 /// (`ARR = 4200` at 20 kHz), an update every `periods_per_update` periods. The

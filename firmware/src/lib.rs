@@ -10,6 +10,7 @@
 //! | `board` | the STM32F405RG board (`cargo run --release` flashes it) | tasks on TIM7, EXTI, USART2; defmt over RTT |
 //! | `qemu` (feature `qemu`) | QEMU's `netduinoplus2` | the control task on SysTick with the rotor model, a scripted host in `idle`; defmt over semihosting, exits with its verdict |
 //! | `qemu-uart` (feature `qemu`) | QEMU's `netduinoplus2` | the control task as in `qemu`, the link served on USART2 for a real host |
+//! | `pil` (feature `pil`) | QEMU's `netduinoplus2` | the control task on SysTick with host-sim's plant as its board, the link's bytes in the same records (`docs/pil.md`) |
 //!
 //! The modules:
 //! - [`board`]: pin map, clocks, peripheral setup, raw readings -> units;
@@ -31,6 +32,8 @@
 //!   the longer one around a flash erase);
 //! - [`flash`]: the parameter sectors as a NOR flash;
 //! - `qemu` (feature `qemu`): what replaces the peripheral layer in QEMU;
+//! - `pil` (feature `pil`): the board of the binary `pil`, host-sim over
+//!   semihosting records;
 //! - [`machine`], [`tuning`]: the machine's constants and the tuning table,
 //!   compiled in by build.rs;
 //! - `shared::controller`: the control law, states and faults (host-tested).
@@ -48,6 +51,8 @@ pub mod flash;
 pub mod link;
 pub mod log;
 pub mod motor_out;
+#[cfg(feature = "pil")]
+pub mod pil;
 pub mod port;
 #[cfg(feature = "qemu")]
 pub mod qemu;

@@ -36,6 +36,7 @@ pub mod codec;
 pub mod controller;
 pub mod drive;
 pub mod impact;
+pub mod pil;
 pub mod protocol;
 pub mod real;
 pub mod storage;

@@ -419,3 +419,36 @@ fn the_controller_cannot_start_the_rotors_on_a_fast_decay_bridge() {
         }
     }
 }
+
+/// The processor in the loop's command, the inputs' high fractions as the timer
+/// holds them (`compare / ARR`, ARR 4200 at 20 kHz), drives as the duty on the
+/// timer's grid does, and a duty between two steps of the grid as that step:
+/// the quantisation the timer makes. In both decay modes, at standstill.
+#[test]
+fn the_timers_inputs_drive_as_the_duty_they_quantise() {
+    use shared::drive::{compare, input_duties, Decay};
+    const ARR: u16 = 4200;
+    let current = |decay: &str, command: BridgeCommand| {
+        let (_, mut plant) = held(decay, 0.0);
+        plant.set_bridges([command, BridgeCommand::Off]);
+        plant.advance_to(60.0 * T, &mut |_| {}).unwrap();
+        plant.currents()[0]
+    };
+    for (decay, mode) in [("slow", Decay::Slow), ("fast", Decay::Fast)] {
+        // 0.3 + 1e-5 lies between two steps of 1/4200; the timer holds 0.3.
+        let asked = 0.3 + 1e-5;
+        let held_by_timer =
+            input_duties(asked as f32, mode).map(|f| f32::from(compare(f, ARR)) / f32::from(ARR));
+        let from_inputs = current(decay, BridgeCommand::Inputs(held_by_timer));
+        let on_grid = current(decay, BridgeCommand::Duty(0.3));
+        let off_grid = current(decay, BridgeCommand::Duty(asked));
+        assert!(
+            (from_inputs - on_grid).abs() < 1e-12,
+            "{decay}: {from_inputs} vs {on_grid}"
+        );
+        assert!(
+            (from_inputs - off_grid).abs() > 1e-6,
+            "{decay}: {from_inputs} vs {off_grid}"
+        );
+    }
+}

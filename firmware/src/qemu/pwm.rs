@@ -65,3 +65,8 @@ pub fn cut() {
 pub fn driven() -> bool {
     COMPARE.iter().any(|c| c.load(Ordering::Relaxed) != 0)
 }
+
+/// The four compare values as the driver last wrote them, CH1..CH4.
+pub fn compare_values() -> [u16; 4] {
+    COMPARE.each_ref().map(|c| c.load(Ordering::Relaxed))
+}

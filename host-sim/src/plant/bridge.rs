@@ -34,7 +34,9 @@
 //!
 //! The duty is taken in `f32`, as the firmware computes it; the timer's
 //! quantisation of the high fractions (4200 steps at 20 kHz) is not modelled
-//! (at most 1.2e-4 of the supply).
+//! for a duty (at most 1.2e-4 of the supply). A command of the inputs' high
+//! fractions themselves ([`BridgeCommand::Inputs`], the processor in the loop's:
+//! compare values over `ARR`) is taken as it is, quantised as the timer holds it.
 
 use shared::drive::{input_duties, period, BridgeConfig, Period};
 
@@ -45,6 +47,9 @@ use super::motor::Winding;
 pub enum BridgeCommand {
     /// A signed duty in `[-1, 1]` (clamped; a NaN coasts), `shared::drive`'s meaning.
     Duty(f64),
+    /// The high fractions `[IN1, IN2]` in `[0, 1]` of the two inputs, as the
+    /// timer holds them (its compare values over `ARR`), outputs enabled.
+    Inputs([f32; 2]),
     /// Outputs off: every switch open, the winding coasts.
     Off,
 }
@@ -71,8 +76,8 @@ pub struct Bridge {
     /// PWM period, s.
     period: f64,
     plan: Plan,
-    /// A duty waiting for the next update event.
-    pending: Option<f64>,
+    /// The inputs' high fractions waiting for the next update event.
+    pending: Option<[f32; 2]>,
     /// PWM periods per update event.
     every: u64,
     /// The index of the current PWM period (its start is `n T`).
@@ -96,9 +101,18 @@ impl Bridge {
         }
     }
 
-    /// The plan of duty `d` over a whole period.
-    fn plan(&self, d: f64) -> Plan {
-        let parts = period(input_duties(d as f32, self.config.decay));
+    /// The high fractions of the inputs for `command` (`None`: off).
+    fn inputs(&self, command: BridgeCommand) -> Option<[f32; 2]> {
+        match command {
+            BridgeCommand::Duty(d) => Some(input_duties(d as f32, self.config.decay)),
+            BridgeCommand::Inputs(f) => Some(f),
+            BridgeCommand::Off => None,
+        }
+    }
+
+    /// The plan of the inputs' high fractions `inputs` over a whole period.
+    fn plan(&self, inputs: [f32; 2]) -> Plan {
+        let parts = period(inputs);
         // A linear period: its mean voltage, `sum_j l_j u_j` of the supply
         // (`shared::drive::mean_fraction`, here in f64 from the parts' ends).
         let mut start = 0.0f64;
@@ -132,29 +146,30 @@ impl Bridge {
     /// as it was until then (coasting if the bridge was off).
     pub fn command(&mut self, command: BridgeCommand, t: f64) {
         let (n, at_start) = self.period_at(t);
-        match command {
-            BridgeCommand::Off => {
+        match self.inputs(command) {
+            None => {
                 self.plan = Plan::Coast;
                 self.pending = None;
             }
-            BridgeCommand::Duty(d) if at_start && n.is_multiple_of(self.every) => {
+            Some(f) if at_start && n.is_multiple_of(self.every) => {
                 self.n = n;
-                self.start_period(d);
+                self.start_period(f);
                 self.pending = None;
             }
-            BridgeCommand::Duty(d) => {
+            Some(f) => {
                 if !matches!(self.plan, Plan::Resolved(_)) {
                     // A constant plan has no switches to keep its period count.
                     self.n = n;
                 }
-                self.pending = Some(d);
+                self.pending = Some(f);
             }
         }
     }
 
-    /// Make duty `d`'s plan the one in force from the start of period `self.n`.
-    fn start_period(&mut self, d: f64) {
-        self.plan = self.plan(d);
+    /// Make the plan of the inputs' high fractions `inputs` the one in force from
+    /// the start of period `self.n`.
+    fn start_period(&mut self, inputs: [f32; 2]) {
+        self.plan = self.plan(inputs);
         self.part = 0;
     }
 
@@ -233,9 +248,9 @@ impl Bridge {
             _ => (self.n / self.every + 1) * self.every,
         };
         match self.pending {
-            Some(d) if self.n.is_multiple_of(self.every) => {
+            Some(f) if self.n.is_multiple_of(self.every) => {
                 self.pending = None;
-                self.start_period(d);
+                self.start_period(f);
             }
             _ => self.part = 0,
         }

@@ -37,12 +37,13 @@ use crate::output::file::Staged;
 use crate::output::progress::Progress;
 use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
+use crate::simulation::pil::FirmwareDriver;
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
     limits, simulate_observed, stop_message, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
 };
 use plot::plot_svg;
-use report::{summary_json, summary_table};
+use report::{summary_json, summary_table, summary_value};
 
 /// Arguments of `host-sim run`.
 #[derive(Debug, Args)]
@@ -88,6 +89,15 @@ pub struct RunArgs {
     /// Output format.
     #[command(flatten)]
     pub format: FormatArg,
+    /// Run the firmware's binary `pil` (built for this machine file:
+    /// `cd firmware && cargo build --release --features pil --bin pil`) on QEMU as
+    /// the controller, with the plant as its board (processor in the loop,
+    /// docs/pil.md); with --command.
+    #[arg(long, value_name = "ELF")]
+    pub firmware: Option<PathBuf>,
+    /// With --firmware: where its decoded defmt log goes (default: ELF.log).
+    #[arg(long, value_name = "FILE", requires = "firmware")]
+    pub firmware_log: Option<PathBuf>,
     /// Overrides.
     #[command(flatten)]
     pub set: SetArgs,
@@ -203,6 +213,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             None
         }
     };
+    if args.firmware.is_some() && args.command.is_none() {
+        problems.push(
+            "error: --firmware runs the firmware as the controller: give --command right|left|stop"
+                .to_string(),
+        );
+    }
     if args.command.is_none() && (args.speed.is_some() || args.offset.is_some()) {
         problems.push("error: --speed and --offset go with --command".to_string());
     }
@@ -241,7 +257,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // that cannot be built (its tuning table) is refused with nothing written.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
-    let (mut driver, how): (Box<dyn Driver>, String) = match &drive {
+    let (mut driver, how): (InTheLoop, String) = match &drive {
         Drive::OpenLoop(open_loop) => {
             if open_loop.volts().iter().any(|u| u.abs() > supply) {
                 warnings.push(format!(
@@ -253,16 +269,41 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                 OpenLoop::Voltages(v) => format!("open loop, {} V, {} V", v[0], v[1]),
                 OpenLoop::Voltage(v) => format!("open loop, {v} V, one rotor"),
             };
-            (Box::new(OpenLoopDriver::new(*open_loop, supply)), how)
+            (
+                InTheLoop::Host(Box::new(OpenLoopDriver::new(*open_loop, supply))),
+                how,
+            )
         }
         Drive::Controller(schedule) => {
             warnings.extend(closed_loop::constants_warning(&machine));
-            (
-                Box::new(ControllerDriver::new(&machine, schedule.clone())?),
-                describe_command(args, &machine),
-            )
+            let how = describe_command(args, &machine);
+            match &args.firmware {
+                Some(elf) => {
+                    if !args.set.keys.is_empty() {
+                        warnings.push(
+                            "--firmware with --set: the firmware's controller is built from the machine file as written; the overrides change the plant only"
+                                .to_string(),
+                        );
+                    }
+                    let firmware =
+                        FirmwareDriver::start(&machine, &args.machine.path, elf, schedule.clone())?;
+                    (
+                        InTheLoop::Firmware(Box::new(firmware)),
+                        format!("{how}, firmware {}", elf.display()),
+                    )
+                }
+                None => (
+                    InTheLoop::Host(Box::new(ControllerDriver::new(&machine, schedule.clone())?)),
+                    how,
+                ),
+            }
         }
     };
+    let firmware_log = args.firmware.as_ref().map(|elf| {
+        args.firmware_log
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{}.log", elf.display())))
+    });
 
     // The output files, checked and opened before the run: a path that cannot be
     // written is refused at once and nothing is left behind.
@@ -271,6 +312,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let events = staged.add_optional("--events", args.events.as_deref())?;
     let plot = staged.add_optional("--plot", args.plot.file.as_deref())?;
     let animation = staged.add_optional("--animate", args.animate.as_deref())?;
+    let log = staged.add_optional("--firmware-log", firmware_log.as_deref())?;
     let contacts = machine.contacts.len();
     if let Some(i) = trace {
         let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
@@ -304,9 +346,32 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         frames: animation.map(|_| Frames::new(&machine)),
         inner: &mut watch,
     };
-    let mut result = simulate_observed(&machine, &mut *driver, &options, &mut film);
+    let mut result = simulate_observed(&machine, driver.driver(), &options, &mut film);
+    let failure = driver.driver().failure();
     let frames = film.frames;
     watch.finish()?;
+    let firmware = match &mut driver {
+        InTheLoop::Firmware(f) => Some(f),
+        InTheLoop::Host(_) => None,
+    };
+    if let Some(f) = firmware {
+        f.finish();
+        warnings.extend(f.warnings());
+        if let Some(i) = log {
+            staged.write(i, f.log())?;
+        }
+    }
+    if let Some(why) = failure {
+        // The firmware's log is kept, to say why; nothing else is written.
+        if let (InTheLoop::Firmware(f), Some(path)) = (&driver, &firmware_log) {
+            let _ = std::fs::write(path, f.log());
+            return Err(Failure::Run(format!(
+                "{why}\nthe firmware's log: {}",
+                path.display()
+            )));
+        }
+        return Err(Failure::Run(why));
+    }
     result.summary.warnings.extend(warnings);
     // A run that is no travel (through the fundament, tipped over) has no way
     // it went.
@@ -335,9 +400,26 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         )));
     }
     staged.commit()?;
-    console.print(&match args.format.format {
-        Format::Json => summary_json(&result.summary),
-        Format::Table => summary_table(&result.summary),
+    let firmware_line = args.firmware.as_ref().zip(firmware_log.as_ref());
+    console.print(&match (args.format.format, firmware_line) {
+        (Format::Json, None) => summary_json(&result.summary),
+        (Format::Table, None) => summary_table(&result.summary),
+        (Format::Json, Some((elf, log))) => {
+            let mut v = summary_value(&result.summary);
+            v["firmware"] = serde_json::json!({
+                "elf": elf.display().to_string(),
+                "log": log.display().to_string(),
+            });
+            let mut text = serde_json::to_string_pretty(&v).unwrap_or_default();
+            text.push('\n');
+            text
+        }
+        (Format::Table, Some((elf, log))) => format!(
+            "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n",
+            summary_table(&result.summary),
+            elf.display(),
+            log.display()
+        ),
     });
     Ok(())
 }
@@ -421,6 +503,22 @@ impl Observer for Watch<'_> {
 
     fn stop_flag(&self) -> Option<&'static AtomicUsize> {
         Some(interrupt::flag())
+    }
+}
+
+/// What decides the bridges' commands at each tick: a driver of the host's
+/// (open loop, the controller in the loop) or the firmware on QEMU.
+enum InTheLoop {
+    Host(Box<dyn Driver>),
+    Firmware(Box<FirmwareDriver>),
+}
+
+impl InTheLoop {
+    fn driver(&mut self) -> &mut dyn Driver {
+        match self {
+            InTheLoop::Host(d) => &mut **d,
+            InTheLoop::Firmware(f) => &mut **f,
+        }
     }
 }
 

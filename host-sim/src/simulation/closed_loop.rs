@@ -29,7 +29,7 @@
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Outputs, Params, ResetCause, RotorCount, SelfTestReport, State,
+    Command, Controller, Faults, Outputs, Params, ResetCause, RotorCount, SelfTestReport, State,
 };
 use shared::tick::{self, Port};
 
@@ -142,10 +142,6 @@ impl ControllerDriver {
     pub fn rotor_count(&self) -> RotorCount {
         self.rotor_count
     }
-
-    fn event(&mut self, t: f64, kind: EventKind, detail: String) {
-        self.events.push(EventRow::controller(t, kind, detail));
-    }
 }
 
 impl Driver for ControllerDriver {
@@ -175,17 +171,9 @@ impl Driver for ControllerDriver {
         let bridges = board.bridges;
 
         // 5. Events: state changes and new faults.
-        let (old_state, old_faults) = self
-            .last
-            .map_or((State::Idle, Default::default()), |o| (o.state, o.faults));
-        if out.state != old_state || self.last.is_none() {
-            self.event(t, EventKind::State, out.state.name().to_string());
-        }
-        for name in out.faults.names() {
-            if !old_faults.names().any(|n| n == name) {
-                self.event(t, EventKind::Fault, name.to_string());
-            }
-        }
+        let before = self.last.map(|o| (o.state, o.faults));
+        self.events
+            .extend(controller_events(t, before, out.state, out.faults));
         self.last = Some(out);
         if self.record_history {
             self.history.push((t, out));
@@ -217,6 +205,32 @@ impl Driver for ControllerDriver {
     fn events(&mut self) -> Vec<EventRow> {
         std::mem::take(&mut self.events)
     }
+}
+
+/// The controller's events of a tick at `t`, s, that ended in `state` with
+/// `faults`, after a tick that ended in `before` (`None`: the first tick): the
+/// state, if it changed or this is the first tick, and every fault newly latched.
+pub fn controller_events(
+    t: f64,
+    before: Option<(State, Faults)>,
+    state: State,
+    faults: Faults,
+) -> Vec<EventRow> {
+    let mut events = Vec::new();
+    let (old_state, old_faults) = before.unwrap_or((State::Idle, Faults::default()));
+    if state != old_state || before.is_none() {
+        events.push(EventRow::controller(
+            t,
+            EventKind::State,
+            state.name().to_string(),
+        ));
+    }
+    for name in faults.names() {
+        if !old_faults.names().any(|n| n == name) {
+            events.push(EventRow::controller(t, EventKind::Fault, name.to_string()));
+        }
+    }
+    events
 }
 
 /// The link of the closed loop ([`shared::tick::Port`]): the scheduled commands

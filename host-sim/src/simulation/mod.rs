@@ -21,6 +21,7 @@ pub mod board;
 pub mod breach;
 pub mod closed_loop;
 pub mod limits;
+pub mod pil;
 pub mod summary;
 pub mod trace;
 
@@ -80,6 +81,11 @@ pub trait Driver {
     /// Events of the driver since the last call (state changes, faults).
     fn events(&mut self) -> Vec<EventRow> {
         Vec::new()
+    }
+    /// Why the driver cannot go on (the firmware in the loop lost): the run ends
+    /// at that tick. `None` by default.
+    fn failure(&self) -> Option<String> {
+        None
     }
 }
 
@@ -393,6 +399,9 @@ pub fn simulate_observed(
         }
         driver.before_tick(t, &mut plant);
         let (commands, duty) = driver.bridges(t, &plant);
+        if driver.failure().is_some() {
+            break;
+        }
         plant.set_bridges(commands);
         rec.duty = duty;
         if tick == 0 {

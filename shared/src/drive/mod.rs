@@ -139,6 +139,11 @@ impl BridgeConfig {
     }
 }
 
+/// The clock of the board's bridge timer (TIM8 on APB2 at twice PCLK2, 84 MHz),
+/// Hz: the firmware sets the timer up from it ([`CentreAligned::new`]), and the
+/// processor in the loop reads the compare values against the same full scale.
+pub const BOARD_TIMER_HZ: u32 = 168_000_000;
+
 /// The fastest rate of the timer's update event, Hz: at each one the board's
 /// ADC converts both currents and the supply (three conversions, about 10 us), so
 /// two updates must be further apart than that; above 50 kHz of PWM the update

@@ -243,6 +243,18 @@ impl StatusReport {
             rx_dropped: 0,
         }
     }
+
+    /// Its [`StatusReport::LEN`] payload bytes (as in [`Response::Status`]).
+    pub fn to_bytes(&self) -> [u8; StatusReport::LEN] {
+        let mut out = [0u8; StatusReport::LEN];
+        write_status(&mut Writer::new(&mut out), self);
+        out
+    }
+
+    /// The report of [`StatusReport::LEN`] payload bytes ([`StatusReport::to_bytes`]).
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, ParseError> {
+        read_status(bytes)
+    }
 }
 
 /// A message from the device.

@@ -1,0 +1,275 @@
+//! Processor in the loop (`host-sim run --firmware ELF`, `docs/pil.md`): the
+//! firmware's binary `pil` on QEMU drives the plant in place of the controller
+//! in the loop ([`super::closed_loop`]). At every control tick `t_k = k / rate`
+//! (tick `n = k + 1` of the firmware):
+//!
+//! 1. the plant's sensors are sampled as for the controller in the loop
+//!    ([`PlantBoard`]'s sample) and sent with the UART bytes the host's link
+//!    sends ([`host`]) as the record [`Sample`] of tick `n`;
+//! 2. the firmware's record [`Drive`] of tick `n` comes back: TIM8's compare
+//!    values and main output enable, which the plant's bridges take as the
+//!    timer's inputs ([`BridgeCommand::Inputs`]: `compare / ARR`, with `ARR` of
+//!    the board's timer for the machine's `[drive]`, quantised as the timer
+//!    quantises it), the tick's status report (for the events and the
+//!    summary) and the bytes the firmware's link sent;
+//! 3. the plant advances one control period.
+//!
+//! Before tick 1 the firmware's [`Hello`] must name the machine file simulated
+//! (its CRC-32 and length) and the machine's tick period.
+
+pub mod host;
+pub mod session;
+
+use std::path::{Path, PathBuf};
+
+use shared::controller::{Command, RotorCount, State};
+use shared::drive::{CentreAligned, BOARD_TIMER_HZ};
+use shared::pil::{Bytes, Drive, Hello, Sample};
+use shared::protocol::StatusReport;
+use shared::tick::Board;
+
+use crate::failure::Failure;
+use crate::machine::Machine;
+use crate::plant::bridge::BridgeCommand;
+use crate::plant::simulator::Plant;
+use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
+use crate::simulation::closed_loop::{controller_events, params};
+use crate::simulation::trace::EventRow;
+use crate::simulation::Driver;
+use host::Host;
+use session::Session;
+
+/// The command that builds the ELF.
+pub const BUILD: &str = "cd firmware && cargo build --release --features pil --bin pil";
+
+/// The firmware in the loop.
+pub struct FirmwareDriver {
+    session: Option<Session>,
+    elf: PathBuf,
+    sensors: BoardSensors,
+    supply: f64,
+    rotor_count: RotorCount,
+    /// The bridge timer's full scale, `ARR`.
+    arr: u16,
+    host: Host,
+    /// The firmware's tick number of the next exchange.
+    tick: u32,
+    last: Option<StatusReport>,
+    events: Vec<EventRow>,
+    failure: Option<String>,
+    log: String,
+}
+
+impl FirmwareDriver {
+    /// QEMU started on `elf` for `machine` (read from `machine_path`), its
+    /// [`Hello`] checked; the host's link sends `schedule`'s commands.
+    pub fn start(
+        machine: &Machine,
+        machine_path: &Path,
+        elf: &Path,
+        schedule: Vec<(f64, Command)>,
+    ) -> Result<Self, Failure> {
+        if !elf.is_file() {
+            return Err(Failure::Usage(format!(
+                "error: --firmware {}: no such file; build it with `{BUILD}` (VIBRO_MACHINE=FILE for another machine file than examples/vibro-driver.toml)",
+                elf.display()
+            )));
+        }
+        let missing: Vec<String> = [session::QEMU, session::DEFMT_PRINT]
+            .into_iter()
+            .filter_map(session::missing_tool)
+            .collect();
+        if !missing.is_empty() {
+            return Err(Failure::Usage(missing.join("\n")));
+        }
+        let bytes = std::fs::read(machine_path)
+            .map_err(|e| Failure::Usage(format!("error: {}: {e}", machine_path.display())))?;
+        let rate = machine.controller.rate_hz;
+        let p = params(machine)?;
+        let mut session =
+            Session::start(elf).map_err(|e| Failure::Run(format!("error: --firmware: {e}")))?;
+        let mut buf = [0u8; Hello::LEN];
+        session.receive(&mut buf).map_err(|e| {
+            Failure::Usage(format!(
+                "error: --firmware {}: no hello record from the firmware ({e}): is it the binary `pil`? build it with `{BUILD}`",
+                elf.display()
+            ))
+        })?;
+        let hello = Hello::parse(&buf).map_err(|e| {
+            Failure::Usage(format!(
+                "error: --firmware {}: its first record is no PIL hello ({e}): is it the binary `pil`? build it with `{BUILD}`",
+                elf.display()
+            ))
+        })?;
+        let crc = shared::codec::crc::crc32(&bytes);
+        if (hello.machine_crc, hello.machine_len) != (crc, bytes.len() as u32) {
+            return Err(Failure::Usage(format!(
+                "error: --firmware {}: built for the machine file {} (CRC-32 {:08x}, {} bytes), not for {} (CRC-32 {crc:08x}, {} bytes): rebuild it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil`",
+                elf.display(),
+                String::from_utf8_lossy(hello.path_bytes()),
+                hello.machine_crc,
+                hello.machine_len,
+                machine_path.display(),
+                bytes.len(),
+                std::fs::canonicalize(machine_path)
+                    .unwrap_or_else(|_| machine_path.to_path_buf())
+                    .display(),
+            )));
+        }
+        let tick_us = (1e6 / rate).round() as u32;
+        if hello.tick_us != tick_us {
+            return Err(Failure::Usage(format!(
+                "error: --firmware {}: ticks every {} us, the machine's rate_hz {rate} every {tick_us} us",
+                elf.display(),
+                hello.tick_us
+            )));
+        }
+        Ok(FirmwareDriver {
+            session: Some(session),
+            elf: elf.to_path_buf(),
+            sensors: BoardSensors::new(machine),
+            supply: machine.drive.supply_voltage,
+            rotor_count: p.rotor_count,
+            arr: CentreAligned::new(BOARD_TIMER_HZ, machine.drive.bridge).arr,
+            host: Host::new(schedule),
+            tick: 1,
+            last: None,
+            events: Vec::new(),
+            failure: None,
+            log: String::new(),
+        })
+    }
+
+    /// Stop QEMU and keep the firmware's log ([`FirmwareDriver::log`]).
+    pub fn finish(&mut self) {
+        if let Some(s) = self.session.take() {
+            self.log = s.finish();
+        }
+    }
+
+    /// The firmware's decoded defmt log (after [`FirmwareDriver::finish`]).
+    pub fn log(&self) -> &str {
+        &self.log
+    }
+
+    /// What the host's link noticed (a request refused, frames lost).
+    pub fn warnings(&self) -> Vec<String> {
+        self.host.warnings()
+    }
+
+    /// One exchange: the sample of tick `self.tick` out, its drive record in.
+    fn exchange(&mut self, t: f64, plant: &Plant) -> Result<Drive, String> {
+        let injected = Injected::default();
+        let mut board = PlantBoard {
+            sensors: &mut self.sensors,
+            plant,
+            t,
+            injected: &injected,
+            supply: self.supply,
+            bridges: ([BridgeCommand::Off; 2], [0.0; 2]),
+        };
+        let inputs = board.sample();
+        let mut rx = Bytes::default();
+        self.host.send(t, &mut rx);
+        let sample = Sample {
+            tick: self.tick,
+            encoder: inputs.encoder,
+            index: inputs.index,
+            current: inputs.current,
+            supply_voltage: inputs.supply_voltage,
+            estop: inputs.estop,
+            rx,
+        };
+        let session = self.session.as_mut().ok_or("the firmware has stopped")?;
+        session.send(&sample.to_bytes())?;
+        let mut buf = [0u8; Drive::LEN];
+        session.receive(&mut buf)?;
+        let drive = Drive::parse(&buf, self.tick)
+            .map_err(|e| format!("the firmware's record of tick {} refused: {e}", self.tick))?;
+        self.host.received(drive.tx.as_slice());
+        self.tick += 1;
+        Ok(drive)
+    }
+
+    /// The plant's bridge commands for the timer's state, and the duties to
+    /// record (`IN1 - IN2` high fractions: the duty in either decay mode).
+    fn bridges_of(&self, d: &Drive) -> ([BridgeCommand; 2], [f64; 2]) {
+        if !d.enabled {
+            return ([BridgeCommand::Off; 2], [0.0; 2]);
+        }
+        let arr = f32::from(self.arr);
+        let f = |ch: usize| (f32::from(d.compare[ch]) / arr).min(1.0);
+        let inputs = [0, 1].map(|k| [f(2 * k), f(2 * k + 1)]);
+        (
+            inputs.map(BridgeCommand::Inputs),
+            inputs.map(|[a, b]| f64::from(a - b)),
+        )
+    }
+
+    fn observe(&mut self, t: f64, s: StatusReport) {
+        let before = self.last.map(|o| (o.state, o.faults));
+        self.events
+            .extend(controller_events(t, before, s.state, s.faults));
+        self.last = Some(s);
+    }
+}
+
+impl Driver for FirmwareDriver {
+    fn before_tick(&mut self, _t: f64, plant: &mut Plant) {
+        plant.set_supply(self.supply);
+    }
+
+    fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
+        if self.failure.is_some() || self.session.is_none() {
+            return ([BridgeCommand::Off; 2], [0.0; 2]);
+        }
+        match self.exchange(t, plant) {
+            Ok(drive) => {
+                self.observe(t, drive.status);
+                self.bridges_of(&drive)
+            }
+            Err(_) if crate::interrupt::interrupted() => {
+                // Ctrl-C or SIGTERM: the run ends at this tick as any run does
+                // (its observer), with what was simulated up to there.
+                self.finish();
+                ([BridgeCommand::Off; 2], [0.0; 2])
+            }
+            Err(e) => {
+                self.failure = Some(format!(
+                    "error: --firmware {}: at t = {t} s: {e}",
+                    self.elf.display()
+                ));
+                self.finish();
+                ([BridgeCommand::Off; 2], [0.0; 2])
+            }
+        }
+    }
+
+    fn state(&self) -> String {
+        self.last.map_or("idle", |s| s.state.name()).to_string()
+    }
+
+    fn commanded_offset_deg(&self) -> Option<f64> {
+        self.last
+            .filter(|s| s.state == State::Running && self.rotor_count.has_rotor2())
+            .map(|s| f64::from(s.telemetry.target_offset_deg))
+    }
+
+    fn phase_loop(&self) -> bool {
+        self.rotor_count.has_rotor2()
+    }
+
+    fn faults(&self) -> Vec<String> {
+        self.last
+            .map(|s| s.faults.names().map(str::to_string).collect())
+            .unwrap_or_default()
+    }
+
+    fn events(&mut self) -> Vec<EventRow> {
+        std::mem::take(&mut self.events)
+    }
+
+    fn failure(&self) -> Option<String> {
+        self.failure.clone()
+    }
+}
