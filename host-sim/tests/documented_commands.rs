@@ -25,6 +25,9 @@
 //!
 //! - `cargo run --release -p host-sim --` is `host-sim`: the binary under test,
 //!   built from the same source;
+//! - `firmware/target/thumbv7em-none-eabihf/release/pil` is that ELF in the
+//!   repository (the CI step `test` builds it before the tests; without it or
+//!   QEMU, outside CI, the block is skipped and the report says so);
 //! - placeholders: `my-machine.toml` is a copy of `examples/vibro-driver.toml`
 //!   (its tuning table beside it) in the scratch directory; `/dev/ttyUSB0` is a
 //!   `host-sim device-sim --machine my-machine.toml --truth truth.csv` this test
@@ -65,12 +68,16 @@ mod common;
 use common::device_sim::{truth_rows, DeviceSim};
 use common::docs::{self, Block};
 
+/// The processor in the loop's ELF as the docs name it (relative to the
+/// repository's root); run with the one built there.
+const PIL_ELF: &str = "firmware/target/thumbv7em-none-eabihf/release/pil";
+
 /// Blocks not run here: (file, a piece of the block's text, why).
 const NOT_RUN: &[(&str, &str, &str)] = &[
     (
         "docs/pil.md",
         "--features pil --bin pil && cd ..",
-        "builds the firmware and runs it on QEMU: host-sim/tests/pil.rs runs that command on the ELF the CI step `test` builds",
+        "the firmware's binary `pil`: the CI step `test` builds it first",
     ),
     (
         "docs/pil.md",
@@ -506,7 +513,18 @@ fn every_command_the_readme_and_docs_show_runs_as_written() {
             });
             dev.port.clone()
         });
-        let script = script(block, port.as_deref());
+        let mut script = script(block, port.as_deref());
+        if script.contains(PIL_ELF) {
+            // The processor in the loop: the ELF the CI step `test` builds.
+            let Some(elf) = common::pil_firmware() else {
+                report.push(format!(
+                    "{}: skipped: no firmware or QEMU here",
+                    block.place()
+                ));
+                continue;
+            };
+            script = script.replace(PIL_ELF, elf.to_str().expect("a UTF-8 path"));
+        }
         let start = Instant::now();
         let (status, stdout, stderr) = run_script(&work, &script, &truth, Duration::from_secs(900));
         assert_eq!(

@@ -20,42 +20,6 @@ fn scratch(name: &str) -> PathBuf {
     common::scratch("pil", name)
 }
 
-/// The ELF and the tools, or `None` (skipped) where they are absent outside CI.
-fn firmware() -> Option<PathBuf> {
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join("firmware/target"));
-    let target = if target.is_absolute() {
-        target
-    } else {
-        root().join(target)
-    };
-    let elf = target.join("thumbv7em-none-eabihf/release/pil");
-    let on_path = |tool: &str| {
-        std::env::var_os("PATH")
-            .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()))
-    };
-    let mut missing = Vec::new();
-    if !elf.is_file() {
-        missing.push(format!(
-            "{} (cd firmware && cargo build --release --features pil --bin pil)",
-            elf.display()
-        ));
-    }
-    for tool in ["qemu-system-arm", "defmt-print"] {
-        if !on_path(tool) {
-            missing.push(format!("{tool} on PATH"));
-        }
-    }
-    if missing.is_empty() {
-        return Some(elf);
-    }
-    let why = format!("processor in the loop: missing {}", missing.join(", "));
-    assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
-    eprintln!("skipped: {why}");
-    None
-}
-
 /// `host-sim run` of the reference machine, travelling right, with `more`.
 fn travel(more: &[&str]) -> Run {
     let m = machine();
@@ -77,7 +41,9 @@ fn number(v: &Value, key: &str) -> f64 {
 
 #[test]
 fn the_firmware_in_the_loop_travels_as_the_controller_in_the_loop() {
-    let Some(elf) = firmware() else { return };
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
     let log = scratch("travel.log");
     let pil = travel(&[
         "--t-end",
@@ -116,7 +82,9 @@ fn the_firmware_in_the_loop_travels_as_the_controller_in_the_loop() {
 
 #[test]
 fn two_runs_give_the_same_bytes() {
-    let Some(elf) = firmware() else { return };
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
     let runs: Vec<(Run, Vec<u8>, String)> = (0..2)
         .map(|i| {
             let out = scratch(&format!("same-{i}.csv"));
@@ -144,7 +112,9 @@ fn two_runs_give_the_same_bytes() {
 
 #[test]
 fn a_firmware_built_for_another_machine_file_is_refused() {
-    let Some(elf) = firmware() else { return };
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
     // The same machine without its [uncertainty] (which the run does not read),
     // its tuning table named by an absolute path: other bytes, another CRC-32.
     let other = scratch("other-machine.toml");

@@ -300,3 +300,43 @@ pub fn keys(v: &Value) -> Vec<&str> {
         .map(String::as_str)
         .collect()
 }
+
+/// The processor in the loop's firmware (the binary `pil`, built for the
+/// reference machine) when it and the tools that run it are there, or `None`
+/// (skipped, said on stderr) where they are absent outside CI; in CI
+/// (`CI=true`, where `scripts/test-all.sh` builds it first) their absence fails.
+#[allow(dead_code)]
+pub fn pil_firmware() -> Option<PathBuf> {
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("firmware/target"));
+    let target = if target.is_absolute() {
+        target
+    } else {
+        root().join(target)
+    };
+    let elf = target.join("thumbv7em-none-eabihf/release/pil");
+    let on_path = |tool: &str| {
+        std::env::var_os("PATH")
+            .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()))
+    };
+    let mut missing = Vec::new();
+    if !elf.is_file() {
+        missing.push(format!(
+            "{} (cd firmware && cargo build --release --features pil --bin pil)",
+            elf.display()
+        ));
+    }
+    for tool in ["qemu-system-arm", "defmt-print"] {
+        if !on_path(tool) {
+            missing.push(format!("{tool} on PATH"));
+        }
+    }
+    if missing.is_empty() {
+        return Some(elf);
+    }
+    let why = format!("processor in the loop: missing {}", missing.join(", "));
+    assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
+    eprintln!("skipped: {why}");
+    None
+}
