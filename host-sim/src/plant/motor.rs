@@ -254,16 +254,6 @@ impl DcMotor {
         self.params.resistance * i * i
     }
 
-    /// The mechanical power the motor delivers to its rotor, `T omega`, W.
-    pub fn mechanical_power(&self, i: f64, omega_m: f64) -> f64 {
-        self.shaft_torque(i, omega_m) * omega_m
-    }
-
-    /// The electrical time constant `L / R`, s.
-    pub fn electrical_time_constant(&self) -> f64 {
-        self.params.inductance / self.params.resistance
-    }
-
     /// The steady speed under a constant winding voltage `u` with no load but the
     /// motor's own friction (exact Coulomb law), rad/s, driven sense:
     ///
