@@ -62,7 +62,7 @@ use forces::CachedEvaluation;
 use super::bridge::{Bridge, BridgeCommand};
 use super::dynamics::{Frame, Pose, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
-use super::model::{Mount, PlantModel, MAX_DOF};
+use super::model::{Face, Mount, PlantModel, MAX_DOF};
 use super::motor::{DcMotor, Winding};
 use super::progress::{ContactState, Progress, Situation, MIN_STEP};
 use crate::event::{EventKind, EventRow};
@@ -133,8 +133,8 @@ impl Default for Settings {
 /// Coordinates held: for tests against closed forms, and the rotors-only bench
 /// (every body held, the rotors free). A held coordinate has zero acceleration: a
 /// held body stays still at its start pose ([`Plant::new`] zeroes its
-/// velocities), a held rotor keeps its speed; a contact between held bodies and
-/// the fundament neither closes nor pushes.
+/// velocities), a held rotor keeps its speed; the contacts between held bodies
+/// and the fundament move nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Holds {
     /// Hold the platform (x, y, theta).
@@ -247,13 +247,21 @@ pub struct Plant {
 impl Plant {
     /// A plant at `t = 0` in state `y` (see [`NY`]), windings open, modes decided
     /// from the state; a held body is held still, its velocities in `y` taken as
-    /// zero.
-    pub fn new(model: PlantModel, mut y: [f64; NY], settings: Settings, holds: Holds) -> Self {
-        for (i, held) in holds.body_mask(&model).into_iter().enumerate() {
+    /// zero, and a contact whose body and face are held (or the fundament) left out
+    /// of the model: it moves nothing.
+    pub fn new(mut model: PlantModel, mut y: [f64; NY], settings: Settings, holds: Holds) -> Self {
+        let still = holds.body_mask(&model);
+        for (i, held) in still.into_iter().enumerate() {
             if held {
                 y[model.dof + i] = 0.0;
             }
         }
+        let bodies = &model.bodies;
+        let held = |b: usize| still[bodies[b].angle];
+        model.contacts.retain(|c| match c.face {
+            Face::Fundament => !held(c.body),
+            Face::Body { body, .. } => !(held(c.body) && held(body)),
+        });
         let motors = model
             .rotors
             .iter()
