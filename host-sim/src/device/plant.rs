@@ -52,11 +52,12 @@ pub enum Platform {
 const REFERENCE_MACHINE: &str = include_str!("../../../examples/vibro-driver.toml");
 
 /// The reference machine as it stands on the bench at power-on: the machine file
-/// with both rotors at rest hanging down (eccentric along -y, `phi = -pi/2`,
-/// where gravity holds them: rotor 1 270 degrees past its index in its driven
-/// sense, counter-clockwise, rotor 2 90 degrees, clockwise). The machine behind
-/// `host-sim device-sim` without `--machine`, its platform
-/// [`Platform::Held`].
+/// with the platform clamped on its side, the rotor axes vertical, so gravity
+/// acts along the axes (`fundament.gravity = [0, 0]` in the plane of motion) and
+/// puts no torque on the eccentrics: a stopped rotor stays where it stopped.
+/// The rotors at rest, rotor 1 30 degrees past its index in its driven sense
+/// (counter-clockwise), rotor 2 200 degrees (clockwise). The machine behind
+/// `host-sim device-sim` without `--machine`, its platform [`Platform::Held`].
 pub fn reference_bench() -> Machine {
     reference_bench_with(&[])
 }
@@ -64,8 +65,13 @@ pub fn reference_bench() -> Machine {
 /// [`reference_bench`] with the machine file's keys `sets` overridden (`--set`'s
 /// `KEY=VALUE`), which must be valid.
 pub fn reference_bench_with(sets: &[&str]) -> Machine {
-    let hanging = -std::f64::consts::FRAC_PI_2;
-    let mut all: Vec<String> = [0, 1].map(|k| format!("rotors.{k}.angle={hanging}")).into();
+    // theta = s (phi - index_angle), index angles 0: phi = theta / s.
+    let (theta1, theta2) = (30f64.to_radians(), 200f64.to_radians());
+    let mut all = vec![
+        "fundament.gravity=[0.0, 0.0]".to_string(),
+        format!("rotors.0.angle={theta1}"),
+        format!("rotors.1.angle={}", -theta2),
+    ];
     all.extend(sets.iter().map(|s| s.to_string()));
     Machine::from_text(
         "examples/vibro-driver.toml",

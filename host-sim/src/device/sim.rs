@@ -464,12 +464,11 @@ mod tests {
             assert!(r.passed(), "{r:?}");
             assert_eq!(r.counts_per_rev, 4096);
         }
-        // The rotors hang at rest, rotor 1 270 degrees past its index (3072
-        // counts, on the edge of a count: the integrator's creep at standstill,
-        // about 1e-12 rad, leaves it reading the count below, 3071), rotor 2 90
-        // degrees (1024 counts): to the index 1025 and 3072 counts.
-        assert_eq!(result.rotors[0].index_offset_counts, 1025);
-        assert_eq!(result.rotors[1].index_offset_counts, 4096 * 270 / 360);
+        // Rotor 1 starts 30 degrees past its index, in count floor(30 / 360 x
+        // 4096) = 341 of the turn, rotor 2 200 degrees, in count 2275: 3755 and
+        // 1821 counts to the index.
+        assert_eq!(result.rotors[0].index_offset_counts, 4096 - 341);
+        assert_eq!(result.rotors[1].index_offset_counts, 4096 - 2275);
         // Stored with the table once the rotors rest.
         for _ in 0..3000 {
             dev.tick();
