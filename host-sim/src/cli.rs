@@ -65,7 +65,8 @@ pub enum Command {
     /// tune (a sweep measured on the machine) (see docs/cli-device.md).
     Device(DeviceArgs),
     /// A simulated board to talk to with `device`: the firmware's controller and
-    /// link on simulated rotors, behind a pseudo-terminal or a TCP port.
+    /// link on a simulated machine (the reference machine's rotors, the platform
+    /// held, or a machine file's plant), behind a pseudo-terminal or a TCP port.
     DeviceSim(DeviceSimArgs),
 }
 

@@ -1,5 +1,6 @@
 //! `host-sim device` through the real binary against the firmware's link code
-//! (`shared::protocol::link::Link` with the controller on simulated rotors and a
+//! (`shared::protocol::link::Link` with the controller on the reference machine's
+//! rotors, the platform held, and a
 //! `SimFlash`, served in this process over TCP, or as `host-sim device-sim` behind
 //! a pseudo-terminal): every subcommand, a table round trip, telemetry as CSV, a
 //! noisy line, a silent device, devices that answer wrongly (an Ack for another

@@ -1,8 +1,9 @@
 //! `host-sim device-sim --machine M.toml --truth FILE.csv` through the real
 //! binaries: the reference machine's whole plant behind the link, driven by
 //! `host-sim device` (status, hold, travel, stop through `--for`), its platform's
-//! true pose read from the truth file while the device runs; and its refusals of
-//! bad input (exit 2, nothing served).
+//! true pose read from the truth file while the device runs; the machine's rotors
+//! with its platform held (`--platform-held`), and without a machine the
+//! reference machine's; and its refusals of bad input (exit 2, nothing served).
 
 use std::path::PathBuf;
 use std::process::Stdio;
@@ -119,6 +120,10 @@ fn bad_input_is_refused_before_serving() {
             "--machine <MACHINE.toml>".to_string(),
         ),
         (
+            vec!["--platform-held"],
+            "--machine <MACHINE.toml>".to_string(),
+        ),
+        (
             vec!["--machine", "no-such-machine.toml"],
             "no-such-machine.toml".to_string(),
         ),
@@ -160,17 +165,54 @@ fn bad_input_is_refused_before_serving() {
     assert!(!missing_dir.exists());
 }
 
-/// Without `--machine`, `device-sim` is the simple rotors' as before: no
-/// platform, so no travel in its last note (the simple-rotor tests of
+/// Without `--machine`, `device-sim` runs the reference machine's rotors with
+/// the platform held, and says so: no travel in its last note (the tests of
 /// `cli_device.rs` cover the rest).
 #[cfg(unix)]
 #[test]
-fn without_a_machine_the_simple_rotors_serve() {
+fn without_a_machine_the_reference_rotors_serve_with_the_platform_held() {
     let dev = DeviceSim::start(&[]);
     assert!(dev.uptime() >= 0.0);
     let (status, stderr) = dev.interrupt();
     assert_eq!(status, 0, "{stderr}");
-    assert!(stderr.contains("on simulated rotors"), "{stderr}");
+    assert!(
+        stderr.contains("on the reference machine's rotors, its platform held"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("travelled"), "{stderr}");
+}
+
+/// `--machine M.toml --platform-held`: the machine's controller drives its rotors
+/// to 3000 rpm (`hold --for`, the status while holding at speed) while every row
+/// of the truth file has the platform exactly at its start pose (x 0, y 0.03 m,
+/// angle 0: `examples/vibro-driver.toml`'s `[platform]`), and the last note gives
+/// no travel.
+#[cfg(unix)]
+#[test]
+fn platform_held_turns_the_rotors_and_the_platform_stays() {
+    let truth = scratch("held.csv");
+    let machine = common::machine();
+    let dev = DeviceSim::start(&[
+        "--machine",
+        machine.to_str().unwrap(),
+        "--platform-held",
+        "--truth",
+        truth.to_str().unwrap(),
+    ]);
+    let hold = dev.device(&["hold", "--offset", "90", "--speed", "3000", "--for", "2"]);
+    assert!(hold.contains("stop: accepted"), "{hold}");
+    assert!(hold.contains("  running  speed"), "{hold}");
+    let rows = truth_rows(&truth);
+    assert!(rows.len() > 100, "{} rows", rows.len());
+    for r in &rows {
+        assert_eq!(r[1..], [0.0, 0.03, 0.0], "row {r:?}");
+    }
+    let (status, stderr) = dev.interrupt();
+    assert_eq!(status, 0, "{stderr}");
+    assert!(
+        stderr.contains("on its rotors, the platform held"),
+        "{stderr}"
+    );
     assert!(!stderr.contains("travelled"), "{stderr}");
 }
 

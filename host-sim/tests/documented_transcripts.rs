@@ -21,7 +21,7 @@
 //! on a terminal):
 //!
 //! - the port: `/dev/pts/0` is a fresh `host-sim device-sim` behind a
-//!   pseudo-terminal (simple rotors, as the docs' own `device-sim` transcript
+//!   pseudo-terminal (the reference rotors, as the docs' own `device-sim` transcript
 //!   starts it), one per transcript; `tcp:127.0.0.1:5555` is what the entry
 //!   says: a `device-sim --machine examples/vibro-driver.toml`, a `device-sim
 //!   --flip-every 12` (a line too noisy for an answer), a listener that accepts

@@ -15,7 +15,8 @@
 //! - a double compound pendulum (a chain of two joints with a pinned root): the
 //!   period of each normal mode from `det(K - w^2 M) = 0`;
 //! - a rotor driven on a pinned arm: the angular momentum about the pivot stays
-//!   zero, `J_O theta' + I_k (theta' + phi') = 0`.
+//!   zero, `J_O theta' + I_k (theta' + phi') = 0`; with every body held, only the
+//!   rotor turns.
 //!
 //! Every machine has the platform lifted 1 m clear of the floor (its one foot
 //! 0.97 m above it) and one rotor; where the platform plays no part it is held.
@@ -1041,6 +1042,33 @@ viscous_friction = 1.0e-6
 current_limit = 2.0
 "#;
 
+/// The machine of [`rotor_on_an_arm`]: no gravity, the arm hinged at `[0.5, 2.0]`
+/// to `to` at angle 0.3 rad (returned), its rotor 0.15 m out along it.
+fn rotor_arm_machine(to: &str) -> (Machine, f64) {
+    let hinge = [0.5, 2.0];
+    let angle0 = 0.3;
+    let axis = add(hinge, scale(0.15, unit(angle0)));
+    let rotor = format!(
+        r#"
+[[rotors]]
+name = "R1"
+body = "arm"
+axis = {}
+eccentric_mass = 0.0
+eccentricity = 0.0
+inertia = {DRIVEN_ROTOR_INERTIA:?}
+sense = "ccw"
+"#,
+        vector(axis)
+    );
+    let extra = format!(
+        "{}{}",
+        arm_at(hinge, angle0),
+        joint("hinge", to, "arm", hinge, 0.0, 0.0, None)
+    );
+    (machine(0.0, "", &rotor, REFERENCE_MOTOR, &extra), angle0)
+}
+
 /// The arm hinged at `hinge` to `to` (the fundament, or the held platform), no
 /// gravity, no spring, carrying a rotor without eccentric mass 0.15 m from the
 /// hinge, its winding at 6 V from t = 0.
@@ -1076,28 +1104,7 @@ current_limit = 2.0
 /// 1e-6 N m s here: a plant whose accelerations broke the balance by the
 /// integrator's tolerance would pass that, not this.)
 fn rotor_on_an_arm(to: &str) {
-    let hinge = [0.5, 2.0];
-    let angle0 = 0.3;
-    let axis = add(hinge, scale(0.15, unit(angle0)));
-    let rotor = format!(
-        r#"
-[[rotors]]
-name = "R1"
-body = "arm"
-axis = {}
-eccentric_mass = 0.0
-eccentricity = 0.0
-inertia = {DRIVEN_ROTOR_INERTIA:?}
-sense = "ccw"
-"#,
-        vector(axis)
-    );
-    let extra = format!(
-        "{}{}",
-        arm_at(hinge, angle0),
-        joint("hinge", to, "arm", hinge, 0.0, 0.0, None)
-    );
-    let m = machine(0.0, "", &rotor, REFERENCE_MOTOR, &extra);
+    let (m, angle0) = rotor_arm_machine(to);
     let model = PlantModel::new(&m);
     assert_eq!(model.rotors[0].body, 1);
     let (n, angle, phi) = (model.dof, model.bodies[1].angle, model.rotors[0].phi);
@@ -1160,4 +1167,43 @@ fn a_rotor_driven_on_an_arm_pinned_to_the_fundament_keeps_zero_angular_momentum(
 #[test]
 fn a_rotor_driven_on_an_arm_hinged_to_the_held_platform_keeps_zero_angular_momentum() {
     rotor_on_an_arm("platform");
+}
+
+/// Every body held ([`Holds::bodies`]): the motor drives the rotor on the arm
+/// hinged to the platform up to speed, and neither the arm nor the platform
+/// moves (the platform's foot left out of the contacts), their coordinates exactly at their start and at rest at every step
+/// (with the platform alone held the same drive turns the arm by more than a
+/// radian, [`rotor_on_an_arm`]).
+#[test]
+fn with_every_body_held_only_the_rotor_on_an_arm_turns() {
+    let (m, _) = rotor_arm_machine("platform");
+    let model = PlantModel::new(&m);
+    let (n, phi) = (model.dof, model.rotors[0].phi);
+    let start = initial_state(&m);
+    let holds = Holds {
+        bodies: true,
+        ..Holds::default()
+    };
+    assert_eq!(model.contacts.len(), 1);
+    let mut plant = Plant::new(model, start, Settings::default(), holds);
+    // The platform's foot, a held body's against the fundament, moves nothing:
+    // left out.
+    assert!(plant.model.contacts.is_empty());
+    assert!(plant.modes.is_empty());
+    plant.set_winding([Winding::Voltage(6.0), Winding::Voltage(6.0)]);
+    let mut fastest: f64 = 0.0;
+    plant
+        .advance_to(1.0, &mut |out| {
+            let Output::Dense(step, upto) = out else {
+                panic!("no event expected");
+            };
+            let y = step.at(upto);
+            for i in (0..n).filter(|&i| i != phi) {
+                assert_eq!(y[i], start[i], "coordinate {i} at t = {upto}");
+                assert_eq!(y[n + i], 0.0, "velocity {i} at t = {upto}");
+            }
+            fastest = fastest.max(y[n + phi].abs());
+        })
+        .unwrap();
+    assert!(fastest > 100.0, "the rotor reached {fastest} rad/s");
 }

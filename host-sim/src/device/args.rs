@@ -273,9 +273,14 @@ pub struct DeviceSimArgs {
     pub listen: Option<String>,
     /// The machine behind the link: its whole plant (platform, contacts, motors,
     /// sensors, as `host-sim run` simulates it) and its controller parameters and
-    /// tuning table, instead of the reference controller on two simple rotors.
+    /// tuning table, instead of the reference controller on the reference
+    /// machine's rotors with the platform held.
     #[arg(long, value_name = "MACHINE.toml")]
     pub machine: Option<PathBuf>,
+    /// Hold the machine's platform (and every other body) still at its start
+    /// pose: only the rotors turn, as on a bench with the platform clamped.
+    #[arg(long, requires = "machine")]
+    pub platform_held: bool,
     /// Stream the platform's true pose to FILE.csv as the device runs: a row
     /// `t,x,y,angle` every 10 ms of uptime, flushed (needs `--machine`).
     #[arg(long, value_name = "FILE.csv", requires = "machine")]

@@ -16,9 +16,8 @@
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - [`rest`]: the machine at rest after a stop, as its status says;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
-//! - [`mechanics`]: what the simulated device drives and senses, a tick at a time;
-//! - [`rotors`]: the simulator's two motors and rotors with their sensors;
-//! - [`plant`]: a machine file's whole plant with its sensors (`--machine`);
+//! - [`plant`]: what the simulated device drives and senses, a tick at a time: a
+//!   machine's plant with its sensors, its platform free or held;
 //! - [`sim`]: the simulated device: the firmware's control tick and link task;
 //! - [`truth`]: the platform's true pose streamed to a CSV file (`--truth`);
 //! - [`serve`]: `host-sim device-sim`, the simulated device in real time behind a
@@ -29,7 +28,6 @@ pub mod client;
 pub mod commands;
 pub mod live;
 pub mod measured;
-pub mod mechanics;
 pub mod pipe;
 pub mod plant;
 pub mod port;
@@ -38,7 +36,6 @@ pub mod pty;
 pub mod report;
 pub mod requests;
 pub mod rest;
-pub mod rotors;
 pub mod serial;
 pub mod serve;
 pub mod sim;

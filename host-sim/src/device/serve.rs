@@ -1,8 +1,9 @@
 //! `host-sim device-sim`: a [`SimDevice`] in real time behind a pseudo-terminal
 //! (the default; its path is printed) or a TCP port (`--listen`), for
-//! `host-sim device` to talk to without hardware; on the simple rotors, or on a
-//! machine file's whole plant (`--machine`), its platform's true pose streamed to
-//! a file (`--truth`, [`super::truth`]).
+//! `host-sim device` to talk to without hardware; on the reference machine's
+//! rotors with the platform held, or on a machine file's whole plant
+//! (`--machine`, its platform free or `--platform-held`), its platform's true pose
+//! streamed to a file (`--truth`, [`super::truth`]).
 //!
 //! The loop: read what the host sent (waiting at most a millisecond), run the
 //! control ticks due by the wall clock, run the link task, write its frames. A TCP
@@ -17,7 +18,7 @@ use std::net::TcpListener;
 use std::time::{Duration, Instant};
 
 use super::args::DeviceSimArgs;
-use super::mechanics::PlatformPose;
+use super::plant::{Platform, PlatformPose};
 use super::port::{Port, PortSpec, TcpPort};
 use super::sim::{Noise, SimDevice};
 use super::truth::TruthFile;
@@ -268,10 +269,10 @@ impl Watch for DeviceSimWatch<'_, '_> {
             ));
             return false;
         }
-        let (Some(truth), Some(pose)) = (self.truth.as_mut(), device.platform()) else {
+        let Some(truth) = self.truth.as_mut() else {
             return true;
         };
-        match truth.record(u64::from(device.uptime_ms()), pose) {
+        match truth.record(u64::from(device.uptime_ms()), device.platform()) {
             Ok(()) => true,
             Err(e) => {
                 self.failed = Some(e);
@@ -354,7 +355,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     let (device, mut what) = match &args.machine {
         None => (
             SimDevice::new(table, noise),
-            "the reference controller at 1000 Hz on simulated rotors".to_string(),
+            "the reference controller at 1000 Hz on the reference machine's rotors, its platform held (motors, H-bridges, sensors)".to_string(),
         ),
         Some(path) => {
             let machine = Machine::load(path, &[])?;
@@ -362,10 +363,15 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             if let Some(w) = constants_warning(&machine) {
                 console.note(&format!("warning: {}: {w}\n", path.display()));
             }
+            let (platform, plant) = if args.platform_held {
+                (Platform::Held, "its rotors, the platform held (motors, H-bridges, sensors)")
+            } else {
+                (Platform::Free, "its whole plant (platform, contacts, motors, sensors)")
+            };
             (
-                SimDevice::with_machine(&machine, table, noise)?,
+                SimDevice::with_machine(&machine, platform, table, noise)?,
                 format!(
-                    "{}'s controller at {} Hz on its whole plant (platform, contacts, motors, sensors)",
+                    "{}'s controller at {} Hz on {plant}",
                     path.display(),
                     machine.controller.rate_hz
                 ),
@@ -422,8 +428,10 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     // The truth at the last tick, where the stop fell between two rows.
     let mut failed = watch.failed.take();
     let stalled = watch.stalled.take();
-    if let (Some(truth), Some(pose), None) = (watch.truth.as_mut(), device.platform(), &failed) {
-        failed = truth.finish(u64::from(device.uptime_ms()), pose).err();
+    if let (Some(truth), None) = (watch.truth.as_mut(), &failed) {
+        failed = truth
+            .finish(u64::from(device.uptime_ms()), device.platform())
+            .err();
     }
     console.note(&stopped_note(&device, &served, start));
     for w in device.warnings() {
@@ -436,9 +444,9 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
 }
 
 /// The last line on stderr: device time, how fast the simulation ran against the
-/// clock, and the platform's travel from `start` if there is a platform and its
-/// motion is a travel (no body through the fundament, none tipped over).
-fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>) -> String {
+/// clock, and the platform's travel from `start` if it is free and its motion is
+/// a travel (no body through the fundament, none tipped over).
+fn stopped_note(device: &SimDevice, served: &Served, start: PlatformPose) -> String {
     let uptime = f64::from(device.uptime_ms()) / 1000.0;
     let mut note = format!("device-sim: stopped after {uptime:.1} s of device time");
     let busy = served.busy.as_secs_f64();
@@ -449,9 +457,12 @@ fn stopped_note(device: &SimDevice, served: &Served, start: Option<PlatformPose>
             uptime / busy
         );
     }
-    if let Some(why) = device.no_travel() {
+    let (a, b) = (start, device.platform());
+    if device.platform_mode() == Platform::Held {
+        // Nothing travels: the rotors alone turn.
+    } else if let Some(why) = device.no_travel() {
         note += &format!("; no travel to report: {why} (see the warnings)");
-    } else if let (Some(a), Some(b)) = (start, device.platform()) {
+    } else {
         note += &format!(
             "; the platform travelled {} m (x from {} to {} m)",
             text::fixed_signed(b.x - a.x, 4),

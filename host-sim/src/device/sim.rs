@@ -1,10 +1,10 @@
 //! A device without hardware: the firmware's control task and link task, as
-//! its board binary (`firmware/src/bin/board.rs`) runs them, on simulated
-//! [`Mechanics`] (the simple [`Rotors`] of the reference machine, or a machine
-//! file's whole plant, [`PlantMechanics`]) and a simulated flash.
+//! its board binary (`firmware/src/bin/board.rs`) runs them, on a machine's
+//! plant ([`PlantMechanics`]: the reference machine's rotors with its platform
+//! held, or a machine file's, its platform free or held) and a simulated flash.
 //!
 //! - control tick ([`SimDevice::tick`], at the controller's rate): advance the
-//!   mechanics one tick under the last outputs, take the command, a new tuning
+//!   plant one tick under the last outputs, take the command, a new tuning
 //!   table and a self-test request from the [`LinkState`], step the [`Controller`]
 //!   on the sensors' readings, publish the status and the self-test's report;
 //! - link ([`SimDevice::receive`]): the received bytes through the firmware's
@@ -16,14 +16,12 @@
 use std::collections::VecDeque;
 
 use shared::controller::Inputs;
-use shared::controller::{Controller, MachineConstants, Outputs, Params, ResetCause, TuningTable};
+use shared::controller::{Controller, Outputs, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, Link, LinkState};
 use shared::storage::{self, SimFlash};
 use shared::tick::{self, Board, LinkPort};
 
-use super::mechanics::{Mechanics, PlatformPose};
-use super::plant::PlantMechanics;
-use super::rotors::Rotors;
+use super::plant::{reference_bench, PlantMechanics, Platform, PlatformPose};
 use crate::machine::input::Problem;
 use crate::machine::Machine;
 use crate::simulation::closed_loop::params;
@@ -95,7 +93,7 @@ impl NoiseState {
 /// The simulated device.
 pub struct SimDevice {
     controller: Controller,
-    mechanics: Box<dyn Mechanics>,
+    mechanics: Box<PlantMechanics>,
     link: Link,
     state: LinkState,
     flash: SimFlash,
@@ -108,10 +106,10 @@ pub struct SimDevice {
 }
 
 /// The board of the simulated device ([`shared::tick::Board`]): its sample is the
-/// mechanics advanced one tick under the last outputs, which [`Board::apply`]
+/// plant advanced one tick under the last outputs, which [`Board::apply`]
 /// keeps for the next; the E-stop closed, the ticks on time.
 struct MechanicsBoard<'a> {
-    mechanics: &'a mut dyn Mechanics,
+    mechanics: &'a mut PlantMechanics,
     /// The outputs of the tick before (none before the first).
     last: &'a mut Option<Outputs>,
     /// The tick, s.
@@ -138,26 +136,27 @@ impl Board for MechanicsBoard<'_> {
 }
 
 impl SimDevice {
-    /// The reference machine's controller with `tuning` (a stored table in flash
-    /// wins, as on the board; none is stored at first), the simple [`Rotors`] at
-    /// rest.
+    /// The reference controller (`Params::reference()`, 1 kHz) with `tuning` (a
+    /// stored table in flash wins, as on the board; none is stored at first), on
+    /// the reference machine's rotors, the platform held ([`reference_bench`]).
     pub fn new(tuning: Option<TuningTable>, noise: Noise) -> SimDevice {
-        let rotors = Rotors::new(&MachineConstants::REFERENCE);
-        SimDevice::on(Params::reference(), tuning, Box::new(rotors), noise)
+        let bench = PlantMechanics::new(&reference_bench(), Platform::Held);
+        SimDevice::on(Params::reference(), tuning, bench, noise)
     }
 
     /// `machine`'s controller (its parameters and tuning table, as `host-sim run`
     /// builds it), its table replaced by `tuning` if given (a stored table in
-    /// flash wins over both, as on the board), on the machine's whole plant at its
-    /// start state. Problems: the machine's tuning table file.
+    /// flash wins over both, as on the board), on the machine's plant at its start
+    /// state, the platform `platform`. Problems: the machine's tuning table file.
     pub fn with_machine(
         machine: &Machine,
+        platform: Platform,
         tuning: Option<TuningTable>,
         noise: Noise,
     ) -> Result<SimDevice, Vec<Problem>> {
         let params = params(machine)?;
-        let plant = PlantMechanics::new(machine);
-        Ok(SimDevice::on(params, tuning, Box::new(plant), noise))
+        let plant = PlantMechanics::new(machine, platform);
+        Ok(SimDevice::on(params, tuning, plant, noise))
     }
 
     /// The controller of `params` (its table replaced by `tuning` if given, a
@@ -165,7 +164,7 @@ impl SimDevice {
     fn on(
         mut params: Params,
         tuning: Option<TuningTable>,
-        mechanics: Box<dyn Mechanics>,
+        mechanics: PlantMechanics,
         noise: Noise,
     ) -> SimDevice {
         if let Some(t) = tuning {
@@ -178,7 +177,7 @@ impl SimDevice {
         let state = LinkState::at_start(&controller, stored.as_ref());
         let tick_ms = (params.tick_s() * 1000.0).round().max(1.0) as u32;
         SimDevice {
-            mechanics,
+            mechanics: Box::new(mechanics),
             controller,
             link: Link::new(),
             state,
@@ -246,10 +245,19 @@ impl SimDevice {
         self.mechanics.speeds_rpm()
     }
 
-    /// The platform's pose (the simulation's truth), if the mechanics have a
-    /// platform (a machine's plant).
-    pub fn platform(&self) -> Option<PlatformPose> {
+    /// The platform's pose (the simulation's truth).
+    pub fn platform(&self) -> PlatformPose {
         self.mechanics.platform()
+    }
+
+    /// Whether the platform is held or free.
+    pub fn platform_mode(&self) -> Platform {
+        self.mechanics.platform_mode()
+    }
+
+    /// The winding currents, A (the simulation's truth, not the board's reading).
+    pub fn currents(&self) -> [f64; 2] {
+        self.mechanics.currents()
     }
 
     /// What the simulation warned about so far.
@@ -323,6 +331,7 @@ impl SimDevice {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::plant::reference_bench_with;
     use shared::controller::SelfTestStatus;
     use shared::controller::{Command, Direction, Faults, State};
 
@@ -333,6 +342,61 @@ mod tests {
                 // The host's heartbeat.
                 dev.state.command.get_or_insert(Command::Heartbeat);
             }
+        }
+    }
+
+    /// The reference controller from rest to 3000 rpm (travel right) on the
+    /// reference machine's rotors, the platform held, driven `ms`: every tick the
+    /// platform's pose is exactly its start pose; the largest winding current
+    /// (A) read at the ticks' ends, and the device.
+    fn bench_start(machine: &Machine, ms: u32) -> (f64, SimDevice) {
+        let bench = PlantMechanics::new(machine, Platform::Held);
+        let mut dev = SimDevice::on(Params::reference(), None, bench, Noise::default());
+        let start = dev.platform();
+        dev.state.command = Some(Command::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        });
+        let mut peak: f64 = 0.0;
+        for _ in 0..ms {
+            run(&mut dev, 1);
+            assert_eq!(dev.platform(), start, "at {} ms", dev.uptime_ms());
+            peak = dev.currents().iter().fold(peak, |p, i| p.max(i.abs()));
+        }
+        (peak, dev)
+    }
+
+    /// The rotors-only bench: the platform stays where it started (checked at
+    /// every tick) while the controller brings the rotors to 3000 rpm through the
+    /// plant's motors; the reference driver's 2 A limit is never passed.
+    #[test]
+    fn on_the_bench_the_platform_stays_and_the_rotors_reach_speed() {
+        let dev = SimDevice::new(None, Noise::default());
+        assert_eq!(dev.platform_mode(), Platform::Held);
+        let (peak, dev) = bench_start(&reference_bench(), 3000);
+        assert!(peak <= 2.0, "{peak} A");
+        for v in dev.speeds_rpm() {
+            assert!((v - 3000.0).abs() < 60.0, "{v} rpm");
+        }
+        assert_eq!(dev.link_state().status.state, State::Running);
+        assert!(dev.warnings().is_empty(), "{:?}", dev.warnings());
+    }
+
+    /// The driver's current limit acts on the bench: the reference controller's
+    /// start asks for more than 1 A (a driver limit of 10 A lets the current
+    /// pass 1 A), and a driver limited to 1 A holds every winding current at
+    /// most 1 A and reaches it, the rotors still getting to speed.
+    #[test]
+    fn on_the_bench_the_driver_holds_the_current_to_its_limit() {
+        let unlimited = reference_bench_with(&["motor.current_limit=10"]);
+        let (asked, _) = bench_start(&unlimited, 1500);
+        assert!(asked > 1.1, "{asked} A");
+        let limited = reference_bench_with(&["motor.current_limit=1"]);
+        let (peak, dev) = bench_start(&limited, 3000);
+        assert!(peak <= 1.0, "{peak} A");
+        assert!(peak >= 0.999, "{peak} A");
+        for v in dev.speeds_rpm() {
+            assert!((v - 3000.0).abs() < 60.0, "{v} rpm");
         }
     }
 
@@ -400,9 +464,11 @@ mod tests {
             assert!(r.passed(), "{r:?}");
             assert_eq!(r.counts_per_rev, 4096);
         }
-        // Rotor 1 starts 30 degrees past its index, rotor 2 200 degrees.
-        assert_eq!(result.rotors[0].index_offset_counts, 4096 * 330 / 360);
-        assert_eq!(result.rotors[1].index_offset_counts, 4096 * 160 / 360);
+        // Rotor 1 starts 30 degrees past its index, in count floor(30 / 360 x
+        // 4096) = 341 of the turn, rotor 2 200 degrees, in count 2275: 3755 and
+        // 1821 counts to the index.
+        assert_eq!(result.rotors[0].index_offset_counts, 4096 - 341);
+        assert_eq!(result.rotors[1].index_offset_counts, 4096 - 2275);
         // Stored with the table once the rotors rest.
         for _ in 0..3000 {
             dev.tick();
@@ -421,11 +487,11 @@ mod tests {
     /// The platform's `x` after `ms` more of device time (heartbeats as [`run`]),
     /// and the largest move of `x` in one tick on the way, m.
     fn travel(dev: &mut SimDevice, ms: u32) -> (f64, f64) {
-        let mut x = dev.platform().expect("a platform").x;
+        let mut x = dev.platform().x;
         let mut step: f64 = 0.0;
         for _ in 0..ms / dev.tick_ms() {
             run(dev, dev.tick_ms());
-            let next = dev.platform().expect("a platform").x;
+            let next = dev.platform().x;
             step = step.max((next - x).abs());
             x = next;
         }
@@ -449,7 +515,8 @@ mod tests {
         assert_eq!(expected.not_held, None);
         assert!(expected.mean_velocity > 0.01, "{expected:?}");
 
-        let mut dev = SimDevice::with_machine(&machine, None, Noise::default()).unwrap();
+        let mut dev =
+            SimDevice::with_machine(&machine, Platform::Free, None, Noise::default()).unwrap();
         dev.state.command = Some(Command::HoldOffset {
             speed_rpm: speed as f32,
             offset_deg: offset as f32,
@@ -487,7 +554,8 @@ mod tests {
             .tuning
             .offset(Direction::Right, 3250.0);
         assert!((table_offset - 90.0).abs() > 1.0, "{table_offset}");
-        let mut dev = SimDevice::with_machine(&machine, None, Noise::default()).unwrap();
+        let mut dev =
+            SimDevice::with_machine(&machine, Platform::Free, None, Noise::default()).unwrap();
         dev.state.command = Some(Command::Travel {
             direction: Direction::Right,
             speed_rpm: 3250.0,

@@ -15,7 +15,7 @@ use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use super::mechanics::PlatformPose;
+use super::plant::PlatformPose;
 use crate::failure::Failure;
 use crate::output::file::Target;
 use crate::output::text::fixed;

@@ -62,7 +62,7 @@ use forces::CachedEvaluation;
 use super::bridge::{Bridge, BridgeCommand};
 use super::dynamics::{Frame, Pose, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
-use super::model::{Mount, PlantModel, MAX_DOF};
+use super::model::{Face, Mount, PlantModel, MAX_DOF};
 use super::motor::{DcMotor, Winding};
 use super::progress::{ContactState, Progress, Situation, MIN_STEP};
 use crate::event::{EventKind, EventRow};
@@ -130,11 +130,18 @@ impl Default for Settings {
     }
 }
 
-/// Coordinates held still (for tests against closed forms).
+/// Coordinates held: for tests against closed forms, and the rotors-only bench
+/// (every body held, the rotors free). A held coordinate has zero acceleration: a
+/// held body stays still at its start pose ([`Plant::new`] zeroes its
+/// velocities), a held rotor keeps its speed; the contacts between held bodies
+/// and the fundament move nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Holds {
     /// Hold the platform (x, y, theta).
     pub platform: bool,
+    /// Hold every body: the platform and the bodies hinged to it or to the
+    /// fundament (each one's angle, and a free root's centre of mass).
+    pub bodies: bool,
     /// Hold the rotors at their current speed relative to their bodies.
     pub rotors: bool,
     /// Rotor k jammed: held at rest relative to its body (fault injection).
@@ -142,20 +149,31 @@ pub struct Holds {
 }
 
 impl Holds {
-    /// The held coordinates of `model`: the platform's own (its centre of mass
-    /// and angle when it is a free body), the rotors'.
+    /// The held coordinates of `model`: the held bodies' ([`Holds::body_mask`]),
+    /// the rotors'.
     fn mask(self, model: &PlantModel) -> [bool; MAX_DOF] {
+        let mut mask = self.body_mask(model);
+        for (k, rotor) in model.rotors.iter().enumerate() {
+            mask[rotor.phi] = self.rotors || self.jammed[k];
+        }
+        mask
+    }
+
+    /// The held bodies' coordinates of `model`: a body's angle, and its centre of
+    /// mass when it is a free root.
+    fn body_mask(self, model: &PlantModel) -> [bool; MAX_DOF] {
         let mut mask = [false; MAX_DOF];
-        if self.platform {
-            let platform = &model.bodies[0];
-            mask[platform.angle] = true;
-            if let Mount::Free { x } = platform.mount {
+        let held_bodies = if self.bodies {
+            model.bodies.len()
+        } else {
+            usize::from(self.platform)
+        };
+        for body in &model.bodies[..held_bodies] {
+            mask[body.angle] = true;
+            if let Mount::Free { x } = body.mount {
                 mask[x] = true;
                 mask[x + 1] = true;
             }
-        }
-        for (k, rotor) in model.rotors.iter().enumerate() {
-            mask[rotor.phi] = self.rotors || self.jammed[k];
         }
         mask
     }
@@ -228,8 +246,22 @@ pub struct Plant {
 
 impl Plant {
     /// A plant at `t = 0` in state `y` (see [`NY`]), windings open, modes decided
-    /// from the state.
-    pub fn new(model: PlantModel, y: [f64; NY], settings: Settings, holds: Holds) -> Self {
+    /// from the state; a held body is held still, its velocities in `y` taken as
+    /// zero, and a contact whose body and face are held (or the fundament) left out
+    /// of the model: it moves nothing.
+    pub fn new(mut model: PlantModel, mut y: [f64; NY], settings: Settings, holds: Holds) -> Self {
+        let still = holds.body_mask(&model);
+        for (i, held) in still.into_iter().enumerate() {
+            if held {
+                y[model.dof + i] = 0.0;
+            }
+        }
+        let bodies = &model.bodies;
+        let held = |b: usize| still[bodies[b].angle];
+        model.contacts.retain(|c| match c.face {
+            Face::Fundament => !held(c.body),
+            Face::Body { body, .. } => !(held(c.body) && held(body)),
+        });
         let motors = model
             .rotors
             .iter()
