@@ -107,7 +107,7 @@ step_doc() {
 
 # The host tests. The output is kept to total the counts at the end of the run.
 step_test() {
-    # The processor in the loop's tests (host-sim/tests/pil.rs) run the firmware's
+    # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs) run the firmware's
     # binary `pil` on QEMU; in CI they fail without it, so it is built first.
     (cd firmware && cargo build --release --locked --features pil --bin pil)
     cargo test --workspace 2>&1 | tee "$TEST_LOG"

@@ -1,0 +1,92 @@
+//! `host-sim scenario FILE --firmware ELF` (docs/pil.md, docs/scenarios.md)
+//! through the real binary: every scenario of `tests/scenarios/` on the firmware
+//! on QEMU is judged as with the controller in the loop (the same verdict per
+//! expectation, the same final state, the same faults latched after each
+//! injection); a scenario whose fault cannot be injected there, or whose machine
+//! the firmware was not built for, is refused (exit 2) naming it.
+//!
+//! These tests build nothing: they need the ELF, `qemu-system-arm` and
+//! `defmt-print` (skipped without them outside CI, failing in CI; see
+//! `common::pil_firmware`).
+
+use std::path::Path;
+
+use serde_json::Value;
+
+mod common;
+use common::{root, run};
+
+/// The scenario's report as JSON, with `more` arguments; its exit status.
+fn judged(file: &Path, more: &[&str]) -> (i32, Value, String) {
+    let mut args = vec![
+        "scenario",
+        file.to_str().expect("UTF-8"),
+        "--format",
+        "json",
+    ];
+    args.extend_from_slice(more);
+    let r = run(&args);
+    let v = serde_json::from_str(&r.stdout).unwrap_or(Value::Null);
+    (r.status, v, r.stderr)
+}
+
+/// What the comparison looks at: every expectation's verdict, the final state,
+/// the faults latched after every injection.
+fn verdicts(v: &Value) -> Value {
+    let pick = |list: &str, keys: &[&str]| -> Vec<Value> {
+        v[list]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|e| keys.iter().map(|k| e[*k].clone()).collect())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    serde_json::json!({
+        "final_state": v["final_state"],
+        "expectations": pick("expectations", &["key", "pass"]),
+        "injections": pick("injections", &["key", "latched"]),
+    })
+}
+
+#[test]
+fn every_scenario_is_judged_on_the_firmware_as_on_the_controller_in_the_loop() {
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
+    let elf = elf.to_str().expect("UTF-8");
+    let mut files: Vec<_> = std::fs::read_dir(root().join("tests/scenarios"))
+        .expect("tests/scenarios")
+        .map(|e| e.expect("an entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    let mut compared = 0;
+    for file in &files {
+        let name = file.file_name().unwrap().to_string_lossy().to_string();
+        let log = common::scratch("pil-scenarios", &format!("{name}.log"));
+        let (sil_status, sil, sil_err) = judged(file, &[]);
+        let (status, pil, err) = judged(
+            file,
+            &["--firmware", elf, "--firmware-log", log.to_str().unwrap()],
+        );
+        if name == "starved-loop.toml" {
+            assert_eq!(status, 2, "{name}: {err}");
+            assert!(
+                err.contains("late_ticks: cannot be injected with --firmware"),
+                "{err}"
+            );
+            continue;
+        }
+        if name == "one-foot.toml" {
+            assert_eq!(status, 2, "{name}: {err}");
+            assert!(err.contains("built for the machine file"), "{err}");
+            continue;
+        }
+        assert_eq!(status, sil_status, "{name}: {err}\n{sil_err}");
+        assert_eq!(verdicts(&pil), verdicts(&sil), "{name}:\n{pil}\n{sil}");
+        compared += 1;
+    }
+    assert_eq!(compared, files.len() - 2, "{files:?}");
+}
