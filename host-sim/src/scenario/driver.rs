@@ -45,6 +45,8 @@ pub struct ScenarioDriver<'s> {
     faults: &'s [Injection],
     /// The machine's rotors (a one-rotor machine's scenario names no rotor 2).
     rotors: usize,
+    /// The control period, s.
+    dt: f64,
     /// Every tick so far.
     pub ticks: Vec<Tick>,
 }
@@ -109,6 +111,7 @@ impl<'s> ScenarioDriver<'s> {
             inner,
             faults: &scenario.faults,
             rotors: scenario.machine.rotors.len(),
+            dt: 1.0 / scenario.machine.controller.rate_hz,
             ticks: Vec::new(),
         }
     }
@@ -151,7 +154,15 @@ impl Driver for ScenarioDriver<'_> {
         let (injected, jam) = injected_at(self.faults, t);
         match &mut self.inner {
             InTheLoop::Host(d) => d.injected = injected,
-            InTheLoop::Firmware(d) => d.injected = injected,
+            InTheLoop::Firmware(d) => {
+                // This tick's record carries the link's bytes until the next
+                // tick, taken there: lost if the link is lost there.
+                let next = injected_at(self.faults, t + self.dt).0;
+                d.injected = Injected {
+                    link_lost: next.link_lost,
+                    ..injected
+                };
+            }
         }
         for (k, on) in jam.into_iter().enumerate().take(self.rotors) {
             plant.set_jam(k, on);
