@@ -2,8 +2,9 @@
 //! through the real binary: every scenario of `tests/scenarios/` on the firmware
 //! on QEMU is judged as with the controller in the loop (the same verdict per
 //! expectation, the same final state, the same faults latched after each
-//! injection); a scenario whose fault cannot be injected there, or whose machine
-//! the firmware was not built for, is refused (exit 2) naming it.
+//! injection); a scenario whose machine the firmware was not built for
+//! (`one-foot.toml`) is refused (exit 2) naming both files, and a late tick of a
+//! whole period, which would skip a tick there, is refused naming the fault.
 //!
 //! These tests build nothing: they need the ELF, `qemu-system-arm` and
 //! `defmt-print` (skipped without them outside CI, failing in CI; see
@@ -71,14 +72,6 @@ fn every_scenario_is_judged_on_the_firmware_as_on_the_controller_in_the_loop() {
             file,
             &["--firmware", elf, "--firmware-log", log.to_str().unwrap()],
         );
-        if name == "starved-loop.toml" {
-            assert_eq!(status, 2, "{name}: {err}");
-            assert!(
-                err.contains("late_ticks: cannot be injected with --firmware"),
-                "{err}"
-            );
-            continue;
-        }
         if name == "one-foot.toml" {
             assert_eq!(status, 2, "{name}: {err}");
             assert!(err.contains("built for the machine file"), "{err}");
@@ -88,5 +81,27 @@ fn every_scenario_is_judged_on_the_firmware_as_on_the_controller_in_the_loop() {
         assert_eq!(verdicts(&pil), verdicts(&sil), "{name}:\n{pil}\n{sil}");
         compared += 1;
     }
-    assert_eq!(compared, files.len() - 2, "{files:?}");
+    assert_eq!(compared, files.len() - 1, "{files:?}");
+}
+
+#[test]
+fn a_late_tick_of_a_whole_period_is_refused_naming_it() {
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
+    let file = common::scratch("pil-scenarios", "late.toml");
+    let text = std::fs::read_to_string(root().join("tests/scenarios/starved-loop.toml"))
+        .expect("starved-loop.toml")
+        .replace(
+            "../../examples/",
+            &format!("{}/examples/", root().display()),
+        )
+        .replacen("late_us = 300", "late_us = 1000", 1);
+    std::fs::write(&file, text).expect("a scenario");
+    let (status, _, err) = judged(&file, &["--firmware", elf.to_str().unwrap()]);
+    assert_eq!(status, 2, "{err}");
+    assert!(
+        err.contains("faults[0]: late_ticks 1000 us: cannot be injected with --firmware"),
+        "{err}"
+    );
 }

@@ -5,6 +5,7 @@
 //! plant), and every tick is recorded ([`Tick`]) for judging.
 
 use shared::controller::Outputs;
+use shared::pil::MAX_LATE_US;
 
 use super::file::InjectedFault;
 use super::file::Injection;
@@ -52,18 +53,21 @@ pub struct ScenarioDriver<'s> {
 }
 
 /// The faults of a processor-in-the-loop run that cannot be injected there,
-/// by name (`late_ticks`: the firmware's clock is its own instructions).
+/// by name: `late_ticks` of a tick or more (the firmware would skip ticks).
 pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
     let refused: Vec<String> = scenario
         .faults
         .iter()
-        .filter(|f| matches!(f.fault, InjectedFault::LateTicks { .. }))
+        .filter(|f| {
+            matches!(f.fault, InjectedFault::LateTicks { late_us } if late_us.round() >= f64::from(MAX_LATE_US))
+        })
         .map(|f| {
             format!(
-                "error: {}: {}: {}: cannot be injected with --firmware (the firmware times its ticks by its own clock on QEMU)",
+                "error: {}: {}: {}: cannot be injected with --firmware: {} us late or more skips a tick on the firmware",
                 scenario.file,
                 f.key,
-                f.fault.kind()
+                f.fault.describe(),
+                MAX_LATE_US
             )
         })
         .collect();
@@ -156,10 +160,12 @@ impl Driver for ScenarioDriver<'_> {
             InTheLoop::Host(d) => d.injected = injected,
             InTheLoop::Firmware(d) => {
                 // This tick's record carries the link's bytes until the next
-                // tick, taken there: lost if the link is lost there.
+                // tick, taken there: lost if the link is lost there; and how
+                // late the next tick starts (the firmware spins after this one).
                 let next = injected_at(self.faults, t + self.dt).0;
                 d.injected = Injected {
                     link_lost: next.link_lost,
+                    tick_late_s: next.tick_late_s,
                     ..injected
                 };
             }

@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 
 use shared::controller::{Command, Outputs, RotorCount, State};
 use shared::drive::{CentreAligned, BOARD_TIMER_HZ};
-use shared::pil::{Bytes, Drive, Hello, Sample};
+use shared::pil::{Bytes, Drive, Hello, Sample, MAX_LATE_US};
 use shared::protocol::StatusReport;
 use shared::tick::Board;
 
@@ -55,7 +55,8 @@ pub struct FirmwareDriver {
     arr: u16,
     host: Host,
     /// Faults injected now (scenarios): on the sample as [`PlantBoard`] makes
-    /// it, on the bridges' supply, and on the link (frames not delivered).
+    /// it, on the bridges' supply, on the link (frames not delivered), and how
+    /// late the next tick starts (the firmware spins past its timer event).
     pub injected: Injected,
     /// The last tick's outputs as the board shows them: the status report's
     /// state, faults and telemetry, the bridges' duties and enable.
@@ -194,6 +195,10 @@ impl FirmwareDriver {
             current: inputs.current,
             supply_voltage: inputs.supply_voltage,
             estop: inputs.estop,
+            // Below MAX_LATE_US: a scenario asking more is refused before the run.
+            next_late_us: (self.injected.tick_late_s * 1e6)
+                .round()
+                .clamp(0.0, f64::from(MAX_LATE_US - 1)) as u16,
             rx,
         };
         let session = self.session.as_mut().ok_or("the firmware has stopped")?;
