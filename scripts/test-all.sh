@@ -107,8 +107,14 @@ step_doc() {
 
 # The host tests. The output is kept to total the counts at the end of the run.
 step_test() {
-    # The processor in the loop's tests (host-sim/tests/pil.rs) run the firmware's
-    # binary `pil` on QEMU; in CI they fail without it, so it is built first.
+    # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs)
+    # run the firmware's binary `pil` on QEMU; in CI they fail without it, so it
+    # is built first: for the scenario one-foot.toml's machine as pil-one-foot-machine
+    # beside it, then for the reference machine.
+    local elf="${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/pil"
+    (cd firmware && VIBRO_MACHINE=../tests/fixtures/one-foot-machine.toml \
+        cargo build --release --locked --features pil --bin pil &&
+        cp "$elf" "$elf-one-foot-machine")
     (cd firmware && cargo build --release --locked --features pil --bin pil)
     cargo test --workspace 2>&1 | tee "$TEST_LOG"
 }

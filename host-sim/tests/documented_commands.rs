@@ -331,7 +331,8 @@ fn script(block: &Block, port: Option<&str>) -> String {
 }
 
 /// A fresh scratch directory named `tag` holding copies of the repository's
-/// `examples/` and `scripts/`, an empty `docs/`, `my-machine.toml` (the
+/// `examples/`, `scripts/`, `tests/scenarios/` and `tests/fixtures/`, an empty
+/// `docs/`, `my-machine.toml` (the
 /// reference machine) with its tuning table beside it, and `travel.csv`.
 fn workspace(tag: &str) -> PathBuf {
     let dir = common::scratch(tag, "work");
@@ -339,6 +340,9 @@ fn workspace(tag: &str) -> PathBuf {
     let root = common::root();
     common::copy_dir(&root.join("examples"), &dir.join("examples"));
     common::copy_dir(&root.join("scripts"), &dir.join("scripts"));
+    for shipped in ["tests/scenarios", "tests/fixtures"] {
+        common::copy_dir(&root.join(shipped), &dir.join(shipped));
+    }
     std::fs::create_dir_all(dir.join("docs")).expect("docs/");
     for (from, to) in [
         ("vibro-driver.toml", "my-machine.toml"),

@@ -11,7 +11,7 @@
 //! | --- | --- | --- | --- |
 //! | [`Hello`] | firmware, once | [`Hello::LEN`] | the machine file's CRC-32 and length, the tick period in us, the machine file's path |
 //! | [`Drive`] | firmware, each tick | [`Drive::LEN`] | tick number, TIM8's four compare values, its main output enable, the tick's status report, the UART bytes sent |
-//! | [`Sample`] | host, each tick | [`Sample::LEN`] | tick number, the encoder counters and index latches, the mean currents, the supply, the E-stop, the UART bytes received |
+//! | [`Sample`] | host, each tick | [`Sample::LEN`] | tick number, the encoder counters and index latches, the mean currents, the supply, the E-stop, how late the next tick starts, the UART bytes received |
 //!
 //! Tick `n` (from 1): the firmware sends the [`Drive`] of tick `n - 1` (the
 //! [`Hello`] before tick 1) and reads the [`Sample`] of tick `n`; each side
@@ -26,7 +26,7 @@ use crate::codec::wire::{Reader, Writer};
 use crate::protocol::message::StatusReport;
 
 /// Version of the record layouts.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 
 /// UART bytes one record carries at most, each way. At 115200 baud, 8N1, a UART
 /// moves 11.5 bytes per 1 ms tick; 128 is room for a burst of ten times that.
@@ -313,9 +313,18 @@ pub struct Sample {
     pub supply_voltage: f32,
     /// The E-stop circuit open.
     pub estop: bool,
+    /// How late the next tick starts, us, below [`MAX_LATE_US`]: the firmware
+    /// keeps the core busy after this tick until that long past the next
+    /// tick's timer event (an injected starved loop), so that its own clock
+    /// measures the next tick late.
+    pub next_late_us: u16,
     /// UART bytes received.
     pub rx: Bytes,
 }
+
+/// The largest [`Sample::next_late_us`] (exclusive): less than one tick of the
+/// fastest control rate, so that no tick is skipped.
+pub const MAX_LATE_US: u16 = 1000;
 
 /// Flag bits of [`Sample`]: index latched on rotor 1, on rotor 2, E-stop open.
 const INDEX_1: u8 = 1 << 0;
@@ -324,8 +333,8 @@ const ESTOP: u8 = 1 << 2;
 
 impl Sample {
     /// Record bytes: magic 4, version 2, tick 4, encoders 8, flags 1, index 8,
-    /// currents 8, supply 4, bytes 1 + 128.
-    pub const LEN: usize = 4 + 2 + 4 + 8 + 1 + 8 + 8 + 4 + 1 + MAX_BYTES;
+    /// currents 8, supply 4, next tick's lateness 2, bytes 1 + 128.
+    pub const LEN: usize = 4 + 2 + 4 + 8 + 1 + 8 + 8 + 4 + 2 + 1 + MAX_BYTES;
 
     /// Its bytes.
     pub fn to_bytes(&self) -> [u8; Sample::LEN] {
@@ -354,6 +363,7 @@ impl Sample {
             w.f32(i);
         }
         w.f32(self.supply_voltage);
+        w.u16(self.next_late_us);
         self.rx.write(&mut w);
         out
     }
@@ -371,9 +381,14 @@ impl Sample {
         if flags & !(INDEX_1 | INDEX_2 | ESTOP) != 0 {
             return Err(RecordError::Value);
         }
-        let (Some(c1), Some(c2), Some(supply_voltage)) = (r.f32(), r.f32(), r.f32()) else {
+        let (Some(c1), Some(c2), Some(supply_voltage), Some(next_late_us)) =
+            (r.f32(), r.f32(), r.f32(), r.u16())
+        else {
             return Err(RecordError::Length);
         };
+        if next_late_us >= MAX_LATE_US {
+            return Err(RecordError::Value);
+        }
         let rx = Bytes::read(&mut r)?;
         Ok(Sample {
             tick,
@@ -385,6 +400,7 @@ impl Sample {
             current: [c1, c2],
             supply_voltage,
             estop: flags & ESTOP != 0,
+            next_late_us,
             rx,
         })
     }
@@ -419,6 +435,7 @@ mod tests {
             current: [0.5, -0.25],
             supply_voltage: 12.0,
             estop: true,
+            next_late_us: 300,
             rx,
         };
         let bytes = s.to_bytes();
@@ -439,6 +456,10 @@ mod tests {
         assert_eq!(Sample::parse(&bad, 3), Err(RecordError::Version));
         let mut bad = bytes;
         bad[4 + 2 + 4 + 8] = 0x80;
+        assert_eq!(Sample::parse(&bad, 3), Err(RecordError::Value));
+        let late = 4 + 2 + 4 + 8 + 1 + 8 + 8 + 4;
+        let mut bad = bytes;
+        bad[late..late + 2].copy_from_slice(&MAX_LATE_US.to_le_bytes());
         assert_eq!(Sample::parse(&bad, 3), Err(RecordError::Value));
 
         let d = Drive {

@@ -120,6 +120,7 @@ mod app {
             timing,
             uptime_ms: *cx.local.uptime_ms,
             estop: false,
+            next_late_us: 0,
         };
         let mut port = link_port(&mut cx.shared.link, *cx.local.uptime_ms);
         let controller = cx.local.controller;
@@ -127,6 +128,13 @@ mod app {
         shared::tick::run(controller, &mut board, &mut port, dt);
         log_refusals(&port.taken);
         cx.local.clock.end();
+        // A starved loop injected by the host: the core kept busy past the
+        // next tick's timer event, which the next tick's clock sees as its
+        // lateness.
+        if board.next_late_us > 0 {
+            let late = u32::from(board.next_late_us) * (cycles::SYSTICK_HZ / 1_000_000);
+            cycles::spin(cycles::now().saturating_add(late), cycles::RELOAD);
+        }
     }
 
     /// The link, as on the board: decode, answer, stream telemetry; its sent

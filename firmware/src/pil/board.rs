@@ -57,6 +57,8 @@ pub struct PilBoard<'a> {
     pub uptime_ms: u32,
     /// The E-stop as this tick's sample read it.
     pub estop: bool,
+    /// How late the next tick starts, us, as this tick's sample asks.
+    pub next_late_us: u16,
 }
 
 impl shared::tick::Board for PilBoard<'_> {
@@ -84,6 +86,7 @@ impl shared::tick::Board for PilBoard<'_> {
             }
         }
         self.estop = sample.estop;
+        self.next_late_us = sample.next_late_us;
         Inputs {
             encoder: sample.encoder,
             index: sample.index,

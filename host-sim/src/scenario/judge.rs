@@ -75,24 +75,30 @@ impl Report {
     }
 }
 
-/// Runs `scenario` (stages of the module doc). Fails only if the controller's
-/// parameters cannot be built (the tuning table changed since [`super::file::load`]).
+/// Runs `scenario` with the controller in the loop (stages of the module doc).
+/// Fails only if the controller's parameters cannot be built (the tuning table
+/// changed since [`super::file::load`]).
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
-    run_observed(scenario, &mut Interruptible::new())
+    let mut driver = ScenarioDriver::controller(scenario)?;
+    Ok(run_observed(
+        scenario,
+        &mut driver,
+        &mut Interruptible::new(),
+    ))
 }
 
-/// [`run`] with `observer` watching the simulation (the animation's frames) and
-/// deciding whether it goes on.
+/// Runs `scenario` with `driver`, `observer` watching the simulation (the
+/// animation's frames) and deciding whether it goes on.
 pub fn run_observed(
     scenario: &Scenario,
+    driver: &mut ScenarioDriver<'_>,
     observer: &mut dyn Observer,
-) -> Result<Report, Vec<Problem>> {
+) -> Report {
     // 1.-3. Simulate with the scenario's driver.
-    let mut driver = ScenarioDriver::new(scenario)?;
     let mut options = RunOptions::new(scenario.t_end);
     options.keep_rows = false;
     options.keep_events = false;
-    let result = simulate_observed(&scenario.machine, &mut driver, &options, observer);
+    let result = simulate_observed(&scenario.machine, driver, &options, observer);
     let mut samples: Vec<(f64, f64)> = driver.ticks.iter().map(|k| (k.t, k.x)).collect();
     if let Some(row) = result.last_row {
         if samples.last().is_none_or(|s| s.0 < row.t) {
@@ -132,7 +138,7 @@ pub fn run_observed(
             latched: first_latch_after(ticks, f.t),
         })
         .collect();
-    Ok(Report {
+    Report {
         scenario: scenario.file.clone(),
         machine: scenario.machine_file.display().to_string(),
         t_end: scenario.t_end,
@@ -141,7 +147,7 @@ pub fn run_observed(
         final_state: driver.state(),
         stopped: result.stopped,
         warnings: result.summary.warnings,
-    })
+    }
 }
 
 /// Whether the tick at `t` lies in `w` (ends included).

@@ -1,11 +1,14 @@
-//! `host-sim scenario FILE [--format table|json] [--animate FILE.html]`: runs one
-//! scenario file (`docs/scenarios.md`) and reports every expectation, PASS or FAIL,
-//! with what was expected and what was measured.
+//! `host-sim scenario FILE [--format table|json] [--animate FILE.html]
+//! [--firmware ELF [--firmware-log FILE]]`: runs one scenario file
+//! (`docs/scenarios.md`) with the controller in the loop, or the firmware on QEMU
+//! (`docs/pil.md`), and reports every expectation, PASS or FAIL, with what was
+//! expected and what was measured.
 //!
 //! Stages:
 //! 1. read and check the scenario and its machine ([`file::load`]): every
 //!    problem at once with its key path, exit 2;
-//! 2. run it ([`judge::run`]), filmed for `--animate`;
+//! 2. run it ([`judge::run_observed`]), filmed for `--animate`; with
+//!    `--firmware`, QEMU stopped and the firmware's log written after it;
 //! 3. write the animation (whole or not at all, [`crate::output::animate`]; also
 //!    when an expectation fails), then the report as a table or JSON; exit 0 when
 //!    every expectation holds, 1 when any fails.
@@ -25,7 +28,9 @@ use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::file::Staged;
-use crate::simulation::{limits, Interruptible};
+use crate::simulation::pil::FirmwareDriver;
+use crate::simulation::{limits, Driver, Interruptible};
+use driver::{InTheLoop, ScenarioDriver};
 
 /// Arguments of `host-sim scenario`.
 #[derive(Debug, Args)]
@@ -37,7 +42,7 @@ use crate::simulation::{limits, Interruptible};
         "host-sim scenario tests/scenarios/estop.toml --format json --animate estop.html",
     ],
     &[],
-    &["docs/scenarios.md", "docs/cli-run.md#limits"],
+    &["docs/scenarios.md", "docs/pil.md", "docs/cli-run.md#limits"],
 ))]
 pub struct ScenarioArgs {
     /// The scenario file (TOML; see docs/scenarios.md).
@@ -49,6 +54,14 @@ pub struct ScenarioArgs {
     /// Write the run as an HTML page that plays it ([`animate::option_help`]).
     #[arg(long, value_name = "FILE.html")]
     pub animate: Option<PathBuf>,
+    /// Run the firmware's binary `pil` (built for the scenario's machine file:
+    /// `cd firmware && cargo build --release --features pil --bin pil`) on QEMU
+    /// as the controller (processor in the loop, docs/pil.md).
+    #[arg(long, value_name = "ELF")]
+    pub firmware: Option<PathBuf>,
+    /// With --firmware: where its decoded defmt log goes (default: ELF.log).
+    #[arg(long, value_name = "FILE", requires = "firmware")]
+    pub firmware_log: Option<PathBuf>,
 }
 
 /// Runs the command (stages of the module doc). Expectations that do not hold are
@@ -66,14 +79,49 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
         return Err(Failure::Usage(problems.join("\n")));
     }
 
-    // 2. Run, the animation's file opened first (refused before the run).
+    // 2. Run, the output files opened first (refused before the run).
+    let firmware_log = args.firmware.as_ref().map(|elf| {
+        args.firmware_log
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{}.log", elf.display())))
+    });
     let mut staged = Staged::new();
     let animation = staged.add_optional("--animate", args.animate.as_deref())?;
+    let log = staged.add_optional("--firmware-log", firmware_log.as_deref())?;
+    let mut driver = match &args.firmware {
+        Some(elf) => {
+            driver::refused_in_pil(&scenario)?;
+            let firmware = FirmwareDriver::start(
+                &scenario.machine,
+                &scenario.machine_file,
+                elf,
+                driver::schedule(&scenario),
+            )?;
+            ScenarioDriver::new(&scenario, InTheLoop::Firmware(Box::new(firmware)))
+        }
+        None => ScenarioDriver::controller(&scenario)?,
+    };
     let mut film = Film {
         frames: animation.map(|_| Frames::new(&scenario.machine)),
         inner: &mut Interruptible::new(),
     };
-    let report = judge::run_observed(&scenario, &mut film)?;
+    let mut report = judge::run_observed(&scenario, &mut driver, &mut film);
+    let failure = driver.failure();
+    if let InTheLoop::Firmware(f) = &mut driver.inner {
+        f.finish();
+        report.warnings.extend(f.warnings());
+        if let (Some(why), Some(path)) = (&failure, &firmware_log) {
+            // The firmware's log is kept, to say why; nothing else is written.
+            let _ = std::fs::write(path, f.log());
+            return Err(Failure::Run(format!(
+                "{why}\nthe firmware's log: {}",
+                path.display()
+            )));
+        }
+        if let Some(i) = log {
+            staged.write(i, f.log())?;
+        }
+    }
 
     // 3. The animation, then the report.
     if let (Some(i), Some(mut frames)) = (animation, film.frames) {

@@ -41,6 +41,14 @@ pub struct Injected {
     pub tick_late_s: f64,
 }
 
+impl Injected {
+    /// The supply the bridges see and the board measures, V: the injected sag,
+    /// else `nominal`.
+    pub fn supply(&self, nominal: f64) -> f64 {
+        self.supply_voltage.unwrap_or(nominal)
+    }
+}
+
 /// What the sensors read at a control tick: the controller's
 /// [`shared::controller::Inputs`] from the plant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -147,7 +147,7 @@ impl ControllerDriver {
 impl Driver for ControllerDriver {
     /// The supply the bridges see: nominal, or the injected sag.
     fn before_tick(&mut self, _t: f64, plant: &mut Plant) {
-        plant.set_supply(self.injected.supply_voltage.unwrap_or(self.supply));
+        plant.set_supply(self.injected.supply(self.supply));
     }
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
@@ -157,7 +157,7 @@ impl Driver for ControllerDriver {
             plant,
             t,
             injected: &self.injected,
-            supply: self.injected.supply_voltage.unwrap_or(self.supply),
+            supply: self.injected.supply(self.supply),
             bridges: ([BridgeCommand::Off; 2], [0.0; 2]),
         };
         let mut port = SchedulePort {

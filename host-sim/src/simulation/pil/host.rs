@@ -46,8 +46,10 @@ impl Host {
     }
 
     /// The bytes for the firmware at `t`, s: the commands due, else a heartbeat
-    /// when one is due; as many queued bytes as `rx` holds.
-    pub fn send(&mut self, t: f64, rx: &mut Bytes) {
+    /// when one is due; as many queued bytes as `rx` holds. While the link is
+    /// `lost`, the commands due and the bytes queued are lost and no heartbeat
+    /// is sent, as the controller in the loop loses them.
+    pub fn send(&mut self, t: f64, lost: bool, rx: &mut Bytes) {
         let mut requests = Vec::new();
         while self
             .schedule
@@ -57,6 +59,10 @@ impl Host {
             if let Some((_, c)) = self.schedule.pop_front() {
                 requests.push(Request::from(c));
             }
+        }
+        if lost {
+            self.out.clear();
+            return;
         }
         if requests.is_empty()
             && self

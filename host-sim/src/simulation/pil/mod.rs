@@ -4,8 +4,10 @@
 //! (tick `n = k + 1` of the firmware):
 //!
 //! 1. the plant's sensors are sampled as for the controller in the loop
-//!    ([`PlantBoard`]'s sample) and sent with the UART bytes the host's link
-//!    sends ([`host`]) as the record [`Sample`] of tick `n`;
+//!    ([`PlantBoard`]'s sample, with a scenario's faults) and sent with the
+//!    UART bytes the host's link sends until the next tick ([`host`]) as the
+//!    record [`Sample`] of tick `n` (the firmware's link decodes them after the
+//!    tick's step: a command due by tick `n + 1` is taken there);
 //! 2. the firmware's record [`Drive`] of tick `n` comes back: TIM8's compare
 //!    values and main output enable, which the plant's bridges take as the
 //!    timer's inputs ([`BridgeCommand::Inputs`]: `compare / ARR`, with `ARR` of
@@ -22,9 +24,9 @@ pub mod session;
 
 use std::path::{Path, PathBuf};
 
-use shared::controller::{Command, RotorCount, State};
+use shared::controller::{Command, Outputs, RotorCount, State};
 use shared::drive::{CentreAligned, BOARD_TIMER_HZ};
-use shared::pil::{Bytes, Drive, Hello, Sample};
+use shared::pil::{Bytes, Drive, Hello, Sample, MAX_LATE_US};
 use shared::protocol::StatusReport;
 use shared::tick::Board;
 
@@ -52,6 +54,15 @@ pub struct FirmwareDriver {
     /// The bridge timer's full scale, `ARR`.
     arr: u16,
     host: Host,
+    /// Faults injected now (scenarios): on the sample as [`PlantBoard`] makes
+    /// it, on the bridges' supply, on the link (frames not delivered), and how
+    /// late the next tick starts (the firmware spins past its timer event).
+    pub injected: Injected,
+    /// The last tick's outputs as the board shows them: the status report's
+    /// state, faults and telemetry, the bridges' duties and enable.
+    outputs: Option<Outputs>,
+    /// The control period, s.
+    dt: f64,
     /// The firmware's tick number of the next exchange.
     tick: u32,
     last: Option<StatusReport>,
@@ -132,6 +143,9 @@ impl FirmwareDriver {
             rotor_count: p.rotor_count,
             arr: CentreAligned::new(BOARD_TIMER_HZ, machine.drive.bridge).arr,
             host: Host::new(schedule),
+            injected: Injected::default(),
+            outputs: None,
+            dt: 1.0 / rate,
             tick: 1,
             last: None,
             events: Vec::new(),
@@ -159,18 +173,21 @@ impl FirmwareDriver {
 
     /// One exchange: the sample of tick `self.tick` out, its drive record in.
     fn exchange(&mut self, t: f64, plant: &Plant) -> Result<Drive, String> {
-        let injected = Injected::default();
         let mut board = PlantBoard {
             sensors: &mut self.sensors,
             plant,
             t,
-            injected: &injected,
-            supply: self.supply,
+            injected: &self.injected,
+            supply: self.injected.supply(self.supply),
             bridges: ([BridgeCommand::Off; 2], [0.0; 2]),
         };
         let inputs = board.sample();
+        // The bytes the UART receives until the next tick: the link decodes them
+        // after this tick's step, so that a command due by the next tick is
+        // taken there, as the controller in the loop takes it.
         let mut rx = Bytes::default();
-        self.host.send(t, &mut rx);
+        self.host
+            .send(t + self.dt, self.injected.link_lost, &mut rx);
         let sample = Sample {
             tick: self.tick,
             encoder: inputs.encoder,
@@ -178,6 +195,10 @@ impl FirmwareDriver {
             current: inputs.current,
             supply_voltage: inputs.supply_voltage,
             estop: inputs.estop,
+            // Below MAX_LATE_US: a scenario asking more is refused before the run.
+            next_late_us: (self.injected.tick_late_s * 1e6)
+                .round()
+                .clamp(0.0, f64::from(MAX_LATE_US - 1)) as u16,
             rx,
         };
         let session = self.session.as_mut().ok_or("the firmware has stopped")?;
@@ -206,6 +227,11 @@ impl FirmwareDriver {
         )
     }
 
+    /// The last tick's outputs as the board shows them.
+    pub fn last(&self) -> Option<&Outputs> {
+        self.outputs.as_ref()
+    }
+
     fn observe(&mut self, t: f64, s: StatusReport) {
         let before = self.last.map(|o| (o.state, o.faults));
         self.events
@@ -216,7 +242,7 @@ impl FirmwareDriver {
 
 impl Driver for FirmwareDriver {
     fn before_tick(&mut self, _t: f64, plant: &mut Plant) {
-        plant.set_supply(self.supply);
+        plant.set_supply(self.injected.supply(self.supply));
     }
 
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]) {
@@ -226,7 +252,16 @@ impl Driver for FirmwareDriver {
         match self.exchange(t, plant) {
             Ok(drive) => {
                 self.observe(t, drive.status);
-                self.bridges_of(&drive)
+                let bridges = self.bridges_of(&drive);
+                self.outputs = Some(Outputs {
+                    duty: bridges.1.map(|d| d as f32),
+                    enable: drive.enabled,
+                    bridges: bridges.0.map(|b| b != BridgeCommand::Off),
+                    state: drive.status.state,
+                    faults: drive.status.faults,
+                    telemetry: drive.status.telemetry,
+                });
+                bridges
             }
             Err(_) if crate::interrupt::interrupted() => {
                 // Ctrl-C or SIGTERM: the run ends at this tick as any run does
