@@ -739,7 +739,8 @@ fn an_ack_for_another_request_is_no_acceptance() {
         (&["hold", "--offset", "90", "--speed", "3000"], "HoldOffset"),
         (&["reset"], "ResetFaults"),
         (&["telemetry", "--count", "1"], "StreamTelemetry"),
-        (&["self-test"], "RunSelfTest"),
+        // The self-test asks the status first (to wait for the rotors at rest).
+        (&["self-test"], "GetStatus"),
         (
             &["table", "write", table.to_str().unwrap()],
             "WriteTuningTable",

@@ -66,7 +66,8 @@ pub enum DeviceCommand {
         "host-sim device --port /dev/ttyUSB0 telemetry --serve",
     ]))]
     Telemetry(TelemetryArgs),
-    /// Run the self-test (motors stopped, no fault) and print its result per rotor.
+    /// Run the self-test (motors stopped, no fault) and print its result per rotor;
+    /// first waits for the rotors at rest for 0.5 s (at most 10 s).
     #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 self-test"]))]
     SelfTest(SelfTestArgs),
     /// Read or write the device's tuning table (the file format of `host-sim tune

@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::controller::{Direction, SelfTestReport, SelfTestStatus, TuningTable};
+use shared::controller::{Direction, SelfTestReport, SelfTestStatus, State, TuningTable};
 use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS};
 
 use super::args::{
@@ -20,7 +20,7 @@ use super::client::{Client, LinkError};
 use super::port::PortSpec;
 use super::report;
 use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
-use super::rest::{await_rest, Poll, REST_TIMEOUT_S};
+use super::rest::{self, await_rest, await_steady_rest, Poll, REST_HOLD_S, REST_TIMEOUT_S};
 use super::{live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
@@ -406,6 +406,20 @@ fn self_test_taken(client: &mut Client) -> Result<bool, Failure> {
 
 fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Result<(), Failure> {
     interrupt::catch();
+    // The device takes the test only with both rotors at rest; after a stop an
+    // eccentric may swing on for a while (module `rest`). With the motors
+    // driven (or a self-test running) there is nothing to wait for: the device
+    // answers the request with its reason.
+    if matches!(Poll::status(client)?.state, State::Idle | State::Fault) {
+        let rest = await_steady_rest(client, REST_HOLD_S, REST_TIMEOUT_S)?;
+        if !rest.reached {
+            return Err(Failure::Device(format!(
+                "error: the self-test needs the motors stopped and both rotors at rest (below {} rpm) for {REST_HOLD_S} s; not so within {REST_TIMEOUT_S} s: {}",
+                shared::controller::WRITE_MAX_SPEED_RPM,
+                rest::motion(&rest.status)
+            )));
+        }
+    }
     command(client, &Request::RunSelfTest)?;
     // Until the controller takes the request at its next tick, the device
     // reports the previous self-test's outcome: not this one's.

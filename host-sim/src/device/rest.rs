@@ -114,6 +114,42 @@ pub fn await_rest(link: &mut dyn Poll, timeout_s: f64) -> Result<Rest, Failure> 
     }
 }
 
+/// The device's uptime the machine must stay at rest before a self-test, s: a
+/// rotor that swings as a pendulum (its eccentric under gravity, the platform
+/// free) passes below 10 rpm at each turn of its swing, for some milliseconds;
+/// on the reference machine half a swing takes about 0.22 s
+/// (`pi sqrt(J / (m g e))`, J = 1e-5 kg m^2, m g e = 1.96e-3 N m).
+pub const REST_HOLD_S: f64 = 0.5;
+
+/// Asks the status every [`HEARTBEAT_EVERY`] until every status for `hold_s`
+/// of the device's uptime has been at rest ([`at_rest`]), or `timeout_s` (the
+/// host's clock) has passed; a failed question is the failure. The hold is
+/// measured on the device's clock, so a busy host neither shortens nor
+/// lengthens it.
+pub fn await_steady_rest(
+    link: &mut dyn Poll,
+    hold_s: f64,
+    timeout_s: f64,
+) -> Result<Rest, Failure> {
+    let start = Instant::now();
+    let mut since: Option<u32> = None;
+    loop {
+        let status = link.status()?;
+        let after_s = start.elapsed().as_secs_f64();
+        since = at_rest(&status).then(|| since.unwrap_or(status.uptime_ms));
+        let held =
+            since.is_some_and(|u0| f64::from(status.uptime_ms.wrapping_sub(u0)) >= hold_s * 1e3);
+        if held || after_s >= timeout_s {
+            return Ok(Rest {
+                reached: held,
+                status,
+                after_s,
+            });
+        }
+        link.wait(HEARTBEAT_EVERY)?;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use shared::controller::{Faults, State, Telemetry};
@@ -157,6 +193,57 @@ mod tests {
         fn wait(&mut self, _: Duration) -> Result<(), Failure> {
             Ok(())
         }
+    }
+
+    /// An idle machine whose rotor swings (speeds in rpm, one per question, the
+    /// last one repeated), the uptime 50 ms on at each question.
+    struct Swing {
+        rpm: Vec<f32>,
+        asked: usize,
+    }
+
+    impl Poll for Swing {
+        fn status(&mut self) -> Result<StatusReport, Failure> {
+            let rpm = self.rpm[self.asked.min(self.rpm.len() - 1)];
+            let mut s = status(State::Idle, rpm);
+            s.uptime_ms = 50 * self.asked as u32;
+            self.asked += 1;
+            Ok(s)
+        }
+
+        fn wait(&mut self, _: Duration) -> Result<(), Failure> {
+            std::thread::sleep(Duration::from_millis(1));
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_rotor_swinging_through_zero_is_not_at_rest_until_it_stays_there() {
+        // Through 0 at every turn of the swing, then still from question 8 on.
+        let swing = vec![130.0, 0.0, -130.0, 0.0, 130.0, 5.0, -60.0, 20.0, 0.0];
+        let r = await_steady_rest(
+            &mut Swing {
+                rpm: swing.clone(),
+                asked: 0,
+            },
+            0.5,
+            10.0,
+        )
+        .unwrap();
+        assert!(r.reached);
+        // At rest from question 8 (400 ms) on: held at 900 ms.
+        assert_eq!(r.status.uptime_ms, 900);
+        // A machine that swings on is not at rest however often it passes 0.
+        let r = await_steady_rest(
+            &mut Swing {
+                rpm: swing[..8].iter().cycle().take(400).copied().collect(),
+                asked: 0,
+            },
+            0.5,
+            0.2,
+        )
+        .unwrap();
+        assert!(!r.reached, "{r:?}");
     }
 
     #[test]
