@@ -109,12 +109,16 @@ step_doc() {
 step_test() {
     # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs)
     # run the firmware's binary `pil` on QEMU; in CI they fail without it, so it
-    # is built first: for the scenario one-foot.toml's machine as pil-one-foot-machine
-    # beside it, then for the reference machine.
+    # is built first: for the other machines the tests run (the scenario
+    # one-foot.toml's, and wide-rotors-machine.toml) as pil-STEM beside it, then
+    # for the reference machine.
     local elf="${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/pil"
-    (cd firmware && VIBRO_MACHINE=../tests/fixtures/one-foot-machine.toml \
-        cargo build --release --locked --features pil --bin pil &&
-        cp "$elf" "$elf-one-foot-machine")
+    local stem
+    for stem in one-foot-machine wide-rotors-machine; do
+        (cd firmware && VIBRO_MACHINE="../tests/fixtures/$stem.toml" \
+            cargo build --release --locked --features pil --bin pil &&
+            cp "$elf" "$elf-$stem") || return 1
+    done
     (cd firmware && cargo build --release --locked --features pil --bin pil)
     cargo test --workspace 2>&1 | tee "$TEST_LOG"
 }
@@ -138,9 +142,9 @@ step_scripts() {
         --from 0.3 --to 0.5
     grep -q '<polyline' "$dir/fig9.svg"
     python3 scripts/paper-fig8-sweep.py --voltages x 2>/dev/null && return 1
-    # The benchmark scripts: the contacts' scaling and the random layouts on a
-    # short run (their files removed afterwards), the tolerance sweep's and the
-    # random layouts' refusal of a bad argument.
+    # The benchmark scripts: the contacts' scaling, the random layouts and the
+    # processor in the loop's cost on a short run (their files removed
+    # afterwards), their refusal of a bad argument.
     python3 benchmarks/contacts_scaling.py target/release/host-sim examples/vibro-driver.toml \
         --feet 2,3 --t-end 0.2 --repeats 1 >"$dir/scaling.md"
     grep -q '^| 3 |' "$dir/scaling.md"
@@ -150,7 +154,18 @@ step_scripts() {
     grep -q '^| 1 | 1 | 4 |' "$dir/random.md"
     grep -q '^| 1 | 2 | 5 (2 + 3) |' "$dir/random.md"
     if ls examples/.contacts-random-* 2>/dev/null; then return 1; fi
+    # The processor in the loop's cost (benchmarks/pil.md), on the ELF the step
+    # `test` built.
+    python3 benchmarks/pil_cost.py target/release/host-sim examples/vibro-driver.toml \
+        "${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/pil" \
+        --t-end 0.2 --reps 1 >"$dir/pil.md"
+    grep -q '^| firmware in the loop |' "$dir/pil.md"
+    grep -q "^the firmware's control task: mean" "$dir/pil.md"
     local rc=0
+    python3 benchmarks/pil_cost.py target/release/host-sim examples/vibro-driver.toml x \
+        --reps 0 2>/dev/null || rc=$?
+    [ "$rc" -eq 2 ] || return 1
+    rc=0
     python3 benchmarks/rtol_sweep.py target/release/host-sim examples/vibro-driver.toml \
         --rtols x 2>/dev/null || rc=$?
     [ "$rc" -eq 2 ] || return 1

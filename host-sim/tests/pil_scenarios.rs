@@ -51,35 +51,11 @@ fn verdicts(v: &Value) -> Value {
     })
 }
 
-/// The ELF built for the scenario's `machine`: `elf` for the reference machine,
-/// `ELF-STEM` beside it for another machine file `STEM.toml` (scripts/test-all.sh
-/// builds both); `None` (skipped, said on stderr) where that one is absent
-/// outside CI, failing in CI.
-fn elf_for(elf: &str, machine: &Value) -> Option<String> {
-    let machine = Path::new(machine.as_str().expect("the report's machine"));
-    if machine.ends_with("examples/vibro-driver.toml") {
-        return Some(elf.to_string());
-    }
-    let stem = machine.file_stem().expect("a file name").to_string_lossy();
-    let other = format!("{elf}-{stem}");
-    if Path::new(&other).is_file() {
-        return Some(other);
-    }
-    let why = format!(
-        "no {other}: build it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil` and copy the ELF there",
-        machine.display()
-    );
-    assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
-    eprintln!("skipped: {why}");
-    None
-}
-
 #[test]
 fn every_scenario_is_judged_on_the_firmware_as_on_the_controller_in_the_loop() {
     let Some(elf) = common::pil_firmware() else {
         return;
     };
-    let elf = elf.to_str().expect("UTF-8");
     let mut files: Vec<_> = std::fs::read_dir(root().join("tests/scenarios"))
         .expect("tests/scenarios")
         .map(|e| e.expect("an entry").path())
@@ -91,12 +67,14 @@ fn every_scenario_is_judged_on_the_firmware_as_on_the_controller_in_the_loop() {
         let name = file.file_name().unwrap().to_string_lossy().to_string();
         let log = common::scratch("pil-scenarios", &format!("{name}.log"));
         let (sil_status, sil, sil_err) = judged(file, &[]);
-        let Some(elf) = elf_for(elf, &sil["machine"]) else {
+        let machine = Path::new(sil["machine"].as_str().expect("the report's machine"));
+        let Some(elf) = common::pil_firmware_for(&elf, machine) else {
             continue;
         };
+        let elf = elf.to_str().expect("UTF-8");
         let (status, pil, err) = judged(
             file,
-            &["--firmware", &elf, "--firmware-log", log.to_str().unwrap()],
+            &["--firmware", elf, "--firmware-log", log.to_str().unwrap()],
         );
         assert_eq!(status, sil_status, "{name}: {err}\n{sil_err}");
         assert_eq!(verdicts(&pil), verdicts(&sil), "{name}:\n{pil}\n{sil}");

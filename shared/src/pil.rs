@@ -10,7 +10,7 @@
 //! | record | from | bytes | fields after magic and version |
 //! | --- | --- | --- | --- |
 //! | [`Hello`] | firmware, once | [`Hello::LEN`] | the machine file's CRC-32 and length, the tick period in us, the machine file's path |
-//! | [`Drive`] | firmware, each tick | [`Drive::LEN`] | tick number, TIM8's four compare values, its main output enable, the tick's status report, the UART bytes sent |
+//! | [`Drive`] | firmware, each tick | [`Drive::LEN`] | tick number, TIM8's four compare values, its main output enable, how long the tick's task ran, the tick's status report, the UART bytes sent |
 //! | [`Sample`] | host, each tick | [`Sample::LEN`] | tick number, the encoder counters and index latches, the mean currents, the supply, the E-stop, how late the next tick starts, the UART bytes received |
 //!
 //! Tick `n` (from 1): the firmware sends the [`Drive`] of tick `n - 1` (the
@@ -26,7 +26,7 @@ use crate::codec::wire::{Reader, Writer};
 use crate::protocol::message::StatusReport;
 
 /// Version of the record layouts.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 
 /// UART bytes one record carries at most, each way. At 115200 baud, 8N1, a UART
 /// moves 11.5 bytes per 1 ms tick; 128 is room for a burst of ten times that.
@@ -240,6 +240,11 @@ pub struct Drive {
     pub compare: [u16; 4],
     /// The timer's main output enable (MOE): off, every input low (coast).
     pub enabled: bool,
+    /// How long the tick's control task ran, from its first instruction to the
+    /// end of its step (the record exchange at its start included), in ns of the
+    /// firmware's clock. On QEMU with `-icount shift=0` one instruction is 1 ns,
+    /// so this is the task's instructions.
+    pub busy_ns: u32,
     /// The tick's status report.
     pub status: StatusReport,
     /// UART bytes sent.
@@ -247,9 +252,9 @@ pub struct Drive {
 }
 
 impl Drive {
-    /// Record bytes: magic 4, version 2, tick 4, compare 8, enable 1, status 68,
-    /// bytes 1 + 128.
-    pub const LEN: usize = 4 + 2 + 4 + 8 + 1 + StatusReport::LEN + 1 + MAX_BYTES;
+    /// Record bytes: magic 4, version 2, tick 4, compare 8, enable 1, busy 4,
+    /// status 68, bytes 1 + 128.
+    pub const LEN: usize = 4 + 2 + 4 + 8 + 1 + 4 + StatusReport::LEN + 1 + MAX_BYTES;
 
     /// Its bytes.
     pub fn to_bytes(&self) -> [u8; Drive::LEN] {
@@ -262,6 +267,7 @@ impl Drive {
             w.u16(c);
         }
         w.u8(u8::from(self.enabled));
+        w.u32(self.busy_ns);
         w.bytes(&self.status.to_bytes());
         self.tx.write(&mut w);
         out
@@ -281,6 +287,7 @@ impl Drive {
             1 => true,
             _ => return Err(RecordError::Value),
         };
+        let busy_ns = r.u32().ok_or(RecordError::Length)?;
         let status = r
             .array::<{ StatusReport::LEN }>()
             .ok_or(RecordError::Length)?;
@@ -290,6 +297,7 @@ impl Drive {
             tick,
             compare,
             enabled,
+            busy_ns,
             status,
             tx,
         })
@@ -466,6 +474,7 @@ mod tests {
             tick: 9,
             compare: [4200, 3000, 0, 0],
             enabled: true,
+            busy_ns: 1_476,
             status: status(),
             tx: Bytes::default(),
         };

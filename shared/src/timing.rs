@@ -57,6 +57,12 @@ impl TickClock {
         }
     }
 
+    /// The previous tick's duration (from [`TickClock::begin`] to
+    /// [`TickClock::end`]), cycles; 0 before the first tick has ended.
+    pub fn last_busy(&self) -> u32 {
+        self.last_busy
+    }
+
     /// At a tick's end: `now` the counter. Its duration goes into the next
     /// tick's timing.
     pub fn end(&mut self, now: u32) {

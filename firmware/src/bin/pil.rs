@@ -118,6 +118,7 @@ mod app {
             rx: cx.local.rx_in,
             tick,
             timing,
+            last_busy_ns: cx.local.clock.last_busy_ns(),
             uptime_ms: *cx.local.uptime_ms,
             estop: false,
             next_late_us: 0,

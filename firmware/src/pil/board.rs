@@ -53,6 +53,8 @@ pub struct PilBoard<'a> {
     pub tick: u32,
     /// The tick's timing, from SysTick.
     pub timing: TickTiming,
+    /// How long the previous tick's task ran, ns (its record carries it).
+    pub last_busy_ns: u32,
     /// The firmware's uptime at this tick, ms.
     pub uptime_ms: u32,
     /// The E-stop as this tick's sample read it.
@@ -65,6 +67,7 @@ impl shared::tick::Board for PilBoard<'_> {
     fn sample(&mut self) -> Inputs {
         if let Some(mut record) = self.link.pending.take() {
             record.tx = drain(self.tx);
+            record.busy_ns = self.last_busy_ns;
             if self.link.channel.send(&record.to_bytes()).is_err() {
                 fail("cannot send the drive record");
             }
@@ -107,6 +110,7 @@ impl shared::tick::Board for PilBoard<'_> {
             tick: self.tick,
             compare: pwm::compare_values(),
             enabled: on.contains(&true),
+            busy_ns: 0,
             status: StatusReport::from_outputs(self.uptime_ms, out),
             tx: Bytes::default(),
         });

@@ -90,6 +90,14 @@ impl SysTickClock {
         self.clock.end(self.count(laps, since));
     }
 
+    /// The previous tick's duration, ns of virtual time: SysTick's counts at
+    /// [`SYSTICK_HZ`], `ns = counts x 10^9 / SYSTICK_HZ`, rounded down (one
+    /// instruction each under `-icount shift=0`).
+    pub fn last_busy_ns(&self) -> u32 {
+        let ns = u64::from(self.clock.last_busy()) * 1_000_000_000 / u64::from(SYSTICK_HZ);
+        u32::try_from(ns).unwrap_or(u32::MAX)
+    }
+
     fn count(&self, laps: u32, since: u32) -> u32 {
         laps.wrapping_mul(self.reload + 1).wrapping_add(since)
     }

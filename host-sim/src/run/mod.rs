@@ -37,7 +37,7 @@ use crate::output::file::Staged;
 use crate::output::progress::Progress;
 use crate::output::text::{sig, signed};
 use crate::simulation::closed_loop::{self, ControllerDriver};
-use crate::simulation::pil::FirmwareDriver;
+use crate::simulation::pil::{FirmwareDriver, TickCost};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
     limits, simulate_observed, stop_message, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
@@ -354,7 +354,9 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         InTheLoop::Firmware(f) => Some(f),
         InTheLoop::Host(_) => None,
     };
+    let mut cost = None;
     if let Some(f) = firmware {
+        cost = Some(f.cost());
         f.finish();
         warnings.extend(f.warnings());
         if let Some(i) = log {
@@ -401,6 +403,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     staged.commit()?;
     let firmware_line = args.firmware.as_ref().zip(firmware_log.as_ref());
+    let cost = cost.unwrap_or_default();
     console.print(&match (args.format.format, firmware_line) {
         (Format::Json, None) => summary_json(&result.summary),
         (Format::Table, None) => summary_table(&result.summary),
@@ -409,16 +412,22 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             v["firmware"] = serde_json::json!({
                 "elf": elf.display().to_string(),
                 "log": log.display().to_string(),
+                "instructions_per_tick": {
+                    "ticks": cost.ticks,
+                    "mean": cost.mean(),
+                    "max": cost.max,
+                },
             });
             let mut text = serde_json::to_string_pretty(&v).unwrap_or_default();
             text.push('\n');
             text
         }
         (Format::Table, Some((elf, log))) => format!(
-            "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n",
+            "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n{}\n",
             summary_table(&result.summary),
             elf.display(),
-            log.display()
+            log.display(),
+            cost_line(&cost)
         ),
     });
     Ok(())
@@ -503,6 +512,17 @@ impl Observer for Watch<'_> {
 
     fn stop_flag(&self) -> Option<&'static AtomicUsize> {
         Some(interrupt::flag())
+    }
+}
+
+/// The firmware's control task's cost in the summary's table.
+fn cost_line(cost: &TickCost) -> String {
+    match cost.mean() {
+        Some(mean) => format!(
+            "its control task: mean {mean:.0}, max {} instructions a tick over {} ticks (QEMU's clock: 1 ns an instruction; the record exchange included)",
+            cost.max, cost.ticks
+        ),
+        None => "its control task: no tick ran".to_string(),
     }
 }
 

@@ -340,3 +340,27 @@ pub fn pil_firmware() -> Option<PathBuf> {
     eprintln!("skipped: {why}");
     None
 }
+
+/// The `pil` ELF built for the machine file `machine`: `elf` (from
+/// [`pil_firmware`]) for the reference machine, `ELF-STEM` beside it for another
+/// machine file `STEM.toml` (scripts/test-all.sh builds those the tests use);
+/// `None` (skipped, said on stderr) where that one is absent outside CI,
+/// failing in CI.
+pub fn pil_firmware_for(elf: &Path, machine: &Path) -> Option<PathBuf> {
+    if machine.ends_with("examples/vibro-driver.toml") {
+        return Some(elf.to_path_buf());
+    }
+    let stem = machine.file_stem().expect("a file name").to_string_lossy();
+    let other = PathBuf::from(format!("{}-{stem}", elf.display()));
+    if other.is_file() {
+        return Some(other);
+    }
+    let why = format!(
+        "no {}: build it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil` and copy the ELF there",
+        other.display(),
+        machine.display()
+    );
+    assert!(std::env::var("CI").as_deref() != Ok("true"), "{why}");
+    eprintln!("skipped: {why}");
+    None
+}

@@ -69,6 +69,36 @@ pub struct FirmwareDriver {
     events: Vec<EventRow>,
     failure: Option<String>,
     log: String,
+    /// Whether the log's decoder had to be killed (its log may be cut).
+    log_cut: bool,
+    /// The control task's instructions per tick, from the drive records.
+    cost: TickCost,
+}
+
+/// The firmware's control task's instructions per tick: each drive record's
+/// `busy_ns`, one instruction a nanosecond of QEMU's virtual clock under
+/// `-icount shift=0` (`firmware::qemu::cycles` checks that ratio).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TickCost {
+    /// Ticks counted.
+    pub ticks: u64,
+    /// Their instructions, summed.
+    pub total: u64,
+    /// The most in one tick.
+    pub max: u32,
+}
+
+impl TickCost {
+    fn add(&mut self, instructions: u32) {
+        self.ticks += 1;
+        self.total += u64::from(instructions);
+        self.max = self.max.max(instructions);
+    }
+
+    /// The mean instructions per tick (none before a tick).
+    pub fn mean(&self) -> Option<f64> {
+        (self.ticks > 0).then(|| self.total as f64 / self.ticks as f64)
+    }
 }
 
 impl FirmwareDriver {
@@ -151,13 +181,17 @@ impl FirmwareDriver {
             events: Vec::new(),
             failure: None,
             log: String::new(),
+            log_cut: false,
+            cost: TickCost::default(),
         })
     }
 
     /// Stop QEMU and keep the firmware's log ([`FirmwareDriver::log`]).
     pub fn finish(&mut self) {
         if let Some(s) = self.session.take() {
-            self.log = s.finish();
+            let (log, whole) = s.finish();
+            self.log = log;
+            self.log_cut = !whole;
         }
     }
 
@@ -166,9 +200,22 @@ impl FirmwareDriver {
         &self.log
     }
 
+    /// The control task's instructions per tick so far.
+    pub fn cost(&self) -> TickCost {
+        self.cost
+    }
+
     /// What the host's link noticed (a request refused, frames lost).
     pub fn warnings(&self) -> Vec<String> {
-        self.host.warnings()
+        let mut w = self.host.warnings();
+        if self.log_cut {
+            w.push(format!(
+                "the firmware's log may be cut: its decoder ({}) had not ended {} s after QEMU was stopped and was killed",
+                session::DEFMT_PRINT,
+                session::DECODER_S
+            ));
+        }
+        w
     }
 
     /// One exchange: the sample of tick `self.tick` out, its drive record in.
@@ -208,6 +255,7 @@ impl FirmwareDriver {
         let drive = Drive::parse(&buf, self.tick)
             .map_err(|e| format!("the firmware's record of tick {} refused: {e}", self.tick))?;
         self.host.received(drive.tx.as_slice());
+        self.cost.add(drive.busy_ns);
         self.tick += 1;
         Ok(drive)
     }
