@@ -40,7 +40,8 @@ use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::pil::{FirmwareDriver, TickCost};
 use crate::simulation::trace::{EventRow, TraceRow};
 use crate::simulation::{
-    limits, simulate_observed, stop_message, Driver, Observer, OpenLoop, OpenLoopDriver, RunOptions,
+    limits, simulate_observed, stop_message, Driver, InTheLoop, Observer, OpenLoop, OpenLoopDriver,
+    RunOptions,
 };
 use plot::plot_svg;
 use report::{summary_json, summary_table, summary_value};
@@ -257,7 +258,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // that cannot be built (its tuning table) is refused with nothing written.
     let supply = machine.drive.supply_voltage;
     let mut warnings = Vec::new();
-    let (mut driver, how): (InTheLoop, String) = match &drive {
+    let (mut driver, how): (InTheLoop<dyn Driver>, String) = match &drive {
         Drive::OpenLoop(open_loop) => {
             if open_loop.volts().iter().any(|u| u.abs() > supply) {
                 warnings.push(format!(
@@ -523,22 +524,6 @@ fn cost_line(cost: &TickCost) -> String {
             cost.max, cost.ticks
         ),
         None => "its control task: no tick ran".to_string(),
-    }
-}
-
-/// What decides the bridges' commands at each tick: a driver of the host's
-/// (open loop, the controller in the loop) or the firmware on QEMU.
-enum InTheLoop {
-    Host(Box<dyn Driver>),
-    Firmware(Box<FirmwareDriver>),
-}
-
-impl InTheLoop {
-    fn driver(&mut self) -> &mut dyn Driver {
-        match self {
-            InTheLoop::Host(d) => &mut **d,
-            InTheLoop::Firmware(f) => &mut **f,
-        }
     }
 }
 

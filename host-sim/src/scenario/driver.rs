@@ -15,7 +15,6 @@ use crate::machine::input::Problem;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::closed_loop::{ControllerDriver, Injected};
-use crate::simulation::pil::FirmwareDriver;
 use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
 
@@ -30,13 +29,9 @@ pub struct Tick {
     pub out: Outputs,
 }
 
-/// The controller a scenario runs.
-pub enum InTheLoop {
-    /// The controller in the loop (its schedule holds the scenario's commands).
-    Host(Box<ControllerDriver>),
-    /// The firmware on QEMU (its link sends the scenario's commands).
-    Firmware(Box<FirmwareDriver>),
-}
+/// The controller a scenario runs: the controller in the loop (its schedule
+/// holds the scenario's commands) or the firmware on QEMU (its link sends them).
+pub type InTheLoop = crate::simulation::InTheLoop<ControllerDriver>;
 
 /// The controller with a scenario's injected faults, recording every tick.
 pub struct ScenarioDriver<'s> {

@@ -55,6 +55,27 @@ pub fn stop_message(stop: &Stop, t_end: Option<f64>) -> String {
     }
 }
 
+/// What decides the bridges' commands at each tick: a driver of the host's
+/// (`H`: the open loop or the controller in the loop) or the firmware on QEMU
+/// (processor in the loop). `run` holds any host driver (`dyn Driver`), a
+/// scenario the controller in the loop.
+pub enum InTheLoop<H: ?Sized> {
+    /// A driver of the host's.
+    Host(Box<H>),
+    /// The firmware on QEMU.
+    Firmware(Box<pil::FirmwareDriver>),
+}
+
+impl InTheLoop<dyn Driver> {
+    /// The driver, whichever it is.
+    pub fn driver(&mut self) -> &mut dyn Driver {
+        match self {
+            InTheLoop::Host(d) => &mut **d,
+            InTheLoop::Firmware(f) => &mut **f,
+        }
+    }
+}
+
 /// What drives the windings, asked at every control tick.
 pub trait Driver {
     /// Acts on the plant before the tick's windings are asked for (fault
