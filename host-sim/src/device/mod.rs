@@ -8,7 +8,9 @@
 //! - [`pty`]: the pseudo-terminal `device-sim` serves (Unix);
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
-//! - [`telemetry`]: `host-sim device telemetry`, the stream printed and watched;
+//! - [`telemetry_stream`]: the telemetry stream turned on, heartbeated, watched
+//!   for silence and turned off, each frame to a sink;
+//! - [`telemetry`]: `host-sim device telemetry`, the stream printed;
 //! - [`live`]: `host-sim device telemetry --serve`, the stream on a live web page;
 //! - [`tune`]: `host-sim device tune`, the tuning sweep on the machine, answers
 //!   from the operator appended to a [`measured`] file, the table made by
@@ -40,6 +42,7 @@ pub mod serial;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;
+pub mod telemetry_stream;
 pub mod truth;
 pub mod tune;
 pub mod tune_table;

@@ -234,11 +234,6 @@ impl SimDevice {
         &self.flash
     }
 
-    /// The simulated flash, to cut its power.
-    pub fn flash_mut(&mut self) -> &mut SimFlash {
-        &mut self.flash
-    }
-
     /// The rotor speeds, rpm (the simulation's truth, not the controller's
     /// estimate).
     pub fn speeds_rpm(&self) -> [f64; 2] {

@@ -34,7 +34,7 @@ use shared::protocol::{Request, StatusReport};
 use super::args::TelemetryArgs;
 use super::client::Client;
 use super::requests::command;
-use super::telemetry::{self, Sink};
+use super::telemetry_stream::{self, Sink};
 use crate::failure::{Console, Failure};
 use hub::{Event, LinkEnd};
 use server::{Limits, Page, Server};
@@ -145,7 +145,7 @@ pub fn run(
         ));
     }
     let mut served = Served { link, out };
-    let result = telemetry::stream(client, a.period, a.duration, &mut served);
+    let result = telemetry_stream::stream(client, a.period, a.duration, &mut served);
     let why = match &result {
         Ok(n) => format!("the stream ended after {n} frames"),
         Err(f) => f.message().trim_end().to_string(),
