@@ -182,29 +182,53 @@ fn two_runs_give_the_same_bytes() {
     let Some(elf) = common::pil_firmware() else {
         return;
     };
-    let runs: Vec<(Run, Vec<u8>, String)> = (0..2)
+    // Every output of a run: the trace, the events, the plot, the animation
+    // and the firmware's log, each run writing its own.
+    let outputs = [
+        "trace.csv",
+        "events.csv",
+        "plot.svg",
+        "animation.html",
+        "firmware.log",
+    ];
+    let runs: Vec<(Run, Vec<Vec<u8>>)> = (0..2)
         .map(|i| {
-            let out = scratch(&format!("same-{i}.csv"));
-            let log = scratch("same.log");
+            let files: Vec<PathBuf> = outputs
+                .iter()
+                .map(|f| scratch(&format!("same-{i}-{f}")))
+                .collect();
+            let path = |k: usize| files[k].to_str().unwrap();
             let r = travel(&[
                 "--t-end",
                 "1",
                 "--firmware",
                 elf.to_str().unwrap(),
-                "--firmware-log",
-                log.to_str().unwrap(),
                 "--out",
-                out.to_str().unwrap(),
+                path(0),
+                "--events",
+                path(1),
+                "--plot",
+                path(2),
+                "--animate",
+                path(3),
+                "--firmware-log",
+                path(4),
             ]);
             assert_eq!(r.status, 0, "{}", r.stderr);
-            let trace = std::fs::read(&out).expect("the trace");
-            let text = std::fs::read_to_string(&log).expect("the log");
-            (r, trace, text)
+            let bytes = files
+                .iter()
+                .map(|f| std::fs::read(f).expect("an output"))
+                .collect();
+            (r, bytes)
         })
         .collect();
-    assert_eq!(runs[0].0.stdout, runs[1].0.stdout);
-    assert!(runs[0].1 == runs[1].1, "the traces differ");
-    assert_eq!(runs[0].2, runs[1].2);
+    // The summaries name each run's own log: the same but for that.
+    let summary = |r: &Run, i: usize| r.stdout.replace(&format!("same-{i}-"), "same-");
+    assert_eq!(summary(&runs[0].0, 0), summary(&runs[1].0, 1));
+    for (k, name) in outputs.iter().enumerate() {
+        assert!(!runs[0].1[k].is_empty(), "{name} is empty");
+        assert!(runs[0].1[k] == runs[1].1[k], "the runs' {name} differ");
+    }
 }
 
 #[test]
