@@ -4,10 +4,10 @@
 //! defmt encodes and copies every line into the RTT buffer on the caller's
 //! stack and time. The board's logger is non-blocking and never masks interrupts
 //! (`defmt-rtt` with `disable-blocking-mode` and `drop-on-contention`: a full
-//! buffer or a line interrupted by another drops the line), so a log line can
-//! no longer stall the loop; moving the lines to idle also keeps their cost out
-//! of the tick's budget (`Faults::DEADLINE`). The control task only raises
-//! flags ([`note`]) and publishes its status as before; idle reads the status
+//! buffer or a line interrupted by another drops the line), so a log line cannot
+//! stall the loop; logging from idle also keeps the lines' cost out of the
+//! tick's budget (`Faults::DEADLINE`). The control task only raises flags
+//! ([`note`]) and publishes its status; idle reads the status
 //! the link already shares and logs ([`Logger::poll`]):
 //!
 //! - every state change, with the faults;

@@ -33,7 +33,7 @@ pub fn catch() {
     CATCH.call_once(|| {
         for (signal, _) in SIGNALS {
             // Fails only for the signals no process may catch; these it may, and
-            // without the flag the signal still ends the process as before.
+            // without the flag the signal ends the process by its default action.
             let _ = signal_hook::flag::register_usize(signal, &CAUGHT, signal as usize);
         }
     });

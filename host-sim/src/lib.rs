@@ -22,6 +22,7 @@
 //! - [`cli`]: the top-level command line, the arguments commands share, the end of
 //!   every `--help` ([`help`]: examples and documents), and the one place that
 //!   turns a command's result into output and an exit status.
+#![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod args;

@@ -7,7 +7,7 @@
 //!   space piecewise exactly;
 //! - [`drive`]: the H-bridge as wired (decay mode, PWM period) and its driver over
 //!   embedded-hal's PWM outputs: what a duty means, for the firmware and the plant;
-//! - [`controller`]: the motor controller (issue 4): speed loops, phase-lock loop,
+//! - [`controller`]: the motor controller: speed loops, phase-lock loop,
 //!   ramps, tuning table, latched faults and the self-test, one `step(inputs, dt)`
 //!   per tick in `f32`; it knows nothing of bytes, flash or frames;
 //! - [`codec`]: the bytes under the protocol and the storage: CRC-16/CCITT-FALSE and
@@ -16,7 +16,7 @@
 //! - [`storage`]: the tuning table and self-test results in two flash slots used in
 //!   turn over any NOR flash (`embedded-storage`), each record with a magic word, a
 //!   version, a sequence number and a CRC-32;
-//! - [`protocol`]: the UART protocol (issue 5): frames with a length and two CRCs, a
+//! - [`protocol`]: the UART protocol: frames with a length and two CRCs, a
 //!   decoder that never trusts a length, the messages and the answer to every frame;
 //! - [`tick`]: one control tick for every board (sample, command, step, apply,
 //!   publish) over a [`tick::Board`] and a [`tick::Port`];
@@ -27,6 +27,7 @@
 //! The controller is the bottom layer; `codec` uses it, `storage` uses both,
 //! `protocol` uses all three, and `tick` the controller and the protocol's link.
 #![no_std]
+#![forbid(unsafe_code)]
 #![warn(missing_docs)]
 // Numeric kernels index several parallel arrays with one loop variable; iterator
 // chains would hide the formulas they implement.

@@ -1,6 +1,8 @@
 //! Integration tests live in `tests/tests/`; this library holds what several of
 //! them share.
 
+#![forbid(unsafe_code)]
+
 pub mod held;
 pub mod impact_oscillator;
 pub mod moreau_jean;

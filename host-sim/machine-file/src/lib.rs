@@ -34,6 +34,7 @@
 //!
 //! Its dependencies stay few (`shared`, `toml`, `serde`, `strsim`): the firmware's
 //! build compiles it for the host.
+#![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod bodies;

@@ -1,4 +1,4 @@
-//! The machine's unbalance rotors, `[[rotors]]`: one or two (issue 12).
+//! The machine's unbalance rotors, `[[rotors]]`: one or two.
 //!
 //! A machine with two rotors has the phase offset `theta_1 - theta_2` its
 //! controller holds (the reference machine); a machine with one has no offset,

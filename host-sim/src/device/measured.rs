@@ -1,4 +1,4 @@
-//! The measured file of `host-sim device tune` (issue 14, section 2) open for
+//! The measured file of `host-sim device tune` open for
 //! appending; its format, reader and row formatting are [`crate::measured`]'s, the
 //! one `host-sim calibrate` reads with.
 //!

@@ -35,7 +35,7 @@ impl SerialLine {
             .flow_control(FlowControl::None)
             .timeout(WRITE_TIMEOUT);
         // Not locked to this process: a second command on the same port (a `stop`
-        // while `telemetry` runs) still gets through, as before.
+        // while `telemetry` runs) gets through.
         #[cfg(unix)]
         let builder = builder.exclusive(false);
         let port = builder.open().map_err(|e| match e.kind() {

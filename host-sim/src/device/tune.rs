@@ -1,5 +1,5 @@
-//! `host-sim device tune`: the tuning sweep on the machine itself (issue 14,
-//! section 3). For every grid point not yet in the measured file
+//! `host-sim device tune`: the tuning sweep on the machine itself. For every grid
+//! point not yet in the measured file
 //! ([`super::measured`]), in grid order (speed by speed, offsets ascending):
 //!
 //! 1. `HoldOffset(speed, offset)`; the status polled every 50 ms (each poll is a

@@ -33,8 +33,8 @@
 //! bodies' angles, equal and opposite.
 //!
 //! The single platform's terms come out in the same floating-point operations, in
-//! the same order, as the closed forms this module had before it took several
-//! bodies (a machine file without further bodies gives the same numbers to the bit).
+//! the same order, as the one-body closed forms (a machine file without further
+//! bodies gives the same numbers to the bit).
 
 use super::model::{Face, Mount, OneFreeBody, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS, NY};
 

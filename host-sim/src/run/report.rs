@@ -10,7 +10,7 @@
 //! are `null` and `not_a_travel` says why (it is `null` otherwise); the table says
 //! `not a travel: ...` in their place. The warnings say what happened.
 //!
-//! A machine with one rotor (issue 12): `rotor_speed_rpm` has one entry,
+//! A machine with one rotor: `rotor_speed_rpm` has one entry,
 //! `phase_offset_deg` is `null`, `rotors` is 1 and `phase_loop` false; the table
 //! says in a line of its own that the controller holds the rotor's speed only.
 

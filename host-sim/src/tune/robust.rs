@@ -1,5 +1,5 @@
 //! `host-sim tune MACHINE --robust [--samples N] [--seed S]`: the sweep over the
-//! machines the file's `[uncertainty]` allows (issue 14, section 1; docs/tuning.md,
+//! machines the file's `[uncertainty]` allows (docs/tuning.md,
 //! "Robust tuning").
 //!
 //! Every grid point runs on `N` machines (the nominal one, then `N - 1` of a Latin

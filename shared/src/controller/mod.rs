@@ -1,4 +1,4 @@
-//! The motor controller of the vibro driver (issue 4): a pure state machine,
+//! The motor controller of the vibro driver: a pure state machine,
 //! `step(inputs, dt) -> outputs`, run at [`CONTROL_RATE_HZ`] by the firmware and in
 //! lockstep by host-sim. Time is passed in, never read from a clock; there is no
 //! heap and no panic on any input.

@@ -1,4 +1,4 @@
-//! The UART protocol between the host and the firmware (issue 5): frames with a
+//! The UART protocol between the host and the firmware: frames with a
 //! length and two CRCs, a decoder that never trusts a length it has not checked, an
 //! answer to every frame, and a heartbeat. `docs/protocol.md` is the byte-by-byte
 //! reference; this crate is its implementation, used by the firmware and by host-sim.

@@ -1,4 +1,4 @@
-//! Parameters in flash (issue 5): the tuning table and the self-test results, in
+//! Parameters in flash: the tuning table and the self-test results, in
 //! two flash slots used in turn, so that a power cut during a write never loses
 //! the last good copy (after ODrive's `Firmware/Drivers/STM32/nvm.c`).
 //!

@@ -1,4 +1,4 @@
-//! The first-run self-test (issue 5): per rotor, motor and encoder polarity, the
+//! The first-run self-test: per rotor, motor and encoder polarity, the
 //! index pulse, the counts per revolution and the index offset, as a pure state
 //! machine ([`SelfTestRun`]) the controller steps in [`super::State::SelfTest`]. The
 //! result is a [`SelfTest`] ([`result`]), which the device stores with the tuning

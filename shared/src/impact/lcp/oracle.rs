@@ -18,7 +18,7 @@ pub fn enumerated_direction<T: Real, const N: usize>(
     tol: &Tolerances<T>,
     out: &mut Direction<T, N>,
 ) {
-    // A budget of candidates for each solve, as before.
+    // A budget of candidates for each solve.
     direction_by(
         p,
         (u_n, u_t, slip),
