@@ -11,7 +11,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
 
 /// The reference machine file.
@@ -46,8 +46,8 @@ pub fn held_rotors(m: &Machine, rpm: f64, settings: Settings) -> Plant {
 /// rotor 2 clockwise) and the platform at rest, with `settings` and `holds`.
 pub fn held_plant(m: &Machine, rpm: f64, settings: Settings, holds: Holds) -> Plant {
     let w = rpm * PI / 30.0;
-    let mut y = initial_state(m);
     let model = PlantModel::new(m);
+    let mut y = model.initial_state(m);
     // Each rotor's phi' (wherever the machine's coordinates put it).
     for (rotor, speed) in model.rotors.iter().zip([w, -w]) {
         y[model.dof + rotor.phi] = speed;

@@ -12,20 +12,22 @@ pub mod two_bodies;
 use std::path::{Path, PathBuf};
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
+
+/// The state of `m` at `t = 0` (its model's [`PlantModel::initial_state`]).
+pub fn initial_state(m: &Machine) -> [f64; host_sim::plant::model::NY] {
+    PlantModel::new(m).initial_state(m)
+}
 
 /// The plant of `m` at its start state with the default settings, nothing held
 /// and both windings open: a mechanism left to its own motion (no motor torque),
 /// as the Painleve tests take it.
 pub fn unpowered_plant(m: &Machine) -> Plant {
-    let mut plant = Plant::new(
-        PlantModel::new(m),
-        initial_state(m),
-        Settings::default(),
-        Holds::default(),
-    );
+    let model = PlantModel::new(m);
+    let y0 = model.initial_state(m);
+    let mut plant = Plant::new(model, y0, Settings::default(), Holds::default());
     plant.set_winding([Winding::Open, Winding::Open]);
     plant
 }

@@ -7,10 +7,11 @@
 //! `n = (0, 1)` and tangent `t = (-n_y, n_x) = (-1, 0)`; gravity `(0, -G)`; state
 //! layout `(x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2)`.
 
+use crate::initial_state;
 use std::path::Path;
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Plant, Settings, NY};
 
 /// Gravity, m/s^2 (the machine file's default, `[0, -9.81]`).

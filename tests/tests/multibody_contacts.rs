@@ -39,9 +39,10 @@
 //! momentum: `V` exactly.
 
 use std::path::Path;
+use tests::initial_state;
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{ContactMode, Holds, Plant, Settings};
 use host_sim::simulation::trace::EventKind;
 use tests::rig::{check, G};

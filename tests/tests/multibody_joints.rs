@@ -23,10 +23,11 @@
 
 use std::f64::consts::PI;
 use std::path::Path;
+use tests::initial_state;
 
 use host_sim::machine::joint_limits::effective_inertia;
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, Mount, PlantModel};
+use host_sim::plant::model::{Mount, PlantModel};
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings, NY};
 use tests::rig::{add, cross, rot, spin, sub};

@@ -21,10 +21,11 @@
 //!   3000 rpm only on the controller's overshoot, does not isolate).
 
 use std::f64::consts::PI;
+use tests::initial_state;
 
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{ContactMode, Holds, Plant, Settings};
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::trace::EventKind;

@@ -38,10 +38,11 @@
 //! the integrator's (`rtol = 1e-8` on a current scale of the 10 A limit here).
 
 use std::f64::consts::PI;
+use tests::initial_state;
 
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
 use tests::held::{held_plant, reference_machine};
 

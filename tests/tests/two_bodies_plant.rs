@@ -36,9 +36,10 @@
 //! 3 %).
 
 use std::path::Path;
+use tests::initial_state;
 
 use host_sim::machine::Machine;
-use host_sim::plant::model::{initial_state, PlantModel};
+use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings, NY};
 use tests::rig::{add, check, norm, rot, sub};
 use tests::two_bodies::{

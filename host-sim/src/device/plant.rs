@@ -28,7 +28,7 @@ use shared::controller::Outputs;
 
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
-use crate::plant::model::{initial_state, PlantModel};
+use crate::plant::model::PlantModel;
 use crate::plant::simulator::{Holds, Plant, Settings, Stop};
 use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
 use crate::simulation::breach::{Breach, BreachWatch};
@@ -126,9 +126,11 @@ impl PlantMechanics {
             progress_budget: machine.simulation.progress_budget,
             ..Settings::default()
         };
+        let model = PlantModel::new(machine);
+        let y0 = model.initial_state(machine);
         let mut plant = Plant::new(
-            PlantModel::new(machine),
-            initial_state(machine),
+            model,
+            y0,
             settings,
             Holds {
                 bodies: platform == Platform::Held,

@@ -564,8 +564,3 @@ impl PlantModel {
         y
     }
 }
-
-/// The state at `t = 0` of a machine file ([`PlantModel::initial_state`]).
-pub fn initial_state(m: &Machine) -> [f64; NY] {
-    PlantModel::new(m).initial_state(m)
-}

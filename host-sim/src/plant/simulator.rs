@@ -946,7 +946,6 @@ pub enum Output<'a> {
 mod tests {
     use super::*;
     use crate::machine::Machine;
-    use crate::plant::model::initial_state;
 
     /// A step with closed contacts and no event costs the integrator's six
     /// evaluations and nothing more: the dip test reads the stages' forces, and
@@ -991,12 +990,9 @@ mod tests {
         .unwrap();
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
         let m = Machine::from_text("m.toml", &text, std::path::Path::new("."), &sets).unwrap();
-        let plant = Plant::new(
-            PlantModel::new(&m),
-            initial_state(&m),
-            settings,
-            Holds::default(),
-        );
+        let model = PlantModel::new(&m);
+        let y0 = model.initial_state(&m);
+        let plant = Plant::new(model, y0, settings, Holds::default());
         assert!(plant.modes.iter().all(|m| m.closed()), "{:?}", plant.modes);
         plant
     }

@@ -30,7 +30,7 @@ use std::sync::atomic::AtomicUsize;
 use crate::machine::Machine;
 use crate::output::text::sig;
 use crate::plant::bridge::BridgeCommand;
-use crate::plant::model::{initial_state, PlantModel};
+use crate::plant::model::PlantModel;
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
 use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
@@ -388,7 +388,8 @@ pub fn simulate_observed(
         progress_budget: machine.simulation.progress_budget,
         ..options.settings
     };
-    let mut plant = Plant::new(model, initial_state(machine), settings, options.holds);
+    let y0 = model.initial_state(machine);
+    let mut plant = Plant::new(model, y0, settings, options.holds);
     if let Some(flag) = observer.stop_flag() {
         plant.stop_when(flag);
     }
