@@ -110,11 +110,11 @@ step_test() {
     # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs)
     # run the firmware's binary `pil` on QEMU; in CI they fail without it, so it
     # is built first: for the other machines the tests run (the scenario
-    # one-foot.toml's, and wide-rotors-machine.toml) as pil-STEM beside it, then
-    # for the reference machine.
+    # one-foot.toml's, wide-rotors-machine.toml, one-rotor-machine.toml) as
+    # pil-STEM beside it, then for the reference machine.
     local elf="${CARGO_TARGET_DIR:-$ROOT/firmware/target}/thumbv7em-none-eabihf/release/pil"
     local stem
-    for stem in one-foot-machine wide-rotors-machine; do
+    for stem in one-foot-machine wide-rotors-machine one-rotor-machine; do
         (cd firmware && VIBRO_MACHINE="../tests/fixtures/$stem.toml" \
             cargo build --release --locked --features pil --bin pil &&
             cp "$elf" "$elf-$stem") || return 1

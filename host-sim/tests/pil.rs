@@ -1,9 +1,10 @@
 //! `host-sim run --firmware ELF` (processor in the loop, docs/pil.md) through
 //! the real binary: the firmware's binary `pil` on QEMU against the controller in
 //! the loop (travel right and left on the reference machine and on another one,
-//! each on the ELF built for it), the run's determinism, and the refusals (exit
-//! 2) of a firmware built for another machine file, of a missing ELF and of
-//! missing tools.
+//! and the one-rotor machine, each on the ELF built for it), the run's
+//! determinism, QEMU behind a wrapper script, and the refusals (exit 2) of a
+//! firmware built for another machine file, of a missing ELF and of missing
+//! tools.
 //!
 //! These tests build nothing. The runs need the ELF
 //! (`cd firmware && cargo build --release --features pil --bin pil`),
@@ -94,12 +95,76 @@ fn travel_of(
     (summary, states)
 }
 
-/// Each machine with its firmware travelling right and left: the summary as the
-/// controller in the loop's (mean velocity within 2 %, phase error's RMS within
-/// 0.5 degree, no fault), the same controller states at the same ticks, the log
-/// clean. The reference machine and one with other rotor spacing, motor and
-/// tuning table (`tests/fixtures/wide-rotors-machine.toml`, its tuned offset 70
-/// degrees against the reference's 90), each on the ELF built for it.
+/// `command` on `machine` for 3 s with the firmware (`elf`) in the loop and with
+/// the controller in the loop, checked alike: `running`, no fault, the mean
+/// velocity within 2 % of the controller in the loop's (which moves at least 5
+/// mm/s), the phase error's RMS within 0.5 degree of it, the same controller
+/// states at the same ticks, an instruction count for every tick, the
+/// firmware's log clean. The two summaries, firmware's first.
+fn same_travel(machine: &Path, elf: &Path, command: &str) -> (Value, Value) {
+    let stem = machine.file_stem().unwrap().to_string_lossy().to_string();
+    let tag = format!("{stem}-{command}");
+    let log = scratch(&format!("{tag}.log"));
+    let (p, p_states) = travel_of(
+        machine,
+        command,
+        &format!("{tag}-pil"),
+        &[
+            "--firmware",
+            elf.to_str().unwrap(),
+            "--firmware-log",
+            log.to_str().unwrap(),
+        ],
+    );
+    let (s, s_states) = travel_of(machine, command, &format!("{tag}-sil"), &[]);
+    assert_eq!(p["state"], "running", "{tag}: {p}");
+    assert_eq!(p["faults"], s["faults"], "{tag}: {p}");
+    assert_eq!(p["faults"], Value::Array(vec![]), "{tag}: {p}");
+    assert_eq!(p["firmware"]["log"], log.to_str().unwrap());
+    let (vp, vs) = (number(&p, "mean_velocity"), number(&s, "mean_velocity"));
+    assert!(vs.abs() > 0.005, "{tag}: {vs}");
+    assert!(
+        (vp - vs).abs() <= 0.02 * vs.abs(),
+        "{tag}: {vp} against {vs}"
+    );
+    let (ep, es) = (
+        number(&p, "phase_error_deg_rms"),
+        number(&s, "phase_error_deg_rms"),
+    );
+    assert!((ep - es).abs() <= 0.5, "{tag}: {ep} against {es}");
+    // The same states at the same ticks, but the firmware's first tick, which
+    // runs before the command's frame has arrived (docs/pil.md): `idle` at 0,
+    // then each state one tick later.
+    assert_eq!(p_states.first(), Some(&(0.0, "idle".to_string())), "{tag}");
+    let p_states = &p_states[1..];
+    assert_eq!(
+        p_states.iter().map(|s| &s.1).collect::<Vec<_>>(),
+        s_states.iter().map(|s| &s.1).collect::<Vec<_>>(),
+        "{tag}"
+    );
+    for (a, b) in p_states.iter().zip(&s_states) {
+        assert!(
+            (a.0 - b.0 - 0.001).abs() < 1e-9,
+            "{tag}: {a:?} against {b:?}"
+        );
+    }
+    // One cost per tick, from the firmware's own clock: 3 s at 1 kHz.
+    let cost = &p["firmware"]["instructions_per_tick"];
+    assert_eq!(cost["ticks"], 3000, "{tag}: {cost}");
+    let (mean, max) = (number(cost, "mean"), number(cost, "max"));
+    assert!(mean > 0.0 && mean <= max, "{tag}: {cost}");
+    let text = std::fs::read_to_string(&log).expect("the firmware's log");
+    assert!(text.contains("state running"), "{tag}: {text}");
+    assert!(!text.contains("ERROR"), "{tag}: {text}");
+    (p, s)
+}
+
+/// Each two-rotor machine with its firmware travelling right and left as with
+/// the controller in the loop ([`same_travel`]), the commanded way, at the
+/// offset of its own tuning table: the reference machine and one with other
+/// rotor spacing, motor and tuning table
+/// (`tests/fixtures/wide-rotors-machine.toml`, its tuned offset 70 degrees
+/// against the reference's 90), each on the ELF built for it.
 #[test]
 fn the_firmware_in_the_loop_travels_as_the_controller_in_the_loop() {
     let Some(elf) = common::pil_firmware() else {
@@ -113,68 +178,44 @@ fn the_firmware_in_the_loop_travels_as_the_controller_in_the_loop() {
         let Some(elf) = common::pil_firmware_for(&elf, &machine) else {
             continue;
         };
-        let stem = machine.file_stem().unwrap().to_string_lossy().to_string();
         for (command, sign, offset_deg) in
             [("right", 1.0, right_deg), ("left", -1.0, 360.0 - right_deg)]
         {
-            let tag = format!("{stem}-{command}");
-            let log = scratch(&format!("{tag}.log"));
-            let (p, p_states) = travel_of(
-                &machine,
-                command,
-                &format!("{tag}-pil"),
-                &[
-                    "--firmware",
-                    elf.to_str().unwrap(),
-                    "--firmware-log",
-                    log.to_str().unwrap(),
-                ],
-            );
-            let (s, s_states) = travel_of(&machine, command, &format!("{tag}-sil"), &[]);
-            assert_eq!(p["state"], "running", "{tag}: {p}");
-            assert_eq!(p["faults"], s["faults"], "{tag}: {p}");
-            assert_eq!(p["faults"], Value::Array(vec![]), "{tag}: {p}");
-            assert_eq!(p["firmware"]["log"], log.to_str().unwrap());
-            // It travels the commanded way, at the offset of its own table.
-            let (vp, vs) = (number(&p, "mean_velocity"), number(&s, "mean_velocity"));
-            assert!(sign * vs > 0.01, "{tag}: {vs}");
-            assert!(
-                (vp - vs).abs() <= 0.02 * vs.abs(),
-                "{tag}: {vp} against {vs}"
-            );
+            let (p, _) = same_travel(&machine, &elf, command);
+            assert!(sign * number(&p, "mean_velocity") > 0.01, "{command}: {p}");
             let offset = number(&p, "phase_offset_deg");
-            assert!((offset - offset_deg).abs() < 1.0, "{tag}: {offset} deg");
-            let (ep, es) = (
-                number(&p, "phase_error_deg_rms"),
-                number(&s, "phase_error_deg_rms"),
-            );
-            assert!((ep - es).abs() <= 0.5, "{tag}: {ep} against {es}");
-            // The same states at the same ticks, but the firmware's first tick,
-            // which runs before the command's frame has arrived (docs/pil.md):
-            // `idle` at 0, then each state one tick later.
-            assert_eq!(p_states.first(), Some(&(0.0, "idle".to_string())), "{tag}");
-            let p_states = &p_states[1..];
-            assert_eq!(
-                p_states.iter().map(|s| &s.1).collect::<Vec<_>>(),
-                s_states.iter().map(|s| &s.1).collect::<Vec<_>>(),
-                "{tag}"
-            );
-            for (a, b) in p_states.iter().zip(&s_states) {
-                assert!(
-                    (a.0 - b.0 - 0.001).abs() < 1e-9,
-                    "{tag}: {a:?} against {b:?}"
-                );
-            }
-            // One cost per tick, from the firmware's own clock: 3 s at 1 kHz.
-            let cost = &p["firmware"]["instructions_per_tick"];
-            assert_eq!(cost["ticks"], 3000, "{tag}: {cost}");
-            let (mean, max) = (number(cost, "mean"), number(cost, "max"));
-            assert!(mean > 0.0 && mean <= max, "{tag}: {cost}");
-            let text = std::fs::read_to_string(&log).expect("the firmware's log");
-            assert!(text.contains("state running"), "{tag}: {text}");
-            assert!(!text.contains("ERROR"), "{tag}: {text}");
+            assert!((offset - offset_deg).abs() < 1.0, "{command}: {offset} deg");
         }
     }
+}
+
+/// The one-rotor machine (`tests/fixtures/one-rotor-machine.toml`) on the ELF
+/// built for it: its one rotor held at speed, the second bridge never driven,
+/// the travel as with the controller in the loop, and the same warning that a
+/// direction means nothing to it.
+#[test]
+fn the_one_rotor_machine_runs_on_its_firmware_as_on_the_controller_in_the_loop() {
+    let Some(elf) = common::pil_firmware() else {
+        return;
+    };
+    let machine = root().join("tests/fixtures/one-rotor-machine.toml");
+    let Some(elf) = common::pil_firmware_for(&elf, &machine) else {
+        return;
+    };
+    let (p, s) = same_travel(&machine, &elf, "right");
+    assert_eq!(p["rotors"], 1, "{p}");
+    let speed = p["rotor_speed_rpm"].as_array().expect("speeds");
+    assert_eq!(speed.len(), 1, "{p}");
+    assert!((speed[0].as_f64().unwrap() - 3000.0).abs() < 1.0, "{p}");
+    let warned = |v: &Value| {
+        v["warnings"]
+            .as_array()
+            .expect("warnings")
+            .iter()
+            .filter(|w| w.as_str().unwrap_or("").contains("has one rotor"))
+            .count()
+    };
+    assert_eq!((warned(&p), warned(&s)), (1, 1), "{p}\n{s}");
 }
 
 #[test]
