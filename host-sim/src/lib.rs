@@ -14,11 +14,13 @@
 //! - [`simulation`]: a whole run, tick by tick, with the `shared` controller in the
 //!   loop, its trace, events and summary statistics;
 //! - [`output`]: whole files, CSV, SVG pieces and text for people;
+//! - [`link`]: the host's end of the UART link to a board (a serial port, TCP or
+//!   a pseudo-terminal, and the protocol's client);
 //! - the commands: [`impact`] (one impact from a case file), [`run`] (a machine file
 //!   simulated), [`scenario`] (timed commands, injected faults, judged
 //!   expectations), [`tune`] (the sweep of speed and phase offset), [`calibrate`]
-//!   (machine keys fitted to measured travel), [`device`] (the UART link to a
-//!   board, and a simulated board);
+//!   (machine keys fitted to measured travel), [`device`] (a board over the
+//!   link, and a simulated board);
 //! - [`cli`]: the top-level command line, the arguments commands share, the end of
 //!   every `--help` ([`help`]: examples and documents), and the one place that
 //!   turns a command's result into output and an exit status.
@@ -34,6 +36,7 @@ pub mod failure;
 pub mod help;
 pub mod impact;
 pub mod interrupt;
+pub mod link;
 pub use machine_file as machine;
 pub mod measured;
 pub mod output;

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand, ValueEnum};
 
-use super::client::DEFAULT_RETRIES;
 use crate::help::epilogue;
+use crate::link::client::DEFAULT_RETRIES;
 use crate::tune::sweep::{parse_offsets, parse_speeds, Range};
 
 /// The end of a `device` command's `--help`: its `examples`, and the document.

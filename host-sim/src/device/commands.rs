@@ -16,14 +16,14 @@ use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS}
 use super::args::{
     DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TravelArgs,
 };
-use super::client::{Client, LinkError};
-use super::port::PortSpec;
 use super::report;
-use super::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use super::rest::{self, await_rest, await_steady_rest, Poll, REST_HOLD_S, REST_TIMEOUT_S};
 use super::{live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
+use crate::link::client::{Client, LinkError};
+use crate::link::port::PortSpec;
+use crate::link::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use crate::machine::tuning_file;
 use crate::output::file::Staged;
 use crate::output::text;

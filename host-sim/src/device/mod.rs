@@ -1,12 +1,9 @@
 //! `host-sim device` (the host's end of the UART link to the board) and
 //! `host-sim device-sim` (a board without hardware), both speaking the `shared`
-//! protocol (`docs/protocol.md`, `docs/cli-device.md`).
+//! protocol over the link of [`crate::link`] (`docs/protocol.md`,
+//! `docs/cli-device.md`).
 //!
 //! - [`args`]: the command lines;
-//! - [`port`]: the byte pipe: a serial port or a TCP socket;
-//! - [`serial`]: a serial port raw at 115200 baud 8N1;
-//! - [`pty`]: the pseudo-terminal `device-sim` serves (Unix);
-//! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
 //! - [`commands`]: `host-sim device <COMMAND>`, from options to printed answers;
 //! - [`telemetry_stream`]: the telemetry stream turned on, heartbeated, watched
 //!   for silence and turned off, each frame to a sink;
@@ -26,19 +23,12 @@
 //!   pseudo-terminal or a TCP port.
 
 pub mod args;
-pub mod client;
 pub mod commands;
 pub mod live;
 pub mod measured;
-pub mod pipe;
 pub mod plant;
-pub mod port;
-#[cfg(unix)]
-pub mod pty;
 pub mod report;
-pub mod requests;
 pub mod rest;
-pub mod serial;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;

@@ -15,9 +15,9 @@ use std::time::{Duration, Instant};
 use shared::controller::may_write_table;
 use shared::protocol::{Request, Response, StatusReport};
 
-use super::client::Client;
-use super::requests::{ask, unexpected, HEARTBEAT_EVERY};
 use crate::failure::Failure;
+use crate::link::client::Client;
+use crate::link::requests::{ask, unexpected, HEARTBEAT_EVERY};
 use crate::output::text;
 
 /// Longest wait for rest after a stop when the command has no `--timeout`, s:

@@ -19,11 +19,11 @@ use std::time::{Duration, Instant};
 
 use super::args::DeviceSimArgs;
 use super::plant::{Platform, PlatformPose};
-use super::port::{Port, PortSpec, TcpPort};
 use super::sim::{Noise, SimDevice};
 use super::truth::TruthFile;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
+use crate::link::port::{Port, PortSpec, TcpPort};
 use crate::machine::{tuning_file, Machine};
 use crate::output::text;
 use crate::simulation::closed_loop::constants_warning;
@@ -40,7 +40,7 @@ const WRITE_WAIT: Duration = Duration::from_millis(1);
 pub enum Endpoint {
     /// A pseudo-terminal's master side.
     #[cfg(unix)]
-    Pty(super::pty::Pty),
+    Pty(crate::link::pty::Pty),
     /// A TCP listener and the connection being served.
     Tcp {
         /// The listener (non-blocking).
@@ -54,7 +54,7 @@ impl Endpoint {
     /// A new pseudo-terminal.
     #[cfg(unix)]
     pub fn pty() -> io::Result<Endpoint> {
-        super::pty::Pty::open().map(Endpoint::Pty)
+        crate::link::pty::Pty::open().map(Endpoint::Pty)
     }
 
     /// Listen on `addr` (`HOST:PORT`).

@@ -8,10 +8,10 @@ use std::path::Path;
 use shared::protocol::StatusReport;
 
 use super::args::TelemetryArgs;
-use super::client::Client;
 use super::telemetry_stream::{stream, Sink};
 use super::{live, report};
 use crate::failure::{Console, Failure};
+use crate::link::client::Client;
 use crate::output::file::Staged;
 
 /// The frames printed: readable lines on the console, CSV rows into a staged

@@ -14,10 +14,10 @@ use std::time::{Duration, Instant};
 
 use shared::protocol::{Request, StatusReport};
 
-use super::client::Client;
-use super::requests::{command, HEARTBEAT_EVERY};
 use crate::failure::Failure;
 use crate::interrupt;
+use crate::link::client::Client;
+use crate::link::requests::{command, HEARTBEAT_EVERY};
 
 /// The longest the link is read without the [`Sink`] being asked for requests of
 /// its own ([`Sink::between`]).

@@ -39,14 +39,14 @@ use shared::controller::State;
 use shared::protocol::{Request, StatusReport};
 
 use super::args::DeviceTuneArgs;
-use super::client::Client;
 use super::measured::{self, MeasuredFile};
 use super::report::faults_text;
-use super::requests::{command, HEARTBEAT_EVERY};
 use super::rest::{at_rest, await_rest, motion, Poll};
 use super::tune_table;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
+use crate::link::client::Client;
+use crate::link::requests::{command, HEARTBEAT_EVERY};
 use crate::measured::velocity_refusal;
 use crate::output::file::Staged;
 use crate::output::text;

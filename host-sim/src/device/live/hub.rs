@@ -1,7 +1,7 @@
 //! Between the thread that owns the device link and the threads that serve the
 //! pages: frames fanned out to every open event stream, Stop requests carried to
 //! the link and their answers back. The link stays with one thread (one
-//! [`crate::device::client::Client`], one sequence of requests); the pages only
+//! [`crate::link::client::Client`], one sequence of requests); the pages only
 //! ever reach it through here.
 
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TrySendError};

@@ -32,10 +32,10 @@ use std::time::Duration;
 use shared::protocol::{Request, StatusReport};
 
 use super::args::TelemetryArgs;
-use super::client::Client;
-use super::requests::command;
 use super::telemetry_stream::{self, Sink};
 use crate::failure::{Console, Failure};
+use crate::link::client::Client;
+use crate::link::requests::command;
 use hub::{Event, LinkEnd};
 use server::{Limits, Page, Server};
 

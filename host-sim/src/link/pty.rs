@@ -69,7 +69,7 @@ impl Pty {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::device::port::PortSpec;
+    use crate::link::port::PortSpec;
 
     /// Up to `n` bytes from `read` (20 ms a try, a second in all).
     fn gather(n: usize, mut read: impl FnMut(&mut [u8]) -> io::Result<usize>) -> Vec<u8> {
