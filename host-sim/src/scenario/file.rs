@@ -73,8 +73,15 @@ pub const EXPECT_KINDS: [&str; 9] = [
     "through_fundament",
     "tipped_over",
 ];
-/// The controller's states, as [`State::name`] writes them.
-pub const STATES: [&str; 5] = ["idle", "starting", "running", "stopping", "fault"];
+/// The controller's states an expectation may name (all but the self-test),
+/// by their [`State::name`].
+pub const STATES: [State; 5] = [
+    State::Idle,
+    State::Starting,
+    State::Running,
+    State::Stopping,
+    State::Fault,
+];
 /// Travel directions.
 pub const DIRECTIONS: [&str; 2] = ["right", "left"];
 
@@ -715,7 +722,7 @@ fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
     match kind {
         "state" => {
             let state = s
-                .choice("state", Need::Required, &STATES)
+                .choice("state", Need::Required, &STATES.map(State::name))
                 .and_then(state_from_name);
             let when = read_when(s);
             Some(RawExpect::Ready(Expectation::State {
@@ -852,17 +859,9 @@ fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
     }
 }
 
-/// The state named `name` ([`State::name`]).
+/// The state of [`STATES`] named `name` ([`State::name`]).
 pub fn state_from_name(name: &str) -> Option<State> {
-    [
-        State::Idle,
-        State::Starting,
-        State::Running,
-        State::Stopping,
-        State::Fault,
-    ]
-    .into_iter()
-    .find(|s| s.name() == name)
+    STATES.into_iter().find(|s| s.name() == name)
 }
 
 /// Stage 4: times against `t_end` and the control ticks, speeds defaulted.
