@@ -44,4 +44,5 @@ pub mod plant;
 pub mod run;
 pub mod scenario;
 pub mod simulation;
+pub mod sweep;
 pub mod tune;

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use host_sim::machine::tuning_file;
-use host_sim::tune::best::MIN_TRAVEL_MPS;
+use host_sim::sweep::best::MIN_TRAVEL_MPS;
 use serde_json::Value;
 
 mod common;

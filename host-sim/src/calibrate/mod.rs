@@ -47,12 +47,14 @@ use crate::help::epilogue;
 use crate::machine::input;
 use crate::measured;
 use crate::output::file::Staged;
+use crate::output::text::count;
+use crate::output::text::warning_count;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
+use crate::sweep::{load_machine, progress_bar, DEFAULT_T_END};
+use crate::sweep::{run_point, RunOutcome};
 use crate::tune::part::{sha256_hex, Shard};
-use crate::tune::report::count;
-use crate::tune::sweep::{run_point, RunOutcome};
-use crate::tune::{load_machine, progress_bar, read_machine_file, warning_count, DEFAULT_T_END};
+use crate::tune::read_machine_file;
 use fit::Settings;
 use keys::FitKey;
 use points::{Gathered, Point, MAX_POINTS};
@@ -480,7 +482,7 @@ pub fn calibrate(
         &|| progress.inc(1),
     );
     trials.progress.finish_and_clear();
-    crate::tune::refuse_interrupted("calibrate", "the fit is incomplete")?;
+    crate::sweep::refuse_interrupted("calibrate", "the fit is incomplete")?;
     let runs = trials.runs + numerical::DIVISORS.len() * trials.points.len();
 
     // Standard errors and resolution, in the keys' units.

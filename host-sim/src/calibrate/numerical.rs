@@ -46,7 +46,7 @@ use rayon::prelude::*;
 
 use super::points::{Point, NOT_HELD_RESIDUAL_MPS};
 use crate::machine::{Machine, RTOL_RANGE};
-use crate::tune::sweep::{run_point, RunOutcome};
+use crate::sweep::{run_point, RunOutcome};
 
 /// The fit's tolerance is divided by these for the runs again.
 pub const DIVISORS: [f64; 4] = [2.0, 4.0, 8.0, 16.0];

@@ -35,14 +35,14 @@ use crate::failure::{Console, Failure};
 use crate::machine::input;
 use crate::output::file::Staged;
 use crate::output::text;
+use crate::output::text::count;
+use crate::sweep::RunOutcome;
+use crate::sweep::{load_machine, progress_bar, refuse_interrupted};
 use crate::tune::merge::MergeArgs;
 use crate::tune::part::{
     is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, sweep_sha256,
     unsealed_sha256, MachineFile, Shard, MAX_BYTES,
 };
-use crate::tune::report::count;
-use crate::tune::sweep::RunOutcome;
-use crate::tune::{load_machine, progress_bar, refuse_interrupted};
 
 /// The `format` of a fit's partial result.
 pub const FORMAT: &str = "host-sim-calibrate-part";
@@ -336,7 +336,7 @@ pub fn read(path: &Path) -> Result<Part, String> {
         }
     }
     let Shard { index, count } = part.shard;
-    let most = crate::tune::MAX_POINTS;
+    let most = crate::sweep::MAX_POINTS;
     if count == 0 || count > most || index == 0 || index > count {
         return Err(damaged(format!(
             "shard {index}/{count}: not 1 <= I <= N <= {most}"

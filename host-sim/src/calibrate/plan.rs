@@ -19,9 +19,9 @@ use super::fit::Settings;
 use super::points::MANY_POINTS;
 use super::{CalibrateArgs, Inputs};
 use crate::output::text;
-use crate::tune::load_machine;
-use crate::tune::report::count;
-use crate::tune::sweep::run_point;
+use crate::output::text::count;
+use crate::sweep::load_machine;
+use crate::sweep::run_point;
 
 /// What the fit will cost.
 #[derive(Clone, Debug, PartialEq)]

@@ -18,7 +18,7 @@ use super::{CalibrateArgs, Calibration, NOT_HELD_RESIDUAL_MPS};
 use crate::machine::input;
 use crate::machine::Machine;
 use crate::output::text::{self, Align};
-use crate::tune::sweep::RunOutcome;
+use crate::sweep::RunOutcome;
 
 /// Whether key `i` is identified: a standard error, within
 /// [`UNIDENTIFIED_SHARE`] of its range, and not in a near-singular direction.

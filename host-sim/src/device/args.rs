@@ -6,7 +6,7 @@ use clap::{Args, Subcommand, ValueEnum};
 
 use crate::help::epilogue;
 use crate::link::client::DEFAULT_RETRIES;
-use crate::tune::sweep::{parse_offsets, parse_speeds, Range};
+use crate::sweep::{parse_offsets, parse_speeds, Range};
 
 /// The end of a `device` command's `--help`: its `examples`, and the document.
 fn help(examples: &[&str]) -> String {

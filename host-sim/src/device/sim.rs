@@ -506,7 +506,7 @@ mod tests {
     fn the_whole_plant_travels_as_host_sim_run_finds() {
         let machine = reference_machine();
         let (speed, offset, t_end) = (3000.0, 90.0, 4.0);
-        let expected = crate::tune::sweep::run_point(&machine, speed, offset, t_end);
+        let expected = crate::sweep::run_point(&machine, speed, offset, t_end);
         assert_eq!(expected.not_held, None);
         assert!(expected.mean_velocity > 0.01, "{expected:?}");
 

@@ -50,10 +50,10 @@ use crate::link::requests::{command, HEARTBEAT_EVERY};
 use crate::measured::velocity_refusal;
 use crate::output::file::Staged;
 use crate::output::text;
+use crate::output::text::count;
 use crate::simulation::summary::wrap_deg_180;
-use crate::tune::report::count;
-use crate::tune::sweep::{offset_held, wrap_offsets, Grid};
-use crate::tune::table_problems;
+use crate::sweep::table_problems;
+use crate::sweep::{offset_held, wrap_offsets, Grid};
 
 /// The prompt after each point.
 pub const PROMPT: &str = "distance between the two marks, mm (+ right, - left); Enter repeats the point, s skips it, q stops and ends: ";

@@ -1,5 +1,5 @@
 //! `host-sim device tune --write`: the tuning table made from a measured file's
-//! rows, with `host-sim tune`'s peak fit ([`crate::tune::best`]).
+//! rows, with `host-sim tune`'s peak fit ([`crate::sweep::best`]).
 //!
 //! Per speed, the rows at one offset are averaged (weighted mean
 //! `v = sum(w_i v_i) / sum(w_i)`); then, as `tune` does, the best offset each way is
@@ -15,10 +15,10 @@ use std::path::Path;
 use crate::machine::tuning_file;
 use crate::measured::{Row, SAME_POINT};
 use crate::output::text;
+use crate::output::text::count;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
-use crate::tune::best::{candidates, mm_s, no_travel, Way};
-use crate::tune::report::count;
-use crate::tune::sweep::{Grid, RunOutcome};
+use crate::sweep::best::{candidates, mm_s, no_travel, Way};
+use crate::sweep::{Grid, RunOutcome};
 
 /// Fewest offsets at a speed for the peak fit: the extreme and its two
 /// neighbours.
@@ -186,7 +186,7 @@ pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
 }
 
 /// The speeds where no offset measured travels one way faster than
-/// [`crate::tune::best::MIN_TRAVEL_MPS`] (as `tune` warns): the table's offset that way is the
+/// [`crate::sweep::best::MIN_TRAVEL_MPS`] (as `tune` warns): the table's offset that way is the
 /// least bad, and drives the platform the other way or hardly at all.
 pub fn warnings(fits: &[SpeedFit]) -> Vec<String> {
     let mut out = Vec::new();

@@ -73,6 +73,15 @@ pub fn count(n: usize, noun: &str) -> String {
     }
 }
 
+/// `, 2 warnings` for the summary line on stderr, empty without warnings.
+pub fn warning_count(warnings: &[String]) -> String {
+    if warnings.is_empty() {
+        String::new()
+    } else {
+        format!(", {}", count(warnings.len(), "warning"))
+    }
+}
+
 /// [`fixed`] with an explicit sign where it is not zero: `+0.0123`, `-1.5000`,
 /// `0.0000` (a travel that rounds to nothing has no sign).
 pub fn fixed_signed(x: f64, places: usize) -> String {

@@ -24,14 +24,13 @@ use std::time::Instant;
 use clap::Args;
 
 use super::part;
-use super::report::count;
 use super::robust;
-use super::{
-    conclude, grid_problems, load_machine, progress_bar, read_machine_file, refuse_interrupted,
-    table_problems, warning_count, Report, TuneOutputs,
-};
+use super::{conclude, grid_problems, read_machine_file, Report, TuneOutputs};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
+use crate::output::text::count;
+use crate::output::text::warning_count;
+use crate::sweep::{load_machine, progress_bar, refuse_interrupted, table_problems};
 
 /// Arguments of `host-sim merge`.
 #[derive(Debug, Args)]
@@ -156,7 +155,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         ));
         return Ok(());
     }
-    let progress = progress_bar("merge", super::best::most_checks(&grid));
+    let progress = progress_bar("merge", crate::sweep::best::most_checks(&grid));
     let grid_runs = runs.len();
     let tuning = conclude(&machine, grid, runs, &progress);
     progress.finish_and_clear();

@@ -11,12 +11,12 @@
 //!
 //! Stages of [`run`]:
 //! 1. read and check the machine file with the `--set` overrides, and the options
-//!    into a [`sweep::Grid`]: every problem at once, exit 2, before any run;
-//! 2. sweep: one closed-loop run per grid point ([`sweep::run_point`]: the `shared`
+//!    into a [`crate::sweep::Grid`]: every problem at once, exit 2, before any run;
+//! 2. sweep: one closed-loop run per grid point ([`crate::sweep::run_point`]: the `shared`
 //!    controller holding the point's offset, `Command::HoldOffset` from `t = 0`),
 //!    in parallel on all cores; results are collected by grid index, so the output
 //!    is the same whatever the number of threads;
-//! 3. best offsets per speed and direction ([`best::best_offsets`]): the grid's extreme,
+//! 3. best offsets per speed and direction ([`crate::sweep::best::best_offsets`]): the grid's extreme,
 //!    refined by a parabola through it and its two neighbours in offset, the
 //!    refined offset checked by one more run (also in parallel);
 //! 4. warnings: runs whose offset was not held, speeds with no travel one way;
@@ -37,13 +37,11 @@
 //! [`robust::conclude`] and its outputs: the offsets that travel their way on all
 //! of them with the best 10th percentile.
 
-pub mod best;
 pub mod merge;
 pub mod part;
 pub mod plot;
 pub mod report;
 pub mod robust;
-pub mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -60,21 +58,25 @@ use crate::machine::Machine;
 use crate::output::file::Staged;
 use crate::output::progress::Progress;
 use crate::output::text;
+use crate::output::text::count;
+use crate::output::text::warning_count;
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
-use best::Tuning;
-use best::{best_offsets, warnings};
+use crate::sweep::best::Tuning;
+use crate::sweep::best::{best_offsets, warnings};
+use crate::sweep::default_speeds;
+use crate::sweep::run_points;
+use crate::sweep::wrap_offsets;
+use crate::sweep::Grid;
+use crate::sweep::RunOutcome;
+use crate::sweep::{
+    load_machine, progress_bar, refuse_interrupted, table_problems, DEFAULT_T_END, MAX_POINTS,
+};
+use crate::sweep::{parse_offsets, parse_speeds, Range};
 use part::Shard;
-use report::count;
 use report::table_file;
 use report::tuning_json;
 use report::tuning_table;
-use sweep::default_speeds;
-use sweep::run_points;
-use sweep::wrap_offsets;
-use sweep::Grid;
-use sweep::RunOutcome;
-use sweep::{parse_offsets, parse_speeds, Range};
 
 /// Arguments of `host-sim tune`.
 #[derive(Debug, Args)]
@@ -176,42 +178,9 @@ pub struct Request {
     pub offsets_text: String,
 }
 
-/// Default `--t-end`, s: every offset held over the whole second half, over
-/// which `mean_velocity` is measured. On the reference machine the phase loop
-/// closes about 0.2 s after the start with its reference at the measured offset
-/// (near 0: both eccentrics start along +x), which then ramps at 180 deg/s, via
-/// 180 deg for offsets in (180, 360) (a change of side): up to 360 deg, so the
-/// reference reaches the held offset by 2.2 s at the latest; the controller is
-/// `running` (speed reached) from 0.55 s at 2500 rpm to 1.05 s at 4000 rpm.
-/// `T = 5 s` puts `T/2` 0.3 s after the latest, and averages the second half
-/// over 125 revolutions at 3000 rpm. (4 s would leave the offsets above about
-/// 325 deg still ramping at `T/2`.)
-pub const DEFAULT_T_END: f64 = 5.0;
-
 /// Default `--offsets`: every 15 degrees around the turn (24 runs a speed; 360
 /// is 0 and runs once). Fine enough for the parabola through the best three.
 pub const DEFAULT_OFFSETS: &str = "0:360:15";
-
-/// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
-pub const DEFAULT_SPEED_SPAN_RPM: f64 = 500.0;
-
-/// ...in steps of this many rpm (5 speeds: 2500 to 3500 rpm for the reference
-/// machine, all above its lift-off at 2125 rpm), dropping those outside the
-/// controller's speed range.
-pub const DEFAULT_SPEED_STEP_RPM: f64 = 250.0;
-
-/// Most points one range, or the whole grid, may have (10 000 runs of 5 s are
-/// about 20 minutes of two cores: a run costs 0.22 s of one).
-pub const MAX_POINTS: usize = 10_000;
-
-/// A run whose phase error over the second half exceeds this RMS, degrees, did
-/// not hold its offset (a held offset stays within a degree).
-pub const HELD_ERROR_DEG_RMS: f64 = 5.0;
-
-/// Rounding of a refined offset, degrees: the tuning file's resolution
-/// ([`tuning_file::write`] writes one decimal), so that the offset checked, the
-/// one reported and the one written are the same number.
-pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 
 /// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
 /// asked for (for the outputs).
@@ -338,53 +307,6 @@ pub(crate) fn read_machine_file(path: &Path) -> Result<(String, String), String>
     Ok((text, sha256))
 }
 
-/// The machine of file `path` (its `text`) with the `--set`s `set`, as tune
-/// runs it: two rotors, no tuning table.
-pub(crate) fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, String> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let mut machine = match Machine::from_text(&path.display().to_string(), text, dir, set) {
-        Ok(m) => m,
-        Err(problems) => return Err(input::render(&problems)),
-    };
-    if machine.rotors.len() == 1 {
-        return Err(one_rotor_refusal(path, &machine));
-    }
-    machine.controller.tuning_table = None;
-    Ok(machine)
-}
-
-/// Why `--write` cannot hold a table of `speeds` (given as `speeds_text`): more
-/// rows than the controller's table, or two speeds that print alike.
-pub(crate) fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
-    let mut problems = Vec::new();
-    if speeds.len() > shared::controller::MAX_TUNING_ROWS {
-        problems.push(format!(
-            "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
-            shared::controller::MAX_TUNING_ROWS,
-            speeds.len()
-        ));
-    }
-    let written: Vec<String> = speeds.iter().map(|v| format!("{v:.1}")).collect();
-    if written.windows(2).any(|w| w[0] == w[1]) {
-        problems.push(format!(
-            "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
-        ));
-    }
-    problems
-}
-
-/// Why `tune` refuses a one-rotor machine: it sweeps the phase offset between two
-/// rotors and writes the offsets of the tuning table, and a single rotor has
-/// neither (its controller holds speed only).
-fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
-    format!(
-        "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
-        path.display(),
-        machine.rotors.rotor1().name,
-        path.display()
-    )
-}
-
 /// Runs the command (stages of the module doc).
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
@@ -412,7 +334,10 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 2.-4. The sweep, with its progress on stderr; the total counts the check
     // runs from the start.
     let started = Instant::now();
-    let progress = progress_bar("tune", grid.points().len() + best::most_checks(&grid));
+    let progress = progress_bar(
+        "tune",
+        grid.points().len() + crate::sweep::best::most_checks(&grid),
+    );
     let tuning = tune(&machine, grid, &progress);
     progress.finish_and_clear();
     refuse_interrupted("tune", "the sweep is incomplete")?;
@@ -428,33 +353,6 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         warning_count(&tuning.warnings)
     ));
     Ok(())
-}
-
-/// The progress of `total` runs on stderr, `name` heading it: a bar on a
-/// terminal, else a line every few seconds ([`Progress`]).
-pub(crate) fn progress_bar(name: &str, total: usize) -> Progress {
-    Progress::new(name, total as u64, "runs")
-}
-
-/// A failure of `command` (`tune`, `merge`) when a signal stopped the runs
-/// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
-pub(crate) fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
-    if crate::interrupt::interrupted() {
-        return Err(Failure::Run(format!(
-            "error: {command}: {}: {what}, nothing written",
-            crate::interrupt::interruption()
-        )));
-    }
-    Ok(())
-}
-
-/// `, 2 warnings` for the summary line on stderr, empty without warnings.
-pub(crate) fn warning_count(warnings: &[String]) -> String {
-    if warnings.is_empty() {
-        String::new()
-    } else {
-        format!(", {}", count(warnings.len(), "warning"))
-    }
 }
 
 /// Stages 2 to 4 on a checked machine and grid.

@@ -38,12 +38,13 @@ use sha2::{Digest, Sha256};
 use rayon::prelude::*;
 
 use super::robust::{MAX_SAMPLES, STARTS};
-use super::sweep::{run_point, Grid, RunOutcome};
-use super::{progress_bar, refuse_interrupted, Request, TuneArgs, MAX_POINTS};
+use super::{Request, TuneArgs};
 use crate::failure::{Console, Failure};
 use crate::machine::{input, Machine};
 use crate::output::file::Staged;
 use crate::output::text;
+use crate::sweep::{progress_bar, refuse_interrupted, MAX_POINTS};
+use crate::sweep::{run_point, Grid, RunOutcome};
 
 /// The `format` of a partial result.
 pub const FORMAT: &str = "host-sim-tune-part";
@@ -55,8 +56,8 @@ pub const VERSION: u64 = 4;
 
 /// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
 /// 200 bytes, so the largest grid, 10 000 runs, about 2 MB; with the most plant
-/// warnings and the longest texts a run keeps ([`super::sweep::MAX_PLANT_WARNINGS`],
-/// [`super::sweep::MAX_REASON_BYTES`]) under 5 KB a run, 50 MB.
+/// warnings and the longest texts a run keeps ([`crate::sweep::MAX_PLANT_WARNINGS`],
+/// [`crate::sweep::MAX_REASON_BYTES`]) under 5 KB a run, 50 MB.
 pub const MAX_BYTES: u64 = 64 << 20;
 
 /// Which part of the grid: part `index` (from 1) of `count`.
@@ -536,7 +537,7 @@ pub(crate) fn run_shard(
             "grid runs"
         },
         seconds,
-        super::report::count(rayon::current_num_threads(), "thread"),
+        crate::output::text::count(rayon::current_num_threads(), "thread"),
         if out.as_os_str() == "-" {
             "stdout".to_string()
         } else {
@@ -612,7 +613,7 @@ pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
 /// its shard, that its runs are exactly its grid points, and that a run that
 /// held its offset has a mean velocity (a number, as [`run_point`] makes it).
 ///
-/// [`run_point`]: super::sweep::run_point
+/// [`run_point`]: crate::sweep::run_point
 pub fn read(path: &Path) -> Result<Part, String> {
     let part: Part = read_as(path, FORMAT, VERSION, "host-sim tune --shard")?;
     let damaged =

@@ -11,10 +11,10 @@
 
 use std::fmt::Write as _;
 
-use super::best::{Best, Tuning};
 use crate::output::svg::{
     escape, nice_step, open_document, tick_label, ticks, value_grid_line, PALETTE,
 };
+use crate::sweep::best::{Best, Tuning};
 
 /// Figure width, px.
 const WIDTH: f64 = 960.0;
@@ -101,7 +101,7 @@ pub fn plot_svg(t: &Tuning, title: &str) -> String {
 }
 
 /// What `tune --robust` draws besides the plain sweep's figure, per grid point
-/// ([`super::sweep::Grid::points`] order).
+/// ([`crate::sweep::Grid::points`] order).
 pub struct Band<'a> {
     /// The band under the line, `(low, high)`, m/s: the 10th to 90th percentiles.
     pub range: &'a [(f64, f64)],
@@ -366,8 +366,8 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tune::best::Refinement;
-    use crate::tune::sweep::{Grid, RunOutcome};
+    use crate::sweep::best::Refinement;
+    use crate::sweep::{Grid, RunOutcome};
 
     fn tuning(v: impl Fn(f64, f64) -> f64) -> Tuning {
         let grid = Grid {

@@ -6,13 +6,13 @@ use std::path::Path;
 
 use serde_json::{Map, Value};
 
-use super::best::mm_s;
-use super::best::Best;
-use super::best::Refinement;
-use super::best::Tuning;
 use super::Request;
 use crate::machine::tuning_file;
-use crate::output::text::{self, Align, Table};
+use crate::output::text::{self, count, Align, Table};
+use crate::sweep::best::mm_s;
+use crate::sweep::best::Best;
+use crate::sweep::best::Refinement;
+use crate::sweep::best::Tuning;
 
 /// A JSON number, `null` when not finite.
 fn number(x: f64) -> Value {
@@ -66,15 +66,6 @@ pub fn tuning_json(t: &Tuning) -> String {
         .unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
     text.push('\n');
     text
-}
-
-/// `1 speed`, `5 speeds`.
-pub(crate) fn count(n: usize, what: &str) -> String {
-    if n == 1 {
-        format!("1 {what}")
-    } else {
-        format!("{n} {what}s")
-    }
 }
 
 /// How a best offset was found, for people.

@@ -29,11 +29,8 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use super::best::{mm_s, Best, Refinement, Tuning, Way, MIN_TRAVEL_MPS};
 use super::plot;
-use super::report::count;
-use super::sweep::{run_point, Grid, RunOutcome};
-use super::{load_machine, Report, Request, TuneArgs};
+use super::{Report, Request, TuneArgs};
 use crate::args::Format;
 use crate::failure::{Console, Failure};
 use crate::machine::input;
@@ -42,6 +39,10 @@ use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
 use crate::output::progress::Progress;
 use crate::output::text;
+use crate::output::text::count;
+use crate::sweep::best::{mm_s, Best, Refinement, Tuning, Way, MIN_TRAVEL_MPS};
+use crate::sweep::load_machine;
+use crate::sweep::{run_point, Grid, RunOutcome};
 
 /// Default `--samples`: the nominal machine and seven drawn (24 runs a point with
 /// the three starts).
@@ -403,10 +404,11 @@ pub fn run(
     // The output files, checked and opened before the sweep, as the plain one's.
     let report = Report::open(&args.output)?;
     let started = std::time::Instant::now();
-    let progress = super::progress_bar("tune --robust", machines.len() * grid.points().len());
+    let progress =
+        crate::sweep::progress_bar("tune --robust", machines.len() * grid.points().len());
     let runs = sweep(machines, &grid, &progress);
     progress.finish_and_clear();
-    super::refuse_interrupted("tune", "the sweep is incomplete")?;
+    crate::sweep::refuse_interrupted("tune", "the sweep is incomplete")?;
     let robust = conclude(grid, uncertainty, seed, machines, &runs);
     finish(&robust, &runs[0], report, request, console)?;
     console.note(&format!(
@@ -416,7 +418,7 @@ pub fn run(
         count(robust.points.len(), "point"),
         started.elapsed().as_secs_f64(),
         count(rayon::current_num_threads(), "thread"),
-        super::warning_count(&robust.warnings)
+        crate::output::text::warning_count(&robust.warnings)
     ));
     Ok(())
 }

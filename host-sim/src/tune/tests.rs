@@ -1,7 +1,7 @@
 //! Tests of the module's stages together.
 
-use super::best::*;
-use super::sweep::*;
+use crate::sweep::best::*;
+use crate::sweep::*;
 
 #[test]
 fn ranges_include_both_ends() {

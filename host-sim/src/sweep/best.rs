@@ -2,10 +2,7 @@
 //! a parabola through it and its two neighbours and checked by one more run
 //! ([`best_offsets`]); warnings for offsets not held and speeds without travel.
 
-use super::sweep::run_points;
-use super::sweep::Grid;
-use super::sweep::RunOutcome;
-use super::OFFSET_RESOLUTION_DEG;
+use super::{run_points, Grid, RunOutcome, OFFSET_RESOLUTION_DEG};
 use crate::machine::Machine;
 use crate::output::progress::Progress;
 use crate::output::text;

@@ -1,14 +1,16 @@
-//! The sweep of `host-sim tune`: the grid of speeds and offsets ([`Grid`], from the
-//! `A:B:STEP` ranges), one closed-loop run per point ([`run_point`]), all of them in
-//! parallel ([`run_points`]), and the whole tuning ([`super::tune`]).
+//! The sweep of speeds and phase offsets, below the commands that sweep
+//! (`host-sim tune`, `calibrate`, `device tune`): the grid ([`Grid`], from the
+//! `A:B:STEP` ranges), one closed-loop run per point ([`run_point`]), all of them
+//! in parallel ([`run_points`]), and the best offsets from the runs ([`best`]).
+
+pub mod best;
+
+use std::path::Path;
 
 use rayon::prelude::*;
 use shared::controller::{Command, Outputs, State, Telemetry};
 
-use super::DEFAULT_SPEED_SPAN_RPM;
-use super::DEFAULT_SPEED_STEP_RPM;
-use super::HELD_ERROR_DEG_RMS;
-use super::MAX_POINTS;
+use crate::failure::Failure;
 use crate::machine::input;
 use crate::machine::Machine;
 use crate::measured::MAX_VELOCITY_MPS;
@@ -17,6 +19,104 @@ use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::simulation::{simulate_observed, Interruptible, RunOptions, Stop};
+
+/// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
+pub const DEFAULT_SPEED_SPAN_RPM: f64 = 500.0;
+
+/// ...in steps of this many rpm (5 speeds: 2500 to 3500 rpm for the reference
+/// machine, all above its lift-off at 2125 rpm), dropping those outside the
+/// controller's speed range.
+pub const DEFAULT_SPEED_STEP_RPM: f64 = 250.0;
+
+/// Most points one range, or the whole grid, may have (10 000 runs of 5 s are
+/// about 20 minutes of two cores: a run costs 0.22 s of one).
+pub const MAX_POINTS: usize = 10_000;
+
+/// A run whose phase error over the second half exceeds this RMS, degrees, did
+/// not hold its offset (a held offset stays within a degree).
+pub const HELD_ERROR_DEG_RMS: f64 = 5.0;
+
+/// Rounding of a refined offset, degrees: the tuning file's resolution
+/// ([`crate::machine::tuning_file::write`] writes one decimal), so that the offset checked, the
+/// one reported and the one written are the same number.
+pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
+
+/// Default `--t-end`, s: every offset held over the whole second half, over
+/// which `mean_velocity` is measured. On the reference machine the phase loop
+/// closes about 0.2 s after the start with its reference at the measured offset
+/// (near 0: both eccentrics start along +x), which then ramps at 180 deg/s, via
+/// 180 deg for offsets in (180, 360) (a change of side): up to 360 deg, so the
+/// reference reaches the held offset by 2.2 s at the latest; the controller is
+/// `running` (speed reached) from 0.55 s at 2500 rpm to 1.05 s at 4000 rpm.
+/// `T = 5 s` puts `T/2` 0.3 s after the latest, and averages the second half
+/// over 125 revolutions at 3000 rpm. (4 s would leave the offsets above about
+/// 325 deg still ramping at `T/2`.)
+pub const DEFAULT_T_END: f64 = 5.0;
+
+/// The machine of file `path` (its `text`) with the `--set`s `set`, as tune
+/// runs it: two rotors, no tuning table.
+pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, String> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut machine = match Machine::from_text(&path.display().to_string(), text, dir, set) {
+        Ok(m) => m,
+        Err(problems) => return Err(input::render(&problems)),
+    };
+    if machine.rotors.len() == 1 {
+        return Err(one_rotor_refusal(path, &machine));
+    }
+    machine.controller.tuning_table = None;
+    Ok(machine)
+}
+
+/// Why `--write` cannot hold a table of `speeds` (given as `speeds_text`): more
+/// rows than the controller's table, or two speeds that print alike.
+pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
+    let mut problems = Vec::new();
+    if speeds.len() > shared::controller::MAX_TUNING_ROWS {
+        problems.push(format!(
+            "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
+            shared::controller::MAX_TUNING_ROWS,
+            speeds.len()
+        ));
+    }
+    let written: Vec<String> = speeds.iter().map(|v| format!("{v:.1}")).collect();
+    if written.windows(2).any(|w| w[0] == w[1]) {
+        problems.push(format!(
+            "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
+        ));
+    }
+    problems
+}
+
+/// Why `tune` refuses a one-rotor machine: it sweeps the phase offset between two
+/// rotors and writes the offsets of the tuning table, and a single rotor has
+/// neither (its controller holds speed only).
+fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
+    format!(
+        "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
+        path.display(),
+        machine.rotors.rotor1().name,
+        path.display()
+    )
+}
+
+/// The progress of `total` runs on stderr, `name` heading it: a bar on a
+/// terminal, else a line every few seconds ([`Progress`]).
+pub fn progress_bar(name: &str, total: usize) -> Progress {
+    Progress::new(name, total as u64, "runs")
+}
+
+/// A failure of `command` (`tune`, `merge`) when a signal stopped the runs
+/// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
+pub fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
+    if crate::interrupt::interrupted() {
+        return Err(Failure::Run(format!(
+            "error: {command}: {}: {what}, nothing written",
+            crate::interrupt::interruption()
+        )));
+    }
+    Ok(())
+}
 
 /// What the sweep covers.
 #[derive(Clone, Debug, PartialEq)]
