@@ -44,7 +44,6 @@ use rayon::prelude::*;
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
-use crate::machine::input;
 use crate::measured;
 use crate::output::file::Staged;
 use crate::output::text::count;
@@ -133,15 +132,11 @@ pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
     let path = &args.machine.path;
     let (text, _) = read_machine_file(path)?;
     let machine = load_machine(path, &text, &args.set.keys)?;
-    let params = closed_loop::params(&machine).map_err(|p| input::render(&p))?;
     let mut problems = Vec::new();
     let keys = keys::resolve(path, &text, &args.set.keys, &args.fit)
         .map_err(|e| problems.push(e))
         .ok();
-    let speeds = (
-        f64::from(params.min_speed_rpm),
-        f64::from(params.max_speed_rpm),
-    );
+    let speeds = closed_loop::speed_range_rpm(&machine);
     let mut data = Gathered::default();
     let mut measured_sha256 = String::new();
     let rows = measured::read_bounded(&args.measured)

@@ -545,9 +545,7 @@ fn controller_schedule(
     let speed = args.speed.unwrap_or(machine.controller.speed_rpm);
     // The controller refuses speeds outside its range (and would stay idle):
     // say so here instead. Stop needs no speed.
-    let limits = crate::simulation::closed_loop::params(machine)
-        .map(|p| (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm)))
-        .unwrap_or((0.0, f64::INFINITY));
+    let limits = closed_loop::speed_range_rpm(machine);
     let in_range = speed.is_finite() && speed >= limits.0 && speed <= limits.1;
     if c != CommandArg::Stop && !in_range {
         let origin = if args.speed.is_some() {

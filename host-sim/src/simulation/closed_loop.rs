@@ -67,6 +67,13 @@ pub struct ControllerDriver {
     self_test_started: Option<(f64, bool)>,
 }
 
+/// The controller's speed range on machine `m`, rpm: `[min_speed_rpm,
+/// max_speed_rpm]`, from its constants alone (no file is read).
+pub fn speed_range_rpm(m: &Machine) -> (f64, f64) {
+    let p = Params::from_machine(&machine_constants(m));
+    (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm))
+}
+
 /// The controller's parameters for a machine file, with its tuning table if it
 /// names one (problems name the table file and key).
 pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {

@@ -187,7 +187,7 @@ pub const DEFAULT_OFFSETS: &str = "0:360:15";
 fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), String> {
     let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
     let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
-    let (lo, hi) = speed_range(&machine)?;
+    let (lo, hi) = closed_loop::speed_range_rpm(&machine);
     let mut problems = Vec::new();
 
     // Speeds: given, or around the nominal speed.
@@ -239,15 +239,6 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
     Ok((machine, grid, request, text))
 }
 
-/// The controller's speed range of `machine`, rpm: `[min_speed_rpm,
-/// max_speed_rpm]`.
-fn speed_range(machine: &Machine) -> Result<(f64, f64), String> {
-    match closed_loop::params(machine) {
-        Ok(p) => Ok((f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm))),
-        Err(problems) => Err(input::render(&problems)),
-    }
-}
-
 /// What `tune` refuses in a sweep of `grid` on `machine` (with `--speeds` given
 /// as `speeds_text`, `--offsets` as `offsets_text`), one line each: speeds
 /// outside the controller's range, an end time that is not a positive number
@@ -260,10 +251,7 @@ pub fn grid_problems(
     speeds_text: &str,
     offsets_text: &str,
 ) -> Vec<String> {
-    let (lo, hi) = match speed_range(machine) {
-        Ok(range) => range,
-        Err(problems) => return problems.lines().map(str::to_string).collect(),
-    };
+    let (lo, hi) = closed_loop::speed_range_rpm(machine);
     let mut problems = Vec::new();
     let outside: Vec<String> = grid
         .speeds_rpm
