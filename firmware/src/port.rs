@@ -3,9 +3,10 @@
 //! and the control tick's port on it ([`link_port`]), on the board and in QEMU.
 
 use shared::protocol::link::{ForTick, LinkState, StateLock};
+use shared::protocol::StatusReport;
 use shared::tick::LinkPort;
 
-use crate::log;
+use crate::{link, log};
 
 /// RTIC's lock on the link's state (shared with the control task), as the lock
 /// `shared::protocol::link::Link::poll` takes for each access.
@@ -37,4 +38,14 @@ pub fn log_refusals(taken: &ForTick) {
     if taken.self_test_refused {
         log::note(log::Event::SelfTestRefused);
     }
+}
+
+/// Idle's look at the link's state, every pass: the bytes the receive ring has
+/// lost so far noted in it, and the status the control task published.
+pub fn idle_status<M: rtic::Mutex<T = LinkState>>(link: &mut M) -> StatusReport {
+    let dropped = link::dropped();
+    link.lock(|l| {
+        l.rx_dropped = dropped;
+        l.status
+    })
 }

@@ -41,7 +41,7 @@ mod app {
     use firmware::link::{self, RxRing};
     use firmware::log::Logger;
     use firmware::motor_out::{self, MotorOut};
-    use firmware::port::{link_port, log_refusals, Locked};
+    use firmware::port::{idle_status, link_port, log_refusals, Locked};
     use firmware::sense::Sense;
     use firmware::start::start;
     use firmware::watchdog::Watchdog;
@@ -240,11 +240,7 @@ mod app {
     #[idle(local = [link, rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let dropped = link::dropped();
-            let status = cx.shared.link.lock(|l| {
-                l.rx_dropped = dropped;
-                l.status
-            });
+            let status = idle_status(&mut cx.shared.link);
             cx.local.logger.poll(&status);
             let tx = &mut *cx.local.tx;
             let rx = &mut *cx.local.rx_out;

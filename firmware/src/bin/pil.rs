@@ -26,12 +26,12 @@ mod app {
     use shared::storage::SimFlash;
 
     use firmware::drive::Drive;
-    use firmware::link::{self, RxRing};
+    use firmware::link::RxRing;
     use firmware::log::Logger;
     use firmware::machine::{MACHINE, MACHINE_FILE, MACHINE_FILE_CRC32, MACHINE_FILE_LEN};
     use firmware::pil::board::{PilBoard, PilLink};
     use firmware::pil::{self, TxRing};
-    use firmware::port::{link_port, log_refusals, Locked};
+    use firmware::port::{idle_status, link_port, log_refusals, Locked};
     use firmware::qemu::cycles::{self, SysTickClock};
     use firmware::qemu::pwm::SimPwm;
     use firmware::start::start;
@@ -143,11 +143,7 @@ mod app {
     #[idle(local = [link: Link = Link::new(), rx_out, tx_in, flash, logger: Logger = Logger::new(), tx_lost: u32 = 0], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let dropped = link::dropped();
-            let status = cx.shared.link.lock(|l| {
-                l.rx_dropped = dropped;
-                l.status
-            });
+            let status = idle_status(&mut cx.shared.link);
             cx.local.logger.poll(&status);
             let now_ms = status.uptime_ms;
             let tx = &mut *cx.local.tx_in;

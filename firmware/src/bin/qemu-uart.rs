@@ -26,7 +26,7 @@ mod app {
     use firmware::link::{self, RxRing};
     use firmware::log::Logger;
     use firmware::machine::MACHINE;
-    use firmware::port::Locked;
+    use firmware::port::{idle_status, Locked};
     use firmware::qemu::plant::{Injected, Plant};
     use firmware::qemu::pwm::SimPwm;
     use firmware::qemu::uart::{self, UartRx, UartTx};
@@ -134,11 +134,7 @@ mod app {
     #[idle(local = [link: Link = Link::new(), rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let dropped = link::dropped();
-            let status = cx.shared.link.lock(|l| {
-                l.rx_dropped = dropped;
-                l.status
-            });
+            let status = idle_status(&mut cx.shared.link);
             cx.local.logger.poll(&status);
             let now_ms = status.uptime_ms;
             let tx = &mut *cx.local.tx;
