@@ -74,6 +74,26 @@ pub fn speed_range_rpm(m: &Machine) -> (f64, f64) {
     (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm))
 }
 
+/// The controller's state after its last tick (`last`; `idle` before the
+/// first), for a run's summary: the controller in the loop's and the
+/// firmware's alike.
+pub fn state_name(last: Option<&Outputs>) -> String {
+    last.map_or("idle", |o| o.state.name()).to_string()
+}
+
+/// The offset the last tick held while running; none on one rotor (no phase
+/// loop).
+pub fn held_offset_deg(last: Option<&Outputs>, rotors: RotorCount) -> Option<f64> {
+    last.filter(|o| o.state == State::Running && rotors.has_rotor2())
+        .map(|o| f64::from(o.telemetry.target_offset_deg))
+}
+
+/// The faults latched at the last tick, by name.
+pub fn fault_names(last: Option<&Outputs>) -> Vec<String> {
+    last.map(|o| o.faults.names().map(str::to_string).collect())
+        .unwrap_or_default()
+}
+
 /// The controller's parameters for a machine file, with its tuning table if it
 /// names one (problems name the table file and key).
 pub fn params(m: &Machine) -> Result<Params, Vec<Problem>> {
@@ -189,14 +209,11 @@ impl Driver for ControllerDriver {
     }
 
     fn state(&self) -> String {
-        self.last.map_or("idle", |o| o.state.name()).to_string()
+        state_name(self.last.as_ref())
     }
 
-    /// The offset held while running; none on one rotor (no phase loop).
     fn commanded_offset_deg(&self) -> Option<f64> {
-        self.last
-            .filter(|o| o.state == State::Running && self.rotor_count.has_rotor2())
-            .map(|o| f64::from(o.telemetry.target_offset_deg))
+        held_offset_deg(self.last.as_ref(), self.rotor_count)
     }
 
     fn phase_loop(&self) -> bool {
@@ -204,9 +221,7 @@ impl Driver for ControllerDriver {
     }
 
     fn faults(&self) -> Vec<String> {
-        self.last
-            .map(|o| o.faults.names().map(str::to_string).collect())
-            .unwrap_or_default()
+        fault_names(self.last.as_ref())
     }
 
     fn events(&mut self) -> Vec<EventRow> {

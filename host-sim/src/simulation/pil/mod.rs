@@ -24,7 +24,7 @@ pub mod session;
 
 use std::path::{Path, PathBuf};
 
-use shared::controller::{Command, Outputs, RotorCount, State};
+use shared::controller::{Command, Outputs, RotorCount};
 use shared::drive::{CentreAligned, BOARD_TIMER_HZ};
 use shared::pil::{Bytes, Drive, Hello, Sample, MAX_LATE_US};
 use shared::protocol::StatusReport;
@@ -35,7 +35,9 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
-use crate::simulation::closed_loop::{controller_events, params};
+use crate::simulation::closed_loop::{
+    controller_events, fault_names, held_offset_deg, params, state_name,
+};
 use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
 use host::Host;
@@ -65,7 +67,6 @@ pub struct FirmwareDriver {
     dt: f64,
     /// The firmware's tick number of the next exchange.
     tick: u32,
-    last: Option<StatusReport>,
     events: Vec<EventRow>,
     failure: Option<String>,
     log: String,
@@ -177,7 +178,6 @@ impl FirmwareDriver {
             outputs: None,
             dt: 1.0 / rate,
             tick: 1,
-            last: None,
             events: Vec::new(),
             failure: None,
             log: String::new(),
@@ -281,10 +281,10 @@ impl FirmwareDriver {
     }
 
     fn observe(&mut self, t: f64, s: StatusReport) {
-        let before = self.last.map(|o| (o.state, o.faults));
+        // The previous tick's, before this tick's outputs replace them.
+        let before = self.outputs.map(|o| (o.state, o.faults));
         self.events
             .extend(controller_events(t, before, s.state, s.faults));
-        self.last = Some(s);
     }
 }
 
@@ -329,13 +329,11 @@ impl Driver for FirmwareDriver {
     }
 
     fn state(&self) -> String {
-        self.last.map_or("idle", |s| s.state.name()).to_string()
+        state_name(self.outputs.as_ref())
     }
 
     fn commanded_offset_deg(&self) -> Option<f64> {
-        self.last
-            .filter(|s| s.state == State::Running && self.rotor_count.has_rotor2())
-            .map(|s| f64::from(s.telemetry.target_offset_deg))
+        held_offset_deg(self.outputs.as_ref(), self.rotor_count)
     }
 
     fn phase_loop(&self) -> bool {
@@ -343,9 +341,7 @@ impl Driver for FirmwareDriver {
     }
 
     fn faults(&self) -> Vec<String> {
-        self.last
-            .map(|s| s.faults.names().map(str::to_string).collect())
-            .unwrap_or_default()
+        fault_names(self.outputs.as_ref())
     }
 
     fn events(&mut self) -> Vec<EventRow> {
