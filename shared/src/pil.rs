@@ -131,6 +131,12 @@ impl Bytes {
     }
 }
 
+/// Magic and version, written.
+fn write_head(w: &mut Writer<'_>, magic: u32) {
+    w.u32(magic);
+    w.u16(VERSION);
+}
+
 /// Magic and version, checked.
 fn read_head(r: &mut Reader<'_>, magic: u32) -> Result<(), RecordError> {
     if r.u32().ok_or(RecordError::Length)? != magic {
@@ -195,8 +201,7 @@ impl Hello {
     pub fn to_bytes(&self) -> [u8; Hello::LEN] {
         let mut out = [0u8; Hello::LEN];
         let mut w = Writer::new(&mut out);
-        w.u32(HELLO_MAGIC);
-        w.u16(VERSION);
+        write_head(&mut w, HELLO_MAGIC);
         w.u32(self.machine_crc);
         w.u32(self.machine_len);
         w.u32(self.tick_us);
@@ -260,8 +265,7 @@ impl Drive {
     pub fn to_bytes(&self) -> [u8; Drive::LEN] {
         let mut out = [0u8; Drive::LEN];
         let mut w = Writer::new(&mut out);
-        w.u32(DRIVE_MAGIC);
-        w.u16(VERSION);
+        write_head(&mut w, DRIVE_MAGIC);
         w.u32(self.tick);
         for c in self.compare {
             w.u16(c);
@@ -348,8 +352,7 @@ impl Sample {
     pub fn to_bytes(&self) -> [u8; Sample::LEN] {
         let mut out = [0u8; Sample::LEN];
         let mut w = Writer::new(&mut out);
-        w.u32(SAMPLE_MAGIC);
-        w.u16(VERSION);
+        write_head(&mut w, SAMPLE_MAGIC);
         w.u32(self.tick);
         let mut flags = 0;
         for (k, bit) in [INDEX_1, INDEX_2].into_iter().enumerate() {
