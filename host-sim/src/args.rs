@@ -53,6 +53,23 @@ pub struct PlotArg {
     pub file: Option<PathBuf>,
 }
 
+/// The outputs of a sweep, the same for `tune` and `merge`.
+#[derive(Debug, Args)]
+#[command(mut_arg("plot", |a| a.help("Write a plot of mean velocity against offset, one line per speed, as SVG")))]
+#[command(mut_arg("format", |a| a.help("Output format of the result")))]
+pub struct TuneOutputs {
+    /// Write the tuning table (best offsets per speed) that
+    /// `[controller].tuning_table` names.
+    #[arg(long, value_name = "FILE.toml")]
+    pub write: Option<PathBuf>,
+    /// The plot.
+    #[command(flatten)]
+    pub plot: PlotArg,
+    /// Output format.
+    #[command(flatten)]
+    pub format: FormatArg,
+}
+
 /// How a command prints its result.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Format {

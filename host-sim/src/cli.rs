@@ -18,9 +18,9 @@ use crate::device::args::{DeviceArgs, DeviceSimArgs};
 use crate::failure::{Console, Failure, EXIT_OK};
 use crate::help::epilogue;
 use crate::impact::ImpactArgs;
+use crate::parts::MergeArgs;
 use crate::run::RunArgs;
 use crate::scenario::ScenarioArgs;
-use crate::tune::merge::MergeArgs;
 use crate::tune::TuneArgs;
 use crate::{calibrate, device, impact, run, scenario, tune};
 

@@ -34,7 +34,8 @@
 use std::path::Path;
 
 use crate::machine::input;
-use crate::output::text::{self, decimals};
+use crate::numbers;
+use crate::numbers::decimals;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 
 /// The columns every file has, in the order a new file is written.
@@ -78,17 +79,17 @@ pub const MAX_WEIGHT: f64 = 1e6;
 fn refusal(k: usize, v: f64, speed_range: Option<(f64, f64)>) -> Option<String> {
     let within = |lo: f64, hi: f64, unit: &str| {
         (!(lo..=hi).contains(&v))
-            .then(|| format!("within [{}, {}]{unit}", text::sig(lo), text::sig(hi)))
+            .then(|| format!("within [{}, {}]{unit}", numbers::sig(lo), numbers::sig(hi)))
     };
     match (k, speed_range) {
         (0, Some((lo, hi))) if !(v > 0.0 && v >= lo && v <= hi) => Some(format!(
             "within the controller's speed range [{}, {}] rpm",
-            text::sig(lo),
-            text::sig(hi)
+            numbers::sig(lo),
+            numbers::sig(hi)
         )),
         (0, Some(_)) => None,
         (0, None) => (!(v > 0.0 && v <= MAX_SPEED_RPM))
-            .then(|| format!("> 0 and at most {} rpm", text::sig(MAX_SPEED_RPM))),
+            .then(|| format!("> 0 and at most {} rpm", numbers::sig(MAX_SPEED_RPM))),
         (1, _) => within(
             -MAX_OFFSET_DEG,
             MAX_OFFSET_DEG,
@@ -198,8 +199,8 @@ pub const MAX_BYTES: u64 = 64 << 20;
 pub const MAX_PROBLEMS: usize = 50;
 
 /// The longest field quoted whole in a message, bytes; a longer one is cut
-/// ([`text::cut`]): the machine file reader's, one length for every input file.
-pub use crate::output::text::MAX_QUOTED;
+/// ([`input::cut`]): the machine file reader's, one length for every input file.
+pub use crate::machine::input::MAX_QUOTED;
 
 /// Reads and checks the file at `path` ([`parse_each`]), row by row: `each` gets
 /// every row, none is kept here. A file over [`MAX_BYTES`] is refused unread.
@@ -274,7 +275,7 @@ pub fn parse_each(
             )),
             None => problems.push(format!(
                 "error: {file}: line {header_line}: header: unknown column `{}` (allowed: {})",
-                text::cut(name, MAX_QUOTED),
+                input::cut(name, MAX_QUOTED),
                 ALL.join(", ")
             )),
         }
@@ -311,7 +312,7 @@ pub fn parse_each(
                 problems.push(format!(
                     "error: {file}: line {line}: {}: must be a finite number (got {:?})",
                     ALL[k],
-                    text::cut(cell, MAX_QUOTED)
+                    input::cut(cell, MAX_QUOTED)
                 ));
                 continue;
             };
@@ -319,7 +320,7 @@ pub fn parse_each(
                 Some(allowed) => problems.push(format!(
                     "error: {file}: line {line}: {}: must be {allowed} (got {})",
                     ALL[k],
-                    text::cut(cell, MAX_QUOTED)
+                    input::cut(cell, MAX_QUOTED)
                 )),
                 None => values[k] = Some(v),
             }

@@ -79,7 +79,7 @@ fn the_truth_shows_the_platform_travel_right_then_left() {
     // left at one speed ends near where it began, either side of 0).
     let note = format!(
         "the platform travelled {} m",
-        host_sim::output::text::fixed_signed(travelled, 4)
+        host_sim::numbers::fixed_signed(travelled, 4)
     );
     assert!(stderr.contains(&note), "{note:?} not in {stderr}");
     assert!(stderr.contains("x real time"), "{stderr}");

@@ -214,7 +214,7 @@ fn a_platform_falling_head_first_is_found_when_it_crosses_the_floor() {
             Some(
                 format!(
                     "platform went through the fundament at t = {} s",
-                    host_sim::output::text::sig(b.t)
+                    host_sim::numbers::sig(b.t)
                 )
                 .as_str()
             ),

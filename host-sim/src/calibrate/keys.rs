@@ -17,7 +17,7 @@ use crate::machine::input::{self, Limit, NumberRead};
 use crate::machine::set;
 use crate::machine::uncertainty::{self, Uncertainty};
 use crate::machine::Machine;
-use crate::output::text;
+use crate::numbers;
 
 /// Where a key's search range comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,7 +62,7 @@ impl FitKey {
     /// to 6 significant digits and kept within the range.
     pub fn value_at(&self, u: f64) -> f64 {
         let x = self.low + u.clamp(0.0, 1.0) * (self.high - self.low);
-        let rounded = text::sig(x).parse::<f64>().unwrap_or(x);
+        let rounded = numbers::sig(x).parse::<f64>().unwrap_or(x);
         rounded.clamp(self.low, self.high)
     }
 
@@ -199,8 +199,8 @@ fn resolve_one(
                         "error: {file}: --fit {key}: {} must be {} and has no finite range to search: give its range in the file's [uncertainty], e.g. \"{key}\" = [{}, {}] (docs/calibration.md)",
                         n.key_path,
                         n.limit.describe(),
-                        text::sig(example_range(n.value).0),
-                        text::sig(example_range(n.value).1),
+                        numbers::sig(example_range(n.value).0),
+                        numbers::sig(example_range(n.value).1),
                     ));
                 }
             }
@@ -210,9 +210,9 @@ fn resolve_one(
     if !(nominal >= low && nominal <= high) {
         return Err(format!(
             "error: {file}: --fit {key}: the file's value {} lies outside the range searched [{}, {}] ({}): widen the range or correct the value",
-            text::sig(nominal),
-            text::sig(low),
-            text::sig(high),
+            numbers::sig(nominal),
+            numbers::sig(low),
+            numbers::sig(high),
             bound.name()
         ));
     }

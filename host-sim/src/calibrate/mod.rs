@@ -45,15 +45,14 @@ use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::measured;
+use crate::numbers::count;
+use crate::numbers::warning_count;
 use crate::output::file::Staged;
-use crate::output::text::count;
-use crate::output::text::warning_count;
+use crate::parts::{read_machine_file, sha256_hex, Shard};
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
 use crate::sweep::{load_machine, progress_bar, DEFAULT_T_END};
 use crate::sweep::{run_point, RunOutcome};
-use crate::tune::part::{sha256_hex, Shard};
-use crate::tune::read_machine_file;
 use fit::Settings;
 use keys::FitKey;
 use points::{Gathered, Point, MAX_POINTS};
@@ -103,7 +102,7 @@ pub struct CalibrateArgs {
     /// Evaluate only part I of N of the multistart's starts (the starts k with
     /// k % N == I - 1) and write a partial result for `host-sim merge` instead of
     /// the outputs (see docs/scale-out.md).
-    #[arg(long, value_name = "I/N", value_parser = crate::tune::part::parse_shard, conflicts_with_all = ["write", "format"])]
+    #[arg(long, value_name = "I/N", value_parser = crate::parts::parse_shard, conflicts_with_all = ["write", "format"])]
     pub shard: Option<Shard>,
     /// Where `--shard` writes its partial result, written whole (`-`: stdout)
     /// [default: -].

@@ -8,7 +8,7 @@
 //! `calibrate` (`fit_and_report`), so its result is the unsharded one byte
 //! for byte. docs/scale-out.md describes the format for people.
 //!
-//! The hashes are those of a sweep's parts ([`crate::tune::part`]):
+//! The hashes are those of a sweep's parts ([`crate::parts`]):
 //! - `fit_sha256`: SHA-256 of `machine.sha256`, one line feed, then the `fit`
 //!   object as compact JSON (the measured file's hash, the keys, the `--set`s, the
 //!   end time, the starts, the host-sim version: everything a run depends on);
@@ -33,16 +33,15 @@ use super::{bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Ev
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::machine::input;
+use crate::numbers;
+use crate::numbers::count;
 use crate::output::file::Staged;
-use crate::output::text;
-use crate::output::text::count;
+use crate::parts::{
+    is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, spec_sha256,
+    unsealed_sha256, MachineFile, MergeArgs, Shard, MAX_BYTES,
+};
 use crate::sweep::RunOutcome;
 use crate::sweep::{load_machine, progress_bar, refuse_interrupted};
-use crate::tune::merge::MergeArgs;
-use crate::tune::part::{
-    is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, sweep_sha256,
-    unsealed_sha256, MachineFile, Shard, MAX_BYTES,
-};
 
 /// The `format` of a fit's partial result.
 pub const FORMAT: &str = "host-sim-calibrate-part";
@@ -164,7 +163,7 @@ impl Part {
 
 /// `fit_sha256` ([module doc](self)).
 pub fn fit_sha256(machine_sha256: &str, fit: &FitSpec) -> String {
-    sweep_sha256(machine_sha256, fit)
+    spec_sha256(machine_sha256, fit)
 }
 
 /// The distinct starts of a fit of `p` keys from `given` with `settings`, in
@@ -371,8 +370,8 @@ pub fn read(path: &Path) -> Result<Part, String> {
                 return Err(damaged(format!(
                     "start {} ({} rpm, {} deg): {why}",
                     s.start,
-                    text::sig(r.speed_rpm),
-                    text::sig(r.offset_deg)
+                    numbers::sig(r.speed_rpm),
+                    numbers::sig(r.offset_deg)
                 )));
             }
         }
@@ -415,8 +414,8 @@ fn differences(a: &Part, b: &Part, fa: &str, fb: &str) -> Vec<String> {
     if x.t_end.to_bits() != y.t_end.to_bits() {
         differ(
             "--t-end",
-            format!("{} s", text::sig(x.t_end)),
-            format!("{} s", text::sig(y.t_end)),
+            format!("{} s", numbers::sig(x.t_end)),
+            format!("{} s", numbers::sig(y.t_end)),
         );
     }
     // Every other field follows from those above (read checks the version).

@@ -18,8 +18,8 @@ use std::time::Instant;
 use super::fit::Settings;
 use super::points::MANY_POINTS;
 use super::{CalibrateArgs, Inputs};
-use crate::output::text;
-use crate::output::text::count;
+use crate::numbers;
+use crate::numbers::count;
 use crate::sweep::load_machine;
 use crate::sweep::run_point;
 
@@ -73,7 +73,7 @@ impl Plan {
         let time = match self.seconds_per_run {
             Some(s) => format!(
                 "; one took {} s, so up to about {} on {}{}",
-                text::sig(round2(s)),
+                numbers::sig(round2(s)),
                 duration(left.unwrap_or(self.runs()) as f64 * s / threads.max(1) as f64),
                 count(threads, "thread"),
                 left.map_or(String::new(), |n| format!(
@@ -88,7 +88,7 @@ impl Plan {
             count(self.evaluations, "evaluation"),
             count(self.points, "point"),
             count(self.runs(), "run"),
-            text::sig(self.t_end)
+            numbers::sig(self.t_end)
         );
         for w in &self.warnings {
             out += &format!("warning: {w}\n");
@@ -145,11 +145,11 @@ fn round2(x: f64) -> f64 {
 /// A time for people: `40 s`, `12 min`, `3.5 h`.
 pub fn duration(seconds: f64) -> String {
     if seconds < 100.0 {
-        format!("{} s", text::sig(round2(seconds.max(0.0))))
+        format!("{} s", numbers::sig(round2(seconds.max(0.0))))
     } else if seconds < 6000.0 {
-        format!("{} min", text::sig(round2(seconds / 60.0)))
+        format!("{} min", numbers::sig(round2(seconds / 60.0)))
     } else {
-        format!("{} h", text::sig(round2(seconds / 3600.0)))
+        format!("{} h", numbers::sig(round2(seconds / 3600.0)))
     }
 }
 

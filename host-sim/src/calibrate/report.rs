@@ -17,6 +17,7 @@ use super::precision::{informative, Precision, MAX_CONDITION, UNIDENTIFIED_SHARE
 use super::{CalibrateArgs, Calibration, NOT_HELD_RESIDUAL_MPS};
 use crate::machine::input;
 use crate::machine::Machine;
+use crate::numbers;
 use crate::output::text::{self, Align};
 use crate::sweep::RunOutcome;
 
@@ -74,8 +75,8 @@ pub fn warnings(
         out.push(format!(
             "{}: not identified apart: their effects on the speeds are nearly proportional (condition number {} of the scaled J^T J, above {})",
             tangled.join(", "),
-            text::sig(precision.condition),
-            text::sig(MAX_CONDITION)
+            numbers::sig(precision.condition),
+            numbers::sig(MAX_CONDITION)
         ));
     }
     for (k, s) in keys.iter().zip(std_error) {
@@ -84,9 +85,9 @@ pub fn warnings(
                 out.push(format!(
                     "{}: not identified: standard error {} is more than a quarter of its range [{}, {}]",
                     k.key,
-                    text::sig(*s),
-                    text::sig(k.low),
-                    text::sig(k.high)
+                    numbers::sig(*s),
+                    numbers::sig(k.low),
+                    numbers::sig(k.high)
                 ));
             }
         }
@@ -98,7 +99,7 @@ pub fn warnings(
                 "{}: the fit lies at the {} end of its range ({}): the best value may lie beyond; the standard error assumes a minimum inside",
                 k.key,
                 if *u <= 0.0 { "low" } else { "high" },
-                text::sig(k.value_at(*u))
+                numbers::sig(k.value_at(*u))
             ));
         }
     }
@@ -111,9 +112,9 @@ pub fn warnings(
         };
         let w = format!(
             "{} rpm {} deg: the simulated run {what}; its rows count with the residual {} m/s from their mean",
-            text::sig(o.speed_rpm),
-            text::sig(o.offset_deg),
-            text::sig(NOT_HELD_RESIDUAL_MPS)
+            numbers::sig(o.speed_rpm),
+            numbers::sig(o.offset_deg),
+            numbers::sig(NOT_HELD_RESIDUAL_MPS)
         );
         if !out.contains(&w) {
             out.push(w);
@@ -163,13 +164,13 @@ pub fn numerical_warnings(
         .map(|&k| {
             format!(
                 "{} rpm {} deg: {} mm/s",
-                text::sig(points[k].speed_rpm),
-                text::sig(points[k].offset_deg),
-                text::sig(noise.sd[k] * 1e3)
+                numbers::sig(points[k].speed_rpm),
+                numbers::sig(points[k].offset_deg),
+                numbers::sig(noise.sd[k] * 1e3)
             )
         })
         .collect();
-    let rtols: Vec<String> = noise.rtols.iter().map(|r| text::sig(*r)).collect();
+    let rtols: Vec<String> = noise.rtols.iter().map(|r| numbers::sig(*r)).collect();
     // A finer tolerance is advice only where there is one: at the lowest the
     // file allows the runs went coarser.
     let finer = if noise.rtols[1] < noise.rtols[0] {
@@ -184,8 +185,8 @@ pub fn numerical_warnings(
                 out.push(format!(
                     "{}: the simulator's numerical noise makes more of its standard error ({}) than the measurements' scatter ({}): speeds change with the tolerance ({}) by up to {}; leaving such points out (a chaotic gait's speed changes at any tolerance){finer} narrows it (docs/calibration.md, \"Numerical noise\")",
                     k.key,
-                    text::sig(x),
-                    text::sig(m),
+                    numbers::sig(x),
+                    numbers::sig(m),
                     rtols.join(", "),
                     named.join(", ")
                 ));
@@ -219,7 +220,7 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         super::count(n, "row"),
         args.measured.display(),
         super::count(c.keys.len(), "key"),
-        text::sig(c.t_end)
+        numbers::sig(c.t_end)
     );
     let mut keys = text::Table::new(&[
         ("key", Align::Left),
@@ -235,13 +236,13 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
     for (i, k) in c.keys.iter().enumerate() {
         keys.row(vec![
             k.key.clone(),
-            format!("[{}, {}]", text::sig(k.low), text::sig(k.high)),
+            format!("[{}, {}]", numbers::sig(k.low), numbers::sig(k.high)),
             k.bound.name().into(),
-            text::sig(k.nominal),
-            text::sig(c.fitted[i]),
-            c.std_error[i].map_or("-".into(), text::sig),
-            c.std_error_numerical[i].map_or("-".into(), text::sig),
-            c.resolution[i].map_or("-".into(), text::sig),
+            numbers::sig(k.nominal),
+            numbers::sig(c.fitted[i]),
+            c.std_error[i].map_or("-".into(), numbers::sig),
+            c.std_error_numerical[i].map_or("-".into(), numbers::sig),
+            c.resolution[i].map_or("-".into(), numbers::sig),
             if identified(c, i) { "yes" } else { "no" }.into(),
         ]);
     }
@@ -250,12 +251,12 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
     let _ = writeln!(
         out,
         "\nfit: weighted sum of squares {} m^2/s^2 over {} at {} (n - p = {}), s = {} mm/s, condition number {}",
-        text::sig(c.ssr),
+        numbers::sig(c.ssr),
         super::count(n, "row"),
         super::count(c.data.points.len(), "point"),
         p.dof,
-        p.s2.map_or("-".into(), |s2| text::sig(s2.sqrt() * 1e3)),
-        text::sig(p.condition)
+        p.s2.map_or("-".into(), |s2| numbers::sig(s2.sqrt() * 1e3)),
+        numbers::sig(p.condition)
     );
     let scatter = c.data.scatter();
     let from: Vec<String> = c
@@ -266,8 +267,8 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
             format!(
                 "start {} ({} -> {} in {})",
                 s.start,
-                text::sig(s.from + scatter),
-                text::sig(s.to + scatter),
+                numbers::sig(s.from + scatter),
+                numbers::sig(s.to + scatter),
                 super::count(s.polls, "poll")
             )
         })
@@ -280,7 +281,10 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         super::count(c.fit.evaluations, "evaluation"),
         super::count(c.runs, "run")
     );
-    let others: Vec<String> = c.noise.rtols[1..].iter().map(|r| text::sig(*r)).collect();
+    let others: Vec<String> = c.noise.rtols[1..]
+        .iter()
+        .map(|r| numbers::sig(*r))
+        .collect();
     let _ = writeln!(
         out,
         "numerical noise: each point run again at rtol {}: the rows' numerical column is the standard deviation of its speeds over the {} tolerances, the keys' that noise's part of the standard error",
@@ -304,9 +308,9 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
     for ((r, k), (m, s, e)) in c.data.shown.iter().zip(row_values(c)) {
         rows.row(vec![
             r.line.to_string(),
-            text::sig(r.speed_rpm),
-            text::sig(r.offset_deg),
-            text::sig(r.weight),
+            numbers::sig(r.speed_rpm),
+            numbers::sig(r.offset_deg),
+            numbers::sig(r.weight),
             format!("{:.3}", m * 1e3),
             s.map_or_else(
                 || {

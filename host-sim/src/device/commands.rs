@@ -25,8 +25,8 @@ use crate::link::client::{Client, LinkError};
 use crate::link::port::PortSpec;
 use crate::link::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use crate::machine::tuning_file;
+use crate::numbers;
 use crate::output::file::Staged;
-use crate::output::text;
 
 /// How often the self-test is polled.
 const SELF_TEST_POLL: Duration = Duration::from_millis(50);
@@ -209,7 +209,7 @@ fn run_on(
             command(client, &Request::WriteTuningTable(table.clone()))?;
             out.print(&format!(
                 "table write: {} from {} stored in the device's flash and in use\n",
-                text::count(table.rows().len(), "row"),
+                numbers::count(table.rows().len(), "row"),
                 file.display()
             ));
         }
@@ -504,7 +504,7 @@ fn table_read(
             set.commit()?;
             out.print(&format!(
                 "table read: {} written to {}\n",
-                text::count(rows.len(), "row"),
+                numbers::count(rows.len(), "row"),
                 path.display()
             ));
         }

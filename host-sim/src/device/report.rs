@@ -4,7 +4,7 @@
 use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::protocol::StatusReport;
 
-use crate::output::text::{decimals, fixed};
+use crate::numbers::{decimals, fixed};
 
 /// Decimals of the telemetry's `f32` fields in the CSV and the live page's frames,
 /// by unit: each value is rounded to them and written in its shortest form

@@ -18,7 +18,7 @@ use shared::protocol::{Request, Response, StatusReport};
 use crate::failure::Failure;
 use crate::link::client::Client;
 use crate::link::requests::{ask, unexpected, HEARTBEAT_EVERY};
-use crate::output::text;
+use crate::numbers;
 
 /// Longest wait for rest after a stop when the command has no `--timeout`, s:
 /// from 3000 rpm the simulated board's rotors are at rest about 1 s after the
@@ -58,8 +58,8 @@ pub fn motion(s: &StatusReport) -> String {
     format!(
         "state {}, rotors at {} and {} rpm",
         s.state.name(),
-        text::fixed(f64::from(s.telemetry.speed_rpm[0]), 1),
-        text::fixed(f64::from(s.telemetry.speed_rpm[1]), 1)
+        numbers::fixed(f64::from(s.telemetry.speed_rpm[0]), 1),
+        numbers::fixed(f64::from(s.telemetry.speed_rpm[1]), 1)
     )
 }
 

@@ -25,7 +25,7 @@ use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::port::{Port, PortSpec, TcpPort};
 use crate::machine::{tuning_file, Machine};
-use crate::output::text;
+use crate::numbers;
 use crate::simulation::closed_loop::constants_warning;
 
 /// Ticks the simulator runs at most in one go when it fell behind the clock
@@ -341,7 +341,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             Some(s) if !(s.is_finite() && s > 0.0 && fits) => {
                 return Err(Failure::Usage(format!(
                     "error: {flag}: must be a number of seconds above 0 (got {})",
-                    text::sig(s)
+                    numbers::sig(s)
                 )))
             }
             _ => {}
@@ -381,7 +381,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     let mut device = match args.link_timeout {
         None => device,
         Some(s) => {
-            what += &format!(", link timeout {} s (--link-timeout)", text::sig(s));
+            what += &format!(", link timeout {} s (--link-timeout)", numbers::sig(s));
             device.with_link_timeout(s as f32)
         }
     };
@@ -465,9 +465,9 @@ fn stopped_note(device: &SimDevice, served: &Served, start: PlatformPose) -> Str
     } else {
         note += &format!(
             "; the platform travelled {} m (x from {} to {} m)",
-            text::fixed_signed(b.x - a.x, 4),
-            text::fixed(a.x, 4),
-            text::fixed(b.x, 4)
+            numbers::fixed_signed(b.x - a.x, 4),
+            numbers::fixed(a.x, 4),
+            numbers::fixed(b.x, 4)
         );
     }
     note + "\n"

@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 
 use super::plant::PlatformPose;
 use crate::failure::Failure;
+use crate::numbers::fixed;
 use crate::output::file::Target;
-use crate::output::text::fixed;
 
 /// The truth file's header line.
 pub const TRUTH_HEADER: &str = "t,x,y,angle";

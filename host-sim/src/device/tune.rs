@@ -48,9 +48,9 @@ use crate::interrupt;
 use crate::link::client::Client;
 use crate::link::requests::{command, HEARTBEAT_EVERY};
 use crate::measured::velocity_refusal;
+use crate::numbers;
+use crate::numbers::count;
 use crate::output::file::Staged;
-use crate::output::text;
-use crate::output::text::count;
 use crate::simulation::summary::wrap_deg_180;
 use crate::sweep::table_problems;
 use crate::sweep::{offset_held, wrap_offsets, Grid};
@@ -245,8 +245,8 @@ fn answer(line: &str) -> Option<Answer> {
 fn at(speed_rpm: f64, offset_deg: f64) -> String {
     format!(
         "{} rpm, {} deg",
-        text::sig(speed_rpm),
-        text::sig(offset_deg)
+        numbers::sig(speed_rpm),
+        numbers::sig(offset_deg)
     )
 }
 
@@ -305,9 +305,9 @@ pub fn sweep(
                     if let Some(why) = velocity_refusal(v) {
                         op.tell(&format!(
                             "not a distance: {} mm in {} s is {} m/s, and a measured velocity {why}; give the distance in mm\n",
-                            text::sig(mm),
-                            text::sig(timing.for_s),
-                            text::sig(v)
+                            numbers::sig(mm),
+                            numbers::sig(timing.for_s),
+                            numbers::sig(v)
                         ));
                         continue;
                     }
@@ -315,9 +315,9 @@ pub fn sweep(
                     tally.measured += 1;
                     op.tell(&format!(
                         "recorded: {here}: {} mm in {} s = {} m/s\n",
-                        text::sig(mm),
-                        text::sig(timing.for_s),
-                        text::signed(v)
+                        numbers::sig(mm),
+                        numbers::sig(timing.for_s),
+                        numbers::signed(v)
                     ));
                     k += 1;
                 }
@@ -411,7 +411,7 @@ fn run_point(
         if elapsed >= timing.timeout_s {
             return Err(format!(
                 "the offset is not held {} s after the hold (--timeout): state {}, phase loop {}, offset reference {:.1} deg heading for {:.1} deg",
-                text::sig(timing.timeout_s),
+                numbers::sig(timing.timeout_s),
                 s.state.name(),
                 if t.phase_loop_closed { "closed" } else { "open" },
                 t.commanded_offset_deg,
@@ -434,7 +434,7 @@ fn run_point(
     hold_for(rig, op, &here, "settling", timing.settle_s, running)?;
     op.tell(&format!(
         "mark: {here}: mark the platform's position now; measuring for {} s\n",
-        text::sig(timing.for_s)
+        numbers::sig(timing.for_s)
     ));
     hold_for(rig, op, &here, "measuring", timing.for_s, running)?;
     op.tell(&format!(
@@ -449,7 +449,7 @@ fn run_point(
         State::Idle | State::Stopping if elapsed < timing.timeout_s => Ok(false),
         State::Idle | State::Stopping => Err(format!(
             "not at rest {} s after the stop (--timeout): {}",
-            text::sig(timing.timeout_s),
+            numbers::sig(timing.timeout_s),
             motion(s)
         )),
         other => Err(format!("the controller is {} after the stop", other.name())),
@@ -539,7 +539,7 @@ pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
         return Err(usage(format!(
             "--speeds {}: {} rpm: speeds must be above 0 (the direction comes from the offset)",
             a.speeds.text,
-            text::sig(*bad)
+            numbers::sig(*bad)
         )));
     }
     let grid = Grid {
@@ -617,8 +617,8 @@ pub fn run(
         count(todo.len(), "point"),
         points.len() - todo.len(),
         file.path().display(),
-        text::sig(timing.for_s),
-        text::sig(timing.settle_s)
+        numbers::sig(timing.for_s),
+        numbers::sig(timing.settle_s)
     ));
     interrupt::catch();
     let result = {

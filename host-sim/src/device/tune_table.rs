@@ -14,8 +14,8 @@ use std::path::Path;
 
 use crate::machine::tuning_file;
 use crate::measured::{Row, SAME_POINT};
-use crate::output::text;
-use crate::output::text::count;
+use crate::numbers;
+use crate::numbers::count;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::sweep::best::{candidates, mm_s, no_travel, Way};
 use crate::sweep::{Grid, RunOutcome};
@@ -164,10 +164,10 @@ pub fn fits(rows: &[Row]) -> Result<Vec<SpeedFit>, Vec<String>> {
     let mut out = Vec::new();
     for (speed, points) in averages(rows) {
         if points.len() < MIN_OFFSETS {
-            let offsets: Vec<String> = points.iter().map(|p| text::sig(p.0)).collect();
+            let offsets: Vec<String> = points.iter().map(|p| numbers::sig(p.0)).collect();
             problems.push(format!(
                 "{} rpm has {} ({} deg): the peak fit needs at least {MIN_OFFSETS} (the best and its two neighbours)",
-                text::sig(speed),
+                numbers::sig(speed),
                 count(points.len(), "offset"),
                 offsets.join(", ")
             ));
@@ -205,7 +205,7 @@ fn describe(p: &Pick) -> String {
     match &p.degenerate {
         None => format!(
             "vertex of the fit (measured best {} deg: {} mm/s)",
-            text::sig(p.grid.0),
+            numbers::sig(p.grid.0),
             mm_s(p.grid.1)
         ),
         Some(why) => format!("measured best, {} mm/s ({why})", mm_s(p.grid.1)),
@@ -230,7 +230,7 @@ pub fn table_file(fits: &[SpeedFit], source: &Path, rows: usize) -> Result<Strin
         let _ = writeln!(
             header,
             "  {} rpm: right {:.1} deg, {}; left {:.1} deg, {}",
-            text::sig(f.speed_rpm),
+            numbers::sig(f.speed_rpm),
             f.right.offset_deg,
             describe(&f.right),
             f.left.offset_deg,

@@ -10,7 +10,8 @@ use serde_json::{Map, Value};
 use shared::impact::{BodyImpact, ContactOutcome, ImpactLaw, SlipState, Warnings, MAX_CONTACTS};
 
 use crate::impact::case::ImpactCase;
-use crate::output::text::{self, Align, Table};
+use crate::numbers;
+use crate::output::text::{Align, Table};
 
 /// A body's impact result, as `solve_body` returns it for up to [`MAX_CONTACTS`].
 pub type Solved = BodyImpact<f64, MAX_CONTACTS>;
@@ -192,7 +193,7 @@ pub fn warnings(case: &ImpactCase, result: &Solved) -> Vec<String> {
         };
         out.push(format!(
             "energy gained: {} J ({why})",
-            text::signed(result.outcome.energy_change)
+            numbers::signed(result.outcome.energy_change)
         ));
     }
     if flags.contains(Warnings::PENETRATION_LEFT) {
@@ -272,14 +273,14 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
     let n = case.contacts.len();
     let plural = if n == 1 { "" } else { "s" };
     let body = match case.pivot {
-        Some(o) => format!("pinned at {}", text::vec2(o)),
+        Some(o) => format!("pinned at {}", numbers::vec2(o)),
         None => "free".to_string(),
     };
     out.push_str(&format!(
         "law: {}   body: {body}, mass {} kg, inertia {} kg m^2   {n} contact{plural}\n\n",
         case.law.name(),
-        text::sig(case.body.mass),
-        text::sig(case.body.inertia),
+        numbers::sig(case.body.mass),
+        numbers::sig(case.body.inertia),
     ));
 
     // The body before and after.
@@ -290,26 +291,26 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
     ]);
     motion.row(vec![
         "velocity of C [m/s]".into(),
-        text::vec2(result.velocity_before),
-        text::vec2(result.velocity_after),
+        numbers::vec2(result.velocity_before),
+        numbers::vec2(result.velocity_after),
     ]);
     motion.row(vec![
         "angular velocity [rad/s]".into(),
-        text::sig(result.angular_velocity_before),
-        text::sig(result.angular_velocity_after),
+        numbers::sig(result.angular_velocity_before),
+        numbers::sig(result.angular_velocity_after),
     ]);
     motion.row(vec![
         "kinetic energy [J]".into(),
-        text::sig(result.kinetic_energy_before),
-        text::sig(result.kinetic_energy_after),
+        numbers::sig(result.kinetic_energy_before),
+        numbers::sig(result.kinetic_energy_after),
     ]);
     out.push_str(&motion.render());
     if let Some(p) = &result.pivot {
         out.push_str(&format!(
             "pivot impulse [N s]: {} (compression {}, restitution {})\n",
-            text::vec2(p.impulse),
-            text::vec2(p.compression),
-            text::vec2(p.restitution)
+            numbers::vec2(p.impulse),
+            numbers::vec2(p.compression),
+            numbers::vec2(p.restitution)
         ));
     }
     out.push('\n');
@@ -334,16 +335,16 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
         contacts.row(vec![
             name.to_string(),
             format!("{} {}", c.case.number(), c.case.name()),
-            text::sig(c.normal_impulse),
-            text::sig(c.tangential_impulse),
-            text::sig(c.compression[0]),
-            text::sig(c.compression[1]),
-            text::sig(c.restitution[0]),
-            text::sig(c.restitution[1]),
-            text::sig(c.normal_velocity_before),
-            text::sig(c.normal_velocity_after),
-            text::sig(c.tangential_velocity_before),
-            text::sig(c.tangential_velocity_after),
+            numbers::sig(c.normal_impulse),
+            numbers::sig(c.tangential_impulse),
+            numbers::sig(c.compression[0]),
+            numbers::sig(c.compression[1]),
+            numbers::sig(c.restitution[0]),
+            numbers::sig(c.restitution[1]),
+            numbers::sig(c.normal_velocity_before),
+            numbers::sig(c.normal_velocity_after),
+            numbers::sig(c.tangential_velocity_before),
+            numbers::sig(c.tangential_velocity_after),
             history(c),
         ]);
     }

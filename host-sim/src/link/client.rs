@@ -109,7 +109,7 @@ pub struct Heard {
 
 /// `1 frame`, `3 frames`.
 fn count(n: u32, what: &str) -> String {
-    crate::output::text::count(n as usize, what)
+    crate::numbers::count(n as usize, what)
 }
 
 /// `1 try`, `3 tries`.

@@ -58,7 +58,7 @@ pub fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
 /// A tick label: as many decimals as the step needs, never `-0`.
 pub fn tick_label(v: f64, step: f64) -> String {
     if v.abs() >= 1e6 || step < 1e-6 {
-        return crate::output::text::sig(v);
+        return crate::numbers::sig(v);
     }
     let decimals = (0..=6usize)
         .find(|d| {

@@ -509,8 +509,8 @@ pub fn plot_svg(rows: &[TraceRow], events: &[EventRow], machine: &Machine, title
     let subtitle = format!(
         "{} rows from t = {} s to {} s; {rotors}",
         rows.len(),
-        crate::output::text::sig(t0),
-        crate::output::text::sig(t1),
+        crate::numbers::sig(t0),
+        crate::numbers::sig(t1),
     );
     let _ = writeln!(
         svg,

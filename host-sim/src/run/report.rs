@@ -16,7 +16,8 @@
 
 use serde_json::{Map, Value};
 
-use crate::output::text::{self, Align, Table};
+use crate::numbers;
+use crate::output::text::{Align, Table};
 use crate::simulation::trace::Summary;
 
 /// The keys of the summary document, in the documented order (docs/cli-run.md,
@@ -128,7 +129,7 @@ pub const MOTION_DECIMALS: i32 = 9;
 pub fn summary_table(s: &Summary) -> String {
     let mut out = format!(
         "run to t = {} s, controller state: {}\n",
-        text::sig(s.t_end),
+        numbers::sig(s.t_end),
         s.state
     );
     if s.rotors() == 1 {
@@ -156,16 +157,16 @@ pub fn summary_table(s: &Summary) -> String {
     let mut row = |name: &str, value: String, unit: &str| {
         t.row(vec![name.to_string(), value, unit.to_string()]);
     };
-    let motion = |x: f64| text::rounded(x, MOTION_DECIMALS);
-    let motion2 = |v: [f64; 2]| text::vec2([motion(v[0]), motion(v[1])]);
+    let motion = |x: f64| numbers::rounded(x, MOTION_DECIMALS);
+    let motion2 = |v: [f64; 2]| numbers::vec2([motion(v[0]), motion(v[1])]);
     match s.not_a_travel() {
         None => {
             row(
                 "mean velocity (second half)",
-                text::signed(motion(s.mean_velocity)),
+                numbers::signed(motion(s.mean_velocity)),
                 "m/s",
             );
-            row("distance", text::signed(motion(s.distance)), "m");
+            row("distance", numbers::signed(motion(s.distance)), "m");
         }
         Some(_) => {
             row("mean velocity (second half)", NOT_A_TRAVEL.to_string(), "");
@@ -176,14 +177,18 @@ pub fn summary_table(s: &Summary) -> String {
     for (k, w) in s.rotor_speed_rpm.iter().enumerate() {
         row(
             &format!("rotor {} speed (second half)", k + 1),
-            text::sig(*w),
+            numbers::sig(*w),
             "rpm",
         );
     }
     // One rotor: no offset, no phase error.
     if let Some(offset) = s.phase_offset_deg {
-        row("phase offset (circular mean)", text::sig(offset), "deg");
-        row("phase error (RMS)", text::sig(s.phase_error_deg_rms), "deg");
+        row("phase offset (circular mean)", numbers::sig(offset), "deg");
+        row(
+            "phase error (RMS)",
+            numbers::sig(s.phase_error_deg_rms),
+            "deg",
+        );
     }
     let f = &s.final_state;
     row("final position", motion2(f.position), "m");
@@ -192,15 +197,15 @@ pub fn summary_table(s: &Summary) -> String {
         "final angle",
         format!(
             "{} ({} deg)",
-            text::sig(angle),
-            text::sig(angle.to_degrees())
+            numbers::sig(angle),
+            numbers::sig(angle.to_degrees())
         ),
         "rad",
     );
     row("final velocity", motion2(f.velocity), "m/s");
     row(
         "final angular velocity",
-        text::sig(motion(f.angular_velocity)),
+        numbers::sig(motion(f.angular_velocity)),
         "rad/s",
     );
     out.push_str(&t.render());

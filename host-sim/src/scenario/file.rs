@@ -46,7 +46,7 @@ use toml::{Table, Value};
 use crate::machine::input::{self, Limit, Location, Need, Problem, Problems, Section};
 use crate::machine::kind::{self, FileKind};
 use crate::machine::Machine;
-use crate::output::text::{sig, signed};
+use crate::numbers::{sig, signed};
 use crate::simulation::closed_loop;
 
 /// The commands a scenario can send, as written in the file.

@@ -12,7 +12,7 @@ use super::file::Scenario;
 use super::file::When;
 use super::file::TIME_EPS;
 use crate::machine::input::Problem;
-use crate::output::text::sig;
+use crate::numbers::sig;
 use crate::simulation::breach::Breach;
 use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions, Stop};
 

@@ -4,7 +4,8 @@ use serde_json::{Map, Value};
 
 use super::judge::Detection;
 use super::judge::Report;
-use crate::output::text::{sig, Align, Table};
+use crate::numbers::sig;
+use crate::output::text::{Align, Table};
 
 /// `encoder at 2.068 s (+68 ms)`, or `none to the end`.
 fn detection_text(d: &Detection) -> String {

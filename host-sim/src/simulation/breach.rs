@@ -22,7 +22,7 @@
 //! Each is reported once per body ([`Breach`]): when first, what, how far at worst.
 
 use crate::machine::Machine;
-use crate::output::text::sig;
+use crate::numbers::sig;
 use crate::plant::model::{Mount, PlantModel};
 use crate::plant::outline::{outlines, Outline};
 

@@ -11,7 +11,7 @@
 //!   10^7 rows are at most 80 MB and about 2 GB of CSV.
 
 use crate::machine::Machine;
-use crate::output::text::sig;
+use crate::numbers::sig;
 
 /// Longest simulated time of one run, s.
 pub const MAX_T_END_S: f64 = 3600.0;

@@ -28,7 +28,7 @@ pub mod trace;
 use std::sync::atomic::AtomicUsize;
 
 use crate::machine::Machine;
-use crate::output::text::sig;
+use crate::numbers::sig;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::PlantModel;
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};

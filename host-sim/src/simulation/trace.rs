@@ -4,7 +4,7 @@ use shared::impact::MAX_CONTACTS;
 
 pub use crate::event::{EventKind, EventRow};
 use crate::machine::bodies::MAX_BODIES;
-use crate::output::text::sig;
+use crate::numbers::sig;
 use crate::plant::contact::ContactForces;
 use crate::plant::model::{PlantModel, NY};
 use crate::simulation::breach::Breach;

@@ -4,8 +4,8 @@
 
 use super::{run_points, Grid, RunOutcome, OFFSET_RESOLUTION_DEG};
 use crate::machine::Machine;
+use crate::numbers;
 use crate::output::progress::Progress;
-use crate::output::text;
 use crate::simulation::summary::wrap_deg_360;
 
 /// How a best offset was found.
@@ -59,10 +59,10 @@ pub const MIN_TRAVEL_MPS: f64 = 0.5e-3;
 pub fn no_travel(speed_rpm: f64, way: Way, offset_deg: f64, velocity: f64) -> String {
     format!(
         "{} rpm: no offset travels {} faster than {} mm/s: the best is {} deg at {} mm/s",
-        text::sig(speed_rpm),
+        numbers::sig(speed_rpm),
         way.name(),
-        text::sig(MIN_TRAVEL_MPS * 1e3),
-        text::sig(offset_deg),
+        numbers::sig(MIN_TRAVEL_MPS * 1e3),
+        numbers::sig(offset_deg),
         mm_s(velocity)
     )
 }
@@ -320,8 +320,8 @@ pub(crate) fn warnings(
     for r in runs {
         let at = format!(
             "{} rpm, {} deg",
-            text::sig(r.speed_rpm),
-            text::sig(r.offset_deg)
+            numbers::sig(r.speed_rpm),
+            numbers::sig(r.offset_deg)
         );
         if let Some(why) = r.no_speed() {
             out.push(format!("{at}: {why}"));
@@ -335,7 +335,7 @@ pub(crate) fn warnings(
         if !has(right) || !has(left) {
             out.push(format!(
                 "{} rpm: no run gave a mean velocity: no best offset",
-                text::sig(speed)
+                numbers::sig(speed)
             ));
         }
     }

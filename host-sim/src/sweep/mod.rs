@@ -14,8 +14,8 @@ use crate::failure::Failure;
 use crate::machine::input;
 use crate::machine::Machine;
 use crate::measured::MAX_VELOCITY_MPS;
+use crate::numbers;
 use crate::output::progress::Progress;
-use crate::output::text;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::simulation::{simulate_observed, Interruptible, RunOptions, Stop};
@@ -182,7 +182,7 @@ pub struct RunOutcome {
 pub const MAX_PLANT_WARNINGS: usize = 8;
 
 /// The most bytes of a warning or a reason a run keeps; a longer one is cut
-/// ([`text::cut`]: a name of the machine file may be in it). The plant's own are
+/// ([`input::cut`]: a name of the machine file may be in it). The plant's own are
 /// under 300 bytes. With [`MAX_PLANT_WARNINGS`] a run's outcome stays under 5
 /// KB, so that a partial result of the largest grid fits its 64 MiB.
 pub const MAX_REASON_BYTES: usize = 400;
@@ -191,14 +191,14 @@ impl RunOutcome {
     /// The outcome with its texts bounded: at most [`MAX_PLANT_WARNINGS`] plant
     /// warnings and one counting the rest, each text cut at [`MAX_REASON_BYTES`].
     pub(crate) fn bounded(mut self) -> RunOutcome {
-        let cut = |s: &str| text::cut(s, MAX_REASON_BYTES);
+        let cut = |s: &str| input::cut(s, MAX_REASON_BYTES);
         let more = self.plant_warnings.len().saturating_sub(MAX_PLANT_WARNINGS);
         self.plant_warnings.truncate(MAX_PLANT_WARNINGS);
         self.plant_warnings = self.plant_warnings.iter().map(|w| cut(w)).collect();
         if more > 0 {
             self.plant_warnings.push(format!(
                 "... and {} in this run",
-                text::count(more, "more plant warning")
+                numbers::count(more, "more plant warning")
             ));
         }
         self.not_held = self.not_held.as_deref().map(cut);
@@ -216,15 +216,15 @@ impl RunOutcome {
         if v.is_finite() && v.abs() > MAX_VELOCITY_MPS {
             return Some(format!(
                 "mean_velocity {} m/s: beyond the {} m/s of any travel by impacts (tune writes no such run)",
-                text::sig(v),
-                text::sig(MAX_VELOCITY_MPS)
+                numbers::sig(v),
+                numbers::sig(MAX_VELOCITY_MPS)
             ));
         }
         if let Some(why) = &self.not_a_travel {
             if !v.is_nan() || self.not_held.is_some() {
                 return Some(format!(
                     "mean_velocity {} with not_a_travel {}: a run that was no travel has no mean velocity (NaN) and no not_held",
-                    text::sig(v),
+                    numbers::sig(v),
                     input::quoted(why)
                 ));
             }
@@ -237,7 +237,7 @@ impl RunOutcome {
         if self.plant_warnings.len() > most {
             return Some(format!(
                 "{}: tune keeps at most {most} a run",
-                text::count(self.plant_warnings.len(), "plant warning")
+                numbers::count(self.plant_warnings.len(), "plant warning")
             ));
         }
         let texts = self
@@ -247,7 +247,7 @@ impl RunOutcome {
             .chain(self.not_held.iter().map(|w| ("not_held", w)))
             .chain(self.not_a_travel.iter().map(|w| ("not_a_travel", w)));
         for (what, s) in texts {
-            if s.len() > text::cut_bound(MAX_REASON_BYTES) {
+            if s.len() > input::cut_bound(MAX_REASON_BYTES) {
                 return Some(format!(
                     "{what} {}: tune cuts such a text at {MAX_REASON_BYTES} bytes",
                     input::quoted(s)
@@ -303,13 +303,16 @@ pub fn parse_range(text: &str) -> Result<Vec<f64>, String> {
         return Err(bad("A, B and STEP must be finite numbers".into()));
     }
     if step <= 0.0 {
-        return Err(bad(format!("STEP must be > 0 (got {})", text::sig(step))));
+        return Err(bad(format!(
+            "STEP must be > 0 (got {})",
+            numbers::sig(step)
+        )));
     }
     if b < a {
         return Err(bad(format!(
             "B must be >= A: the range runs up from A = {} to B = {}",
-            text::sig(a),
-            text::sig(b)
+            numbers::sig(a),
+            numbers::sig(b)
         )));
     }
     // Whole steps from A towards B; rounding within 1e-9 of a step lands on B.
@@ -319,7 +322,7 @@ pub fn parse_range(text: &str) -> Result<Vec<f64>, String> {
         let count = if count < 1e12 {
             format!("{count:.0}")
         } else {
-            text::sig(count)
+            numbers::sig(count)
         };
         return Err(bad(format!(
             "{count} points, at most {MAX_POINTS} (use a larger STEP)"
@@ -401,9 +404,9 @@ pub(crate) fn default_speeds(nominal: f64, lo: f64, hi: f64) -> (Vec<f64>, Strin
     let text = match (speeds.first(), speeds.last()) {
         (Some(a), Some(b)) => format!(
             "{}:{}:{}",
-            text::sig(*a),
-            text::sig(*b),
-            text::sig(DEFAULT_SPEED_STEP_RPM)
+            numbers::sig(*a),
+            numbers::sig(*b),
+            numbers::sig(DEFAULT_SPEED_STEP_RPM)
         ),
         _ => String::new(),
     };
@@ -498,20 +501,20 @@ fn simulate_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64
         Some(match settled_at {
             Some(t) => format!(
                 "the offset reference reached the held offset only at t = {} s, after T/2 = {} s (raise --t-end)",
-                text::sig(t),
-                text::sig(0.5 * t_end)
+                numbers::sig(t),
+                numbers::sig(0.5 * t_end)
             ),
             // Not held at the last tick: it never settled.
             None => format!(
                 "the offset reference had not reached the held offset by the end of the run, t = {} s (raise --t-end)",
-                text::sig(t_end)
+                numbers::sig(t_end)
             ),
         })
     } else if s.phase_error_deg_rms.is_nan() || s.phase_error_deg_rms > HELD_ERROR_DEG_RMS {
         Some(format!(
             "phase error {} deg RMS over the second half (held offsets stay within {} deg)",
-            text::sig(s.phase_error_deg_rms),
-            text::sig(HELD_ERROR_DEG_RMS)
+            numbers::sig(s.phase_error_deg_rms),
+            numbers::sig(HELD_ERROR_DEG_RMS)
         ))
     } else if !s.mean_velocity.is_finite() {
         Some("the mean velocity is not a number".to_string())

@@ -21,43 +21,14 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use clap::Args;
-
 use super::part;
 use super::robust;
-use super::{conclude, grid_problems, read_machine_file, Report, TuneOutputs};
+use super::{conclude, grid_problems, Report};
 use crate::failure::{Console, Failure};
-use crate::help::epilogue;
-use crate::output::text::count;
-use crate::output::text::warning_count;
+use crate::numbers::count;
+use crate::numbers::warning_count;
+use crate::parts::{quote, read_machine_file, MergeArgs};
 use crate::sweep::{load_machine, progress_bar, refuse_interrupted, table_problems};
-
-/// Arguments of `host-sim merge`.
-#[derive(Debug, Args)]
-#[command(after_help = epilogue(
-    &[
-        "host-sim tune examples/vibro-driver.toml --t-end 4 --shard 1/2 --out-part part1.json",
-        "host-sim tune examples/vibro-driver.toml --t-end 4 --shard 2/2 --out-part part2.json",
-        "host-sim merge part1.json part2.json --write my.tuning.toml --plot tune.svg",
-    ],
-    &[],
-    &["docs/scale-out.md", "docs/tuning.md"],
-))]
-pub struct MergeArgs {
-    /// The partial results of `host-sim tune --shard I/N` (with or without
-    /// `--robust`) or of `host-sim calibrate --shard I/N`: all N parts of one
-    /// sweep or fit, in any order.
-    #[arg(value_name = "PART.json", required = true)]
-    pub parts: Vec<PathBuf>,
-    /// The machine file the parts were made from, when it is not where they name
-    /// it (the same file: its SHA-256 must match theirs) [default: the path in the
-    /// parts].
-    #[arg(long, value_name = "MACHINE.toml")]
-    pub machine: Option<PathBuf>,
-    /// The outputs, as for `tune`.
-    #[command(flatten)]
-    pub output: TuneOutputs,
-}
 
 /// Runs the command (stages of the module doc).
 pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
@@ -101,10 +72,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
     let grid = first.sweep.grid();
     // The range texts as the messages quote them: cut (a part is anyone's file).
-    let (speeds, offsets) = (
-        part::quote(&first.sweep.speeds),
-        part::quote(&first.sweep.offsets),
-    );
+    let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
     let refused = grid_problems(&machine, &grid, &speeds, &offsets);
     if !refused.is_empty() {
         // The parts are one sweep (checked): the first one names it.

@@ -43,23 +43,24 @@ pub mod plot;
 pub mod report;
 pub mod robust;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
 
 use crate::args::Format;
-use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
+use crate::args::TuneOutputs;
+use crate::args::{MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
-use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
+use crate::numbers;
+use crate::numbers::count;
+use crate::numbers::warning_count;
 use crate::output::file::Staged;
 use crate::output::progress::Progress;
-use crate::output::text;
-use crate::output::text::count;
-use crate::output::text::warning_count;
+use crate::parts::{read_machine_file, Shard};
 use crate::simulation::closed_loop;
 use crate::simulation::limits;
 use crate::sweep::best::Tuning;
@@ -73,7 +74,6 @@ use crate::sweep::{
     load_machine, progress_bar, refuse_interrupted, table_problems, DEFAULT_T_END, MAX_POINTS,
 };
 use crate::sweep::{parse_offsets, parse_speeds, Range};
-use part::Shard;
 use report::table_file;
 use report::tuning_json;
 use report::tuning_table;
@@ -115,7 +115,7 @@ pub struct TuneArgs {
     /// in grid order; with --robust, the runs j = m P + k of point k on machine
     /// m with j % N == I - 1) and write a partial result for `host-sim merge`
     /// instead of the outputs (see docs/scale-out.md).
-    #[arg(long, value_name = "I/N", value_parser = part::parse_shard, conflicts_with_all = ["write", "plot", "format"])]
+    #[arg(long, value_name = "I/N", value_parser = crate::parts::parse_shard, conflicts_with_all = ["write", "plot", "format"])]
     pub shard: Option<Shard>,
     /// Where `--shard` writes its partial result, written whole (`-`: stdout)
     /// [default: -].
@@ -143,23 +143,6 @@ fn parse_samples(text: &str) -> Result<usize, String> {
             robust::MAX_SAMPLES
         )),
     }
-}
-
-/// The outputs of a sweep, the same for `tune` and `merge`.
-#[derive(Debug, Args)]
-#[command(mut_arg("plot", |a| a.help("Write a plot of mean velocity against offset, one line per speed, as SVG")))]
-#[command(mut_arg("format", |a| a.help("Output format of the result")))]
-pub struct TuneOutputs {
-    /// Write the tuning table (best offsets per speed) that
-    /// `[controller].tuning_table` names.
-    #[arg(long, value_name = "FILE.toml")]
-    pub write: Option<PathBuf>,
-    /// The plot.
-    #[command(flatten)]
-    pub plot: PlotArg,
-    /// Output format.
-    #[command(flatten)]
-    pub format: FormatArg,
 }
 
 /// How a sweep was asked for: what its outputs name besides its results (the
@@ -198,9 +181,9 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
             if s.is_empty() {
                 problems.push(format!(
                     "error: tune: [controller].speed_rpm = {} is outside the controller's speed range [{}, {}] rpm; give --speeds",
-                    text::sig(machine.controller.speed_rpm),
-                    text::sig(lo),
-                    text::sig(hi)
+                    numbers::sig(machine.controller.speed_rpm),
+                    numbers::sig(lo),
+                    numbers::sig(hi)
                 ));
             }
             (s, t)
@@ -257,14 +240,14 @@ pub fn grid_problems(
         .speeds_rpm
         .iter()
         .filter(|v| !(**v >= lo && **v <= hi))
-        .map(|v| text::sig(*v))
+        .map(|v| numbers::sig(*v))
         .collect();
     if !outside.is_empty() {
         problems.push(format!(
             "error: --speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
             outside.join(", "),
-            text::sig(lo),
-            text::sig(hi)
+            numbers::sig(lo),
+            numbers::sig(hi)
         ));
     }
     let t_end = grid.t_end;
@@ -282,17 +265,6 @@ pub fn grid_problems(
         ));
     }
     problems
-}
-
-/// The machine of a sweep: `path` with the `--set` overrides, refused when it has
-/// one rotor, its tuning table dropped (the sweep holds explicit offsets, so a
-/// missing or stale table must not stop its own regeneration).
-/// The machine file's text and the SHA-256 of it: read once, so that the hash a
-/// partial result names is of the very text checked and run.
-pub(crate) fn read_machine_file(path: &Path) -> Result<(String, String), String> {
-    let text = input::read_text(path).map_err(|p| input::render(&[p]))?;
-    let sha256 = part::sha256_hex(text.as_bytes());
-    Ok((text, sha256))
 }
 
 /// Runs the command (stages of the module doc).

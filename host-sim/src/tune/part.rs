@@ -32,8 +32,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
-use sha2::{Digest, Sha256};
 
 use rayon::prelude::*;
 
@@ -41,8 +39,12 @@ use super::robust::{MAX_SAMPLES, STARTS};
 use super::{Request, TuneArgs};
 use crate::failure::{Console, Failure};
 use crate::machine::{input, Machine};
+use crate::numbers;
 use crate::output::file::Staged;
-use crate::output::text;
+use crate::parts::{
+    is_sha256, maybe_finite, quote, read_as, shard_problems, spec_sha256, unsealed_sha256,
+    MachineFile, Shard,
+};
 use crate::sweep::{progress_bar, refuse_interrupted, MAX_POINTS};
 use crate::sweep::{run_point, Grid, RunOutcome};
 
@@ -53,74 +55,6 @@ pub const FORMAT: &str = "host-sim-tune-part";
 /// `part_sha256`; 3: with each run's `not_a_travel`; 4: with `sweep.robust` and
 /// each run's `machine`).
 pub const VERSION: u64 = 4;
-
-/// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
-/// 200 bytes, so the largest grid, 10 000 runs, about 2 MB; with the most plant
-/// warnings and the longest texts a run keeps ([`crate::sweep::MAX_PLANT_WARNINGS`],
-/// [`crate::sweep::MAX_REASON_BYTES`]) under 5 KB a run, 50 MB.
-pub const MAX_BYTES: u64 = 64 << 20;
-
-/// Which part of the grid: part `index` (from 1) of `count`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Shard {
-    /// I, from 1 to N.
-    pub index: usize,
-    /// N, the number of parts.
-    pub count: usize,
-}
-
-impl Shard {
-    /// Whether run `j` (0-based: grid point `k` on machine `m` is run
-    /// `j = m P + k` of a grid of `P` points) is this part's.
-    pub fn holds(self, j: usize) -> bool {
-        j % self.count == self.index - 1
-    }
-
-    /// The runs of this part among `runs`, ascending (an iterator: `runs` may
-    /// be a number a damaged part claims).
-    pub fn runs(self, runs: usize) -> impl ExactSizeIterator<Item = usize> {
-        (self.index - 1..runs).step_by(self.count)
-    }
-}
-
-impl std::fmt::Display for Shard {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.index, self.count)
-    }
-}
-
-/// `--shard I/N`: whole numbers, `1 <= I <= N`, N at most [`MAX_POINTS`] (the
-/// largest grid).
-pub fn parse_shard(text: &str) -> Result<Shard, String> {
-    let usage = || "expected I/N, part I of N with 1 <= I <= N, e.g. 1/4".to_string();
-    let (i, n) = text.split_once('/').ok_or_else(usage)?;
-    let whole = |s: &str| s.trim().parse::<usize>().ok();
-    let (Some(index), Some(count)) = (whole(i), whole(n)) else {
-        return Err(usage());
-    };
-    if count == 0 || count > MAX_POINTS {
-        return Err(format!(
-            "N must be from 1 to {MAX_POINTS} (the most grid points), got {count}"
-        ));
-    }
-    if index == 0 || index > count {
-        return Err(format!(
-            "I must be from 1 to N = {count} (I counts from 1), got {index}"
-        ));
-    }
-    Ok(Shard { index, count })
-}
-
-/// The machine file a part was made from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MachineFile {
-    /// As named on `tune`'s command line (the outputs name it so).
-    pub path: String,
-    /// SHA-256 of its bytes, lowercase hex.
-    pub sha256: String,
-}
 
 /// Everything besides the machine file that changes a run's outcome, and the
 /// range texts the outputs name.
@@ -228,69 +162,9 @@ impl Part {
 
     /// Sets `sweep_sha256` and `part_sha256` from the contents.
     pub fn seal(&mut self) {
-        self.sweep_sha256 = sweep_sha256(&self.machine.sha256, &self.sweep);
+        self.sweep_sha256 = spec_sha256(&self.machine.sha256, &self.sweep);
         self.part_sha256 = self.hash();
     }
-}
-
-/// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
-pub(crate) mod maybe_finite {
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    #[derive(Serialize, Deserialize)]
-    #[serde(untagged)]
-    enum Number {
-        Finite(f64),
-        Other(String),
-    }
-
-    pub fn serialize<S: Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
-        match *x {
-            x if x.is_finite() => Number::Finite(x),
-            x if x.is_nan() => Number::Other("NaN".into()),
-            x if x > 0.0 => Number::Other("inf".into()),
-            _ => Number::Other("-inf".into()),
-        }
-        .serialize(s)
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-        match Number::deserialize(d)? {
-            Number::Finite(x) => Ok(x),
-            Number::Other(s) => match s.as_str() {
-                "NaN" => Ok(f64::NAN),
-                "inf" => Ok(f64::INFINITY),
-                "-inf" => Ok(f64::NEG_INFINITY),
-                _ => Err(serde::de::Error::custom(format!(
-                    "mean_velocity {s:?}: expected a number, \"NaN\", \"inf\" or \"-inf\""
-                ))),
-            },
-        }
-    }
-}
-
-/// SHA-256 of `bytes`, lowercase hex.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
-/// SHA-256 of `part` as compact JSON with its own hash field emptied by `unseal`
-/// (a part's `part_sha256`: tune's and calibrate's parts).
-pub fn unsealed_sha256<T: Serialize + Clone>(part: &T, unseal: impl FnOnce(&mut T)) -> String {
-    let mut unsealed = part.clone();
-    unseal(&mut unsealed);
-    sha256_hex(&serde_json::to_vec(&unsealed).unwrap_or_default())
-}
-
-/// `sweep_sha256` ([module doc](self)), and a fit's part's `fit_sha256` alike:
-/// SHA-256 of the machine's hash, a line feed, and `sweep` as compact JSON.
-pub fn sweep_sha256<T: Serialize>(machine_sha256: &str, sweep: &T) -> String {
-    let mut bytes = format!("{machine_sha256}\n").into_bytes();
-    bytes.extend(serde_json::to_vec(sweep).unwrap_or_default());
-    sha256_hex(&bytes)
 }
 
 impl Sweep {
@@ -348,7 +222,7 @@ impl Sweep {
     }
 
     /// What differs between `self` (of file `a`) and `other` (of file `b`), one
-    /// phrase each, the values quoted cut ([`text::cut`]); empty when they are
+    /// phrase each, the values quoted cut ([`input::cut`]); empty when they are
     /// the same sweep.
     fn differences(&self, other: &Sweep, a: &str, b: &str) -> Vec<String> {
         let mut out = Vec::new();
@@ -358,7 +232,7 @@ impl Sweep {
         };
         let list = |v: &[f64]| {
             v.iter()
-                .map(|x| text::sig(*x))
+                .map(|x| numbers::sig(*x))
                 .collect::<Vec<_>>()
                 .join(", ")
         };
@@ -396,8 +270,8 @@ impl Sweep {
         if self.t_end.to_bits() != other.t_end.to_bits() {
             differ(
                 "--t-end",
-                format!("{} s", text::sig(self.t_end)),
-                format!("{} s", text::sig(other.t_end)),
+                format!("{} s", numbers::sig(self.t_end)),
+                format!("{} s", numbers::sig(other.t_end)),
             );
         }
         if self.robust != other.robust {
@@ -537,7 +411,7 @@ pub(crate) fn run_shard(
             "grid runs"
         },
         seconds,
-        crate::output::text::count(rayon::current_num_threads(), "thread"),
+        crate::numbers::count(rayon::current_num_threads(), "thread"),
         if out.as_os_str() == "-" {
             "stdout".to_string()
         } else {
@@ -547,68 +421,7 @@ pub(crate) fn run_shard(
     Ok(())
 }
 
-/// A field of a part for a message: [`text::cut`] at [`text::MAX_QUOTED`] (a
-/// part is a file anyone can write: a 10 MB field must not make a 10 MB line).
-pub(crate) fn quote(field: &str) -> String {
-    text::cut(field, text::MAX_QUOTED)
-}
-
-/// Whether `s` is a SHA-256 as a part writes it: 64 lowercase hex digits.
-pub(crate) fn is_sha256(s: &str) -> bool {
-    s.len() == 64
-        && s.bytes()
-            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
-}
-
-/// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`]) of
-/// `format` and `version`, written by `command` (for the messages): JSON, its
-/// `format` and `version` (before its fields, so that a file of another kind or
-/// version is named so), then its fields, every one there and of its type (no
-/// other). The one reader of `tune`'s and `calibrate`'s parts.
-pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
-    path: &Path,
-    format: &str,
-    version: u64,
-    command: &str,
-) -> Result<P, String> {
-    let not_a_part = |why: &str| {
-        format!(
-            "error: {}: not a partial result of `{command}`: {why}",
-            path.display()
-        )
-    };
-    let text = input::read_text_at_most(path, MAX_BYTES)
-        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
-    let value: Value =
-        serde_json::from_str(&text).map_err(|e| not_a_part(&format!("not JSON ({e})")))?;
-    match value.get("format") {
-        Some(Value::String(f)) if f == format => {}
-        Some(f) => {
-            return Err(not_a_part(&format!(
-                "its format is {}, not {format:?}",
-                quote(&f.to_string())
-            )))
-        }
-        None => return Err(not_a_part(&format!("no \"format\": {format:?}"))),
-    }
-    if value.get("version").and_then(Value::as_u64) != Some(version) {
-        return Err(format!(
-            "error: {}: partial result version {}: this host-sim reads version {version}",
-            path.display(),
-            quote(&value.get("version").unwrap_or(&Value::Null).to_string())
-        ));
-    }
-    // serde's message quotes the value it refused: cut as the reader's are.
-    serde_json::from_value(value).map_err(|e| {
-        format!(
-            "error: {}: a damaged partial result: {}",
-            path.display(),
-            text::cut(&e.to_string(), input::MAX_PATH_SHOWN)
-        )
-    })
-}
-
-/// Reads the partial result `path` (a regular file of at most [`MAX_BYTES`])
+/// Reads the partial result `path` (a regular file of at most [`crate::parts::MAX_BYTES`])
 /// and checks it on its own: its format and version, its fields, its hashes,
 /// its shard, that its runs are exactly its grid points, and that a run that
 /// held its offset has a mean velocity (a number, as [`run_point`] makes it).
@@ -618,7 +431,7 @@ pub fn read(path: &Path) -> Result<Part, String> {
     let part: Part = read_as(path, FORMAT, VERSION, "host-sim tune --shard")?;
     let damaged =
         |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
-    if part.sweep_sha256 != sweep_sha256(&part.machine.sha256, &part.sweep) {
+    if part.sweep_sha256 != spec_sha256(&part.machine.sha256, &part.sweep) {
         return Err(damaged(
             "sweep_sha256 does not match the machine's hash and the sweep it describes (the file was edited)".into(),
         ));
@@ -687,51 +500,12 @@ pub fn read(path: &Path) -> Result<Part, String> {
             return Err(damaged(format!(
                 "run {}{on} ({} rpm, {} deg): {why}",
                 r.point,
-                text::sig(r.speed_rpm),
-                text::sig(r.offset_deg),
+                numbers::sig(r.speed_rpm),
+                numbers::sig(r.offset_deg),
             )));
         }
     }
     Ok(part)
-}
-
-/// What is wrong with the shards `given` (each part's file and shard, all of one
-/// N, the first's): a part given twice, a part missing (`whole` names what the N
-/// parts make, `a sweep` or `a fit`); one line each.
-pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
-    let mut problems = Vec::new();
-    let Some(count) = given.first().map(|g| g.1.count) else {
-        return problems;
-    };
-    let mut seen: Vec<Option<&Path>> = vec![None; count];
-    for &(path, shard) in given {
-        match seen[shard.index - 1] {
-            Some(other) => problems.push(format!(
-                "error: {}: part {shard} again ({} is part {shard} too)",
-                path.display(),
-                other.display(),
-            )),
-            None => seen[shard.index - 1] = Some(path),
-        }
-    }
-    let missing: Vec<String> = (1..=count)
-        .filter(|i| seen[i - 1].is_none())
-        .map(|i| i.to_string())
-        .collect();
-    if !missing.is_empty() {
-        let shown: Vec<String> = seen
-            .iter()
-            .zip(1..)
-            .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
-            .collect();
-        problems.push(format!(
-            "error: merge: part{} {} of {count} missing: given {}; {whole} in {count} parts needs all of them",
-            if missing.len() == 1 { "" } else { "s" },
-            missing.join(", "),
-            shown.join(", ")
-        ));
-    }
-    problems
 }
 
 /// The parts `(file, part)` as one sweep: the first part's, with every run's
@@ -802,19 +576,6 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn shards_parse_and_split_the_grid() {
-        assert_eq!(parse_shard("2/3"), Ok(Shard { index: 2, count: 3 }));
-        for bad in ["0/3", "4/3", "1/0", "a/b", "1", "1/2/3", "", "1/10001"] {
-            assert!(parse_shard(bad).is_err(), "{bad}");
-        }
-        // Every point in exactly one part.
-        let parts: Vec<Vec<usize>> = (1..=3)
-            .map(|index| Shard { index, count: 3 }.runs(8).collect())
-            .collect();
-        assert_eq!(parts, [vec![0, 3, 6], vec![1, 4, 7], vec![2, 5]]);
-    }
 
     #[test]
     fn a_run_reads_back_bit_for_bit() {

@@ -136,7 +136,7 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
     let subtitle = format!(
         "{} runs of {} s, each holding its offset from t = 0; mean velocity over the second half; positive = right",
         t.run_count,
-        crate::output::text::sig(g.t_end)
+        crate::numbers::sig(g.t_end)
     );
     let _ = writeln!(
         svg,
@@ -316,7 +316,7 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
             lx + 20.0,
             ly - 4.0,
             lx + 26.0,
-            crate::output::text::sig(*speed)
+            crate::numbers::sig(*speed)
         );
         ly += 18.0;
     }

@@ -8,7 +8,9 @@ use serde_json::{Map, Value};
 
 use super::Request;
 use crate::machine::tuning_file;
-use crate::output::text::{self, count, Align, Table};
+use crate::numbers;
+use crate::numbers::count;
+use crate::output::text::{Align, Table};
 use crate::sweep::best::mm_s;
 use crate::sweep::best::Best;
 use crate::sweep::best::Refinement;
@@ -76,12 +78,12 @@ fn describe(b: &Best) -> String {
         }
         Refinement::Parabola => format!(
             "vertex (grid {} deg: {} mm/s)",
-            text::sig(b.grid_offset_deg),
+            numbers::sig(b.grid_offset_deg),
             mm_s(b.grid_mean_velocity)
         ),
         Refinement::Degenerate(why) => format!("grid ({why})"),
         Refinement::Slower(x, v) => {
-            format!("grid (vertex {} deg: {} mm/s)", text::sig(*x), mm_s(*v))
+            format!("grid (vertex {} deg: {} mm/s)", numbers::sig(*x), mm_s(*v))
         }
     }
 }
@@ -96,12 +98,12 @@ pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
         machine_path.display(),
         count(g.speeds_rpm.len(), "speed"),
         count(g.offsets_deg.len(), "offset"),
-        text::sig(g.t_end)
+        numbers::sig(g.t_end)
     );
 
     // The grid.
     let titles: Vec<String> = std::iter::once("rpm \\ deg".to_string())
-        .chain(g.offsets_deg.iter().map(|o| text::sig(*o)))
+        .chain(g.offsets_deg.iter().map(|o| numbers::sig(*o)))
         .collect();
     let columns: Vec<(&str, Align)> = titles
         .iter()
@@ -112,7 +114,7 @@ pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
     let n = g.offsets_deg.len();
     let (mut not_held, mut not_a_travel) = (false, false);
     for (k, speed) in g.speeds_rpm.iter().enumerate() {
-        let mut cells = vec![text::sig(*speed)];
+        let mut cells = vec![numbers::sig(*speed)];
         for r in &t.runs[k * n..(k + 1) * n] {
             let mark = if r.not_a_travel.is_some() {
                 "!"
@@ -151,10 +153,10 @@ pub fn tuning_table(t: &Tuning, machine_path: &Path) -> String {
         let (r, l) = (find(&t.right), find(&t.left));
         let cell = |b: &Option<Best>, f: &dyn Fn(&Best) -> String| b.as_ref().map_or("-".into(), f);
         best.row(vec![
-            text::sig(*speed),
-            cell(&r, &|b| text::sig(b.offset_deg)),
+            numbers::sig(*speed),
+            cell(&r, &|b| numbers::sig(b.offset_deg)),
             cell(&r, &|b| mm_s(b.mean_velocity)),
-            cell(&l, &|b| text::sig(b.offset_deg)),
+            cell(&l, &|b| numbers::sig(b.offset_deg)),
             cell(&l, &|b| mm_s(b.mean_velocity)),
             cell(&r, &describe),
             cell(&l, &describe),
@@ -184,7 +186,7 @@ pub fn table_file(t: &Tuning, request: &Request, write: &Path) -> String {
         request.machine_path.display(),
         request.speeds_text,
         request.offsets_text,
-        text::sig(g.t_end)
+        numbers::sig(g.t_end)
     );
     for s in &request.set {
         let _ = write!(command, " --set {s}");
@@ -204,17 +206,17 @@ pub fn table_file(t: &Tuning, request: &Request, write: &Path) -> String {
         } else {
             "part of the turn"
         },
-        text::sig(g.t_end)
+        numbers::sig(g.t_end)
     );
     for (r, l) in table_rows_bests(t) {
         let _ = writeln!(
             header,
             "  {} rpm: right {:.1} deg {}, left {:.1} deg {}",
-            text::sig(r.speed_rpm),
+            numbers::sig(r.speed_rpm),
             r.offset_deg,
-            text::signed(r.mean_velocity),
+            numbers::signed(r.mean_velocity),
             l.offset_deg,
-            text::signed(l.mean_velocity)
+            numbers::signed(l.mean_velocity)
         );
     }
     if !t.warnings.is_empty() {

@@ -37,9 +37,9 @@ use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
+use crate::numbers;
+use crate::numbers::count;
 use crate::output::progress::Progress;
-use crate::output::text;
-use crate::output::text::count;
 use crate::sweep::best::{mm_s, Best, Refinement, Tuning, Way, MIN_TRAVEL_MPS};
 use crate::sweep::load_machine;
 use crate::sweep::{run_point, Grid, RunOutcome};
@@ -340,16 +340,16 @@ pub fn conclude(
         for (way, list) in [(Way::Right, &mut right), (Way::Left, &mut left)] {
             let every = format!(
                 "{} rpm: no offset travels {} faster than {} mm/s on every machine from every start",
-                text::sig(speed),
+                numbers::sig(speed),
                 way.name(),
-                text::sig(MIN_TRAVEL_MPS * 1e3)
+                numbers::sig(MIN_TRAVEL_MPS * 1e3)
             );
             match pick(&at, way) {
                 Some(b) if b.every_run => list.push(b),
                 Some(b) => {
                     warnings.push(format!(
                         "{every}: the least bad is {} deg, {} percentile {} mm/s, {} of {} runs travelling {}",
-                        text::sig(b.point.offset_deg),
+                        numbers::sig(b.point.offset_deg),
                         match way {
                             Way::Right => "10th",
                             Way::Left => "90th",
@@ -418,7 +418,7 @@ pub fn run(
         count(robust.points.len(), "point"),
         started.elapsed().as_secs_f64(),
         count(rayon::current_num_threads(), "thread"),
-        crate::output::text::warning_count(&robust.warnings)
+        crate::numbers::warning_count(&robust.warnings)
     ));
     Ok(())
 }
@@ -520,7 +520,7 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
         request.machine_path.display(),
         request.speeds_text,
         request.offsets_text,
-        text::sig(r.grid.t_end),
+        numbers::sig(r.grid.t_end),
         r.samples,
         r.seed
     );
@@ -541,20 +541,20 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
         let _ = writeln!(
             header,
             "  {} rpm: right {:.1} deg {} ({}), left {:.1} deg {} ({})",
-            text::sig(a.point.speed_rpm),
+            numbers::sig(a.point.speed_rpm),
             a.point.offset_deg,
-            text::signed(a.by),
-            text::signed(a.point.mean),
+            numbers::signed(a.by),
+            numbers::signed(a.point.mean),
             b.point.offset_deg,
-            text::signed(b.by),
-            text::signed(b.point.mean)
+            numbers::signed(b.by),
+            numbers::signed(b.point.mean)
         );
     }
     let least_bad: Vec<String> = both
         .iter()
         .flat_map(|(a, b)| [(a, Way::Right), (b, Way::Left)])
         .filter(|(b, _)| !b.every_run)
-        .map(|(b, way)| format!("{} rpm {}", text::sig(b.point.speed_rpm), way.name()))
+        .map(|(b, way)| format!("{} rpm {}", numbers::sig(b.point.speed_rpm), way.name()))
         .collect();
     if !least_bad.is_empty() {
         let _ = writeln!(
@@ -567,7 +567,7 @@ pub fn table_file(r: &Robust, request: &Request, write: &Path) -> Option<String>
         .iter()
         .flat_map(|(a, b)| [&a.point, &b.point])
         .filter(|p| !p.multistable.is_empty())
-        .map(|p| format!("{} rpm {:.1} deg", text::sig(p.speed_rpm), p.offset_deg))
+        .map(|p| format!("{} rpm {:.1} deg", numbers::sig(p.speed_rpm), p.offset_deg))
         .collect();
     if !flagged.is_empty() {
         let _ = writeln!(
@@ -590,15 +590,15 @@ pub fn table(r: &Robust, path: &Path) -> String {
         path.display(),
         r.samples,
         r.seed,
-        text::sig(r.grid.t_end)
+        numbers::sig(r.grid.t_end)
     );
     for range in &r.uncertainty.ranges {
         let _ = writeln!(
             out,
             "  {} in [{}, {}]",
             range.key,
-            text::sig(range.low),
-            text::sig(range.high)
+            numbers::sig(range.low),
+            numbers::sig(range.high)
         );
     }
     out.push_str(
@@ -612,12 +612,12 @@ pub fn table(r: &Robust, path: &Path) -> String {
                     let _ = writeln!(
                         out,
                         "{:<10} {:<6} {:<11.1} {:<10} {:<8} {}{}",
-                        text::sig(speed),
+                        numbers::sig(speed),
                         way,
                         b.point.offset_deg,
-                        text::fixed(b.by * 1e3, 3),
-                        text::fixed(b.point.mean * 1e3, 3),
-                        text::fixed(b.point.nominal * 1e3, 3),
+                        numbers::fixed(b.by * 1e3, 3),
+                        numbers::fixed(b.point.mean * 1e3, 3),
+                        numbers::fixed(b.point.nominal * 1e3, 3),
                         if b.every_run {
                             ""
                         } else {
@@ -626,7 +626,7 @@ pub fn table(r: &Robust, path: &Path) -> String {
                     );
                 }
                 None => {
-                    let _ = writeln!(out, "{:<10} {:<6} none", text::sig(speed), way);
+                    let _ = writeln!(out, "{:<10} {:<6} none", numbers::sig(speed), way);
                 }
             }
         }
@@ -650,7 +650,7 @@ pub fn table(r: &Robust, path: &Path) -> String {
             let _ = writeln!(
                 out,
                 "  {} rpm {:.1} deg: {}",
-                text::sig(s.speed_rpm),
+                numbers::sig(s.speed_rpm),
                 s.offset_deg,
                 machines.join("; ")
             );

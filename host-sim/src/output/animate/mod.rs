@@ -39,7 +39,7 @@ const SCRIPT: &str = include_str!("page.js");
 pub fn option_help() -> String {
     format!(
         "Write the run as an HTML page that plays it (self-contained; runs of at most {} s)",
-        crate::output::text::sig(MAX_SECONDS)
+        crate::numbers::sig(MAX_SECONDS)
     )
 }
 
