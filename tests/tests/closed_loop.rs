@@ -61,6 +61,7 @@ use std::sync::OnceLock;
 use host_sim::machine::Machine;
 use host_sim::plant::simulator::Settings;
 use host_sim::simulation::closed_loop::ControllerDriver;
+use host_sim::simulation::summary::{impact_times, SummaryBuilder};
 use host_sim::simulation::trace::Summary;
 use host_sim::simulation::{simulate, RunOptions, RunResult};
 use shared::controller::{Command, Direction, State};
@@ -392,15 +393,13 @@ fn the_summary_built_row_by_row_is_the_one_of_the_stored_rows() {
     );
     let machine =
         Machine::load(&tests::held::reference_path(), &[]).expect("the reference machine loads");
-    let again = host_sim::simulation::summary::summarize(
-        rows,
-        &run.result.events,
-        &machine,
-        Some(run.target_offset_deg),
-        &s.state,
-        s.faults.clone(),
-        s.warnings.clone(),
-    );
+    // The same rows and events through a builder of their own.
+    let mut builder = SummaryBuilder::new(&machine, rows[0].t, last.t);
+    for r in rows {
+        builder.push(r);
+    }
+    let impacts = impact_times(&run.result.events).len();
+    let again = builder.finish(impacts, None, s.warnings.clone());
     assert_eq!(again.mean_velocity, s.mean_velocity);
     assert_eq!(again.rotor_speed_rpm, s.rotor_speed_rpm);
     assert_eq!(again.phase_offset_deg, s.phase_offset_deg);

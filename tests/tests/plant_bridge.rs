@@ -44,6 +44,8 @@ use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
+use host_sim::simulation::trace::EndState;
+use shared::controller::{Faults, State};
 use tests::held::{held_plant, reference_machine};
 
 const R: f64 = 2.0;
@@ -408,14 +410,14 @@ fn the_controller_cannot_start_the_rotors_on_a_fast_decay_bridge() {
         let run = simulate(&m, &mut driver, &options);
         let s = &run.summary;
         if decay == "slow" {
-            assert_eq!(s.state, "running", "{s:?}");
+            assert_eq!(s.state, EndState::Controller(State::Running), "{s:?}");
             assert!(
                 s.rotor_speed_rpm.iter().all(|w| (w - 3000.0).abs() < 5.0),
                 "{s:?}"
             );
         } else {
-            assert_eq!(s.state, "fault", "{s:?}");
-            assert!(s.faults.contains(&"encoder".to_string()), "{s:?}");
+            assert_eq!(s.state, EndState::Controller(State::Fault), "{s:?}");
+            assert!(s.faults.contains(Faults::ENCODER), "{s:?}");
             assert!(s.rotor_speed_rpm.iter().all(|w| w.abs() < 1.0), "{s:?}");
         }
     }

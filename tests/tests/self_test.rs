@@ -27,7 +27,7 @@ use std::f64::consts::{PI, TAU};
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::simulator::Plant;
-use host_sim::simulation::closed_loop::ControllerDriver;
+use host_sim::simulation::closed_loop::{ControllerDriver, InLoop};
 use host_sim::simulation::trace::EventRow;
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use shared::controller::{
@@ -94,12 +94,8 @@ impl Driver for Probe {
         w
     }
 
-    fn state(&self) -> String {
-        self.inner.state()
-    }
-
-    fn faults(&self) -> Vec<String> {
-        self.inner.faults()
+    fn in_loop(&self) -> Option<InLoop<'_>> {
+        self.inner.in_loop()
     }
 
     fn events(&mut self) -> Vec<EventRow> {

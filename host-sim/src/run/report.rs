@@ -18,7 +18,7 @@ use serde_json::{Map, Value};
 
 use crate::numbers;
 use crate::output::text::{Align, Table};
-use crate::simulation::trace::Summary;
+use crate::simulation::trace::{EndState, Summary};
 
 /// The keys of the summary document, in the documented order (docs/cli-run.md,
 /// "Outputs"); the last three: `rotors` (1 or 2), `phase_loop` (whether a phase loop
@@ -93,8 +93,9 @@ pub fn summary_value(s: &Summary) -> Value {
         s.phase_offset_deg.map_or(Value::Null, number),
     );
     doc.insert("phase_error_deg_rms".into(), number(s.phase_error_deg_rms));
-    doc.insert("state".into(), Value::from(s.state.as_str()));
-    doc.insert("faults".into(), strings(&s.faults));
+    doc.insert("state".into(), Value::from(s.state.name()));
+    let faults: Vec<String> = s.faults.names().map(str::to_string).collect();
+    doc.insert("faults".into(), strings(&faults));
     let f = &s.final_state;
     let mut fin = Map::new();
     fin.insert("position".into(), pair(f.position));
@@ -130,10 +131,10 @@ pub fn summary_table(s: &Summary) -> String {
     let mut out = format!(
         "run to t = {} s, controller state: {}\n",
         numbers::sig(s.t_end),
-        s.state
+        s.state.name()
     );
     if s.rotors() == 1 {
-        out.push_str(if s.state == "open-loop" {
+        out.push_str(if s.state == EndState::OpenLoop {
             ONE_ROTOR_OPEN_LOOP_LINE
         } else {
             ONE_ROTOR_LINE
@@ -212,7 +213,8 @@ pub fn summary_table(s: &Summary) -> String {
     out.push('\n');
 
     // Faults and warnings, one a line.
-    for (title, list) in [("faults", &s.faults), ("warnings", &s.warnings)] {
+    let faults: Vec<String> = s.faults.names().map(str::to_string).collect();
+    for (title, list) in [("faults", &faults), ("warnings", &s.warnings)] {
         if list.is_empty() {
             out.push_str(&format!("{title}: none\n"));
         } else {
@@ -230,6 +232,7 @@ mod tests {
     use super::*;
     use crate::simulation::breach::{Breach, BreachKind};
     use crate::simulation::trace::FinalState;
+    use shared::controller::{Faults, State};
 
     fn summary() -> Summary {
         Summary {
@@ -240,9 +243,9 @@ mod tests {
             rotor_speed_rpm: vec![3000.5, 2999.5],
             phase_offset_deg: Some(90.25),
             phase_error_deg_rms: 1.5,
-            state: "running".to_string(),
+            state: EndState::Controller(State::Running),
             phase_loop: true,
-            faults: vec![],
+            faults: Faults::NONE,
             final_state: FinalState {
                 position: [0.25, 0.03],
                 angle: 0.01,
@@ -301,7 +304,7 @@ mod tests {
     #[test]
     fn table_states_units() {
         let mut s = summary();
-        s.faults = vec!["overcurrent".to_string()];
+        s.faults = Faults::OVER_CURRENT;
         let t = summary_table(&s);
         assert!(
             t.starts_with("run to t = 10 s, controller state: running"),
@@ -313,7 +316,7 @@ mod tests {
         assert!(line("phase offset").ends_with("90.25  deg"), "{t}");
         assert!(line("final velocity").ends_with("[0.05, -0.5]  m/s"), "{t}");
         assert!(line("impacts").contains("42"), "{t}");
-        assert!(t.contains("faults:\n  - overcurrent\n"), "{t}");
+        assert!(t.contains("faults:\n  - over_current\n"), "{t}");
         assert!(t.contains("warnings:\n  - w1\n"), "{t}");
     }
 
@@ -464,7 +467,7 @@ mod tests {
         );
         // Open loop: no controller to hold anything.
         let open = summary_table(&Summary {
-            state: "open-loop".to_string(),
+            state: EndState::OpenLoop,
             ..one_rotor()
         });
         assert_eq!(

@@ -14,6 +14,7 @@ use crate::failure::Failure;
 use crate::machine::input::Problem;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
+use crate::simulation::closed_loop::InLoop;
 use crate::simulation::closed_loop::{ControllerDriver, Injected};
 use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
@@ -183,20 +184,8 @@ impl Driver for ScenarioDriver<'_> {
         w
     }
 
-    fn state(&self) -> String {
-        self.driver_ref().state()
-    }
-
-    fn commanded_offset_deg(&self) -> Option<f64> {
-        self.driver_ref().commanded_offset_deg()
-    }
-
-    fn phase_loop(&self) -> bool {
-        self.driver_ref().phase_loop()
-    }
-
-    fn faults(&self) -> Vec<String> {
-        self.driver_ref().faults()
+    fn in_loop(&self) -> Option<InLoop<'_>> {
+        self.driver_ref().in_loop()
     }
 
     fn events(&mut self) -> Vec<EventRow> {

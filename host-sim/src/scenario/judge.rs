@@ -59,7 +59,7 @@ pub struct Report {
     /// One per injected fault, in file order.
     pub detections: Vec<Detection>,
     /// The controller's state at the end.
-    pub final_state: String,
+    pub final_state: State,
     /// Why the run ended early, if it did (nothing judged): Ctrl-C, or a plant
     /// that stopped advancing.
     pub stopped: Option<Stop>,
@@ -144,7 +144,7 @@ pub fn run_observed(
         t_end: scenario.t_end,
         outcomes,
         detections,
-        final_state: driver.state(),
+        final_state: driver.in_loop().map_or(State::Idle, |c| c.state()),
         stopped: result.stopped,
         warnings: result.summary.warnings,
     }

@@ -29,7 +29,7 @@ pub fn table(r: &Report) -> String {
         r.scenario,
         r.machine,
         sig(r.t_end),
-        r.final_state
+        r.final_state.name()
     );
     let mut t = Table::new(&[
         ("result", Align::Left),
@@ -88,7 +88,7 @@ pub fn json(r: &Report) -> String {
     doc.insert("machine".into(), Value::from(r.machine.as_str()));
     doc.insert("t_end".into(), Value::from(r.t_end));
     doc.insert("pass".into(), Value::from(r.passed()));
-    doc.insert("final_state".into(), Value::from(r.final_state.as_str()));
+    doc.insert("final_state".into(), Value::from(r.final_state.name()));
     let expectations = r
         .outcomes
         .iter()

@@ -74,24 +74,40 @@ pub fn speed_range_rpm(m: &Machine) -> (f64, f64) {
     (f64::from(p.min_speed_rpm), f64::from(p.max_speed_rpm))
 }
 
-/// The controller's state after its last tick (`last`; `idle` before the
-/// first), for a run's summary: the controller in the loop's and the
-/// firmware's alike.
-pub fn state_name(last: Option<&Outputs>) -> String {
-    last.map_or("idle", |o| o.state.name()).to_string()
+/// The controller in the loop as a run's summary reads it: its last tick's
+/// outputs (`None` before its first) and the rotors it drives. The controller
+/// in the loop's and the firmware's alike.
+#[derive(Clone, Copy, Debug)]
+pub struct InLoop<'a> {
+    /// The outputs of its last tick.
+    pub last: Option<&'a Outputs>,
+    /// One rotor or two.
+    pub rotors: RotorCount,
 }
 
-/// The offset the last tick held while running; none on one rotor (no phase
-/// loop).
-pub fn held_offset_deg(last: Option<&Outputs>, rotors: RotorCount) -> Option<f64> {
-    last.filter(|o| o.state == State::Running && rotors.has_rotor2())
-        .map(|o| f64::from(o.telemetry.target_offset_deg))
-}
+impl InLoop<'_> {
+    /// Its state after the last tick; [`State::Idle`] before the first.
+    pub fn state(&self) -> State {
+        self.last.map_or(State::Idle, |o| o.state)
+    }
 
-/// The faults latched at the last tick, by name.
-pub fn fault_names(last: Option<&Outputs>) -> Vec<String> {
-    last.map(|o| o.faults.names().map(str::to_string).collect())
-        .unwrap_or_default()
+    /// The faults latched at the last tick.
+    pub fn faults(&self) -> Faults {
+        self.last.map(|o| o.faults).unwrap_or_default()
+    }
+
+    /// The offset the last tick held while running, degrees; none on one rotor
+    /// (no phase loop).
+    pub fn held_offset_deg(&self) -> Option<f64> {
+        self.last
+            .filter(|o| o.state == State::Running && self.phase_loop())
+            .map(|o| f64::from(o.telemetry.target_offset_deg))
+    }
+
+    /// Whether a phase loop holds the rotors' offset: on two rotors.
+    pub fn phase_loop(&self) -> bool {
+        self.rotors.has_rotor2()
+    }
 }
 
 /// The controller's parameters for a machine file, with its tuning table if it
@@ -208,20 +224,11 @@ impl Driver for ControllerDriver {
         bridges
     }
 
-    fn state(&self) -> String {
-        state_name(self.last.as_ref())
-    }
-
-    fn commanded_offset_deg(&self) -> Option<f64> {
-        held_offset_deg(self.last.as_ref(), self.rotor_count)
-    }
-
-    fn phase_loop(&self) -> bool {
-        self.rotor_count.has_rotor2()
-    }
-
-    fn faults(&self) -> Vec<String> {
-        fault_names(self.last.as_ref())
+    fn in_loop(&self) -> Option<InLoop<'_>> {
+        Some(InLoop {
+            last: self.last.as_ref(),
+            rotors: self.rotor_count,
+        })
     }
 
     fn events(&mut self) -> Vec<EventRow> {

@@ -32,6 +32,7 @@ use crate::numbers::sig;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::PlantModel;
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
+use crate::simulation::closed_loop::InLoop;
 use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
 use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
 
@@ -84,20 +85,10 @@ pub trait Driver {
     /// What the H-bridges are commanded from `t` to the next tick (a duty takes
     /// effect at the next PWM period start, off at once), and the duties to record.
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]);
-    /// The controller's state name for the summary (`open-loop` without one).
-    fn state(&self) -> String;
-    /// The commanded phase offset, degrees, if one is commanded.
-    fn commanded_offset_deg(&self) -> Option<f64> {
+    /// The controller in the loop, for the summary: its last tick and its
+    /// rotors. `None` by default: open loop, no controller.
+    fn in_loop(&self) -> Option<InLoop<'_>> {
         None
-    }
-    /// Whether a phase loop holds the rotors' offset (a controller on two
-    /// rotors); none by default.
-    fn phase_loop(&self) -> bool {
-        false
-    }
-    /// Latched faults, by name.
-    fn faults(&self) -> Vec<String> {
-        Vec::new()
     }
     /// Events of the driver since the last call (state changes, faults).
     fn events(&mut self) -> Vec<EventRow> {
@@ -182,10 +173,6 @@ impl Driver for OpenLoopDriver {
                 ([BridgeCommand::Duty(duty), BridgeCommand::Off], [duty, 0.0])
             }
         }
-    }
-
-    fn state(&self) -> String {
-        "open-loop".into()
     }
 }
 
@@ -453,10 +440,7 @@ pub fn simulate_observed(
     events.take(&mut plant, driver, rec.observer);
     let summary = rec.summary.finish(
         events.impacts.count(),
-        driver.commanded_offset_deg(),
-        driver.phase_loop(),
-        &driver.state(),
-        driver.faults(),
+        driver.in_loop(),
         plant.warnings.clone(),
     );
     RunResult {

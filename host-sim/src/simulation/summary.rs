@@ -17,7 +17,10 @@ use std::f64::consts::PI;
 
 use crate::machine::{Machine, Rotor};
 use crate::simulation::breach::{Breach, BreachWatch};
-use crate::simulation::trace::{EventKind, EventRow, FinalState, Summary, TraceRow};
+use shared::controller::Faults;
+
+use crate::simulation::closed_loop::InLoop;
+use crate::simulation::trace::{EndState, EventKind, EventRow, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
 const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * PI);
@@ -179,8 +182,8 @@ impl Point {
 }
 
 /// The summary built row by row, without keeping the trace: for a run whose first
-/// and last times are known before it starts (`0` and `t_end`). [`summarize`] is
-/// this over stored rows.
+/// and last times are known before it starts (`0` and `t_end`); over stored
+/// rows, the first's and the last's.
 #[derive(Clone, Debug)]
 pub struct SummaryBuilder<'m> {
     machine: &'m Machine,
@@ -248,18 +251,41 @@ impl<'m> SummaryBuilder<'m> {
         self.last = Some(*row);
     }
 
-    /// The summary (see [`summarize`]), with `impacts` the number of distinct
-    /// impact times and `phase_loop` whether the driver held the offset by a
-    /// phase loop.
+    /// The summary of the rows taken, with `impacts` the number of distinct
+    /// impact times and `in_loop` the controller that drove the windings
+    /// (`None`: open loop):
+    ///
+    /// - `mean_velocity = (x(T) - x(T/2)) / (T/2)`, `distance = x(T) - x(0)`;
+    /// - `rotor_speed_rpm[k] = s_k (phi_k(T) - phi_k(T/2)) / (T/2)` in rpm (phi
+    ///   is unwrapped, so this is the exact mean speed in the driven sense);
+    /// - `phase_offset_deg`: the time-weighted circular mean of the offset over
+    ///   the second half; `phase_error_deg_rms`: the RMS of (offset - commanded),
+    ///   wrapped to (-180, 180], over the second half when the controller held an
+    ///   offset at its last tick, else 0;
+    /// - `final_state`: the last row.
+    ///
+    /// Values at `T/2` are interpolated linearly between the last row with
+    /// `row.t <= T/2` and the first row after it (so of two rows at one event
+    /// time, the later, "after", one is used). No rows give zeros, the machine's
+    /// initial state as the final state and a warning; rows of no duration give
+    /// zero velocities and speeds.
     pub fn finish(
-        mut self,
+        self,
         impacts: usize,
-        commanded_offset_deg: Option<f64>,
-        phase_loop: bool,
-        state: &str,
-        faults: Vec<String>,
-        mut warnings: Vec<String>,
+        in_loop: Option<InLoop<'_>>,
+        warnings: Vec<String>,
     ) -> Summary {
+        self.conclude(impacts, Drive::of(in_loop), warnings)
+    }
+
+    /// [`Self::finish`] with what drove the windings.
+    fn conclude(mut self, impacts: usize, drive: Drive, mut warnings: Vec<String>) -> Summary {
+        let Drive {
+            state,
+            faults,
+            commanded_offset_deg,
+            phase_loop,
+        } = drive;
         let machine = self.machine;
         let breaches = self.breaches.finish();
         warnings.extend(breaches.iter().map(Breach::warning));
@@ -272,7 +298,7 @@ impl<'m> SummaryBuilder<'m> {
                 impacts,
                 rotor_speed_rpm: vec![0.0; rotors],
                 phase_offset_deg: two.then_some(0.0),
-                state: state.to_string(),
+                state,
                 phase_loop,
                 faults,
                 final_state: FinalState {
@@ -337,7 +363,7 @@ impl<'m> SummaryBuilder<'m> {
             rotor_speed_rpm,
             phase_offset_deg,
             phase_error_deg_rms,
-            state: state.to_string(),
+            state,
             phase_loop,
             faults,
             final_state: FinalState {
@@ -352,55 +378,67 @@ impl<'m> SummaryBuilder<'m> {
     }
 }
 
-/// The summary of a run (docs/cli-run.md, "Outputs") from its trace rows (times
-/// ascending, possibly two rows at an event time) and its events.
-///
-/// - `mean_velocity = (x(T) - x(T/2)) / (T/2)`, `distance = x(T) - x(0)`;
-/// - `impacts`: the number of distinct impact times;
-/// - `rotor_speed_rpm[k] = s_k (phi_k(T) - phi_k(T/2)) / (T/2)` in rpm (phi is
-///   unwrapped, so this is the exact mean speed in the driven sense);
-/// - `phase_offset_deg`: the time-weighted circular mean of the offset over the
-///   second half; `phase_error_deg_rms`: the RMS of (offset - commanded), wrapped to
-///   (-180, 180], over the second half when `commanded_offset_deg` is given, else 0;
-/// - `final_state`: the last row.
-///
-/// Values at `T/2` are interpolated linearly between the last row with
-/// `row.t <= T/2` and the first row after it (so of two rows at one event time, the
-/// later, "after", one is used).
-///
-/// An empty trace gives zeros, the machine's initial state as the final state and a
-/// warning. A trace of no duration gives zero velocities and speeds.
-pub fn summarize(
-    rows: &[TraceRow],
-    events: &[EventRow],
-    machine: &Machine,
+/// What drove the windings, as the summary reads it at the end of a run.
+struct Drive {
+    state: EndState,
+    faults: Faults,
+    /// The offset the controller held at its last tick, degrees.
     commanded_offset_deg: Option<f64>,
-    state: &str,
-    faults: Vec<String>,
-    warnings: Vec<String>,
-) -> Summary {
-    let (t0, t_end) = match (rows.first(), rows.last()) {
-        (Some(a), Some(b)) => (a.t, b.t),
-        _ => (0.0, 0.0),
-    };
-    let mut builder = SummaryBuilder::new(machine, t0, t_end);
-    for r in rows {
-        builder.push(r);
+    phase_loop: bool,
+}
+
+impl Drive {
+    fn of(in_loop: Option<InLoop<'_>>) -> Self {
+        match in_loop {
+            None => Drive {
+                state: EndState::OpenLoop,
+                faults: Faults::NONE,
+                commanded_offset_deg: None,
+                phase_loop: false,
+            },
+            Some(c) => Drive {
+                state: EndState::Controller(c.state()),
+                faults: c.faults(),
+                commanded_offset_deg: c.held_offset_deg(),
+                phase_loop: c.phase_loop(),
+            },
+        }
     }
-    // No driver: no phase loop.
-    builder.finish(
-        impact_times(events).len(),
-        commanded_offset_deg,
-        false,
-        state,
-        faults,
-        warnings,
-    )
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use shared::controller::State;
+
+    /// The summary of `rows` and `events` ending in `state`, `commanded_offset_deg`
+    /// held (no phase loop), as [`SummaryBuilder::finish`]
+    /// makes it.
+    pub(crate) fn summarize(
+        rows: &[TraceRow],
+        events: &[EventRow],
+        machine: &Machine,
+        commanded_offset_deg: Option<f64>,
+        state: EndState,
+        faults: Faults,
+        warnings: Vec<String>,
+    ) -> Summary {
+        let (t0, t_end) = match (rows.first(), rows.last()) {
+            (Some(a), Some(b)) => (a.t, b.t),
+            _ => (0.0, 0.0),
+        };
+        let mut builder = SummaryBuilder::new(machine, t0, t_end);
+        for r in rows {
+            builder.push(r);
+        }
+        let drive = Drive {
+            state,
+            faults,
+            commanded_offset_deg,
+            phase_loop: false,
+        };
+        builder.conclude(impact_times(events).len(), drive, warnings)
+    }
 
     /// A machine like the reference one (`examples/vibro-driver.toml`): rotor 1
     /// "left" ccw, rotor 2 "right" cw, index angles given (rad).
@@ -504,8 +542,8 @@ pub(crate) mod tests {
             &[],
             &machine([0.0, 0.0]),
             None,
-            "open-loop",
-            vec![],
+            EndState::OpenLoop,
+            Faults::NONE,
             vec![],
         );
         assert_eq!(s.t_end, 2.0);
@@ -522,7 +560,7 @@ pub(crate) mod tests {
             s.rotor_speed_rpm
         );
         assert_eq!(s.phase_error_deg_rms, 0.0);
-        assert_eq!(s.state, "open-loop");
+        assert_eq!(s.state, EndState::OpenLoop);
         assert_eq!(s.impacts, 0);
         assert_eq!(s.final_state.position, [0.2, 0.03]);
         assert_eq!(s.final_state.velocity, [0.05, 0.0]);
@@ -541,7 +579,15 @@ pub(crate) mod tests {
                 ..TraceRow::default()
             })
             .collect();
-        let s = summarize(&trace, &[], &machine([0.0; 2]), None, "s", vec![], vec![]);
+        let s = summarize(
+            &trace,
+            &[],
+            &machine([0.0; 2]),
+            None,
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        );
         assert!(close(s.mean_velocity, 2.79, TOL), "{}", s.mean_velocity);
         assert!(close(s.distance, 4.0, TOL));
     }
@@ -564,7 +610,15 @@ pub(crate) mod tests {
             row(1.5, 2.0, 3.0),
             row(2.0, 3.0, 3.0),
         ];
-        let s = summarize(&trace, &[], &machine([0.0; 2]), None, "s", vec![], vec![]);
+        let s = summarize(
+            &trace,
+            &[],
+            &machine([0.0; 2]),
+            None,
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        );
         assert!(close(s.mean_velocity, 2.0, TOL), "{}", s.mean_velocity);
         assert_eq!(s.final_state.velocity, [3.0, 0.0]);
     }
@@ -591,8 +645,8 @@ pub(crate) mod tests {
             &events,
             &machine([0.0; 2]),
             None,
-            "s",
-            vec![],
+            EndState::Controller(State::Running),
+            Faults::NONE,
             vec![],
         );
         assert_eq!(s.impacts, 3);
@@ -616,7 +670,15 @@ pub(crate) mod tests {
             ..TraceRow::default()
         });
         let m = machine([0.0; 2]);
-        let s = summarize(&trace, &[], &m, Some(80.0), "run", vec![], vec![]);
+        let s = summarize(
+            &trace,
+            &[],
+            &m,
+            Some(80.0),
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        );
         assert!(close(offset(&s), 90.0, 1e-6), "{}", offset(&s));
         assert!(
             close(s.phase_error_deg_rms, 10.0, 1e-6),
@@ -624,7 +686,15 @@ pub(crate) mod tests {
             s.phase_error_deg_rms
         );
         // Commanded 270: error 180 (wrapped to +180), RMS 180.
-        let s = summarize(&trace, &[], &m, Some(270.0), "run", vec![], vec![]);
+        let s = summarize(
+            &trace,
+            &[],
+            &m,
+            Some(270.0),
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        );
         assert!(
             close(s.phase_error_deg_rms, 180.0, 1e-6),
             "{}",
@@ -656,8 +726,8 @@ pub(crate) mod tests {
             &[],
             &machine([0.0; 2]),
             Some(0.0),
-            "s",
-            vec![],
+            EndState::Controller(State::Running),
+            Faults::NONE,
             vec![],
         );
         let off = wrap_deg_180(offset(&s));
@@ -686,11 +756,19 @@ pub(crate) mod tests {
     #[test]
     fn empty_and_single_row_traces() {
         let m = machine([0.0; 2]);
-        let s = summarize(&[], &[], &m, Some(90.0), "idle", vec!["f".into()], vec![]);
+        let s = summarize(
+            &[],
+            &[],
+            &m,
+            Some(90.0),
+            EndState::Controller(State::Idle),
+            Faults::STALL,
+            vec![],
+        );
         assert_eq!(s.t_end, 0.0);
         assert_eq!(s.final_state.position, [0.0, 0.03]);
         assert_eq!(s.warnings.len(), 1);
-        assert_eq!(s.faults, ["f"]);
+        assert_eq!(s.faults, Faults::STALL);
 
         // At the machine's rest height: a platform at y = 0 has its eccentric
         // circles below the fundament (a breach, with its warning).
@@ -701,7 +779,15 @@ pub(crate) mod tests {
             phi1: PI / 2.0,
             ..TraceRow::default()
         }];
-        let s = summarize(&one, &[], &m, Some(80.0), "idle", vec![], vec![]);
+        let s = summarize(
+            &one,
+            &[],
+            &m,
+            Some(80.0),
+            EndState::Controller(State::Idle),
+            Faults::NONE,
+            vec![],
+        );
         assert_eq!(s.mean_velocity, 0.0);
         assert_eq!(s.rotor_speed_rpm, [0.0, 0.0]);
         assert!(close(offset(&s), 90.0, 1e-9));
@@ -727,7 +813,15 @@ pub(crate) mod tests {
             phi2: 7.0 * t * t,
             ..TraceRow::default()
         });
-        let s = summarize(&trace, &[], &m, None, "running", vec![], vec![]);
+        let s = summarize(
+            &trace,
+            &[],
+            &m,
+            None,
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        );
         assert_eq!(s.rotor_speed_rpm.len(), 1);
         assert!(
             close(s.rotor_speed_rpm[0], 3000.0, 1e-6),
@@ -739,7 +833,15 @@ pub(crate) mod tests {
         assert_eq!(s.rotors(), 1);
         assert_eq!(phase_offset_deg(1.0, 2.0, &m), None);
         // An empty trace too.
-        let s = summarize(&[], &[], &m, None, "idle", vec![], vec![]);
+        let s = summarize(
+            &[],
+            &[],
+            &m,
+            None,
+            EndState::Controller(State::Idle),
+            Faults::NONE,
+            vec![],
+        );
         assert_eq!((s.rotor_speed_rpm, s.phase_offset_deg), (vec![0.0], None));
     }
 }

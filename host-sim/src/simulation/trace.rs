@@ -1,5 +1,6 @@
 //! What a simulation run records: trace rows, events and the summary.
 
+use shared::controller::{Faults, State};
 use shared::impact::MAX_CONTACTS;
 
 pub use crate::event::{EventKind, EventRow};
@@ -121,6 +122,34 @@ pub struct FinalState {
     pub angular_velocity: f64,
 }
 
+/// What held the windings at the end of a run, as its summary names it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EndState {
+    /// Constant voltages or open windings: no controller.
+    #[default]
+    OpenLoop,
+    /// The controller, in its state at its last tick ([`State::Idle`] before
+    /// its first).
+    Controller(State),
+}
+
+impl EndState {
+    /// Its name in the outputs: `open-loop`, or the controller state's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            EndState::OpenLoop => "open-loop",
+            EndState::Controller(s) => s.name(),
+        }
+    }
+}
+
+impl std::fmt::Display for EndState {
+    /// [`EndState::name`].
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The `--format json` summary of a run (docs/cli-run.md, "Outputs").
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Summary {
@@ -141,13 +170,14 @@ pub struct Summary {
     /// RMS of (measured - commanded) offset over the second half, degrees (0
     /// without a commanded offset: open loop, one rotor).
     pub phase_error_deg_rms: f64,
-    /// Controller state at the end (`open-loop` without it).
-    pub state: String,
+    /// What held the windings at the end: the controller in its state, or open
+    /// loop.
+    pub state: EndState,
     /// Whether a phase loop held the offset: a controller run on two rotors;
     /// false in open loop, and on one rotor, whose controller holds speed only.
     pub phase_loop: bool,
-    /// Faults latched at the end.
-    pub faults: Vec<String>,
+    /// Faults the controller latched at the end (none in open loop).
+    pub faults: Faults,
     /// The final state.
     pub final_state: FinalState,
     /// Warnings (each [`Summary::breaches`]' among them).

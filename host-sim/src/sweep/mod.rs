@@ -18,6 +18,7 @@ use crate::numbers;
 use crate::output::progress::Progress;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
+use crate::simulation::trace::EndState;
 use crate::simulation::{simulate_observed, Interruptible, RunOptions, Stop};
 
 /// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
@@ -485,16 +486,16 @@ fn simulate_point(machine: &Machine, speed_rpm: f64, offset_deg: f64, t_end: f64
         None => history.first().map(|(t, _)| *t),
         Some(i) => history.get(i + 1).map(|(t, _)| *t),
     };
-    outcome.not_held = if s.state == "starting" {
+    outcome.not_held = if s.state == EndState::Controller(State::Starting) {
         Some(
             "the controller was still `starting` at the end (speed ramp or phase lock unfinished): raise --t-end"
                 .to_string(),
         )
-    } else if s.state != "running" {
+    } else if s.state != EndState::Controller(State::Running) {
         let faults = if s.faults.is_empty() {
             String::new()
         } else {
-            format!(", faults {}", s.faults.join(", "))
+            format!(", faults {}", s.faults)
         };
         Some(format!("the controller ended `{}`{faults}", s.state))
     } else if settled_at.is_none_or(|t| t > 0.5 * t_end) {

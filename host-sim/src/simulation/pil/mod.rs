@@ -35,9 +35,7 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
-use crate::simulation::closed_loop::{
-    controller_events, fault_names, held_offset_deg, params, state_name,
-};
+use crate::simulation::closed_loop::{controller_events, params, InLoop};
 use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
 use host::Host;
@@ -328,20 +326,11 @@ impl Driver for FirmwareDriver {
         }
     }
 
-    fn state(&self) -> String {
-        state_name(self.outputs.as_ref())
-    }
-
-    fn commanded_offset_deg(&self) -> Option<f64> {
-        held_offset_deg(self.outputs.as_ref(), self.rotor_count)
-    }
-
-    fn phase_loop(&self) -> bool {
-        self.rotor_count.has_rotor2()
-    }
-
-    fn faults(&self) -> Vec<String> {
-        fault_names(self.outputs.as_ref())
+    fn in_loop(&self) -> Option<InLoop<'_>> {
+        Some(InLoop {
+            last: self.outputs.as_ref(),
+            rotors: self.rotor_count,
+        })
     }
 
     fn events(&mut self) -> Vec<EventRow> {
