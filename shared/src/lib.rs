@@ -37,6 +37,7 @@ pub mod codec;
 pub mod controller;
 pub mod drive;
 pub mod impact;
+pub mod named;
 pub mod pil;
 pub mod protocol;
 pub mod real;
@@ -44,4 +45,5 @@ pub mod storage;
 pub mod tick;
 pub mod timing;
 
+pub use named::Enumerated;
 pub use real::Real;

@@ -19,11 +19,10 @@ use shared::impact::{
     solve, solve_body, BodyContact, BodyImpact, ContactLaw, ContactOutcome, ImpactLaw,
     ImpactProblem, InteractionCase, PlanarBody, SlipState, Warnings,
 };
+use shared::Enumerated;
 use tests::rig::cross;
 
 use tests::Rng;
-
-const LAWS: [ImpactLaw; 3] = [ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
 
 /// Asserts `|got - expected| <= tol`, naming the quantity and the case.
 fn check(what: &str, got: f64, expected: f64, tol: f64, context: &dyn core::fmt::Debug) {
@@ -102,7 +101,7 @@ fn solved(
 fn housner_rocking_block_angular_velocity_ratio() {
     let m = 3.0;
     let omega0 = -1.7;
-    for law in LAWS {
+    for &law in ImpactLaw::ALL {
         for &alpha in &[0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.785, 0.9] {
             let diag = 1.3; // half-diagonal, m
             let (b, h) = (diag * f64::sin(alpha), diag * f64::cos(alpha));
@@ -263,7 +262,7 @@ fn pinned_rod_with_friction_three_laws() {
     let mut rng = Rng::new(0x0bad_cafe);
     for _ in 0..500 {
         let rod = PinnedRod::random(&mut rng, false);
-        for law in LAWS {
+        for &law in ImpactLaw::ALL {
             let out = rod.solve(law);
             let (w2, pc, pr) = rod.closed_form(law);
             let k = &out.outcome.contacts[0];
@@ -313,7 +312,7 @@ fn pinned_rod_frictionless_all_laws_agree() {
     let mut rng = Rng::new(0xf00d);
     for _ in 0..300 {
         let rod = PinnedRod::random(&mut rng, true);
-        for law in LAWS {
+        for &law in ImpactLaw::ALL {
             let out = rod.solve(law);
             check(
                 "omega_2 = -R omega_0",
@@ -608,7 +607,7 @@ fn brute_force_reproduces_pinned_rod_closed_forms() {
             continue;
         }
         let p = rod.delassus();
-        for law in LAWS {
+        for &law in ImpactLaw::ALL {
             let b = brute_force(&p, law, 2e4).expect("ends");
             let (w2, pc, pr) = rod.closed_form(law);
             // omega_2 from u_n after = -omega_2 h.
@@ -868,7 +867,7 @@ fn base_rod(mu: f64, r: f64) -> FreeRod {
 /// end approaching at 1 m/s and sliding at `u_t0`, under every law, compared with
 /// the brute force and expected to fall in the paper's case `case`.
 fn free_rod_case(mu: f64, r: f64, u_t0: f64, case: u8) {
-    for law in LAWS {
+    for &law in ImpactLaw::ALL {
         compare_free_rod(
             &base_rod(mu, r).with_contact_velocity(-1.0, u_t0),
             law,
@@ -954,7 +953,7 @@ fn free_rod_random_against_brute_force() {
         if p.min_normal_rate() < 0.2 * p.w_nn {
             continue;
         }
-        for law in LAWS {
+        for &law in ImpactLaw::ALL {
             compare_free_rod(&rod, law, None);
         }
         done += 1;
@@ -1016,7 +1015,7 @@ fn flat_two_foot_landing_frictionless() {
     let (m, jc, vx, big_v, h) = (4.0, 0.3, 0.7, 2.5, 0.4);
     for &r in &[0.0, 0.3, 0.75, 1.0] {
         // Symmetric: a = a2 = 0.5, C = (0, h).
-        for law in LAWS {
+        for &law in ImpactLaw::ALL {
             let body = planar_body(m, jc, [0.0, h], [vx, -big_v], 0.0);
             let out = solved(&body, None, &flat_feet([-0.5, 0.5], r, 0.0), law);
             let ctx = (law, r, "symmetric");
@@ -1096,7 +1095,7 @@ fn flat_two_foot_landing_sticking_shares_friction() {
     let pt_sum = m * vx;
     let pt = [mu * pn[0], pt_sum - mu * pn[0]];
     assert!(pt_sum / 2.0 > mu * pn[0] && pt_sum <= mu * pn_sum);
-    for law in LAWS {
+    for &law in ImpactLaw::ALL {
         let body = planar_body(m, jc, [0.0, h], [vx, vy], omega0);
         let out = solved(&body, None, &flat_feet([-a, a], 0.0, mu), law);
         let ctx = (law, "two feet sticking");

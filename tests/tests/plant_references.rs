@@ -21,6 +21,7 @@
 //! and tangent `t = (-n_y, n_x) = (-1, 0)`; gravity `(0, -G)`; state layout
 //! `(x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2)`.
 
+use shared::Enumerated;
 use std::f64::consts::PI;
 
 use host_sim::plant::motor::Winding;

@@ -24,13 +24,29 @@ use crate::input::{
     check_names, cut, number, quoted, read_name, vector, Limit, Named, Need, Section, MAX_QUOTED,
 };
 use crate::{read_platform, MachineContact, Platform};
+use shared::Enumerated;
 
 /// The first body's name.
 pub const PLATFORM: &str = "platform";
 /// The ground's name.
 pub const FUNDAMENT: &str = "fundament";
-/// The joint kinds.
-pub const JOINT_KINDS: [&str; 1] = ["revolute"];
+/// A joint's kind: the one there is, a pin.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JointKind {
+    /// A pin: the bodies keep one point in common and turn about it.
+    Revolute,
+}
+
+/// The joint kinds, as written in the file.
+impl Enumerated for JointKind {
+    const ALL: &'static [JointKind] = &[JointKind::Revolute];
+
+    fn name(self) -> &'static str {
+        match self {
+            JointKind::Revolute => "revolute",
+        }
+    }
+}
 /// The most bodies a machine may have, the platform included (the plant's
 /// fixed-size state).
 pub const MAX_BODIES: usize = 6;
@@ -103,7 +119,7 @@ pub fn read_body(index: usize, s: &Section) -> Named<Body> {
 /// One `[[joints]]` table (default name `J{i+1}`).
 pub fn read_joint(index: usize, s: &Section) -> Named<Joint> {
     let (given, name) = read_name(s, index, "J");
-    let kind = s.choice("kind", Need::Required, &JOINT_KINDS);
+    let kind = s.one_of::<JointKind>("kind", Need::Required);
     let bodies = s.string_pair("bodies", Need::Required);
     let point = s.vec2("point", Need::Required, Limit::Any);
     let stiffness = s.number("stiffness", Need::Default(0.0), Limit::NonNegative);

@@ -28,6 +28,7 @@ use std::cell::RefCell;
 use std::fmt;
 use std::path::Path;
 
+use shared::Enumerated;
 use toml::{Table, Value};
 
 /// Where in a file a problem lies.
@@ -727,6 +728,19 @@ impl<'a> Section<'a> {
                 None
             }
         }
+    }
+
+    /// One of the values of `T`, read by name ([`Enumerated::name`]): a name not
+    /// among them is a problem listing those that are, with a "did you mean" for
+    /// a near miss.
+    pub fn one_of<T: Enumerated>(&self, key: &'static str, need: Need<T>) -> Option<T> {
+        let names: Vec<&'static str> = T::ALL.iter().map(|v| v.name()).collect();
+        let need = match need {
+            Need::Required => Need::Required,
+            Need::Default(v) => Need::Default(v.name()),
+            Need::Optional => Need::Optional,
+        };
+        self.choice(key, need, &names).and_then(T::from_name)
     }
 
     /// One of the strings `allowed`, with a "did you mean" for a near miss.

@@ -53,6 +53,7 @@ use std::path::{Path, PathBuf};
 use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorPhysics};
 use shared::drive::{BridgeConfig, Decay};
 use shared::impact::ImpactLaw;
+use shared::Enumerated;
 use toml::Table;
 
 use bodies::{Body, ContactEnds, Joint};
@@ -126,6 +127,18 @@ impl Sense {
     }
 }
 
+/// The senses a rotor may turn, as written in the file.
+impl Enumerated for Sense {
+    const ALL: &'static [Sense] = &[Sense::Ccw, Sense::Cw];
+
+    fn name(self) -> &'static str {
+        match self {
+            Sense::Ccw => "ccw",
+            Sense::Cw => "cw",
+        }
+    }
+}
+
 /// A brushed DC motor.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MotorParams {
@@ -183,17 +196,6 @@ pub struct Drive {
 /// The range of `[drive] pwm_hz`, Hz: a DRV8871-class bridge switches up to 200 kHz;
 /// below 1 kHz the PWM period would be as long as a control tick.
 pub const PWM_HZ_RANGE: [u32; 2] = [1_000, 200_000];
-
-/// The names of `[impact] law` (`shared::impact::ImpactLaw::name`), in the order
-/// the docs list them; an impact case file names its law the same way.
-pub const LAWS: [&str; 3] = [
-    ImpactLaw::ALL[0].name(),
-    ImpactLaw::ALL[1].name(),
-    ImpactLaw::ALL[2].name(),
-];
-
-/// The names of `[drive] decay` (`shared::drive::Decay::name`).
-pub const DECAYS: [&str; 2] = [Decay::ALL[0].name(), Decay::ALL[1].name()];
 
 /// The sensors.
 #[derive(Clone, Debug, PartialEq)]
@@ -484,8 +486,6 @@ pub const RTOL_RANGE: (f64, f64) = (1.0e-12, 1.0e-3);
 /// rounding of positions a generator computes on a tilted fundament (1e-17 m at
 /// these sizes), far below any real mistake.
 pub const GAP_TOLERANCE: f64 = 1.0e-12;
-/// The senses a rotor may turn, as written in the file.
-pub const SENSES: [&str; 2] = ["ccw", "cw"];
 
 /// A key read on its own: absent, present but refused (reported), or a value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -550,7 +550,7 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Ma
     };
     let drive = root.section("drive", Need::Required).and_then(|s| {
         let supply_voltage = s.number("supply_voltage", Need::Required, Limit::Positive);
-        let decay = s.choice("decay", Need::Default(Decay::Slow.name()), &DECAYS);
+        let decay = s.one_of("decay", Need::Default(Decay::Slow));
         let pwm_hz = s.integer(
             "pwm_hz",
             Need::Default(i64::from(BridgeConfig::DEFAULT.pwm_hz)),
@@ -560,7 +560,7 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Ma
         Some(Drive {
             supply_voltage: supply_voltage?,
             bridge: BridgeConfig {
-                decay: Decay::from_name(decay?)?,
+                decay: decay?,
                 pwm_hz: u32::try_from(pwm_hz?).ok()?,
             },
         })
@@ -568,9 +568,9 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) -> Option<Ma
     let sensors = optional(&root, "sensors", &empty).and_then(|s| read_sensors(&s));
     let controller = optional(&root, "controller", &empty).and_then(|s| read_controller(&s, dir));
     let law = optional(&root, "impact", &empty).and_then(|s| {
-        let law = s.choice("law", Need::Default("poisson"), &LAWS);
+        let law = s.one_of("law", Need::Default(ImpactLaw::Poisson));
         s.finish();
-        ImpactLaw::from_name(law?)
+        law
     });
     let simulation = optional(&root, "simulation", &empty).and_then(|s| read_simulation(&s));
     // `[uncertainty]` is checked against the whole machine once it passed
@@ -756,10 +756,7 @@ fn read_rotor(index: usize, s: &Section) -> Named<RotorKeys> {
     let eccentric_mass = s.number("eccentric_mass", Need::Required, Limit::NonNegative);
     let eccentricity = s.number("eccentricity", Need::Required, Limit::NonNegative);
     let inertia = s.number("inertia", Need::Required, Limit::Positive);
-    let sense = s.choice("sense", Need::Required, &SENSES).map(|v| match v {
-        "ccw" => Sense::Ccw,
-        _ => Sense::Cw,
-    });
+    let sense = s.one_of("sense", Need::Required);
     let angle = s.number("angle", Need::Default(0.0), Limit::Any);
     let index_angle = s.number("index_angle", Need::Default(0.0), Limit::Any);
     let body = s.string("body", Need::Default(bodies::PLATFORM.to_string()));

@@ -19,7 +19,6 @@ use crate::machine::input::{
     self, number, read_name, vector, Limit, Named, Need, Problem, Problems, Section,
 };
 use crate::machine::kind::{self, FileKind};
-use crate::machine::LAWS;
 
 /// Relative tolerance of the check that `[body].velocity` agrees with the pivot:
 /// `|v - omega x (C - O)| <= 1e-9 max(|v|, |omega| |C - O|)`. Far above rounding
@@ -110,7 +109,7 @@ fn check(table: &toml::Table, problems: &Problems) -> Option<ImpactCase> {
     let root = Section::root(table, problems);
 
     // Stage 1: every key on its own.
-    let law = root.choice("law", Need::Default("poisson"), &LAWS);
+    let law = root.one_of("law", Need::Default(ImpactLaw::Poisson));
     let body = root.section("body", Need::Required).map(|s| read_body(&s));
     // Ok(None): no pivot; Err(()): a [pivot] with a problem (reported).
     let pivot: Result<Option<[f64; 2]>, ()> = match root.section("pivot", Need::Optional) {
@@ -149,7 +148,7 @@ fn check(table: &toml::Table, problems: &Problems) -> Option<ImpactCase> {
 
     // Stage 4: something to solve; only meaningful when the rest is sound.
     let case = ImpactCase {
-        law: ImpactLaw::from_name(law?)?,
+        law: law?,
         body: body?,
         pivot: pivot.ok()?,
         contacts: contacts?,

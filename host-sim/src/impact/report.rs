@@ -8,6 +8,7 @@
 
 use serde_json::{Map, Value};
 use shared::impact::{BodyImpact, ContactOutcome, ImpactLaw, SlipState, Warnings, MAX_CONTACTS};
+use shared::Enumerated;
 
 use crate::impact::case::ImpactCase;
 use crate::numbers;

@@ -74,6 +74,8 @@
 
 use embedded_hal::pwm::SetDutyCycle;
 
+use crate::named::Enumerated;
+
 /// How the two bridge inputs make a duty (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -87,21 +89,15 @@ pub enum Decay {
     Fast,
 }
 
-impl Decay {
-    /// Both modes, the default first.
-    pub const ALL: [Decay; 2] = [Decay::Slow, Decay::Fast];
+/// Both modes, the default first, named as the machine file writes them.
+impl Enumerated for Decay {
+    const ALL: &'static [Decay] = &[Decay::Slow, Decay::Fast];
 
-    /// The machine file's name: `"slow"` or `"fast"`.
-    pub const fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Decay::Slow => "slow",
             Decay::Fast => "fast",
         }
-    }
-
-    /// The mode of a machine file's name ([`Decay::name`]).
-    pub fn from_name(name: &str) -> Option<Decay> {
-        Decay::ALL.into_iter().find(|d| d.name() == name)
     }
 }
 

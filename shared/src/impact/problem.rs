@@ -6,6 +6,7 @@
 //! `W = J M^-1 J^T` (Moreau; Glocker 2001, ch. 7). The solver needs only `W`, the
 //! pre-impact contact velocities and the laws; the mechanics stays with the caller.
 
+use crate::named::Enumerated;
 use crate::real::Real;
 
 /// The impact law that ends the restitution phase.
@@ -22,26 +23,16 @@ pub enum ImpactLaw {
     Stronge,
 }
 
-impl ImpactLaw {
-    /// Every law, in the order the docs list them.
-    pub const ALL: [ImpactLaw; 3] = [ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
+/// Every law in the order the docs list them, named as case and machine files
+/// write them.
+impl Enumerated for ImpactLaw {
+    const ALL: &'static [ImpactLaw] = &[ImpactLaw::Poisson, ImpactLaw::Newton, ImpactLaw::Stronge];
 
-    /// The law's name as written in case and machine files.
-    pub const fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             ImpactLaw::Poisson => "poisson",
             ImpactLaw::Newton => "newton",
             ImpactLaw::Stronge => "stronge",
-        }
-    }
-
-    /// Parses `poisson`, `newton` or `stronge`.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "poisson" => Some(ImpactLaw::Poisson),
-            "newton" => Some(ImpactLaw::Newton),
-            "stronge" => Some(ImpactLaw::Stronge),
-            _ => None,
         }
     }
 }

@@ -6,6 +6,7 @@ extern crate std;
 use super::oracle::enumerated_direction;
 use super::*;
 use crate::impact::problem::{ContactLaw, ImpactLaw};
+use crate::Enumerated;
 use std::format;
 use std::string::String;
 use std::vec::Vec;
