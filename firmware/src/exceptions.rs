@@ -135,6 +135,14 @@ pub const STACK_GUARD_BYTES: usize = 1024;
 /// `RAM : ORIGIN = 0x20000000`).
 const STACK_BOTTOM: u32 = 0x2000_0000;
 
+/// First in every binary's init: faults to their own handlers, which cut first
+/// ([`enable_fault_exceptions`]), and a stack overflow caught while a handler can
+/// still run ([`guard_stack`]).
+pub fn setup(scb: &mut SCB, mpu: &mut cortex_m::peripheral::MPU) {
+    enable_fault_exceptions(scb);
+    guard_stack(mpu);
+}
+
 /// A stack overflow must still cut. flip-link puts the stack at the bottom of
 /// RAM, so an overflow runs below RAM and faults; but the fault's entry then
 /// pushes its frame on the same overflowed stack, fails again, and the core

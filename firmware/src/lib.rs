@@ -23,7 +23,8 @@
 //!   into a DMA buffer, read by the tick without waiting;
 //! - [`control`]: the board at a control tick (`shared::tick::Board`);
 //! - [`start`]: the controller and the link's state at start;
-//! - [`port`]: the link's state as the control tick's port, and its lock;
+//! - [`port`]: the link's state as the control tick's port, and its lock; a tick
+//!   run with it, and idle's pass of the link;
 //! - [`link`]: the UART's byte ring and its count of lost bytes;
 //! - [`log`]: what the control task has to say, logged by idle;
 //! - [`exceptions`]: the panic handler and every fault, NMI and unexpected

@@ -1,11 +1,12 @@
-//! The UART side of the host link, on the board and in the binary `qemu-uart`.
+//! The UART side of the host link, on the board and in the binaries `qemu-uart`
+//! and `pil`.
 //! The protocol logic (decode, answer, telemetry, flash writes) is
 //! `shared::protocol::link`, tested on the host; this module holds only the byte
 //! ring between the RX interrupt and it, and the count of bytes lost on the way.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use heapless::spsc::Queue;
+use heapless::spsc::{Producer, Queue};
 
 /// Bytes the RX ring holds: more than one largest frame (414 bytes), so a whole
 /// tuning table can arrive while the link task waits for a long control tick.
@@ -27,4 +28,11 @@ pub fn count_dropped() {
 /// Received bytes lost since start.
 pub fn dropped() -> u32 {
     RX_DROPPED.load(Ordering::Relaxed)
+}
+
+/// A received byte into the ring; counted lost when the ring is full.
+pub fn receive(ring: &mut Producer<'_, u8>, byte: u8) {
+    if ring.enqueue(byte).is_err() {
+        count_dropped();
+    }
 }

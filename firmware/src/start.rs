@@ -7,6 +7,9 @@ use shared::controller::{Controller, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, LinkState};
 use shared::storage;
 
+#[cfg(feature = "qemu")]
+use shared::storage::SimFlash;
+
 use crate::machine::MACHINE;
 use crate::tuning::TUNING_ROWS;
 
@@ -45,4 +48,19 @@ pub fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller,
     }
     let link = LinkState::at_start(&controller, stored.as_ref());
     (controller, link)
+}
+
+/// The start on QEMU (the features `qemu` and `pil`): the parameter flash in RAM,
+/// erased as QEMU's unwritten flash reads (0x00), so that nothing is stored at
+/// start, and [`start`] on it after a power-on.
+///
+/// `#[inline]`: compiled into the binary that calls it, with `start`, as a call
+/// from the binary's own init is; the scripted QEMU log's tick timings follow
+/// the binary's code to the instruction.
+#[cfg(feature = "qemu")]
+#[inline]
+pub fn start_in_qemu() -> (SimFlash, Controller, LinkState) {
+    let flash = SimFlash::filled(0x00);
+    let (controller, link) = start(&flash, ResetCause::PowerOn);
+    (flash, controller, link)
 }

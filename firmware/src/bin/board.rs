@@ -41,7 +41,7 @@ mod app {
     use firmware::link::{self, RxRing};
     use firmware::log::Logger;
     use firmware::motor_out::{self, MotorOut};
-    use firmware::port::{idle_status, link_port, log_refusals, Locked};
+    use firmware::port::{run_tick, serve};
     use firmware::sense::Sense;
     use firmware::start::start;
     use firmware::watchdog::Watchdog;
@@ -88,9 +88,8 @@ mod app {
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         // Faults to their own handlers, which cut first, and a stack overflow
-        // caught while a handler can still run (`exceptions`).
-        exceptions::enable_fault_exceptions(&mut cx.core.SCB);
-        exceptions::guard_stack(&mut cx.core.MPU);
+        // caught while a handler can still run.
+        exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         // The cycle counter, for the tick's timing.
         cx.core.DCB.enable_trace();
         cx.core.DWT.enable_cycle_counter();
@@ -197,10 +196,12 @@ mod app {
             motors: cx.local.motors,
             timing,
         };
-        let mut port = link_port(&mut cx.shared.link, *cx.local.uptime_ms);
-        let dt = cx.local.controller.params().tick_s();
-        shared::tick::run(cx.local.controller, &mut hw, &mut port, dt);
-        log_refusals(&port.taken);
+        run_tick(
+            cx.local.controller,
+            &mut hw,
+            &mut cx.shared.link,
+            *cx.local.uptime_ms,
+        );
 
         // Stage 5: the tick completed: feed the watchdog. Also in Fault (a defined
         // safe state with the motors off): not feeding there would turn every
@@ -217,11 +218,7 @@ mod app {
         // Bounded: a byte time is 87 us, the loop never spins on a stuck flag.
         for _ in 0..16 {
             match cx.local.rx.read() {
-                Ok(byte) => {
-                    if cx.local.rx_in.enqueue(byte).is_err() {
-                        link::count_dropped();
-                    }
-                }
+                Ok(byte) => link::receive(cx.local.rx_in, byte),
                 Err(stm32f4xx_hal::nb::Error::WouldBlock) => break,
                 // An overrun lost the byte that came in, and the HAL's read of the
                 // data register (which clears the error) drops the one before.
@@ -240,15 +237,13 @@ mod app {
     #[idle(local = [link, rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let status = idle_status(&mut cx.shared.link);
-            cx.local.logger.poll(&status);
             let tx = &mut *cx.local.tx;
-            let rx = &mut *cx.local.rx_out;
-            let busy = cx.local.link.poll(
-                || rx.dequeue(),
-                status.uptime_ms,
-                Locked(&mut cx.shared.link),
+            let busy = serve(
+                cx.local.link,
+                cx.local.rx_out,
+                &mut cx.shared.link,
                 cx.local.flash,
+                cx.local.logger,
                 |bytes| {
                     let _ = tx.bwrite_all(bytes);
                 },

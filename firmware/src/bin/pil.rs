@@ -20,7 +20,7 @@ defmt::timestamp!("{=u32:05}", firmware::qemu::tick());
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, ResetCause};
+    use shared::controller::Controller;
     use shared::pil::Hello;
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
@@ -28,13 +28,13 @@ mod app {
     use firmware::drive::Drive;
     use firmware::link::RxRing;
     use firmware::log::Logger;
-    use firmware::machine::{MACHINE, MACHINE_FILE, MACHINE_FILE_CRC32, MACHINE_FILE_LEN};
+    use firmware::machine::{MACHINE_FILE, MACHINE_FILE_CRC32, MACHINE_FILE_LEN};
     use firmware::pil::board::{PilBoard, PilLink};
     use firmware::pil::{self, TxRing};
-    use firmware::port::{idle_status, link_port, log_refusals, Locked};
+    use firmware::port::{run_tick, serve};
     use firmware::qemu::cycles::{self, SysTickClock};
-    use firmware::qemu::pwm::SimPwm;
-    use firmware::start::start;
+    use firmware::qemu::pwm::{self, SimPwm};
+    use firmware::start::start_in_qemu;
     use firmware::{exceptions, qemu, TICK_MS};
 
     #[shared]
@@ -62,15 +62,12 @@ mod app {
 
     #[init(local = [rx_ring: RxRing = RxRing::new(), tx_ring: TxRing = TxRing::new()])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
-        exceptions::enable_fault_exceptions(&mut cx.core.SCB);
-        exceptions::guard_stack(&mut cx.core.MPU);
+        exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         let mut syst = cx.core.SYST;
         let (rx_in, rx_out) = cx.local.rx_ring.split();
         let (tx_in, tx_out) = cx.local.tx_ring.split();
 
-        // Flash in RAM, erased as QEMU's unwritten flash reads (0x00).
-        let flash = SimFlash::filled(0x00);
-        let (controller, link) = start(&flash, ResetCause::PowerOn);
+        let (flash, controller, link) = start_in_qemu();
         let hello = Hello::new(
             MACHINE_FILE_CRC32,
             MACHINE_FILE_LEN,
@@ -86,7 +83,7 @@ mod app {
             Shared { link },
             Local {
                 controller,
-                drive: Drive::new(SimPwm::channels(), MACHINE.bridge.decay),
+                drive: pwm::drive(),
                 uptime_ms: 0,
                 clock: SysTickClock::new(cycles::RELOAD),
                 pil,
@@ -123,11 +120,12 @@ mod app {
             estop: false,
             next_late_us: 0,
         };
-        let mut port = link_port(&mut cx.shared.link, *cx.local.uptime_ms);
-        let controller = cx.local.controller;
-        let dt = controller.params().tick_s();
-        shared::tick::run(controller, &mut board, &mut port, dt);
-        log_refusals(&port.taken);
+        run_tick(
+            cx.local.controller,
+            &mut board,
+            &mut cx.shared.link,
+            *cx.local.uptime_ms,
+        );
         cx.local.clock.end();
         // A starved loop injected by the host: the core kept busy past the
         // next tick's timer event, which the next tick's clock sees as its
@@ -143,16 +141,13 @@ mod app {
     #[idle(local = [link: Link = Link::new(), rx_out, tx_in, flash, logger: Logger = Logger::new(), tx_lost: u32 = 0], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let status = idle_status(&mut cx.shared.link);
-            cx.local.logger.poll(&status);
-            let now_ms = status.uptime_ms;
             let tx = &mut *cx.local.tx_in;
-            let rx = &mut *cx.local.rx_out;
-            let busy = cx.local.link.poll(
-                || rx.dequeue(),
-                now_ms,
-                Locked(&mut cx.shared.link),
+            let busy = serve(
+                cx.local.link,
+                cx.local.rx_out,
+                &mut cx.shared.link,
                 cx.local.flash,
+                cx.local.logger,
                 |bytes| {
                     for &b in bytes {
                         if tx.enqueue(b).is_err() {

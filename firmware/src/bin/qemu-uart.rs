@@ -18,20 +18,19 @@ defmt::timestamp!("{=u32:05}", firmware::qemu::tick());
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
     use heapless::spsc::{Consumer, Producer};
-    use shared::controller::{Controller, ResetCause, TickTiming};
+    use shared::controller::{Controller, TickTiming};
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use firmware::drive::Drive;
     use firmware::link::{self, RxRing};
     use firmware::log::Logger;
-    use firmware::machine::MACHINE;
-    use firmware::port::{idle_status, Locked};
+    use firmware::port::serve;
     use firmware::qemu::plant::{Injected, Plant};
-    use firmware::qemu::pwm::SimPwm;
+    use firmware::qemu::pwm::{self, SimPwm};
     use firmware::qemu::uart::{self, UartRx, UartTx};
     use firmware::qemu::{self, cycles};
-    use firmware::start::start;
+    use firmware::start::start_in_qemu;
     use firmware::{exceptions, TICK_MS};
 
     #[shared]
@@ -56,16 +55,13 @@ mod app {
 
     #[init(local = [rx_ring: RxRing = RxRing::new()])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
-        exceptions::enable_fault_exceptions(&mut cx.core.SCB);
-        exceptions::guard_stack(&mut cx.core.MPU);
+        exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         let mut syst = cx.core.SYST;
         // No RCC: the USART's registers only (QEMU needs no clock for it).
         let (rx, tx) = uart::split(cx.device.USART2);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
 
-        // Flash in RAM, erased as QEMU's unwritten flash reads (0x00).
-        let flash = SimFlash::filled(0x00);
-        let (controller, link) = start(&flash, ResetCause::PowerOn);
+        let (flash, controller, link) = start_in_qemu();
         defmt::info!("qemu-uart: the link on USART2 at 115200 baud");
 
         cycles::start(&mut syst, cycles::RELOAD);
@@ -75,7 +71,7 @@ mod app {
             Local {
                 controller,
                 plant: Plant::new(),
-                drive: Drive::new(SimPwm::channels(), MACHINE.bridge.decay),
+                drive: pwm::drive(),
                 uptime_ms: 0,
                 flash,
                 rx,
@@ -119,11 +115,7 @@ mod app {
     fn uart_rx(cx: uart_rx::Context) {
         for _ in 0..16 {
             match cx.local.rx.read() {
-                Some(byte) => {
-                    if cx.local.rx_in.enqueue(byte).is_err() {
-                        link::count_dropped();
-                    }
-                }
+                Some(byte) => link::receive(cx.local.rx_in, byte),
                 None => break,
             }
         }
@@ -134,16 +126,13 @@ mod app {
     #[idle(local = [link: Link = Link::new(), rx_out, tx, flash, logger: Logger = Logger::new()], shared = [link])]
     fn idle(mut cx: idle::Context) -> ! {
         loop {
-            let status = idle_status(&mut cx.shared.link);
-            cx.local.logger.poll(&status);
-            let now_ms = status.uptime_ms;
             let tx = &mut *cx.local.tx;
-            let rx = &mut *cx.local.rx_out;
-            let busy = cx.local.link.poll(
-                || rx.dequeue(),
-                now_ms,
-                Locked(&mut cx.shared.link),
+            let busy = serve(
+                cx.local.link,
+                cx.local.rx_out,
+                &mut cx.shared.link,
                 cx.local.flash,
+                cx.local.logger,
                 |bytes| tx.write_all(bytes),
             );
             if !busy {

@@ -14,21 +14,20 @@ defmt::timestamp!("{=u32:05}", firmware::qemu::tick());
 
 #[rtic::app(device = stm32f4xx_hal::pac, peripherals = true)]
 mod app {
-    use shared::controller::{Controller, ResetCause};
+    use shared::controller::Controller;
     use shared::protocol::link::{Link, LinkState};
     use shared::storage::SimFlash;
 
     use firmware::drive::Drive;
     use firmware::log::Logger;
-    use firmware::machine::MACHINE;
     use firmware::qemu::cycles::SysTickClock;
     use firmware::qemu::plant::Plant;
-    use firmware::qemu::pwm::SimPwm;
+    use firmware::qemu::pwm::{self, SimPwm};
     use firmware::qemu::report::report;
     use firmware::qemu::script::{Io, Progress, Script};
     use firmware::qemu::world::World;
     use firmware::qemu::{self, cycles, stack};
-    use firmware::start::start;
+    use firmware::start::start_in_qemu;
     use firmware::{exceptions, TICK_MS};
 
     #[shared]
@@ -55,8 +54,7 @@ mod app {
 
     #[init]
     fn init(mut cx: init::Context) -> (Shared, Local) {
-        exceptions::enable_fault_exceptions(&mut cx.core.SCB);
-        exceptions::guard_stack(&mut cx.core.MPU);
+        exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         stack::paint();
         let mut syst = cx.core.SYST;
 
@@ -68,10 +66,8 @@ mod app {
         let calibration = cycles::calibrate();
         syst.disable_counter();
 
-        // No board::setup: RCC waits would hang in QEMU. Flash in RAM, erased as
-        // QEMU's unwritten flash reads (0x00), so nothing is stored at start.
-        let flash = SimFlash::filled(0x00);
-        let (controller, link) = start(&flash, ResetCause::PowerOn);
+        // No board::setup: RCC waits would hang in QEMU.
+        let (flash, controller, link) = start_in_qemu();
 
         // The control tick.
         cycles::start(&mut syst, cycles::RELOAD);
@@ -84,7 +80,7 @@ mod app {
             Local {
                 controller,
                 plant: Plant::new(),
-                drive: Drive::new(SimPwm::channels(), MACHINE.bridge.decay),
+                drive: pwm::drive(),
                 uptime_ms: 0,
                 clock: SysTickClock::new(cycles::RELOAD),
                 flash,

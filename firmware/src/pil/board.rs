@@ -84,9 +84,7 @@ impl shared::tick::Board for PilBoard<'_> {
             }
         };
         for &b in sample.rx.as_slice() {
-            if self.rx.enqueue(b).is_err() {
-                link::count_dropped();
-            }
+            link::receive(self.rx, b);
         }
         self.estop = sample.estop;
         self.next_late_us = sample.next_late_us;

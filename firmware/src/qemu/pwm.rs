@@ -8,6 +8,9 @@ use core::sync::atomic::{AtomicU16, Ordering};
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
 
+use crate::drive::Drive;
+use crate::machine::MACHINE;
+
 /// The channels' full scale as the board's report it (`motor_out::CentreChannel`):
 /// `ARR` of TIM8 set up for the machine's `[drive]` (`crate::drive::PWM_TIMER`;
 /// 4200 at 20 kHz).
@@ -29,6 +32,12 @@ impl SimPwm {
     pub fn channels() -> [SimPwm; 4] {
         [SimPwm(0), SimPwm(1), SimPwm(2), SimPwm(3)]
     }
+}
+
+/// The board's bridge driver on the four channels, in the machine's decay mode
+/// (`[drive] decay`).
+pub fn drive() -> Drive<SimPwm> {
+    Drive::new(SimPwm::channels(), MACHINE.bridge.decay)
 }
 
 impl ErrorType for SimPwm {

@@ -46,7 +46,8 @@ use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{
-    Direction, Faults, Params, SelfTestReport, SelfTestStatus, State, TuningTable, CONTROL_RATE_HZ,
+    Direction, Faults, Params, RotorSelfTest, SelfTestReport, SelfTestStatus, State, TuningTable,
+    CONTROL_RATE_HZ,
 };
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
@@ -57,7 +58,7 @@ use shared::storage::{self, SimFlash};
 
 use super::checks::check;
 use super::host::{Device, Host};
-use super::world::World;
+use super::world::{DriveStart, FaultSeen, World};
 
 /// The run speed, rpm.
 pub const SPEED_RPM: f32 = 3000.0;
@@ -80,6 +81,8 @@ pub fn overrun_us() -> u32 {
 }
 /// Largest phase error after settling, degrees.
 const PHASE_TOLERANCE_DEG: f32 = 5.0;
+/// Ticks in `running` before a fault is injected.
+const RUN_BEFORE_FAULT_TICKS: u32 = 100;
 /// Longest from `idle` after the stop to both rotors at rest, ticks.
 pub const REST_LIMIT_TICKS: u32 = 1000;
 /// Longest from `RunSelfTest` to the test reported running, ticks (the control
@@ -299,6 +302,28 @@ impl Script {
         }
     }
 
+    /// ReadTuningTable; the table, if the answer is one.
+    fn read_table<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<TuningTable>
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        match self.ask(io, &Request::ReadTuningTable) {
+            Some(Response::TuningTable(t)) => Some(t),
+            _ => None,
+        }
+    }
+
+    /// ReadSelfTest; the report, if the answer is one.
+    fn read_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<SelfTestReport>
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        match self.ask(io, &Request::ReadSelfTest) {
+            Some(Response::SelfTest(report)) => Some(report),
+            _ => None,
+        }
+    }
+
     /// The state the control task published at its latest tick.
     fn state_now<L: rtic::Mutex<T = LinkState>, W>(io: &mut Io<'_, L, W>) -> State {
         io.state.lock(|l| l.status.state)
@@ -368,7 +393,7 @@ impl Script {
         Next::Advance
     }
 
-    /// The script's steps, one per arm.
+    /// The script's steps in their order: step `self.step` at this tick.
     fn step<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
     where
         L: rtic::Mutex<T = LinkState>,
@@ -376,622 +401,752 @@ impl Script {
     {
         let waited = io.tick.wrapping_sub(self.since);
         match self.step {
-            // 1. Start: status and the compiled-in table.
-            0 => {
-                if io.tick < 5 {
-                    return Next::Wait;
-                }
-                defmt::info!("script: status and tuning table at start");
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                check!(
-                    s.state == State::Idle && s.faults.is_empty(),
-                    "status at start: {=str}, faults {}",
-                    s.state.name(),
-                    s.faults
-                );
-                let compiled = TuningTable::from_rows(&crate::tuning::TUNING_ROWS).ok();
-                let read = match self.ask(io, &Request::ReadTuningTable) {
-                    Some(Response::TuningTable(t)) => Some(t),
-                    _ => None,
-                };
-                check!(
-                    read.is_some() && read == compiled,
-                    "ReadTuningTable: the compiled-in table ({=usize} rows)",
-                    compiled.as_ref().map_or(0, |t| t.rows().len())
-                );
-                let self_test = match self.ask(io, &Request::ReadSelfTest) {
-                    Some(Response::SelfTest(report)) => Some(report),
-                    _ => None,
-                };
-                check!(
-                    self_test
-                        .is_some_and(|r| r.status == SelfTestStatus::NotRun
-                            && r.result == Default::default()),
-                    "ReadSelfTest at start: not run, nothing measured"
-                );
-                Next::Advance
-            }
-            // 2. Write a table, read it back, find it in flash.
-            1 => {
-                defmt::info!("script: tuning table written and read back");
-                let rows = crate::tuning::TUNING_ROWS.map(|(s, r, l)| (s, r + TABLE_SHIFT_DEG, l));
-                let Ok(table) = TuningTable::from_rows(&rows) else {
-                    check!(false, "shifted tuning table valid");
-                    return Next::Abort;
-                };
-                self.ack(
-                    io,
-                    &Request::WriteTuningTable(table.clone()),
-                    "WriteTuningTable",
-                );
-                let read = match self.ask(io, &Request::ReadTuningTable) {
-                    Some(Response::TuningTable(t)) => Some(t),
-                    _ => None,
-                };
-                check!(
-                    read.as_ref() == Some(&table),
-                    "ReadTuningTable: the table written"
-                );
-                let stored = storage::load(&*io.flash);
-                check!(
-                    stored
-                        .as_ref()
-                        .is_some_and(|s| s.record.tuning == table && s.sequence == 1),
-                    "flash record 1 holds the table written"
-                );
-                self.table = Some(table);
-                Next::Advance
-            }
-            // 3. Frames refused or ignored.
-            2 => {
-                defmt::info!("script: damaged and invalid frames");
-                let mut out = [0u8; MAX_FRAME];
-                // Frame CRC broken: Nack BadCrc with the frame's own sequence number.
-                let (seq, len) = self.host.frame(&Request::GetStatus, &mut out);
-                if let Some(b) = out.get_mut(len.saturating_sub(1)) {
-                    *b ^= 0x01;
-                }
-                let frame = out;
-                self.exchange(io, frame.get(..len).unwrap_or(&[]));
-                let answers = self.host_answers();
-                check!(
-                    matches!(answers, [(s, Response::Nack { request, reason: NackReason::BadCrc })]
-                        if *s == seq && *request == MessageId::GetStatus as u8),
-                    "frame CRC error: Nack BadCrc"
-                );
-                // Header CRC broken: no answer at all.
-                let (_, len) = self.host.frame(&Request::GetStatus, &mut out);
-                if let Some(b) = out.get_mut(8) {
-                    *b ^= 0x80;
-                }
-                let frame = out;
-                let n = self.exchange(io, frame.get(..len).unwrap_or(&[]));
-                check!(n == 0, "header CRC error: no answer ({=usize})", n);
-                // Garbage, then a frame: the frame is found and answered.
-                let mut frame = [0u8; 7 + MAX_FRAME];
-                frame[..7].copy_from_slice(&[0x00, 0xA5, 0x13, 0x5A, 0xFF, 0xA5, 0xA5]);
-                let (seq, len) = self.host.frame(&Request::Heartbeat, &mut out);
-                frame[7..].copy_from_slice(&out);
-                self.exchange(io, frame.get(..7 + len).unwrap_or(&[]));
-                let answers = self.host_answers();
-                check!(
-                    matches!(answers, [(s, Response::Ack { .. })] if *s == seq),
-                    "garbage before a frame: the frame answered"
-                );
-                // An unknown message id.
-                let len = encode_frame(0x7E, 900, &[], &mut out).unwrap_or(0);
-                let frame = out;
-                self.exchange(io, frame.get(..len).unwrap_or(&[]));
-                let answers = self.host_answers();
-                check!(
-                    matches!(
-                        answers,
-                        [(
-                            900,
-                            Response::Nack {
-                                request: 0x7E,
-                                reason: NackReason::UnknownMessage
-                            }
-                        )]
-                    ),
-                    "unknown id: Nack UnknownMessage"
-                );
-                // Values out of their domain.
-                self.nack(
-                    io,
-                    &Request::Travel {
-                        direction: Direction::Right,
-                        speed_rpm: f32::NAN,
-                    },
-                    NackReason::BadValue,
-                    "Travel at NaN rpm",
-                );
-                self.nack(
-                    io,
-                    &Request::StreamTelemetry { period_ms: 5 },
-                    NackReason::BadValue,
-                    "telemetry every 5 ms",
-                );
-                check!(
-                    Self::state_now(io) == State::Idle,
-                    "still idle after the refused frames"
-                );
-                Next::Advance
-            }
-            // 4. Telemetry on; 5. travel right.
-            3 => {
-                defmt::info!("script: travel right at 3000 rpm");
-                self.ack(
-                    io,
-                    &Request::StreamTelemetry {
-                        period_ms: TELEMETRY_PERIOD_MS,
-                    },
-                    "StreamTelemetry",
-                );
-                self.keepalive = true;
-                self.ack(io, &travel_right(), "Travel right");
-                Next::Advance
-            }
+            0 => self.start_status(io),
+            1 => self.write_table(io),
+            2 => self.refused_frames(io),
+            3 => self.travel_with_telemetry(io),
             4 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            5 => {
-                if waited < SETTLE_TICKS {
-                    return Next::Wait;
-                }
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                let t = s.telemetry;
-                let world = io.world.lock(|w| (w.true_speed_rpm, w.true_offset_deg));
-                let table_offset = self
-                    .table
-                    .as_ref()
-                    .map_or(f32::NAN, |t| t.offset(Direction::Right, SPEED_RPM));
-                check!(
-                    s.state == State::Running && t.phase_loop_closed && t.phase_valid,
-                    "{=u32} ticks later: {=str}, phase loop closed",
-                    SETTLE_TICKS,
-                    s.state.name()
-                );
-                check!(
-                    t.speed_rpm
-                        .iter()
-                        .chain(world.0.iter())
-                        .all(|v| abs(v - SPEED_RPM) < SPEED_TOLERANCE_RPM),
-                    "measured and true speeds within {=f32} rpm of {=f32}",
-                    SPEED_TOLERANCE_RPM,
-                    SPEED_RPM
-                );
-                check!(
-                    abs(t.target_offset_deg - table_offset) < 0.01,
-                    "target offset from the table written: {=f32} deg",
-                    table_offset
-                );
-                check!(
-                    abs(t.phase_error_deg) < PHASE_TOLERANCE_DEG
-                        && angle_distance(world.1, t.commanded_offset_deg) < PHASE_TOLERANCE_DEG,
-                    "phase error and true offset within {=f32} deg",
-                    PHASE_TOLERANCE_DEG
-                );
-                self.ack(io, &Request::Stop, "Stop");
-                Next::Advance
-            }
+            5 => self.settled_run(io, waited),
             6 => self.wait_state(io, State::Idle, STOP_LIMIT_TICKS),
-            // 6. Self-test, once both rotors have come to rest.
-            7 => {
-                let true_speed = io.world.lock(|w| w.true_speed_rpm);
-                let measured = io.state.lock(|l| l.status.telemetry.speed_rpm);
-                if true_speed == [0.0; 2] && measured.iter().all(|v| abs(*v) <= REST_RPM) {
-                    check!(
-                        true,
-                        "rotors at rest {=u32} ticks after idle (limit {=u32}): true speeds 0, measured within {=f32} rpm",
-                        waited,
-                        REST_LIMIT_TICKS,
-                        REST_RPM
-                    );
-                    Next::Advance
-                } else if waited >= REST_LIMIT_TICKS {
-                    check!(
-                        false,
-                        "rotors at rest within {=u32} ticks: true {=f32} / {=f32} rpm, measured {=f32} / {=f32} rpm",
-                        REST_LIMIT_TICKS,
-                        true_speed[0],
-                        true_speed[1],
-                        measured[0],
-                        measured[1]
-                    );
-                    Next::Abort
-                } else {
-                    Next::Wait
-                }
-            }
-            8 => {
-                defmt::info!("script: self-test");
-                let angles = io.world.lock(|w| {
-                    w.self_test_ticks = 0;
-                    w.drive_start = [None; 2];
-                    w.drive_ticks = [0; 2];
-                    w.drive_peak_rpm = [0.0; 2];
-                    w.angle_turns
-                });
-                defmt::info!(
-                    "rest angles (model, from the index): {=f32} / {=f32} deg",
-                    angles[0] * 360.0,
-                    angles[1] * 360.0
-                );
-                self.travel_nacked = false;
-                if !self.ack(io, &Request::RunSelfTest, "RunSelfTest") {
-                    return Next::Abort;
-                }
-                Next::Advance
-            }
-            9 => {
-                let report = match self.ask(io, &Request::ReadSelfTest) {
-                    Some(Response::SelfTest(report)) => report,
-                    _ => {
-                        check!(false, "ReadSelfTest: SelfTest");
-                        return Next::Abort;
-                    }
-                };
-                let limit = self_test_limit_ticks();
-                match report.status {
-                    SelfTestStatus::Done | SelfTestStatus::Aborted => {
-                        check!(
-                            report.status == SelfTestStatus::Done && waited <= limit,
-                            "self-test {} after {=u32} ticks (limit {=u32}, the documented worst case)",
-                            report.status,
-                            waited,
-                            limit
-                        );
-                        self.self_test = Some(report);
-                        Next::Advance
-                    }
-                    _ if waited >= limit => {
-                        check!(
-                            false,
-                            "self-test finished within {=u32} ticks: still {}",
-                            limit,
-                            report.status
-                        );
-                        Next::Abort
-                    }
-                    SelfTestStatus::Running => {
-                        // A run command while rotor 1 is driven: refused, the test
-                        // goes on.
-                        let driving = io.world.lock(|w| w.drive_start[0].is_some());
-                        if driving && !self.travel_nacked {
-                            self.travel_nacked = true;
-                            self.nack(
-                                io,
-                                &travel_right(),
-                                NackReason::Busy,
-                                "Travel while the self-test drives rotor 1",
-                            );
-                        }
-                        Next::Wait
-                    }
-                    SelfTestStatus::NotRun if waited < START_LIMIT_TICKS => Next::Wait,
-                    SelfTestStatus::NotRun => {
-                        check!(
-                            false,
-                            "self-test started within {=u32} ticks",
-                            START_LIMIT_TICKS
-                        );
-                        Next::Abort
-                    }
-                }
-            }
-            10 => {
-                let Some(report) = self.self_test else {
-                    return Next::Abort;
-                };
-                if !self.travel_nacked {
-                    check!(false, "a Travel sent while the self-test drove rotor 1");
-                }
-                let (ticks, starts, driven, peak, n, cost) = io.world.lock(|w| {
-                    (
-                        w.self_test_ticks,
-                        w.drive_start,
-                        w.drive_ticks,
-                        w.drive_peak_rpm,
-                        w.encoder_counts,
-                        w.cost_self_test,
-                    )
-                });
-                // Left out of the comparison as the other measurements (`report`
-                // logs those, with the calibration to convert into instructions).
-                defmt::info!(
-                    "measure: control step, self-test: {=u32} steps, mean {=u32} / max {=u32} SysTick counts",
-                    cost.steps,
-                    cost.mean(),
-                    cost.max
-                );
-                defmt::info!(
-                    "self-test: {=u32} ticks in state self_test; driven {=u32} / {=u32} ticks, peak {=f32} / {=f32} rpm (model)",
-                    ticks,
-                    driven[0],
-                    driven[1],
-                    peak[0],
-                    peak[1]
-                );
-                for (k, r) in report.result.rotors.iter().enumerate() {
-                    let rotor = k + 1;
-                    check!(
-                        r.motor_polarity_ok && r.encoder_polarity_ok && r.index_seen,
-                        "rotor {=usize}: motor polarity ok {=bool}, encoder polarity ok {=bool}, index seen {=bool}",
-                        rotor,
-                        r.motor_polarity_ok,
-                        r.encoder_polarity_ok,
-                        r.index_seen
-                    );
-                    check!(
-                        r.counts_per_rev == n,
-                        "rotor {=usize}: {=u32} counts a turn (model {=u32})",
-                        rotor,
-                        r.counts_per_rev,
-                        n
-                    );
-                    let Some(start) = starts[k] else {
-                        check!(false, "rotor {=usize}: driven by the self-test", rotor);
-                        continue;
-                    };
-                    let (exact, predicted) = index_offset_model(start.angle_turns, n);
-                    check!(
-                        r.index_offset_counts < n && r.index_offset_counts == predicted,
-                        "rotor {=usize}: index offset {=u32} counts, model {=u32} ({=f32} from its rest angle {=f32} deg at tick {=u32})",
-                        rotor,
-                        r.index_offset_counts,
-                        predicted,
-                        exact,
-                        start.angle_turns * 360.0,
-                        start.tick
-                    );
-                }
-                let stored = storage::load(&*io.flash);
-                check!(
-                    stored.as_ref().is_some_and(|s| s.sequence == 2
-                        && s.record.self_test == Some(report.result)
-                        && Some(&s.record.tuning) == self.table.as_ref()),
-                    "flash record {=u32}: the self-test result with the table written",
-                    stored.as_ref().map_or(0, |s| s.sequence)
-                );
-                check!(
-                    Self::state_now(io) == State::Idle,
-                    "idle after the self-test"
-                );
-                Next::Advance
-            }
-            // 7. E-stop fault.
-            11 => {
-                defmt::info!("script: E-stop fault while running");
-                self.ack(io, &travel_right(), "Travel right");
-                Next::Advance
-            }
+            7 => self.await_rest(io, waited),
+            8 => self.start_self_test(io),
+            9 => self.poll_self_test(io, waited),
+            10 => self.self_test_result(io),
+            11 => self.estop_travel(io),
             12 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            13 => {
-                if waited < 100 {
-                    return Next::Wait;
-                }
-                defmt::info!("E-stop opened");
-                self.inject(io, true, [false; 2]);
-                Next::Advance
-            }
-            14 => {
-                let Some(seen) = io.world.lock(|w| w.first_fault) else {
-                    check!(false, "ESTOP latched in the first tick that sees it");
-                    return Next::Abort;
-                };
-                check!(
-                    seen.faults.contains(Faults::ESTOP)
-                        && seen.tick.wrapping_sub(self.injected_at) == 1,
-                    "ESTOP latched in the first tick that sees the circuit open (bound: that tick), faults {}",
-                    seen.faults
-                );
-                check!(
-                    !seen.enable && seen.duty == [0.0; 2],
-                    "driver disabled and duties 0 in that tick"
-                );
-                self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop open");
-                Next::Advance
-            }
-            15 => {
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                check!(
-                    s.state == State::Fault && s.faults.contains(Faults::ESTOP),
-                    "still fault while the E-stop is open: {}",
-                    s.faults
-                );
-                defmt::info!("E-stop closed");
-                self.inject(io, false, [false; 2]);
-                self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop closed");
-                Next::Advance
-            }
-            16 => {
-                // 8. Deadline.
-                self.reset_done_then_travel(io, "control tick overrun while running")
-            }
+            13 => self.open_estop(io, waited),
+            14 => self.estop_latched(io),
+            15 => self.estop_reset(io),
+            16 => self.reset_done_then_travel(io, "control tick overrun while running"),
             17 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            18 => {
-                if waited < 100 {
-                    return Next::Wait;
-                }
-                let overruns = io.state.lock(|l| l.status.telemetry.overruns);
-                check!(
-                    overruns == 0,
-                    "no overrun so far: {=u16} ticks missed their deadline",
-                    overruns
-                );
-                let overrun = overrun_us();
-                defmt::info!("control task busy {=u32} us longer once", overrun);
-                io.world.lock(|w| {
-                    w.injected.overrun_us = overrun;
-                    w.first_fault = None;
-                });
-                self.injected_at = io.tick;
-                Next::Advance
-            }
-            19 => {
-                let Some(seen) = io.world.lock(|w| w.first_fault) else {
-                    if waited <= 3 {
-                        return Next::Wait;
-                    }
-                    check!(false, "DEADLINE latched after the overrun");
-                    return Next::Abort;
-                };
-                // The overrun ends tick n + 1 (the first after the injection);
-                // tick n + 2 reads its duration.
-                check!(
-                    seen.faults == Faults::DEADLINE
-                        && seen.tick.wrapping_sub(self.injected_at) == 2,
-                    "DEADLINE latched in the tick after the overrun (bound: that tick), faults {}, {=u32} ticks after the injection",
-                    seen.faults,
-                    seen.tick.wrapping_sub(self.injected_at)
-                );
-                check!(
-                    !seen.enable && seen.duty == [0.0; 2],
-                    "driver disabled and duties 0 in that tick"
-                );
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                let t = s.telemetry;
-                // The status of the tick that latched it: the overrun tick's
-                // duration, and the count.
-                check!(
-                    u32::from(t.tick_busy_us) >= overrun_us()
-                        && t.overruns == 1
-                        && s.state == State::Fault,
-                    "status: {=str}, {=u16} overrun counted, the overrun tick busy {=u16} us",
-                    s.state.name(),
-                    t.overruns,
-                    t.tick_busy_us
-                );
-                self.ack(io, &Request::ResetFaults, "ResetFaults after the overrun");
-                Next::Advance
-            }
-            20 => {
-                // 9. Encoder fault.
-                self.reset_done_then_travel(io, "encoder 2 disconnected while running")
-            }
+            18 => self.inject_overrun(io, waited),
+            19 => self.deadline_latched(io, waited),
+            20 => self.reset_done_then_travel(io, "encoder 2 disconnected while running"),
             21 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            22 => {
-                if waited < 100 {
-                    return Next::Wait;
+            22 => self.disconnect_encoder(io, waited),
+            23 => self.encoder_fault_latched(io, waited),
+            24 => self.telemetry_off(io),
+            25 => self.stream_stopped(io, waited),
+            26 => self.travel_to_drive(io),
+            27 => self.await_driving(io, waited),
+            _ => Next::Abort,
+        }
+    }
+
+    /// Part 1, at start (from tick 5): the status idle without a fault, the
+    /// compiled-in tuning table read back, no self-test run.
+    fn start_status<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        if io.tick < 5 {
+            return Next::Wait;
+        }
+        defmt::info!("script: status and tuning table at start");
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        check!(
+            s.state == State::Idle && s.faults.is_empty(),
+            "status at start: {=str}, faults {}",
+            s.state.name(),
+            s.faults
+        );
+        let compiled = TuningTable::from_rows(&crate::tuning::TUNING_ROWS).ok();
+        let read = self.read_table(io);
+        check!(
+            read.is_some() && read == compiled,
+            "ReadTuningTable: the compiled-in table ({=usize} rows)",
+            compiled.as_ref().map_or(0, |t| t.rows().len())
+        );
+        let self_test = self.read_self_test(io);
+        check!(
+            self_test.is_some_and(
+                |r| r.status == SelfTestStatus::NotRun && r.result == Default::default()
+            ),
+            "ReadSelfTest at start: not run, nothing measured"
+        );
+        Next::Advance
+    }
+
+    /// Part 2: a table written (the compiled-in one, its right offsets shifted by
+    /// [`TABLE_SHIFT_DEG`]), read back, and found in the flash record.
+    fn write_table<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        defmt::info!("script: tuning table written and read back");
+        let rows = crate::tuning::TUNING_ROWS.map(|(s, r, l)| (s, r + TABLE_SHIFT_DEG, l));
+        let Ok(table) = TuningTable::from_rows(&rows) else {
+            check!(false, "shifted tuning table valid");
+            return Next::Abort;
+        };
+        self.ack(
+            io,
+            &Request::WriteTuningTable(table.clone()),
+            "WriteTuningTable",
+        );
+        let read = self.read_table(io);
+        check!(
+            read.as_ref() == Some(&table),
+            "ReadTuningTable: the table written"
+        );
+        let stored = storage::load(&*io.flash);
+        check!(
+            stored
+                .as_ref()
+                .is_some_and(|s| s.record.tuning == table && s.sequence == 1),
+            "flash record 1 holds the table written"
+        );
+        self.table = Some(table);
+        Next::Advance
+    }
+
+    /// Part 3: frames refused or ignored (a frame CRC error, a header CRC error,
+    /// garbage before a frame, an unknown id, values out of their domain); still idle
+    /// after them.
+    fn refused_frames<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        defmt::info!("script: damaged and invalid frames");
+        self.frame_crc_error(io);
+        self.header_crc_error(io);
+        self.garbage_before_frame(io);
+        self.unknown_message(io);
+        // Values out of their domain.
+        self.nack(
+            io,
+            &Request::Travel {
+                direction: Direction::Right,
+                speed_rpm: f32::NAN,
+            },
+            NackReason::BadValue,
+            "Travel at NaN rpm",
+        );
+        self.nack(
+            io,
+            &Request::StreamTelemetry { period_ms: 5 },
+            NackReason::BadValue,
+            "telemetry every 5 ms",
+        );
+        check!(
+            Self::state_now(io) == State::Idle,
+            "still idle after the refused frames"
+        );
+        Next::Advance
+    }
+
+    /// Frame CRC broken: `Nack BadCrc` with the frame's own sequence number.
+    fn frame_crc_error<L, W>(&mut self, io: &mut Io<'_, L, W>)
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        let mut out = [0u8; MAX_FRAME];
+        let (seq, len) = self.host.frame(&Request::GetStatus, &mut out);
+        if let Some(b) = out.get_mut(len.saturating_sub(1)) {
+            *b ^= 0x01;
+        }
+        let frame = out;
+        self.exchange(io, frame.get(..len).unwrap_or(&[]));
+        let answers = self.host_answers();
+        check!(
+            matches!(answers, [(s, Response::Nack { request, reason: NackReason::BadCrc })]
+                if *s == seq && *request == MessageId::GetStatus as u8),
+            "frame CRC error: Nack BadCrc"
+        );
+    }
+
+    /// Header CRC broken: no answer at all.
+    fn header_crc_error<L, W>(&mut self, io: &mut Io<'_, L, W>)
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        let mut out = [0u8; MAX_FRAME];
+        let (_, len) = self.host.frame(&Request::GetStatus, &mut out);
+        if let Some(b) = out.get_mut(8) {
+            *b ^= 0x80;
+        }
+        let frame = out;
+        let n = self.exchange(io, frame.get(..len).unwrap_or(&[]));
+        check!(n == 0, "header CRC error: no answer ({=usize})", n);
+    }
+
+    /// Garbage, then a frame: the frame is found and answered.
+    fn garbage_before_frame<L, W>(&mut self, io: &mut Io<'_, L, W>)
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        let mut out = [0u8; MAX_FRAME];
+        let mut frame = [0u8; 7 + MAX_FRAME];
+        frame[..7].copy_from_slice(&[0x00, 0xA5, 0x13, 0x5A, 0xFF, 0xA5, 0xA5]);
+        let (seq, len) = self.host.frame(&Request::Heartbeat, &mut out);
+        frame[7..].copy_from_slice(&out);
+        self.exchange(io, frame.get(..7 + len).unwrap_or(&[]));
+        let answers = self.host_answers();
+        check!(
+            matches!(answers, [(s, Response::Ack { .. })] if *s == seq),
+            "garbage before a frame: the frame answered"
+        );
+    }
+
+    /// An unknown message id: `Nack UnknownMessage`.
+    fn unknown_message<L, W>(&mut self, io: &mut Io<'_, L, W>)
+    where
+        L: rtic::Mutex<T = LinkState>,
+    {
+        let mut out = [0u8; MAX_FRAME];
+        let len = encode_frame(0x7E, 900, &[], &mut out).unwrap_or(0);
+        let frame = out;
+        self.exchange(io, frame.get(..len).unwrap_or(&[]));
+        let answers = self.host_answers();
+        check!(
+            matches!(
+                answers,
+                [(
+                    900,
+                    Response::Nack {
+                        request: 0x7E,
+                        reason: NackReason::UnknownMessage
+                    }
+                )]
+            ),
+            "unknown id: Nack UnknownMessage"
+        );
+    }
+
+    /// Parts 4 and 5: telemetry on, every [`TELEMETRY_PERIOD_MS`], heartbeats from
+    /// here on, and travel right.
+    fn travel_with_telemetry<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        defmt::info!("script: travel right at 3000 rpm");
+        self.ack(
+            io,
+            &Request::StreamTelemetry {
+                period_ms: TELEMETRY_PERIOD_MS,
+            },
+            "StreamTelemetry",
+        );
+        self.keepalive = true;
+        self.ack(io, &travel_right(), "Travel right");
+        Next::Advance
+    }
+
+    /// Part 5: the run, [`SETTLE_TICKS`] after `running`: the phase loop closed,
+    /// the measured and true speeds, the written table's offset, the phase error and
+    /// the model's true offset; then stop.
+    fn settled_run<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        if waited < SETTLE_TICKS {
+            return Next::Wait;
+        }
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        let t = s.telemetry;
+        let world = io.world.lock(|w| (w.true_speed_rpm, w.true_offset_deg));
+        let table_offset = self
+            .table
+            .as_ref()
+            .map_or(f32::NAN, |t| t.offset(Direction::Right, SPEED_RPM));
+        check!(
+            s.state == State::Running && t.phase_loop_closed && t.phase_valid,
+            "{=u32} ticks later: {=str}, phase loop closed",
+            SETTLE_TICKS,
+            s.state.name()
+        );
+        check!(
+            t.speed_rpm
+                .iter()
+                .chain(world.0.iter())
+                .all(|v| abs(v - SPEED_RPM) < SPEED_TOLERANCE_RPM),
+            "measured and true speeds within {=f32} rpm of {=f32}",
+            SPEED_TOLERANCE_RPM,
+            SPEED_RPM
+        );
+        check!(
+            abs(t.target_offset_deg - table_offset) < 0.01,
+            "target offset from the table written: {=f32} deg",
+            table_offset
+        );
+        check!(
+            abs(t.phase_error_deg) < PHASE_TOLERANCE_DEG
+                && angle_distance(world.1, t.commanded_offset_deg) < PHASE_TOLERANCE_DEG,
+            "phase error and true offset within {=f32} deg",
+            PHASE_TOLERANCE_DEG
+        );
+        self.ack(io, &Request::Stop, "Stop");
+        Next::Advance
+    }
+
+    /// Part 6: both rotors at rest (true speeds 0, measured ones within
+    /// `REST_RPM`) within [`REST_LIMIT_TICKS`] after idle.
+    fn await_rest<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let true_speed = io.world.lock(|w| w.true_speed_rpm);
+        let measured = io.state.lock(|l| l.status.telemetry.speed_rpm);
+        if true_speed == [0.0; 2] && measured.iter().all(|v| abs(*v) <= REST_RPM) {
+            check!(
+                true,
+                "rotors at rest {=u32} ticks after idle (limit {=u32}): true speeds 0, measured within {=f32} rpm",
+                waited,
+                REST_LIMIT_TICKS,
+                REST_RPM
+            );
+            Next::Advance
+        } else if waited >= REST_LIMIT_TICKS {
+            check!(
+                false,
+                "rotors at rest within {=u32} ticks: true {=f32} / {=f32} rpm, measured {=f32} / {=f32} rpm",
+                REST_LIMIT_TICKS,
+                true_speed[0],
+                true_speed[1],
+                measured[0],
+                measured[1]
+            );
+            Next::Abort
+        } else {
+            Next::Wait
+        }
+    }
+
+    /// Part 6: the self-test asked for, the model's record of its drives cleared
+    /// and the rotors' rest angles logged.
+    fn start_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        defmt::info!("script: self-test");
+        let angles = io.world.lock(|w| {
+            w.self_test_ticks = 0;
+            w.drive_start = [None; 2];
+            w.drive_ticks = [0; 2];
+            w.drive_peak_rpm = [0.0; 2];
+            w.angle_turns
+        });
+        defmt::info!(
+            "rest angles (model, from the index): {=f32} / {=f32} deg",
+            angles[0] * 360.0,
+            angles[1] * 360.0
+        );
+        self.travel_nacked = false;
+        if !self.ack(io, &Request::RunSelfTest, "RunSelfTest") {
+            return Next::Abort;
+        }
+        Next::Advance
+    }
+
+    /// Part 6: the self-test polled every tick until it has ended, within
+    /// [`self_test_limit_ticks`]; a `Travel` while it drives rotor 1 `Nack Busy`.
+    fn poll_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(report) = self.read_self_test(io) else {
+            check!(false, "ReadSelfTest: SelfTest");
+            return Next::Abort;
+        };
+        let limit = self_test_limit_ticks();
+        match report.status {
+            SelfTestStatus::Done | SelfTestStatus::Aborted => {
+                check!(
+                    report.status == SelfTestStatus::Done && waited <= limit,
+                    "self-test {} after {=u32} ticks (limit {=u32}, the documented worst case)",
+                    report.status,
+                    waited,
+                    limit
+                );
+                self.self_test = Some(report);
+                Next::Advance
+            }
+            _ if waited >= limit => {
+                check!(
+                    false,
+                    "self-test finished within {=u32} ticks: still {}",
+                    limit,
+                    report.status
+                );
+                Next::Abort
+            }
+            SelfTestStatus::Running => {
+                // A run command while rotor 1 is driven: refused, the test
+                // goes on.
+                let driving = io.world.lock(|w| w.drive_start[0].is_some());
+                if driving && !self.travel_nacked {
+                    self.travel_nacked = true;
+                    self.nack(
+                        io,
+                        &travel_right(),
+                        NackReason::Busy,
+                        "Travel while the self-test drives rotor 1",
+                    );
                 }
-                let speed = io.state.lock(|l| l.status.telemetry.speed_rpm[1]);
-                self.bound_ticks = encoder_bound_ticks(&Params::reference(), speed);
-                defmt::info!(
-                    "encoder 2 disconnected; bound {=u32} ticks",
+                Next::Wait
+            }
+            SelfTestStatus::NotRun if waited < START_LIMIT_TICKS => Next::Wait,
+            SelfTestStatus::NotRun => {
+                check!(
+                    false,
+                    "self-test started within {=u32} ticks",
+                    START_LIMIT_TICKS
+                );
+                Next::Abort
+            }
+        }
+    }
+
+    /// Part 6: the self-test's result: per rotor both polarities, the index, the
+    /// model's counts a turn and the index offset the model predicts
+    /// ([`index_offset_model`]); the result stored in flash with the table; idle.
+    fn self_test_result<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(report) = self.self_test else {
+            return Next::Abort;
+        };
+        if !self.travel_nacked {
+            check!(false, "a Travel sent while the self-test drove rotor 1");
+        }
+        let (ticks, starts, driven, peak, n, cost) = io.world.lock(|w| {
+            (
+                w.self_test_ticks,
+                w.drive_start,
+                w.drive_ticks,
+                w.drive_peak_rpm,
+                w.encoder_counts,
+                w.cost_self_test,
+            )
+        });
+        // Left out of the comparison as the other measurements (`report`
+        // logs those, with the calibration to convert into instructions).
+        defmt::info!(
+            "measure: control step, self-test: {=u32} steps, mean {=u32} / max {=u32} SysTick counts",
+            cost.steps,
+            cost.mean(),
+            cost.max
+        );
+        defmt::info!(
+            "self-test: {=u32} ticks in state self_test; driven {=u32} / {=u32} ticks, peak {=f32} / {=f32} rpm (model)",
+            ticks,
+            driven[0],
+            driven[1],
+            peak[0],
+            peak[1]
+        );
+        for (k, r) in report.result.rotors.iter().enumerate() {
+            check_rotor_self_test(k + 1, r, starts[k], n);
+        }
+        let stored = storage::load(&*io.flash);
+        check!(
+            stored.as_ref().is_some_and(|s| s.sequence == 2
+                && s.record.self_test == Some(report.result)
+                && Some(&s.record.tuning) == self.table.as_ref()),
+            "flash record {=u32}: the self-test result with the table written",
+            stored.as_ref().map_or(0, |s| s.sequence)
+        );
+        check!(
+            Self::state_now(io) == State::Idle,
+            "idle after the self-test"
+        );
+        Next::Advance
+    }
+
+    /// Part 7, the E-stop fault: travel right again.
+    fn estop_travel<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        defmt::info!("script: E-stop fault while running");
+        self.ack(io, &travel_right(), "Travel right");
+        Next::Advance
+    }
+
+    /// Part 7: the E-stop circuit opened, [`RUN_BEFORE_FAULT_TICKS`] into the
+    /// run.
+    fn open_estop<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        if waited < RUN_BEFORE_FAULT_TICKS {
+            return Next::Wait;
+        }
+        defmt::info!("E-stop opened");
+        self.inject(io, true, [false; 2]);
+        Next::Advance
+    }
+
+    /// Part 7: `ESTOP` latched in the first tick that sees the circuit open, the
+    /// outputs safe in that tick; a reset asked for while it is still open.
+    fn estop_latched<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(seen) = io.world.lock(|w| w.first_fault) else {
+            check!(false, "ESTOP latched in the first tick that sees it");
+            return Next::Abort;
+        };
+        check!(
+            seen.faults.contains(Faults::ESTOP) && seen.tick.wrapping_sub(self.injected_at) == 1,
+            "ESTOP latched in the first tick that sees the circuit open (bound: that tick), faults {}",
+            seen.faults
+        );
+        check_outputs_cut(&seen);
+        self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop open");
+        Next::Advance
+    }
+
+    /// Part 7: the fault kept while the E-stop is open; the circuit closed and a
+    /// reset asked for.
+    fn estop_reset<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        check!(
+            s.state == State::Fault && s.faults.contains(Faults::ESTOP),
+            "still fault while the E-stop is open: {}",
+            s.faults
+        );
+        defmt::info!("E-stop closed");
+        self.inject(io, false, [false; 2]);
+        self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop closed");
+        Next::Advance
+    }
+
+    /// Part 8, the deadline: no overrun so far, then the control task made to
+    /// work [`overrun_us`] longer once, [`RUN_BEFORE_FAULT_TICKS`] into the run.
+    fn inject_overrun<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        if waited < RUN_BEFORE_FAULT_TICKS {
+            return Next::Wait;
+        }
+        let overruns = io.state.lock(|l| l.status.telemetry.overruns);
+        check!(
+            overruns == 0,
+            "no overrun so far: {=u16} ticks missed their deadline",
+            overruns
+        );
+        let overrun = overrun_us();
+        defmt::info!("control task busy {=u32} us longer once", overrun);
+        io.world.lock(|w| {
+            w.injected.overrun_us = overrun;
+            w.first_fault = None;
+        });
+        self.injected_at = io.tick;
+        Next::Advance
+    }
+
+    /// Part 8: `DEADLINE` latched in the tick after the overrun, the outputs safe
+    /// in that tick, the overrun counted and its tick's busy time in the status; a
+    /// reset asked for.
+    fn deadline_latched<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(seen) = io.world.lock(|w| w.first_fault) else {
+            if waited <= 3 {
+                return Next::Wait;
+            }
+            check!(false, "DEADLINE latched after the overrun");
+            return Next::Abort;
+        };
+        // The overrun ends tick n + 1 (the first after the injection);
+        // tick n + 2 reads its duration.
+        check!(
+            seen.faults == Faults::DEADLINE && seen.tick.wrapping_sub(self.injected_at) == 2,
+            "DEADLINE latched in the tick after the overrun (bound: that tick), faults {}, {=u32} ticks after the injection",
+            seen.faults,
+            seen.tick.wrapping_sub(self.injected_at)
+        );
+        check_outputs_cut(&seen);
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        let t = s.telemetry;
+        // The status of the tick that latched it: the overrun tick's
+        // duration, and the count.
+        check!(
+            u32::from(t.tick_busy_us) >= overrun_us() && t.overruns == 1 && s.state == State::Fault,
+            "status: {=str}, {=u16} overrun counted, the overrun tick busy {=u16} us",
+            s.state.name(),
+            t.overruns,
+            t.tick_busy_us
+        );
+        self.ack(io, &Request::ResetFaults, "ResetFaults after the overrun");
+        Next::Advance
+    }
+
+    /// Part 9, the encoder fault: encoder 2 disconnected,
+    /// [`RUN_BEFORE_FAULT_TICKS`] into the run; the controller's detection bound for
+    /// its speed ([`encoder_bound_ticks`]).
+    fn disconnect_encoder<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        if waited < RUN_BEFORE_FAULT_TICKS {
+            return Next::Wait;
+        }
+        let speed = io.state.lock(|l| l.status.telemetry.speed_rpm[1]);
+        self.bound_ticks = encoder_bound_ticks(&Params::reference(), speed);
+        defmt::info!(
+            "encoder 2 disconnected; bound {=u32} ticks",
+            self.bound_ticks
+        );
+        self.inject(io, false, [false, true]);
+        Next::Advance
+    }
+
+    /// Part 9: `ENCODER` (or `STALL`) latched within the bound, the outputs safe
+    /// in that tick; heartbeats stop, the encoder stays disconnected.
+    fn encoder_fault_latched<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        match io.world.lock(|w| w.first_fault) {
+            None if waited <= self.bound_ticks + 1 => Next::Wait,
+            None => {
+                check!(false, "encoder fault within {=u32} ticks", self.bound_ticks);
+                Next::Abort
+            }
+            Some(seen) => {
+                let latency = seen.tick.wrapping_sub(self.injected_at);
+                check!(
+                    seen.faults.intersects(Faults::ENCODER | Faults::STALL)
+                        && latency <= self.bound_ticks,
+                    "fault {} latched {=u32} ticks after the disconnection (bound {=u32})",
+                    seen.faults,
+                    latency,
                     self.bound_ticks
                 );
-                self.inject(io, false, [false, true]);
+                check_outputs_cut(&seen);
+                // Left disconnected: the counter has lost counts, so the index
+                // is no longer a whole number of turns from the last one, and
+                // the controller would latch ENCODER again at the next pulse.
+                self.keepalive = false;
                 Next::Advance
             }
-            23 => {
-                match io.world.lock(|w| w.first_fault) {
-                    None if waited <= self.bound_ticks + 1 => Next::Wait,
-                    None => {
-                        check!(false, "encoder fault within {=u32} ticks", self.bound_ticks);
-                        Next::Abort
-                    }
-                    Some(seen) => {
-                        let latency = seen.tick.wrapping_sub(self.injected_at);
-                        check!(
-                            seen.faults.intersects(Faults::ENCODER | Faults::STALL)
-                                && latency <= self.bound_ticks,
-                            "fault {} latched {=u32} ticks after the disconnection (bound {=u32})",
-                            seen.faults,
-                            latency,
-                            self.bound_ticks
-                        );
-                        check!(
-                            !seen.enable && seen.duty == [0.0; 2],
-                            "driver disabled and duties 0 in that tick"
-                        );
-                        // Left disconnected: the counter has lost counts, so the index
-                        // is no longer a whole number of turns from the last one, and
-                        // the controller would latch ENCODER again at the next pulse.
-                        self.keepalive = false;
-                        Next::Advance
-                    }
-                }
-            }
-            24 => {
-                let Some(s) = self.status(io) else {
-                    return Next::Abort;
-                };
-                check!(
-                    s.state == State::Fault && s.faults.contains(Faults::ENCODER),
-                    "status: {=str}, faults {}",
-                    s.state.name(),
-                    s.faults
-                );
-                // 9. Telemetry off, and what it delivered.
-                self.ack(
-                    io,
-                    &Request::StreamTelemetry { period_ms: 0 },
-                    "StreamTelemetry off",
-                );
-                let t = self.host.telemetry;
-                check!(
-                    t.frames > 10
-                        && t.seq_gaps == 0
-                        && t.min_step_ms >= u32::from(TELEMETRY_PERIOD_MS),
-                    "telemetry: {=u32} frames, {=u32} sequence gaps, at least {=u32} ms apart",
-                    t.frames,
-                    t.seq_gaps,
-                    t.min_step_ms
-                );
-                check!(
-                    self.heartbeat_failures == 0 && self.host.bad_frames == 0,
-                    "heartbeats all answered, every frame from the device parsed"
-                );
-                Next::Advance
-            }
-            25 => {
-                // The stream is off: nothing more comes.
-                let frames = self.host.telemetry.frames;
-                if waited < 300 {
-                    return Next::Wait;
-                }
-                check!(
-                    self.host.telemetry.frames == frames,
-                    "no telemetry after the stream was stopped"
-                );
-                // 11. An unexpected interrupt while driving: the encoder back,
-                // the fault reset, a run started.
-                defmt::info!("script: an unexpected interrupt while the motors are driven");
-                self.inject(io, false, [false; 2]);
-                self.ack(io, &Request::ResetFaults, "ResetFaults");
-                Next::Advance
-            }
-            // One command a tick: the run command at the next.
-            26 => {
-                self.ack(io, &travel_right(), "Travel right");
-                self.keepalive = true;
-                Next::Advance
-            }
-            27 => {
-                let (enable, duty) = io.world.lock(|w| (w.enable, w.duty));
-                if enable && duty.iter().any(|d| *d != 0.0) {
-                    check!(
-                        true,
-                        "driving {=u32} ticks after the run command: the interrupt is pended after the checks' report",
-                        waited
-                    );
-                    self.armed = true;
-                    Next::Advance
-                } else if waited >= RUNNING_LIMIT_TICKS {
-                    check!(false, "driving within {=u32} ticks", RUNNING_LIMIT_TICKS);
-                    Next::Abort
-                } else {
-                    Next::Wait
-                }
-            }
-            _ => Next::Abort,
+        }
+    }
+
+    /// Part 10: the status in `ENCODER` fault; the telemetry stream stopped, and
+    /// what it delivered: frames in sequence, [`TELEMETRY_PERIOD_MS`] apart, every
+    /// heartbeat answered, every frame parsed.
+    fn telemetry_off<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let Some(s) = self.status(io) else {
+            return Next::Abort;
+        };
+        check!(
+            s.state == State::Fault && s.faults.contains(Faults::ENCODER),
+            "status: {=str}, faults {}",
+            s.state.name(),
+            s.faults
+        );
+        self.ack(
+            io,
+            &Request::StreamTelemetry { period_ms: 0 },
+            "StreamTelemetry off",
+        );
+        let t = self.host.telemetry;
+        check!(
+            t.frames > 10 && t.seq_gaps == 0 && t.min_step_ms >= u32::from(TELEMETRY_PERIOD_MS),
+            "telemetry: {=u32} frames, {=u32} sequence gaps, at least {=u32} ms apart",
+            t.frames,
+            t.seq_gaps,
+            t.min_step_ms
+        );
+        check!(
+            self.heartbeat_failures == 0 && self.host.bad_frames == 0,
+            "heartbeats all answered, every frame from the device parsed"
+        );
+        Next::Advance
+    }
+
+    /// Part 10: the stream is off: nothing more comes. Part 11, an unexpected
+    /// interrupt while driving: the encoder back, the fault reset.
+    fn stream_stopped<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let frames = self.host.telemetry.frames;
+        if waited < 300 {
+            return Next::Wait;
+        }
+        check!(
+            self.host.telemetry.frames == frames,
+            "no telemetry after the stream was stopped"
+        );
+        defmt::info!("script: an unexpected interrupt while the motors are driven");
+        self.inject(io, false, [false; 2]);
+        self.ack(io, &Request::ResetFaults, "ResetFaults");
+        Next::Advance
+    }
+
+    /// Part 11: one command a tick: the run command at the tick after the reset;
+    /// heartbeats again.
+    fn travel_to_drive<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        self.ack(io, &travel_right(), "Travel right");
+        self.keepalive = true;
+        Next::Advance
+    }
+
+    /// Part 11: the bridges driven within [`RUNNING_LIMIT_TICKS`]: the script is
+    /// done, and [`Script::end`] pends the unexpected interrupt after the report.
+    fn await_driving<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
+    where
+        L: rtic::Mutex<T = LinkState>,
+        W: rtic::Mutex<T = World>,
+    {
+        let (enable, duty) = io.world.lock(|w| (w.enable, w.duty));
+        if enable && duty.iter().any(|d| *d != 0.0) {
+            check!(
+                true,
+                "driving {=u32} ticks after the run command: the interrupt is pended after the checks' report",
+                waited
+            );
+            self.armed = true;
+            Next::Advance
+        } else if waited >= RUNNING_LIMIT_TICKS {
+            check!(false, "driving within {=u32} ticks", RUNNING_LIMIT_TICKS);
+            Next::Abort
+        } else {
+            Next::Wait
         }
     }
 
@@ -1019,6 +1174,51 @@ impl Script {
         }
         super::checks::finish()
     }
+}
+
+/// Check rotor `rotor`'s self-test result `r` against the model: both
+/// polarities, the index seen, `n` counts a turn, and the index offset the model
+/// predicts from the rest angle at `start`, the self-test's drive of it.
+fn check_rotor_self_test(rotor: usize, r: &RotorSelfTest, start: Option<DriveStart>, n: u32) {
+    check!(
+        r.motor_polarity_ok && r.encoder_polarity_ok && r.index_seen,
+        "rotor {=usize}: motor polarity ok {=bool}, encoder polarity ok {=bool}, index seen {=bool}",
+        rotor,
+        r.motor_polarity_ok,
+        r.encoder_polarity_ok,
+        r.index_seen
+    );
+    check!(
+        r.counts_per_rev == n,
+        "rotor {=usize}: {=u32} counts a turn (model {=u32})",
+        rotor,
+        r.counts_per_rev,
+        n
+    );
+    let Some(start) = start else {
+        check!(false, "rotor {=usize}: driven by the self-test", rotor);
+        return;
+    };
+    let (exact, predicted) = index_offset_model(start.angle_turns, n);
+    check!(
+        r.index_offset_counts < n && r.index_offset_counts == predicted,
+        "rotor {=usize}: index offset {=u32} counts, model {=u32} ({=f32} from its rest angle {=f32} deg at tick {=u32})",
+        rotor,
+        r.index_offset_counts,
+        predicted,
+        exact,
+        start.angle_turns * 360.0,
+        start.tick
+    );
+}
+
+/// Check that the tick that latched a fault left the outputs safe: the driver
+/// disabled and both duties 0.
+fn check_outputs_cut(seen: &FaultSeen) {
+    check!(
+        !seen.enable && seen.duty == [0.0; 2],
+        "driver disabled and duties 0 in that tick"
+    );
 }
 
 /// Travel right at [`SPEED_RPM`].
