@@ -102,7 +102,13 @@ step_clippy() {
 }
 
 step_doc() {
-    RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+    RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps || return 1
+    # The firmware's documents, for the board and the QEMU binaries' features.
+    local features
+    for features in "" qemu pil; do
+        (cd firmware && RUSTDOCFLAGS="-D warnings" \
+            cargo doc --release --locked --no-deps ${features:+--features "$features"}) || return 1
+    done
 }
 
 # The host tests. The output is kept to total the counts at the end of the run.

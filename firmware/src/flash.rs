@@ -3,7 +3,7 @@
 //! sectors, program 32-bit words, read (RM0090 section 3.6, "Flash program/erase
 //! operations").
 //!
-//! The flash this driver shows is sectors 10 and 11 only ([`PARAM_BASE`], 128 KiB
+//! The flash this driver shows is sectors 10 and 11 only (`PARAM_BASE`, 128 KiB
 //! each, kept out of the program by `memory.x`): offset 0 is `0x080C0000` (sector
 //! 10), offset 128 Ki `0x080E0000` (sector 11), and the capacity is 256 KiB. An offset
 //! beyond them is out of bounds, so no offset can reach the program. Erase ranges are

@@ -24,8 +24,8 @@
 //!   of sampling each at 21 MHz: `3 x (56 + 12) / 21 MHz = 9.7 us` a scan, within
 //!   the 20 us between two updates at most ([`shared::drive::MAX_UPDATE_HZ`]);
 //!   `DMA = 1`, `DDS = 1` (a request after every conversion, for good);
-//! - DMA2 stream 0 channel 0: ADC1's data register to [`BUFFER`], half-words,
-//!   circular, [`SCANS`] scans deep: one control tick of updates, so the tick
+//! - DMA2 stream 0 channel 0: ADC1's data register to `BUFFER`, half-words,
+//!   circular, `SCANS` scans deep: one control tick of updates, so the tick
 //!   averages the currents over its own millisecond.
 //!
 //! # Failures, and what the controller sees

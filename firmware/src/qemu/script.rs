@@ -16,7 +16,7 @@
 //!    offset checked; stop: `idle` within [`STOP_LIMIT_TICKS`];
 //! 6. self-test, once both rotors are at rest (within [`REST_LIMIT_TICKS`]):
 //!    `RunSelfTest` Acked, `ReadSelfTest` polled every tick until it is no longer
-//!    running (at most the documented worst case, [`self_test_limit_ticks`]), a
+//!    running (at most the documented worst case, `self_test_limit_ticks`), a
 //!    `Travel` meanwhile `Nack Busy`; status `Done`; per rotor both polarities, the
 //!    index, the model's counts a turn and the index offset the model predicts from
 //!    its true rest angle ([`index_offset_model`]); the result stored in flash with
@@ -1278,7 +1278,7 @@ const UNEXPECTED_IRQ: Interrupt = Interrupt::CAN1_TX;
 /// Set when the script pends it.
 static PENDED: AtomicBool = AtomicBool::new(false);
 
-/// Pend [`UNEXPECTED_IRQ`] (unmasked first: a masked interrupt stays pending and
+/// Pend `UNEXPECTED_IRQ` (unmasked first: a masked interrupt stays pending and
 /// never runs). The default handler takes it at once.
 pub fn pend_unexpected() {
     defmt::info!("script: pending an interrupt nothing is bound to");

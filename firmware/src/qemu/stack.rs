@@ -91,7 +91,7 @@ pub const WINDOW: usize = 8 * 1024;
 static LOWEST: AtomicUsize = AtomicUsize::new(usize::MAX);
 
 /// Paint the `WINDOW` bytes below `top` (a task's stack pointer, read at its
-/// start), except the frame of this function and [`MARGIN`]: before the task's
+/// start), except the frame of this function and `MARGIN`: before the task's
 /// work, so that [`window_lowest`] can tell how deep that work went. What the
 /// window shows written so far is kept for [`used`] first.
 #[inline(never)]
