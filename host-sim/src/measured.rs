@@ -33,10 +33,11 @@
 
 use std::path::Path;
 
-use crate::machine::input;
+use crate::machine::input::{self, MAX_QUOTED};
 use crate::numbers;
 use crate::numbers::decimals;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
+use crate::simulation::trace::MAX_VELOCITY_MPS;
 
 /// The columns every file has, in the order a new file is written.
 pub const COLUMNS: [&str; 3] = ["speed_rpm", "offset_deg", "velocity_mps"];
@@ -60,10 +61,6 @@ pub const MAX_SPEED_RPM: f64 = 60_000.0;
 /// between two rotors; a number beyond a turn is another column's (a speed of
 /// 3000 in the offset column would wrap to 120 deg unnoticed).
 pub const MAX_OFFSET_DEG: f64 = 360.0;
-
-/// Fastest travel of a row either way, m/s: that of a simulated run
-/// (`simulation::trace::MAX_VELOCITY_MPS`, 10 m/s), one bound for both.
-pub use crate::simulation::trace::MAX_VELOCITY_MPS;
 
 /// Smallest and largest weight of a row. Weights are relative (the weighted
 /// mean and the fit's estimates do not change when every weight is multiplied
@@ -197,10 +194,6 @@ pub const MAX_BYTES: u64 = 64 << 20;
 
 /// The most problems one message lists; the rest are counted.
 pub const MAX_PROBLEMS: usize = 50;
-
-/// The longest field quoted whole in a message, bytes; a longer one is cut
-/// ([`input::cut`]): the machine file reader's, one length for every input file.
-pub use crate::machine::input::MAX_QUOTED;
 
 /// Reads and checks the file at `path` ([`parse_each`]), row by row: `each` gets
 /// every row, none is kept here. A file over [`MAX_BYTES`] is refused unread.

@@ -23,12 +23,12 @@
 use std::f64::consts::PI;
 use tests::initial_state;
 
+use host_sim::event::EventKind;
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{ContactMode, Holds, Plant, Settings};
 use host_sim::simulation::closed_loop::ControllerDriver;
-use host_sim::simulation::trace::EventKind;
 use host_sim::simulation::Driver;
 use shared::controller::{Command, Direction, RotorCount, State};
 use tests::rig::{check, cross, G};

@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
+use host_sim::event::EventKind;
 use host_sim::machine::Machine;
-use host_sim::simulation::trace::EventKind;
 use tests::unpowered_plant;
 
 const G: f64 = 9.81;

@@ -27,10 +27,10 @@
 use std::f64::consts::PI;
 use std::path::Path;
 
+use host_sim::event::EventKind;
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Output, Plant};
-use host_sim::simulation::trace::EventKind;
 use tests::unpowered_plant;
 
 const M: f64 = 1.0;

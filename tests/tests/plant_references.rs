@@ -24,9 +24,9 @@
 use shared::Enumerated;
 use std::f64::consts::PI;
 
+use host_sim::event::{EventKind, EventRow};
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{ContactMode, Holds, Output, Plant, Settings, NY};
-use host_sim::simulation::trace::{EventKind, EventRow};
 use shared::impact::{solve_body, BodyContact, ContactLaw, ImpactLaw, PlanarBody};
 use tests::rig::*;
 

@@ -45,8 +45,8 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
+use host_sim::event::EventKind;
 use host_sim::plant::simulator::Settings;
-use host_sim::simulation::trace::EventKind;
 use tests::held::{held_rotors, mean_velocity, reference_machine};
 use tests::moreau_jean::{Machine, Rotor, Stepper};
 

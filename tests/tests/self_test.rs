@@ -24,11 +24,11 @@
 
 use std::f64::consts::{PI, TAU};
 
+use host_sim::event::EventRow;
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::simulator::Plant;
 use host_sim::simulation::closed_loop::{ControllerDriver, InLoop};
-use host_sim::simulation::trace::EventRow;
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use shared::controller::{
     self_test, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,

@@ -3,10 +3,10 @@
 //! run keeps when asked, with the controller's state changes merged in; and the
 //! summary counts the distinct impact times of them all.
 
+use host_sim::event::{EventKind, EventRow};
 use host_sim::machine::Machine;
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::summary::impact_times;
-use host_sim::simulation::trace::{EventKind, EventRow};
 use host_sim::simulation::{simulate_observed, Observer, RunOptions};
 use shared::controller::{Command, Direction};
 use tests::held::reference_path;

@@ -46,8 +46,6 @@ pub mod set;
 pub mod tuning_file;
 pub mod uncertainty;
 
-pub use rotors::Rotors;
-
 use std::path::{Path, PathBuf};
 
 use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorPhysics};
@@ -61,6 +59,7 @@ use input::{
     check_names, number, read_name, vector, Limit, Location, Named, Need, Problem, Problems,
     Section,
 };
+use rotors::Rotors;
 
 /// The obstacle line the platform strikes, and gravity.
 #[derive(Clone, Debug, PartialEq)]

@@ -8,7 +8,8 @@ use std::path::Path;
 mod common;
 use common::assert_problem;
 use machine_file::input::{render, Problem};
-use machine_file::{machine_constants, Machine, Rotors};
+use machine_file::rotors::Rotors;
+use machine_file::{machine_constants, Machine};
 use shared::controller::{Params, RotorCount};
 
 /// Only the required sections, two rotors (`left`, `right`).

@@ -16,7 +16,7 @@
 //!    `(speed, offset)` of the measured file (`tune`'s [`run_point`], holding the
 //!    offset from `t = 0`), all the runs of a batch of points in parallel; a run
 //!    that does not hold its offset gives its point the residual
-//!    [`NOT_HELD_RESIDUAL_MPS`];
+//!    [`points::NOT_HELD_RESIDUAL_MPS`];
 //! 3. the simulator's numerical noise at the fit: every point run again at other
 //!    tolerances ([`numerical`]); the standard errors, the measurements' scatter
 //!    and that noise both in them, and the keys not identified ([`precision`]);
@@ -109,8 +109,6 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "FILE.json", requires = "shard")]
     pub out_part: Option<PathBuf>,
 }
-
-pub use points::NOT_HELD_RESIDUAL_MPS;
 
 /// What was read in stage 1.
 pub struct Inputs {

@@ -30,9 +30,9 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::PlantModel;
 use crate::plant::simulator::{Holds, Plant, Settings, Stop};
+use crate::simulation::board::Injected;
 use crate::simulation::board::{bridge_commands, BoardSensors, Readings};
 use crate::simulation::breach::{Breach, BreachWatch};
-use crate::simulation::closed_loop::Injected;
 
 /// The plant's warnings kept word for word; those after are only counted.
 pub const MAX_WARNINGS: usize = 20;

@@ -19,7 +19,7 @@ use shared::protocol::{
     ANSWER_TIMEOUT_MS, MAX_FRAME, STORE_ANSWER_TIMEOUT_MS,
 };
 
-use super::port::Port;
+use super::pipe::Port;
 
 /// Tries of a request after the first, by default: six tries of 100 ms fit in the
 /// controller's 0.5 s link timeout plus one.

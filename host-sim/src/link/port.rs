@@ -8,7 +8,7 @@ use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
-pub use super::pipe::Port;
+use super::pipe::Port;
 use super::serial::SerialLine;
 
 /// How long connecting to a TCP port may take.

@@ -10,8 +10,9 @@ use std::fmt::Write as _;
 
 use shared::impact::MAX_CONTACTS;
 
+use crate::event::EventRow;
 use crate::machine::MachineContact;
-use crate::simulation::trace::{EventRow, TraceRow};
+use crate::simulation::trace::TraceRow;
 
 /// The trace CSV's columns that every machine has (docs/cli-run.md, `--out`);
 /// the contact forces follow ([`trace_header`]).
@@ -148,7 +149,7 @@ mod tests {
         }
         out
     }
-    use crate::simulation::trace::EventKind;
+    use crate::event::EventKind;
 
     #[test]
     fn numbers_round_trip() {

@@ -27,6 +27,7 @@ use shared::impact::MAX_CONTACTS;
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
+use crate::event::EventRow;
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::interrupt;
@@ -38,7 +39,7 @@ use crate::output::file::Staged;
 use crate::output::progress::Progress;
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::pil::{FirmwareDriver, TickCost};
-use crate::simulation::trace::{EventRow, TraceRow};
+use crate::simulation::trace::TraceRow;
 use crate::simulation::{
     limits, simulate_observed, stop_message, Driver, InTheLoop, Observer, OpenLoop, OpenLoopDriver,
     RunOptions,

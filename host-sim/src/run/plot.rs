@@ -20,12 +20,13 @@
 
 use std::fmt::Write as _;
 
+use crate::event::EventRow;
 use crate::machine::Machine;
 use crate::output::svg::{
     escape, nice_step, open_document, tick_label, ticks, value_grid_line, PALETTE,
 };
 use crate::simulation::summary::{impact_times, phase_offset_deg};
-use crate::simulation::trace::{EventRow, TraceRow};
+use crate::simulation::trace::TraceRow;
 
 /// Most points drawn for one line before it is thinned.
 pub const MAX_POINTS: usize = 4000;

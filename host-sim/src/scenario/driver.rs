@@ -10,13 +10,14 @@ use shared::pil::MAX_LATE_US;
 use super::file::InjectedFault;
 use super::file::Injection;
 use super::file::Scenario;
+use crate::event::EventRow;
 use crate::failure::Failure;
 use crate::machine::input::Problem;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
+use crate::simulation::board::Injected;
+use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::closed_loop::InLoop;
-use crate::simulation::closed_loop::{ControllerDriver, Injected};
-use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
 
 /// One control tick as recorded.

@@ -13,8 +13,9 @@ use super::file::When;
 use super::file::TIME_EPS;
 use crate::machine::input::Problem;
 use crate::numbers::sig;
+use crate::plant::progress::Stop;
 use crate::simulation::breach::Breach;
-use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions, Stop};
+use crate::simulation::{simulate_observed, Driver, Interruptible, Observer, RunOptions};
 
 /// How one expectation came out.
 #[derive(Clone, Debug, PartialEq)]

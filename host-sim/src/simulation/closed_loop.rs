@@ -38,9 +38,9 @@ use crate::machine::tuning_file;
 use crate::machine::{machine_constants, Machine};
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
-pub use crate::simulation::board::Injected;
-use crate::simulation::board::{BoardSensors, PlantBoard};
-use crate::simulation::trace::{EventKind, EventRow};
+
+use crate::event::{EventKind, EventRow};
+use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
 use crate::simulation::Driver;
 
 /// The controller in the loop.

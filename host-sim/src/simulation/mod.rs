@@ -27,17 +27,16 @@ pub mod trace;
 
 use std::sync::atomic::AtomicUsize;
 
+use crate::event::{EventKind, EventRow};
 use crate::machine::Machine;
 use crate::numbers::sig;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::model::PlantModel;
+use crate::plant::progress::Stop;
 use crate::plant::simulator::{ContactForces, Holds, Output, Plant, Settings, NY};
 use crate::simulation::closed_loop::InLoop;
 use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
-use crate::simulation::trace::{EventKind, EventRow, Summary, TraceRow};
-
-/// Why a run ended early ([`RunResult::stopped`]): the plant's own word for it.
-pub use crate::plant::simulator::Stop;
+use crate::simulation::trace::{Summary, TraceRow};
 
 /// Why a run ended early, for a command's message: the signal by its name and
 /// the time (`interrupted by SIGTERM at t = 1.5 s`, then ` of T s` where

@@ -19,8 +19,9 @@ use crate::machine::{Machine, Rotor};
 use crate::simulation::breach::{Breach, BreachWatch};
 use shared::controller::Faults;
 
+use crate::event::{EventKind, EventRow};
 use crate::simulation::closed_loop::InLoop;
-use crate::simulation::trace::{EndState, EventKind, EventRow, FinalState, Summary, TraceRow};
+use crate::simulation::trace::{EndState, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
 const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * PI);

@@ -3,7 +3,6 @@
 use shared::controller::{Faults, State};
 use shared::impact::MAX_CONTACTS;
 
-pub use crate::event::{EventKind, EventRow};
 use crate::machine::bodies::MAX_BODIES;
 use crate::numbers::sig;
 use crate::plant::contact::ContactForces;

@@ -13,13 +13,14 @@ use shared::controller::{Command, Outputs, State, Telemetry};
 use crate::failure::Failure;
 use crate::machine::input;
 use crate::machine::Machine;
-use crate::measured::MAX_VELOCITY_MPS;
 use crate::numbers;
 use crate::output::progress::Progress;
+use crate::plant::progress::Stop;
 use crate::simulation::closed_loop::ControllerDriver;
 use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::simulation::trace::EndState;
-use crate::simulation::{simulate_observed, Interruptible, RunOptions, Stop};
+use crate::simulation::trace::MAX_VELOCITY_MPS;
+use crate::simulation::{simulate_observed, Interruptible, RunOptions};
 
 /// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
 pub const DEFAULT_SPEED_SPAN_RPM: f64 = 500.0;

@@ -29,9 +29,10 @@ use std::fmt::Write as _;
 use serde_json::Value;
 use shared::impact::MAX_CONTACTS;
 
+use crate::event::{EventKind, EventRow};
 use crate::machine::Machine;
 use crate::simulation::summary::{phase_offset_deg, ImpactInstants};
-use crate::simulation::trace::{EventKind, EventRow, TraceRow};
+use crate::simulation::trace::TraceRow;
 
 /// Simulated time between frames, s: ten frames per period of a 50 Hz hop.
 pub const FRAME_STEP: f64 = 2e-3;

@@ -19,9 +19,10 @@ pub mod scene;
 
 use frames::{Frames, FRAME_STEP};
 
+use crate::event::EventRow;
 use crate::machine::Machine;
 use crate::output::svg::escape;
-use crate::simulation::trace::{EventRow, TraceRow};
+use crate::simulation::trace::TraceRow;
 use crate::simulation::Observer;
 
 /// The longest run an animation holds, s of simulated time: 300 000 frames, about

@@ -30,13 +30,13 @@ use shared::pil::{Bytes, Drive, Hello, Sample, MAX_LATE_US};
 use shared::protocol::StatusReport;
 use shared::tick::Board;
 
+use crate::event::EventRow;
 use crate::failure::Failure;
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
 use crate::simulation::closed_loop::{controller_events, params, InLoop};
-use crate::simulation::trace::EventRow;
 use crate::simulation::Driver;
 use host::Host;
 use session::Session;
