@@ -15,6 +15,8 @@ use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
+use rand::rngs::ChaCha8Rng;
+use rand::{Rng as _, SeedableRng};
 
 /// The state of `m` at `t = 0` (its model's [`PlantModel::initial_state`]).
 pub fn initial_state(m: &Machine) -> [f64; host_sim::plant::model::NY] {
@@ -42,24 +44,20 @@ pub fn scratch_file(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
-/// A tiny deterministic generator (xorshift64*, Vigna 2016), so that random
-/// parameter sets are the same on every run and every machine.
-pub struct Rng(u64);
+/// The random parameter sets' generator: ChaCha8 from a seed, the generator of
+/// the simulator's sensor noise, so that the cases are the same on every run and
+/// every machine.
+pub struct Rng(ChaCha8Rng);
 
 impl Rng {
-    /// A generator from `seed` (0 is taken as 1: xorshift needs a non-zero state).
+    /// A generator from `seed`.
     pub fn new(seed: u64) -> Self {
-        Rng(seed.max(1))
+        Rng(ChaCha8Rng::seed_from_u64(seed))
     }
 
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
+        self.0.next_u64()
     }
 
     /// Uniform in [lo, hi).
