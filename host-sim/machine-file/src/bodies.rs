@@ -174,8 +174,57 @@ pub fn check(
     rotor_bodies: &[String],
 ) -> bool {
     let mut ok = check_names(root, "bodies", "body", bodies);
-    let names: Vec<&str> = bodies.iter().filter_map(|b| b.name.as_deref()).collect();
-    for (i, name) in names.iter().enumerate() {
+    let names = BodyNames {
+        further: bodies.iter().filter_map(|b| b.name.as_deref()).collect(),
+    };
+    ok &= check_reserved_names(root, &names);
+    ok &= check_names(root, "joints", "joint", joints);
+    ok &= check_joint_trees(root, joints, &names);
+    for (i, contact) in contacts.iter().enumerate() {
+        ok &= check_contact(root, i, contact, &names);
+    }
+    ok &= check_rotor_bodies(root, rotor_bodies, &names);
+    ok
+}
+
+/// The names of the further bodies (`[[bodies]]`, in file order), beside the
+/// platform's and the fundament's, for the checks of what names a body.
+struct BodyNames<'a> {
+    /// The further bodies' names.
+    further: Vec<&'a str>,
+}
+
+impl BodyNames<'_> {
+    /// Whether `n` names a body that moves: the platform or a further body.
+    fn moving(&self, n: &str) -> bool {
+        n == PLATFORM || self.further.contains(&n)
+    }
+
+    /// Whether `n` names a body or the fundament.
+    fn known(&self, n: &str) -> bool {
+        n == FUNDAMENT || self.moving(n)
+    }
+
+    /// The bodies and the fundament, for a message: `platform, fundament, arm`.
+    fn all(&self) -> String {
+        let mut all = vec![PLATFORM.to_string(), FUNDAMENT.to_string()];
+        all.extend(self.further.iter().map(|n| cut(n, MAX_QUOTED)));
+        all.join(", ")
+    }
+
+    /// The moving bodies, for a message: `platform, arm`.
+    fn all_moving(&self) -> String {
+        let mut m = vec![PLATFORM.to_string()];
+        m.extend(self.further.iter().map(|n| cut(n, MAX_QUOTED)));
+        m.join(", ")
+    }
+}
+
+/// No further body is named `platform` or `fundament` (the first body's and the
+/// ground's names).
+fn check_reserved_names(root: &Section, names: &BodyNames<'_>) -> bool {
+    let mut ok = true;
+    for (i, name) in names.further.iter().enumerate() {
         if *name == PLATFORM || *name == FUNDAMENT {
             root.problem(
                 &format!("bodies[{i}].name"),
@@ -184,46 +233,57 @@ pub fn check(
             ok = false;
         }
     }
-    let moving = |n: &str| n == PLATFORM || names.contains(&n);
-    let known = |n: &str| n == FUNDAMENT || moving(n);
-    let allowed = || {
-        let mut all = vec![PLATFORM.to_string(), FUNDAMENT.to_string()];
-        all.extend(names.iter().map(|n| cut(n, MAX_QUOTED)));
-        all.join(", ")
-    };
+    ok
+}
 
-    // Joints: two different bodies that exist, in trees (union-find over the
-    // bodies and the fundament).
-    ok &= check_names(root, "joints", "joint", joints);
-    let mut sets: Vec<String> = Vec::new();
-    let mut parent: Vec<usize> = Vec::new();
-    let node = |n: &str, sets: &mut Vec<String>, parent: &mut Vec<usize>| match sets
-        .iter()
-        .position(|s| s == n)
-    {
-        Some(i) => i,
-        None => {
-            sets.push(n.to_string());
-            parent.push(parent.len());
-            parent.len() - 1
+/// Sets of bodies joined together (union-find over the bodies and the fundament,
+/// each added the first time a joint names it).
+#[derive(Default)]
+struct JoinedSets {
+    /// The names, in the order they were added.
+    names: Vec<String>,
+    /// Each name's parent in its set's tree (its own index at a root).
+    parent: Vec<usize>,
+}
+
+impl JoinedSets {
+    /// The index of `n`, added as a set of its own if new.
+    fn node(&mut self, n: &str) -> usize {
+        match self.names.iter().position(|s| s == n) {
+            Some(i) => i,
+            None => {
+                self.names.push(n.to_string());
+                self.parent.push(self.parent.len());
+                self.parent.len() - 1
+            }
         }
-    };
-    fn root_of(parent: &mut [usize], mut i: usize) -> usize {
+    }
+
+    /// The root of `i`'s set (halving the path on the way).
+    fn root_of(&mut self, mut i: usize) -> usize {
+        let parent = &mut self.parent;
         while parent[i] != i {
             parent[i] = parent[parent[i]];
             i = parent[i];
         }
         i
     }
+}
+
+/// Joints: two different bodies that exist, in trees (a joint between two bodies
+/// already joined through other joints closes a loop).
+fn check_joint_trees(root: &Section, joints: &[Named<Joint>], names: &BodyNames<'_>) -> bool {
+    let mut ok = true;
+    let mut sets = JoinedSets::default();
     for (i, joint) in joints.iter().enumerate() {
         let Some(j) = &joint.value else { continue };
         let key = format!("joints[{i}].bodies");
         let [a, b] = &j.bodies;
         for n in [a, b] {
-            if !known(n) {
+            if !names.known(n) {
                 root.problem(
                     &key,
-                    format!("no body named {} (bodies: {})", quoted(n), allowed()),
+                    format!("no body named {} (bodies: {})", quoted(n), names.all()),
                 );
                 ok = false;
             }
@@ -236,14 +296,11 @@ pub fn check(
             ok = false;
             continue;
         }
-        if !(known(a) && known(b)) {
+        if !(names.known(a) && names.known(b)) {
             continue;
         }
-        let (x, y) = (
-            node(a, &mut sets, &mut parent),
-            node(b, &mut sets, &mut parent),
-        );
-        let (rx, ry) = (root_of(&mut parent, x), root_of(&mut parent, y));
+        let (x, y) = (sets.node(a), sets.node(b));
+        let (rx, ry) = (sets.root_of(x), sets.root_of(y));
         if rx == ry {
             root.problem(
                 &key,
@@ -251,104 +308,115 @@ pub fn check(
             );
             ok = false;
         } else {
-            parent[rx] = ry;
+            sets.parent[rx] = ry;
         }
     }
+    ok
+}
 
-    // Contacts: the point on a moving body, the face on another body or the
-    // fundament, not behind the face at t = 0.
-    for (i, c) in contacts.iter().enumerate() {
-        let (ends, name, point) = (&c.ends, &c.name, &c.point);
-        let key = |k: &str| format!("contacts[{i}].{k}");
-        if !moving(&ends.body) {
-            let why = if ends.body == FUNDAMENT {
-                "the fundament does not move: the point is on a moving body (put the fundament in `against`)".to_string()
-            } else {
-                format!(
-                    "no moving body named {} (moving: {})",
-                    quoted(&ends.body),
-                    {
-                        let mut m = vec![PLATFORM.to_string()];
-                        m.extend(names.iter().map(|n| cut(n, MAX_QUOTED)));
-                        m.join(", ")
-                    }
-                )
-            };
-            root.problem(&key("body"), why);
-            ok = false;
-        }
-        if !known(&ends.against) {
-            root.problem(
-                &key("against"),
-                format!(
-                    "no body named {} (bodies: {})",
-                    quoted(&ends.against),
-                    allowed()
-                ),
-            );
-            ok = false;
-        }
-        if ends.body == ends.against {
-            root.problem(
-                &key("against"),
-                format!(
-                    "contact {} is on {} against itself: a contact is between two bodies",
-                    cut(name, MAX_QUOTED),
-                    quoted(&ends.body)
-                ),
-            );
-            ok = false;
-        }
-        if ends.against == FUNDAMENT {
-            for (k, given) in [
-                ("face", ends.face.is_some()),
-                ("normal", ends.normal.is_some()),
-            ] {
-                if given {
-                    root.problem(
-                        &key(k),
-                        "only for a contact against a body: against the fundament the face is [fundament]'s line",
-                    );
-                    ok = false;
-                }
-            }
-            continue;
-        }
-        let Some(unit) = ends.normal else {
-            root.problem(
-                &key("normal"),
-                format!(
-                    "missing; required against a body ({}): the face's normal, from it towards {}",
-                    quoted(&ends.against),
-                    quoted(&ends.body)
-                ),
-            );
-            ok = false;
-            continue;
+/// The `i`-th contact: the point on a moving body, the face on another body or
+/// the fundament ([`check_contact_face`]).
+fn check_contact(root: &Section, i: usize, c: &MachineContact, names: &BodyNames<'_>) -> bool {
+    let mut ok = true;
+    let (ends, name) = (&c.ends, &c.name);
+    let key = |k: &str| format!("contacts[{i}].{k}");
+    if !names.moving(&ends.body) {
+        let why = if ends.body == FUNDAMENT {
+            "the fundament does not move: the point is on a moving body (put the fundament in `against`)".to_string()
+        } else {
+            format!(
+                "no moving body named {} (moving: {})",
+                quoted(&ends.body),
+                names.all_moving()
+            )
         };
-        // The face through the point unless given ([`read_ends`]'s caller).
-        let face = ends.face.unwrap_or(*point);
-        let gap = unit[0] * (point[0] - face[0]) + unit[1] * (point[1] - face[1]);
-        if gap < -GAP_TOLERANCE {
-            root.problem(
-                &key("point"),
-                format!(
-                    "contact {} overlaps {} at t = 0: the point {} is {} m behind the face through {} (normal {}); it must be on or in front of it",
-                    cut(name, MAX_QUOTED),
-                    quoted(&ends.against),
-                    vector(*point),
-                    number(-gap),
-                    vector(face),
-                    vector(unit)
-                ),
-            );
-            ok = false;
-        }
+        root.problem(&key("body"), why);
+        ok = false;
     }
+    if !names.known(&ends.against) {
+        root.problem(
+            &key("against"),
+            format!(
+                "no body named {} (bodies: {})",
+                quoted(&ends.against),
+                names.all()
+            ),
+        );
+        ok = false;
+    }
+    if ends.body == ends.against {
+        root.problem(
+            &key("against"),
+            format!(
+                "contact {} is on {} against itself: a contact is between two bodies",
+                cut(name, MAX_QUOTED),
+                quoted(&ends.body)
+            ),
+        );
+        ok = false;
+    }
+    check_contact_face(root, i, c) && ok
+}
 
-    // Rotors: on a moving body.
+/// The `i`-th contact's face: against the fundament its line (no `face`, no
+/// `normal`); against a body a `normal`, and the point not behind the face at
+/// t = 0.
+fn check_contact_face(root: &Section, i: usize, c: &MachineContact) -> bool {
+    let (ends, name, point) = (&c.ends, &c.name, &c.point);
+    let key = |k: &str| format!("contacts[{i}].{k}");
+    if ends.against == FUNDAMENT {
+        let mut ok = true;
+        for (k, given) in [
+            ("face", ends.face.is_some()),
+            ("normal", ends.normal.is_some()),
+        ] {
+            if given {
+                root.problem(
+                    &key(k),
+                    "only for a contact against a body: against the fundament the face is [fundament]'s line",
+                );
+                ok = false;
+            }
+        }
+        return ok;
+    }
+    let Some(unit) = ends.normal else {
+        root.problem(
+            &key("normal"),
+            format!(
+                "missing; required against a body ({}): the face's normal, from it towards {}",
+                quoted(&ends.against),
+                quoted(&ends.body)
+            ),
+        );
+        return false;
+    };
+    // The face through the point unless given ([`read_ends`]'s caller).
+    let face = ends.face.unwrap_or(*point);
+    let gap = unit[0] * (point[0] - face[0]) + unit[1] * (point[1] - face[1]);
+    if gap < -GAP_TOLERANCE {
+        root.problem(
+            &key("point"),
+            format!(
+                "contact {} overlaps {} at t = 0: the point {} is {} m behind the face through {} (normal {}); it must be on or in front of it",
+                cut(name, MAX_QUOTED),
+                quoted(&ends.against),
+                vector(*point),
+                number(-gap),
+                vector(face),
+                vector(unit)
+            ),
+        );
+        return false;
+    }
+    true
+}
+
+/// Rotors: each on a moving body.
+fn check_rotor_bodies(root: &Section, rotor_bodies: &[String], names: &BodyNames<'_>) -> bool {
+    let mut ok = true;
     for (i, body) in rotor_bodies.iter().enumerate() {
-        if !moving(body) {
+        if !names.moving(body) {
             root.problem(
                 &format!("rotors[{i}].body"),
                 format!(

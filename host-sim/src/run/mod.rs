@@ -18,7 +18,7 @@
 pub mod plot;
 pub mod report;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicUsize;
 
 use clap::{Args, ValueEnum};
@@ -39,10 +39,10 @@ use crate::output::file::Staged;
 use crate::output::progress::Progress;
 use crate::simulation::closed_loop::{self, ControllerDriver};
 use crate::simulation::pil::{FirmwareDriver, TickCost};
-use crate::simulation::trace::TraceRow;
+use crate::simulation::trace::{Summary, TraceRow};
 use crate::simulation::{
     limits, simulate_observed, stop_message, Driver, InTheLoop, Observer, OpenLoop, OpenLoopDriver,
-    RunOptions,
+    RunOptions, RunResult,
 };
 use plot::plot_svg;
 use report::{summary_json, summary_table, summary_value};
@@ -184,37 +184,82 @@ pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Str
 pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the options.
     let machine = Machine::load(&args.machine.path, &args.set.keys)?;
+    let (drive, t_end) = check_options(args, &machine)?;
+
+    // What drives the motors, built before any output is opened: a controller
+    // that cannot be built (its tuning table) is refused with nothing written.
+    let mut warnings = Vec::new();
+    let (mut driver, how) = build_driver(args, &machine, &drive, &mut warnings)?;
+    let firmware_log = args.firmware.as_ref().map(|elf| {
+        args.firmware_log
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{}.log", elf.display())))
+    });
+
+    // The output files, checked and opened before the run: a path that cannot be
+    // written is refused at once and nothing is left behind.
+    let (mut staged, files) = open_outputs(args, &machine, firmware_log.as_deref())?;
+
+    // 2. Simulate, the trace and the events streamed to their files.
+    let (mut result, failure, frames) =
+        simulate_to_files(&machine, &mut driver, t_end, &mut staged, &files)?;
+    let cost = finish_firmware(&mut driver, &mut staged, files.log, &mut warnings)?;
+    if let Some(why) = failure {
+        return Err(driver_failure(why, &driver, firmware_log.as_deref()));
+    }
+    result.summary.warnings.extend(warnings);
+    // A run that is no travel (through the fundament, tipped over) has no way
+    // it went.
+    let travel =
+        Some(result.summary.mean_velocity).filter(|_| result.summary.not_a_travel().is_none());
+    result
+        .summary
+        .warnings
+        .extend(one_rotor_direction(args.command, &machine, travel));
+
+    // 3. The plot and the animation, then the summary.
+    let title = format!("host-sim run {} ({how})", args.machine.path.display());
+    if let Some(i) = files.plot {
+        staged.write(i, &plot_svg(&result.rows, &result.events, &machine, &title))?;
+    }
+    if let (Some(i), Some(mut frames)) = (files.animation, frames) {
+        staged.write(i, &animate::page(&title, &machine, &mut frames))?;
+    }
+    if let Some(stop) = &result.stopped {
+        // A signal, or a plant that stopped advancing: what was simulated is
+        // written whole; no summary of part of a run.
+        staged.commit()?;
+        let why = stop_message(stop, Some(t_end));
+        return Err(Failure::Run(format!(
+            "error: run: {why}; the files asked for hold the run up to there, no summary"
+        )));
+    }
+    staged.commit()?;
+    let firmware_line = args.firmware.as_ref().zip(firmware_log.as_ref());
+    console.print(&summary_text(
+        args.format.format,
+        &result.summary,
+        firmware_line,
+        &cost.unwrap_or_default(),
+    ));
+    Ok(())
+}
+
+/// The option that set the run's end time, for the messages about it.
+fn t_end_origin(args: &RunArgs) -> &'static str {
+    if args.t_end.seconds.is_some() {
+        "--t-end"
+    } else {
+        "simulation.t_end"
+    }
+}
+
+/// Stage 1's check of the options against the machine: what drives the motors and
+/// the run's end time, s. Every problem at once, as a usage failure (exit 2); the
+/// limits of a run are checked only once the options themselves are sound.
+fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Failure> {
     let mut problems = Vec::new();
-    let drive = match (args.command, args.open_loop) {
-        (Some(_), Some(_)) => {
-            problems.push(
-                "error: run: give either --command (the controller drives) or --open-loop, not both"
-                    .to_string(),
-            );
-            None
-        }
-        (Some(c), None) => match controller_schedule(c, args, &machine) {
-            Ok(schedule) => Some(Drive::Controller(schedule)),
-            Err(e) => {
-                problems.extend(e);
-                None
-            }
-        },
-        (None, Some(o)) => match check_open_loop(o, &machine) {
-            Ok(()) => Some(Drive::OpenLoop(o)),
-            Err(e) => {
-                problems.push(e);
-                None
-            }
-        },
-        (None, None) => {
-            problems.push(
-                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
-                    .to_string(),
-            );
-            None
-        }
-    };
+    let drive = choose_drive(args, machine, &mut problems);
     if args.firmware.is_some() && args.command.is_none() {
         problems.push(
             "error: --firmware runs the firmware as the controller: give --command right|left|stop"
@@ -231,35 +276,68 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         ));
     }
     if args.animate.is_some() {
-        let origin = if args.t_end.seconds.is_some() {
-            "--t-end"
-        } else {
-            "simulation.t_end"
-        };
-        problems.extend(animate::check_duration(t_end, origin));
+        problems.extend(animate::check_duration(t_end, t_end_origin(args)));
     }
     let Some(drive) = drive.filter(|_| problems.is_empty()) else {
         return Err(Failure::Usage(problems.join("\n")));
     };
 
-    problems.extend(limits::check(
-        &machine,
-        t_end,
-        if args.t_end.seconds.is_some() {
-            "--t-end"
-        } else {
-            "simulation.t_end"
-        },
-    ));
+    problems.extend(limits::check(machine, t_end, t_end_origin(args)));
     if !problems.is_empty() {
         return Err(Failure::Usage(problems.join("\n")));
     }
+    Ok((drive, t_end))
+}
 
-    // What drives the motors, built before any output is opened: a controller
-    // that cannot be built (its tuning table) is refused with nothing written.
+/// What drives the motors: exactly one of `--command` (the controller, with its
+/// schedule) and `--open-loop` (its voltages matched with the machine's rotors).
+/// `None` with the problems added to `problems` when neither or both are given or
+/// the one given does not fit the machine.
+fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -> Option<Drive> {
+    match (args.command, args.open_loop) {
+        (Some(_), Some(_)) => {
+            problems.push(
+                "error: run: give either --command (the controller drives) or --open-loop, not both"
+                    .to_string(),
+            );
+            None
+        }
+        (Some(c), None) => match controller_schedule(c, args, machine) {
+            Ok(schedule) => Some(Drive::Controller(schedule)),
+            Err(e) => {
+                problems.extend(e);
+                None
+            }
+        },
+        (None, Some(o)) => match check_open_loop(o, machine) {
+            Ok(()) => Some(Drive::OpenLoop(o)),
+            Err(e) => {
+                problems.push(e);
+                None
+            }
+        },
+        (None, None) => {
+            problems.push(
+                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
+                    .to_string(),
+            );
+            None
+        }
+    }
+}
+
+/// The driver of the windings for `drive` (the open loop, the controller in the
+/// loop, or with `--firmware` the firmware on QEMU) and the plot title's words for
+/// it. Warnings about the drive (voltages clamped to the supply, the controller's
+/// constants, `--set` unseen by the firmware) go to `warnings`.
+fn build_driver(
+    args: &RunArgs,
+    machine: &Machine,
+    drive: &Drive,
+    warnings: &mut Vec<String>,
+) -> Result<(InTheLoop<dyn Driver>, String), Failure> {
     let supply = machine.drive.supply_voltage;
-    let mut warnings = Vec::new();
-    let (mut driver, how): (InTheLoop<dyn Driver>, String) = match &drive {
+    Ok(match drive {
         Drive::OpenLoop(open_loop) => {
             if open_loop.volts().iter().any(|u| u.abs() > supply) {
                 warnings.push(format!(
@@ -277,8 +355,8 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             )
         }
         Drive::Controller(schedule) => {
-            warnings.extend(closed_loop::constants_warning(&machine));
-            let how = describe_command(args, &machine);
+            warnings.extend(closed_loop::constants_warning(machine));
+            let how = describe_command(args, machine);
             match &args.firmware {
                 Some(elf) => {
                     if !args.set.keys.is_empty() {
@@ -288,35 +366,54 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                         );
                     }
                     let firmware =
-                        FirmwareDriver::start(&machine, &args.machine.path, elf, schedule.clone())?;
+                        FirmwareDriver::start(machine, &args.machine.path, elf, schedule.clone())?;
                     (
                         InTheLoop::Firmware(Box::new(firmware)),
                         format!("{how}, firmware {}", elf.display()),
                     )
                 }
                 None => (
-                    InTheLoop::Host(Box::new(ControllerDriver::new(&machine, schedule.clone())?)),
+                    InTheLoop::Host(Box::new(ControllerDriver::new(machine, schedule.clone())?)),
                     how,
                 ),
             }
         }
-    };
-    let firmware_log = args.firmware.as_ref().map(|elf| {
-        args.firmware_log
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(format!("{}.log", elf.display())))
-    });
+    })
+}
 
-    // The output files, checked and opened before the run: a path that cannot be
-    // written is refused at once and nothing is left behind.
+/// The files a run writes, by their index among the staged files (`None`: not
+/// asked for).
+struct Outputs {
+    /// `--out`, the trace.
+    trace: Option<usize>,
+    /// `--events`.
+    events: Option<usize>,
+    /// `--plot`.
+    plot: Option<usize>,
+    /// `--animate`.
+    animation: Option<usize>,
+    /// The firmware's log (`--firmware-log`, or the ELF's name with `.log`).
+    log: Option<usize>,
+}
+
+/// Opens every file asked for (`firmware_log`: the firmware's log, with
+/// `--firmware`) and writes the trace's and the events' CSV headers: a path that
+/// cannot be written is refused before the run.
+fn open_outputs(
+    args: &RunArgs,
+    machine: &Machine,
+    firmware_log: Option<&Path>,
+) -> Result<(Staged, Outputs), Failure> {
     let mut staged = Staged::new();
-    let trace = staged.add_optional("--out", args.out.as_deref())?;
-    let events = staged.add_optional("--events", args.events.as_deref())?;
-    let plot = staged.add_optional("--plot", args.plot.file.as_deref())?;
-    let animation = staged.add_optional("--animate", args.animate.as_deref())?;
-    let log = staged.add_optional("--firmware-log", firmware_log.as_deref())?;
+    let files = Outputs {
+        trace: staged.add_optional("--out", args.out.as_deref())?,
+        events: staged.add_optional("--events", args.events.as_deref())?,
+        plot: staged.add_optional("--plot", args.plot.file.as_deref())?,
+        animation: staged.add_optional("--animate", args.animate.as_deref())?,
+        log: staged.add_optional("--firmware-log", firmware_log)?,
+    };
     let contacts = machine.contacts.len();
-    if let Some(i) = trace {
+    if let Some(i) = files.trace {
         let names: Vec<String> = machine.contacts.iter().map(|c| c.name.clone()).collect();
         let bodies: Vec<String> = machine.bodies.iter().map(|b| b.name.clone()).collect();
         staged.write(
@@ -328,89 +425,94 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         )?;
     }
 
-    if let Some(i) = events {
+    if let Some(i) = files.events {
         staged.write(i, &format!("{EVENTS_HEADER}\n"))?;
     }
+    Ok((staged, files))
+}
 
-    // 2. Simulate, the trace and the events streamed to their files.
+/// Stage 2: simulates to `t_end`, s, streaming the trace and the events to their
+/// files and filming the run if it is animated. The run's result, the driver's
+/// failure if it failed, and the animation's frames; a write error ends the run
+/// and is returned.
+fn simulate_to_files(
+    machine: &Machine,
+    driver: &mut InTheLoop<dyn Driver>,
+    t_end: f64,
+    staged: &mut Staged,
+    files: &Outputs,
+) -> Result<(RunResult, Option<String>, Option<Frames>), Failure> {
     let mut options = RunOptions::new(t_end);
-    options.keep_rows = plot.is_some();
-    options.keep_events = plot.is_some();
-    let shape = (contacts, machine.bodies.len());
+    options.keep_rows = files.plot.is_some();
+    options.keep_events = files.plot.is_some();
+    let shape = (machine.contacts.len(), machine.bodies.len());
     let mut watch = Watch::new(
         t_end,
-        &mut staged,
-        (trace, events),
+        staged,
+        (files.trace, files.events),
         shape,
         &machine.contacts,
     );
     let mut film = Film {
-        frames: animation.map(|_| Frames::new(&machine)),
+        frames: files.animation.map(|_| Frames::new(machine)),
         inner: &mut watch,
     };
-    let mut result = simulate_observed(&machine, driver.driver(), &options, &mut film);
+    let result = simulate_observed(machine, driver.driver(), &options, &mut film);
     let failure = driver.driver().failure();
     let frames = film.frames;
     watch.finish()?;
-    let firmware = match &mut driver {
-        InTheLoop::Firmware(f) => Some(f),
-        InTheLoop::Host(_) => None,
-    };
-    let mut cost = None;
-    if let Some(f) = firmware {
-        cost = Some(f.cost());
-        f.finish();
-        warnings.extend(f.warnings());
-        if let Some(i) = log {
-            staged.write(i, f.log())?;
-        }
-    }
-    if let Some(why) = failure {
-        // The firmware's log is kept, to say why; nothing else is written.
-        if let (InTheLoop::Firmware(f), Some(path)) = (&driver, &firmware_log) {
-            let _ = std::fs::write(path, f.log());
-            return Err(Failure::Run(format!(
-                "{why}\nthe firmware's log: {}",
-                path.display()
-            )));
-        }
-        return Err(Failure::Run(why));
-    }
-    result.summary.warnings.extend(warnings);
-    // A run that is no travel (through the fundament, tipped over) has no way
-    // it went.
-    let travel =
-        Some(result.summary.mean_velocity).filter(|_| result.summary.not_a_travel().is_none());
-    result
-        .summary
-        .warnings
-        .extend(one_rotor_direction(args.command, &machine, travel));
+    Ok((result, failure, frames))
+}
 
-    // 3. The plot and the animation, then the summary.
-    let title = format!("host-sim run {} ({how})", args.machine.path.display());
-    if let Some(i) = plot {
-        staged.write(i, &plot_svg(&result.rows, &result.events, &machine, &title))?;
+/// Ends the firmware on QEMU, if it was the controller: its warnings go to
+/// `warnings`, its log to the file `log`, and its control task's cost is returned
+/// (`None` for a driver of the host's).
+fn finish_firmware(
+    driver: &mut InTheLoop<dyn Driver>,
+    staged: &mut Staged,
+    log: Option<usize>,
+    warnings: &mut Vec<String>,
+) -> Result<Option<TickCost>, Failure> {
+    let InTheLoop::Firmware(f) = driver else {
+        return Ok(None);
+    };
+    let cost = f.cost();
+    f.finish();
+    warnings.extend(f.warnings());
+    if let Some(i) = log {
+        staged.write(i, f.log())?;
     }
-    if let (Some(i), Some(mut frames)) = (animation, frames) {
-        staged.write(i, &animate::page(&title, &machine, &mut frames))?;
+    Ok(Some(cost))
+}
+
+/// The failure of a run whose driver failed (`why`): the firmware's log is kept
+/// at `firmware_log`, to say why; nothing else is written.
+fn driver_failure(
+    why: String,
+    driver: &InTheLoop<dyn Driver>,
+    firmware_log: Option<&Path>,
+) -> Failure {
+    if let (InTheLoop::Firmware(f), Some(path)) = (driver, firmware_log) {
+        let _ = std::fs::write(path, f.log());
+        return Failure::Run(format!("{why}\nthe firmware's log: {}", path.display()));
     }
-    if let Some(stop) = &result.stopped {
-        // A signal, or a plant that stopped advancing: what was simulated is
-        // written whole; no summary of part of a run.
-        staged.commit()?;
-        let why = stop_message(stop, Some(t_end));
-        return Err(Failure::Run(format!(
-            "error: run: {why}; the files asked for hold the run up to there, no summary"
-        )));
-    }
-    staged.commit()?;
-    let firmware_line = args.firmware.as_ref().zip(firmware_log.as_ref());
-    let cost = cost.unwrap_or_default();
-    console.print(&match (args.format.format, firmware_line) {
-        (Format::Json, None) => summary_json(&result.summary),
-        (Format::Table, None) => summary_table(&result.summary),
+    Failure::Run(why)
+}
+
+/// The summary on stdout in `format`; with the firmware in the loop
+/// (`firmware_line`: its ELF and its log) also the firmware, its log and its
+/// control task's `cost`.
+fn summary_text(
+    format: Format,
+    summary: &Summary,
+    firmware_line: Option<(&PathBuf, &PathBuf)>,
+    cost: &TickCost,
+) -> String {
+    match (format, firmware_line) {
+        (Format::Json, None) => summary_json(summary),
+        (Format::Table, None) => summary_table(summary),
         (Format::Json, Some((elf, log))) => {
-            let mut v = summary_value(&result.summary);
+            let mut v = summary_value(summary);
             v["firmware"] = serde_json::json!({
                 "elf": elf.display().to_string(),
                 "log": log.display().to_string(),
@@ -426,13 +528,12 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         }
         (Format::Table, Some((elf, log))) => format!(
             "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n{}\n",
-            summary_table(&result.summary),
+            summary_table(summary),
             elf.display(),
             log.display(),
-            cost_line(&cost)
+            cost_line(cost)
         ),
-    });
-    Ok(())
+    }
 }
 
 /// Watches a run: streams its trace rows to the trace file, shows progress on a

@@ -363,44 +363,9 @@ pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Pro
     let raw = read(&table, &problems);
 
     // 3. The machine, only with its overrides all read (else it is another machine).
-    let mut machine_problems = Vec::new();
-    let machine = match (&raw.machine, &raw.sets) {
-        (Some(rel), Some(sets)) => {
-            let path = dir.join(rel);
-            if !path.is_file() {
-                let what = if path.is_dir() {
-                    "is a directory, not a machine file"
-                } else if path.exists() {
-                    "is not a regular file"
-                } else {
-                    "no such file"
-                };
-                problems.at(
-                    "machine",
-                    format!(
-                        "{what}: {} (the path is relative to the scenario file)",
-                        path.display()
-                    ),
-                );
-                None
-            } else {
-                match Machine::load(&path, sets) {
-                    Ok(m) => match closed_loop::params(&m) {
-                        Ok(_) => Some((path, m)),
-                        Err(ps) => {
-                            machine_problems = ps;
-                            None
-                        }
-                    },
-                    Err(ps) => {
-                        machine_problems =
-                            ps.into_iter().map(|p| blame_set(p, sets, file)).collect();
-                        None
-                    }
-                }
-            }
-        }
-        _ => None,
+    let (machine, machine_problems) = match (&raw.machine, &raw.sets) {
+        (Some(rel), Some(sets)) => load_machine(&dir.join(rel), sets, file, &problems),
+        _ => (None, Vec::new()),
     };
 
     // 4. What needs the machine.
@@ -421,6 +386,46 @@ pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Pro
             }
             Err(all)
         }
+    }
+}
+
+/// Stage 3: the machine file at `path` (the scenario's `machine`) with the
+/// scenario's overrides `sets`, and its controller's parameters. A path that is
+/// no file is a problem of the scenario's `machine`; the machine file's own
+/// problems are returned apart (a `set` entry's at the scenario's `set[i]`), to
+/// follow the scenario's.
+fn load_machine(
+    path: &Path,
+    sets: &[String],
+    file: &str,
+    problems: &Problems,
+) -> (Option<(PathBuf, Machine)>, Vec<Problem>) {
+    if !path.is_file() {
+        let what = if path.is_dir() {
+            "is a directory, not a machine file"
+        } else if path.exists() {
+            "is not a regular file"
+        } else {
+            "no such file"
+        };
+        problems.at(
+            "machine",
+            format!(
+                "{what}: {} (the path is relative to the scenario file)",
+                path.display()
+            ),
+        );
+        return (None, Vec::new());
+    }
+    match Machine::load(path, sets) {
+        Ok(m) => match closed_loop::params(&m) {
+            Ok(_) => (Some((path.to_path_buf(), m)), Vec::new()),
+            Err(ps) => (None, ps),
+        },
+        Err(ps) => (
+            None,
+            ps.into_iter().map(|p| blame_set(p, sets, file)).collect(),
+        ),
     }
 }
 
@@ -447,14 +452,24 @@ enum RawCommand {
     Heartbeat,
 }
 
+/// A `[[commands]]` table as read: its time, s, its name and the command.
+type ReadCommand = (f64, &'static str, RawCommand);
+
+/// A `[[faults]]` table as read: its start, s, its duration, s (`None`: to the
+/// end), and the fault.
+type ReadFault = (f64, Option<f64>, InjectedFault);
+
 /// The scenario as read, key by key (`None` where refused).
 struct Raw {
     machine: Option<String>,
     t_end: Option<f64>,
     /// `Some(vec![])` without a `set`; `None` when refused.
     sets: Option<Vec<String>>,
-    commands: Vec<(String, f64, &'static str, RawCommand)>,
-    faults: Vec<(String, f64, Option<f64>, InjectedFault)>,
+    /// The commands, with their key paths.
+    commands: Vec<(String, ReadCommand)>,
+    /// The faults, with their key paths.
+    faults: Vec<(String, ReadFault)>,
+    /// The expectations, with their key paths.
     expects: Vec<(String, RawExpect)>,
     /// Some element was refused.
     refused: bool,
@@ -472,46 +487,27 @@ fn read(table: &Table, problems: &Problems) -> Raw {
     let machine = root.string("machine", Need::Required);
     let t_end = root.number("t_end", Need::Optional, Limit::Positive);
     let sets = read_sets(&root, table);
-    let mut raw = Raw {
-        machine,
-        t_end,
-        sets,
-        commands: Vec::new(),
-        faults: Vec::new(),
-        expects: Vec::new(),
-        refused: false,
-    };
-    for (i, s) in root
-        .sections("commands")
-        .unwrap_or_default()
-        .iter()
-        .enumerate()
-    {
-        match s.as_ref().and_then(read_command) {
-            Some((t, name, c)) => raw.commands.push((format!("commands[{i}]"), t, name, c)),
-            None => raw.refused = true,
-        }
-    }
-    for (i, s) in root
-        .sections("faults")
-        .unwrap_or_default()
-        .iter()
-        .enumerate()
-    {
-        match s.as_ref().and_then(read_fault) {
-            Some((t, d, f)) => raw.faults.push((format!("faults[{i}]"), t, d, f)),
-            None => raw.refused = true,
-        }
-    }
+    let mut refused = false;
+    let commands = read_tables(
+        root.sections("commands"),
+        "commands",
+        read_command,
+        &mut refused,
+    );
+    let faults = read_tables(root.sections("faults"), "faults", read_fault, &mut refused);
     let has_expect = root.has("expect");
     let expects = root.sections("expect");
     let no_expect = expects.as_ref().is_some_and(|e| e.is_empty());
-    for (i, s) in expects.unwrap_or_default().iter().enumerate() {
-        match s.as_ref().and_then(read_expect) {
-            Some(e) => raw.expects.push((format!("expect[{i}]"), e)),
-            None => raw.refused = true,
-        }
-    }
+    let expects = read_tables(expects, "expect", read_expect, &mut refused);
+    let raw = Raw {
+        machine,
+        t_end,
+        sets,
+        commands,
+        faults,
+        expects,
+        refused,
+    };
     if no_expect {
         let what = if has_expect { "is empty" } else { "is missing" };
         root.problem(
@@ -521,6 +517,25 @@ fn read(table: &Table, problems: &Problems) -> Raw {
     }
     root.finish();
     raw
+}
+
+/// Every table of the array of tables `key` (`commands`, `faults`, `expect`; its
+/// `tables` as [`Section::sections`] gives them) read by `read`, with its key
+/// path (`commands[0]`); `refused` is set when one was refused.
+fn read_tables<T>(
+    tables: Option<Vec<Option<Section<'_>>>>,
+    key: &str,
+    read: impl Fn(&Section<'_>) -> Option<T>,
+    refused: &mut bool,
+) -> Vec<(String, T)> {
+    let mut read_ones = Vec::new();
+    for (i, s) in tables.unwrap_or_default().iter().enumerate() {
+        match s.as_ref().and_then(&read) {
+            Some(value) => read_ones.push((format!("{key}[{i}]"), value)),
+            None => *refused = true,
+        }
+    }
+    read_ones
 }
 
 /// `set = ["KEY=VALUE", ...]`: an array of strings.
@@ -582,6 +597,59 @@ fn not_for(s: &Section<'_>, keys: &[&'static str], kind: &str, takers: &str) {
     }
 }
 
+/// The key `key` among `allowed` that decides which other keys a table takes
+/// (`command`, `kind`). Without its value the other keys cannot be judged: the
+/// table is finished (its unknown keys reported) only when the key is missing,
+/// since a misspelt key is then among the unknown ones; a value not allowed
+/// leaves the other keys unjudged.
+fn deciding_choice(
+    s: &Section<'_>,
+    key: &'static str,
+    allowed: &[&'static str],
+) -> Option<&'static str> {
+    let choice = s.choice(key, Need::Required, allowed);
+    if choice.is_none() && !s.has(key) {
+        s.finish();
+    }
+    choice
+}
+
+/// Of a key and `between`, which exclude each other, the one a table gives.
+enum Given<T> {
+    /// The other key's value (`within`, `from`).
+    Other(T),
+    /// `between = [t0, t1]`, s.
+    Between([f64; 2]),
+}
+
+/// Exactly one of `other` (read by `read_other`) and `between = [t0, t1]`: the
+/// one given, `None` when refused. Both given is a problem at `between` (`both`
+/// says which to keep), neither a problem of the table (`neither` says what is
+/// missing).
+fn other_or_between<T>(
+    s: &Section<'_>,
+    other: &'static str,
+    read_other: impl FnOnce(&Section<'_>) -> Option<T>,
+    both: &str,
+    neither: &str,
+) -> Option<Given<T>> {
+    let has = (s.has(other), s.has("between"));
+    let value = read_other(s);
+    let between = read_window(s, "between", Need::Optional);
+    match has {
+        (true, true) => {
+            s.problem("between", both);
+            None
+        }
+        (false, false) => {
+            s.problems().at(s.path(), neither);
+            None
+        }
+        (true, false) => value.map(Given::Other),
+        (false, true) => between.map(Given::Between),
+    }
+}
+
 /// A rotor number 1 or 2, as index 0 or 1.
 fn read_rotor(s: &Section<'_>, need: Need<i64>) -> Option<usize> {
     s.integer("rotor", need, Limit::Between(1.0, 2.0))
@@ -589,17 +657,9 @@ fn read_rotor(s: &Section<'_>, need: Need<i64>) -> Option<usize> {
 }
 
 /// One `[[commands]]` table: (t, name, command).
-fn read_command(s: &Section<'_>) -> Option<(f64, &'static str, RawCommand)> {
+fn read_command(s: &Section<'_>) -> Option<ReadCommand> {
     let t = s.number("t", Need::Required, Limit::NonNegative);
-    let name = s.choice("command", Need::Required, &COMMANDS);
-    let Some(name) = name else {
-        // Without the command the other keys cannot be judged; a misspelt
-        // `command` can.
-        if !s.has("command") {
-            s.finish();
-        }
-        return None;
-    };
+    let name = deciding_choice(s, "command", &COMMANDS)?;
     let command = match name {
         "right" | "left" | "hold" => {
             let speed = s.number("speed_rpm", Need::Optional, Limit::Positive);
@@ -638,15 +698,9 @@ fn read_command(s: &Section<'_>) -> Option<(f64, &'static str, RawCommand)> {
 }
 
 /// One `[[faults]]` table: (t, duration, fault).
-fn read_fault(s: &Section<'_>) -> Option<(f64, Option<f64>, InjectedFault)> {
+fn read_fault(s: &Section<'_>) -> Option<ReadFault> {
     let t = s.number("t", Need::Required, Limit::NonNegative);
-    let Some(kind) = s.choice("kind", Need::Required, &FAULT_KINDS) else {
-        // Without a kind the other keys cannot be judged; a misspelt `kind` can.
-        if !s.has("kind") {
-            s.finish();
-        }
-        return None;
-    };
+    let kind = deciding_choice(s, "kind", &FAULT_KINDS)?;
     let duration = s.number("duration", Need::Optional, Limit::Positive);
     let duration_ok = duration.is_some() || !s.has("duration");
     let fault = match kind {
@@ -680,183 +734,184 @@ fn read_fault(s: &Section<'_>) -> Option<(f64, Option<f64>, InjectedFault)> {
 
 /// `within` or `between`, exactly one.
 fn read_when(s: &Section<'_>) -> Option<When> {
-    let has = (s.has("within"), s.has("between"));
-    let within = read_window(s, "within", Need::Optional);
-    let between = read_window(s, "between", Need::Optional);
-    match has {
-        (true, true) => {
-            s.problem(
-                "between",
-                "give either `within` (at some tick) or `between` (at every tick), not both",
-            );
-            None
-        }
-        (false, false) => {
-            s.problems().at(
-                s.path(),
-                "missing `within = [t0, t1]` (at some tick) or `between = [t0, t1]` (at every tick)",
-            );
-            None
-        }
-        (true, false) => within.map(When::Within),
-        (false, true) => between.map(When::Between),
-    }
+    let given = other_or_between(
+        s,
+        "within",
+        |s| read_window(s, "within", Need::Optional),
+        "give either `within` (at some tick) or `between` (at every tick), not both",
+        "missing `within = [t0, t1]` (at some tick) or `between = [t0, t1]` (at every tick)",
+    )?;
+    Some(match given {
+        Given::Other(w) => When::Within(w),
+        Given::Between(w) => When::Between(w),
+    })
 }
 
 /// One `[[expect]]` table.
 fn read_expect(s: &Section<'_>) -> Option<RawExpect> {
-    let Some(kind) = s.choice("kind", Need::Required, &EXPECT_KINDS) else {
-        // Without a kind the other keys cannot be judged; a misspelt `kind` can.
-        if !s.has("kind") {
-            s.finish();
-        }
-        return None;
-    };
+    let kind = deciding_choice(s, "kind", &EXPECT_KINDS)?;
     let e = read_expect_keys(s, kind);
     s.finish();
     e
 }
 
-/// The keys of an `[[expect]]` of `kind`.
+/// The keys of an `[[expect]]` of `kind`, each kind's by its own reader.
 fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
     match kind {
-        "state" => {
-            let state = s
-                .choice("state", Need::Required, &STATES.map(State::name))
-                .and_then(state_from_name);
-            let when = read_when(s);
-            Some(RawExpect::Ready(Expectation::State {
-                state: state?,
-                when: when?,
-            }))
-        }
-        "travel" => {
-            let direction = s.choice("direction", Need::Required, &DIRECTIONS);
-            let between = read_window(s, "between", Need::Required);
-            let min_speed = s.number(
-                "min_speed",
-                Need::Default(DEFAULT_MIN_TRAVEL_SPEED),
-                Limit::NonNegative,
-            );
-            if let Some(w) = between.filter(|w| w[0] >= w[1]) {
-                s.problem(
-                    "between",
-                    format!(
-                        "must be [t0, t1] with t0 < t1, s (got {})",
-                        input::vector(w)
-                    ),
-                );
-                return None;
-            }
-            let direction = match direction? {
-                "right" => Direction::Right,
-                _ => Direction::Left,
-            };
-            Some(RawExpect::Ready(Expectation::Travel {
-                direction,
-                between: between?,
-                min_speed: min_speed?,
-            }))
-        }
-        "speed" => {
-            let rotor = read_rotor(s, Need::Optional);
-            let rotor_ok = rotor.is_some() || !s.has("rotor");
-            let range = s.vec2("range_rpm", Need::Required, Limit::Any);
-            let between = read_window(s, "between", Need::Required);
-            if let Some(r) = range.filter(|r| r[0] > r[1]) {
-                s.problem(
-                    "range_rpm",
-                    format!(
-                        "must be [low, high] with low <= high, rpm (got {})",
-                        input::vector(r)
-                    ),
-                );
-                return None;
-            }
-            rotor_ok.then_some(())?;
-            Some(RawExpect::Ready(Expectation::Speed {
-                rotors: rotor.map_or(vec![0, 1], |r| vec![r]),
-                range_rpm: range?,
-                between: between?,
-            }))
-        }
-        "phase" => {
-            let range = s.vec2("range_deg", Need::Required, Limit::Any);
-            let when = read_when(s);
-            if let Some(r) = range.filter(|r| !(r[0] <= r[1] && r[1] < r[0] + 360.0)) {
-                s.problem(
-                    "range_deg",
-                    format!(
-                        "must be [from, to] with from <= to < from + 360, degrees, read counter-clockwise from `from` (e.g. [350, 370] for 350 to 10) (got {})",
-                        input::vector(r)
-                    ),
-                );
-                return None;
-            }
-            Some(RawExpect::Ready(Expectation::Phase {
-                range_deg: range?,
-                when: when?,
-            }))
-        }
-        "fault" => {
-            let names: Vec<&'static str> = Faults::ALL.iter().map(|(_, n)| *n).collect();
-            let name = s.choice("fault", Need::Required, &names);
-            let within = read_window(s, "within", Need::Required);
-            let name = name?;
-            let fault = Faults::ALL.iter().find(|(_, n)| *n == name)?.0;
-            Some(RawExpect::Ready(Expectation::Fault {
-                fault,
-                name,
-                within: within?,
-            }))
-        }
-        "no_fault" => {
-            let has_between = s.has("between");
-            let between = read_window(s, "between", Need::Optional);
-            if has_between && between.is_none() {
-                return None;
-            }
-            Some(RawExpect::Ready(Expectation::NoFault { between }))
-        }
-        "through_fundament" | "tipped_over" => {
-            let has = (s.has("body"), s.has("within"));
-            let body = s.string("body", Need::Optional);
-            let within = read_window(s, "within", Need::Optional);
-            if (has.0 && body.is_none()) || (has.1 && within.is_none()) {
-                return None;
-            }
-            Some(RawExpect::Ready(Expectation::Breach {
-                fundament: kind == "through_fundament",
-                body,
-                within,
-            }))
-        }
-        _ => {
-            let has = (s.has("from"), s.has("between"));
-            let from = s.number("from", Need::Optional, Limit::NonNegative);
-            let between = read_window(s, "between", Need::Optional);
-            match has {
-                (true, true) => {
-                    s.problem(
-                        "between",
-                        "give either `from = t` (to the end) or `between = [t0, t1]`, not both",
-                    );
-                    None
-                }
-                (false, false) => {
-                    s.problems().at(
-                        s.path(),
-                        "missing `from = t` (to the end) or `between = [t0, t1]`",
-                    );
-                    None
-                }
-                (true, false) => from.map(RawExpect::SafeFrom),
-                (false, true) => {
-                    between.map(|between| RawExpect::Ready(Expectation::Safe { between }))
-                }
-            }
-        }
+        "state" => read_state_expect(s),
+        "travel" => read_travel_expect(s),
+        "speed" => read_speed_expect(s),
+        "phase" => read_phase_expect(s),
+        "fault" => read_fault_expect(s),
+        "no_fault" => read_no_fault_expect(s),
+        "through_fundament" | "tipped_over" => read_breach_expect(s, kind),
+        _ => read_safe_expect(s),
     }
+}
+
+/// `state`: a controller state and when (`within` or `between`).
+fn read_state_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let state = s
+        .choice("state", Need::Required, &STATES.map(State::name))
+        .and_then(state_from_name);
+    let when = read_when(s);
+    Some(RawExpect::Ready(Expectation::State {
+        state: state?,
+        when: when?,
+    }))
+}
+
+/// `travel`: a direction over a window of some length (`t0 < t1`, so that a mean
+/// velocity exists), at `min_speed` m/s at least.
+fn read_travel_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let direction = s.choice("direction", Need::Required, &DIRECTIONS);
+    let between = read_window(s, "between", Need::Required);
+    let min_speed = s.number(
+        "min_speed",
+        Need::Default(DEFAULT_MIN_TRAVEL_SPEED),
+        Limit::NonNegative,
+    );
+    if let Some(w) = between.filter(|w| w[0] >= w[1]) {
+        s.problem(
+            "between",
+            format!(
+                "must be [t0, t1] with t0 < t1, s (got {})",
+                input::vector(w)
+            ),
+        );
+        return None;
+    }
+    let direction = match direction? {
+        "right" => Direction::Right,
+        _ => Direction::Left,
+    };
+    Some(RawExpect::Ready(Expectation::Travel {
+        direction,
+        between: between?,
+        min_speed: min_speed?,
+    }))
+}
+
+/// `speed`: a range of speeds, rpm, for one rotor (both when none is named) at
+/// every tick of a window.
+fn read_speed_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let rotor = read_rotor(s, Need::Optional);
+    let rotor_ok = rotor.is_some() || !s.has("rotor");
+    let range = s.vec2("range_rpm", Need::Required, Limit::Any);
+    let between = read_window(s, "between", Need::Required);
+    if let Some(r) = range.filter(|r| r[0] > r[1]) {
+        s.problem(
+            "range_rpm",
+            format!(
+                "must be [low, high] with low <= high, rpm (got {})",
+                input::vector(r)
+            ),
+        );
+        return None;
+    }
+    rotor_ok.then_some(())?;
+    Some(RawExpect::Ready(Expectation::Speed {
+        rotors: rotor.map_or(vec![0, 1], |r| vec![r]),
+        range_rpm: range?,
+        between: between?,
+    }))
+}
+
+/// `phase`: a circular range of phase offsets, degrees, less than a turn wide,
+/// and when.
+fn read_phase_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let range = s.vec2("range_deg", Need::Required, Limit::Any);
+    let when = read_when(s);
+    if let Some(r) = range.filter(|r| !(r[0] <= r[1] && r[1] < r[0] + 360.0)) {
+        s.problem(
+            "range_deg",
+            format!(
+                "must be [from, to] with from <= to < from + 360, degrees, read counter-clockwise from `from` (e.g. [350, 370] for 350 to 10) (got {})",
+                input::vector(r)
+            ),
+        );
+        return None;
+    }
+    Some(RawExpect::Ready(Expectation::Phase {
+        range_deg: range?,
+        when: when?,
+    }))
+}
+
+/// `fault`: a fault by its name, latched within a window.
+fn read_fault_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let names: Vec<&'static str> = Faults::ALL.iter().map(|(_, n)| *n).collect();
+    let name = s.choice("fault", Need::Required, &names);
+    let within = read_window(s, "within", Need::Required);
+    let name = name?;
+    let fault = Faults::ALL.iter().find(|(_, n)| *n == name)?.0;
+    Some(RawExpect::Ready(Expectation::Fault {
+        fault,
+        name,
+        within: within?,
+    }))
+}
+
+/// `no_fault`: over a window, or the whole run without one.
+fn read_no_fault_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let has_between = s.has("between");
+    let between = read_window(s, "between", Need::Optional);
+    if has_between && between.is_none() {
+        return None;
+    }
+    Some(RawExpect::Ready(Expectation::NoFault { between }))
+}
+
+/// `through_fundament` or `tipped_over` (`kind`): of one body or any, within a
+/// window or the whole run.
+fn read_breach_expect(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
+    let has = (s.has("body"), s.has("within"));
+    let body = s.string("body", Need::Optional);
+    let within = read_window(s, "within", Need::Optional);
+    if (has.0 && body.is_none()) || (has.1 && within.is_none()) {
+        return None;
+    }
+    Some(RawExpect::Ready(Expectation::Breach {
+        fundament: kind == "through_fundament",
+        body,
+        within,
+    }))
+}
+
+/// `safe`: from a time to the end (the end is known only with the machine) or
+/// over a window.
+fn read_safe_expect(s: &Section<'_>) -> Option<RawExpect> {
+    let given = other_or_between(
+        s,
+        "from",
+        |s| s.number("from", Need::Optional, Limit::NonNegative),
+        "give either `from = t` (to the end) or `between = [t0, t1]`, not both",
+        "missing `from = t` (to the end) or `between = [t0, t1]`",
+    )?;
+    Some(match given {
+        Given::Other(t) => RawExpect::SafeFrom(t),
+        Given::Between(between) => RawExpect::Ready(Expectation::Safe { between }),
+    })
 }
 
 /// The state of [`STATES`] named `name` ([`State::name`]).
@@ -864,32 +919,100 @@ pub fn state_from_name(name: &str) -> Option<State> {
     STATES.into_iter().find(|s| s.name() == name)
 }
 
+/// What stage 4 checks a scenario's times and rotors against: the run's end, the
+/// control ticks and the rotors of the machine (when it was read).
+struct Bounds<'m> {
+    /// The machine, if it was read.
+    machine: Option<&'m Machine>,
+    /// End of the run, s (the scenario's `t_end`, else the machine's; infinite
+    /// without either).
+    t_end: f64,
+    /// Where `t_end` comes from, for the messages.
+    end_note: String,
+    /// The control rate, Hz.
+    rate: Option<f64>,
+    /// On a machine with one rotor, its name (for the messages): rotor 2 is not
+    /// there.
+    one_rotor: Option<String>,
+}
+
+impl<'m> Bounds<'m> {
+    /// The bounds of a scenario whose own `t_end` is `t_end`, on machine `m`.
+    fn new(t_end: Option<f64>, m: Option<&'m Machine>) -> Self {
+        let end = t_end
+            .or(m.map(|m| m.simulation.t_end))
+            .unwrap_or(f64::INFINITY);
+        let end_note = if t_end.is_some() {
+            format!("t_end = {} s", sig(end))
+        } else {
+            format!("t_end = {} s, the machine's simulation.t_end", sig(end))
+        };
+        Bounds {
+            machine: m,
+            t_end: end,
+            end_note,
+            rate: m.map(|m| m.controller.rate_hz),
+            one_rotor: m
+                .filter(|m| m.rotors.len() == 1)
+                .map(|m| m.rotors.rotor1().name.clone()),
+        }
+    }
+
+    /// The control tick a command at `t`, s, is sent at: the first at or after it.
+    fn tick_of(&self, t: f64) -> Option<u64> {
+        self.rate.map(|r| (t * r - 1e-6).ceil().max(0.0) as u64)
+    }
+
+    /// Whether a command or a fault at `t`, s, comes before the end of the run;
+    /// if not, says so at `key.t`.
+    fn before_the_end(&self, problems: &Problems, key: &str, t: f64) -> bool {
+        if t >= self.t_end {
+            problems.at(
+                &format!("{key}.t"),
+                format!("must be before the end, {} (got {})", self.end_note, sig(t)),
+            );
+            return false;
+        }
+        true
+    }
+}
+
 /// Stage 4: times against `t_end` and the control ticks, speeds defaulted.
 fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -> Option<Scenario> {
     // Without the machine only what the scenario itself says is checked.
-    let m = machine.as_ref().map(|(_, m)| m);
-    let t_end = raw
-        .t_end
-        .or(m.map(|m| m.simulation.t_end))
-        .unwrap_or(f64::INFINITY);
-    let end_note = if raw.t_end.is_some() {
-        format!("t_end = {} s", sig(t_end))
-    } else {
-        format!("t_end = {} s, the machine's simulation.t_end", sig(t_end))
-    };
-    let rate = m.map(|m| m.controller.rate_hz);
-    let tick_of = |t: f64| rate.map(|r| (t * r - 1e-6).ceil().max(0.0) as u64);
+    let bounds = Bounds::new(raw.t_end, machine.as_ref().map(|(_, m)| m));
+    let commands = resolve_commands(&raw.commands, &bounds, problems);
+    let faults = resolve_faults(&raw.faults, &bounds, problems);
+    let expectations = resolve_expectations(raw.expects, &bounds, problems);
+    let t_end = bounds.t_end;
 
-    // One rotor: rotor 2 is not there (its name, for the messages).
-    let one_rotor = m
-        .filter(|m| m.rotors.len() == 1)
-        .map(|m| m.rotors.rotor1().name.clone());
+    if raw.refused || raw.machine.is_none() || !problems.is_empty() {
+        return None;
+    }
+    let (machine_file, machine) = machine?;
+    Some(Scenario {
+        file: problems.file().to_string(),
+        machine_file,
+        machine,
+        sets: raw.sets.unwrap_or_default(),
+        t_end,
+        commands,
+        faults,
+        expectations,
+    })
+}
 
-    // Commands: before the end, one a tick, in time order; no phase offset to
-    // hold on one rotor.
+/// The commands: before the end, one a control tick, in time order, their speeds
+/// defaulted to the machine's `controller.speed_rpm`; no phase offset to hold on
+/// one rotor.
+fn resolve_commands(
+    raw: &[(String, ReadCommand)],
+    bounds: &Bounds<'_>,
+    problems: &Problems,
+) -> Vec<TimedCommand> {
     let mut commands: Vec<TimedCommand> = Vec::new();
-    for (key, t, name, c) in &raw.commands {
-        if let (Some(rotor), RawCommand::Hold(..)) = (&one_rotor, c) {
+    for (key, (t, name, c)) in raw {
+        if let (Some(rotor), RawCommand::Hold(..)) = (&bounds.one_rotor, c) {
             problems.at(
                 &format!("{key}.command"),
                 format!(
@@ -898,14 +1021,10 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
             );
             continue;
         }
-        if *t >= t_end {
-            problems.at(
-                &format!("{key}.t"),
-                format!("must be before the end, {end_note} (got {})", sig(*t)),
-            );
+        if !bounds.before_the_end(problems, key, *t) {
             continue;
         }
-        let default_speed = m.map_or(0.0, |m| m.controller.speed_rpm);
+        let default_speed = bounds.machine.map_or(0.0, |m| m.controller.speed_rpm);
         let speed = |s: Option<f64>| s.unwrap_or(default_speed) as f32;
         let command = match *c {
             RawCommand::Travel(direction, s) => Command::Travel {
@@ -922,7 +1041,7 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
         };
         if let Some(other) = commands
             .iter()
-            .find(|o| tick_of(o.t).is_some() && tick_of(o.t) == tick_of(*t))
+            .find(|o| bounds.tick_of(o.t).is_some() && bounds.tick_of(o.t) == bounds.tick_of(*t))
         {
             problems.at(
                 &format!("{key}.t"),
@@ -931,7 +1050,7 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
                     sig(*t),
                     other.key,
                     sig(other.t),
-                    sig(rate.unwrap_or(0.0))
+                    sig(bounds.rate.unwrap_or(0.0))
                 ),
             );
             continue;
@@ -944,28 +1063,32 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
         });
     }
     commands.sort_by(|a, b| a.t.total_cmp(&b.t));
+    commands
+}
 
-    let no_rotor_2 = |key: &str, name: &str| {
-        problems.at(
-            &format!("{key}.rotor"),
-            format!(
-                "must be 1: the machine has one rotor (\"{name}\"), rotor 2 does not exist (got 2)"
-            ),
-        );
-    };
+/// Says at `key.rotor` that a machine with one rotor, `name`, has no rotor 2.
+fn no_rotor_2(problems: &Problems, key: &str, name: &str) {
+    problems.at(
+        &format!("{key}.rotor"),
+        format!(
+            "must be 1: the machine has one rotor (\"{name}\"), rotor 2 does not exist (got 2)"
+        ),
+    );
+}
 
-    // Faults: starting before the end, on a rotor there is.
+/// The faults: starting before the end, on a rotor there is.
+fn resolve_faults(
+    raw: &[(String, ReadFault)],
+    bounds: &Bounds<'_>,
+    problems: &Problems,
+) -> Vec<Injection> {
     let mut faults = Vec::new();
-    for (key, t, duration, fault) in &raw.faults {
-        if let (Some(name), Some(1)) = (&one_rotor, fault.rotor()) {
-            no_rotor_2(key, name);
+    for (key, (t, duration, fault)) in raw {
+        if let (Some(name), Some(1)) = (&bounds.one_rotor, fault.rotor()) {
+            no_rotor_2(problems, key, name);
             continue;
         }
-        if *t >= t_end {
-            problems.at(
-                &format!("{key}.t"),
-                format!("must be before the end, {end_note} (got {})", sig(*t)),
-            );
+        if !bounds.before_the_end(problems, key, *t) {
             continue;
         }
         faults.push(Injection {
@@ -975,57 +1098,24 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
             key: key.clone(),
         });
     }
+    faults
+}
 
-    // Expectations: windows within the run, on what the machine has.
+/// The expectations: on what the machine has (rotors, bodies), their windows
+/// within the run.
+fn resolve_expectations(
+    raw: Vec<(String, RawExpect)>,
+    bounds: &Bounds<'_>,
+    problems: &Problems,
+) -> Vec<(String, Expectation)> {
     let mut expectations = Vec::new();
-    for (key, mut e) in raw.expects {
-        if let Some(name) = &one_rotor {
-            match &mut e {
-                RawExpect::Ready(Expectation::Phase { .. }) => {
-                    problems.at(
-                        &format!("{key}.kind"),
-                        format!(
-                            "\"phase\" does not apply: the machine has one rotor (\"{name}\"), no phase offset; its controller holds speed only (expect `speed` or `state`)"
-                        ),
-                    );
-                    continue;
-                }
-                RawExpect::Ready(Expectation::Speed { rotors, .. }) => {
-                    if rotors.len() == 1 && rotors[0] == 1 {
-                        no_rotor_2(&key, name);
-                        continue;
-                    }
-                    // No rotor named: the one there is.
-                    rotors.retain(|k| *k == 0);
-                }
-                _ => {}
+    for (key, mut e) in raw {
+        if let Some(name) = &bounds.one_rotor {
+            if !fit_one_rotor(&key, &mut e, name, problems) {
+                continue;
             }
         }
-        let (e, window_key, w) = match e {
-            RawExpect::SafeFrom(t) => (
-                Expectation::Safe {
-                    between: [t, t_end],
-                },
-                "from",
-                [t, t],
-            ),
-            RawExpect::Ready(e) => {
-                let (name, w) = match &e {
-                    Expectation::State { when, .. } | Expectation::Phase { when, .. } => match when
-                    {
-                        When::Within(w) => ("within", *w),
-                        When::Between(w) => ("between", *w),
-                    },
-                    Expectation::Travel { between, .. }
-                    | Expectation::Speed { between, .. }
-                    | Expectation::Safe { between } => ("between", *between),
-                    Expectation::Fault { within, .. } => ("within", *within),
-                    Expectation::NoFault { between } => ("between", between.unwrap_or([0.0, 0.0])),
-                    Expectation::Breach { within, .. } => ("within", within.unwrap_or([0.0, 0.0])),
-                };
-                (e, name, w)
-            }
-        };
+        let (e, window_key, w) = with_window(e, bounds.t_end);
         if let (
             Expectation::Breach {
                 fundament,
@@ -1033,14 +1123,14 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
                 ..
             },
             Some(m),
-        ) = (&e, m)
+        ) = (&e, bounds.machine)
         {
             if let Err(why) = breach_body(m, body, *fundament) {
                 problems.at(&format!("{key}.body"), why);
                 continue;
             }
         }
-        if w[1] > t_end + TIME_EPS {
+        if w[1] > bounds.t_end + TIME_EPS {
             let got = if window_key == "from" {
                 sig(w[0])
             } else {
@@ -1049,29 +1139,74 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
             problems.at(
                 &format!("{key}.{window_key}"),
                 format!(
-                    "must lie within the run, [0, {}] s ({end_note}; got {got})",
-                    sig(t_end)
+                    "must lie within the run, [0, {}] s ({}; got {got})",
+                    sig(bounds.t_end),
+                    bounds.end_note
                 ),
             );
             continue;
         }
         expectations.push((key, e));
     }
+    expectations
+}
 
-    if raw.refused || raw.machine.is_none() || !problems.is_empty() {
-        return None;
+/// An expectation at `key` on a machine with one rotor, `name`: a phase
+/// expectation does not apply (no phase offset) and a speed expectation of rotor
+/// 2 names a rotor that is not there (`false`, the problem said); a speed
+/// expectation naming no rotor is of the one there is.
+fn fit_one_rotor(key: &str, e: &mut RawExpect, name: &str, problems: &Problems) -> bool {
+    match e {
+        RawExpect::Ready(Expectation::Phase { .. }) => {
+            problems.at(
+                &format!("{key}.kind"),
+                format!(
+                    "\"phase\" does not apply: the machine has one rotor (\"{name}\"), no phase offset; its controller holds speed only (expect `speed` or `state`)"
+                ),
+            );
+            false
+        }
+        RawExpect::Ready(Expectation::Speed { rotors, .. }) => {
+            if rotors.len() == 1 && rotors[0] == 1 {
+                no_rotor_2(problems, key, name);
+                return false;
+            }
+            // No rotor named: the one there is.
+            rotors.retain(|k| *k == 0);
+            true
+        }
+        _ => true,
     }
-    let (machine_file, machine) = machine?;
-    Some(Scenario {
-        file: problems.file().to_string(),
-        machine_file,
-        machine,
-        sets: raw.sets.unwrap_or_default(),
-        t_end,
-        commands,
-        faults,
-        expectations,
-    })
+}
+
+/// The expectation `e` with `safe`'s `from` ended at `t_end`, s, and the key and
+/// the window, s, whose end must lie within the run (`[0, 0]` for an expectation
+/// over the whole run, `[t, t]` for `from = t`).
+fn with_window(e: RawExpect, t_end: f64) -> (Expectation, &'static str, [f64; 2]) {
+    match e {
+        RawExpect::SafeFrom(t) => (
+            Expectation::Safe {
+                between: [t, t_end],
+            },
+            "from",
+            [t, t],
+        ),
+        RawExpect::Ready(e) => {
+            let (name, w) = match &e {
+                Expectation::State { when, .. } | Expectation::Phase { when, .. } => match when {
+                    When::Within(w) => ("within", *w),
+                    When::Between(w) => ("between", *w),
+                },
+                Expectation::Travel { between, .. }
+                | Expectation::Speed { between, .. }
+                | Expectation::Safe { between } => ("between", *between),
+                Expectation::Fault { within, .. } => ("within", *within),
+                Expectation::NoFault { between } => ("between", between.unwrap_or([0.0, 0.0])),
+                Expectation::Breach { within, .. } => ("within", within.unwrap_or([0.0, 0.0])),
+            };
+            (e, name, w)
+        }
+    }
 }
 
 /// Whether `body` names a body of `m` that a `through_fundament` (`fundament`)

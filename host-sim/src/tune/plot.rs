@@ -114,54 +114,123 @@ pub struct Band<'a> {
 pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> String {
     let flags = band.map(|b| b.multistable);
     let band = band.map(|b| b.range);
-    let g = &t.grid;
-    let n = g.offsets_deg.len();
-    let (left, right) = (LEFT, WIDTH - RIGHT);
-    let (top, bottom) = (TOP, HEIGHT - BOTTOM);
-    let x_of = |o: f64| map(o, (0.0, 360.0), (left, right));
-
-    // The value axis, in mm/s.
-    let values = t
-        .runs
-        .iter()
-        .map(|r| r.mean_velocity)
-        .chain(t.right.iter().chain(&t.left).map(|b| b.mean_velocity))
-        .chain(band.unwrap_or(&[]).iter().flat_map(|(a, b)| [*a, *b]))
-        .map(|v| v * 1e3);
-    let ((lo, hi), step) = value_axis(values);
-    let y_of = |v: f64| map(v * 1e3, (lo, hi), (bottom, top));
+    let axes = Axes::new(t, band);
 
     let mut svg = String::new();
-    open_document(&mut svg, WIDTH, HEIGHT, title, LEFT, 26.0);
+    write_heading(&mut svg, t, title);
+    write_frame(&mut svg, &axes);
+
+    // One line per speed, closed at 360 when the offsets go round the turn.
+    let g = &t.grid;
+    let circular = g.circular() && g.offsets_deg.first() == Some(&0.0);
+    // The bands first, every line over them.
+    if let Some(band) = band {
+        write_bands(&mut svg, t, band, &axes, circular);
+    }
+    let mut rings = String::new();
+    // The best offsets are drawn last, over every line.
+    let mut bests = String::new();
+    for k in 0..g.speeds_rpm.len() {
+        write_speed_line(&mut svg, t, k, &axes, circular);
+        write_speed_points(&mut svg, &mut rings, t, k, flags, &axes);
+        write_best_marks(&mut bests, t, k, &axes);
+    }
+    svg.push_str(&rings);
+    svg.push_str(&bests);
+
+    write_legend(&mut svg, t, band.is_some(), flags);
+    svg.push_str("</svg>\n");
+    svg
+}
+
+/// The plot's area in the figure, px, and its two axes: phase offset, deg, along
+/// x (0 to 360); mean velocity, mm/s, along y, from `lo` to `hi` in ticks of
+/// `step`.
+struct Axes {
+    /// The plot area's left and right edges, px.
+    left: f64,
+    right: f64,
+    /// The plot area's top and bottom edges, px.
+    top: f64,
+    bottom: f64,
+    /// The value axis's bounds, mm/s.
+    lo: f64,
+    hi: f64,
+    /// The value axis's tick step, mm/s.
+    step: f64,
+}
+
+impl Axes {
+    /// The axes of the sweep `t`: the value axis holds every run's and every best
+    /// offset's mean velocity, and the band's edges if there is one.
+    fn new(t: &Tuning, band: Option<&[(f64, f64)]>) -> Self {
+        let values = t
+            .runs
+            .iter()
+            .map(|r| r.mean_velocity)
+            .chain(t.right.iter().chain(&t.left).map(|b| b.mean_velocity))
+            .chain(band.unwrap_or(&[]).iter().flat_map(|(a, b)| [*a, *b]))
+            .map(|v| v * 1e3);
+        let ((lo, hi), step) = value_axis(values);
+        Axes {
+            left: LEFT,
+            right: WIDTH - RIGHT,
+            top: TOP,
+            bottom: HEIGHT - BOTTOM,
+            lo,
+            hi,
+            step,
+        }
+    }
+
+    /// The x pixel of a phase offset, deg.
+    fn x(&self, offset_deg: f64) -> f64 {
+        map(offset_deg, (0.0, 360.0), (self.left, self.right))
+    }
+
+    /// The y pixel of a mean velocity, m/s (the axis is in mm/s).
+    fn y(&self, velocity: f64) -> f64 {
+        map(velocity * 1e3, (self.lo, self.hi), (self.bottom, self.top))
+    }
+}
+
+/// The document's opening, the title and the subtitle (how many runs, how long,
+/// what is measured).
+fn write_heading(svg: &mut String, t: &Tuning, title: &str) {
+    open_document(svg, WIDTH, HEIGHT, title, LEFT, 26.0);
     let subtitle = format!(
         "{} runs of {} s, each holding its offset from t = 0; mean velocity over the second half; positive = right",
         t.run_count,
-        crate::numbers::sig(g.t_end)
+        crate::numbers::sig(t.grid.t_end)
     );
     let _ = writeln!(
         svg,
         r##"<text x="{LEFT}" y="46" font-size="12" fill="#555">{}</text>"##,
         escape(&subtitle)
     );
+}
 
-    // Frame, grid lines and ticks.
+/// The plot area's frame, the grid lines with their tick labels (the zero line
+/// darker) and the two axis labels.
+fn write_frame(svg: &mut String, a: &Axes) {
+    let (left, right, top, bottom) = (a.left, a.right, a.top, a.bottom);
     let _ = writeln!(
         svg,
         r##"<rect x="{left:.1}" y="{top:.1}" width="{:.1}" height="{:.1}" fill="#fbfbfb" stroke="#999" stroke-width="1"/>"##,
         right - left,
         bottom - top
     );
-    for v in ticks(lo, hi, step) {
-        let py = map(v, (lo, hi), (bottom, top));
-        let colour = if v.abs() < step * 1e-9 {
+    for v in ticks(a.lo, a.hi, a.step) {
+        let py = map(v, (a.lo, a.hi), (bottom, top));
+        let colour = if v.abs() < a.step * 1e-9 {
             "#888"
         } else {
             "#e3e3e3"
         };
-        value_grid_line(&mut svg, (left, right), py, colour, &tick_label(v, step));
+        value_grid_line(svg, (left, right), py, colour, &tick_label(v, a.step));
     }
     for o in ticks(0.0, 360.0, 45.0) {
-        let px = x_of(o);
+        let px = a.x(o);
         let _ = writeln!(
             svg,
             r##"<line x1="{px:.1}" y1="{top:.1}" x2="{px:.1}" y2="{bottom:.1}" stroke="#e3e3e3" stroke-width="1"/><text x="{px:.1}" y="{:.1}" font-size="11" text-anchor="middle">{}</text>"##,
@@ -180,135 +249,162 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
         (left + right) / 2.0,
         bottom + 38.0
     );
+}
 
-    // One line per speed, closed at 360 when the offsets go round the turn.
-    let circular = g.circular() && g.offsets_deg.first() == Some(&0.0);
-    // The bands first, every line over them: each its upper edge left to right,
-    // its lower edge back, in pieces where both edges are finite; a light tint of
-    // the line's colour, solid (the same in every SVG renderer).
-    if let Some(band) = band {
-        for k in 0..g.speeds_rpm.len() {
-            let tint = tint(COLORS[k % COLORS.len()]);
-            let row = &t.runs[k * n..(k + 1) * n];
-            let mut edges: Vec<(f64, (f64, f64))> = row
-                .iter()
-                .zip(&band[k * n..(k + 1) * n])
-                .map(|(r, b)| (r.offset_deg, *b))
-                .collect();
-            if circular {
-                edges.push((360.0, band[k * n]));
-            }
-            for piece in edges.split(|(_, (a, b))| !(a.is_finite() && b.is_finite())) {
-                if piece.len() < 2 {
-                    continue;
-                }
-                let mut pts = Vec::new();
-                for (o, (_, hi)) in piece {
-                    pts.push(format!("{:.1},{:.1}", x_of(*o), y_of(*hi)));
-                }
-                for (o, (lo, _)) in piece.iter().rev() {
-                    pts.push(format!("{:.1},{:.1}", x_of(*o), y_of(*lo)));
-                }
-                let _ = writeln!(
-                    svg,
-                    r#"<polygon points="{}" fill="{tint}" stroke="none" class="band"/>"#,
-                    pts.join(" ")
-                );
-            }
-        }
-    }
-    let mut rings = String::new();
-    // The best offsets are drawn last, over every line.
-    let mut bests = String::new();
-    for (k, speed) in g.speeds_rpm.iter().enumerate() {
-        let colour = COLORS[k % COLORS.len()];
-        let dash = if k >= COLORS.len() {
-            r#" stroke-dasharray="6 3""#
-        } else {
-            ""
-        };
+/// The bands under the lines (`band`: per grid point, m/s), one per speed: each
+/// its upper edge left to right, its lower edge back, in pieces where both edges
+/// are finite, closed at 360 when `circular`; a light tint of the line's colour,
+/// solid (the same in every SVG renderer).
+fn write_bands(svg: &mut String, t: &Tuning, band: &[(f64, f64)], a: &Axes, circular: bool) {
+    let n = t.grid.offsets_deg.len();
+    for k in 0..t.grid.speeds_rpm.len() {
+        let tint = tint(COLORS[k % COLORS.len()]);
         let row = &t.runs[k * n..(k + 1) * n];
-        let mut points: Vec<(f64, f64)> = row
+        let mut edges: Vec<(f64, (f64, f64))> = row
             .iter()
-            .map(|r| (r.offset_deg, r.mean_velocity))
+            .zip(&band[k * n..(k + 1) * n])
+            .map(|(r, b)| (r.offset_deg, *b))
             .collect();
         if circular {
-            points.push((360.0, row[0].mean_velocity));
+            edges.push((360.0, band[k * n]));
         }
-        let mut runs: Vec<String> = vec![String::new()];
-        for (o, v) in points {
-            if !v.is_finite() {
-                runs.push(String::new());
+        for piece in edges.split(|(_, (a, b))| !(a.is_finite() && b.is_finite())) {
+            if piece.len() < 2 {
                 continue;
             }
-            if let Some(last) = runs.last_mut() {
-                if !last.is_empty() {
-                    last.push(' ');
-                }
-                let _ = write!(last, "{:.1},{:.1}", x_of(o), y_of(v));
+            let mut pts = Vec::new();
+            for (o, (_, hi)) in piece {
+                pts.push(format!("{:.1},{:.1}", a.x(*o), a.y(*hi)));
             }
-        }
-        for pts in runs.iter().filter(|p| !p.is_empty()) {
+            for (o, (lo, _)) in piece.iter().rev() {
+                pts.push(format!("{:.1},{:.1}", a.x(*o), a.y(*lo)));
+            }
             let _ = writeln!(
                 svg,
-                r#"<polyline points="{pts}" fill="none" stroke="{colour}" stroke-width="1.6" stroke-linejoin="round"{dash}/>"#
+                r#"<polygon points="{}" fill="{tint}" stroke="none" class="band"/>"#,
+                pts.join(" ")
             );
         }
-        for (i, r) in row.iter().enumerate() {
-            if !r.mean_velocity.is_finite() {
+    }
+}
+
+/// The `k`-th speed's colour, and its dash once the palette has gone round.
+fn line_style(k: usize) -> (&'static str, &'static str) {
+    let colour = COLORS[k % COLORS.len()];
+    let dash = if k >= COLORS.len() {
+        r#" stroke-dasharray="6 3""#
+    } else {
+        ""
+    };
+    (colour, dash)
+}
+
+/// The `k`-th speed's line through its runs' mean velocities, closed at 360 with
+/// its value at 0 when `circular`, broken where a value is not finite.
+fn write_speed_line(svg: &mut String, t: &Tuning, k: usize, a: &Axes, circular: bool) {
+    let n = t.grid.offsets_deg.len();
+    let (colour, dash) = line_style(k);
+    let row = &t.runs[k * n..(k + 1) * n];
+    let mut points: Vec<(f64, f64)> = row
+        .iter()
+        .map(|r| (r.offset_deg, r.mean_velocity))
+        .collect();
+    if circular {
+        points.push((360.0, row[0].mean_velocity));
+    }
+    let mut runs: Vec<String> = vec![String::new()];
+    for (o, v) in points {
+        if !v.is_finite() {
+            runs.push(String::new());
+            continue;
+        }
+        if let Some(last) = runs.last_mut() {
+            if !last.is_empty() {
+                last.push(' ');
+            }
+            let _ = write!(last, "{:.1},{:.1}", a.x(o), a.y(v));
+        }
+    }
+    for pts in runs.iter().filter(|p| !p.is_empty()) {
+        let _ = writeln!(
+            svg,
+            r#"<polyline points="{pts}" fill="none" stroke="{colour}" stroke-width="1.6" stroke-linejoin="round"{dash}/>"#
+        );
+    }
+}
+
+/// The `k`-th speed's grid points with a finite value: a dot on the line for a
+/// run that held its offset, else a grey ring; a dark red diamond around a point
+/// flagged multistable (`flags`). Rings and diamonds go to `rings`, drawn over
+/// every line.
+fn write_speed_points(
+    svg: &mut String,
+    rings: &mut String,
+    t: &Tuning,
+    k: usize,
+    flags: Option<&[bool]>,
+    a: &Axes,
+) {
+    let n = t.grid.offsets_deg.len();
+    let (colour, _) = line_style(k);
+    let row = &t.runs[k * n..(k + 1) * n];
+    for (i, r) in row.iter().enumerate() {
+        if !r.mean_velocity.is_finite() {
+            continue;
+        }
+        let (px, py) = (a.x(r.offset_deg), a.y(r.mean_velocity));
+        if flags.is_some_and(|f| f[k * n + i]) {
+            let _ = writeln!(
+                rings,
+                r##"<polygon points="{}" fill="none" stroke="#8b0000" stroke-width="1.5" class="multistable"/>"##,
+                diamond(px, py)
+            );
+        }
+        if r.not_held.is_some() {
+            let _ = writeln!(
+                rings,
+                r##"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="#777" stroke-width="1.5"/>"##
+            );
+        } else {
+            let _ = writeln!(
+                svg,
+                r#"<circle cx="{px:.1}" cy="{py:.1}" r="2" fill="{colour}"/>"#
+            );
+        }
+    }
+}
+
+/// The best offsets of the `k`-th speed, on its line's colour: a filled triangle
+/// pointing up for rightward travel, an open one pointing down for leftward
+/// travel; a best offset or velocity that is not finite is not drawn.
+fn write_best_marks(bests: &mut String, t: &Tuning, k: usize, a: &Axes) {
+    let speed = t.grid.speeds_rpm[k];
+    let (colour, _) = line_style(k);
+    let marks = |list: &[Best], up: bool, svg: &mut String| {
+        for b in list.iter().filter(|b| b.speed_rpm == speed) {
+            if !(b.offset_deg.is_finite() && b.mean_velocity.is_finite()) {
                 continue;
             }
-            let (px, py) = (x_of(r.offset_deg), y_of(r.mean_velocity));
-            if flags.is_some_and(|f| f[k * n + i]) {
-                let _ = writeln!(
-                    rings,
-                    r##"<polygon points="{}" fill="none" stroke="#8b0000" stroke-width="1.5" class="multistable"/>"##,
-                    diamond(px, py)
-                );
-            }
-            if r.not_held.is_some() {
-                let _ = writeln!(
-                    rings,
-                    r##"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="#777" stroke-width="1.5"/>"##
-                );
-            } else {
-                let _ = writeln!(
-                    svg,
-                    r#"<circle cx="{px:.1}" cy="{py:.1}" r="2" fill="{colour}"/>"#
-                );
-            }
+            let fill = if up { colour } else { "white" };
+            let _ = writeln!(
+                svg,
+                r#"<polygon points="{}" fill="{fill}" stroke="{colour}" stroke-width="1.5"/>"#,
+                triangle(a.x(b.offset_deg), a.y(b.mean_velocity), up)
+            );
         }
+    };
+    marks(&t.right, true, bests);
+    marks(&t.left, false, bests);
+}
 
-        // The best offsets of this speed.
-        let marks = |list: &[Best], up: bool, svg: &mut String| {
-            for b in list.iter().filter(|b| b.speed_rpm == *speed) {
-                if !(b.offset_deg.is_finite() && b.mean_velocity.is_finite()) {
-                    continue;
-                }
-                let fill = if up { colour } else { "white" };
-                let _ = writeln!(
-                    svg,
-                    r#"<polygon points="{}" fill="{fill}" stroke="{colour}" stroke-width="1.5"/>"#,
-                    triangle(x_of(b.offset_deg), y_of(b.mean_velocity), up)
-                );
-            }
-        };
-        marks(&t.right, true, &mut bests);
-        marks(&t.left, false, &mut bests);
-    }
-    svg.push_str(&rings);
-    svg.push_str(&bests);
-
-    // The legend, right of the plot.
-    let lx = right + 18.0;
-    let mut ly = top + 12.0;
-    for (k, speed) in g.speeds_rpm.iter().enumerate() {
-        let colour = COLORS[k % COLORS.len()];
-        let dash = if k >= COLORS.len() {
-            r#" stroke-dasharray="6 3""#
-        } else {
-            ""
-        };
+/// The legend, right of the plot: one line per speed, the two best marks, and
+/// the band (`banded`), the multistable diamond (when a point is flagged in
+/// `flags`) and the ring of an offset not held (when a run did not hold it).
+fn write_legend(svg: &mut String, t: &Tuning, banded: bool, flags: Option<&[bool]>) {
+    let lx = WIDTH - RIGHT + 18.0;
+    let mut ly = TOP + 12.0;
+    for (k, speed) in t.grid.speeds_rpm.iter().enumerate() {
+        let (colour, dash) = line_style(k);
         let _ = writeln!(
             svg,
             r#"<line x1="{lx:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="{colour}" stroke-width="2.5"{dash}/><text x="{:.1}" y="{ly:.1}" font-size="12">{} rpm</text>"#,
@@ -331,7 +427,7 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
         );
         ly += 18.0;
     }
-    if band.is_some() {
+    if banded {
         let _ = writeln!(
             svg,
             r##"<rect x="{lx:.1}" y="{:.1}" width="20" height="10" fill="{}"/><text x="{:.1}" y="{ly:.1}" font-size="12">10th-90th percentile</text>"##,
@@ -359,8 +455,6 @@ pub fn plot_with_band(t: &Tuning, title: &str, band: Option<&Band<'_>>) -> Strin
             lx + 26.0
         );
     }
-    svg.push_str("</svg>\n");
-    svg
 }
 
 #[cfg(test)]
