@@ -41,6 +41,7 @@
 use std::path::{Path, PathBuf};
 
 use shared::controller::{Command, Direction, Faults, State};
+use shared::Enumerated;
 use toml::{Table, Value};
 
 use crate::machine::input::{self, Limit, Location, Need, Problem, Problems, Section};
@@ -49,41 +50,157 @@ use crate::machine::Machine;
 use crate::numbers::{sig, signed};
 use crate::simulation::closed_loop;
 
-/// The commands a scenario can send, as written in the file.
-pub const COMMANDS: [&str; 6] = ["right", "left", "stop", "hold", "reset", "heartbeat"];
-/// The faults a scenario can inject, as written in the file.
-pub const FAULT_KINDS: [&str; 7] = [
-    "encoder_dropout",
-    "jammed_rotor",
-    "supply_sag",
-    "current_offset",
-    "lost_commands",
-    "estop",
-    "late_ticks",
-];
-/// The kinds of expectation, as written in the file.
-pub const EXPECT_KINDS: [&str; 9] = [
-    "state",
-    "travel",
-    "speed",
-    "phase",
-    "fault",
-    "no_fault",
-    "safe",
-    "through_fundament",
-    "tipped_over",
-];
-/// The controller's states an expectation may name (all but the self-test),
-/// by their [`State::name`].
-pub const STATES: [State; 5] = [
-    State::Idle,
-    State::Starting,
-    State::Running,
-    State::Stopping,
-    State::Fault,
-];
-/// Travel directions.
-pub const DIRECTIONS: [&str; 2] = ["right", "left"];
+/// A command a scenario can send, as written in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommandName {
+    /// Travel right.
+    Right,
+    /// Travel left.
+    Left,
+    /// Stop.
+    Stop,
+    /// Hold an offset.
+    Hold,
+    /// Reset the latched faults.
+    Reset,
+    /// Heartbeat.
+    Heartbeat,
+}
+
+impl Enumerated for CommandName {
+    const ALL: &'static [CommandName] = &[
+        CommandName::Right,
+        CommandName::Left,
+        CommandName::Stop,
+        CommandName::Hold,
+        CommandName::Reset,
+        CommandName::Heartbeat,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            CommandName::Right => "right",
+            CommandName::Left => "left",
+            CommandName::Stop => "stop",
+            CommandName::Hold => "hold",
+            CommandName::Reset => "reset",
+            CommandName::Heartbeat => "heartbeat",
+        }
+    }
+}
+
+/// A fault a scenario can inject, as written in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaultKind {
+    /// A rotor's encoder cut.
+    EncoderDropout,
+    /// A rotor held still.
+    JammedRotor,
+    /// The supply voltage dropped.
+    SupplySag,
+    /// An offset on a rotor's current measurement.
+    CurrentOffset,
+    /// The host's commands lost.
+    LostCommands,
+    /// The E-stop pressed.
+    Estop,
+    /// Control ticks started late.
+    LateTicks,
+}
+
+impl Enumerated for FaultKind {
+    const ALL: &'static [FaultKind] = &[
+        FaultKind::EncoderDropout,
+        FaultKind::JammedRotor,
+        FaultKind::SupplySag,
+        FaultKind::CurrentOffset,
+        FaultKind::LostCommands,
+        FaultKind::Estop,
+        FaultKind::LateTicks,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            FaultKind::EncoderDropout => "encoder_dropout",
+            FaultKind::JammedRotor => "jammed_rotor",
+            FaultKind::SupplySag => "supply_sag",
+            FaultKind::CurrentOffset => "current_offset",
+            FaultKind::LostCommands => "lost_commands",
+            FaultKind::Estop => "estop",
+            FaultKind::LateTicks => "late_ticks",
+        }
+    }
+}
+
+/// A kind of expectation, as written in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExpectKind {
+    /// The controller in a state.
+    State,
+    /// Travel one way.
+    Travel,
+    /// The rotors at a speed.
+    Speed,
+    /// The phase offset in a range.
+    Phase,
+    /// A fault latched.
+    Fault,
+    /// No fault latched.
+    NoFault,
+    /// The motors safe.
+    Safe,
+    /// A body through the fundament.
+    ThroughFundament,
+    /// A body tipped over.
+    TippedOver,
+}
+
+impl Enumerated for ExpectKind {
+    const ALL: &'static [ExpectKind] = &[
+        ExpectKind::State,
+        ExpectKind::Travel,
+        ExpectKind::Speed,
+        ExpectKind::Phase,
+        ExpectKind::Fault,
+        ExpectKind::NoFault,
+        ExpectKind::Safe,
+        ExpectKind::ThroughFundament,
+        ExpectKind::TippedOver,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            ExpectKind::State => "state",
+            ExpectKind::Travel => "travel",
+            ExpectKind::Speed => "speed",
+            ExpectKind::Phase => "phase",
+            ExpectKind::Fault => "fault",
+            ExpectKind::NoFault => "no_fault",
+            ExpectKind::Safe => "safe",
+            ExpectKind::ThroughFundament => "through_fundament",
+            ExpectKind::TippedOver => "tipped_over",
+        }
+    }
+}
+
+/// A controller state an expectation may name: all but the self-test, which a
+/// scenario never starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExpectedState(pub State);
+
+impl Enumerated for ExpectedState {
+    const ALL: &'static [ExpectedState] = &[
+        ExpectedState(State::Idle),
+        ExpectedState(State::Starting),
+        ExpectedState(State::Running),
+        ExpectedState(State::Stopping),
+        ExpectedState(State::Fault),
+    ];
+
+    fn name(self) -> &'static str {
+        self.0.name()
+    }
+}
 
 /// Default `min_speed` of a travel expectation, m/s: 1 mm/s, far above the drift
 /// of a platform that only rattles in place (the reference machine standing still
@@ -597,17 +714,13 @@ fn not_for(s: &Section<'_>, keys: &[&'static str], kind: &str, takers: &str) {
     }
 }
 
-/// The key `key` among `allowed` that decides which other keys a table takes
+/// The key `key`, one of `T`'s values, that decides which other keys a table takes
 /// (`command`, `kind`). Without its value the other keys cannot be judged: the
 /// table is finished (its unknown keys reported) only when the key is missing,
 /// since a misspelt key is then among the unknown ones; a value not allowed
 /// leaves the other keys unjudged.
-fn deciding_choice(
-    s: &Section<'_>,
-    key: &'static str,
-    allowed: &[&'static str],
-) -> Option<&'static str> {
-    let choice = s.choice(key, Need::Required, allowed);
+fn deciding_choice<T: Enumerated>(s: &Section<'_>, key: &'static str) -> Option<T> {
+    let choice = s.one_of(key, Need::Required);
     if choice.is_none() && !s.has(key) {
         s.finish();
     }
@@ -659,19 +772,20 @@ fn read_rotor(s: &Section<'_>, need: Need<i64>) -> Option<usize> {
 /// One `[[commands]]` table: (t, name, command).
 fn read_command(s: &Section<'_>) -> Option<ReadCommand> {
     let t = s.number("t", Need::Required, Limit::NonNegative);
-    let name = deciding_choice(s, "command", &COMMANDS)?;
-    let command = match name {
-        "right" | "left" | "hold" => {
+    let command_name: CommandName = deciding_choice(s, "command")?;
+    let name = command_name.name();
+    let command = match command_name {
+        CommandName::Right | CommandName::Left | CommandName::Hold => {
             let speed = s.number("speed_rpm", Need::Optional, Limit::Positive);
             let speed_ok = speed.is_some() || !s.has("speed_rpm");
-            if name == "hold" {
+            if command_name == CommandName::Hold {
                 let offset = s.number("offset_deg", Need::Required, Limit::Any);
                 offset
                     .filter(|_| speed_ok)
                     .map(|o| RawCommand::Hold(speed, o))
             } else {
                 not_for(s, &["offset_deg"], "command right or left", "command hold");
-                let d = if name == "right" {
+                let d = if command_name == CommandName::Right {
                     Direction::Right
                 } else {
                     Direction::Left
@@ -686,9 +800,9 @@ fn read_command(s: &Section<'_>) -> Option<ReadCommand> {
                 &format!("command {name}"),
                 "commands right, left and hold",
             );
-            Some(match name {
-                "stop" => RawCommand::Stop,
-                "reset" => RawCommand::Reset,
+            Some(match command_name {
+                CommandName::Stop => RawCommand::Stop,
+                CommandName::Reset => RawCommand::Reset,
                 _ => RawCommand::Heartbeat,
             })
         }
@@ -700,31 +814,31 @@ fn read_command(s: &Section<'_>) -> Option<ReadCommand> {
 /// One `[[faults]]` table: (t, duration, fault).
 fn read_fault(s: &Section<'_>) -> Option<ReadFault> {
     let t = s.number("t", Need::Required, Limit::NonNegative);
-    let kind = deciding_choice(s, "kind", &FAULT_KINDS)?;
+    let kind: FaultKind = deciding_choice(s, "kind")?;
     let duration = s.number("duration", Need::Optional, Limit::Positive);
     let duration_ok = duration.is_some() || !s.has("duration");
     let fault = match kind {
-        "encoder_dropout" => {
+        FaultKind::EncoderDropout => {
             read_rotor(s, Need::Required).map(|rotor| InjectedFault::EncoderDropout { rotor })
         }
-        "jammed_rotor" => {
+        FaultKind::JammedRotor => {
             read_rotor(s, Need::Required).map(|rotor| InjectedFault::JammedRotor { rotor })
         }
-        "supply_sag" => s
+        FaultKind::SupplySag => s
             .number("voltage", Need::Required, Limit::NonNegative)
             .map(|voltage| InjectedFault::SupplySag { voltage }),
-        "current_offset" => {
+        FaultKind::CurrentOffset => {
             let rotor = read_rotor(s, Need::Required);
             let amps = s.number("amps", Need::Required, Limit::Any);
             rotor
                 .zip(amps)
                 .map(|(rotor, amps)| InjectedFault::CurrentOffset { rotor, amps })
         }
-        "lost_commands" => Some(InjectedFault::LostCommands),
-        "late_ticks" => s
+        FaultKind::LostCommands => Some(InjectedFault::LostCommands),
+        FaultKind::LateTicks => s
             .number("late_us", Need::Required, Limit::NonNegative)
             .map(|late_us| InjectedFault::LateTicks { late_us }),
-        _ => Some(InjectedFault::Estop),
+        FaultKind::Estop => Some(InjectedFault::Estop),
     };
     s.finish();
     let fault = fault?;
@@ -749,31 +863,32 @@ fn read_when(s: &Section<'_>) -> Option<When> {
 
 /// One `[[expect]]` table.
 fn read_expect(s: &Section<'_>) -> Option<RawExpect> {
-    let kind = deciding_choice(s, "kind", &EXPECT_KINDS)?;
+    let kind: ExpectKind = deciding_choice(s, "kind")?;
     let e = read_expect_keys(s, kind);
     s.finish();
     e
 }
 
 /// The keys of an `[[expect]]` of `kind`, each kind's by its own reader.
-fn read_expect_keys(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
+fn read_expect_keys(s: &Section<'_>, kind: ExpectKind) -> Option<RawExpect> {
     match kind {
-        "state" => read_state_expect(s),
-        "travel" => read_travel_expect(s),
-        "speed" => read_speed_expect(s),
-        "phase" => read_phase_expect(s),
-        "fault" => read_fault_expect(s),
-        "no_fault" => read_no_fault_expect(s),
-        "through_fundament" | "tipped_over" => read_breach_expect(s, kind),
-        _ => read_safe_expect(s),
+        ExpectKind::State => read_state_expect(s),
+        ExpectKind::Travel => read_travel_expect(s),
+        ExpectKind::Speed => read_speed_expect(s),
+        ExpectKind::Phase => read_phase_expect(s),
+        ExpectKind::Fault => read_fault_expect(s),
+        ExpectKind::NoFault => read_no_fault_expect(s),
+        ExpectKind::ThroughFundament => read_breach_expect(s, true),
+        ExpectKind::TippedOver => read_breach_expect(s, false),
+        ExpectKind::Safe => read_safe_expect(s),
     }
 }
 
 /// `state`: a controller state and when (`within` or `between`).
 fn read_state_expect(s: &Section<'_>) -> Option<RawExpect> {
     let state = s
-        .choice("state", Need::Required, &STATES.map(State::name))
-        .and_then(state_from_name);
+        .one_of::<ExpectedState>("state", Need::Required)
+        .map(|e| e.0);
     let when = read_when(s);
     Some(RawExpect::Ready(Expectation::State {
         state: state?,
@@ -784,7 +899,7 @@ fn read_state_expect(s: &Section<'_>) -> Option<RawExpect> {
 /// `travel`: a direction over a window of some length (`t0 < t1`, so that a mean
 /// velocity exists), at `min_speed` m/s at least.
 fn read_travel_expect(s: &Section<'_>) -> Option<RawExpect> {
-    let direction = s.choice("direction", Need::Required, &DIRECTIONS);
+    let direction = s.one_of::<Direction>("direction", Need::Required);
     let between = read_window(s, "between", Need::Required);
     let min_speed = s.number(
         "min_speed",
@@ -801,12 +916,8 @@ fn read_travel_expect(s: &Section<'_>) -> Option<RawExpect> {
         );
         return None;
     }
-    let direction = match direction? {
-        "right" => Direction::Right,
-        _ => Direction::Left,
-    };
     Some(RawExpect::Ready(Expectation::Travel {
-        direction,
+        direction: direction?,
         between: between?,
         min_speed: min_speed?,
     }))
@@ -882,9 +993,9 @@ fn read_no_fault_expect(s: &Section<'_>) -> Option<RawExpect> {
     Some(RawExpect::Ready(Expectation::NoFault { between }))
 }
 
-/// `through_fundament` or `tipped_over` (`kind`): of one body or any, within a
-/// window or the whole run.
-fn read_breach_expect(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
+/// `through_fundament` (`fundament`) or `tipped_over`: of one body or any,
+/// within a window or the whole run.
+fn read_breach_expect(s: &Section<'_>, fundament: bool) -> Option<RawExpect> {
     let has = (s.has("body"), s.has("within"));
     let body = s.string("body", Need::Optional);
     let within = read_window(s, "within", Need::Optional);
@@ -892,7 +1003,7 @@ fn read_breach_expect(s: &Section<'_>, kind: &str) -> Option<RawExpect> {
         return None;
     }
     Some(RawExpect::Ready(Expectation::Breach {
-        fundament: kind == "through_fundament",
+        fundament,
         body,
         within,
     }))
@@ -912,11 +1023,6 @@ fn read_safe_expect(s: &Section<'_>) -> Option<RawExpect> {
         Given::Other(t) => RawExpect::SafeFrom(t),
         Given::Between(between) => RawExpect::Ready(Expectation::Safe { between }),
     })
-}
-
-/// The state of [`STATES`] named `name` ([`State::name`]).
-pub fn state_from_name(name: &str) -> Option<State> {
-    STATES.into_iter().find(|s| s.name() == name)
 }
 
 /// What stage 4 checks a scenario's times and rotors against: the run's end, the

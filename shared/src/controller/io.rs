@@ -20,6 +20,18 @@ pub enum Direction {
     Left,
 }
 
+/// Both ways, named as scenario files and outputs write them.
+impl crate::Enumerated for Direction {
+    const ALL: &'static [Direction] = &[Direction::Right, Direction::Left];
+
+    fn name(self) -> &'static str {
+        match self {
+            Direction::Right => "right",
+            Direction::Left => "left",
+        }
+    }
+}
+
 /// A command from the host (or the firmware's own panel), at most one per tick.
 ///
 /// Any command, [`Command::Heartbeat`] included, proves the link alive
