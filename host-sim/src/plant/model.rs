@@ -251,101 +251,135 @@ struct FileBody<'a> {
     rigid: &'a crate::machine::Platform,
 }
 
-impl PlantModel {
-    /// The model of a checked machine file (its bodies in trees, every name known,
-    /// no loops: the machine file's checks).
-    pub fn new(m: &Machine) -> Self {
-        let mut file = vec![FileBody {
-            name: PLATFORM,
-            rigid: &m.platform,
-        }];
-        file.extend(m.bodies.iter().map(|b| FileBody {
-            name: &b.name,
-            rigid: &b.rigid,
-        }));
-        let index = |name: &str| file.iter().position(|b| b.name == name);
-        // The joints as (body A, body B, world point), `None` for the fundament.
-        let joints: Vec<(Option<usize>, Option<usize>, [f64; 2])> = m
-            .joints
-            .iter()
-            .map(|j| (index(&j.bodies[0]), index(&j.bodies[1]), j.point))
-            .collect();
+/// A joint of the file as the layout reads it: its two bodies by their index in
+/// [`file_bodies`] (`None`: the fundament) and its hinge at t = 0, world, m.
+type FileJoint = (Option<usize>, Option<usize>, [f64; 2]);
 
-        // The layout: trees in the order of their first body, each from its root.
+/// The bodies of machine `m`, the platform first, then `[[bodies]]` in file order.
+fn file_bodies(m: &Machine) -> Vec<FileBody<'_>> {
+    let mut file = vec![FileBody {
+        name: PLATFORM,
+        rigid: &m.platform,
+    }];
+    file.extend(m.bodies.iter().map(|b| FileBody {
+        name: &b.name,
+        rigid: &b.rigid,
+    }));
+    file
+}
+
+/// The layout of the bodies' coordinates (the module doc's): trees in the order
+/// of their first body, each from its root, depth first.
+struct Layout {
+    /// How each body hangs in its tree (`None` until laid out).
+    mount: Vec<Option<Mount>>,
+    /// Each body's angle coordinate.
+    angle: Vec<usize>,
+    /// Each body's reference point at t = 0, world, m: its centre of mass for a
+    /// free root, its hinge otherwise.
+    reference: Vec<[f64; 2]>,
+    /// Each body's parent, `None` for a root.
+    parent_of: Vec<Option<usize>>,
+    /// The bodies in coordinate order (every parent before its children).
+    order: Vec<usize>,
+    /// The coordinates laid out so far: at the end, the bodies' count of them.
+    next: usize,
+}
+
+impl Layout {
+    /// The layout of the bodies `file` joined by `joints` (trees, every name
+    /// known: the machine file's checks).
+    fn of(file: &[FileBody<'_>], joints: &[FileJoint]) -> Self {
         let n = file.len();
-        let mut mount: Vec<Option<Mount>> = vec![None; n];
-        let mut angle = vec![0; n];
-        let mut reference = vec![[0.0; 2]; n];
-        let mut parent_of: Vec<Option<usize>> = vec![None; n];
-        let mut order = Vec::with_capacity(n);
-        let mut next = 0;
+        let mut layout = Layout {
+            mount: vec![None; n],
+            angle: vec![0; n],
+            reference: vec![[0.0; 2]; n],
+            parent_of: vec![None; n],
+            order: Vec::with_capacity(n),
+            next: 0,
+        };
         for first in 0..n {
-            if mount[first].is_some() {
+            if layout.mount[first].is_some() {
                 continue;
             }
-            // The tree of `first`, and its hinge to the fundament if it has one.
-            let mut tree = vec![first];
-            let mut k = 0;
-            while k < tree.len() {
-                for &(a, b, _) in &joints {
-                    for (x, y) in [(a, b), (b, a)] {
-                        if let (Some(x), Some(y)) = (x, y) {
-                            if x == tree[k] && !tree.contains(&y) {
-                                tree.push(y);
-                            }
-                        }
-                    }
-                }
-                k += 1;
+            let tree = tree_of(first, joints);
+            let root = layout.place_root(first, &tree, file, joints);
+            layout.place_descendants(root, file, joints);
+        }
+        layout
+    }
+
+    /// Lays out the root of `tree` (whose first body is `first`): the body hinged
+    /// to the fundament, on that hinge, with its angle; else `first`, free, with
+    /// its centre of mass and angle. Returns the root.
+    fn place_root(
+        &mut self,
+        first: usize,
+        tree: &[usize],
+        file: &[FileBody<'_>],
+        joints: &[FileJoint],
+    ) -> usize {
+        let pinned = joints.iter().find_map(|&(a, b, p)| match (a, b) {
+            (None, Some(x)) | (Some(x), None) if tree.contains(&x) => Some((x, p)),
+            _ => None,
+        });
+        match pinned {
+            Some((root, pivot)) => {
+                self.mount[root] = Some(Mount::Pinned { pivot });
+                self.angle[root] = self.next;
+                self.reference[root] = pivot;
+                self.next += 1;
+                root
             }
-            let pinned = joints.iter().find_map(|&(a, b, p)| match (a, b) {
-                (None, Some(x)) | (Some(x), None) if tree.contains(&x) => Some((x, p)),
-                _ => None,
-            });
-            let root = match pinned {
-                Some((root, pivot)) => {
-                    mount[root] = Some(Mount::Pinned { pivot });
-                    angle[root] = next;
-                    reference[root] = pivot;
-                    next += 1;
-                    root
-                }
-                None => {
-                    mount[first] = Some(Mount::Free { x: next });
-                    angle[first] = next + 2;
-                    reference[first] = file[first].rigid.position;
-                    next += 3;
-                    first
-                }
-            };
-            // Depth first from the root: every body's children after it.
-            let mut stack = vec![root];
-            while let Some(p) = stack.pop() {
-                order.push(p);
-                let mut children = Vec::new();
-                for &(a, b, point) in &joints {
-                    for (x, y) in [(a, b), (b, a)] {
-                        if let (Some(x), Some(y)) = (x, y) {
-                            if x == p && mount[y].is_none() {
-                                let joint = to_body(file[p].rigid.angle, sub(point, reference[p]));
-                                mount[y] = Some(Mount::Child { parent: p, joint });
-                                parent_of[y] = Some(p);
-                                angle[y] = next;
-                                reference[y] = point;
-                                next += 1;
-                                children.push(y);
-                            }
-                        }
-                    }
-                }
-                stack.extend(children.into_iter().rev());
+            None => {
+                self.mount[first] = Some(Mount::Free { x: self.next });
+                self.angle[first] = self.next + 2;
+                self.reference[first] = file[first].rigid.position;
+                self.next += 3;
+                first
             }
         }
-        let body_dof = next;
-        let bodies: Vec<BodyModel> = (0..n)
+    }
+
+    /// Lays out the bodies below `root`, depth first: every body's children after
+    /// it, each hinged to its parent with its angle.
+    fn place_descendants(&mut self, root: usize, file: &[FileBody<'_>], joints: &[FileJoint]) {
+        let mut stack = vec![root];
+        while let Some(p) = stack.pop() {
+            self.order.push(p);
+            let mut children = Vec::new();
+            for &(a, b, point) in joints {
+                for (x, y) in [(a, b), (b, a)] {
+                    if let (Some(x), Some(y)) = (x, y) {
+                        if x == p && self.mount[y].is_none() {
+                            let joint = to_body(file[p].rigid.angle, sub(point, self.reference[p]));
+                            self.mount[y] = Some(Mount::Child { parent: p, joint });
+                            self.parent_of[y] = Some(p);
+                            self.angle[y] = self.next;
+                            self.reference[y] = point;
+                            self.next += 1;
+                            children.push(y);
+                        }
+                    }
+                }
+            }
+            stack.extend(children.into_iter().rev());
+        }
+    }
+
+    /// World point `p` (t = 0) in body `b`'s frame, from its reference point.
+    fn local(&self, file: &[FileBody<'_>], b: usize, p: [f64; 2]) -> [f64; 2] {
+        to_body(file[b].rigid.angle, sub(p, self.reference[b]))
+    }
+
+    /// The bodies of `file` as laid out, each with its chain from its tree's
+    /// root.
+    fn body_models(&self, file: &[FileBody<'_>]) -> Vec<BodyModel> {
+        (0..file.len())
             .map(|b| {
                 let mut chain = vec![b];
-                while let Some(p) = parent_of[*chain.last().expect("chain starts at b")] {
+                while let Some(p) = self.parent_of[*chain.last().expect("chain starts at b")] {
                     chain.push(p);
                 }
                 chain.reverse();
@@ -354,88 +388,146 @@ impl PlantModel {
                     name: file[b].name.to_string(),
                     mass: r.mass,
                     inertia: r.inertia,
-                    mount: mount[b].expect("every body is in a tree"),
-                    angle: angle[b],
-                    com: to_body(r.angle, sub(r.position, reference[b])),
+                    mount: self.mount[b].expect("every body is in a tree"),
+                    angle: self.angle[b],
+                    com: to_body(r.angle, sub(r.position, self.reference[b])),
                     chain,
                 }
             })
-            .collect();
-        let local = |b: usize, p: [f64; 2]| to_body(file[b].rigid.angle, sub(p, reference[b]));
-        let body_of = |name: &str| index(name).expect("a checked machine names known bodies");
+            .collect()
+    }
+}
 
-        let rotors: Vec<RotorModel> = m
-            .rotors
-            .iter()
-            .enumerate()
-            .map(|(k, r)| {
-                let body = body_of(&r.body);
-                RotorModel {
-                    body,
-                    phi: body_dof + k,
-                    axis: local(body, r.axis),
-                    mass: r.eccentric_mass,
-                    eccentricity: r.eccentricity,
-                    inertia: r.inertia,
-                    sense: r.sense.sign(),
-                    index_angle: r.index_angle,
-                    motor: r.motor.clone(),
-                }
-            })
-            .collect();
-        let contacts = m
-            .contacts
-            .iter()
-            .map(|c| {
-                let body = body_of(&c.ends.body);
-                let face = if c.ends.against == FUNDAMENT {
-                    Face::Fundament
-                } else {
-                    let a = body_of(&c.ends.against);
-                    let normal = c
-                        .ends
-                        .normal
-                        .expect("a checked contact against a body has a normal");
-                    Face::Body {
-                        body: a,
-                        point: local(a, c.ends.face.unwrap_or(c.point)),
-                        normal: to_body(file[a].rigid.angle, normal),
+/// The tree of body `first`: every body joined to it through `joints`, `first`
+/// first, then breadth first.
+fn tree_of(first: usize, joints: &[FileJoint]) -> Vec<usize> {
+    let mut tree = vec![first];
+    let mut k = 0;
+    while k < tree.len() {
+        for &(a, b, _) in joints {
+            for (x, y) in [(a, b), (b, a)] {
+                if let (Some(x), Some(y)) = (x, y) {
+                    if x == tree[k] && !tree.contains(&y) {
+                        tree.push(y);
                     }
-                };
-                ContactPoint {
-                    name: c.name.clone(),
-                    body,
-                    point: local(body, c.point),
-                    face,
-                    law: ContactLaw {
-                        restitution: c.restitution,
-                        friction: c.friction,
-                        weight: c.weight,
-                    },
                 }
-            })
-            .collect();
-        let springs = m
+            }
+        }
+        k += 1;
+    }
+    tree
+}
+
+/// The index in `file` of the body `name` names (a checked machine names known
+/// bodies).
+fn body_of(file: &[FileBody<'_>], name: &str) -> usize {
+    file.iter()
+        .position(|b| b.name == name)
+        .expect("a checked machine names known bodies")
+}
+
+/// The rotors of `m`, each in the frame of the body carrying it, their `phi`
+/// coordinates after the bodies'.
+fn rotor_models(m: &Machine, file: &[FileBody<'_>], layout: &Layout) -> Vec<RotorModel> {
+    m.rotors
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let body = body_of(file, &r.body);
+            RotorModel {
+                body,
+                phi: layout.next + k,
+                axis: layout.local(file, body, r.axis),
+                mass: r.eccentric_mass,
+                eccentricity: r.eccentricity,
+                inertia: r.inertia,
+                sense: r.sense.sign(),
+                index_angle: r.index_angle,
+                motor: r.motor.clone(),
+            }
+        })
+        .collect()
+}
+
+/// The contact points of `m`, each in the frame of its body, against the
+/// fundament's line or a face in the frame of the body it strikes.
+fn contact_points(m: &Machine, file: &[FileBody<'_>], layout: &Layout) -> Vec<ContactPoint> {
+    m.contacts
+        .iter()
+        .map(|c| {
+            let body = body_of(file, &c.ends.body);
+            let face = if c.ends.against == FUNDAMENT {
+                Face::Fundament
+            } else {
+                let a = body_of(file, &c.ends.against);
+                let normal = c
+                    .ends
+                    .normal
+                    .expect("a checked contact against a body has a normal");
+                Face::Body {
+                    body: a,
+                    point: layout.local(file, a, c.ends.face.unwrap_or(c.point)),
+                    normal: to_body(file[a].rigid.angle, normal),
+                }
+            };
+            ContactPoint {
+                name: c.name.clone(),
+                body,
+                point: layout.local(file, body, c.point),
+                face,
+                law: ContactLaw {
+                    restitution: c.restitution,
+                    friction: c.friction,
+                    weight: c.weight,
+                },
+            }
+        })
+        .collect()
+}
+
+/// The joints of `m` with a spring or a damper (`joints`: their bodies), relaxed
+/// at their `rest_angle`, else at their relative angle at t = 0.
+fn springs(m: &Machine, file: &[FileBody<'_>], joints: &[FileJoint]) -> Vec<Spring> {
+    m.joints
+        .iter()
+        .zip(joints)
+        .filter(|(j, _)| j.stiffness > 0.0 || j.damping > 0.0)
+        .map(|(j, &(a, b, _))| {
+            let world = |x: Option<usize>| x.map_or(0.0, |x| file[x].rigid.angle);
+            Spring {
+                name: j.name.clone(),
+                a,
+                b,
+                stiffness: j.stiffness,
+                damping: j.damping,
+                rest_angle: j.rest_angle.unwrap_or(world(b) - world(a)),
+            }
+        })
+        .collect()
+}
+
+impl PlantModel {
+    /// The model of a checked machine file (its bodies in trees, every name known,
+    /// no loops: the machine file's checks).
+    pub fn new(m: &Machine) -> Self {
+        let file = file_bodies(m);
+        let index = |name: &str| file.iter().position(|b| b.name == name);
+        // The joints as (body A, body B, world point), `None` for the fundament.
+        let joints: Vec<FileJoint> = m
             .joints
             .iter()
-            .zip(&joints)
-            .filter(|(j, _)| j.stiffness > 0.0 || j.damping > 0.0)
-            .map(|(j, &(a, b, _))| {
-                let world = |x: Option<usize>| x.map_or(0.0, |x| file[x].rigid.angle);
-                Spring {
-                    name: j.name.clone(),
-                    a,
-                    b,
-                    stiffness: j.stiffness,
-                    damping: j.damping,
-                    rest_angle: j.rest_angle.unwrap_or(world(b) - world(a)),
-                }
-            })
+            .map(|j| (index(&j.bodies[0]), index(&j.bodies[1]), j.point))
             .collect();
+        let layout = Layout::of(&file, &joints);
+        let body_dof = layout.next;
+        let bodies = layout.body_models(&file);
+        let rotors = rotor_models(m, &file, &layout);
+        let contacts = contact_points(m, &file, &layout);
+        let springs = springs(m, &file, &joints);
         let nrm = m.fundament.normal;
         let mut model = PlantModel {
             bodies,
-            order,
+            order: layout.order,
             free_roots: Vec::new(),
             dof: body_dof + m.rotors.len(),
             body_dof,

@@ -56,7 +56,7 @@ mod modes;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use events::{Crossing, StageForces};
+use events::{Crossing, EventValues, StageForces};
 use forces::CachedEvaluation;
 
 use super::bridge::{Bridge, BridgeCommand};
@@ -530,45 +530,17 @@ impl Plant {
                     ev0 = self.event_values(&self.y);
                 }
             }
-            let f0 = match self.fsal {
-                Some(f) => f,
-                None => {
-                    let f = self.with_evaluation(&self.y, |e| e.ydot);
-                    self.fsal = Some(f);
-                    f
-                }
-            };
+            let f0 = self.start_derivative();
             // Steps end at the target and at every switch of a bridge.
             let t_switch = self.next_switch().filter(|ts| *ts < t_target);
             let t_stop = t_switch.unwrap_or(t_target);
             let remaining = t_stop - self.t;
             let h = self.h.min(self.settings.max_step).min(remaining);
-            let (t, y) = (self.t, self.y);
-            // The contact forces at the interior stages, for the dip test.
-            let mut stages = StageForces::default();
-            let outcome = {
-                let this = &*self;
-                let mut rhs = |_t: f64, yy: &[f64; NY]| {
-                    this.with_evaluation(yy, |e| {
-                        stages.record(e, this.modes.len());
-                        e.ydot
-                    })
-                };
-                attempt(&mut rhs, t, &y, &f0, h, &tol)
-            };
+            let (outcome, stages) = self.attempt_step(&f0, h, &tol);
             self.attempts += 1;
             self.charge()?;
             match outcome {
-                Attempt::Rejected(next) => {
-                    self.h = next;
-                    if self.h < MIN_STEP {
-                        let stop = Stop::StepUnderflow {
-                            at: self.situation(),
-                            h: self.h,
-                        };
-                        return self.stop(stop);
-                    }
-                }
+                Attempt::Rejected(next) => self.reject(next)?,
                 Attempt::Accepted(step, next) => {
                     self.steps += 1;
                     // Keep the suggested size unless the step was cut by the target
@@ -580,41 +552,12 @@ impl Plant {
                     let ev1 = self.event_values(&step.y1);
                     match self.first_crossing(&step, &ev0, &ev1, &stages) {
                         Some(c) if c.current_only && c.t > step.t0 => {
-                            // A winding's event: the current clamped (held at its
-                            // limit, or zero behind the diodes), nothing else; no
-                            // contact changes, so no impact check and no rows.
                             stalled = 0;
-                            self.integrate_currents(&step, c.t);
-                            record(Output::Dense(self.dense(&step), c.t));
-                            self.t = c.t;
-                            self.y = c.y;
-                            self.fsal = None;
-                            self.clamp_currents();
-                            ev0 = self.event_values(&self.y);
-                            self.charge()?;
+                            ev0 = self.cut_at_winding_event(&step, c, record)?;
                         }
-                        Some(Crossing { t: te, y: ye, .. })
-                            if te > step.t0 || stalled < MAX_STALLED_EVENTS =>
-                        {
-                            stalled = if te > step.t0 { 0 } else { stalled + 1 };
-                            self.integrate_currents(&step, te);
-                            record(Output::Dense(self.dense(&step), te));
-                            self.t = te;
-                            self.y = ye;
-                            record(Output::Before(At {
-                                t: self.t,
-                                y: &self.y,
-                                plant: self,
-                            }));
-                            self.fsal = None;
-                            self.settle();
-                            record(Output::After(At {
-                                t: self.t,
-                                y: &self.y,
-                                plant: self,
-                            }));
-                            ev0 = self.event_values(&self.y);
-                            self.charge()?;
+                        Some(c) if c.t > step.t0 || stalled < MAX_STALLED_EVENTS => {
+                            stalled = if c.t > step.t0 { 0 } else { stalled + 1 };
+                            ev0 = self.cut_at_event(&step, c, record)?;
                         }
                         found => {
                             if found.is_some() {
@@ -626,38 +569,8 @@ impl Plant {
                                 ));
                                 stalled = 0;
                             }
-                            self.integrate_currents(&step, step.t1());
-                            record(Output::Dense(self.dense(&step), step.t1()));
-                            self.t = step.t1();
-                            self.y = step.y1;
-                            self.clamp_currents();
-                            // The projection moves the state back onto the closed
-                            // contacts' constraints, and only once the integrator's
-                            // drift off them is measurable ([`Plant::drifted`]).
-                            // Without it the derivative at the step's end is the
-                            // next step's first (FSAL), which saves an evaluation
-                            // a step; with it, the state is no longer the one
-                            // `step.f1` and `ev1` were evaluated at, so both are
-                            // evaluated again at the projected state.
-                            let projected = self.drifted();
-                            if projected {
-                                self.project();
-                                self.fsal = None;
-                            } else {
-                                self.fsal = Some(step.f1);
-                            }
-                            // Exactly at the switch, whatever the rounding of t.
-                            let switched = at_switch && {
-                                self.t = t_stop;
-                                self.switch_bridges(t_stop)
-                            };
-                            // The event functions at the new start: the step's end
-                            // unless the projection or the windings moved it since.
-                            ev0 = if projected || switched {
-                                self.event_values(&self.y)
-                            } else {
-                                ev1
-                            };
+                            let switch = at_switch.then_some(t_stop);
+                            ev0 = self.take_whole_step(&step, ev1, switch, record);
                         }
                     }
                 }
@@ -665,6 +578,154 @@ impl Plant {
         }
         self.ev_cache = Some((self.y, ev0));
         Ok(())
+    }
+
+    /// The derivative at the current state: the last accepted step's at its end
+    /// (first same as last) while the state has not moved since, else evaluated
+    /// and kept.
+    fn start_derivative(&mut self) -> [f64; NY] {
+        match self.fsal {
+            Some(f) => f,
+            None => {
+                let f = self.with_evaluation(&self.y, |e| e.ydot);
+                self.fsal = Some(f);
+                f
+            }
+        }
+    }
+
+    /// One integrator attempt of size `h`, s, from the current state with its
+    /// derivative `f0`, and the contact forces at its interior stages (for the dip
+    /// test of [`Plant::first_crossing`]).
+    fn attempt_step(
+        &self,
+        f0: &[f64; NY],
+        h: f64,
+        tol: &Tolerance<NY>,
+    ) -> (Attempt<NY>, StageForces) {
+        let (t, y) = (self.t, self.y);
+        // The contact forces at the interior stages, for the dip test.
+        let mut stages = StageForces::default();
+        let outcome = {
+            let mut rhs = |_t: f64, yy: &[f64; NY]| {
+                self.with_evaluation(yy, |e| {
+                    stages.record(e, self.modes.len());
+                    e.ydot
+                })
+            };
+            attempt(&mut rhs, t, &y, f0, h, tol)
+        };
+        (outcome, stages)
+    }
+
+    /// A rejected attempt: the next try with the smaller size `next`, s; below
+    /// [`MIN_STEP`] the run stops ([`Stop::StepUnderflow`]).
+    fn reject(&mut self, next: f64) -> Result<(), Stop> {
+        self.h = next;
+        if self.h < MIN_STEP {
+            let stop = Stop::StepUnderflow {
+                at: self.situation(),
+                h: self.h,
+            };
+            return self.stop(stop);
+        }
+        Ok(())
+    }
+
+    /// Takes `step` up to a winding's event `c`: the current clamped (held at its
+    /// limit, or zero behind the diodes), nothing else; no contact changes, so no
+    /// impact check and no rows. The event functions at the new state.
+    fn cut_at_winding_event(
+        &mut self,
+        step: &Step<NY>,
+        c: Crossing,
+        record: &mut dyn FnMut(Output<'_>),
+    ) -> Result<EventValues, Stop> {
+        self.integrate_currents(step, c.t);
+        record(Output::Dense(self.dense(step), c.t));
+        self.t = c.t;
+        self.y = c.y;
+        self.fsal = None;
+        self.clamp_currents();
+        let ev0 = self.event_values(&self.y);
+        self.charge()?;
+        Ok(ev0)
+    }
+
+    /// Takes `step` up to the event `c` and handles it ([`Plant::settle`]:
+    /// impacts, then the new modes), recording the states just before and just
+    /// after. The event functions at the new state.
+    fn cut_at_event(
+        &mut self,
+        step: &Step<NY>,
+        c: Crossing,
+        record: &mut dyn FnMut(Output<'_>),
+    ) -> Result<EventValues, Stop> {
+        let Crossing { t: te, y: ye, .. } = c;
+        self.integrate_currents(step, te);
+        record(Output::Dense(self.dense(step), te));
+        self.t = te;
+        self.y = ye;
+        record(Output::Before(At {
+            t: self.t,
+            y: &self.y,
+            plant: self,
+        }));
+        self.fsal = None;
+        self.settle();
+        record(Output::After(At {
+            t: self.t,
+            y: &self.y,
+            plant: self,
+        }));
+        let ev0 = self.event_values(&self.y);
+        self.charge()?;
+        Ok(ev0)
+    }
+
+    /// Takes the whole of `step` (no event in it), its end projected back onto
+    /// the closed contacts' constraints where it drifted, and the bridges switched
+    /// at `switch`, s, if the step ends at a switch. The event functions at the
+    /// new state: `ev1`, the step end's, unless the projection or the windings
+    /// moved it since.
+    fn take_whole_step(
+        &mut self,
+        step: &Step<NY>,
+        ev1: EventValues,
+        switch: Option<f64>,
+        record: &mut dyn FnMut(Output<'_>),
+    ) -> EventValues {
+        self.integrate_currents(step, step.t1());
+        record(Output::Dense(self.dense(step), step.t1()));
+        self.t = step.t1();
+        self.y = step.y1;
+        self.clamp_currents();
+        // The projection moves the state back onto the closed contacts'
+        // constraints, and only once the integrator's drift off them is
+        // measurable ([`Plant::drifted`]). Without it the derivative at the
+        // step's end is the next step's first (FSAL), which saves an evaluation a
+        // step; with it, the state is no longer the one `step.f1` and `ev1` were
+        // evaluated at, so both are evaluated again at the projected state.
+        let projected = self.drifted();
+        if projected {
+            self.project();
+            self.fsal = None;
+        } else {
+            self.fsal = Some(step.f1);
+        }
+        // Exactly at the switch, whatever the rounding of t.
+        let switched = match switch {
+            Some(t_stop) => {
+                self.t = t_stop;
+                self.switch_bridges(t_stop)
+            }
+            None => false,
+        };
+        if projected || switched {
+            self.event_values(&self.y)
+        } else {
+            ev1
+        }
     }
 
     /// Whether the state has drifted off a closed contact's constraints by

@@ -2,7 +2,7 @@
 //! the complementarity problem at acceleration level, and the projection of the
 //! state onto the closed contacts' constraints.
 
-use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
+use shared::impact::lcp::{find_direction, Direction, NormalRule, Tolerances};
 use shared::impact::lemke::Outcome;
 use shared::impact::linalg::{solve_weighted_in, DIM};
 use shared::impact::MAX_CONTACTS;
@@ -209,125 +209,192 @@ impl Plant {
             .copied()
             .filter(|j| kin[*j].u_n <= self.settings.velocity_tolerance)
             .collect();
-        if !candidates.is_empty() {
-            // The contact problem at acceleration level: with every contact open,
-            // the accelerations a_0 = M^-1 Q, and the contact accelerations they
-            // give (`base_n`, `base_t`); W = J M^-1 J^T.
-            let open = vec![ContactMode::Open; self.modes.len()];
-            let free = self.evaluate_with_modes(&self.y, &open);
-            let n = self.model.dof;
-            let mut acc = [0.0; MAX_DOF];
-            acc[..n].copy_from_slice(&free.ydot[n..2 * n]);
-            let q = self.q();
-            let v = self.v();
-            let frame = self.frame(&q);
-            let sys = self.contact_system(&frame, &v, &candidates, Some(&acc));
-            // Slip states from the slip velocities, with zero below the tolerance.
-            let mut slip = [0.0; MAX_CONTACTS];
-            for (r, &j) in candidates.iter().enumerate() {
-                if kin[j].u_t.abs() > self.settings.velocity_tolerance {
-                    slip[r] = kin[j].u_t;
-                }
-            }
-            // The complementarity problem (normal force >= 0, normal acceleration
-            // >= 0, one of them zero; a sticking force inside its cone, a slipping
-            // one on its edge against the slip, a contact at zero slip slipping
-            // only the way it then moves), solved for all candidates together,
-            // whatever event brought us here. Its tolerance is a thousandth of the
-            // event functions' margin `eps_F` (and never below rounding), so the
-            // condition whose event fired is violated by a thousand times the
-            // tolerance and cannot be chosen again: a contact whose normal force
-            // reached -eps_F opens, a sticking contact whose friction left its
-            // cone by eps_F slips.
-            let eps_f = self.force_tolerance();
-            let m = candidates.len();
-            let scale_a = sys.base_n[..m]
-                .iter()
-                .chain(sys.base_t[..m].iter())
-                .fold(1.0, |m: f64, a| m.max(a.abs()));
-            let mass = self.model.total_mass();
-            let tol_f = (1e-3 * eps_f).max(1e-13 * scale_a * mass);
-            // (The slips are already zero below the velocity tolerance.)
-            let tol = Tolerances {
-                velocity: tol_f / mass,
-                impulse: tol_f,
-                zero_slip: 0.0,
-            };
-            let zeros = [0.0; MAX_CONTACTS];
-            let mut d = find_direction(
-                &sys.problem,
-                &sys.base_n,
-                &sys.base_t,
-                &slip,
-                NormalRule::TargetAll(&zeros),
-                &tol,
-            );
-            // Each slipping contact's normal coefficient, for the dynamic jam below.
-            let mut coefficient = [f64::INFINITY; MAX_CONTACTS];
-            for (r, c) in coefficient.iter_mut().enumerate().take(candidates.len()) {
-                let s = ContactMode::from_slip(d.mode[r]).slip_sign();
-                if let (Some(s), true) = (s, sys.problem.contacts[r].friction > 0.0) {
-                    *c = normal_coefficient(&sys.problem, r, s);
-                }
-            }
-            self.recycle(sys);
-            // No consistent modes found within Lemke's pivot cap (a ray, the cap,
-            // or an answer that failed its check): the Painleve rule, once.
-            if !d.consistent || !d.ends_at_one {
-                let why = match d.outcome {
-                    Outcome::Ray { pivots, .. } => format!("a ray after {pivots} pivots"),
-                    Outcome::Cap { pivots } => format!("no decision within {pivots} pivots"),
-                    Outcome::Inexact { pivots } => {
-                        format!("an answer that failed its check after {pivots} pivots")
-                    }
-                    Outcome::Solved { .. } => "no consistent friction states".into(),
-                };
-                self.painleve(
-                    &candidates,
-                    "no consistent contact force; tangential impact",
-                    &format!("the mode decision ended at {why}"),
-                );
-                return;
-            }
-            // A contact left slipping at its dynamic jam (its normal coefficient
-            // `(W_nn - mu s W_nt) / W_nn` at most twice the jam event's ratio: the
-            // force `-B / A` grows without bound with a bounded impulse, Genot and
-            // Brogliato 1999): pressing, it takes an impact without collision, the
-            // tangential impact of the Painleve rule, which stops its slip; not
-            // pressing, it lifts off (the zero-force solution, which needs no
-            // impulse). A rigid contact cannot choose between the two where both
-            // are consistent (beyond the jam `A < 0`: lift-off, or a slip whose
-            // force only compliance could say is unstable); this rule takes the one
-            // that gains no energy and never loops: after the impact the contact
-            // sticks.
-            for (r, &j) in candidates.iter().enumerate() {
-                if !d.active[r] || coefficient[r] > 2.0 * JAM_RATIO {
-                    continue;
-                }
-                if d.x[r] > tol_f {
-                    let why = format!(
-                        "a dynamic jam of {}: its normal coefficient (W_nn - mu s W_nt) / W_nn = {:.3e}, its force {:.6} N and growing without bound",
-                        self.model.contacts[j].name,
-                        coefficient[r],
-                        d.x[r]
-                    );
-                    self.painleve(&candidates, "dynamic jam; tangential impact", &why);
-                    return;
-                }
-                d.active[r] = false;
-            }
-            // The active set is closed, in its friction states; the rest open. A
-            // contact at the boundary (no force and no acceleration) is active
-            // when it can be (the enumeration tries the larger sets first): its
-            // lift-off is then the event where its force goes below -eps_F.
-            for (r, &j) in candidates.iter().enumerate() {
-                if d.active[r] {
-                    new[j] = ContactMode::from_slip(d.mode[r]);
-                }
-            }
-            self.open_boundary_contacts_that_pull(&candidates, &d.x, tol_f, &mut new);
+        if !candidates.is_empty() && !self.close_candidates(&candidates, kin, &mut new) {
+            return;
         }
-        // Events for the changes.
+        self.push_mode_changes(&old, &new, kin);
+        self.modes = new;
+        self.fsal = None;
+        self.project();
+    }
+
+    /// The modes of the `candidates` (touching, not approaching) written into
+    /// `new` from the complementarity problem at acceleration level: the active
+    /// set closed in its friction states, the rest open. `false` when no
+    /// consistent modes were found or a contact is at its dynamic jam: the
+    /// Painleve rule has then handled the event.
+    fn close_candidates(
+        &mut self,
+        candidates: &[usize],
+        kin: &[ContactKinematics],
+        new: &mut [ContactMode],
+    ) -> bool {
+        let (mut d, coefficient, tol_f) = self.solve_mode_problem(candidates, kin);
+        if self.painleve_if_inconsistent(candidates, &d) {
+            return false;
+        }
+        if self.painleve_at_dynamic_jam(candidates, &mut d, &coefficient, tol_f) {
+            return false;
+        }
+        // The active set is closed, in its friction states; the rest open. A
+        // contact at the boundary (no force and no acceleration) is active
+        // when it can be (the enumeration tries the larger sets first): its
+        // lift-off is then the event where its force goes below -eps_F.
+        for (r, &j) in candidates.iter().enumerate() {
+            if d.active[r] {
+                new[j] = ContactMode::from_slip(d.mode[r]);
+            }
+        }
+        self.open_boundary_contacts_that_pull(candidates, &d.x, tol_f, new);
+        true
+    }
+
+    /// The complementarity problem of the `candidates` at acceleration level,
+    /// solved: its answer (active set, friction states, normal forces), each
+    /// slipping contact's normal coefficient (infinite otherwise; for the dynamic
+    /// jam) and the problem's force tolerance `tol_f`, N.
+    fn solve_mode_problem(
+        &self,
+        candidates: &[usize],
+        kin: &[ContactKinematics],
+    ) -> (Direction<f64, MAX_CONTACTS>, [f64; MAX_CONTACTS], f64) {
+        // The contact problem at acceleration level: with every contact open,
+        // the accelerations a_0 = M^-1 Q, and the contact accelerations they
+        // give (`base_n`, `base_t`); W = J M^-1 J^T.
+        let open = vec![ContactMode::Open; self.modes.len()];
+        let free = self.evaluate_with_modes(&self.y, &open);
+        let n = self.model.dof;
+        let mut acc = [0.0; MAX_DOF];
+        acc[..n].copy_from_slice(&free.ydot[n..2 * n]);
+        let q = self.q();
+        let v = self.v();
+        let frame = self.frame(&q);
+        let sys = self.contact_system(&frame, &v, candidates, Some(&acc));
+        // Slip states from the slip velocities, with zero below the tolerance.
+        let mut slip = [0.0; MAX_CONTACTS];
+        for (r, &j) in candidates.iter().enumerate() {
+            if kin[j].u_t.abs() > self.settings.velocity_tolerance {
+                slip[r] = kin[j].u_t;
+            }
+        }
+        // The complementarity problem (normal force >= 0, normal acceleration
+        // >= 0, one of them zero; a sticking force inside its cone, a slipping
+        // one on its edge against the slip, a contact at zero slip slipping
+        // only the way it then moves), solved for all candidates together,
+        // whatever event brought us here. Its tolerance is a thousandth of the
+        // event functions' margin `eps_F` (and never below rounding), so the
+        // condition whose event fired is violated by a thousand times the
+        // tolerance and cannot be chosen again: a contact whose normal force
+        // reached -eps_F opens, a sticking contact whose friction left its
+        // cone by eps_F slips.
+        let eps_f = self.force_tolerance();
+        let m = candidates.len();
+        let scale_a = sys.base_n[..m]
+            .iter()
+            .chain(sys.base_t[..m].iter())
+            .fold(1.0, |m: f64, a| m.max(a.abs()));
+        let mass = self.model.total_mass();
+        let tol_f = (1e-3 * eps_f).max(1e-13 * scale_a * mass);
+        // (The slips are already zero below the velocity tolerance.)
+        let tol = Tolerances {
+            velocity: tol_f / mass,
+            impulse: tol_f,
+            zero_slip: 0.0,
+        };
+        let zeros = [0.0; MAX_CONTACTS];
+        let d = find_direction(
+            &sys.problem,
+            &sys.base_n,
+            &sys.base_t,
+            &slip,
+            NormalRule::TargetAll(&zeros),
+            &tol,
+        );
+        // Each slipping contact's normal coefficient, for the dynamic jam.
+        let mut coefficient = [f64::INFINITY; MAX_CONTACTS];
+        for (r, c) in coefficient.iter_mut().enumerate().take(candidates.len()) {
+            let s = ContactMode::from_slip(d.mode[r]).slip_sign();
+            if let (Some(s), true) = (s, sys.problem.contacts[r].friction > 0.0) {
+                *c = normal_coefficient(&sys.problem, r, s);
+            }
+        }
+        self.recycle(sys);
+        (d, coefficient, tol_f)
+    }
+
+    /// No consistent modes found within Lemke's pivot cap (a ray, the cap, or an
+    /// answer that failed its check): the Painleve rule, once, for the
+    /// `candidates` (`true`: applied).
+    fn painleve_if_inconsistent(
+        &mut self,
+        candidates: &[usize],
+        d: &Direction<f64, MAX_CONTACTS>,
+    ) -> bool {
+        if d.consistent && d.ends_at_one {
+            return false;
+        }
+        let why = match d.outcome {
+            Outcome::Ray { pivots, .. } => format!("a ray after {pivots} pivots"),
+            Outcome::Cap { pivots } => format!("no decision within {pivots} pivots"),
+            Outcome::Inexact { pivots } => {
+                format!("an answer that failed its check after {pivots} pivots")
+            }
+            Outcome::Solved { .. } => "no consistent friction states".into(),
+        };
+        self.painleve(
+            candidates,
+            "no consistent contact force; tangential impact",
+            &format!("the mode decision ended at {why}"),
+        );
+        true
+    }
+
+    /// A contact the decision `d` left slipping at its dynamic jam (its normal
+    /// coefficient `(W_nn - mu s W_nt) / W_nn`, in `coefficient`, at most twice
+    /// the jam event's ratio: the force `-B / A` grows without bound with a
+    /// bounded impulse, Genot and Brogliato 1999): pressing (its force above
+    /// `tol_f`, N), it takes an impact without collision, the tangential impact
+    /// of the Painleve rule, which stops its slip (`true`: applied); not
+    /// pressing, it lifts off (the zero-force solution, which needs no impulse),
+    /// left out of `d`'s active set. A rigid contact cannot choose between the
+    /// two where both are consistent (beyond the jam `A < 0`: lift-off, or a slip
+    /// whose force only compliance could say is unstable); this rule takes the
+    /// one that gains no energy and never loops: after the impact the contact
+    /// sticks.
+    fn painleve_at_dynamic_jam(
+        &mut self,
+        candidates: &[usize],
+        d: &mut Direction<f64, MAX_CONTACTS>,
+        coefficient: &[f64; MAX_CONTACTS],
+        tol_f: f64,
+    ) -> bool {
+        for (r, &j) in candidates.iter().enumerate() {
+            if !d.active[r] || coefficient[r] > 2.0 * JAM_RATIO {
+                continue;
+            }
+            if d.x[r] > tol_f {
+                let why = format!(
+                    "a dynamic jam of {}: its normal coefficient (W_nn - mu s W_nt) / W_nn = {:.3e}, its force {:.6} N and growing without bound",
+                    self.model.contacts[j].name,
+                    coefficient[r],
+                    d.x[r]
+                );
+                self.painleve(candidates, "dynamic jam; tangential impact", &why);
+                return true;
+            }
+            d.active[r] = false;
+        }
+        false
+    }
+
+    /// An event for every contact whose mode changes from `old` to `new`:
+    /// contact, lift-off, stick or slip (its velocities `kin`, no impulse).
+    fn push_mode_changes(
+        &mut self,
+        old: &[ContactMode],
+        new: &[ContactMode],
+        kin: &[ContactKinematics],
+    ) {
         for j in 0..new.len() {
             let (a, b) = (old[j], new[j]);
             if a == b {
@@ -352,9 +419,6 @@ impl Plant {
                 detail: b.name().into(),
             });
         }
-        self.modes = new;
-        self.fsal = None;
-        self.project();
     }
 
     /// Opens the contacts the decision left at the boundary (no force within
