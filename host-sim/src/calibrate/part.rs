@@ -29,7 +29,9 @@ use serde_json::Value;
 
 use super::fit::{self, Settings};
 use super::keys;
-use super::{bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Evaluated, Trials};
+use super::{
+    bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Evaluated, Inputs, Trials,
+};
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure};
 use crate::machine::input;
@@ -435,6 +437,24 @@ fn differences(a: &Part, b: &Part, fa: &str, fb: &str) -> Vec<String> {
 /// starts checked against those the fit makes, then the fit from the parts'
 /// evaluations on (`fit_and_report`).
 pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
+    let parts = read_parts(args)?;
+    check_one_fit(&parts)?;
+    let first = &parts[0].1;
+    let calibrate = calibrate_args(first, args);
+    let inputs = read_options(&calibrate).map_err(|e| {
+        Failure::Usage(format!(
+            "{}: the files the parts were made from (merge where calibrate ran)\n",
+            e.trim_end()
+        ))
+    })?;
+    check_files(first, &inputs)?;
+    let preset = evaluations(&parts, &calibrate, &inputs)?;
+    fit_and_report(&calibrate, inputs, preset, console)
+}
+
+/// Every part read and checked on its own, with the options a fit's merge
+/// refuses (`--machine`, `--plot`); every problem at once.
+fn read_parts(args: &MergeArgs) -> Result<Vec<(PathBuf, Part)>, Failure> {
     let mut refused = Vec::new();
     if args.machine.is_some() {
         refused.push("error: merge: --machine: a fit's parts are merged where they were made (its outputs name the machine and measured files as calibrate was given them)\n".to_string());
@@ -452,6 +472,11 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
     if !refused.is_empty() {
         return Err(Failure::Usage(refused.concat()));
     }
+    Ok(parts)
+}
+
+/// The parts together: one fit, the same N, each part once, none missing.
+fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
     let (first_path, first) = &parts[0];
     let a = first_path.display().to_string();
     let mut problems = Vec::new();
@@ -478,10 +503,14 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
     if !problems.is_empty() {
         return Err(Failure::Usage(problems.join("\n") + "\n"));
     }
+    Ok(())
+}
 
-    // The fit as calibrate was asked for it, its files read again.
+/// The fit as calibrate was asked for it (the parts' fit), with the merge's
+/// outputs.
+fn calibrate_args(first: &Part, args: &MergeArgs) -> CalibrateArgs {
     let fit = &first.fit;
-    let calibrate = CalibrateArgs {
+    CalibrateArgs {
         machine: MachineArg {
             path: PathBuf::from(&first.machine.path),
         },
@@ -499,13 +528,13 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
         },
         shard: None,
         out_part: None,
-    };
-    let inputs = read_options(&calibrate).map_err(|e| {
-        Failure::Usage(format!(
-            "{}: the files the parts were made from (merge where calibrate ran)\n",
-            e.trim_end()
-        ))
-    })?;
+    }
+}
+
+/// The machine and measured files read again are those the parts were made
+/// from: their SHA-256s match the parts'.
+fn check_files(first: &Part, inputs: &Inputs) -> Result<(), Failure> {
+    let fit = &first.fit;
     let sha = sha256_hex(inputs.text.as_bytes());
     let mut changed = Vec::new();
     if sha != first.machine.sha256 {
@@ -523,13 +552,23 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
     if !changed.is_empty() {
         return Err(Failure::Usage(changed.join("\n") + "\n"));
     }
+    Ok(())
+}
 
-    // The parts' starts must be those the fit makes, their runs the points'.
+/// The parts' evaluations by start, checked: their starts are those the fit
+/// makes, their runs the measured points', a refused start refused by the
+/// machine reader as it says.
+fn evaluations(
+    parts: &[(PathBuf, Part)],
+    calibrate: &CalibrateArgs,
+    inputs: &Inputs,
+) -> Result<HashMap<Vec<u64>, Evaluated>, Failure> {
+    let fit = &parts[0].1.fit;
     let p = inputs.keys.len();
     let starts = distinct_starts(p, &[nominal_start(&inputs.keys)], &Settings::for_keys(p));
     let points = inputs.data.speeds_offsets();
     let mut preset: HashMap<Vec<u64>, Evaluated> = HashMap::new();
-    for (path, part) in &parts {
+    for (path, part) in parts {
         let damaged = |why: String| {
             Failure::Usage(format!(
                 "error: {}: a damaged partial result: {why}\n",
@@ -584,5 +623,5 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
             preset.insert(bits(&s.u), evaluated);
         }
     }
-    fit_and_report(&calibrate, inputs, preset, console)
+    Ok(preset)
 }
