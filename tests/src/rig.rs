@@ -12,7 +12,8 @@ use std::path::Path;
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
-use host_sim::plant::simulator::{Holds, Plant, Settings, NY};
+use host_sim::plant::model::NY;
+use host_sim::plant::simulator::{Holds, Plant, Settings};
 
 /// Gravity, m/s^2 (the machine file's default, `[0, -9.81]`).
 pub const G: f64 = 9.81;

@@ -43,8 +43,9 @@ use tests::initial_state;
 
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
+use host_sim::plant::contact::ContactMode;
 use host_sim::plant::model::PlantModel;
-use host_sim::plant::simulator::{ContactMode, Holds, Plant, Settings};
+use host_sim::plant::simulator::{Holds, Plant, Settings};
 use tests::rig::{check, G};
 
 /// The platform: 2 kg, its centre 0.03 m above the floor, feet 0.08 m either side.

@@ -27,9 +27,10 @@ use tests::initial_state;
 
 use host_sim::machine::joint_limits::effective_inertia;
 use host_sim::machine::Machine;
+use host_sim::plant::model::NY;
 use host_sim::plant::model::{Mount, PlantModel};
 use host_sim::plant::motor::Winding;
-use host_sim::plant::simulator::{Holds, Output, Plant, Settings, NY};
+use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
 use tests::rig::{add, cross, rot, spin, sub};
 
 /// The platform: mass, kg; inertia about its centre of mass, kg m^2; centre of

@@ -23,9 +23,10 @@ use std::f64::consts::PI;
 use std::path::Path;
 use tests::initial_state;
 
+use host_sim::machine::bodies::MAX_DOF;
 use host_sim::machine::Machine;
 use host_sim::plant::dynamics::{Frame, Pose, Vector};
-use host_sim::plant::model::{Mount, PlantModel, MAX_DOF};
+use host_sim::plant::model::{Mount, PlantModel};
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
 use host_sim::simulation::trace::TraceRow;
 use tests::Rng;

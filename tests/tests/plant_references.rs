@@ -25,8 +25,10 @@ use shared::Enumerated;
 use std::f64::consts::PI;
 
 use host_sim::event::{EventKind, EventRow};
+use host_sim::plant::contact::ContactMode;
+use host_sim::plant::model::NY;
 use host_sim::plant::motor::Winding;
-use host_sim::plant::simulator::{ContactMode, Holds, Output, Plant, Settings, NY};
+use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
 use shared::impact::{solve_body, BodyContact, ContactLaw, ImpactLaw, PlanarBody};
 use tests::rig::*;
 

@@ -69,7 +69,7 @@ fn travel_is_mirror_antisymmetric_in_the_offset() {
 /// `-lambda_n / |lambda|` for any closed foot), separately for the samples where
 /// both feet stick and for the others, and how many samples had both feet sticking.
 fn cone_violations(t_end: f64) -> (f64, f64, usize) {
-    use host_sim::plant::simulator::ContactMode;
+    use host_sim::plant::contact::ContactMode;
     // The machine file's friction (both feet).
     let mu = 0.4;
     let mut plant = held_rotors(&reference_machine(90.0, &[]), 3000.0, Settings::default());

@@ -31,7 +31,9 @@ use std::f64::consts::PI;
 
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
-use host_sim::plant::simulator::{ContactMode, Output, Plant, Settings, NY};
+use host_sim::plant::contact::ContactMode;
+use host_sim::plant::model::NY;
+use host_sim::plant::simulator::{Output, Plant, Settings};
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::trace::TraceRow;
 use host_sim::simulation::{simulate, RunOptions, RunResult};

@@ -36,7 +36,8 @@
 //! the same order, as the one-body closed forms (a machine file without further
 //! bodies gives the same numbers to the bit).
 
-use super::model::{Face, Mount, OneFreeBody, PlantModel, MAX_BODIES, MAX_DOF, MAX_ROTORS, NY};
+use super::model::{Face, Mount, OneFreeBody, PlantModel, NY};
+use crate::machine::bodies::{MAX_BODIES, MAX_DOF, MAX_ROTORS};
 
 /// A vector of generalized coordinates (a machine uses the first
 /// [`PlantModel::dof`]).

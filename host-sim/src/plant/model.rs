@@ -22,7 +22,7 @@ use shared::impact::{ContactLaw, ImpactLaw};
 use crate::machine::bodies::{FUNDAMENT, PLATFORM};
 use crate::machine::{Machine, MotorParams};
 
-pub use crate::machine::bodies::{MAX_BODIES, MAX_DOF, MAX_ROTORS};
+use crate::machine::bodies::{MAX_DOF, MAX_ROTORS};
 
 /// Capacity of the integrated state: `q`, `q'` (up to [`MAX_DOF`] each) and the
 /// winding currents; a machine uses the first [`PlantModel::ny`].

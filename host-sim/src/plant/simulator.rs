@@ -62,10 +62,11 @@ use forces::CachedEvaluation;
 use super::bridge::{Bridge, BridgeCommand};
 use super::dynamics::{Frame, Pose, Vector};
 use super::integrator::{attempt, Attempt, Step, Tolerance};
-use super::model::{Face, Mount, PlantModel, MAX_DOF};
+use super::model::{Face, Mount, PlantModel};
 use super::motor::{DcMotor, Winding};
 use super::progress::{ContactState, Progress, Situation, MIN_STEP};
 use crate::event::{EventKind, EventRow};
+use crate::machine::bodies::MAX_DOF;
 
 /// Events handled at one instant without progress before the step is taken anyway.
 const MAX_STALLED_EVENTS: u32 = 16;
@@ -75,9 +76,9 @@ const MAX_STALLED_EVENTS: u32 = 16;
 /// back onto them ([`Plant::drifted`]).
 const DRIFT_FRACTION: f64 = 1e-3;
 
-pub use super::contact::{ContactForces, ContactMode};
-pub use super::model::NY;
-pub use super::progress::Stop;
+use super::contact::{ContactForces, ContactMode};
+use super::model::NY;
+use super::progress::Stop;
 
 /// Numerical settings, with the reasons for their defaults.
 #[derive(Clone, Copy, Debug)]

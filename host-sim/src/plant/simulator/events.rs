@@ -11,10 +11,10 @@ use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{ContactKinematics, Pose, Vector};
 use super::super::integrator::{Step, INTERIOR_STAGES};
-use super::super::model::MAX_ROTORS;
 use super::super::motor::Winding;
 use super::forces::Evaluation;
 use super::{ContactMode, Plant, NY};
+use crate::machine::bodies::MAX_ROTORS;
 
 /// What an event function watches: each is positive until its event, and one
 /// function watches one condition.

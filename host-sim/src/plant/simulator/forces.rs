@@ -19,8 +19,8 @@ use shared::impact::split::{within_cones, within_mode_equations};
 use shared::impact::{ImpactOutcome, ImpactProblem, SlipState, MAX_CONTACTS};
 
 use super::super::dynamics::{row_dot, ContactKinematics, Frame, Vector};
-use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant, NY};
+use crate::machine::bodies::MAX_DOF;
 
 /// An evaluation with the state and modes it was made at.
 pub(super) type CachedEvaluation = ([f64; NY], [ContactMode; MAX_CONTACTS], Evaluation);

@@ -6,9 +6,9 @@ use shared::impact::lcp::{find_direction, NormalRule, Tolerances};
 use shared::impact::{solve, solve_into, ImpactLaw, MAX_CONTACTS};
 
 use super::super::dynamics::row_dot;
-use super::super::model::MAX_DOF;
 use super::{ContactMode, Plant};
 use crate::event::{EventKind, EventRow};
+use crate::machine::bodies::MAX_DOF;
 
 impl Plant {
     /// One impact of the contacts `set` (all within the together gap).

@@ -8,11 +8,11 @@ use shared::impact::linalg::{solve_weighted_in, DIM};
 use shared::impact::MAX_CONTACTS;
 
 use super::super::dynamics::{row_dot, ContactKinematics, Pose, Vector};
-use super::super::model::MAX_DOF;
 use super::events::JAM_RATIO;
 use super::forces::normal_coefficient;
 use super::{ContactMode, Plant};
 use crate::event::{EventKind, EventRow};
+use crate::machine::bodies::MAX_DOF;
 
 /// The least change `dx = -M^-1 J^T W^+ r` that zeroes `J x + r` for rows
 /// `(J, M^-1 J^T, r)`, with `W = J M^-1 J^T` (weighted minimum norm where singular).
