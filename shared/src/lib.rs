@@ -44,6 +44,7 @@ pub mod real;
 pub mod storage;
 pub mod tick;
 pub mod timing;
+pub mod vec2;
 
 pub use named::Enumerated;
 pub use real::Real;

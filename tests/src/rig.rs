@@ -14,6 +14,7 @@ use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::model::NY;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
+use shared::vec2::{add, cross, rotate, spin, sub};
 
 /// Gravity, m/s^2 (the machine file's default, `[0, -9.81]`).
 pub const G: f64 = 9.81;
@@ -190,32 +191,9 @@ impl Rig {
     }
 }
 
-/// `R(angle) v`.
+/// `R(angle) v`, the angle in rad ([`rotate`] of its sine and cosine).
 pub fn rot(angle: f64, v: [f64; 2]) -> [f64; 2] {
-    let (s, c) = angle.sin_cos();
-    [c * v[0] - s * v[1], s * v[0] + c * v[1]]
-}
-
-/// `w x r = w (-r_y, r_x)`.
-pub fn spin(w: f64, r: [f64; 2]) -> [f64; 2] {
-    [-w * r[1], w * r[0]]
-}
-
-/// `a x b`, z component.
-pub fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
-}
-
-pub fn add(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] + b[0], a[1] + b[1]]
-}
-
-pub fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
-}
-
-pub fn norm(a: [f64; 2]) -> f64 {
-    a[0].hypot(a[1])
+    rotate(angle.sin_cos(), v)
 }
 
 /// Asserts `|got - expected| <= tol`.

@@ -22,7 +22,7 @@
 
 use shared::impact::{ContactLaw, ImpactLaw, ImpactProblem};
 
-use crate::rig::{cross, spin, sub};
+use shared::vec2::{cross, spin, sub};
 
 /// A planar rigid body: mass, kg; inertia about its centre of mass, kg m^2;
 /// centre of mass, m; velocity, m/s; angular velocity, rad/s.

@@ -19,8 +19,8 @@ use shared::impact::{
     solve, solve_body, BodyContact, BodyImpact, ContactLaw, ContactOutcome, ImpactLaw,
     ImpactProblem, InteractionCase, PlanarBody, SlipState, Warnings,
 };
+use shared::vec2::cross;
 use shared::Enumerated;
-use tests::rig::cross;
 
 use tests::Rng;
 

@@ -13,8 +13,8 @@ use shared::impact::{
     body_problem, solve, solve_body, BodyContact, BodyImpact, ContactLaw, ImpactLaw, ImpactProblem,
     PlanarBody, Warnings,
 };
+use shared::vec2::{cross, norm, sub};
 use shared::Real;
-use tests::rig::{cross, norm, sub};
 
 /// Relative tolerance of the f64 checks: the f64 accuracy of docs/impact-model.md.
 const REL: f64 = 1e-9;

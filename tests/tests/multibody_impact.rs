@@ -32,7 +32,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use shared::impact::{solve, ImpactLaw, ImpactOutcome, InteractionCase, Warnings, MAX_CONTACTS};
-use tests::rig::{check, cross};
+use shared::vec2::cross;
+use tests::rig::check;
 use tests::two_bodies::{
     body, central_after, central_pair, law, off_centre_pair, poisson_closed_form, slipping_pair,
     tangent, Body, Contact, Pair, CENTRAL_CASES,

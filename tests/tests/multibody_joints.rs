@@ -31,7 +31,8 @@ use host_sim::plant::model::NY;
 use host_sim::plant::model::{Mount, PlantModel};
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
-use tests::rig::{add, cross, rot, spin, sub};
+use shared::vec2::{add, cross, spin, sub};
+use tests::rig::rot;
 
 /// The platform: mass, kg; inertia about its centre of mass, kg m^2; centre of
 /// mass at t = 0, m.

@@ -32,7 +32,8 @@ use host_sim::plant::simulator::{Holds, Plant, Settings};
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::Driver;
 use shared::controller::{Command, Direction, RotorCount, State};
-use tests::rig::{check, cross, G};
+use shared::vec2::cross;
+use tests::rig::{check, G};
 
 /// The one-rotor machine of the tests (rotor "centre", ccw).
 const ONE_ROTOR: &str = include_str!("../fixtures/one-rotor-machine.toml");

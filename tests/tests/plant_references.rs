@@ -30,6 +30,7 @@ use host_sim::plant::model::NY;
 use host_sim::plant::motor::Winding;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
 use shared::impact::{solve_body, BodyContact, ContactLaw, ImpactLaw, PlanarBody};
+use shared::vec2::{add, cross, norm, spin, sub};
 use tests::rig::*;
 
 /// The impact rows grouped by instant, in order.

@@ -42,7 +42,8 @@ use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::model::NY;
 use host_sim::plant::simulator::{Holds, Output, Plant, Settings};
-use tests::rig::{add, check, norm, rot, sub};
+use shared::vec2::{add, norm, sub};
+use tests::rig::{check, rot};
 use tests::two_bodies::{
     central_after, central_loss, central_pair, off_centre_pair, poisson_closed_form, slipping_pair,
     Body, Contact, Pair, CENTRAL_CASES,

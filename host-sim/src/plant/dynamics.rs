@@ -38,35 +38,11 @@
 
 use super::model::{Face, Mount, OneFreeBody, PlantModel, NY};
 use crate::machine::bodies::{MAX_BODIES, MAX_DOF, MAX_ROTORS};
+use shared::vec2::{cross, dot, perp, rotate};
 
 /// A vector of generalized coordinates (a machine uses the first
 /// [`PlantModel::dof`]).
 pub type Vector = [f64; MAX_DOF];
-
-/// `z x r = (-r_y, r_x)`.
-#[inline]
-pub fn perp(r: [f64; 2]) -> [f64; 2] {
-    [-r[1], r[0]]
-}
-
-/// `a x b` (z component).
-#[inline]
-pub fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
-}
-
-/// `a . b`.
-#[inline]
-pub fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[0] + a[1] * b[1]
-}
-
-/// `R(angle) v`.
-#[inline]
-pub fn rotate(angle_cs: (f64, f64), v: [f64; 2]) -> [f64; 2] {
-    let (s, c) = angle_cs;
-    [c * v[0] - s * v[1], s * v[0] + c * v[1]]
-}
 
 /// One segment of a point's chain: a world vector turning at `v[angle]` (plus
 /// `v[spin]`, a rotor's eccentric angle, for an eccentric).

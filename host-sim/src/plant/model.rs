@@ -18,6 +18,7 @@
 //! reference point is its centre of mass for a free root and its hinge otherwise.
 
 use shared::impact::{ContactLaw, ImpactLaw};
+use shared::vec2::{sub, unrotate};
 
 use crate::machine::bodies::{FUNDAMENT, PLATFORM};
 use crate::machine::{Machine, MotorParams};
@@ -236,13 +237,7 @@ impl OneFreeBody {
 
 /// `R(-angle) v`: a world vector in a body's frame.
 fn to_body(angle: f64, v: [f64; 2]) -> [f64; 2] {
-    let (s, c) = angle.sin_cos();
-    [c * v[0] + s * v[1], -s * v[0] + c * v[1]]
-}
-
-/// `a - b`.
-fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
+    unrotate(angle.sin_cos(), v)
 }
 
 /// A body of the file as the layout reads it.

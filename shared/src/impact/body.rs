@@ -20,6 +20,7 @@ use super::outcome::ImpactOutcome;
 use super::problem::{ContactLaw, ImpactLaw, ImpactProblem};
 use super::solver::{solve, ImpactError};
 use crate::real::Real;
+use crate::vec2::{cross, spin};
 
 /// A rigid body in plane motion at the instant of impact.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,18 +78,6 @@ pub struct BodyImpact<T, const N: usize> {
     pub kinetic_energy_before: T,
     /// Kinetic energy after, J.
     pub kinetic_energy_after: T,
-}
-
-/// `a x b`, the z component of the cross product of plane vectors.
-#[inline]
-fn cross<T: Real>(a: [T; 2], b: [T; 2]) -> T {
-    a[0] * b[1] - a[1] * b[0]
-}
-
-/// `omega x r` for a plane vector r: `omega (-r_y, r_x)`.
-#[inline]
-fn spin<T: Real>(omega: T, r: [T; 2]) -> [T; 2] {
-    [-omega * r[1], omega * r[0]]
 }
 
 /// The body's generalized description: Jacobian rows over `(v_x, v_y, omega)`
