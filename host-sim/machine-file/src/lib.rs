@@ -60,6 +60,7 @@ use input::{
     Section,
 };
 use rotors::Rotors;
+use set::Override;
 
 /// The obstacle line the platform strikes, and gravity.
 #[derive(Clone, Debug, PartialEq)]
@@ -283,9 +284,15 @@ impl Machine {
     /// the file. A relative `[controller].tuning_table` is resolved against the
     /// file's directory.
     pub fn load(path: &Path, sets: &[String]) -> Result<Machine, Vec<Problem>> {
+        Machine::load_overridden(path, &Override::command_line(sets))
+    }
+
+    /// [`Machine::load`] with overrides given anywhere (a scenario's `set`),
+    /// each refused one said where it was given.
+    pub fn load_overridden(path: &Path, overrides: &[Override]) -> Result<Machine, Vec<Problem>> {
         let text = input::read_text(path).map_err(|p| vec![p])?;
         let dir = path.parent().unwrap_or(Path::new(""));
-        Machine::from_text(&path.display().to_string(), &text, dir, sets)
+        Machine::from_text_overridden(&path.display().to_string(), &text, dir, overrides)
     }
 
     /// Checks the text of a machine file named `file` (for messages), with
@@ -296,13 +303,23 @@ impl Machine {
         dir: &Path,
         sets: &[String],
     ) -> Result<Machine, Vec<Problem>> {
-        // Stage 1: TOML. Malformed `--set`s are reported even when the file does not
-        // parse.
+        Machine::from_text_overridden(file, text, dir, &Override::command_line(sets))
+    }
+
+    /// [`Machine::from_text`] with overrides given anywhere (a scenario's `set`),
+    /// each refused one said where it was given.
+    pub fn from_text_overridden(
+        file: &str,
+        text: &str,
+        dir: &Path,
+        overrides: &[Override],
+    ) -> Result<Machine, Vec<Problem>> {
+        // Stage 1: TOML. Overrides that are not `KEY=VALUE` are reported even when
+        // the file does not parse.
         let mut table = match input::parse(file, text) {
             Ok(t) => t,
             Err(p) => {
-                let (_, mut problems) = set::apply(&mut Table::new(), sets);
-                problems.retain(|p| p.message.starts_with("expected KEY=VALUE"));
+                let mut problems = set::not_key_value(overrides);
                 problems.push(p);
                 return Err(problems);
             }
@@ -312,7 +329,7 @@ impl Machine {
             return Err(vec![p]);
         }
         // Stage 2: the overrides.
-        let (applied, set_problems) = set::apply(&mut table, sets);
+        let (applied, set_problems) = set::apply(&mut table, overrides);
         // Stages 3 to 6.
         let problems = Problems::new(file);
         let machine = check(&table, &problems, dir);
@@ -345,7 +362,7 @@ impl Machine {
     ) -> Result<Vec<input::NumberRead>, Vec<Problem>> {
         Machine::from_text(file, text, dir, sets)?;
         let mut table = input::parse(file, text).map_err(|p| vec![p])?;
-        let _ = set::apply(&mut table, sets);
+        let _ = set::apply(&mut table, &Override::command_line(sets));
         let problems = Problems::new(file);
         let _ = check(&table, &problems, dir);
         Ok(problems.numbers())

@@ -210,6 +210,87 @@ pub fn key_paths() -> Vec<String> {
     out
 }
 
+/// Where an override was given.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Origin {
+    /// `--set KEY=VALUE` on the command line.
+    CommandLine,
+    /// An entry of a file's list of overrides (a scenario's `set`): the file as
+    /// the user named it and the entry's key path (`set[0]`).
+    Entry {
+        /// The file.
+        file: String,
+        /// The entry's key path.
+        key_path: String,
+    },
+}
+
+/// One `KEY=VALUE` override of a machine-file key, as given, and where it was
+/// given: a problem with it is said there.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Override {
+    /// `KEY=VALUE`, as given.
+    pub arg: String,
+    /// Where it was given.
+    pub origin: Origin,
+}
+
+impl Override {
+    /// The `--set` arguments of a command line, in order.
+    pub fn command_line(args: &[String]) -> Vec<Override> {
+        args.iter()
+            .map(|arg| Override {
+                arg: arg.clone(),
+                origin: Origin::CommandLine,
+            })
+            .collect()
+    }
+
+    /// This override refused for `why`, said where it was given: `--set
+    /// KEY=VALUE: why`, or at the file's entry, `FILE: set[i]: "KEY=VALUE": why`.
+    fn refused(&self, why: String) -> Problem {
+        match &self.origin {
+            Origin::CommandLine => Problem {
+                file: format!("--set {}", self.arg),
+                location: Location::File,
+                message: why,
+            },
+            Origin::Entry { file, key_path } => Problem {
+                file: file.clone(),
+                location: Location::Key(key_path.clone()),
+                message: format!("{:?}: {why}", self.arg),
+            },
+        }
+    }
+}
+
+/// Why an override was refused: not `KEY=VALUE` at all, or a key or value
+/// the machine file does not take.
+enum Refusal {
+    NotKeyValue(String),
+    Refused(String),
+}
+
+impl Refusal {
+    fn message(self) -> String {
+        match self {
+            Refusal::NotKeyValue(m) | Refusal::Refused(m) => m,
+        }
+    }
+}
+
+/// The problems of the overrides that are not `KEY=VALUE` at all (no `=`): what
+/// can be said of them without the machine file (when it does not parse).
+pub fn not_key_value(overrides: &[Override]) -> Vec<Problem> {
+    overrides
+        .iter()
+        .filter_map(|o| match key_value(&o.arg) {
+            Err(Refusal::NotKeyValue(why)) => Some(o.refused(why)),
+            _ => None,
+        })
+        .collect()
+}
+
 /// A `--set` that was applied.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Applied {
@@ -220,26 +301,40 @@ pub struct Applied {
     pub key_path: String,
 }
 
-/// Applies every `--set KEY=VALUE` in order to the parsed machine file `table`.
-/// Returns those applied and one problem for each refused (a refused one changes
-/// nothing). Later overrides of the same key win.
-pub fn apply(table: &mut Table, sets: &[String]) -> (Vec<Applied>, Vec<Problem>) {
+/// Applies every override in order to the parsed machine file `table`.
+/// Returns those applied and one problem for each refused, said where it was
+/// given (a refused one changes nothing). Later overrides of the same key win.
+pub fn apply(table: &mut Table, overrides: &[Override]) -> (Vec<Applied>, Vec<Problem>) {
     let mut applied = Vec::new();
     let mut problems = Vec::new();
-    for arg in sets {
-        match apply_one(table, arg) {
+    for o in overrides {
+        match apply_one(table, &o.arg) {
             Ok(key_path) => applied.push(Applied {
-                arg: arg.clone(),
+                arg: o.arg.clone(),
                 key_path,
             }),
-            Err(message) => problems.push(Problem {
-                file: format!("--set {arg}"),
-                location: Location::File,
-                message,
-            }),
+            Err(refusal) => problems.push(o.refused(refusal.message())),
         }
     }
     (applied, problems)
+}
+
+/// Stage 1 of the module doc: `KEY=VALUE` split at the first `=`, both trimmed,
+/// the key not empty.
+fn key_value(arg: &str) -> Result<(&str, &str), Refusal> {
+    let example = "e.g. contacts.K1.friction=0.2";
+    let Some((key, value_text)) = arg.split_once('=') else {
+        return Err(Refusal::NotKeyValue(format!(
+            "expected KEY=VALUE ({example})"
+        )));
+    };
+    let (key, value_text) = (key.trim(), value_text.trim());
+    if key.is_empty() {
+        return Err(Refusal::Refused(format!(
+            "empty key; expected KEY=VALUE ({example})"
+        )));
+    }
+    Ok((key, value_text))
 }
 
 /// One step from a table to what it holds: a key, or an element of an array.
@@ -249,22 +344,15 @@ enum Step {
 }
 
 /// Stages 1 to 5 of the module doc for one argument; `Ok` the reader's key path.
-fn apply_one(table: &mut Table, arg: &str) -> Result<String, String> {
+fn apply_one(table: &mut Table, arg: &str) -> Result<String, Refusal> {
     // Stage 1: KEY=VALUE.
-    let example = "e.g. contacts.K1.friction=0.2";
-    let Some((key, value_text)) = arg.split_once('=') else {
-        return Err(format!("expected KEY=VALUE ({example})"));
-    };
-    let (key, value_text) = (key.trim(), value_text.trim());
-    if key.is_empty() {
-        return Err(format!("empty key; expected KEY=VALUE ({example})"));
-    }
+    let (key, value_text) = key_value(arg)?;
     // Stage 2: the key's segments.
-    let segments = segments(key)?;
+    let segments = segments(key).map_err(Refusal::Refused)?;
     // Stage 3: the value.
     let value = parse_value(value_text);
     // Stage 4: resolve against the schema and the file.
-    let (steps, key_path) = resolve(table, &segments)?;
+    let (steps, key_path) = resolve(table, &segments).map_err(Refusal::Refused)?;
     // Stage 5: write, creating the omitted tables.
     write(table, &steps, value);
     Ok(key_path)
@@ -530,8 +618,46 @@ mod tests {
         .unwrap()
     }
 
+    /// A refused override is said where it was given: on the command line as
+    /// `--set KEY=VALUE`, in a file at its entry with the argument quoted; only
+    /// one without `=` is refused without the machine file.
+    #[test]
+    fn a_refusal_is_said_where_the_override_was_given() {
+        let given = |arg: &str, i: usize| Override {
+            arg: arg.to_string(),
+            origin: Origin::Entry {
+                file: "s.toml".to_string(),
+                key_path: format!("set[{i}]"),
+            },
+        };
+        let overrides = [
+            given("platform.mass=3", 0),
+            given("contacts.K9.friction=0.2", 1),
+        ];
+        let (applied, problems) = apply(&mut file(), &overrides);
+        assert_eq!(applied.len(), 1);
+        assert_eq!(problems.len(), 1);
+        assert_eq!(problems[0].file, "s.toml");
+        assert_eq!(problems[0].location, Location::Key("set[1]".to_string()));
+        assert!(
+            problems[0]
+                .message
+                .starts_with("\"contacts.K9.friction=0.2\": no contact named K9"),
+            "{}",
+            problems[0].message
+        );
+
+        let command_line = Override::command_line(&["mass".to_string(), "=1".to_string()]);
+        let (_, problems) = apply(&mut file(), &command_line);
+        assert_eq!(problems[0].file, "--set mass");
+        assert_eq!(problems[0].location, Location::File);
+        let not_key_value = not_key_value(&command_line);
+        assert_eq!(not_key_value.len(), 1, "only `mass` has no `=`");
+        assert_eq!(not_key_value[0].file, "--set mass");
+    }
+
     fn set(table: &mut Table, arg: &str) -> Result<String, String> {
-        let (applied, problems) = apply(table, &[arg.to_string()]);
+        let (applied, problems) = apply(table, &Override::command_line(&[arg.to_string()]));
         match (applied.first(), problems.first()) {
             (Some(a), None) => Ok(a.key_path.clone()),
             (None, Some(p)) => Err(p.to_string()),

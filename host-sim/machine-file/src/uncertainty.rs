@@ -81,7 +81,7 @@ impl Uncertainty {
         // checking their ends twice.
         crate::Machine::from_text(file, text, dir, sets)?;
         let mut table = crate::input::parse(file, text).map_err(|p| vec![p])?;
-        let _ = set::apply(&mut table, sets);
+        let _ = set::apply(&mut table, &set::Override::command_line(sets));
         let problems = Problems::new(file);
         let ranges = read(&table, &problems);
         problems.into_result(Some(Uncertainty { ranges }))
@@ -167,7 +167,7 @@ pub(crate) fn check(table: &Table, problems: &Problems, dir: &Path) {
             let sets: Vec<String> = range.targets.iter().map(|t| format!("{t}={x:?}")).collect();
             let mut varied = table.clone();
             // The keys were applied by `read`: nothing is refused here.
-            let _ = set::apply(&mut varied, &sets);
+            let _ = set::apply(&mut varied, &set::Override::command_line(&sets));
             let file_problems = Problems::new("");
             let _ = crate::check(&varied, &file_problems, dir);
             for p in file_problems.into_vec() {
@@ -229,7 +229,8 @@ fn read(table: &Table, problems: &Problems) -> Vec<Range> {
             }
         };
         let sets: Vec<String> = targets.iter().map(|t| format!("{t}={low:?}")).collect();
-        let (applied, refused) = set::apply(&mut table.clone(), &sets);
+        let (applied, refused) =
+            set::apply(&mut table.clone(), &set::Override::command_line(&sets));
         if let Some(p) = refused.first() {
             // The key itself, as `--set` refuses it.
             problems.at(&at, p.message.clone());

@@ -67,7 +67,7 @@ fn refused(text: &str, set: &[&str]) -> Vec<Problem> {
 /// The reference text with `set` written into the file (not on the command line).
 fn reference_edited(set: &str) -> String {
     let mut table: toml::Table = toml::from_str(&reference_text()).unwrap();
-    let (applied, problems) = set::apply(&mut table, &sets(&[set]));
+    let (applied, problems) = set::apply(&mut table, &set::Override::command_line(&sets(&[set])));
     assert!(problems.is_empty() && applied.len() == 1, "{problems:?}");
     toml::to_string(&table).unwrap()
 }

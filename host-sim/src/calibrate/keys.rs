@@ -102,7 +102,7 @@ pub fn resolve(
     let numbers = Machine::numbers(&file, text, dir, sets).map_err(|p| input::render(&p))?;
     let ranges = Uncertainty::from_text(&file, text, dir, sets).map_err(|p| input::render(&p))?;
     let mut table = input::parse(&file, text).map_err(|p| input::render(&[p]))?;
-    let (set_applied, _) = set::apply(&mut table, sets);
+    let (set_applied, _) = set::apply(&mut table, &set::Override::command_line(sets));
 
     let mut problems = Vec::new();
     let mut keys: Vec<FitKey> = Vec::new();
@@ -146,7 +146,7 @@ pub fn resolve(
 /// The reader's key paths of the `--set` keys `targets` (all of which apply).
 fn key_paths(table: &toml::Table, targets: &[String]) -> Result<Vec<String>, String> {
     let sets: Vec<String> = targets.iter().map(|t| format!("{t}=0")).collect();
-    let (applied, refused) = set::apply(&mut table.clone(), &sets);
+    let (applied, refused) = set::apply(&mut table.clone(), &set::Override::command_line(&sets));
     match refused.first() {
         Some(p) => Err(p.message.clone()),
         None => Ok(applied.into_iter().map(|a| a.key_path).collect()),

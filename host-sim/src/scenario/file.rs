@@ -46,6 +46,7 @@ use toml::{Table, Value};
 
 use crate::machine::input::{self, Limit, Location, Need, Problem, Problems, Section};
 use crate::machine::kind::{self, FileKind};
+use crate::machine::set::{Origin, Override};
 use crate::machine::Machine;
 use crate::numbers::{sig, signed};
 use crate::simulation::closed_loop;
@@ -534,28 +535,24 @@ fn load_machine(
         );
         return (None, Vec::new());
     }
-    match Machine::load(path, sets) {
+    // A refused entry of `set` is said at its key, `set[i]`.
+    let overrides: Vec<Override> = sets
+        .iter()
+        .enumerate()
+        .map(|(i, arg)| Override {
+            arg: arg.clone(),
+            origin: Origin::Entry {
+                file: file.to_string(),
+                key_path: format!("set[{i}]"),
+            },
+        })
+        .collect();
+    match Machine::load_overridden(path, &overrides) {
         Ok(m) => match closed_loop::params(&m) {
             Ok(_) => (Some((path.to_path_buf(), m)), Vec::new()),
             Err(ps) => (None, ps),
         },
-        Err(ps) => (
-            None,
-            ps.into_iter().map(|p| blame_set(p, sets, file)).collect(),
-        ),
-    }
-}
-
-/// A problem of a `set` entry, which the machine reader names `--set KEY=VALUE`,
-/// moved to the scenario's key `set[i]`.
-fn blame_set(p: Problem, sets: &[String], file: &str) -> Problem {
-    match sets.iter().position(|s| p.file == format!("--set {s}")) {
-        Some(i) => Problem {
-            file: file.to_string(),
-            location: Location::Key(format!("set[{i}]")),
-            message: format!("{:?}: {}", sets[i], p.message),
-        },
-        None => p,
+        Err(ps) => (None, ps),
     }
 }
 
