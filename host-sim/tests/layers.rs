@@ -1,6 +1,11 @@
-//! The plant's imports point one way (docs/development.md, "host-sim's
-//! structure"), read from its source text:
+//! host-sim's imports point one way (docs/development.md, "The layers"), read
+//! from its source text:
 //!
+//! - every module of `host-sim/src` uses only modules on lower lines of the
+//!   layers' picture in docs/development.md, and the picture names exactly the
+//!   tree's modules;
+//! - every crate of the project names in its `Cargo.toml` only the project's
+//!   crates the crates' picture there allows;
 //! - the plant uses no part of host-sim above it: below `plant/` there is only the
 //!   machine file's crate (`crate::machine`) and the events' plain rows
 //!   (`crate::event`), and `event.rs` uses nothing of the crate;
@@ -19,6 +24,86 @@ use std::path::{Path, PathBuf};
 /// `host-sim/src`.
 fn src() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+/// The repository's root.
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The `text` blocks of docs/development.md's section "The layers": the crates'
+/// picture, then the modules' (the block after the marker comment).
+fn layer_pictures() -> (String, String) {
+    let doc = fs::read_to_string(root().join("docs/development.md")).unwrap();
+    let section = doc
+        .split("### The layers")
+        .nth(1)
+        .expect("docs/development.md has the section \"The layers\"");
+    let blocks: Vec<&str> = section
+        .split("```text\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .collect();
+    assert!(blocks.len() >= 2, "two pictures in \"The layers\"");
+    (blocks[0].to_string(), blocks[1].to_string())
+}
+
+/// The modules' picture as module -> layer (1 the ground).
+fn module_layers(picture: &str) -> BTreeMap<String, u32> {
+    let mut layers = BTreeMap::new();
+    for line in picture.lines().filter(|l| !l.trim().is_empty()) {
+        let mut words = line.split_whitespace();
+        let layer: u32 = words
+            .next()
+            .and_then(|w| w.parse().ok())
+            .unwrap_or_else(|| panic!("a layer's line starts with its number: {line:?}"));
+        for m in words {
+            assert!(
+                layers.insert(m.to_string(), layer).is_none(),
+                "{m} twice in the picture"
+            );
+        }
+    }
+    layers
+}
+
+/// host-sim's top-level modules: each `src/NAME.rs` and `src/NAME/` but
+/// `lib.rs` and `main.rs`, and `machine` (the machine-file crate under
+/// host-sim's name).
+fn top_modules() -> BTreeSet<String> {
+    let mut modules: BTreeSet<String> = fs::read_dir(src())
+        .unwrap()
+        .filter_map(|e| {
+            let path = e.unwrap().path();
+            let name = path.file_stem()?.to_str()?.to_string();
+            let rust = path.is_dir() || path.extension().is_some_and(|x| x == "rs");
+            (rust && name != "lib" && name != "main").then_some(name)
+        })
+        .collect();
+    modules.insert("machine".to_string());
+    modules
+}
+
+/// Every source file of module `m` (its file, or every file under its folder).
+fn files_of(m: &str) -> Vec<PathBuf> {
+    let file = src().join(format!("{m}.rs"));
+    if file.is_file() {
+        return vec![file];
+    }
+    let mut files = Vec::new();
+    let mut folders = vec![src().join(m)];
+    while let Some(folder) = folders.pop() {
+        for e in fs::read_dir(&folder).into_iter().flatten() {
+            let path = e.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|x| x == "rs") {
+                files.push(path);
+            }
+        }
+    }
+    files.sort();
+    files
 }
 
 /// `path` from `host-sim/src`, for a message.
@@ -194,6 +279,159 @@ fn circle(uses: &Uses) -> Option<Vec<String>> {
     let mut done = BTreeSet::new();
     uses.keys()
         .find_map(|m| visit(m, uses, &mut Vec::new(), &mut done))
+}
+
+#[test]
+fn the_modules_use_only_the_layers_below_them() {
+    let layers = module_layers(&layer_pictures().1);
+    let tree = top_modules();
+    let pictured: BTreeSet<String> = layers.keys().cloned().collect();
+    assert_eq!(
+        pictured, tree,
+        "the layers' picture in docs/development.md names exactly the modules of host-sim/src"
+    );
+    // The test sees what it must: the commands use the simulation.
+    let mut wrong = Vec::new();
+    let mut seen = 0;
+    for (m, &layer) in &layers {
+        for file in files_of(m) {
+            for (n, line) in code(&file) {
+                for used in first_segments(&line, "crate::") {
+                    let Some(&below) = layers.get(&used) else {
+                        continue;
+                    };
+                    if used == *m {
+                        continue;
+                    }
+                    seen += 1;
+                    if below >= layer {
+                        wrong.push(format!(
+                            "{}:{n}: {m} (layer {layer}) uses {used} (layer {below})",
+                            shown(&file)
+                        ));
+                    }
+                }
+            }
+        }
+    }
+    assert!(seen > 100, "only {seen} paths read");
+    assert!(
+        wrong.is_empty(),
+        "a module uses one on its own layer or above (docs/development.md, \"The layers\"):\n{}",
+        wrong.join("\n")
+    );
+}
+
+/// The utilities every layer may take, which the modules' table leaves out of its
+/// column "uses".
+const UTILITIES: [&str; 5] = ["args", "help", "interrupt", "numbers", "failure"];
+
+/// What each module imports of host-sim's other modules, from its code.
+fn module_uses(modules: &BTreeSet<String>) -> BTreeMap<String, BTreeSet<String>> {
+    let mut uses = BTreeMap::new();
+    for m in modules {
+        let used: &mut BTreeSet<String> = uses.entry(m.clone()).or_default();
+        for file in files_of(m) {
+            for (_, line) in code(&file) {
+                used.extend(
+                    first_segments(&line, "crate::")
+                        .into_iter()
+                        .filter(|u| u != m && modules.contains(u)),
+                );
+            }
+        }
+    }
+    uses
+}
+
+#[test]
+fn the_modules_table_says_what_each_module_uses() {
+    let doc = fs::read_to_string(root().join("docs/development.md")).unwrap();
+    let table = doc
+        .split("### The modules")
+        .nth(1)
+        .expect("docs/development.md has the section \"The modules\"");
+    let modules = top_modules();
+    let uses = module_uses(&modules);
+    let mut wrong = Vec::new();
+    let mut rows = 0;
+    for row in table.lines().filter(|l| l.starts_with("| `")) {
+        let name: String = row[3..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        if !modules.contains(&name) {
+            continue;
+        }
+        rows += 1;
+        let last = row.trim_end_matches('|').rsplit(" | ").next().unwrap_or("");
+        let said: BTreeSet<String> = last
+            .split('`')
+            .skip(1)
+            .step_by(2)
+            .filter(|w| modules.contains(*w))
+            .map(str::to_string)
+            .collect();
+        let code: BTreeSet<String> = uses[&name]
+            .iter()
+            .filter(|u| !UTILITIES.contains(&u.as_str()))
+            .cloned()
+            .collect();
+        // `cli` dispatches to every command: its row says so in words.
+        if name != "cli" && said != code {
+            wrong.push(format!(
+                "{name}: the table says {said:?}, the code uses {code:?}"
+            ));
+        }
+    }
+    assert_eq!(
+        rows,
+        modules.len(),
+        "a row for every module of host-sim/src"
+    );
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+#[test]
+fn the_crates_use_only_what_the_picture_allows() {
+    let crates = ["firmware", "tests", "host-sim", "machine-file", "shared"];
+    let manifest = |c: &str| match c {
+        "machine-file" => root().join("host-sim/machine-file/Cargo.toml"),
+        _ => root().join(c).join("Cargo.toml"),
+    };
+    let mut allowed: BTreeMap<&str, BTreeSet<&str>> = BTreeMap::new();
+    let picture = layer_pictures().0;
+    for line in picture.lines().filter(|l| l.contains("->")) {
+        let (user, uses) = line.split_once("->").unwrap();
+        let user = crates
+            .into_iter()
+            .find(|c| user.split_whitespace().next() == Some(*c))
+            .unwrap_or_else(|| panic!("a crate's line starts with its name: {line:?}"));
+        let named = uses
+            .split(|c: char| c.is_whitespace() || c == ',' || c == '(' || c == ')')
+            .filter_map(|w| crates.into_iter().find(|c| *c == w));
+        allowed.entry(user).or_default().extend(named);
+    }
+    assert_eq!(
+        allowed.len(),
+        crates.len(),
+        "every crate in the picture: {allowed:?}"
+    );
+    let mut wrong = Vec::new();
+    for c in crates {
+        let text = fs::read_to_string(manifest(c)).unwrap();
+        for line in text.lines() {
+            let name = line.split('=').next().unwrap_or("").trim();
+            if line.contains("path =") && crates.contains(&name) && !allowed[c].contains(name) {
+                wrong.push(format!("{c} names {name}"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "a crate uses one the picture in docs/development.md does not allow:\n{}",
+        wrong.join("\n")
+    );
 }
 
 #[test]
