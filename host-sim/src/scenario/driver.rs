@@ -12,7 +12,6 @@ use super::file::Injection;
 use super::file::Scenario;
 use crate::event::EventRow;
 use crate::failure::Failure;
-use crate::machine::input::Problem;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::Injected;
@@ -118,9 +117,10 @@ impl<'s> ScenarioDriver<'s> {
     }
 
     /// The controller in the loop for `scenario`.
-    pub fn controller(scenario: &'s Scenario) -> Result<Self, Vec<Problem>> {
-        let inner = ControllerDriver::new(&scenario.machine, schedule(scenario))?;
-        Ok(Self::new(scenario, InTheLoop::Host(Box::new(inner))))
+    pub fn controller(scenario: &'s Scenario) -> Self {
+        let inner =
+            ControllerDriver::with_params(&scenario.machine, &scenario.params, schedule(scenario));
+        Self::new(scenario, InTheLoop::Host(Box::new(inner)))
     }
 
     fn driver(&mut self) -> &mut dyn Driver {

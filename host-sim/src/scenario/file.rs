@@ -40,7 +40,7 @@
 
 use std::path::{Path, PathBuf};
 
-use shared::controller::{Command, Direction, Faults, State};
+use shared::controller::{Command, Direction, Faults, Params, State};
 use shared::Enumerated;
 use toml::{Table, Value};
 
@@ -447,6 +447,8 @@ pub struct Scenario {
     pub machine_file: PathBuf,
     /// The machine, with the scenario's overrides applied.
     pub machine: Machine,
+    /// The controller's parameters for the machine, its tuning table read once.
+    pub params: Params,
     /// The `--set KEY=VALUE` overrides of the machine file (`set`).
     pub sets: Vec<String>,
     /// End time, s.
@@ -507,6 +509,10 @@ pub fn from_text(file: &str, text: &str, dir: &Path) -> Result<Scenario, Vec<Pro
     }
 }
 
+/// The machine file as stage 3 found it: where, the machine, and its
+/// controller's parameters.
+type LoadedMachine = (PathBuf, Machine, Params);
+
 /// Stage 3: the machine file at `path` (the scenario's `machine`) with the
 /// scenario's overrides `sets`, and its controller's parameters. A path that is
 /// no file is a problem of the scenario's `machine`; the machine file's own
@@ -517,7 +523,7 @@ fn load_machine(
     sets: &[String],
     file: &str,
     problems: &Problems,
-) -> (Option<(PathBuf, Machine)>, Vec<Problem>) {
+) -> (Option<LoadedMachine>, Vec<Problem>) {
     if !path.is_file() {
         let what = if path.is_dir() {
             "is a directory, not a machine file"
@@ -549,7 +555,7 @@ fn load_machine(
         .collect();
     match Machine::load_overridden(path, &overrides) {
         Ok(m) => match closed_loop::params(&m) {
-            Ok(_) => (Some((path.to_path_buf(), m)), Vec::new()),
+            Ok(params) => (Some((path.to_path_buf(), m, params)), Vec::new()),
             Err(ps) => (None, ps),
         },
         Err(ps) => (None, ps),
@@ -1081,9 +1087,9 @@ impl<'m> Bounds<'m> {
 }
 
 /// Stage 4: times against `t_end` and the control ticks, speeds defaulted.
-fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -> Option<Scenario> {
+fn resolve(raw: Raw, machine: Option<LoadedMachine>, problems: &Problems) -> Option<Scenario> {
     // Without the machine only what the scenario itself says is checked.
-    let bounds = Bounds::new(raw.t_end, machine.as_ref().map(|(_, m)| m));
+    let bounds = Bounds::new(raw.t_end, machine.as_ref().map(|(_, m, _)| m));
     let commands = resolve_commands(&raw.commands, &bounds, problems);
     let faults = resolve_faults(&raw.faults, &bounds, problems);
     let expectations = resolve_expectations(raw.expects, &bounds, problems);
@@ -1092,11 +1098,12 @@ fn resolve(raw: Raw, machine: Option<(PathBuf, Machine)>, problems: &Problems) -
     if raw.refused || raw.machine.is_none() || !problems.is_empty() {
         return None;
     }
-    let (machine_file, machine) = machine?;
+    let (machine_file, machine, params) = machine?;
     Some(Scenario {
         file: problems.file().to_string(),
         machine_file,
         machine,
+        params,
         sets: raw.sets.unwrap_or_default(),
         t_end,
         commands,

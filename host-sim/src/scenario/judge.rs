@@ -80,7 +80,7 @@ impl Report {
 /// Fails only if the controller's parameters cannot be built (the tuning table
 /// changed since [`super::file::load`]).
 pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
-    let mut driver = ScenarioDriver::controller(scenario)?;
+    let mut driver = ScenarioDriver::controller(scenario);
     Ok(run_observed(
         scenario,
         &mut driver,

@@ -99,7 +99,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
             )?;
             ScenarioDriver::new(&scenario, InTheLoop::Firmware(Box::new(firmware)))
         }
-        None => ScenarioDriver::controller(&scenario)?,
+        None => ScenarioDriver::controller(&scenario),
     };
     let mut film = Film {
         frames: animation.map(|_| Frames::new(&scenario.machine)),

@@ -135,12 +135,22 @@ pub fn constants_warning(m: &Machine) -> Option<String> {
 }
 
 impl ControllerDriver {
-    /// The controller for `machine`, powered on, with `schedule` commands.
+    /// The controller for `machine`, powered on, with `schedule` commands; its
+    /// parameters read from the machine ([`params`]).
     pub fn new(machine: &Machine, schedule: Vec<(f64, Command)>) -> Result<Self, Vec<Problem>> {
-        let params = params(machine)?;
-        Ok(ControllerDriver {
+        Ok(ControllerDriver::with_params(
+            machine,
+            &params(machine)?,
+            schedule,
+        ))
+    }
+
+    /// The controller for `machine` on `params` read before (a scenario's),
+    /// powered on, with `schedule` commands.
+    pub fn with_params(machine: &Machine, params: &Params, schedule: Vec<(f64, Command)>) -> Self {
+        ControllerDriver {
             rotor_count: params.rotor_count,
-            controller: Controller::new(&params, ResetCause::PowerOn),
+            controller: Controller::new(params, ResetCause::PowerOn),
             sensors: BoardSensors::new(machine),
             supply: machine.drive.supply_voltage,
             dt: (1.0 / machine.controller.rate_hz) as f32,
@@ -152,7 +162,7 @@ impl ControllerDriver {
             record_history: false,
             self_test_at: None,
             self_test_started: None,
-        })
+        }
     }
 
     /// Start a self-test at the first control tick at or after `t` s (just before
