@@ -21,7 +21,6 @@ use common::fake_device::{self, ack};
 use common::Run;
 
 use host_sim::device::commands::TABLE_HEADER;
-use host_sim::device::report::CSV_HEADER;
 use host_sim::device::serve::{serve_watched, Endpoint, Watch};
 use host_sim::device::sim::{Noise, SimDevice};
 use host_sim::machine::tuning_file;
@@ -29,6 +28,9 @@ use shared::controller::{Faults, SelfTestStatus, State};
 use shared::protocol::link::no_telemetry;
 use shared::protocol::{MessageId, Request, Response, StatusReport};
 use shared::storage;
+
+/// The telemetry CSV's header, as docs/cli-device.md documents it.
+const CSV_HEADER: &str = "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,tick_late_us,tick_busy_us,overruns,rx_dropped";
 
 /// The bound against a hang: a command, or a wait for what the device shows.
 const HANG: Duration = Duration::from_secs(120);

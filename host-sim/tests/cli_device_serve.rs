@@ -20,7 +20,8 @@ mod browser;
 mod common;
 use common::device_sim::DeviceSim;
 
-use host_sim::device::report::CSV_HEADER;
+/// The telemetry CSV's header, as docs/cli-device.md documents it.
+const CSV_HEADER: &str = "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,tick_late_us,tick_busy_us,overruns,rx_dropped";
 
 impl DeviceSim {
     /// `host-sim device --port PORT args...` to its end.

@@ -1,7 +1,8 @@
 //! What `host-sim device` prints: a status report as aligned lines, a telemetry
 //! frame as one readable line or one CSV row, a self-test result per rotor.
 
-use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus};
+use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus, State};
+use shared::protocol::link::no_telemetry;
 use shared::protocol::StatusReport;
 
 use crate::numbers::{decimals, fixed};
@@ -128,45 +129,105 @@ pub fn telemetry_line(s: &StatusReport) -> String {
     )
 }
 
-/// The CSV header of [`csv_row`], without the newline.
-pub const CSV_HEADER: &str =
-    "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,\
-phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,\
-phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,\
-tick_late_us,tick_busy_us,overruns,rx_dropped";
+/// One cell of a telemetry frame, as the CSV and the live page's JSON write it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cell {
+    /// An `f32` rounded to its unit's decimals ([`field`]).
+    Number(f32, usize),
+    /// A flag: `1`/`0` in the CSV, a boolean in JSON.
+    Flag(bool),
+    /// A whole number.
+    Count(u64),
+    /// A name (the state).
+    Name(&'static str),
+    /// Names (the faults): `|`-separated in the CSV, a list in JSON.
+    Names(Vec<&'static str>),
+}
+
+impl Cell {
+    /// The CSV cell.
+    pub fn csv(&self) -> String {
+        match self {
+            Cell::Number(x, places) => field(*x, *places),
+            Cell::Flag(b) => if *b { "1" } else { "0" }.to_string(),
+            Cell::Count(n) => n.to_string(),
+            Cell::Name(name) => name.to_string(),
+            Cell::Names(names) => names.join("|"),
+        }
+    }
+}
+
+/// The telemetry frame `s` column by column, in the CSV's order: each
+/// column's name (the CSV header's, the JSON key) and its cell. The one list of
+/// the columns: [`csv_header`], [`csv_row`] and the live page's frames are
+/// made from it.
+pub fn columns(s: &StatusReport) -> [(&'static str, Cell); 23] {
+    let t = &s.telemetry;
+    [
+        ("uptime_ms", Cell::Count(u64::from(s.uptime_ms))),
+        ("state", Cell::Name(s.state.name())),
+        ("faults", Cell::Names(s.faults.names().collect())),
+        ("speed1_rpm", Cell::Number(t.speed_rpm[0], RPM_PLACES)),
+        ("speed2_rpm", Cell::Number(t.speed_rpm[1], RPM_PLACES)),
+        (
+            "speed_ref1_rpm",
+            Cell::Number(t.speed_ref_rpm[0], RPM_PLACES),
+        ),
+        (
+            "speed_ref2_rpm",
+            Cell::Number(t.speed_ref_rpm[1], RPM_PLACES),
+        ),
+        ("phase_valid", Cell::Flag(t.phase_valid)),
+        ("phase_loop_closed", Cell::Flag(t.phase_loop_closed)),
+        (
+            "phase_offset_deg",
+            Cell::Number(t.phase_offset_deg, DEG_PLACES),
+        ),
+        (
+            "commanded_offset_deg",
+            Cell::Number(t.commanded_offset_deg, DEG_PLACES),
+        ),
+        (
+            "target_offset_deg",
+            Cell::Number(t.target_offset_deg, DEG_PLACES),
+        ),
+        (
+            "phase_error_deg",
+            Cell::Number(t.phase_error_deg, DEG_PLACES),
+        ),
+        ("current1_a", Cell::Number(t.current[0], AMPERE_PLACES)),
+        ("current2_a", Cell::Number(t.current[1], AMPERE_PLACES)),
+        (
+            "supply_voltage_v",
+            Cell::Number(t.supply_voltage, VOLT_PLACES),
+        ),
+        ("duty1", Cell::Number(t.duty[0], DUTY_PLACES)),
+        ("duty2", Cell::Number(t.duty[1], DUTY_PLACES)),
+        ("command_rejected", Cell::Flag(t.command_rejected)),
+        ("tick_late_us", Cell::Count(u64::from(t.tick_late_us))),
+        ("tick_busy_us", Cell::Count(u64::from(t.tick_busy_us))),
+        ("overruns", Cell::Count(u64::from(t.overruns))),
+        ("rx_dropped", Cell::Count(u64::from(s.rx_dropped))),
+    ]
+}
+
+/// The CSV header of [`csv_row`], without the newline: the names of
+/// [`columns`].
+pub fn csv_header() -> String {
+    let none = StatusReport {
+        uptime_ms: 0,
+        state: State::Idle,
+        faults: Faults::NONE,
+        telemetry: no_telemetry(),
+        rx_dropped: 0,
+    };
+    columns(&none).map(|(name, _)| name).join(",")
+}
 
 /// A telemetry frame as a CSV row (faults by name, `|`-separated; `f32`s rounded
 /// to their unit's decimals, [`RPM_PLACES`] and the others), without the newline.
 pub fn csv_row(s: &StatusReport) -> String {
-    let t = &s.telemetry;
-    let faults: Vec<&str> = s.faults.names().collect();
-    let b = |v: bool| if v { "1" } else { "0" };
-    format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-        s.uptime_ms,
-        s.state.name(),
-        faults.join("|"),
-        field(t.speed_rpm[0], RPM_PLACES),
-        field(t.speed_rpm[1], RPM_PLACES),
-        field(t.speed_ref_rpm[0], RPM_PLACES),
-        field(t.speed_ref_rpm[1], RPM_PLACES),
-        b(t.phase_valid),
-        b(t.phase_loop_closed),
-        field(t.phase_offset_deg, DEG_PLACES),
-        field(t.commanded_offset_deg, DEG_PLACES),
-        field(t.target_offset_deg, DEG_PLACES),
-        field(t.phase_error_deg, DEG_PLACES),
-        field(t.current[0], AMPERE_PLACES),
-        field(t.current[1], AMPERE_PLACES),
-        field(t.supply_voltage, VOLT_PLACES),
-        field(t.duty[0], DUTY_PLACES),
-        field(t.duty[1], DUTY_PLACES),
-        b(t.command_rejected),
-        t.tick_late_us,
-        t.tick_busy_us,
-        t.overruns,
-        s.rx_dropped,
-    )
+    columns(s).map(|(_, cell)| cell.csv()).join(",")
 }
 
 /// The self-test status's name.
@@ -215,7 +276,7 @@ mod tests {
             rx_dropped: 3,
         };
         let row = csv_row(&s);
-        assert_eq!(row.split(',').count(), CSV_HEADER.split(',').count());
+        assert_eq!(row.split(',').count(), csv_header().split(',').count());
         assert!(row.starts_with("1234,fault,stall|link_lost,0,"), "{row}");
         assert!(telemetry_line(&s).contains("faults stall link_lost"));
         assert!(status_text(&s).contains("state           fault\n"));

@@ -54,7 +54,7 @@ pub fn run(
     }
     let lines = a.csv.as_deref() != Some(Path::new("-"));
     if let Some((set, i)) = &mut csv {
-        set.write(*i, &format!("{}\n", report::CSV_HEADER))?;
+        set.write(*i, &format!("{}\n", report::csv_header()))?;
     }
     let mut printed = Printed {
         lines,

@@ -3,12 +3,10 @@
 //! with the same units (rpm, degrees, amperes, volts, ms, us); faults as a list of
 //! names, flags as booleans.
 
-use serde_json::{json, Value};
+use serde_json::Value;
 use shared::protocol::StatusReport;
 
-use crate::device::report::{
-    field, AMPERE_PLACES, DEG_PLACES, DUTY_PLACES, RPM_PLACES, VOLT_PLACES,
-};
+use crate::device::report::{columns, field, Cell};
 
 /// An `f32` as the JSON number of its CSV cell ([`field`]: rounded to `places`
 /// decimals, 3000.091 rather than the widened 3000.09130859375); a non-finite one
@@ -21,42 +19,29 @@ fn number(x: f32, places: usize) -> Value {
         .map_or(Value::Null, Value::Number)
 }
 
-/// The frame `s` as one line of JSON.
+/// The frame `s` as one line of JSON: its [`columns`] as keys and values.
 pub fn json(s: &StatusReport) -> String {
-    let t = &s.telemetry;
-    let faults: Vec<&str> = s.faults.names().collect();
-    json!({
-        "uptime_ms": s.uptime_ms,
-        "state": s.state.name(),
-        "faults": faults,
-        "speed1_rpm": number(t.speed_rpm[0], RPM_PLACES),
-        "speed2_rpm": number(t.speed_rpm[1], RPM_PLACES),
-        "speed_ref1_rpm": number(t.speed_ref_rpm[0], RPM_PLACES),
-        "speed_ref2_rpm": number(t.speed_ref_rpm[1], RPM_PLACES),
-        "phase_valid": t.phase_valid,
-        "phase_loop_closed": t.phase_loop_closed,
-        "phase_offset_deg": number(t.phase_offset_deg, DEG_PLACES),
-        "commanded_offset_deg": number(t.commanded_offset_deg, DEG_PLACES),
-        "target_offset_deg": number(t.target_offset_deg, DEG_PLACES),
-        "phase_error_deg": number(t.phase_error_deg, DEG_PLACES),
-        "current1_a": number(t.current[0], AMPERE_PLACES),
-        "current2_a": number(t.current[1], AMPERE_PLACES),
-        "supply_voltage_v": number(t.supply_voltage, VOLT_PLACES),
-        "duty1": number(t.duty[0], DUTY_PLACES),
-        "duty2": number(t.duty[1], DUTY_PLACES),
-        "command_rejected": t.command_rejected,
-        "tick_late_us": t.tick_late_us,
-        "tick_busy_us": t.tick_busy_us,
-        "overruns": t.overruns,
-        "rx_dropped": s.rx_dropped,
-    })
-    .to_string()
+    let object: serde_json::Map<String, Value> = columns(s)
+        .into_iter()
+        .map(|(name, cell)| {
+            let value = match cell {
+                Cell::Number(x, places) => number(x, places),
+                Cell::Flag(b) => Value::Bool(b),
+                Cell::Count(n) => Value::from(n),
+                Cell::Name(name) => Value::from(name),
+                Cell::Names(names) => Value::from(names),
+            };
+            (name.to_string(), value)
+        })
+        .collect();
+    Value::Object(object).to_string()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::device::report::{csv_row, CSV_HEADER};
+    use crate::device::report::{csv_header, csv_row};
+    use serde_json::json;
     use shared::controller::{Faults, State};
     use shared::protocol::link::no_telemetry;
 
@@ -75,7 +60,7 @@ mod tests {
         };
         let v: Value = serde_json::from_str(&json(&s)).unwrap();
         let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
-        assert_eq!(keys, CSV_HEADER.split(',').collect::<Vec<_>>());
+        assert_eq!(keys, csv_header().split(',').collect::<Vec<_>>());
         // Every field reads as its CSV cell: the same numbers, faults by name,
         // flags as 0/1 there and booleans here.
         let cell = |v: &Value| match v {
