@@ -39,8 +39,8 @@ use crate::numbers;
 use crate::numbers::count;
 use crate::output::file::Staged;
 use crate::parts::{
-    is_sha256, maybe_finite, quote, read_as, sha256_hex, shard_problems, spec_sha256,
-    unsealed_sha256, MachineFile, MergeArgs, Shard, MAX_BYTES,
+    is_sha256, quote, read_as, sha256_hex, shard_problems, spec_sha256, unsealed_sha256,
+    MachineFile, MergeArgs, Shard, MAX_BYTES,
 };
 use crate::sweep::RunOutcome;
 use crate::sweep::{load_machine, progress_bar, refuse_interrupted};
@@ -81,50 +81,7 @@ pub struct StartRuns {
     /// The machine reader's refusal of its values, or `null`.
     pub refused: Option<String>,
     /// One run per measured point, in the points' order (none when refused).
-    pub runs: Vec<Run>,
-}
-
-/// One run's outcome, as `tune`'s run makes it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Run {
-    /// Rotor speed, rpm.
-    pub speed_rpm: f64,
-    /// Offset held, degrees.
-    pub offset_deg: f64,
-    /// Mean velocity over the second half, m/s.
-    #[serde(with = "maybe_finite")]
-    pub mean_velocity: f64,
-    /// Why the offset was not held, if it was not.
-    pub not_held: Option<String>,
-    /// Why the run was no travel, if it was not.
-    pub not_a_travel: Option<String>,
-    /// The plant's warnings.
-    pub plant_warnings: Vec<String>,
-}
-
-impl Run {
-    fn of(o: RunOutcome) -> Run {
-        Run {
-            speed_rpm: o.speed_rpm,
-            offset_deg: o.offset_deg,
-            mean_velocity: o.mean_velocity,
-            not_held: o.not_held,
-            not_a_travel: o.not_a_travel,
-            plant_warnings: o.plant_warnings,
-        }
-    }
-
-    fn outcome(&self) -> RunOutcome {
-        RunOutcome {
-            speed_rpm: self.speed_rpm,
-            offset_deg: self.offset_deg,
-            mean_velocity: self.mean_velocity,
-            not_held: self.not_held.clone(),
-            not_a_travel: self.not_a_travel.clone(),
-            plant_warnings: self.plant_warnings.clone(),
-        }
-    }
+    pub runs: Vec<RunOutcome>,
 }
 
 /// A fit's partial result ([module doc](self)).
@@ -245,7 +202,7 @@ pub(crate) fn run_shard(
                     start,
                     u,
                     refused: None,
-                    runs: sims.into_iter().map(Run::of).collect(),
+                    runs: sims,
                 },
                 Err(why) => StartRuns {
                     start,
@@ -368,7 +325,7 @@ pub fn read(path: &Path) -> Result<Part, String> {
             )));
         }
         for r in &s.runs {
-            if let Some(why) = r.outcome().problem() {
+            if let Some(why) = r.problem() {
                 return Err(damaged(format!(
                     "start {} ({} rpm, {} deg): {why}",
                     s.start,
@@ -618,7 +575,7 @@ fn evaluations(
             }
             let evaluated = match &s.refused {
                 Some(why) => Err(why.clone()),
-                None => Ok(s.runs.iter().map(Run::outcome).collect()),
+                None => Ok(s.runs.clone()),
             };
             preset.insert(bits(&s.u), evaluated);
         }

@@ -23,7 +23,7 @@ mod hash;
 mod read;
 
 pub use hash::{sha256_hex, spec_sha256, unsealed_sha256};
-pub(crate) use read::{is_sha256, maybe_finite, quote, read_as};
+pub(crate) use read::{is_sha256, quote, read_as};
 pub use read::{read_machine_file, shard_problems, MAX_BYTES};
 
 /// Which part of the grid: part `index` (from 1) of `count`.

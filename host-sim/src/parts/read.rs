@@ -24,42 +24,6 @@ pub fn read_machine_file(path: &Path) -> Result<(String, String), String> {
     Ok((text, sha256))
 }
 
-/// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
-pub(crate) mod maybe_finite {
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    #[derive(Serialize, Deserialize)]
-    #[serde(untagged)]
-    enum Number {
-        Finite(f64),
-        Other(String),
-    }
-
-    pub fn serialize<S: Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
-        match *x {
-            x if x.is_finite() => Number::Finite(x),
-            x if x.is_nan() => Number::Other("NaN".into()),
-            x if x > 0.0 => Number::Other("inf".into()),
-            _ => Number::Other("-inf".into()),
-        }
-        .serialize(s)
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-        match Number::deserialize(d)? {
-            Number::Finite(x) => Ok(x),
-            Number::Other(s) => match s.as_str() {
-                "NaN" => Ok(f64::NAN),
-                "inf" => Ok(f64::INFINITY),
-                "-inf" => Ok(f64::NEG_INFINITY),
-                _ => Err(serde::de::Error::custom(format!(
-                    "mean_velocity {s:?}: expected a number, \"NaN\", \"inf\" or \"-inf\""
-                ))),
-            },
-        }
-    }
-}
-
 /// A field of a part for a message: [`input::cut`] at [`input::MAX_QUOTED`] (a
 /// part is a file anyone can write: a 10 MB field must not make a 10 MB line).
 pub(crate) fn quote(field: &str) -> String {

@@ -8,6 +8,7 @@ pub mod best;
 use std::path::Path;
 
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use shared::controller::{Command, Outputs, State, Telemetry};
 
 use crate::failure::Failure;
@@ -153,8 +154,49 @@ impl Grid {
     }
 }
 
-/// What one closed-loop run gave.
-#[derive(Clone, Debug, PartialEq)]
+/// A mean velocity: a JSON number when finite, else `"NaN"`, `"inf"`, `"-inf"`.
+pub mod maybe_finite {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    #[derive(Serialize, Deserialize)]
+    #[serde(untagged)]
+    enum Number {
+        Finite(f64),
+        Other(String),
+    }
+
+    /// `x` as a JSON number when finite, else as its name.
+    pub fn serialize<S: Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+        match *x {
+            x if x.is_finite() => Number::Finite(x),
+            x if x.is_nan() => Number::Other("NaN".into()),
+            x if x > 0.0 => Number::Other("inf".into()),
+            _ => Number::Other("-inf".into()),
+        }
+        .serialize(s)
+    }
+
+    /// A number, or `"NaN"`, `"inf"`, `"-inf"`; any other string is refused.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        match Number::deserialize(d)? {
+            Number::Finite(x) => Ok(x),
+            Number::Other(s) => match s.as_str() {
+                "NaN" => Ok(f64::NAN),
+                "inf" => Ok(f64::INFINITY),
+                "-inf" => Ok(f64::NEG_INFINITY),
+                _ => Err(serde::de::Error::custom(format!(
+                    "mean_velocity {s:?}: expected a number, \"NaN\", \"inf\" or \"-inf\""
+                ))),
+            },
+        }
+    }
+}
+
+/// What one closed-loop run gave. As JSON (a fit's partial result holds its
+/// runs so) its mean velocity is a number when finite, else `"NaN"`, `"inf"` or
+/// `"-inf"` ([`maybe_finite`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RunOutcome {
     /// Rotor speed, rpm.
     pub speed_rpm: f64,
@@ -162,6 +204,7 @@ pub struct RunOutcome {
     pub offset_deg: f64,
     /// `(x_C(T) - x_C(T/2)) / (T/2)`, m/s (the run's summary); NaN when the run
     /// was no travel.
+    #[serde(with = "maybe_finite")]
     pub mean_velocity: f64,
     /// Why the offset was not held over the second half, if it was not: the
     /// controller faulted or never reached `running` in time, or the phase error

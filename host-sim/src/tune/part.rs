@@ -42,11 +42,10 @@ use crate::machine::{input, Machine};
 use crate::numbers;
 use crate::output::file::Staged;
 use crate::parts::{
-    is_sha256, maybe_finite, quote, read_as, shard_problems, spec_sha256, unsealed_sha256,
-    MachineFile, Shard,
+    is_sha256, quote, read_as, shard_problems, spec_sha256, unsealed_sha256, MachineFile, Shard,
 };
+use crate::sweep::{maybe_finite, run_point, Grid, RunOutcome};
 use crate::sweep::{progress_bar, refuse_interrupted, MAX_POINTS};
-use crate::sweep::{run_point, Grid, RunOutcome};
 
 /// The `format` of a partial result.
 pub const FORMAT: &str = "host-sim-tune-part";
