@@ -36,8 +36,8 @@ use std::path::Path;
 use crate::machine::input::{self, MAX_QUOTED};
 use crate::numbers;
 use crate::numbers::decimals;
-use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::simulation::trace::MAX_VELOCITY_MPS;
+use shared::controller::angle::{wrap_deg_f64, wrap_deg_signed_f64};
 
 /// The columns every file has, in the order a new file is written.
 pub const COLUMNS: [&str; 3] = ["speed_rpm", "offset_deg", "velocity_mps"];
@@ -137,7 +137,7 @@ impl Row {
     /// (offsets compared around the turn: `-90` is `270`).
     pub fn is_at(&self, speed_rpm: f64, offset_deg: f64) -> bool {
         (self.speed_rpm - speed_rpm).abs() <= SAME_POINT
-            && wrap_deg_180(self.offset_deg - offset_deg).abs() <= SAME_POINT
+            && wrap_deg_signed_f64(self.offset_deg - offset_deg).abs() <= SAME_POINT
     }
 }
 
@@ -322,7 +322,7 @@ pub fn parse_each(
             each(Row {
                 line,
                 speed_rpm,
-                offset_deg: wrap_deg_360(offset) + 0.0,
+                offset_deg: wrap_deg_f64(offset) + 0.0,
                 velocity_mps,
                 weight,
             });

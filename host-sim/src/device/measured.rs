@@ -16,7 +16,7 @@ use crate::failure::Failure;
 use crate::machine::input;
 use crate::measured::{self, Header, Row};
 use crate::output::csv::csv_number;
-use crate::simulation::summary::wrap_deg_360;
+use shared::controller::angle::wrap_deg_f64;
 
 /// A measured file open for appending.
 #[derive(Debug)]
@@ -141,7 +141,7 @@ impl MeasuredFile {
         self.rows.push(Row {
             line: self.next_line,
             speed_rpm,
-            offset_deg: wrap_deg_360(offset_deg) + 0.0,
+            offset_deg: wrap_deg_f64(offset_deg) + 0.0,
             velocity_mps,
             weight: 1.0,
         });

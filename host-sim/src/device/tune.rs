@@ -51,9 +51,9 @@ use crate::measured::velocity_refusal;
 use crate::numbers;
 use crate::numbers::count;
 use crate::output::file::Staged;
-use crate::simulation::summary::wrap_deg_180;
 use crate::sweep::table_problems;
 use crate::sweep::{offset_held, wrap_offsets, Grid};
+use shared::controller::angle::wrap_deg_signed_f64;
 
 /// The prompt after each point.
 pub const PROMPT: &str = "distance between the two marks, mm (+ right, - left); Enter repeats the point, s skips it, q stops and ends: ";
@@ -404,7 +404,7 @@ fn run_point(
             other => return Err(format!("the controller is {}", other.name())),
         }
         let on_target =
-            wrap_deg_180(f64::from(t.target_offset_deg) - offset).abs() < TARGET_MATCH_DEG;
+            wrap_deg_signed_f64(f64::from(t.target_offset_deg) - offset).abs() < TARGET_MATCH_DEG;
         if offset_held(s.state, t) && on_target {
             return Ok(true);
         }

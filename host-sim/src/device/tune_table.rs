@@ -16,9 +16,9 @@ use crate::machine::tuning_file;
 use crate::measured::{Row, SAME_POINT};
 use crate::numbers;
 use crate::numbers::count;
-use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::sweep::best::{candidates, mm_s, no_travel, Way};
 use crate::sweep::{Grid, RunOutcome};
+use shared::controller::angle::{wrap_deg_f64, wrap_deg_signed_f64};
 
 /// Fewest offsets at a speed for the peak fit: the extreme and its two
 /// neighbours.
@@ -92,10 +92,10 @@ pub fn averages(rows: &[Row]) -> Vec<(f64, Vec<OffsetMean>)> {
         let measured = (r.velocity_mps, r.weight);
         match offsets
             .iter_mut()
-            .find(|(o, _)| wrap_deg_180(o - r.offset_deg).abs() <= SAME_POINT)
+            .find(|(o, _)| wrap_deg_signed_f64(o - r.offset_deg).abs() <= SAME_POINT)
         {
             Some(g) => g.1.push(measured),
-            None => offsets.push((wrap_deg_360(r.offset_deg) + 0.0, vec![measured])),
+            None => offsets.push((wrap_deg_f64(r.offset_deg) + 0.0, vec![measured])),
         }
     }
     speeds.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -17,6 +17,7 @@ use std::f64::consts::PI;
 
 use crate::machine::{Machine, Rotor};
 use crate::simulation::breach::{Breach, BreachWatch};
+use shared::controller::angle::{wrap_deg_f64, wrap_deg_signed_f64};
 use shared::controller::Faults;
 
 use crate::event::{EventKind, EventRow};
@@ -25,24 +26,6 @@ use crate::simulation::trace::{EndState, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
 const RPM_PER_RAD_S: f64 = 60.0 / (2.0 * PI);
-
-/// `x` degrees wrapped to [0, 360).
-pub fn wrap_deg_360(x: f64) -> f64 {
-    let r = x.rem_euclid(360.0);
-    // rem_euclid rounds a tiny negative x up to 360 itself.
-    if r >= 360.0 {
-        0.0
-    } else {
-        r
-    }
-}
-
-/// `x` degrees wrapped to (-180, 180].
-pub fn wrap_deg_180(x: f64) -> f64 {
-    // y in [0, 360), so 180 - y in (-180, 180].
-    let y = wrap_deg_360(180.0 - x);
-    180.0 - y
-}
 
 /// A rotor's encoder angle `theta = s (phi - index_angle)`, rad, not wrapped.
 pub fn encoder_angle(phi: f64, rotor: &Rotor) -> f64 {
@@ -55,7 +38,7 @@ pub fn encoder_angle(phi: f64, rotor: &Rotor) -> f64 {
 pub fn phase_offset_deg(phi1: f64, phi2: f64, machine: &Machine) -> Option<f64> {
     let r2 = machine.rotors.rotor2()?;
     let theta = encoder_angle(phi1, machine.rotors.rotor1()) - encoder_angle(phi2, r2);
-    Some(wrap_deg_360(theta.to_degrees()))
+    Some(wrap_deg_f64(theta.to_degrees()))
 }
 
 /// The distinct times of the impact events, ascending (the rows of one
@@ -148,14 +131,14 @@ fn circular_mean_deg(samples: &[(f64, f64)]) -> f64 {
         s += w * a.sin();
         c += w * a.cos();
     }
-    wrap_deg_360(s.atan2(c).to_degrees())
+    wrap_deg_f64(s.atan2(c).to_degrees())
 }
 
 /// The weighted RMS of `a - commanded` wrapped to (-180, 180], degrees.
 fn rms_error_deg(samples: &[(f64, f64)], commanded: f64) -> f64 {
     let (mut sum, mut total) = (0.0, 0.0);
     for (w, a) in samples {
-        let e = wrap_deg_180(a - commanded);
+        let e = wrap_deg_signed_f64(a - commanded);
         sum += w * e * e;
         total += w;
     }
@@ -491,16 +474,16 @@ pub(crate) mod tests {
 
     #[test]
     fn wrapping() {
-        assert_eq!(wrap_deg_360(0.0), 0.0);
-        assert_eq!(wrap_deg_360(360.0), 0.0);
-        assert_eq!(wrap_deg_360(-90.0), 270.0);
-        assert_eq!(wrap_deg_360(725.0), 5.0);
-        assert_eq!(wrap_deg_360(-1e-20), 0.0);
-        assert_eq!(wrap_deg_180(180.0), 180.0);
-        assert_eq!(wrap_deg_180(-180.0), 180.0);
-        assert_eq!(wrap_deg_180(190.0), -170.0);
-        assert_eq!(wrap_deg_180(-10.0), -10.0);
-        assert_eq!(wrap_deg_180(350.0), -10.0);
+        assert_eq!(wrap_deg_f64(0.0), 0.0);
+        assert_eq!(wrap_deg_f64(360.0), 0.0);
+        assert_eq!(wrap_deg_f64(-90.0), 270.0);
+        assert_eq!(wrap_deg_f64(725.0), 5.0);
+        assert_eq!(wrap_deg_f64(-1e-20), 0.0);
+        assert_eq!(wrap_deg_signed_f64(180.0), 180.0);
+        assert_eq!(wrap_deg_signed_f64(-180.0), 180.0);
+        assert_eq!(wrap_deg_signed_f64(190.0), -170.0);
+        assert_eq!(wrap_deg_signed_f64(-10.0), -10.0);
+        assert_eq!(wrap_deg_signed_f64(350.0), -10.0);
     }
 
     #[test]
@@ -731,7 +714,7 @@ pub(crate) mod tests {
             Faults::NONE,
             vec![],
         );
-        let off = wrap_deg_180(offset(&s));
+        let off = wrap_deg_signed_f64(offset(&s));
         assert!(close(off, 0.0, 1e-9), "{}", offset(&s));
         assert!(offset(&s) >= 0.0 && offset(&s) < 360.0);
         assert!(

@@ -6,7 +6,7 @@ use super::{run_points, Grid, RunOutcome, OFFSET_RESOLUTION_DEG};
 use crate::machine::Machine;
 use crate::numbers;
 use crate::output::progress::Progress;
-use crate::simulation::summary::wrap_deg_360;
+use shared::controller::angle::wrap_deg_f64;
 
 /// How a best offset was found.
 #[derive(Clone, Debug, PartialEq)]
@@ -227,7 +227,7 @@ pub(crate) fn candidates(grid: &Grid, runs: &[RunOutcome], way: Way) -> Vec<Cand
                 way,
             )
             .map(|(x, _)| {
-                wrap_deg_360((x / OFFSET_RESOLUTION_DEG).round() * OFFSET_RESOLUTION_DEG) + 0.0
+                wrap_deg_f64((x / OFFSET_RESOLUTION_DEG).round() * OFFSET_RESOLUTION_DEG) + 0.0
             }),
         };
         out.push(Candidate {

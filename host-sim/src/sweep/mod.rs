@@ -18,10 +18,10 @@ use crate::numbers;
 use crate::output::progress::Progress;
 use crate::plant::progress::Stop;
 use crate::simulation::closed_loop::ControllerDriver;
-use crate::simulation::summary::{wrap_deg_180, wrap_deg_360};
 use crate::simulation::trace::EndState;
 use crate::simulation::trace::MAX_VELOCITY_MPS;
 use crate::simulation::{simulate_observed, Interruptible, RunOptions};
+use shared::controller::angle::{wrap_deg_f64, wrap_deg_signed_f64};
 
 /// Default `--speeds`: `[controller].speed_rpm` and this many rpm either side...
 pub const DEFAULT_SPEED_SPAN_RPM: f64 = 500.0;
@@ -429,7 +429,7 @@ pub fn parse_offsets(text: &str) -> Result<Range, String> {
 /// Offsets wrapped to [0, 360), ascending, each once (360 is 0; offsets within
 /// 1e-9 degrees are the same).
 pub fn wrap_offsets(offsets: &[f64]) -> Vec<f64> {
-    let mut out: Vec<f64> = offsets.iter().map(|&o| wrap_deg_360(o) + 0.0).collect();
+    let mut out: Vec<f64> = offsets.iter().map(|&o| wrap_deg_f64(o) + 0.0).collect();
     out.sort_by(f64::total_cmp);
     out.dedup_by(|b, a| (*b - *a).abs() <= 1e-9);
     if out.len() > 1 && out[out.len() - 1] >= 360.0 - 1e-9 && out[0] <= 1e-9 {
@@ -465,7 +465,7 @@ pub(crate) fn default_speeds(nominal: f64, lo: f64, hi: f64) -> (Vec<f64>, Strin
 pub fn offset_held(state: State, t: &Telemetry) -> bool {
     state == State::Running
         && t.phase_loop_closed
-        && wrap_deg_180(f64::from(t.commanded_offset_deg - t.target_offset_deg)).abs() < 1e-3
+        && wrap_deg_signed_f64(f64::from(t.commanded_offset_deg - t.target_offset_deg)).abs() < 1e-3
 }
 
 /// One closed-loop run of `machine` to `t_end` with the controller holding

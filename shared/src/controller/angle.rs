@@ -85,6 +85,27 @@ pub fn wrap_deg_signed(x: f32) -> f32 {
     }
 }
 
+/// [`wrap_deg`] in `f64`, for the host's measurements and summaries: `x`
+/// wrapped to [0, 360) degrees as `x mod 360` (`%`, exact), a remainder that
+/// rounds up to 360 (a tiny negative `x`) given as 0; `NaN` and the infinities
+/// give `NaN`, so a number that is none is not mistaken for an offset. The
+/// controller's `f32` one trades that for a path of few instructions.
+pub fn wrap_deg_f64(x: f64) -> f64 {
+    let r = x % 360.0;
+    let r = if r < 0.0 { r + 360.0 } else { r };
+    if r >= 360.0 {
+        0.0
+    } else {
+        r
+    }
+}
+
+/// [`wrap_deg_signed`] in `f64`: `x` wrapped to (-180, 180] degrees, from
+/// [`wrap_deg_f64`] (`180 - wrap(180 - x)`, in [0, 360) mirrored).
+pub fn wrap_deg_signed_f64(x: f64) -> f64 {
+    180.0 - wrap_deg_f64(180.0 - x)
+}
+
 /// Circular interpolation between offsets `a` and `b` (degrees) at `t` in [0, 1],
 /// along the shorter arc:
 ///
@@ -126,6 +147,43 @@ pub fn leans_right(offset_deg: f32) -> Option<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The `f64` wraps against the definition `x - 360 floor(x / 360)` (exact
+    /// for these), at the ends of the intervals and far from them; what is no
+    /// number stays none.
+    #[test]
+    fn the_f64_wraps_keep_their_intervals() {
+        for (x, w) in [
+            (0.0, 0.0),
+            (360.0, 0.0),
+            (-90.0, 270.0),
+            (725.5, 5.5),
+            (-1.0e-20, 0.0),
+            (-720.0, 0.0),
+            (1.0e6 + 0.25, 280.25),
+        ] {
+            assert_eq!(wrap_deg_f64(x), w, "{x}");
+        }
+        for (x, w) in [
+            (180.0, 180.0),
+            (-180.0, 180.0),
+            (190.0, -170.0),
+            (-190.0, 170.0),
+            (540.0, 180.0),
+        ] {
+            assert_eq!(wrap_deg_signed_f64(x), w, "{x}");
+        }
+        assert!(wrap_deg_f64(f64::NAN).is_nan());
+        assert!(wrap_deg_f64(f64::INFINITY).is_nan());
+        let mut x = -1.0e4;
+        while x < 1.0e4 {
+            let w = wrap_deg_f64(x);
+            assert!((0.0..360.0).contains(&w), "{x}: {w}");
+            let s = wrap_deg_signed_f64(x);
+            assert!(s > -180.0 && s <= 180.0, "{x}: {s}");
+            x += 7.3;
+        }
+    }
 
     #[test]
     fn wrap_stays_in_range() {
