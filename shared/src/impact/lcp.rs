@@ -44,7 +44,7 @@
 use super::lemke::{pivot_cap, Lcp, Lemke, Outcome};
 use super::linalg::{solve_weighted_into, Solved, DIM};
 use super::outcome::SlipState;
-use super::problem::ImpactProblem;
+use super::problem::{slip_coeff, ImpactProblem};
 use super::split::{within_cones, Split};
 use super::MAX_CONTACTS;
 use crate::real::Real;
@@ -877,19 +877,6 @@ pub fn solve_states_into<T: Real, const N: usize>(
     d.ends_at_one = target.is_some();
     d.consistent = true;
     Some((score, how))
-}
-
-/// Friction coupling of contact `j` in state `mode[j]`: `y_j = -mu_j s_j x_j`
-/// when slipping, 0 when sticking.
-fn slip_coeff<T: Real, const N: usize>(
-    p: &ImpactProblem<T, N>,
-    mode: &[SlipState; N],
-    j: usize,
-) -> T {
-    match mode[j] {
-        SlipState::Stick => T::ZERO,
-        s => -p.contacts[j].friction * s.sign::<T>(),
-    }
 }
 
 /// The equations of one candidate's states (see [`solve_states`]): unknowns the
