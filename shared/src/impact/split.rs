@@ -956,23 +956,7 @@ mod tests {
     /// the one it had.
     #[test]
     fn slipping_feet_of_unequal_friction_share_along_the_equations() {
-        let body = PlanarBody {
-            mass: 2.0,
-            inertia: 7.3e-3,
-            position: [0.0, 0.03],
-            velocity: [0.0, 0.0],
-            angular_velocity: 0.0,
-        };
-        let feet = [(-0.1, 0.2), (0.0, 0.7), (0.1, 0.3)].map(|(x, mu)| BodyContact {
-            point: [x, 0.0],
-            normal: [0.0, 1.0],
-            law: ContactLaw {
-                restitution: 0.0,
-                friction: mu,
-                weight: 1.0,
-            },
-        });
-        let p: ImpactProblem<f64, 3> = body_problem(&body, None, &feet, ImpactLaw::Newton);
+        let p = three_feet([0.2, 0.7, 0.3]);
         let active = [true; 3];
         let mode = [SlipState::SlipPositive; 3];
         let slip = |x: &[f64; 3]| core::array::from_fn(|i| -p.contacts[i].friction * x[i]);
@@ -1001,18 +985,24 @@ mod tests {
         }
     }
 
-    /// A level platform (mass 2 kg, inertia 7.3e-3 kg m^2, centre at height h)
-    /// standing on two feet at x = -0.1 and +0.1 with friction `mu`.
-    fn two_feet<T: Real>(mu: f64) -> ImpactProblem<T, 2> {
+    /// A level platform at rest: mass 2 kg, inertia 7.3e-3 kg m^2, its centre
+    /// 0.03 m above the floor.
+    fn platform<T: Real>() -> PlanarBody<T> {
         let f = T::from_f64;
-        let body = PlanarBody {
+        PlanarBody {
             mass: f(2.0),
             inertia: f(7.3e-3),
             position: [f(0.0), f(0.03)],
             velocity: [f(0.0), f(0.0)],
             angular_velocity: f(0.0),
-        };
-        let contacts = [-0.1, 0.1].map(|x| BodyContact {
+        }
+    }
+
+    /// A foot of [`platform`] on the floor at `x` m, of friction `mu`, without
+    /// rebound, of weight 1.
+    fn foot<T: Real>(x: f64, mu: f64) -> BodyContact<T> {
+        let f = T::from_f64;
+        BodyContact {
             point: [f(x), f(0.0)],
             normal: [f(0.0), f(1.0)],
             law: ContactLaw {
@@ -1020,8 +1010,32 @@ mod tests {
                 friction: f(mu),
                 weight: f(1.0),
             },
-        });
-        body_problem(&body, None, &contacts, ImpactLaw::Newton)
+        }
+    }
+
+    /// [`platform`] standing on two feet at x = -0.1 and +0.1 m with friction
+    /// `mu`.
+    fn two_feet<T: Real>(mu: f64) -> ImpactProblem<T, 2> {
+        let contacts = [-0.1, 0.1].map(|x| foot(x, mu));
+        body_problem(&platform(), None, &contacts, ImpactLaw::Newton)
+    }
+
+    /// [`platform`] standing on three feet at x = -0.1, 0 and 0.1 m with the
+    /// frictions `mu`.
+    fn three_feet(mu: [f64; 3]) -> ImpactProblem<f64, 3> {
+        let contacts = [(-0.1, mu[0]), (0.0, mu[1]), (0.1, mu[2])].map(|(x, mu)| foot(x, mu));
+        body_problem(&platform(), None, &contacts, ImpactLaw::Newton)
+    }
+
+    /// [`within_cones`] with every contact of `p` active and sticking, their
+    /// normal rates free.
+    fn all_sticking<T: Real, const N: usize>(
+        p: &ImpactProblem<T, N>,
+        x: &mut [T; N],
+        y: &mut [T; N],
+        tol: T,
+    ) -> Split {
+        within_cones(p, &[true; N], &[SlipState::Stick; N], true, x, y, tol)
     }
 
     /// Both feet sticking: the equal (minimum-norm) split of the friction puts the
@@ -1036,15 +1050,7 @@ mod tests {
         let (x0, x1, yy) = (2.0, 10.0, 2.0);
         let mut x = [f(x0), f(x1)];
         let mut y = [f(yy), f(yy)];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            f(1e-9 * 10.0),
-        );
+        let s = all_sticking(&p, &mut x, &mut y, f(1e-9 * 10.0));
         assert_eq!(s, Split::Moved);
         let close = |a: T, b: f64| (a.to_f64() - b).abs() <= tol * 10.0;
         assert!(close(y[0], 0.4 * x0), "{x:?} {y:?}");
@@ -1078,15 +1084,7 @@ mod tests {
         let f = T::from_f64;
         let mut x = [f(2.0), f(3.0)];
         let mut y = [f(2.6), f(2.6)];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            f(1e-9),
-        );
+        let s = all_sticking(&p, &mut x, &mut y, f(1e-9));
         assert_eq!(s, Split::Infeasible);
         let (y0, y1) = (y[0].to_f64(), y[1].to_f64());
         assert!((y0 + y1 - 5.2).abs() <= tol * 10.0, "{y:?}");
@@ -1110,57 +1108,20 @@ mod tests {
         let p = two_feet::<f64>(0.4);
         let mut x = [5.0, 5.0];
         let mut y = [1.0, 1.0];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            1e-9,
-        );
+        let s = all_sticking(&p, &mut x, &mut y, 1e-9);
         assert_eq!(s, Split::Inside);
         assert_eq!((x, y), ([5.0, 5.0], [1.0, 1.0]));
     }
 
-    /// Three sticking feet (x = -0.1, 0, 0.1): three internal forces, so the
-    /// coordinate descent runs. The internal forces of a level platform on feet on
-    /// a line are `dx = s (1, -2, 1)` (no net force, no moment) and any `dy` with
-    /// `sum dy = 0`; a brute-force scan over `(s, dy0, dy1)` finds the feasible
-    /// split closest to the start, which the solver must match.
-    /// Three sticking feet of friction `mu` at x = -0.1, 0 and 0.1 m under a
-    /// 2 kg body, their rates `(x0, y0)` split within their cones: what
+    /// Three sticking feet of friction `mu` at x = -0.1, 0 and 0.1 m under
+    /// [`platform`], their rates `(x0, y0)` split within their cones: what
     /// [`within_cones`] says and the rates it leaves, after checking that they
     /// differ from the given ones by internal forces only (no contact velocity
     /// changes).
     fn split_three_feet(mu: [f64; 3], x0: [f64; 3], y0: [f64; 3]) -> (Split, [f64; 3], [f64; 3]) {
-        let body = PlanarBody {
-            mass: 2.0,
-            inertia: 7.3e-3,
-            position: [0.0, 0.03],
-            velocity: [0.0, 0.0],
-            angular_velocity: 0.0,
-        };
-        let contacts = [(-0.1, mu[0]), (0.0, mu[1]), (0.1, mu[2])].map(|(x, mu)| BodyContact {
-            point: [x, 0.0],
-            normal: [0.0, 1.0],
-            law: ContactLaw {
-                restitution: 0.0,
-                friction: mu,
-                weight: 1.0,
-            },
-        });
-        let p: ImpactProblem<f64, 3> = body_problem(&body, None, &contacts, ImpactLaw::Newton);
+        let p = three_feet(mu);
         let (mut x, mut y) = (x0, y0);
-        let s = within_cones(
-            &p,
-            &[true; 3],
-            &[SlipState::Stick; 3],
-            true,
-            &mut x,
-            &mut y,
-            1e-9,
-        );
+        let s = all_sticking(&p, &mut x, &mut y, 1e-9);
         let dx: [f64; 3] = core::array::from_fn(|i| x[i] - x0[i]);
         let dy: [f64; 3] = core::array::from_fn(|i| y[i] - y0[i]);
         let (dn, dt) = p.velocity_change(&dx, &dy);
@@ -1239,6 +1200,12 @@ mod tests {
         assert_eq!(t, 0.3);
     }
 
+    /// Three sticking feet (x = -0.1, 0, 0.1): three internal forces, so the
+    /// projection's complementarity problem is solved. The internal forces of a
+    /// level platform on feet on a line are `dx = s (1, -2, 1)` (no net force, no
+    /// moment) and any `dy` with `sum dy = 0`; a brute-force scan over
+    /// `(s, dy0, dy1)` finds the feasible split closest to the start, which the
+    /// solver must match.
     #[test]
     fn three_feet_against_a_scan() {
         let (x0, y0) = ([1.0, 4.0, 10.0], [2.0, 2.0, 2.0]);
