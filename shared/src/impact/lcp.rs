@@ -44,7 +44,7 @@
 use super::lemke::{pivot_cap, Lcp, Lemke, Outcome};
 use super::linalg::{solve_weighted_into, Solved, DIM};
 use super::outcome::SlipState;
-use super::problem::ImpactProblem;
+use super::problem::{slip_coeff, ImpactProblem};
 use super::split::{within_cones, Split};
 use super::MAX_CONTACTS;
 use crate::real::Real;
@@ -314,6 +314,32 @@ fn kinematic_state<T: Real>(u_t: T, tol: T) -> Option<SlipState> {
     }
 }
 
+impl<T: Real, const N: usize> Base<'_, T, N> {
+    /// The friction state each of the first `len` contacts' slip imposes
+    /// ([`kinematic_state`], slip velocities within `tol.velocity` being zero
+    /// slip), and stick at zero slip: the first choice there, before its
+    /// slipping alternatives.
+    fn kinematic_modes(&self, len: usize, tol: &Tolerances<T>) -> [SlipState; N] {
+        let mut mode = [SlipState::Stick; N];
+        for (m, &u_t) in mode.iter_mut().zip(&self.slip[..len]) {
+            if let Some(s) = kinematic_state(u_t, tol.velocity) {
+                *m = s;
+            }
+        }
+        mode
+    }
+}
+
+/// The contacts that the normal rates `x` of a `Fixed` rule push: those of a
+/// positive rate (N s per unit `lambda`) among the first `p.len`.
+fn pushed<T: Real, const N: usize>(p: &ImpactProblem<T, N>, x: &[T; N]) -> [bool; N] {
+    let mut active = [false; N];
+    for i in 0..p.len {
+        active[i] = x[i] > T::ZERO;
+    }
+    active
+}
+
 /// The largest contact problem: a normal force and three friction unknowns (two
 /// cone edges and the slip rate) per contact.
 pub const MAX_LCP: usize = 4 * MAX_CONTACTS;
@@ -360,16 +386,8 @@ fn clipped_direction<T: Real, const N: usize>(
     tol: &Tolerances<T>,
     out: &mut Direction<T, N>,
 ) {
-    let mut active = [false; N];
-    for i in 0..p.len {
-        active[i] = x[i] > T::ZERO;
-    }
-    let mut mode = [SlipState::Stick; N];
-    for i in 0..p.len {
-        if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
-            mode[i] = s;
-        }
-    }
+    let active = pushed(p, x);
+    let mode = base.kinematic_modes(p.len, tol);
     if solve_states_into(p, base.u_n, base.u_t, &active, &mode, None, Some(x), out).is_none() {
         zero_direction(p, x, out);
     }
@@ -537,16 +555,10 @@ impl<'a, T: Real, const N: usize> ContactLcp<'a, T, N> {
     /// The enumeration's first candidate, which it took when admissible: every
     /// member active, those at zero slip sticking.
     fn first_candidate(&self, base: &Base<'_, T, N>, tol: &Tolerances<T>) -> Candidate<N> {
-        let mut c = Candidate {
+        Candidate {
             active: self.member,
-            mode: [SlipState::Stick; N],
-        };
-        for i in 0..self.p.len {
-            if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
-                c.mode[i] = s;
-            }
+            mode: base.kinematic_modes(self.p.len, tol),
         }
-        c
     }
 
     /// Offsets of the `b+`, `b-`, `sigma` blocks.
@@ -705,14 +717,11 @@ fn read_direction<T: Real, const N: usize>(
     let (bp, bm, sg) = lcp.blocks();
     let mut cand = Candidate {
         active: [false; N],
-        mode: [SlipState::Stick; N],
+        mode: base.kinematic_modes(p.len, tol),
     };
     let mut x = lcp.fixed.copied().unwrap_or([T::ZERO; N]);
     let mut y = [T::ZERO; N];
     for i in 0..p.len {
-        if let Some(s) = kinematic_state(base.slip[i], tol.velocity) {
-            cand.mode[i] = s;
-        }
         cand.active[i] = lcp.fixed.is_some() && lcp.member[i];
     }
     for (r, &i) in lcp.xs[..lcp.nx].iter().enumerate() {
@@ -788,7 +797,7 @@ fn zero_direction<T: Real, const N: usize>(
     d.y = [T::ZERO; N];
     p.velocity_change_into(&d.x, &d.y, &mut d.du_n, &mut d.du_t);
     d.mode = [SlipState::Stick; N];
-    d.active = core::array::from_fn(|i| i < p.len && x[i] > T::ZERO);
+    d.active = pushed(p, x);
     d.ends_at_one = false;
     d.consistent = false;
 }
@@ -877,19 +886,6 @@ pub fn solve_states_into<T: Real, const N: usize>(
     d.ends_at_one = target.is_some();
     d.consistent = true;
     Some((score, how))
-}
-
-/// Friction coupling of contact `j` in state `mode[j]`: `y_j = -mu_j s_j x_j`
-/// when slipping, 0 when sticking.
-fn slip_coeff<T: Real, const N: usize>(
-    p: &ImpactProblem<T, N>,
-    mode: &[SlipState; N],
-    j: usize,
-) -> T {
-    match mode[j] {
-        SlipState::Stick => T::ZERO,
-        s => -p.contacts[j].friction * s.sign::<T>(),
-    }
 }
 
 /// The equations of one candidate's states (see [`solve_states`]): unknowns the

@@ -6,6 +6,7 @@
 //! `W = J M^-1 J^T` (Moreau; Glocker 2001, ch. 7). The solver needs only `W`, the
 //! pre-impact contact velocities and the laws; the mechanics stays with the caller.
 
+use super::outcome::SlipState;
 use crate::named::Enumerated;
 use crate::real::Real;
 
@@ -156,5 +157,20 @@ impl<T: Real, const N: usize> ImpactProblem<T, N> {
             b += self.w_nt[j][i] * p_n[j] + w_tt[j] * p_t[j];
         }
         (a, b)
+    }
+}
+
+/// Contact `j`'s tangential impulse per unit normal impulse in its friction
+/// state `mode[j]` (Coulomb): `-mu_j s_j` while it slips with the sign `s_j`
+/// (the friction opposes the slip), 0 while it sticks (its tangential impulse
+/// is then an unknown of its own).
+pub(crate) fn slip_coeff<T: Real, const N: usize>(
+    p: &ImpactProblem<T, N>,
+    mode: &[SlipState; N],
+    j: usize,
+) -> T {
+    match mode[j] {
+        SlipState::Stick => T::ZERO,
+        s => -p.contacts[j].friction * s.sign::<T>(),
     }
 }

@@ -73,7 +73,7 @@
 use super::lemke::{pivot_cap, Lcp, Lemke};
 use super::linalg::{rank_tolerance, DIM};
 use super::outcome::SlipState;
-use super::problem::ImpactProblem;
+use super::problem::{slip_coeff, ImpactProblem};
 use crate::real::Real;
 
 /// Most constraints: a normal and two cone sides per contact.
@@ -98,11 +98,136 @@ impl Split {
     }
 }
 
-/// The unknowns of a candidate: contact index and kind (normal or tangential).
-struct Unknowns<const D: usize> {
+/// The unknowns of a candidate: contact index and kind (normal or tangential),
+/// and the impulse each puts on its contact.
+struct Unknowns<T, const D: usize> {
     contact: [usize; D],
     normal: [bool; D],
+    /// The components (normal, tangential) of each unknown's impulse at its
+    /// contact `i` per unit of it, a column of `E`: a normal unknown puts
+    /// `(1, -mu_i s_i)` on `(P_n,i, P_t,i)` (Coulomb's `y = -mu s x` while
+    /// slipping, 0 while sticking), a tangential one `(0, 1)`.
+    impulse: [(T, T); D],
     len: usize,
+}
+
+impl<T: Real, const D: usize> Unknowns<T, D> {
+    /// The unknowns of the active contacts, in the order of the candidate's
+    /// equations: contact by contact, its normal rate (where `normals_free`),
+    /// then its tangential rate where it sticks (a slipping contact's is
+    /// `-mu s x`, no unknown of its own).
+    fn of<const N: usize>(
+        p: &ImpactProblem<T, N>,
+        active: &[bool; N],
+        mode: &[SlipState; N],
+        normals_free: bool,
+    ) -> Self {
+        let mut u = Unknowns {
+            contact: [0; D],
+            normal: [false; D],
+            impulse: [(T::ZERO, T::ZERO); D],
+            len: 0,
+        };
+        for i in 0..p.len {
+            if !active[i] {
+                continue;
+            }
+            if normals_free {
+                u.contact[u.len] = i;
+                u.normal[u.len] = true;
+                u.impulse[u.len] = (T::ONE, slip_coeff(p, mode, i));
+                u.len += 1;
+            }
+            if mode[i] == SlipState::Stick {
+                u.contact[u.len] = i;
+                u.normal[u.len] = false;
+                u.impulse[u.len] = (T::ZERO, T::ONE);
+                u.len += 1;
+            }
+        }
+        u
+    }
+
+    /// `Q = E^T W E` over these unknowns (m/s per N s): `Q z = 0` exactly for
+    /// the internal forces `z`, the rates that change no generalized force (the
+    /// module documentation: `G z = J^T E z = 0 <=> z^T Q z = 0`, `M` positive
+    /// definite). With `(n_a, t_a)` unknown `a`'s impulse at its contact `i` and
+    /// `(n_b, t_b)` unknown `b`'s at `j`:
+    ///
+    /// ```text
+    ///   Q_ab = n_a n_b W_nn,ij + n_a t_b W_nt,ij + t_a n_b W_tn,ij + t_a t_b W_tt,ij
+    /// ```
+    fn internal_force_matrix<const N: usize>(&self, p: &ImpactProblem<T, N>) -> [[T; D]; D] {
+        let mut q = [[T::ZERO; D]; D];
+        for a in 0..self.len {
+            let (na, ta) = self.impulse[a];
+            let i = self.contact[a];
+            for b in 0..self.len {
+                let (nb, tb) = self.impulse[b];
+                let j = self.contact[b];
+                q[a][b] = na * nb * p.w_nn[i][j]
+                    + na * tb * p.w_nt[i][j]
+                    + ta * nb * p.w_nt[j][i]
+                    + ta * tb * p.w_tt[i][j];
+            }
+        }
+        q
+    }
+
+    /// The candidate's equations' own square matrix `A = S W E` over these
+    /// unknowns (m/s per N s): one row per unknown, in the unknowns' order
+    /// (contact `i`'s normal row for its normal unknown, its tangential row for
+    /// a sticking one's tangential unknown). `A z = 0` for every change `z` of
+    /// the rates that keeps the equations (the normal rates of the active
+    /// contacts and the tangential ones of the sticking contacts). With
+    /// `(n_b, t_b)` unknown `b`'s impulse at its contact `j`:
+    ///
+    /// ```text
+    ///   row (i, normal):      A_ab = W_nn,ij n_b + W_nt,ij t_b
+    ///   row (i, tangential):  A_ab = W_tn,ij n_b + W_tt,ij t_b
+    /// ```
+    fn mode_equations_matrix<const N: usize>(&self, p: &ImpactProblem<T, N>) -> [[T; D]; D] {
+        let mut rows = [[T::ZERO; D]; D];
+        for (a, row) in rows.iter_mut().enumerate().take(self.len) {
+            let i = self.contact[a];
+            for b in 0..self.len {
+                let (nb, tb) = self.impulse[b];
+                let j = self.contact[b];
+                row[b] = if self.normal[a] {
+                    nb * p.w_nn[i][j] + tb * p.w_nt[i][j]
+                } else {
+                    nb * p.w_nt[j][i] + tb * p.w_tt[i][j]
+                };
+            }
+        }
+        rows
+    }
+
+    /// The first `k` rows of `basis` (coefficients of these unknowns) as
+    /// changes of the rates `(x, y)` per contact (the rates' units: N s per unit
+    /// `lambda` in an impact, N for the forces of persistent contact): a normal
+    /// unknown `z_r` of contact `i` changes `x_i` by `z_r` and `y_i` by
+    /// `-mu_i s_i z_r`; a tangential one changes `y_i` by `z_r`.
+    fn as_rates<const N: usize>(
+        &self,
+        basis: &[[T; D]; D],
+        k: usize,
+    ) -> ([[T; N]; D], [[T; N]; D]) {
+        let mut dx = [[T::ZERO; N]; D];
+        let mut dy = [[T::ZERO; N]; D];
+        for c in 0..k {
+            for r in 0..self.len {
+                let i = self.contact[r];
+                if self.normal[r] {
+                    dx[c][i] += basis[c][r];
+                    dy[c][i] += self.impulse[r].1 * basis[c][r];
+                } else {
+                    dy[c][i] += basis[c][r];
+                }
+            }
+        }
+        (dx, dy)
+    }
 }
 
 /// Moves the rates `(x, y)` of the contacts `active` in states `mode` along the
@@ -197,9 +322,11 @@ fn split<T: Real, const N: usize>(
 }
 
 /// [`within_cones`] for rates outside the cones, in storage of `D` unknowns and
-/// `C` constraints.
+/// `C` constraints: the directions the split may take (a basis of the null space
+/// that `freedom` names, orthonormal in the contacts' weights), the constraints
+/// along them, the closest coefficients within those (or the least violation),
+/// and the rates moved by them.
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
 #[allow(clippy::type_complexity)]
 fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
     (p, active, mode, normals_free, freedom): (
@@ -213,154 +340,136 @@ fn split_in<T: Real, const N: usize, const D: usize, const C: usize>(
     y: &mut [T; N],
     tol: T,
 ) -> Split {
-    let n = p.len;
-    // The unknowns and their contact impulses: a normal unknown of contact i puts
-    // (1, slip_coeff(i)) on (P_n,i, P_t,i); a tangential one (0, 1).
-    let slip_coeff = |i: usize| -> T {
-        match mode[i] {
-            SlipState::Stick => T::ZERO,
-            s => -p.contacts[i].friction * s.sign::<T>(),
-        }
-    };
-    let mut u = Unknowns::<D> {
-        contact: [0; D],
-        normal: [false; D],
-        len: 0,
-    };
-    for i in 0..n {
-        if !active[i] {
-            continue;
-        }
-        if normals_free {
-            u.contact[u.len] = i;
-            u.normal[u.len] = true;
-            u.len += 1;
-        }
-        if mode[i] == SlipState::Stick {
-            u.contact[u.len] = i;
-            u.normal[u.len] = false;
-            u.len += 1;
-        }
-    }
-    let m = u.len;
-    if m == 0 {
+    let u = Unknowns::<T, D>::of(p, active, mode, normals_free);
+    if u.len == 0 {
         return Split::Infeasible;
     }
-    // Components (normal, tangential) of unknown r's impulse at its contact.
-    let comp = |r: usize| -> (T, T) {
-        if u.normal[r] {
-            (T::ONE, slip_coeff(u.contact[r]))
-        } else {
-            (T::ZERO, T::ONE)
-        }
-    };
-    // Q = E^T W E (internal forces), or the equations' matrix A (all their
-    // solutions): the null space is taken of either.
-    let mut q = [[T::ZERO; D]; D];
-    match freedom {
-        Freedom::Internal => {
-            for a in 0..m {
-                let (na, ta) = comp(a);
-                let i = u.contact[a];
-                for b in 0..m {
-                    let (nb, tb) = comp(b);
-                    let j = u.contact[b];
-                    q[a][b] = na * nb * p.w_nn[i][j]
-                        + na * tb * p.w_nt[i][j]
-                        + ta * nb * p.w_nt[j][i]
-                        + ta * tb * p.w_tt[i][j];
-                }
-            }
-        }
-        Freedom::ModeEquations => {
-            // The equations' own square matrix A = S W E: one row per unknown,
-            // in the unknowns' order (contact i's normal row for its normal
-            // unknown, its tangential row for a sticking one's tangential).
-            // Row (i, normal) at unknown b: W_nn[i][j] n_b + W_nt[i][j] t_b; row
-            // (i, tangential): W_tn[i][j] n_b + W_tt[i][j] t_b.
-            for a in 0..m {
-                let i = u.contact[a];
-                for b in 0..m {
-                    let (nb, tb) = comp(b);
-                    let j = u.contact[b];
-                    q[a][b] = if u.normal[a] {
-                        nb * p.w_nn[i][j] + tb * p.w_nt[i][j]
-                    } else {
-                        nb * p.w_nt[j][i] + tb * p.w_tt[i][j]
-                    };
-                }
-            }
-        }
-    }
-    let mut weights = [T::ONE; D];
-    for (r, w) in weights.iter_mut().enumerate().take(m) {
-        *w = p.contacts[u.contact[r]].weight;
-    }
     let mut basis = [[T::ZERO; D]; D];
-    let k = match freedom {
-        Freedom::Internal => null_space(&mut q, m, &mut basis),
-        Freedom::ModeEquations => null_space_by_svd(&mut q, m, &mut basis),
-    };
-    let k = orthonormalize(&mut basis, k, m, &weights);
+    let k = free_directions(p, &u, freedom, &mut basis);
     if k == 0 {
         // No internal force: the split is what the equations gave.
         return Split::Infeasible;
     }
-    // The basis vectors as changes of (x, y) per contact.
-    let mut dx = [[T::ZERO; N]; D];
-    let mut dy = [[T::ZERO; N]; D];
-    for c in 0..k {
-        for r in 0..m {
-            let i = u.contact[r];
-            if u.normal[r] {
-                dx[c][i] += basis[c][r];
-                dy[c][i] += slip_coeff(i) * basis[c][r];
-            } else {
-                dy[c][i] += basis[c][r];
-            }
-        }
-    }
-    // The constraints a_l . c + b_l >= 0 in the coordinates c of the basis.
-    let mut a_rows = [[T::ZERO; D]; C];
-    let mut b_rows = [T::ZERO; C];
-    let mut count = 0;
-    for c in 0..k {
-        let mut cs = [(T::ZERO, T::ZERO); C];
-        count = constraints(p, active, mode, x, y, &dx[c], &dy[c], &mut cs);
-        for (l, &(a, b)) in cs.iter().enumerate().take(count) {
-            a_rows[l][c] = a;
-            b_rows[l] = b;
-        }
-    }
-    let mut coef = [T::ZERO; D];
-    let found = if k == 1 {
-        let mut cs = [(T::ZERO, T::ZERO); C];
-        for l in 0..count {
-            cs[l] = (a_rows[l][0], b_rows[l]);
-        }
-        coef[0] = best_step(&cs[..count], T::ZERO);
-        true
-    } else {
-        closest_split(&a_rows, &b_rows, count, k, tol, &mut coef)
-    };
-    if !found && !least_violation(&a_rows, &b_rows, count, k, &mut coef) {
-        // Not even the least violation solved within the pivot cap: the rates as
-        // the equations gave them.
-        coef = [T::ZERO; D];
-    }
-    let (mut cx, mut cy) = (*x, *y);
-    for c in 0..k {
-        for i in 0..n {
-            cx[i] += coef[c] * dx[c][i];
-            cy[i] += coef[c] * dy[c][i];
-        }
-    }
-    *x = cx;
-    *y = cy;
+    let (dx, dy) = u.as_rates(&basis, k);
+    let rows = ConstraintRows::<T, D, C>::along(p, active, mode, (x, y), (&dx, &dy), k);
+    let coef = rows.closest(k, tol);
+    move_rates(x, y, &coef, (&dx, &dy), k, p.len);
     if satisfied(p, active, mode, x, y, tol) {
         Split::Moved
     } else {
         Split::Infeasible
+    }
+}
+
+/// The directions a split may take, in the rows of `basis`; returns their
+/// number. A basis of the null space of `Q = E^T W E` (the internal forces, by
+/// Gauss-Jordan elimination) or of the equations' own matrix `A = S W E` (every
+/// solution of them, by the singular value decomposition, whose null vectors
+/// move continuously where `A` is close to losing two ranks), made orthonormal
+/// in the weighted inner product `<u, v> = sum_r u_r v_r / w_r` (`w_r` the
+/// weight of unknown `r`'s contact) so that the closest split is the least
+/// `|c|`: the module documentation gives the reduction.
+fn free_directions<T: Real, const N: usize, const D: usize>(
+    p: &ImpactProblem<T, N>,
+    u: &Unknowns<T, D>,
+    freedom: Freedom,
+    basis: &mut [[T; D]; D],
+) -> usize {
+    let m = u.len;
+    let k = match freedom {
+        Freedom::Internal => null_space(&mut u.internal_force_matrix(p), m, basis),
+        Freedom::ModeEquations => null_space_by_svd(&mut u.mode_equations_matrix(p), m, basis),
+    };
+    let mut weights = [T::ONE; D];
+    for (r, w) in weights.iter_mut().enumerate().take(m) {
+        *w = p.contacts[u.contact[r]].weight;
+    }
+    orthonormalize(basis, k, m, &weights)
+}
+
+/// The constraints `a_l . c + b_l >= 0` of a split in the coordinates `c` of
+/// the free directions, in the rates' units: every active normal rate `>= 0`
+/// and both sides of every sticking contact's cone ([`constraints`]), in `C`
+/// rows of `D` coordinates.
+struct ConstraintRows<T, const D: usize, const C: usize> {
+    a: [[T; D]; C],
+    b: [T; C],
+    count: usize,
+}
+
+impl<T: Real, const D: usize, const C: usize> ConstraintRows<T, D, C> {
+    /// The constraints on a step from the rates `(x, y)` along the first `k`
+    /// directions `(dx, dy)`: row `l`'s `a_l` has one coordinate per direction,
+    /// `b_l` its value at the rates themselves.
+    fn along<const N: usize>(
+        p: &ImpactProblem<T, N>,
+        active: &[bool; N],
+        mode: &[SlipState; N],
+        (x, y): (&[T; N], &[T; N]),
+        (dx, dy): (&[[T; N]; D], &[[T; N]; D]),
+        k: usize,
+    ) -> Self {
+        let mut rows = ConstraintRows {
+            a: [[T::ZERO; D]; C],
+            b: [T::ZERO; C],
+            count: 0,
+        };
+        for c in 0..k {
+            let mut cs = [(T::ZERO, T::ZERO); C];
+            rows.count = constraints(p, active, mode, x, y, &dx[c], &dy[c], &mut cs);
+            for (l, &(a, b)) in cs.iter().enumerate().take(rows.count) {
+                rows.a[l][c] = a;
+                rows.b[l] = b;
+            }
+        }
+        rows
+    }
+
+    /// The coefficients `c` of the split along the first `k` directions: the
+    /// least `|c|` within every constraint, or where none satisfies them all,
+    /// the least largest violation. For one direction exactly ([`best_step`]:
+    /// `c = clamp(0, lo, hi)`, or where two of the violations' lines cross);
+    /// for more, the projection's complementarity problem ([`closest_split`]),
+    /// else [`least_violation`]'s; zero (the rates as the equations gave them)
+    /// where neither was solved within the pivot cap.
+    fn closest(&self, k: usize, tol: T) -> [T; D] {
+        let (a, b, count) = (&self.a, &self.b, self.count);
+        let mut coef = [T::ZERO; D];
+        let found = if k == 1 {
+            let mut cs = [(T::ZERO, T::ZERO); C];
+            for l in 0..count {
+                cs[l] = (a[l][0], b[l]);
+            }
+            coef[0] = best_step(&cs[..count], T::ZERO);
+            true
+        } else {
+            closest_split(a, b, count, k, tol, &mut coef)
+        };
+        if !found && !least_violation(a, b, count, k, &mut coef) {
+            // Not even the least violation solved within the pivot cap: the
+            // rates as the equations gave them.
+            coef = [T::ZERO; D];
+        }
+        coef
+    }
+}
+
+/// Moves the rates `(x, y)` of the first `n` contacts (N s per unit `lambda`,
+/// or N) by `sum_c coef_c (dx_c, dy_c)` over the first `k` directions, added
+/// direction by direction.
+fn move_rates<T: Real, const N: usize, const D: usize>(
+    x: &mut [T; N],
+    y: &mut [T; N],
+    coef: &[T; D],
+    (dx, dy): (&[[T; N]; D], &[[T; N]; D]),
+    k: usize,
+    n: usize,
+) {
+    for c in 0..k {
+        for i in 0..n {
+            x[i] += coef[c] * dx[c][i];
+            y[i] += coef[c] * dy[c][i];
+        }
     }
 }
 
@@ -847,23 +956,7 @@ mod tests {
     /// the one it had.
     #[test]
     fn slipping_feet_of_unequal_friction_share_along_the_equations() {
-        let body = PlanarBody {
-            mass: 2.0,
-            inertia: 7.3e-3,
-            position: [0.0, 0.03],
-            velocity: [0.0, 0.0],
-            angular_velocity: 0.0,
-        };
-        let feet = [(-0.1, 0.2), (0.0, 0.7), (0.1, 0.3)].map(|(x, mu)| BodyContact {
-            point: [x, 0.0],
-            normal: [0.0, 1.0],
-            law: ContactLaw {
-                restitution: 0.0,
-                friction: mu,
-                weight: 1.0,
-            },
-        });
-        let p: ImpactProblem<f64, 3> = body_problem(&body, None, &feet, ImpactLaw::Newton);
+        let p = three_feet([0.2, 0.7, 0.3]);
         let active = [true; 3];
         let mode = [SlipState::SlipPositive; 3];
         let slip = |x: &[f64; 3]| core::array::from_fn(|i| -p.contacts[i].friction * x[i]);
@@ -892,18 +985,24 @@ mod tests {
         }
     }
 
-    /// A level platform (mass 2 kg, inertia 7.3e-3 kg m^2, centre at height h)
-    /// standing on two feet at x = -0.1 and +0.1 with friction `mu`.
-    fn two_feet<T: Real>(mu: f64) -> ImpactProblem<T, 2> {
+    /// A level platform at rest: mass 2 kg, inertia 7.3e-3 kg m^2, its centre
+    /// 0.03 m above the floor.
+    fn platform<T: Real>() -> PlanarBody<T> {
         let f = T::from_f64;
-        let body = PlanarBody {
+        PlanarBody {
             mass: f(2.0),
             inertia: f(7.3e-3),
             position: [f(0.0), f(0.03)],
             velocity: [f(0.0), f(0.0)],
             angular_velocity: f(0.0),
-        };
-        let contacts = [-0.1, 0.1].map(|x| BodyContact {
+        }
+    }
+
+    /// A foot of [`platform`] on the floor at `x` m, of friction `mu`, without
+    /// rebound, of weight 1.
+    fn foot<T: Real>(x: f64, mu: f64) -> BodyContact<T> {
+        let f = T::from_f64;
+        BodyContact {
             point: [f(x), f(0.0)],
             normal: [f(0.0), f(1.0)],
             law: ContactLaw {
@@ -911,8 +1010,32 @@ mod tests {
                 friction: f(mu),
                 weight: f(1.0),
             },
-        });
-        body_problem(&body, None, &contacts, ImpactLaw::Newton)
+        }
+    }
+
+    /// [`platform`] standing on two feet at x = -0.1 and +0.1 m with friction
+    /// `mu`.
+    fn two_feet<T: Real>(mu: f64) -> ImpactProblem<T, 2> {
+        let contacts = [-0.1, 0.1].map(|x| foot(x, mu));
+        body_problem(&platform(), None, &contacts, ImpactLaw::Newton)
+    }
+
+    /// [`platform`] standing on three feet at x = -0.1, 0 and 0.1 m with the
+    /// frictions `mu`.
+    fn three_feet(mu: [f64; 3]) -> ImpactProblem<f64, 3> {
+        let contacts = [(-0.1, mu[0]), (0.0, mu[1]), (0.1, mu[2])].map(|(x, mu)| foot(x, mu));
+        body_problem(&platform(), None, &contacts, ImpactLaw::Newton)
+    }
+
+    /// [`within_cones`] with every contact of `p` active and sticking, their
+    /// normal rates free.
+    fn all_sticking<T: Real, const N: usize>(
+        p: &ImpactProblem<T, N>,
+        x: &mut [T; N],
+        y: &mut [T; N],
+        tol: T,
+    ) -> Split {
+        within_cones(p, &[true; N], &[SlipState::Stick; N], true, x, y, tol)
     }
 
     /// Both feet sticking: the equal (minimum-norm) split of the friction puts the
@@ -927,15 +1050,7 @@ mod tests {
         let (x0, x1, yy) = (2.0, 10.0, 2.0);
         let mut x = [f(x0), f(x1)];
         let mut y = [f(yy), f(yy)];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            f(1e-9 * 10.0),
-        );
+        let s = all_sticking(&p, &mut x, &mut y, f(1e-9 * 10.0));
         assert_eq!(s, Split::Moved);
         let close = |a: T, b: f64| (a.to_f64() - b).abs() <= tol * 10.0;
         assert!(close(y[0], 0.4 * x0), "{x:?} {y:?}");
@@ -969,15 +1084,7 @@ mod tests {
         let f = T::from_f64;
         let mut x = [f(2.0), f(3.0)];
         let mut y = [f(2.6), f(2.6)];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            f(1e-9),
-        );
+        let s = all_sticking(&p, &mut x, &mut y, f(1e-9));
         assert_eq!(s, Split::Infeasible);
         let (y0, y1) = (y[0].to_f64(), y[1].to_f64());
         assert!((y0 + y1 - 5.2).abs() <= tol * 10.0, "{y:?}");
@@ -1001,57 +1108,20 @@ mod tests {
         let p = two_feet::<f64>(0.4);
         let mut x = [5.0, 5.0];
         let mut y = [1.0, 1.0];
-        let s = within_cones(
-            &p,
-            &[true, true],
-            &[SlipState::Stick; 2],
-            true,
-            &mut x,
-            &mut y,
-            1e-9,
-        );
+        let s = all_sticking(&p, &mut x, &mut y, 1e-9);
         assert_eq!(s, Split::Inside);
         assert_eq!((x, y), ([5.0, 5.0], [1.0, 1.0]));
     }
 
-    /// Three sticking feet (x = -0.1, 0, 0.1): three internal forces, so the
-    /// coordinate descent runs. The internal forces of a level platform on feet on
-    /// a line are `dx = s (1, -2, 1)` (no net force, no moment) and any `dy` with
-    /// `sum dy = 0`; a brute-force scan over `(s, dy0, dy1)` finds the feasible
-    /// split closest to the start, which the solver must match.
-    /// Three sticking feet of friction `mu` at x = -0.1, 0 and 0.1 m under a
-    /// 2 kg body, their rates `(x0, y0)` split within their cones: what
+    /// Three sticking feet of friction `mu` at x = -0.1, 0 and 0.1 m under
+    /// [`platform`], their rates `(x0, y0)` split within their cones: what
     /// [`within_cones`] says and the rates it leaves, after checking that they
     /// differ from the given ones by internal forces only (no contact velocity
     /// changes).
     fn split_three_feet(mu: [f64; 3], x0: [f64; 3], y0: [f64; 3]) -> (Split, [f64; 3], [f64; 3]) {
-        let body = PlanarBody {
-            mass: 2.0,
-            inertia: 7.3e-3,
-            position: [0.0, 0.03],
-            velocity: [0.0, 0.0],
-            angular_velocity: 0.0,
-        };
-        let contacts = [(-0.1, mu[0]), (0.0, mu[1]), (0.1, mu[2])].map(|(x, mu)| BodyContact {
-            point: [x, 0.0],
-            normal: [0.0, 1.0],
-            law: ContactLaw {
-                restitution: 0.0,
-                friction: mu,
-                weight: 1.0,
-            },
-        });
-        let p: ImpactProblem<f64, 3> = body_problem(&body, None, &contacts, ImpactLaw::Newton);
+        let p = three_feet(mu);
         let (mut x, mut y) = (x0, y0);
-        let s = within_cones(
-            &p,
-            &[true; 3],
-            &[SlipState::Stick; 3],
-            true,
-            &mut x,
-            &mut y,
-            1e-9,
-        );
+        let s = all_sticking(&p, &mut x, &mut y, 1e-9);
         let dx: [f64; 3] = core::array::from_fn(|i| x[i] - x0[i]);
         let dy: [f64; 3] = core::array::from_fn(|i| y[i] - y0[i]);
         let (dn, dt) = p.velocity_change(&dx, &dy);
@@ -1130,6 +1200,12 @@ mod tests {
         assert_eq!(t, 0.3);
     }
 
+    /// Three sticking feet (x = -0.1, 0, 0.1): three internal forces, so the
+    /// projection's complementarity problem is solved. The internal forces of a
+    /// level platform on feet on a line are `dx = s (1, -2, 1)` (no net force, no
+    /// moment) and any `dy` with `sum dy = 0`; a brute-force scan over
+    /// `(s, dy0, dy1)` finds the feasible split closest to the start, which the
+    /// solver must match.
     #[test]
     fn three_feet_against_a_scan() {
         let (x0, y0) = ([1.0, 4.0, 10.0], [2.0, 2.0, 2.0]);

@@ -115,10 +115,7 @@ fn fixed_direction<T: Real, const N: usize>(
     budget: &mut u32,
     out: &mut Direction<T, N>,
 ) {
-    let mut active = [false; N];
-    for i in 0..p.len {
-        active[i] = x[i] > T::ZERO;
-    }
+    let active = pushed(p, x);
     if first_consistent_states(p, base, &active, None, Some(x), tol, budget, out).is_some() {
         return;
     }
