@@ -11,9 +11,9 @@
 //! high and pulses IN2 with the high fraction `1 - d`: forward for `d` of each
 //! period, brake for the rest, so the winding's mean voltage is `d V_s` whichever
 //! way its current flows, the controller's model. Duty 0 with the outputs enabled
-//! brakes; the outputs off (MOE = 0) coast. (The former drive, IN1 = PWM `d` and
-//! IN2 low, was fast decay: forward then coast, far less current at low duty and
-//! no braking; `docs/plant-model.md`, "The H-bridge".) The mapping, and the order
+//! brakes; the outputs off (MOE = 0) coast. (Fast decay, IN1 = PWM `d` and IN2 low,
+//! drives forward then coasts: far less current at low duty and no braking;
+//! `docs/plant-model.md`, "The H-bridge".) The mapping, and the order
 //! of the two writes of a reversal, are `shared::drive`'s, tested on the host.
 //!
 //! # The timer: centre-aligned, its update the ADC's trigger

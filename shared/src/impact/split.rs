@@ -55,9 +55,8 @@
 //!   point of least norm, or at a ray that proves no split exists. (Hildreth's
 //!   method, cyclic coordinate ascent on the same dual, converges only in the
 //!   limit and could not tell an empty feasible set before its 500 sweeps were
-//!   spent. Cyclic coordinate descent on `c` itself, as host-sim's former
-//!   `friction_split` did, stops at corners where the constraints couple the
-//!   coordinates: on three sticking feet it ended 0.5 % farther than the true
+//!   spent. Cyclic coordinate descent on `c` itself stops at
+//!   corners where the constraints couple the coordinates: on three sticking feet it ended 0.5 % farther than the true
 //!   closest split, the test `three_feet_against_a_scan`.)
 //!
 //! Where no split is found, the rates are left where the largest violation
