@@ -8,7 +8,9 @@
 //! on both feet.
 
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+use crate::machine::{example_path, TestMachine};
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
@@ -16,7 +18,7 @@ use host_sim::plant::simulator::{Holds, Plant, Settings};
 
 /// The reference machine file.
 pub fn reference_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
+    example_path()
 }
 
 /// The reference machine with `sets` (`--set` overrides), its rotors started at
@@ -24,12 +26,11 @@ pub fn reference_path() -> PathBuf {
 pub fn reference_machine(offset_deg: f64, sets: &[String]) -> Machine {
     let phi1 = -FRAC_PI_2;
     let phi2 = offset_deg.to_radians() - phi1;
-    let mut all = vec![
-        format!("rotors.0.angle={phi1}"),
-        format!("rotors.1.angle={phi2}"),
-    ];
-    all.extend_from_slice(sets);
-    Machine::load(&reference_path(), &all).expect("the reference machine loads")
+    TestMachine::example()
+        .set("rotors.0.angle", phi1)
+        .set("rotors.1.angle", phi2)
+        .sets(sets)
+        .machine()
 }
 
 /// The plant of `m` with its rotors held at `rpm` (rotor 1 counter-clockwise,

@@ -5,6 +5,7 @@
 
 pub mod held;
 pub mod impact_oscillator;
+pub mod machine;
 pub mod moreau_jean;
 pub mod rig;
 pub mod two_bodies;

@@ -8,7 +8,7 @@
 //! layout `(x, y, theta, phi1, phi2, x', y', theta', phi1', phi2', i1, i2)`.
 
 use crate::initial_state;
-use std::path::Path;
+use crate::machine::TestMachine;
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
@@ -173,8 +173,9 @@ impl Rig {
     /// The checked machine.
     pub fn machine(&self) -> Machine {
         let text = self.toml();
-        Machine::from_text("plant_references.toml", &text, Path::new("."), &[])
-            .unwrap_or_else(|p| panic!("machine refused: {p:?}\n{text}"))
+        TestMachine::new("plant_references.toml")
+            .with(&text)
+            .machine()
     }
 
     /// The plant at t = 0, after `edit` changed the initial state.

@@ -58,7 +58,6 @@
 use std::f64::consts::FRAC_PI_2;
 use std::sync::OnceLock;
 
-use host_sim::machine::Machine;
 use host_sim::plant::simulator::Settings;
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::summary::{impact_times, SummaryBuilder};
@@ -66,6 +65,7 @@ use host_sim::simulation::trace::Summary;
 use host_sim::simulation::{simulate, RunOptions, RunResult};
 use shared::controller::{Command, Direction, State};
 use tests::held::{held_rotors, mean_velocity, reference_machine};
+use tests::machine::TestMachine;
 
 /// The commanded rotor speed, rpm (the reference machine's `speed_rpm`).
 const SPEED_RPM: f64 = 3000.0;
@@ -120,8 +120,7 @@ impl ClosedLoop {
 fn closed_loop(command: Command, start: Start, sets: &[String], t_end: f64) -> ClosedLoop {
     let mut all = start.sets();
     all.extend_from_slice(sets);
-    let machine =
-        Machine::load(&tests::held::reference_path(), &all).expect("the reference machine loads");
+    let machine = TestMachine::example().sets(&all).machine();
     let mut driver =
         ControllerDriver::new(&machine, vec![(0.0, command)]).expect("the controller starts");
     driver.record_history(true);
@@ -391,8 +390,7 @@ fn the_summary_built_row_by_row_is_the_one_of_the_stored_rows() {
         "{:?} vs {w1}",
         s.rotor_speed_rpm
     );
-    let machine =
-        Machine::load(&tests::held::reference_path(), &[]).expect("the reference machine loads");
+    let machine = TestMachine::example().machine();
     // The same rows and events through a builder of their own.
     let mut builder = SummaryBuilder::new(&machine, rows[0].t, last.t);
     for r in rows {

@@ -38,8 +38,8 @@
 //! slip by the least mass-weighted change (an internal impulse), which keeps the
 //! momentum: `V` exactly.
 
-use std::path::Path;
 use tests::initial_state;
+use tests::machine::{TestMachine, DRIVE_12V, FRICTIONLESS_MOTOR};
 
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
@@ -120,24 +120,14 @@ eccentricity = 0.0
 inertia = 6.0e-6
 sense = "ccw"
 
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 0.0
-viscous_friction = 0.0
-current_limit = 2.0
-
-[drive]
-supply_voltage = 12.0
 "#,
         -FOOT, -A, -A,
     );
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    match Machine::from_text("block-on-platform.toml", &text, dir, &[]) {
-        Ok(m) => m,
-        Err(e) => panic!("the test machine is refused: {e:?}\n{text}"),
-    }
+    TestMachine::new("block-on-platform.toml")
+        .with(&text)
+        .with(FRICTIONLESS_MOTOR)
+        .with(DRIVE_12V)
+        .machine()
 }
 
 #[test]
@@ -405,16 +395,6 @@ eccentricity = 0.0
 inertia = 6.0e-6
 sense = "ccw"
 
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 0.0
-viscous_friction = 0.0
-current_limit = 2.0
-
-[drive]
-supply_voltage = 12.0
 "#,
         body("actuator", ACTUATOR, a4, w4),
         body("element", ELEMENT, a3, w3),
@@ -423,11 +403,11 @@ supply_voltage = 12.0
         axis[0],
         axis[1],
     );
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    match Machine::from_text("two-plates.toml", &text, dir, &[]) {
-        Ok(m) => m,
-        Err(e) => panic!("the test machine is refused: {e:?}\n{text}"),
-    }
+    TestMachine::new("two-plates.toml")
+        .with(&text)
+        .with(FRICTIONLESS_MOTOR)
+        .with(DRIVE_12V)
+        .machine()
 }
 
 /// Two plates turning about one fixed hinge, their faces through it, closing at

@@ -22,8 +22,8 @@
 //! 0.97 m above it) and one rotor; where the platform plays no part it is held.
 
 use std::f64::consts::PI;
-use std::path::Path;
 use tests::initial_state;
+use tests::machine::{TestMachine, DRIVE_12V, FRICTIONLESS_MOTOR, REFERENCE_MOTOR};
 
 use host_sim::machine::joint_limits::effective_inertia;
 use host_sim::machine::Machine;
@@ -57,17 +57,6 @@ sense = "ccw"
 /// The inert rotor's inertia, kg m^2.
 const INERT_ROTOR_INERTIA: f64 = 1e-5;
 
-/// A 12 V motor without friction.
-const FRICTIONLESS_MOTOR: &str = r#"
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 0.0
-viscous_friction = 0.0
-current_limit = 2.0
-"#;
-
 /// The machine: gravity `(0, -g)`, the platform (with `platform` keys added:
 /// velocities, angle), `rotor` and `motor` as TOML tables, then `extra` (bodies and
 /// joints).
@@ -88,17 +77,14 @@ restitution = 0.3
 friction = 0.0
 {rotor}
 {motor}
-[drive]
-supply_voltage = 12.0
 {extra}"#,
         -g,
         vector(PLATFORM_CENTRE),
     );
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    match Machine::from_text("joints.toml", &text, dir, &[]) {
-        Ok(m) => m,
-        Err(e) => panic!("the test machine is refused: {e:?}\n{text}"),
-    }
+    TestMachine::new("joints.toml")
+        .with(&text)
+        .with(DRIVE_12V)
+        .machine()
 }
 
 /// `[x, y]` in TOML.
@@ -1032,18 +1018,6 @@ fn a_double_compound_pendulum_swings_in_each_normal_mode_with_its_period() {
 
 /// The driven rotor's inertia about its axis, kg m^2 (no eccentric mass).
 const DRIVEN_ROTOR_INERTIA: f64 = 1e-4;
-
-/// A 12 V motor with the reference machine's friction (Coulomb and viscous, both
-/// acting between the rotor and the body carrying it).
-const REFERENCE_MOTOR: &str = r#"
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 1.0e-3
-viscous_friction = 1.0e-6
-current_limit = 2.0
-"#;
 
 /// The machine of [`rotor_on_an_arm`]: no gravity, the arm hinged at `[0.5, 2.0]`
 /// to `to` at angle 0.3 rad (returned), its rotor 0.15 m out along it.

@@ -20,8 +20,8 @@
 //!   finite-difference velocities.
 
 use std::f64::consts::PI;
-use std::path::Path;
 use tests::initial_state;
+use tests::machine::TestMachine;
 
 use host_sim::machine::bodies::MAX_DOF;
 use host_sim::machine::Machine;
@@ -33,17 +33,11 @@ use tests::Rng;
 
 /// The reference machine's text with `replace` applied and `extra` appended.
 fn machine(replace: &[(&str, &str)], extra: &str) -> Machine {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml");
-    let mut text = std::fs::read_to_string(&path).expect("the reference machine");
-    for (a, b) in replace {
-        assert!(text.contains(a), "{a:?} not in the reference machine");
-        text = text.replace(a, b);
+    let mut m = TestMachine::example();
+    for (from, to) in replace {
+        m = m.replace(from, to);
     }
-    text.push_str(extra);
-    match Machine::from_text("test.toml", &text, path.parent().unwrap(), &[]) {
-        Ok(m) => m,
-        Err(e) => panic!("the test machine is refused: {e:?}"),
-    }
+    m.with(extra).machine()
 }
 
 /// The arm of the swinging tests: 0.3 kg, `I_c` = 1e-3 kg m^2, its centre 0.1 m

@@ -22,7 +22,7 @@ use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::trace::Summary;
 use host_sim::simulation::{simulate, OpenLoop, OpenLoopDriver, RunOptions, RunResult};
 use shared::controller::{Command, Direction};
-use tests::held::reference_path;
+use tests::machine::{TestMachine, DRIVE_12V, REFERENCE_MOTOR};
 use tests::Rng;
 
 /// `p` turned by `a` rad about the origin, as TOML.
@@ -75,7 +75,7 @@ fn assert_kept(s: &Summary, what: &str) {
 fn the_reference_machine_never_goes_through_its_floor() {
     let mut rng = Rng::new(23);
     for a in [0.0, -0.2, 0.15] {
-        let m = Machine::load(&reference_path(), &tilted(a)).expect("the turned machine");
+        let m = TestMachine::example().sets(&tilted(a)).machine();
         let travel = |direction| Command::Travel {
             direction,
             speed_rpm: 3000.0,
@@ -130,14 +130,10 @@ fn the_reference_machine_on_narrow_feet_rocks_without_going_through() {
     // one foot, then the other. Its eccentric circles' lowest points pass 9.3 mm
     // above the floor at its largest rock; the bounding box's lower left corner
     // (x = -0.05 m at the feet's height) went 1.3 mm below it at t = 2.8 s.
-    let m = Machine::load(
-        &reference_path(),
-        &[
-            "contacts.K1.point=[-0.01, 0.0]".into(),
-            "contacts.K2.point=[0.01, 0.0]".into(),
-        ],
-    )
-    .expect("the narrow-footed machine");
+    let m = TestMachine::example()
+        .set("contacts.K1.point", "[-0.01, 0.0]")
+        .set("contacts.K2.point", "[0.01, 0.0]")
+        .machine();
     let hold = Command::HoldOffset {
         speed_rpm: 3000.0,
         offset_deg: 180.0,
@@ -151,8 +147,7 @@ fn the_reference_machine_on_narrow_feet_rocks_without_going_through() {
 
 #[test]
 fn the_paper_fig8_machine_never_goes_through_its_floor() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/paper-fig8.toml");
-    let m = Machine::load(&path, &[]).expect("paper-fig8");
+    let m = TestMachine::file("examples/paper-fig8.toml").machine();
     let run = open_loop(&m, OpenLoop::Voltage(12.0), 1.5);
     assert_kept(&run.summary, "paper-fig8, open loop 12 V");
     assert!(run.summary.mean_velocity.abs() > 1e-3, "{:?}", run.summary);
@@ -169,15 +164,16 @@ fn head_first(h: f64, a: f64) -> Machine {
          [[contacts]]\nname = \"top\"\npoint = [0.0, {top:?}]\nrestitution = 0.3\nfriction = 0.4\n\
          [[rotors]]\nname = \"centre\"\naxis = [0.0, {h:?}]\neccentric_mass = 0.01\n\
          eccentricity = 0.02\ninertia = 6.0e-6\nsense = \"ccw\"\n\
-         [motor]\nresistance = 2.0\ninductance = 0.5e-3\ntorque_constant = 0.02\n\
-         coulomb_friction = 1.0e-3\nviscous_friction = 1.0e-6\ncurrent_limit = 2.0\n\
-         [drive]\nsupply_voltage = 12.0\n",
+",
         n = turned([0.0, 1.0], a),
         g = turned([0.0, -9.81], a),
         top = h + 0.1,
     );
-    Machine::from_text("head-first.toml", &text, std::path::Path::new(""), &[])
-        .unwrap_or_else(|p| panic!("{}", host_sim::machine::input::render(&p)))
+    TestMachine::new("head-first.toml")
+        .with(&text)
+        .with(REFERENCE_MOTOR)
+        .with(DRIVE_12V)
+        .machine()
 }
 
 #[test]
@@ -228,11 +224,9 @@ fn a_platform_falling_head_first_is_found_when_it_crosses_the_floor() {
 #[test]
 fn a_platform_sunk_below_the_floor_is_found_at_once() {
     // The reference platform's centre of mass 10 mm below the floor, its feet on it.
-    let m = Machine::load(
-        &reference_path(),
-        &["platform.position=[0.0, -0.01]".into()],
-    )
-    .expect("the sunk machine");
+    let m = TestMachine::example()
+        .set("platform.position", "[0.0, -0.01]")
+        .machine();
     let run = open_loop(&m, OpenLoop::Coast, 0.05);
     let b = &run.summary.breaches[0];
     assert_eq!((b.body.as_str(), b.t), ("platform", 0.0));
@@ -247,8 +241,9 @@ fn a_platform_sunk_below_the_floor_is_found_at_once() {
 fn a_free_body_turned_past_max_tilt_is_found_at_the_first_row_past_it() {
     // Open loop at 12 V the reference platform pitches by a few tenths of a degree.
     let limit = 1e-3; // rad
-    let m = Machine::load(&reference_path(), &[format!("simulation.max_tilt={limit}")])
-        .expect("the reference machine");
+    let m = TestMachine::example()
+        .sets(&[format!("simulation.max_tilt={limit}")])
+        .machine();
     let run = open_loop(&m, OpenLoop::Voltages([12.0, 12.0]), 1.0);
     let first_past = run
         .rows
@@ -264,7 +259,7 @@ fn a_free_body_turned_past_max_tilt_is_found_at_the_first_row_past_it() {
     assert_eq!(largest.abs(), most);
     assert!(!b.through_fundament());
     // With the default limit (60 degrees) the same run is kept.
-    let m = Machine::load(&reference_path(), &[]).expect("the reference machine");
+    let m = TestMachine::example().machine();
     assert_kept(
         &open_loop(&m, OpenLoop::Voltages([12.0, 12.0]), 1.0).summary,
         "default max_tilt",

@@ -40,8 +40,9 @@ use host_sim::simulation::{simulate, RunOptions, RunResult};
 use proptest::prelude::*;
 use proptest::test_runner::{FileFailurePersistence, RngSeed};
 use shared::controller::Command;
-use tests::held::{held_rotors, reference_machine, reference_path};
+use tests::held::{held_rotors, reference_machine};
 use tests::impact_oscillator::{Flight, Kind, Oscillator};
+use tests::machine::TestMachine;
 
 /// Gravity, m/s^2.
 const G: f64 = 9.81;
@@ -457,7 +458,7 @@ fn hop_at_2600_rpm_locks_to_the_orbit_from_rest() {
 /// revolution with both feet on the floor, and no trace row with a pulling foot.
 #[test]
 fn offset_180_hops_every_revolution_in_closed_loop() {
-    let m = Machine::load(&reference_path(), &[]).expect("the reference machine loads");
+    let m = TestMachine::example().machine();
     let run = closed_loop(
         &m,
         Command::HoldOffset {
@@ -552,7 +553,7 @@ fn frictionless_platform_on_the_floor_follows_the_closed_form() {
         "rotors.0.angle=0".to_string(),
         "rotors.1.angle=0".to_string(),
     ];
-    let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
+    let m = TestMachine::example().sets(&sets).machine();
     let w = 3000.0 * PI / 30.0;
     let mut plant = held(&m, 3000.0);
     let s = sample(&mut plant, 0.5, 2500);
@@ -599,7 +600,7 @@ fn friction_at_the_extremes_hops_in_closed_loop() {
             format!("contacts.K1.friction={mu}"),
             format!("contacts.K2.friction={mu}"),
         ];
-        let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
+        let m = TestMachine::example().sets(&sets).machine();
         let run = closed_loop(
             &m,
             Command::HoldOffset {
@@ -657,7 +658,7 @@ fn frictionless_feet_slide_in_open_loop_below_lift_off() {
         "contacts.K1.friction=0".to_string(),
         "contacts.K2.friction=0".to_string(),
     ];
-    let m = Machine::load(&reference_path(), &sets).expect("the machine loads");
+    let m = TestMachine::example().sets(&sets).machine();
     let mut driver = OpenLoopDriver::new(OpenLoop::Voltages([4.0, 4.0]), 12.0);
     let options = RunOptions::new(2.0);
     let run = simulate(&m, &mut driver, &options);

@@ -34,6 +34,7 @@ use shared::controller::{
     self_test, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
     SelfTestReport, SelfTestStatus, State,
 };
+use tests::machine::TestMachine;
 
 /// When the tests start the self-test, s: the reference machine starts with both
 /// eccentrics horizontal; they swing down and come to rest well before.
@@ -132,8 +133,7 @@ impl Run {
 
 /// Runs the reference machine to `t_end` with a self-test started at [`T_START`].
 fn run(setup: Setup, t_end: f64) -> Run {
-    let machine =
-        Machine::load(&tests::held::reference_path(), &setup.sets).expect("the machine loads");
+    let machine = TestMachine::example().sets(&setup.sets).machine();
     let mut inner =
         ControllerDriver::new(&machine, setup.commands.clone()).expect("the controller starts");
     inner.start_self_test_at(T_START);

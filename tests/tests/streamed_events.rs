@@ -4,12 +4,11 @@
 //! summary counts the distinct impact times of them all.
 
 use host_sim::event::{EventKind, EventRow};
-use host_sim::machine::Machine;
 use host_sim::simulation::closed_loop::ControllerDriver;
 use host_sim::simulation::summary::impact_times;
 use host_sim::simulation::{simulate_observed, Observer, RunOptions};
 use shared::controller::{Command, Direction};
-use tests::held::reference_path;
+use tests::machine::TestMachine;
 
 /// Collects the batches.
 #[derive(Default)]
@@ -22,7 +21,7 @@ impl Observer for Batches {
 }
 
 fn run(keep_events: bool) -> (host_sim::simulation::RunResult, Batches) {
-    let m = Machine::load(&reference_path(), &[]).expect("the machine loads");
+    let m = TestMachine::example().machine();
     let travel = Command::Travel {
         direction: Direction::Right,
         speed_rpm: 3000.0,

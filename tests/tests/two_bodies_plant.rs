@@ -35,8 +35,8 @@
 //! leak of it into the impact would show (held, it moves the off-centre impulse by
 //! 3 %).
 
-use std::path::Path;
 use tests::initial_state;
+use tests::machine::{TestMachine, DRIVE_12V, FRICTIONLESS_MOTOR};
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
@@ -125,16 +125,6 @@ eccentricity = 0.0
 inertia = {ROTOR_INERTIA:?}
 sense = "ccw"
 
-[motor]
-resistance = 2.0
-inductance = 0.5e-3
-torque_constant = 0.02
-coulomb_friction = 0.0
-viscous_friction = 0.0
-current_limit = 2.0
-
-[drive]
-supply_voltage = 12.0
 "#,
         rigid(a),
         rigid(b),
@@ -145,11 +135,11 @@ supply_voltage = 12.0
         contact.law.friction,
         vector(ca),
     );
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
-    match Machine::from_text("two-bodies.toml", &text, dir, &[]) {
-        Ok(m) => m,
-        Err(e) => panic!("the test machine is refused: {e:?}\n{text}"),
-    }
+    TestMachine::new("two-bodies.toml")
+        .with(&text)
+        .with(FRICTIONLESS_MOTOR)
+        .with(DRIVE_12V)
+        .machine()
 }
 
 /// The bodies at a state of the plant, and the rotor's own speed
