@@ -22,6 +22,7 @@
 
 use std::f64::consts::PI;
 use tests::initial_state;
+use tests::machine::TestMachine;
 
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
@@ -35,17 +36,12 @@ use shared::controller::{Command, Direction, RotorCount, State};
 use shared::vec2::cross;
 use tests::rig::{check, G};
 
-/// The one-rotor machine of the tests (rotor "centre", ccw).
-const ONE_ROTOR: &str = include_str!("../fixtures/one-rotor-machine.toml");
-
-fn machine(text: &str) -> Machine {
-    Machine::from_text("m.toml", text, std::path::Path::new(""), &[])
-        .unwrap_or_else(|p| panic!("{}", host_sim::machine::input::render(&p)))
-}
+/// The one-rotor machine of the tests (rotor "centre", ccw), from the repository's root.
+const ONE_ROTOR: &str = "tests/fixtures/one-rotor-machine.toml";
 
 #[test]
 fn the_driver_holds_rotor_1_and_leaves_rotor_2_off() {
-    let one = machine(ONE_ROTOR);
+    let one = TestMachine::file(ONE_ROTOR).machine();
     assert_eq!(one.rotors.len(), 1);
     let model = PlantModel::new(&one);
     assert_eq!(model.dof, 4);
@@ -109,15 +105,14 @@ const ECCENTRICITY: f64 = 0.02;
 /// fixture's is the platform's centre of mass, `[0.0, 0.03]`) and `replace`
 /// applied to its text.
 fn one_rotor(axis: [f64; 2], replace: &[(&str, &str)]) -> Machine {
-    let mut text = ONE_ROTOR.replace(
+    let mut m = TestMachine::file(ONE_ROTOR).replace(
         "axis = [0.0, 0.03]",
         &format!("axis = [{:?}, {:?}]", axis[0], axis[1]),
     );
     for (a, b) in replace {
-        assert!(text.contains(a), "{a:?} not in the one-rotor machine");
-        text = text.replace(a, b);
+        m = m.replace(a, b);
     }
-    machine(&text)
+    m.machine()
 }
 
 /// The plant of `m` with its rotor at `phi0` (rad) turning at `w` (rad/s), the

@@ -4,10 +4,9 @@
 //! `painleve` event, resolve it by a tangential impact, and go on without
 //! sinking into the fundament or gaining energy.
 
-use std::path::Path;
-
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
+use tests::machine::TestMachine;
 use tests::unpowered_plant;
 
 const G: f64 = 9.81;
@@ -40,13 +39,9 @@ fn machine() -> Machine {
         "motor.viscous_friction=0.0".to_string(),
     ]
     .to_vec();
-    Machine::from_text(
-        "painleve.toml",
-        include_str!("../fixtures/minimal-machine.toml"),
-        Path::new("."),
-        &sets,
-    )
-    .expect("valid machine")
+    TestMachine::file("tests/fixtures/minimal-machine.toml")
+        .sets(&sets)
+        .machine()
 }
 
 /// The premise, by hand: foot K1 at `r = (-0.1, -0.1)` from C, fundament normal

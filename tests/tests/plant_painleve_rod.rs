@@ -25,12 +25,12 @@
 //! generalized coordinates, mass matrix and contact solver.
 
 use std::f64::consts::PI;
-use std::path::Path;
 
 use host_sim::event::EventKind;
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Output, Plant};
+use tests::machine::TestMachine;
 use tests::unpowered_plant;
 
 const M: f64 = 1.0;
@@ -44,13 +44,7 @@ const THETA0: f64 = 31.0 * PI / 180.0;
 const SLIP0: f64 = 30.0;
 
 fn machine() -> Machine {
-    Machine::from_text(
-        "painleve-rod.toml",
-        include_str!("../../examples/painleve-rod.toml"),
-        Path::new("."),
-        &[],
-    )
-    .expect("the shipped example is valid")
+    TestMachine::file("examples/painleve-rod.toml").machine()
 }
 
 /// The slip equations' state: `theta` (rad), `theta'` (rad/s), `x_G'` (m/s).
