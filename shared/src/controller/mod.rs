@@ -820,7 +820,7 @@ impl Controller {
         }
         if self.phase_closed {
             let to = self.target_offset();
-            self.offset.retarget(to, true);
+            self.offset.command(to);
         }
         false
     }
@@ -888,7 +888,7 @@ impl Controller {
             // changes would only delay a start to the left by half a turn.
             self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
             let to = self.target_offset();
-            self.offset.retarget(to, false);
+            self.offset.follow(to);
         } else if !can_close && self.phase_closed {
             self.phase_closed = false;
             self.phase_loop.reset();
@@ -899,7 +899,7 @@ impl Controller {
         if self.phase_closed {
             if self.state != State::Stopping {
                 let to = self.target_offset();
-                self.offset.retarget(to, false);
+                self.offset.follow(to);
             }
             let moved = self.offset.step(offset_step_deg);
             offset_rate = moved / dt;
