@@ -46,7 +46,8 @@ use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{
-    Direction, Faults, Params, SelfTestReport, SelfTestStatus, State, TuningTable, CONTROL_RATE_HZ,
+    Bridge, Direction, Faults, Params, SelfTestReport, SelfTestStatus, State, TuningTable,
+    CONTROL_RATE_HZ,
 };
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
@@ -789,7 +790,7 @@ impl Script {
                     seen.faults
                 );
                 check!(
-                    !seen.enable && seen.duty == [0.0; 2],
+                    seen.bridges == [Bridge::Off; 2],
                     "driver disabled and duties 0 in that tick"
                 );
                 self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop open");
@@ -851,7 +852,7 @@ impl Script {
                     seen.tick.wrapping_sub(self.injected_at)
                 );
                 check!(
-                    !seen.enable && seen.duty == [0.0; 2],
+                    seen.bridges == [Bridge::Off; 2],
                     "driver disabled and duties 0 in that tick"
                 );
                 let Some(s) = self.status(io) else {
@@ -908,7 +909,7 @@ impl Script {
                             self.bound_ticks
                         );
                         check!(
-                            !seen.enable && seen.duty == [0.0; 2],
+                            seen.bridges == [Bridge::Off; 2],
                             "driver disabled and duties 0 in that tick"
                         );
                         // Left disconnected: the counter has lost counts, so the index
@@ -975,8 +976,8 @@ impl Script {
                 Next::Advance
             }
             27 => {
-                let (enable, duty) = io.world.lock(|w| (w.enable, w.duty));
-                if enable && duty.iter().any(|d| *d != 0.0) {
+                let bridges = io.world.lock(|w| w.bridges);
+                if bridges.iter().any(|b| b.duty() != 0.0) {
                     check!(
                         true,
                         "driving {=u32} ticks after the run command: the interrupt is pended after the checks' report",

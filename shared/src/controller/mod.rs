@@ -69,8 +69,8 @@
 //!
 //! # Faults: safe state and detection bounds
 //!
-//! Every fault's safe state is the same: driver disabled (windings open) and duty 0
-//! on both motors, written in the very tick that detects it, latched until
+//! Every fault's safe state is the same: both H-bridges off ([`Bridge::Off`]: driver
+//! disabled, windings open), written in the very tick that detects it, latched until
 //! [`Command::ResetFaults`]. A reset clears only the faults whose cause is gone: the
 //! E-stop released, the supply back in range, the currents back under the limit;
 //! [`Faults::PARAMS`] never clears.
@@ -131,7 +131,9 @@ pub mod tuning;
 
 pub use encoder::{EncoderAnomaly, EncoderSample, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
-pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
+pub use io::{
+    Bridge, Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming,
+};
 pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorCount, RotorModel, SpeedGains,
@@ -440,7 +442,7 @@ impl Controller {
     /// 7. **Speed loops**: feedforward + PI to duties (the self-test's duties in
     ///    [`State::SelfTest`]).
     /// 8. **Output**, built afresh: with any fault latched, or idle, the safe state
-    ///    (enable off, duty 0) overrides whatever the loops computed.
+    ///    (every bridge off) overrides whatever the loops computed.
     pub fn step(&mut self, inputs: &Inputs, dt: f32) -> Outputs {
         // 1. Time.
         if self.dt_constants.given_dt != dt {
@@ -637,10 +639,12 @@ impl Controller {
         };
         self.last_duty = duty;
         let driving = self.state.drives();
+        let on = self.params.rotor_count.bridges_on(enable);
         Outputs {
-            duty,
-            enable,
-            bridges: self.params.rotor_count.bridges_on(enable),
+            bridges: [
+                Bridge::driven_if(on[0], duty[0]),
+                Bridge::driven_if(on[1], duty[1]),
+            ],
             state: self.state,
             faults: self.faults,
             telemetry: Telemetry {
