@@ -42,6 +42,6 @@ impl<I: rtic::Mutex<T = [Option<u32>; 2]>> shared::tick::Board for BoardIo<'_, I
     }
 
     fn apply(&mut self, out: &Outputs) {
-        self.motors.apply(out.duty, out.bridges);
+        self.motors.apply(out.bridges);
     }
 }

@@ -6,11 +6,12 @@
 //!
 //! The decay mode is the machine file's (`[drive] decay`, compiled in as
 //! `MACHINE.bridge`): slow decay by default, the mean winding voltage `duty x V_s`
-//! that the controller assumes (`shared::drive`). Which bridges are driven is the
-//! controller's word (`Outputs::bridges`): on a machine with one rotor, motor 2's
-//! never is.
+//! that the controller assumes (`shared::drive`). Which bridges are driven, and at
+//! what duty, is the controller's word (`Outputs::bridges`): on a machine with one
+//! rotor, motor 2's never is.
 
 use embedded_hal::pwm::SetDutyCycle;
+use shared::controller::Bridge;
 use shared::drive::{CentreAligned, Decay, HBridge};
 
 /// TIM8's clock, Hz: twice PCLK2 (84 MHz, `board::PCLK2_HZ`).
@@ -37,15 +38,18 @@ impl<P: SetDutyCycle> Drive<P> {
         }
     }
 
-    /// One tick's inputs: each bridge the controller drives (`Outputs::bridges`:
-    /// both when enabled on two rotors, motor 1's alone on one) at its signed
+    /// One tick's inputs: each bridge driven (`Outputs::bridges`: both while the
+    /// controller drives on two rotors, motor 1's alone on one) at its signed
     /// duty, the others coasting (both inputs low). An input that fails leaves its
     /// bridge coasting (the driver writes both inputs low on an error); the other
     /// bridge is still driven. Returns whether every input took its value.
-    pub fn apply(&mut self, duty: [f32; 2], on: [bool; 2]) -> bool {
+    pub fn apply(&mut self, bridges: [Bridge; 2]) -> bool {
         let mut ok = true;
-        for ((bridge, d), on) in self.bridges.iter_mut().zip(duty).zip(on) {
-            let result = if on { bridge.drive(d) } else { bridge.coast() };
+        for (bridge, command) in self.bridges.iter_mut().zip(bridges) {
+            let result = match command {
+                Bridge::Driven(duty) => bridge.drive(duty),
+                Bridge::Off => bridge.coast(),
+            };
             ok &= result.is_ok();
         }
         ok

@@ -66,6 +66,7 @@ use stm32f4xx_hal::gpio::{Alternate, PA6};
 use stm32f4xx_hal::pac::{self, TIM8};
 
 use embedded_hal::pwm::{ErrorType, SetDutyCycle};
+use shared::controller::Bridge;
 use stm32f4xx_hal::timer::{ErasedChannel, PwmHzManager};
 
 use crate::drive::Drive;
@@ -143,15 +144,15 @@ impl MotorOut {
     }
 
     /// Write one tick's outputs: the signed duties of the `bridges` the controller
-    /// drives (`Outputs::bridges`; the others coast), or, driving none, [`cut`]
+    /// drives (`Outputs::bridges`; those off coast), or, driving none, [`cut`]
     /// (and clear a break flag the controller has seen).
     ///
     /// Called every control tick with the controller's fresh outputs, so a stale
     /// duty never survives a tick. MOE is set only when the controller drives a
     /// bridge, the E-stop pins read closed and no break has occurred since the last
     /// tick that drove none ([`crate::estop::open`]).
-    pub fn apply(&mut self, duty: [f32; 2], bridges: [bool; 2]) {
-        if !bridges.contains(&true) {
+    pub fn apply(&mut self, bridges: [Bridge; 2]) {
+        if !bridges.iter().any(|b| b.is_driven()) {
             cut();
             // The compare values through the driver too, so what it last wrote is
             // what the timer holds (a cut from an interrupt zeroes them behind it).
@@ -173,7 +174,7 @@ impl MotorOut {
         // error type is Infallible); for any other output, what failed coasts and
         // the rest is cut too.
         let switching_on = !outputs_enabled();
-        if !self.drive.apply(duty, bridges) {
+        if !self.drive.apply(bridges) {
             cut();
             return;
         }

@@ -13,9 +13,9 @@
 //!    link's state, a stored tuning table handed over and a requested self-test
 //!    started, before the step);
 //! 3. [`Controller::step`] with the nominal tick `dt`;
-//! 4. [`Board::apply`]: the duties and enables to the bridges (through
-//!    [`crate::drive`] on a board: the timer's compare values and the enable
-//!    pins);
+//! 4. [`Board::apply`]: each bridge driven at its duty or off (through
+//!    [`crate::drive`] on a board: the timer's compare values and its output
+//!    enable);
 //! 5. [`Port::publish`]: the tick's status and the self-test's, for the link.
 //!
 //! What follows a tick is the board's: the firmware feeds its watchdog and ends
@@ -30,8 +30,8 @@ pub trait Board {
     /// Samples this tick's inputs (stage 1): everything but the command, which
     /// is the port's ([`Port::take`] fills it in; a board leaves it `None`).
     fn sample(&mut self) -> Inputs;
-    /// Writes the tick's outputs to the bridges (stage 4): every tick, both
-    /// bridges off unless [`Outputs::bridges`] enables them.
+    /// Writes the tick's outputs to the bridges (stage 4): every tick, each
+    /// bridge driven at its duty or off as [`Outputs::bridges`] says.
     fn apply(&mut self, out: &Outputs);
 }
 
@@ -99,7 +99,7 @@ impl<L: StateLock> Port for LinkPort<L> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::controller::{Direction, Faults, Params, ResetCause, State};
+    use crate::controller::{Bridge, Direction, Faults, Params, ResetCause, State};
     use crate::protocol::link::LinkState;
 
     /// A board that counts its calls and keeps what it was given.
@@ -151,7 +151,7 @@ mod tests {
         let out = run(&mut c, &mut board, &mut port, 1e-3);
         assert_eq!(board.calls.as_slice(), ["sample", "apply"]);
         assert_eq!(out.state, State::Starting, "the command reached the step");
-        assert!(out.bridges.iter().all(|&on| on), "{out:?}");
+        assert!(out.bridges.iter().all(|b| b.is_driven()), "{out:?}");
         assert_eq!(board.applied, Some(out));
         assert!(state.command.is_none(), "the command was taken");
         assert_eq!(state.status.uptime_ms, 7, "the status published");
@@ -174,11 +174,10 @@ mod tests {
             applied: None,
         };
         run(&mut c, &mut board, &mut LinkPort::new(&mut state, 1), 1e-3);
-        assert!(board.applied.unwrap().bridges.iter().all(|&on| on));
+        assert!(board.applied.unwrap().bridges.iter().all(|b| b.is_driven()));
         board.sample.estop = true;
         let out = run(&mut c, &mut board, &mut LinkPort::new(&mut state, 2), 1e-3);
         assert!(out.faults.contains(Faults::ESTOP), "{out:?}");
-        assert_eq!(board.applied.unwrap().bridges, [false, false]);
-        assert_eq!(board.applied.unwrap().duty, [0.0, 0.0]);
+        assert_eq!(board.applied.unwrap().bridges, [Bridge::Off; 2]);
     }
 }

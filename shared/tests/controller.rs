@@ -15,8 +15,8 @@
 
 use shared::controller::angle::{wrap_deg, wrap_deg_signed};
 use shared::controller::{
-    may_write_table, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
-    RowField, SpeedEstimator, State, TableError, TickTiming, TuningTable,
+    may_write_table, Bridge, Command, Controller, Direction, Faults, Inputs, Outputs, Params,
+    ResetCause, RowField, SpeedEstimator, State, TableError, TickTiming, TuningTable,
 };
 
 use std::f64::consts::TAU;
@@ -116,7 +116,7 @@ impl Rig {
         let h = DT as f64 / SUBSTEPS as f64;
         for _ in 0..SUBSTEPS {
             for k in 0..2 {
-                self.rotors[k].advance(out.duty[k] as f64, out.enable, h);
+                self.rotors[k].advance(out.duties()[k] as f64, out.drives(), h);
             }
         }
         // Index pulses crossed during this tick, reported at the next sample.
@@ -179,7 +179,7 @@ fn travel(direction: Direction, speed_rpm: f32) -> Command {
 
 /// Outputs in the safe state.
 fn safe(o: &Outputs) -> bool {
-    !o.enable && o.duty == [0.0, 0.0]
+    o.bridges == [Bridge::Off; 2]
 }
 
 #[test]
@@ -477,7 +477,7 @@ fn stop_ramps_down_then_idles() {
     rig.command(Command::Stop);
     let out = rig.step();
     assert_eq!(out.state, State::Stopping);
-    assert!(out.enable);
+    assert!(out.drives());
     let ticks = rig.until(5000, |o| o.state == State::Idle).unwrap();
     eprintln!(
         "stop: idle after {ticks} ticks at {:.1} / {:.1} rpm",

@@ -18,8 +18,8 @@
 //! mechanism and not a quiet input.
 
 use shared::controller::{
-    Command, Controller, Direction, Faults, Inputs, MachineConstants, Outputs, Params, ResetCause,
-    RotorCount, SelfTestStatus, State,
+    Bridge, Command, Controller, Direction, Faults, Inputs, MachineConstants, Outputs, Params,
+    ResetCause, RotorCount, SelfTestStatus, State,
 };
 
 use std::f64::consts::TAU;
@@ -109,12 +109,17 @@ impl Rig {
         };
         let out = self.ctl.step(&inputs, DT);
         if self.ctl.params().rotor_count == RotorCount::One {
-            assert_eq!(out.duty[1].to_bits(), 0.0f32.to_bits(), "rotor 2 driven");
+            assert_eq!(
+                out.duties()[1].to_bits(),
+                0.0f32.to_bits(),
+                "rotor 2 driven"
+            );
         }
         let before = self.rotor.theta;
         let h = f64::from(DT) / SUBSTEPS as f64;
         for _ in 0..SUBSTEPS {
-            self.rotor.advance(f64::from(out.duty[0]), out.enable, h);
+            self.rotor
+                .advance(f64::from(out.duties()[0]), out.drives(), h);
         }
         let (m0, m1) = ((before / TAU).floor(), (self.rotor.theta / TAU).floor());
         self.pending_index = (m0 != m1).then(|| ((m0.max(m1) as i64) * i64::from(N)) as u32);
@@ -186,15 +191,21 @@ fn one_rotor_holds_the_speed_of_rotor_1_against_a_load() {
     assert_eq!(o.telemetry.speed_rpm[1], 0.0);
     assert_eq!(o.telemetry.speed_ref_rpm, [3000.0, 0.0]);
     assert_eq!(o.telemetry.current[1], 0.0);
-    assert!(o.enable);
-    assert_eq!(RotorCount::One.bridges_on(o.enable), [true, false]);
-    assert_eq!(RotorCount::Two.bridges_on(o.enable), [true, true]);
+    assert!(o.drives());
+    assert_eq!(RotorCount::One.bridges_on(true), [true, false]);
+    assert_eq!(RotorCount::Two.bridges_on(true), [true, true]);
     assert_eq!(RotorCount::One.bridges_on(false), [false, false]);
     // What the firmware and the simulation put on the bridges: the controller's
     // own word, rotor 2's bridge never driven.
-    assert_eq!(o.bridges, [true, false]);
+    assert!(o.bridges[0].is_driven());
+    assert_eq!(o.bridges[1], Bridge::Off);
     for o in rig.run(200) {
-        assert!(!o.bridges[1], "rotor 2's bridge driven in {:?}", o.state);
+        assert_eq!(
+            o.bridges[1],
+            Bridge::Off,
+            "rotor 2's bridge driven in {:?}",
+            o.state
+        );
     }
 }
 
@@ -250,7 +261,7 @@ fn no_phase_correction_on_one_rotor() {
                 let d = if rotors == RotorCount::One {
                     // The ramp itself, no half-trim either way.
                     assert_eq!(r2, 0.0);
-                    assert_eq!(out.duty[1].to_bits(), 0.0f32.to_bits());
+                    assert_eq!(out.duties()[1].to_bits(), 0.0f32.to_bits());
                     r1 - 3000.0
                 } else {
                     r1 - r2
@@ -322,10 +333,10 @@ fn one_rotor_self_test_tests_rotor_1_only() {
     let mut driven = false;
     while rig.ctl.state() == State::SelfTest && ticks < 20_000 {
         let o = rig.step();
-        if o.duty[0] > 0.0 && !driven {
+        if o.duties()[0] > 0.0 && !driven {
             drives += 1;
         }
-        driven = o.duty[0] > 0.0;
+        driven = o.duties()[0] > 0.0;
         ticks += 1;
     }
     let report = rig.ctl.self_test_report();

@@ -132,21 +132,19 @@ fn sane_tick() -> impl Strategy<Value = ([i32; 2], [Option<u32>; 2], Inputs, f32
 
 /// The output invariants; `before` is the previous tick's faults.
 fn check(out: &Outputs, before: Faults, command: Option<Command>, p: &Params) {
-    for d in out.duty {
+    for d in out.duties() {
         assert!(d.is_finite() && (-1.0..=1.0).contains(&d), "duty {d}");
         assert!(d >= p.min_duty, "duty {d} below min_duty");
     }
-    if !out.enable {
-        assert_eq!(out.duty, [0.0, 0.0]);
-    }
-    // The bridges driven: both exactly when enabled (two rotors), none otherwise.
-    assert_eq!(out.bridges, [out.enable; 2]);
+    // The bridges driven: both while the state drives the motors (two rotors),
+    // none otherwise.
+    assert_eq!(out.bridges.map(|b| b.is_driven()), [out.state.drives(); 2]);
     if !out.faults.is_empty() {
         assert_eq!(out.state, State::Fault);
-        assert!(!out.enable);
+        assert!(!out.drives());
     }
     if matches!(out.state, State::Idle | State::Fault) {
-        assert!(!out.enable);
+        assert!(!out.drives());
     }
     // Latched: a flag only goes away on a reset command.
     if command != Some(Command::ResetFaults) {

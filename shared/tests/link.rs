@@ -9,8 +9,8 @@ use std::collections::VecDeque;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use proptest::prelude::*;
 use shared::controller::{
-    Direction, Faults, Outputs, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State,
-    TuningTable,
+    Bridge, Direction, Faults, Outputs, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus,
+    State, TuningTable,
 };
 use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{Decoder, Message, NackReason, Request, Response, FRAME_GAP_TIMEOUT_MS};
@@ -196,9 +196,7 @@ fn an_aborted_self_test_does_not_drop_the_stored_result() {
         result: SelfTest::default(),
     };
     let outputs = Outputs {
-        duty: [0.0; 2],
-        enable: false,
-        bridges: [false; 2],
+        bridges: [Bridge::Off; 2],
         state: State::Idle,
         faults: Faults::NONE,
         telemetry: no_telemetry(),

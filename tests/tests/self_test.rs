@@ -31,7 +31,7 @@ use host_sim::plant::simulator::Plant;
 use host_sim::simulation::closed_loop::{ControllerDriver, InLoop};
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use shared::controller::{
-    self_test, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
+    self_test, Bridge, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
     SelfTestReport, SelfTestStatus, State,
 };
 use tests::machine::TestMachine;
@@ -118,7 +118,10 @@ impl Run {
 
     /// The ticks in which rotor `k` is driven.
     fn driven(&self, k: usize) -> Vec<&Tick> {
-        self.ticks.iter().filter(|t| t.out.duty[k] != 0.0).collect()
+        self.ticks
+            .iter()
+            .filter(|t| t.out.duties()[k] != 0.0)
+            .collect()
     }
 
     /// When the self-test ended (status no longer running), s.
@@ -198,11 +201,11 @@ fn the_reference_machine_passes_with_its_own_geometry() {
         let driven = r.driven(k);
         let first = driven.first().expect("driven");
         let lastd = driven.last().expect("driven");
-        assert!(driven.iter().all(|t| t.out.duty[1 - k] == 0.0));
-        assert!(driven.iter().all(|t| t.out.duty[k] == d));
+        assert!(driven.iter().all(|t| t.out.duties()[1 - k] == 0.0));
+        assert!(driven.iter().all(|t| t.out.duties()[k] == d));
         assert!(driven
             .iter()
-            .all(|t| t.out.state == State::SelfTest && t.out.enable));
+            .all(|t| t.out.state == State::SelfTest && t.out.drives()));
 
         // Index offset: from the plant's true angle where the drive started.
         let phi0 = first.phi[k];
@@ -367,9 +370,12 @@ fn estop_during_the_test_aborts_with_the_motors_off_in_that_tick() {
         .find(|t| t.t < t_e - 1e-9)
         .expect("a tick before");
     assert_eq!(before.out.state, State::SelfTest);
-    assert!(before.out.duty[0] > 0.0, "rotor 1 driven before the E-stop");
+    assert!(
+        before.out.duties()[0] > 0.0,
+        "rotor 1 driven before the E-stop"
+    );
     let at = r.ticks.iter().find(|t| t.t >= t_e - 1e-9).expect("tick");
-    assert!(!at.out.enable && at.out.duty == [0.0; 2], "{:?}", at.out);
+    assert_eq!(at.out.bridges, [Bridge::Off; 2], "{:?}", at.out);
     assert_eq!(at.out.state, State::Fault);
     assert!(at.out.faults.contains(Faults::ESTOP));
     assert_eq!(at.report.status, SelfTestStatus::Aborted);
@@ -377,7 +383,7 @@ fn estop_during_the_test_aborts_with_the_motors_off_in_that_tick() {
         .ticks
         .iter()
         .filter(|t| t.t >= t_e - 1e-9)
-        .all(|t| !t.out.enable && t.report.status == SelfTestStatus::Aborted));
+        .all(|t| !t.out.drives() && t.report.status == SelfTestStatus::Aborted));
 }
 
 #[test]
@@ -391,7 +397,7 @@ fn a_stop_command_aborts_with_the_motors_off_in_that_tick() {
         2.5,
     );
     let at = r.ticks.iter().find(|t| t.t >= t_s - 1e-9).expect("tick");
-    assert!(!at.out.enable && at.out.duty == [0.0; 2]);
+    assert_eq!(at.out.bridges, [Bridge::Off; 2]);
     assert_eq!(at.out.state, State::Idle);
     assert_eq!(at.out.faults, Faults::NONE);
     assert_eq!(r.last().report.status, SelfTestStatus::Aborted);
@@ -498,12 +504,15 @@ fn it_starts_only_idle_at_rest_and_without_a_fault() {
     let mut first_drive = None;
     for tick in 1..400 {
         let out = c.step(&at_rest(None), 0.001);
-        if out.duty[0] > 0.0 {
+        if out.duties()[0] > 0.0 {
             first_drive = Some(tick);
             break;
         }
-        assert_eq!(out.duty, [0.0; 2]);
-        assert!(out.enable, "the bridge holds the windings shorted");
+        assert_eq!(
+            out.bridges,
+            [Bridge::Driven(0.0); 2],
+            "the bridges hold the windings shorted"
+        );
     }
     // The tick with the refused command was the settle's first: the drive starts
     // in its 200th, 0.2 s on.
@@ -649,7 +658,7 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
             },
             0.001,
         );
-        duty = out.duty;
+        duty = out.duties();
         let was_running = dev.state.self_test.status == SelfTestStatus::Running;
         dev.state.publish(ms, &out, c.self_test_report());
         if was_running && dev.state.self_test.status == SelfTestStatus::Done {

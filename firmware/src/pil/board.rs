@@ -8,7 +8,7 @@
 //! run ends with status 1 ([`fail`]).
 
 use heapless::spsc::{Consumer, Producer};
-use shared::controller::{Inputs, Outputs, TickTiming};
+use shared::controller::{Bridge, Inputs, Outputs, TickTiming};
 use shared::pil::{Bytes, Drive as DriveRecord, Hello, Sample};
 use shared::protocol::message::StatusReport;
 
@@ -102,12 +102,16 @@ impl shared::tick::Board for PilBoard<'_> {
     fn apply(&mut self, out: &Outputs) {
         // As the board's `motor_out`: the bridges the controller drives, while
         // the E-stop circuit is closed; MOE set only then.
-        let on = out.bridges.map(|b| b && !self.estop);
-        self.drive.apply(out.duty, on);
+        let bridges = if self.estop {
+            [Bridge::Off; 2]
+        } else {
+            out.bridges
+        };
+        self.drive.apply(bridges);
         self.link.pending = Some(DriveRecord {
             tick: self.tick,
             compare: pwm::compare_values(),
-            enabled: on.contains(&true),
+            enabled: bridges.iter().any(|b| b.is_driven()),
             busy_ns: 0,
             status: StatusReport::from_outputs(self.uptime_ms, out),
             tx: Bytes::default(),

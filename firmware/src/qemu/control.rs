@@ -2,7 +2,9 @@
 //! [`shared::tick::run`] on `QemuBoard`, timed in SysTick counts
 //! ([`TickCounts`]).
 
-use shared::controller::{Command, Controller, Inputs, Outputs, SelfTestReport, TickTiming};
+use shared::controller::{
+    Bridge, Command, Controller, Inputs, Outputs, SelfTestReport, TickTiming,
+};
 use shared::protocol::link::LinkState;
 use shared::tick::Port;
 
@@ -61,9 +63,14 @@ impl shared::tick::Board for QemuBoard<'_> {
 
     fn apply(&mut self, out: &Outputs) {
         self.stepped = now();
-        let estop = self.injected.estop_open;
-        self.drive
-            .apply(out.duty, out.bridges.map(|on| on && !estop));
+        // As the board's `motor_out`: the bridges the controller drives, while
+        // the E-stop circuit is closed.
+        let bridges = if self.injected.estop_open {
+            [Bridge::Off; 2]
+        } else {
+            out.bridges
+        };
+        self.drive.apply(bridges);
         let model_start = now();
         self.plant.step(self.injected);
         self.model = elapsed(model_start, now());

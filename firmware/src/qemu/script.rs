@@ -46,7 +46,8 @@ use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{
-    Direction, Faults, Params, RotorSelfTest, SelfTestReport, SelfTestStatus, State, TuningTable,
+    Bridge, Direction, Faults, Params, RotorSelfTest, SelfTestReport, SelfTestStatus, State,
+    TuningTable,
     CONTROL_RATE_HZ,
 };
 use shared::protocol::link::{Link, LinkState};
@@ -1133,8 +1134,8 @@ impl Script {
         L: rtic::Mutex<T = LinkState>,
         W: rtic::Mutex<T = World>,
     {
-        let (enable, duty) = io.world.lock(|w| (w.enable, w.duty));
-        if enable && duty.iter().any(|d| *d != 0.0) {
+        let bridges = io.world.lock(|w| w.bridges);
+        if bridges.iter().any(|b| b.duty() != 0.0) {
             check!(
                 true,
                 "driving {=u32} ticks after the run command: the interrupt is pended after the checks' report",
@@ -1216,7 +1217,7 @@ fn check_rotor_self_test(rotor: usize, r: &RotorSelfTest, start: Option<DriveSta
 /// disabled and both duties 0.
 fn check_outputs_cut(seen: &FaultSeen) {
     check!(
-        !seen.enable && seen.duty == [0.0; 2],
+        seen.bridges == [Bridge::Off; 2],
         "driver disabled and duties 0 in that tick"
     );
 }

@@ -3,7 +3,7 @@
 //! (the outputs, the model's true speeds, angles and offset, the first faulted tick,
 //! where the self-test's drives started, the cost of the control steps).
 
-use shared::controller::{Faults, Outputs, State};
+use shared::controller::{Bridge, Faults, Outputs, State};
 
 use super::control::TickCounts;
 use super::plant::{Injected, Plant};
@@ -15,10 +15,8 @@ pub struct FaultSeen {
     pub tick: u32,
     /// Faults latched.
     pub faults: Faults,
-    /// The outputs of that tick.
-    pub enable: bool,
-    /// The duties of that tick.
-    pub duty: [f32; 2],
+    /// The bridges of that tick.
+    pub bridges: [Bridge; 2],
 }
 
 /// The start of one rotor's self-test drive, as the model saw it.
@@ -68,10 +66,8 @@ pub struct World {
     /// Cleared by the script when it injects; set by the control task at the
     /// first tick it ends in `Fault`.
     pub first_fault: Option<FaultSeen>,
-    /// The latest tick's driver enable.
-    pub enable: bool,
-    /// The latest tick's duties.
-    pub duty: [f32; 2],
+    /// The latest tick's bridges.
+    pub bridges: [Bridge; 2],
     /// The model's true speeds, rpm.
     pub true_speed_rpm: [f32; 2],
     /// The model's true phase offset `theta_1 - theta_2`, degrees in [0, 360).
@@ -112,14 +108,13 @@ impl World {
         } else {
             self.tick_off.add(counts.tick);
         }
-        self.enable = out.enable;
-        self.duty = out.duty;
+        self.bridges = out.bridges;
         self.true_speed_rpm = plant.speed_rpm();
         self.true_offset_deg = plant.offset_deg();
         if out.state == State::SelfTest {
             self.self_test_ticks += 1;
             for k in 0..2 {
-                if out.duty[k] > 0.0 {
+                if out.bridges[k].duty() > 0.0 {
                     // The angles before this tick's model step: what it sampled.
                     let angle_turns = self.angle_turns[k];
                     self.drive_start[k].get_or_insert(DriveStart { tick, angle_turns });
@@ -134,8 +129,7 @@ impl World {
             self.first_fault = Some(FaultSeen {
                 tick,
                 faults: out.faults,
-                enable: out.enable,
-                duty: out.duty,
+                bridges: out.bridges,
             });
         }
         if out.state == State::SelfTest {

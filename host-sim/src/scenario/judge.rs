@@ -2,7 +2,7 @@
 //! every expectation on the recorded ticks ([`Outcome`]) and the first fault latched
 //! after each injection ([`Detection`]), into a [`Report`].
 
-use shared::controller::{Direction, Faults, Outputs, State};
+use shared::controller::{Bridge, Direction, Faults, Outputs, State};
 
 use super::driver::ScenarioDriver;
 use super::driver::Tick;
@@ -161,9 +161,9 @@ fn ticks_in(ticks: &[Tick], w: [f64; 2]) -> impl Iterator<Item = &Tick> + '_ {
     ticks.iter().filter(move |k| in_window(k.t, w))
 }
 
-/// Safe outputs: driver disabled, duty 0 on both motors.
+/// Safe outputs: driver disabled, both bridges off (duty 0 on both motors).
 fn is_safe(out: &Outputs) -> bool {
-    !out.enable && out.duty == [0.0, 0.0]
+    out.bridges == [Bridge::Off; 2]
 }
 
 /// `x(t)` interpolated linearly between samples (held beyond them).
@@ -477,9 +477,9 @@ fn judge_fault(fault: Faults, name: &str, within: [f64; 2], ticks: &[Tick], t_en
             format!(
                 "{latched}, but not safe at {} s (enable {}, duty [{:.3}, {:.3}])",
                 sig(k.t),
-                k.out.enable,
-                k.out.duty[0],
-                k.out.duty[1]
+                k.out.drives(),
+                k.out.duties()[0],
+                k.out.duties()[1]
             ),
         ),
         None => {
@@ -520,9 +520,9 @@ fn judge_safe(between: [f64; 2], ticks: &[Tick]) -> Verdict {
                 "{} at {} s: enable {}, duty [{:.3}, {:.3}]",
                 k.out.state.name(),
                 sig(k.t),
-                k.out.enable,
-                k.out.duty[0],
-                k.out.duty[1]
+                k.out.drives(),
+                k.out.duties()[0],
+                k.out.duties()[1]
             ),
         ),
         None => (true, expected, "safe throughout".to_string()),

@@ -8,7 +8,7 @@
 //! rotor 2 reads at rest (counter 0, no index, 0 A), and its bridge stays off as
 //! long as the controller does not drive it (it never does on one rotor).
 
-use shared::controller::{Inputs, Outputs, TickTiming};
+use shared::controller::{Bridge, Inputs, Outputs, TickTiming};
 use shared::tick::Board;
 
 use crate::machine::Machine;
@@ -123,14 +123,12 @@ impl BoardSensors {
 /// bridges it drives (negated where the motor's leads are swapped,
 /// `motor_reversed`), the others off; and the duties to record (0 where off).
 pub fn bridge_commands(out: &Outputs, motor_reversed: [bool; 2]) -> ([BridgeCommand; 2], [f64; 2]) {
-    let on = out.bridges;
-    let duty = [0, 1].map(|k| if on[k] { f64::from(out.duty[k]) } else { 0.0 });
-    let commands = [0, 1].map(|k| match (on[k], motor_reversed[k]) {
-        (false, _) => BridgeCommand::Off,
-        (true, false) => BridgeCommand::Duty(duty[k]),
-        (true, true) => BridgeCommand::Duty(-duty[k]),
+    let commands = [0, 1].map(|k| match out.bridges[k] {
+        Bridge::Off => BridgeCommand::Off,
+        Bridge::Driven(duty) if motor_reversed[k] => BridgeCommand::Duty(-f64::from(duty)),
+        Bridge::Driven(duty) => BridgeCommand::Duty(f64::from(duty)),
     });
-    (commands, duty)
+    (commands, out.duties().map(f64::from))
 }
 
 /// The board of a simulated machine at one control tick ([`shared::tick::Board`]):

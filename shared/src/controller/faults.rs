@@ -1,9 +1,9 @@
 //! Faults: the named flags ([`Faults`]) and the checks that raise them
 //! ([`FaultMonitor`]).
 //!
-//! Every fault has the same safe state: driver disabled, duty 0 on both motors, in
-//! the tick that detects it, latched until [`super::Command::ResetFaults`] (see
-//! [`super::Controller::step`]). The checks are timers: a condition must hold in
+//! Every fault has the same safe state: both H-bridges off (driver disabled,
+//! windings open), in the tick that detects it, latched until
+//! [`super::Command::ResetFaults`] (see [`super::Controller::step`]). The checks are timers: a condition must hold in
 //! consecutive ticks for its time `T` (a limit in [`FaultLimits`]); it fires in the
 //! tick whose accumulated duration reaches `T - dt/2` (half a tick of slack absorbs
 //! the rounding of the sum), i.e. at a constant `dt` in the `round(T/dt)`-th

@@ -212,7 +212,8 @@ pub struct Telemetry {
     pub current: [f32; 2],
     /// Measured supply voltage, V (as read).
     pub supply_voltage: f32,
-    /// The duties written, in [-1, 1] (equal to [`Outputs::duty`]).
+    /// The duties written, in [-1, 1] (equal to [`Outputs::duties`]: 0 for a bridge
+    /// off).
     pub duty: [f32; 2],
     /// The command of this tick was refused: out-of-range values, or a run command
     /// while a fault is latched or a self-test runs.
@@ -225,25 +226,73 @@ pub struct Telemetry {
     pub overruns: u16,
 }
 
+/// What one H-bridge does in a tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Bridge {
+    /// Off (the default, the safe state): both inputs low, every switch open; the
+    /// winding is open and the motor coasts.
+    #[default]
+    Off,
+    /// Driven at a signed duty in [-1, 1]: `duty x supply` on the winding, positive
+    /// driving the rotor forward (its driven sense). Driven at 0 shorts the winding
+    /// in slow decay (the rotor brakes), which off does not.
+    Driven(f32),
+}
+
+impl Bridge {
+    /// `Driven(duty)` when `on`, otherwise `Off`.
+    pub fn driven_if(on: bool, duty: f32) -> Bridge {
+        if on {
+            Bridge::Driven(duty)
+        } else {
+            Bridge::Off
+        }
+    }
+
+    /// The duty, in [-1, 1]; 0 when off.
+    pub fn duty(self) -> f32 {
+        match self {
+            Bridge::Off => 0.0,
+            Bridge::Driven(duty) => duty,
+        }
+    }
+
+    /// Whether the bridge is driven (at any duty, 0 included).
+    pub fn is_driven(self) -> bool {
+        matches!(self, Bridge::Driven(_))
+    }
+}
+
 /// What the controller writes each tick. Built afresh every tick, so a value from an
 /// earlier tick can never pass through.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Outputs {
-    /// Signed duty per motor in [-1, 1]: `duty x supply` on the winding, positive
-    /// driving the rotor forward (its driven sense). 0 whenever `enable` is false.
-    pub duty: [f32; 2],
-    /// Driver enable: false leaves the windings open (the motors coast).
-    pub enable: bool,
-    /// The H-bridges driven this tick, at `duty`; the others coast (both inputs
-    /// low). Both when `enable` on two rotors, rotor 1's alone on one
-    /// ([`super::RotorCount::bridges_on`]): what the firmware and the simulation
-    /// put on the bridges, decided here once.
-    pub bridges: [bool; 2],
+    /// The H-bridges of rotor 1 and rotor 2: driven at a duty while the state
+    /// drives the motors (both on two rotors; rotor 1's alone on one,
+    /// [`super::RotorCount::bridges_on`]), otherwise off. Every bridge off is the
+    /// safe state (driver disabled, windings open). What the firmware and the
+    /// simulation put on the bridges, decided here once.
+    pub bridges: [Bridge; 2],
     /// The state after this tick.
     pub state: State,
     /// Latched faults after this tick (empty unless `state` is [`State::Fault`]).
     pub faults: Faults,
     /// Measurements and references of this tick.
     pub telemetry: Telemetry,
+}
+
+impl Outputs {
+    /// The duties of rotor 1's and rotor 2's bridges, in [-1, 1]; 0 for a bridge
+    /// off.
+    pub fn duties(&self) -> [f32; 2] {
+        [self.bridges[0].duty(), self.bridges[1].duty()]
+    }
+
+    /// Whether any bridge is driven (the driver enabled); `false` is the safe
+    /// state, every winding open.
+    pub fn drives(&self) -> bool {
+        self.bridges[0].is_driven() || self.bridges[1].is_driven()
+    }
 }

@@ -30,6 +30,8 @@
 //!
 //! Modules, one job each:
 //! - [`io`]: inputs, commands, outputs, telemetry, states;
+//! - `mode`: the state with the data only it uses (a run's command, ramp and
+//!   loops; the self-test in progress; the latched faults);
 //! - [`params`]: parameters and the design rules of their defaults;
 //! - [`machine`]: the machine's physical values mapped to [`MachineConstants`];
 //! - [`encoder`]: speed from counts, angle from the index pulse, encoder checks;
@@ -69,8 +71,8 @@
 //!
 //! # Faults: safe state and detection bounds
 //!
-//! Every fault's safe state is the same: driver disabled (windings open) and duty 0
-//! on both motors, written in the very tick that detects it, latched until
+//! Every fault's safe state is the same: both H-bridges off ([`Bridge::Off`]: driver
+//! disabled, windings open), written in the very tick that detects it, latched until
 //! [`Command::ResetFaults`]. A reset clears only the faults whose cause is gone: the
 //! E-stop released, the supply back in range, the currents back under the limit;
 //! [`Faults::PARAMS`] never clears.
@@ -121,6 +123,7 @@ pub mod encoder;
 pub mod faults;
 pub mod io;
 pub mod machine;
+mod mode;
 pub mod params;
 pub mod phase_loop;
 pub mod ramp;
@@ -131,7 +134,9 @@ pub mod tuning;
 
 pub use encoder::{EncoderAnomaly, EncoderSample, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
-pub use io::{Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming};
+pub use io::{
+    Bridge, Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming,
+};
 pub use machine::{MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorCount, RotorModel, SpeedGains,
@@ -144,39 +149,37 @@ pub use tuning::{
 };
 
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
+use mode::{Mode, OffsetSource, PhaseLock, Run, RunTarget, UnwrappedError};
 use phase_loop::PhaseLoop;
 use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};
 use self_test::{SelfTestConfig, SelfTestRun, SelfTestSample};
 use speed_loop::{SpeedLoop, SpeedLoopInput};
-
-/// Where a run's offset comes from.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum OffsetSource {
-    /// The tuning table's offset for this direction at the ramped speed.
-    Table(Direction),
-    /// A fixed offset, degrees in [0, 360).
-    Fixed(f32),
-}
-
-/// What the current run command asks for.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct RunTarget {
-    /// Rotor speed, rpm.
-    speed_rpm: f32,
-    /// Offset source.
-    offset: OffsetSource,
-}
 
 /// One tick's measurements.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Measurement {
     /// Filtered speeds, rad/s.
     speed_rad_s: [f32; 2],
+    /// The same in rpm.
+    speed_rpm: [f32; 2],
     /// Encoder inconsistencies.
     anomaly: [Option<EncoderAnomaly>; 2],
     /// Measured offset `theta_1 - theta_2`, degrees in [0, 360), once both index
     /// pulses are known.
     offset_deg: Option<f32>,
+    /// The phase error, while the phase loop is closed and the offset measured.
+    phase_error: Option<PhaseError>,
+}
+
+/// The phase error of one tick, measured while the phase loop is closed: the offset
+/// reference in force over the tick just ended minus the measured offset.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PhaseError {
+    /// Wrapped, degrees in (-180, 180]: what the phase loop corrects and the
+    /// telemetry reports.
+    wrapped_deg: f32,
+    /// Unwrapped since the loop closed, degrees: what the lock check judges.
+    unwrapped_deg: f32,
 }
 
 /// Constants of one `dt`, computed when the `dt` passed to a tick differs from the
@@ -206,6 +209,31 @@ struct TableOffset {
     offset_deg: f32,
 }
 
+/// The phase offset `run` asks for at its ramped speed, degrees: the tuning table's
+/// for its direction, or its fixed offset. `last` keeps the table's last answer:
+/// while the speed reference stays put (running at the commanded speed) the table
+/// is not interpolated again every tick.
+fn target_offset(run: &Run, tuning: &TuningTable, last: &mut Option<TableOffset>) -> f32 {
+    match run.target.offset {
+        OffsetSource::Table(direction) => {
+            let speed_bits = run.ramp_rpm.to_bits();
+            match *last {
+                Some(c) if c.direction == direction && c.speed_bits == speed_bits => c.offset_deg,
+                _ => {
+                    let offset_deg = tuning.offset(direction, run.ramp_rpm);
+                    *last = Some(TableOffset {
+                        direction,
+                        speed_bits,
+                        offset_deg,
+                    });
+                    offset_deg
+                }
+            }
+        }
+        OffsetSource::Fixed(o) => o,
+    }
+}
+
 /// `[f(a[0]), f(a[1])]`: `<[T; 2]>::map` written out. The array method goes
 /// through a generic loop that `opt-level = "s"` leaves in place (with its stack
 /// copies); this is straight-line code for the rotor pairs of a tick.
@@ -231,16 +259,14 @@ pub struct Controller {
     one_rotor: bool,
     /// The constants of the last tick's `dt`, recomputed when `dt` changes.
     dt_constants: DtConstants,
-    /// The last table offset looked up, cleared when the table changes
-    /// ([`Controller::set_tuning`]): while the speed reference stays put (running
-    /// at the commanded speed) the table is not interpolated again every tick.
+    /// The last table offset looked up ([`target_offset`]), cleared when the table
+    /// changes ([`Controller::set_tuning`]).
     table_offset: Option<TableOffset>,
     /// Why the given parameters were refused.
     params_error: Option<ParamError>,
-    /// Current state.
-    state: State,
-    /// Latched faults.
-    faults: Faults,
+    /// The state, with the data only it uses: a run's command, speed ramp and
+    /// loops; the self-test in progress; the latched faults.
+    mode: Mode,
     /// Encoder tracking, per rotor.
     encoders: [EncoderTracker; 2],
     /// Filtered currents, A.
@@ -251,32 +277,17 @@ pub struct Controller {
     link_age_s: f32,
     /// Ticks that missed their deadline since the start (saturating).
     overruns: u16,
-    /// The run command in force (starting, running).
-    target: Option<RunTarget>,
-    /// The ramped speed reference, rpm.
-    ramp_rpm: f32,
-    /// The offset reference.
+    /// The offset reference the phase loop follows: set to the measured offset when
+    /// the loop closes, ramped while it is closed. Outside a run it stays where the
+    /// last one left it, as the telemetry reports it in every state.
     offset: OffsetRamp,
-    /// Whether the phase loop is closed.
-    phase_closed: bool,
-    /// The phase error unwrapped since the loop closed (the sum of its wrapped
-    /// tick-to-tick changes), degrees, with the last wrapped error.
-    phase_error_unwrapped: Option<(f32, f32)>,
-    /// Phase loop state.
-    phase_loop: PhaseLoop,
-    /// Speed loop states.
-    speed_loops: [SpeedLoop; 2],
-    /// Time since a stop's ramp reached 0, s.
-    stop_elapsed_s: f32,
     /// Duties written in the previous tick.
     last_duty: [f32; 2],
     /// Filtered speeds of the previous tick, rpm (whether a self-test may start).
     last_speed_rpm: [f32; 2],
-    /// The self-test in progress ([`State::SelfTest`]).
-    self_test: Option<SelfTestRun>,
-    /// The last self-test's status and result (not run: all zero).
-    self_test_status: SelfTestStatus,
-    self_test_result: SelfTest,
+    /// The report of the last self-test that ended, `Done` or `Aborted` (`NotRun`,
+    /// all zero: none has run on this controller).
+    last_self_test: SelfTestReport,
 }
 
 impl Controller {
@@ -302,31 +313,24 @@ impl Controller {
             params.speed_filter_tau_s,
         );
         Controller {
-            state: if faults.is_empty() {
-                State::Idle
+            mode: if faults.is_empty() {
+                Mode::Idle
             } else {
-                State::Fault
+                Mode::Fault(faults)
             },
-            faults,
             params_error,
             encoders: [encoder; 2],
             current_filtered: [0.0; 2],
             monitor: FaultMonitor::new(),
             link_age_s: 0.0,
             overruns: 0,
-            target: None,
-            ramp_rpm: 0.0,
             offset: OffsetRamp::new(ramp::VERTICAL_OFFSET_DEG),
-            phase_closed: false,
-            phase_error_unwrapped: None,
-            phase_loop: PhaseLoop::new(),
-            speed_loops: [SpeedLoop::new(); 2],
-            stop_elapsed_s: 0.0,
             last_duty: [0.0; 2],
             last_speed_rpm: [0.0; 2],
-            self_test: None,
-            self_test_status: SelfTestStatus::NotRun,
-            self_test_result: SelfTest::default(),
+            last_self_test: SelfTestReport {
+                status: SelfTestStatus::NotRun,
+                result: SelfTest::default(),
+            },
             tick_s: params.tick_s(),
             deg_per_count: TURN_DEG / params.encoder_counts as f32,
             phase_trim_max_rad_s: rpm_to_rad_s(params.phase_trim_max_rpm),
@@ -356,7 +360,7 @@ impl Controller {
     /// with the motors off ([`State::Idle`] or [`State::Fault`]): a running
     /// machine keeps its table, and `false` says the table was not taken.
     pub fn set_tuning(&mut self, table: TuningTable) -> bool {
-        if matches!(self.state, State::Idle | State::Fault) {
+        if matches!(self.mode, Mode::Idle | Mode::Fault(_)) {
             self.params.tuning = table;
             self.table_offset = None;
             true
@@ -366,7 +370,7 @@ impl Controller {
     }
 
     /// Start the first-run self-test ([`self_test`]): only from [`State::Idle`]
-    /// with no fault latched and both rotors at rest (the last tick's speeds within
+    /// (no fault latched) with both rotors at rest (the last tick's speeds within
     /// [`self_test::REST_RPM`]); `false` says it did not start and changes nothing.
     /// The state is [`State::SelfTest`] until it finishes ([`State::Idle`], status
     /// `Done`) or is aborted by a fault ([`State::Fault`]) or [`Command::Stop`]
@@ -376,14 +380,10 @@ impl Controller {
             .last_speed_rpm
             .iter()
             .all(|w| libm::fabsf(*w) <= self_test::REST_RPM);
-        if self.state != State::Idle || !self.faults.is_empty() || !at_rest {
+        if !matches!(self.mode, Mode::Idle) || !at_rest {
             return false;
         }
-        self.stop_run();
-        self.self_test = Some(SelfTestRun::new(SelfTestConfig::from_params(&self.params)));
-        self.self_test_status = SelfTestStatus::Running;
-        self.self_test_result = SelfTest::default();
-        self.state = State::SelfTest;
+        self.mode = Mode::SelfTest(SelfTestRun::new(SelfTestConfig::from_params(&self.params)));
         true
     }
 
@@ -391,33 +391,34 @@ impl Controller {
     /// on this controller, then `Running` with what it has measured so far, then
     /// `Done` or `Aborted` with its measurements.
     pub fn self_test_report(&self) -> SelfTestReport {
-        let result = match (&self.self_test, self.self_test_status) {
-            (Some(run), SelfTestStatus::Running) => run.result(),
-            _ => self.self_test_result,
-        };
-        SelfTestReport {
-            status: self.self_test_status,
-            result,
+        match &self.mode {
+            Mode::SelfTest(run) => SelfTestReport {
+                status: SelfTestStatus::Running,
+                result: run.result(),
+            },
+            _ => self.last_self_test,
         }
     }
 
-    /// End the self-test in progress, if one is, with `status`.
+    /// Keep the report of the self-test in progress, if one is, ended with
+    /// `status`; the caller moves the mode on.
     fn end_self_test(&mut self, status: SelfTestStatus) {
-        if let Some(mut run) = self.self_test.take() {
-            run.abort();
-            self.self_test_result = run.result();
-            self.self_test_status = status;
+        if let Mode::SelfTest(run) = &self.mode {
+            self.last_self_test = SelfTestReport {
+                status,
+                result: run.result(),
+            };
         }
     }
 
     /// The current state.
     pub fn state(&self) -> State {
-        self.state
+        self.mode.state()
     }
 
     /// The latched faults.
     pub fn faults(&self) -> Faults {
-        self.faults
+        self.mode.faults()
     }
 
     /// One control tick: `inputs` sampled now, `dt` s since the previous tick.
@@ -440,25 +441,10 @@ impl Controller {
     /// 7. **Speed loops**: feedforward + PI to duties (the self-test's duties in
     ///    [`State::SelfTest`]).
     /// 8. **Output**, built afresh: with any fault latched, or idle, the safe state
-    ///    (enable off, duty 0) overrides whatever the loops computed.
+    ///    (every bridge off) overrides whatever the loops computed.
     pub fn step(&mut self, inputs: &Inputs, dt: f32) -> Outputs {
         // 1. Time.
-        if self.dt_constants.given_dt != dt {
-            let tick = self.tick_s;
-            let usable = if dt.is_finite() && dt > 0.0 {
-                dt.clamp(0.1 * tick, 10.0 * tick)
-            } else {
-                tick
-            };
-            let p = &self.params;
-            self.dt_constants = DtConstants {
-                given_dt: dt,
-                dt: usable,
-                max_counts: p.max_counts(usable),
-                current_alpha: usable / (p.current_filter_tau_s + usable),
-            };
-        }
-        let dt = self.dt_constants.dt;
+        let dt = self.usable_dt(dt);
 
         // One rotor: rotor 2's inputs are not read; every stage sees it at rest
         // (its counter standing at 0, no index pulse, no current), so none of them
@@ -478,16 +464,6 @@ impl Controller {
 
         // 2. Measure.
         let m = self.measure(inputs, dt);
-        let phase_error_deg = match (self.phase_closed, m.offset_deg) {
-            (true, Some(o)) => Some(wrap_deg_signed(self.offset.reference_deg() - o)),
-            _ => None,
-        };
-        // Unwrapped for the lock check: a rotor slipping whole turns would otherwise
-        // bring the wrapped error back through 0 every turn and restart the timer.
-        self.phase_error_unwrapped = phase_error_deg.map(|e| match self.phase_error_unwrapped {
-            Some((sum, last)) => (sum + wrap_deg_signed(e - last), e),
-            None => (e, e),
-        });
         self.link_age_s = if inputs.command.is_some() {
             0.0
         } else {
@@ -495,185 +471,58 @@ impl Controller {
         };
 
         // 3. Check faults.
-        // The self-test measures the index itself: only count jumps are faults.
-        let testing = self.state == State::SelfTest;
-        let encoder_anomaly = map2(m.anomaly, |a| match a {
-            Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
-            other => other,
-        });
-        let current = inputs.current;
-        let obs = Observation {
-            state: self.state,
-            duty: self.last_duty,
-            speed_rpm: map2(m.speed_rad_s, rad_s_to_rpm),
-            current,
-            current_filtered: self.current_filtered,
-            encoder_anomaly,
-            phase_error_deg: self.phase_error_unwrapped.map(|(sum, _)| sum),
-            supply_voltage: inputs.supply_voltage,
-            estop: inputs.estop,
-            link_age_s: self.link_age_s,
-            deadline_missed: FaultMonitor::missed_deadline(inputs.timing, &self.params.limits),
-        };
-        let found = self.monitor.check(&obs, &self.params.limits, dt);
-        if obs.deadline_missed {
-            self.overruns = self.overruns.saturating_add(1);
-        }
-        if !found.is_empty() {
-            self.latch(found);
-        }
+        let obs = self.observe(inputs, &m);
+        let found = self.check_faults(&obs, dt);
 
-        // 4. Command.
+        // 4. Command; the self-test's duties, or its end.
         let rejected = self.command(inputs.command, &obs, &m, found);
-        self.last_speed_rpm = obs.speed_rpm;
-
-        // 4b. Self-test: its duties, or its end.
-        let mut test_duty = [0.0; 2];
-        if self.state == State::SelfTest {
-            if let Some(run) = self.self_test.as_mut() {
-                let step = run.step(
-                    &SelfTestSample {
-                        encoder: inputs.encoder,
-                        index: inputs.index,
-                        current,
-                        speed_rpm: obs.speed_rpm,
-                    },
-                    dt,
-                );
-                test_duty = step.duty;
-                if step.done {
-                    self.end_self_test(SelfTestStatus::Done);
-                    self.state = State::Idle;
-                }
-            } else {
-                self.state = State::Idle;
-            }
-        }
+        self.last_speed_rpm = m.speed_rpm;
+        let test_duty = self.self_test_tick(inputs, &m, dt);
 
         // 5. References.
         let (accel_rpm_s, offset_rate_deg_s) = self.references(&m, dt);
 
-        // 6. Phase loop: dw = w1 - w2, rad/s.
-        let p = &self.params;
-        let ramp_rad_s = rpm_to_rad_s(self.ramp_rpm);
-        let dw = match (self.phase_closed, phase_error_deg) {
-            (true, Some(e)) => {
-                // min(trim_max, fraction x max(ramp, 0)), written out: `f32::min`
-                // and `max` are library calls on the Cortex-M4F. The ramp is
-                // finite; a NaN would give 0 as `max` does.
-                let ramp_pos = if ramp_rad_s > 0.0 { ramp_rad_s } else { 0.0 };
-                let fraction = p.phase_trim_fraction * ramp_pos;
-                let limit = if fraction < self.phase_trim_max_rad_s {
-                    fraction
-                } else {
-                    self.phase_trim_max_rad_s
-                };
-                self.phase_loop.update(
-                    e / DEG_PER_RAD,
-                    offset_rate_deg_s / DEG_PER_RAD,
-                    p.phase_kp,
-                    p.phase_ki,
-                    limit,
-                    dt,
-                )
-            }
-            _ => {
-                self.phase_loop.reset();
-                0.0
-            }
-        };
-        let speed_ref = [ramp_rad_s + 0.5 * dw, ramp_rad_s - 0.5 * dw];
+        // 6. Phase loop.
+        let speed_ref = self.speed_references(&m, offset_rate_deg_s, dt);
 
         // 7. Speed loops.
-        let supply_v = if inputs.supply_voltage.is_finite()
-            && inputs.supply_voltage >= 0.5 * p.supply_nominal_v
-        {
-            inputs.supply_voltage
-        } else {
-            p.supply_nominal_v
-        };
-        let mut duty = [0.0; 2];
-        if self.state == State::SelfTest {
-            duty = test_duty;
-            self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
-        } else if self.state.drives() {
-            let accel_ref_rad_s2 = rpm_to_rad_s(accel_rpm_s);
-            let update = |k: usize, speed_loop: &mut SpeedLoop| {
-                let input = SpeedLoopInput {
-                    speed_ref_rad_s: speed_ref[k],
-                    accel_ref_rad_s2,
-                    speed_rad_s: m.speed_rad_s[k],
-                    supply_v,
-                };
-                speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
-            };
-            let [loop1, loop2] = &mut self.speed_loops;
-            duty = if self.one_rotor {
-                // Rotor 2 is not driven: exactly 0.
-                [update(0, loop1), 0.0]
-            } else {
-                [update(0, loop1), update(1, loop2)]
-            };
-        } else {
-            self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
-        }
+        let duty = self.duties(
+            inputs.supply_voltage,
+            &m,
+            speed_ref,
+            accel_rpm_s,
+            test_duty,
+            dt,
+        );
 
-        // 8. Output, with the safe-state override.
-        let enable = self.state.drives() && self.faults.is_empty();
-        let duty = if enable {
-            map2(duty, |d| {
-                // In range already (the loops' duties are): as it is; otherwise
-                // clamped, and 0 if not finite.
-                if libm::fabsf(d) <= 1.0 {
-                    d
-                } else if d.is_finite() {
-                    d.clamp(-1.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
-        } else {
-            [0.0; 2]
-        };
-        self.last_duty = duty;
-        let driving = self.state.drives();
-        Outputs {
-            duty,
-            enable,
-            bridges: self.params.rotor_count.bridges_on(enable),
-            state: self.state,
-            faults: self.faults,
-            telemetry: Telemetry {
-                speed_rpm: obs.speed_rpm,
-                speed_ref_rpm: if !driving {
-                    [0.0; 2]
-                } else if self.one_rotor {
-                    [rad_s_to_rpm(speed_ref[0]), 0.0]
-                } else {
-                    map2(speed_ref, rad_s_to_rpm)
-                },
-                phase_valid: m.offset_deg.is_some(),
-                phase_offset_deg: m.offset_deg.unwrap_or(0.0),
-                phase_loop_closed: self.phase_closed,
-                commanded_offset_deg: self.offset.reference_deg(),
-                target_offset_deg: self.offset.target_deg(),
-                phase_error_deg: if self.phase_closed {
-                    phase_error_deg.unwrap_or(0.0)
-                } else {
-                    0.0
-                },
-                current,
-                supply_voltage: inputs.supply_voltage,
-                duty,
-                command_rejected: rejected,
-                tick_late_us: saturating_us(inputs.timing.late_s),
-                tick_busy_us: saturating_us(inputs.timing.busy_s),
-                overruns: self.overruns,
-            },
-        }
+        // 8. Output.
+        self.outputs(inputs, &m, speed_ref, duty, rejected)
     }
 
-    /// Stage 2: encoders, phase offset, current filter.
+    /// Stage 1: the usable `dt`, s: NaN, infinite or <= 0 taken as one nominal tick,
+    /// otherwise clamped to [0.1, 10] nominal ticks, so that a broken tick source
+    /// leaves the controller defined. The constants of that `dt` are worked out
+    /// again only when the `dt` given changes.
+    fn usable_dt(&mut self, dt: f32) -> f32 {
+        if self.dt_constants.given_dt != dt {
+            let tick = self.tick_s;
+            let usable = if dt.is_finite() && dt > 0.0 {
+                dt.clamp(0.1 * tick, 10.0 * tick)
+            } else {
+                tick
+            };
+            let p = &self.params;
+            self.dt_constants = DtConstants {
+                given_dt: dt,
+                dt: usable,
+                max_counts: p.max_counts(usable),
+                current_alpha: usable / (p.current_filter_tau_s + usable),
+            };
+        }
+        self.dt_constants.dt
+    }
+
+    /// Stage 2: encoders, phase offset and phase error, current filter.
     fn measure(&mut self, inputs: &Inputs, dt: f32) -> Measurement {
         let p = &self.params;
         let max_counts = self.dt_constants.max_counts;
@@ -715,27 +564,97 @@ impl Controller {
 
         Measurement {
             speed_rad_s,
+            speed_rpm: map2(speed_rad_s, rad_s_to_rpm),
             anomaly,
             offset_deg,
+            phase_error: self.phase_error(offset_deg),
         }
     }
 
-    /// Latch `found`: motors off, references and loops back to rest.
-    fn latch(&mut self, found: Faults) {
-        self.end_self_test(SelfTestStatus::Aborted);
-        self.faults |= found;
-        self.state = State::Fault;
-        self.stop_run();
+    /// Stage 2, the phase error: measured while the phase loop is closed and the
+    /// offset known, against the offset reference in force over the tick just
+    /// ended. Its unwrapped sum is carried from tick to tick for the lock check: a
+    /// rotor slipping whole turns would otherwise bring the wrapped error back
+    /// through 0 every turn and restart the check's timer.
+    fn phase_error(&mut self, offset_deg: Option<f32>) -> Option<PhaseError> {
+        let reference_deg = self.offset.reference_deg();
+        let Some(Run {
+            phase: PhaseLock::Closed { error, .. },
+            ..
+        }) = self.mode.run_mut()
+        else {
+            return None;
+        };
+        let Some(o) = offset_deg else {
+            *error = None;
+            return None;
+        };
+        let e = wrap_deg_signed(reference_deg - o);
+        let unwrapped = match *error {
+            Some(u) => UnwrappedError {
+                sum_deg: u.sum_deg + wrap_deg_signed(e - u.last_deg),
+                last_deg: e,
+            },
+            None => UnwrappedError {
+                sum_deg: e,
+                last_deg: e,
+            },
+        };
+        *error = Some(unwrapped);
+        Some(PhaseError {
+            wrapped_deg: e,
+            unwrapped_deg: unwrapped.sum_deg,
+        })
     }
 
-    /// Forget the run: no target, ramps and loops at rest, phase loop open.
-    fn stop_run(&mut self) {
-        self.target = None;
-        self.ramp_rpm = 0.0;
-        self.phase_closed = false;
-        self.phase_loop.reset();
-        self.speed_loops.iter_mut().for_each(SpeedLoop::reset);
-        self.stop_elapsed_s = 0.0;
+    /// Stage 3, what the fault checks look at: this tick's inputs and
+    /// measurements, the previous tick's duties, the state before this tick's
+    /// command. A reset in this tick's command looks at it too (the causes still
+    /// present).
+    fn observe(&self, inputs: &Inputs, m: &Measurement) -> Observation {
+        let state = self.mode.state();
+        // The self-test measures the index itself: only count jumps are faults.
+        let testing = state == State::SelfTest;
+        let encoder_anomaly = map2(m.anomaly, |a| match a {
+            Some(EncoderAnomaly::IndexMisplaced | EncoderAnomaly::IndexMissing) if testing => None,
+            other => other,
+        });
+        Observation {
+            state,
+            duty: self.last_duty,
+            speed_rpm: m.speed_rpm,
+            current: inputs.current,
+            current_filtered: self.current_filtered,
+            encoder_anomaly,
+            phase_error_deg: m.phase_error.map(|e| e.unwrapped_deg),
+            supply_voltage: inputs.supply_voltage,
+            estop: inputs.estop,
+            link_age_s: self.link_age_s,
+            deadline_missed: FaultMonitor::missed_deadline(inputs.timing, &self.params.limits),
+        }
+    }
+
+    /// Stage 3, the fault checks on `obs`: what they find is latched at once (the
+    /// state becomes [`State::Fault`], a run or self-test ends), in this very
+    /// tick; a deadline missed is counted whatever the state. Returns the faults
+    /// found in this tick.
+    fn check_faults(&mut self, obs: &Observation, dt: f32) -> Faults {
+        let found = self.monitor.check(obs, &self.params.limits, dt);
+        if obs.deadline_missed {
+            self.overruns = self.overruns.saturating_add(1);
+        }
+        if !found.is_empty() {
+            self.latch(found);
+        }
+        found
+    }
+
+    /// Latch `found`: the state becomes [`State::Fault`] with them added to those
+    /// already latched; a run ends (motors off, references and loops gone), a
+    /// self-test is aborted.
+    fn latch(&mut self, found: Faults) {
+        self.end_self_test(SelfTestStatus::Aborted);
+        self.mode = Mode::Fault(self.mode.faults() | found);
     }
 
     /// Stage 4: apply this tick's command; true if it was refused. `found`: the
@@ -751,26 +670,11 @@ impl Controller {
         match command {
             None | Some(Command::Heartbeat) => false,
             Some(Command::ResetFaults) => {
-                if self.state == State::Fault {
-                    let keep =
-                        FaultMonitor::present(obs, &self.params.limits) | Faults::PARAMS | found;
-                    self.faults = Faults::from_bits(self.faults.bits() & keep.bits());
-                    if self.faults.is_empty() {
-                        self.state = State::Idle;
-                        self.monitor.clear();
-                        self.stop_run();
-                    }
-                }
+                self.reset_faults(obs, found);
                 false
             }
             Some(Command::Stop) => {
-                if self.state == State::SelfTest {
-                    self.end_self_test(SelfTestStatus::Aborted);
-                    self.state = State::Idle;
-                } else if matches!(self.state, State::Starting | State::Running) {
-                    self.state = State::Stopping;
-                    self.stop_elapsed_s = 0.0;
-                }
+                self.stop();
                 false
             }
             Some(Command::Travel {
@@ -790,79 +694,133 @@ impl Controller {
         }
     }
 
-    /// A run command: refused in a fault or out of the speed range; otherwise it
-    /// sets the target and starts from idle or a stop.
+    /// A reset: in [`State::Fault`], clear the latched faults whose cause is gone
+    /// (not [`Faults::PARAMS`], not those `found` in this tick); none left: idle.
+    fn reset_faults(&mut self, obs: &Observation, found: Faults) {
+        if let Mode::Fault(latched) = self.mode {
+            let keep = FaultMonitor::present(obs, &self.params.limits) | Faults::PARAMS | found;
+            let left = Faults::from_bits(latched.bits() & keep.bits());
+            if left.is_empty() {
+                self.mode = Mode::Idle;
+                self.monitor.clear();
+            } else {
+                self.mode = Mode::Fault(left);
+            }
+        }
+    }
+
+    /// A stop: a self-test is aborted (idle); a run starting or running ramps
+    /// down to rest (stopping).
+    fn stop(&mut self) {
+        match self.mode {
+            Mode::SelfTest(_) => {
+                self.end_self_test(SelfTestStatus::Aborted);
+                self.mode = Mode::Idle;
+            }
+            Mode::Starting(run) | Mode::Running(run) => {
+                self.mode = Mode::Stopping {
+                    run,
+                    ramp_at_zero_s: 0.0,
+                };
+            }
+            Mode::Idle | Mode::Stopping { .. } | Mode::Fault(_) => {}
+        }
+    }
+
+    /// A run command: refused in a fault or a self-test or out of the speed range;
+    /// otherwise it starts a run from idle (its ramp from the speed the rotors
+    /// have), or takes over the run in progress (a stop starts again). With the
+    /// phase loop closed the offset reference heads for the new offset, through the
+    /// vertical-force offset on a change of side.
     fn run(&mut self, speed_rpm: f32, offset: OffsetSource, m: &Measurement) -> bool {
         let p = &self.params;
-        if matches!(self.state, State::Fault | State::SelfTest)
-            || !(speed_rpm >= p.min_speed_rpm && speed_rpm <= p.max_speed_rpm)
-        {
+        if !(speed_rpm >= p.min_speed_rpm && speed_rpm <= p.max_speed_rpm) {
             return true;
         }
-        if self.state == State::Idle {
-            // Start from the speed the rotors have (0 at rest, more if coasting).
-            self.stop_run();
-            let max = self.params.max_speed_rpm;
-            let mean = if self.one_rotor {
-                rad_s_to_rpm(m.speed_rad_s[0])
-            } else {
-                rad_s_to_rpm(0.5 * (m.speed_rad_s[0] + m.speed_rad_s[1]))
-            };
-            self.ramp_rpm = if mean.is_finite() {
-                mean.clamp(0.0, max)
-            } else {
-                0.0
-            };
-        }
-        self.target = Some(RunTarget { speed_rpm, offset });
-        if self.state != State::Running {
-            self.state = State::Starting;
-        }
-        if self.phase_closed {
-            let to = self.target_offset();
-            self.offset.retarget(to, true);
+        let target = RunTarget { speed_rpm, offset };
+        match &mut self.mode {
+            Mode::Fault(_) | Mode::SelfTest(_) => return true,
+            Mode::Idle => {
+                // Start from the speed the rotors have (0 at rest, more if
+                // coasting).
+                let ramp_rpm = self.start_speed_rpm(m);
+                self.mode = Mode::Starting(Run::new(target, ramp_rpm));
+            }
+            Mode::Starting(run) | Mode::Running(run) | Mode::Stopping { run, .. } => {
+                run.target = target;
+                if run.phase_closed() {
+                    let to = target_offset(run, &self.params.tuning, &mut self.table_offset);
+                    self.offset.command(to);
+                }
+                if let Mode::Stopping { run, .. } = self.mode {
+                    self.mode = Mode::Starting(run);
+                }
+            }
         }
         false
     }
 
-    /// The offset the current target asks for at the ramped speed, degrees.
-    fn target_offset(&mut self) -> f32 {
-        match self.target.map(|t| t.offset) {
-            Some(OffsetSource::Table(direction)) => {
-                let speed_bits = self.ramp_rpm.to_bits();
-                match self.table_offset {
-                    Some(c) if c.direction == direction && c.speed_bits == speed_bits => {
-                        c.offset_deg
-                    }
-                    _ => {
-                        let offset_deg = self.params.tuning.offset(direction, self.ramp_rpm);
-                        self.table_offset = Some(TableOffset {
-                            direction,
-                            speed_bits,
-                            offset_deg,
-                        });
-                        offset_deg
-                    }
-                }
-            }
-            Some(OffsetSource::Fixed(o)) => o,
-            None => self.offset.target_deg(),
+    /// Where a run from idle starts its speed ramp, rpm: the rotors' mean measured
+    /// speed (rotor 1's on one rotor) in [0, max_speed_rpm], 0 if not finite.
+    fn start_speed_rpm(&self, m: &Measurement) -> f32 {
+        let max = self.params.max_speed_rpm;
+        let mean = if self.one_rotor {
+            rad_s_to_rpm(m.speed_rad_s[0])
+        } else {
+            rad_s_to_rpm(0.5 * (m.speed_rad_s[0] + m.speed_rad_s[1]))
+        };
+        if mean.is_finite() {
+            mean.clamp(0.0, max)
+        } else {
+            0.0
         }
     }
 
+    /// Stage 4, the self-test's tick: in [`State::SelfTest`] the test steps on this
+    /// tick's sample and gives its duties, or it has finished (idle, status
+    /// `Done`); [0, 0] in any other state.
+    fn self_test_tick(&mut self, inputs: &Inputs, m: &Measurement, dt: f32) -> [f32; 2] {
+        let Mode::SelfTest(run) = &mut self.mode else {
+            return [0.0; 2];
+        };
+        let step = run.step(
+            &SelfTestSample {
+                encoder: inputs.encoder,
+                index: inputs.index,
+                current: inputs.current,
+                speed_rpm: m.speed_rpm,
+            },
+            dt,
+        );
+        if step.done {
+            self.end_self_test(SelfTestStatus::Done);
+            self.mode = Mode::Idle;
+        }
+        step.duty
+    }
+
     /// Stage 5: ramp the speed and the offset, open or close the phase loop, move
-    /// between states. Returns the speed reference's acceleration (rpm/s) and the
-    /// offset reference's rate (degrees/s).
+    /// between states (starting to running, a finished stop to idle). Returns the
+    /// speed reference's acceleration (rpm/s) and the offset reference's rate
+    /// (degrees/s), both 0 outside a run.
     fn references(&mut self, m: &Measurement, dt: f32) -> (f32, f32) {
         let p = &self.params;
-        let target_rpm = match (self.state, self.target) {
-            (State::Starting | State::Running, Some(t)) => t.speed_rpm,
-            (State::Stopping, _) => 0.0,
-            _ => {
-                self.ramp_rpm = 0.0;
-                self.phase_closed = false;
-                return (0.0, 0.0);
+        // The run, the speed it heads for, whether it is starting, and a stop's
+        // time at zero speed.
+        let (run, target_rpm, starting, stop) = match &mut self.mode {
+            Mode::Starting(run) => {
+                let target_rpm = run.target.speed_rpm;
+                (run, target_rpm, true, None)
             }
+            Mode::Running(run) => {
+                let target_rpm = run.target.speed_rpm;
+                (run, target_rpm, false, None)
+            }
+            Mode::Stopping {
+                run,
+                ramp_at_zero_s,
+            } => (run, 0.0, false, Some(ramp_at_zero_s)),
+            Mode::Idle | Mode::SelfTest(_) | Mode::Fault(_) => return (0.0, 0.0),
         };
 
         // Speed ramp.
@@ -871,62 +829,210 @@ impl Controller {
             resonance_rpm_s: p.resonance_ramp_rpm_s,
             band_rpm: p.resonance_band_rpm,
         };
-        let (ramp, accel) = ramp_speed(self.ramp_rpm, target_rpm, &rates, dt);
-        self.ramp_rpm = ramp;
-        let offset_step_deg = p.offset_ramp_deg_s * dt;
-        let stop_speed_rpm = p.stop_speed_rpm;
-        let stop_timeout_s = p.stop_timeout_s;
+        let (ramp, accel) = ramp_speed(run.ramp_rpm, target_rpm, &rates, dt);
+        run.ramp_rpm = ramp;
 
         // Phase loop open or closed: closed with both angles known above its speed.
-        let can_close = m.offset_deg.is_some() && self.ramp_rpm >= p.phase_loop_min_rpm;
-        if can_close && !self.phase_closed {
-            self.phase_closed = true;
-            self.phase_loop.reset();
+        let can_close = m.offset_deg.is_some() && run.ramp_rpm >= p.phase_loop_min_rpm;
+        if can_close && !run.phase_closed() {
+            run.phase = PhaseLock::Closed {
+                pi: PhaseLoop::new(),
+                error: None,
+            };
             // From the measured offset along the shorter arc: at closing the
             // rotors are slow (the loop closes at `phase_loop_min_rpm`) and the
             // platform barely excited, so the through-180 rule of direction
             // changes would only delay a start to the left by half a turn.
             self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
-            let to = self.target_offset();
-            self.offset.retarget(to, false);
-        } else if !can_close && self.phase_closed {
-            self.phase_closed = false;
-            self.phase_loop.reset();
+            let to = target_offset(run, &p.tuning, &mut self.table_offset);
+            self.offset.follow(to);
+        } else if !can_close && run.phase_closed() {
+            run.phase = PhaseLock::Open;
         }
 
-        // Offset ramp; the table's offset follows the ramped speed.
+        // Offset ramp; the table's offset follows the ramped speed, except in a
+        // stop, which keeps heading where the run left it.
+        let phase_closed = run.phase_closed();
         let mut offset_rate = 0.0;
-        if self.phase_closed {
-            if self.state != State::Stopping {
-                let to = self.target_offset();
-                self.offset.retarget(to, false);
+        if phase_closed {
+            if stop.is_none() {
+                let to = target_offset(run, &p.tuning, &mut self.table_offset);
+                self.offset.follow(to);
             }
-            let moved = self.offset.step(offset_step_deg);
+            let moved = self.offset.step(p.offset_ramp_deg_s * dt);
             offset_rate = moved / dt;
         }
 
-        // State changes.
-        match self.state {
-            // One rotor: no phase loop to wait for.
-            State::Starting
-                if self.ramp_rpm == target_rpm && (self.phase_closed || self.one_rotor) =>
-            {
-                self.state = State::Running;
-            }
-            State::Stopping if self.ramp_rpm == 0.0 => {
-                self.stop_elapsed_s += dt;
+        // State changes: a start at the commanded speed with the phase loop closed
+        // (one rotor: no phase loop to wait for) is running; a stop ends once the
+        // ramp is at 0 and the rotors are slow, or after its timeout.
+        match stop {
+            Some(ramp_at_zero_s) if run.ramp_rpm == 0.0 => {
+                *ramp_at_zero_s += dt;
                 let slow = m
                     .speed_rad_s
                     .iter()
-                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < stop_speed_rpm);
-                if slow || self.stop_elapsed_s >= stop_timeout_s {
-                    self.state = State::Idle;
-                    self.stop_run();
+                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < p.stop_speed_rpm);
+                if slow || *ramp_at_zero_s >= p.stop_timeout_s {
+                    self.mode = Mode::Idle;
+                }
+            }
+            None if starting && run.ramp_rpm == target_rpm && (phase_closed || self.one_rotor) => {
+                if let Mode::Starting(run) = self.mode {
+                    self.mode = Mode::Running(run);
                 }
             }
             _ => {}
         }
         (accel, offset_rate)
+    }
+
+    /// Stage 6: the speed references of the speed loops, rad/s: the ramp's, plus
+    /// and minus half the speed difference `dw = w1 - w2` the phase loop asks for
+    /// to correct the phase error (none with the loop open); 0 outside a run.
+    fn speed_references(&mut self, m: &Measurement, offset_rate_deg_s: f32, dt: f32) -> [f32; 2] {
+        let p = &self.params;
+        let Some(run) = self.mode.run_mut() else {
+            return [0.0; 2];
+        };
+        let ramp_rad_s = rpm_to_rad_s(run.ramp_rpm);
+        let dw = match (&mut run.phase, m.phase_error) {
+            (PhaseLock::Closed { pi, .. }, Some(e)) => {
+                // min(trim_max, fraction x max(ramp, 0)), written out: `f32::min`
+                // and `max` are library calls on the Cortex-M4F. The ramp is
+                // finite; a NaN would give 0 as `max` does.
+                let ramp_pos = if ramp_rad_s > 0.0 { ramp_rad_s } else { 0.0 };
+                let fraction = p.phase_trim_fraction * ramp_pos;
+                let limit = if fraction < self.phase_trim_max_rad_s {
+                    fraction
+                } else {
+                    self.phase_trim_max_rad_s
+                };
+                pi.update(
+                    e.wrapped_deg / DEG_PER_RAD,
+                    offset_rate_deg_s / DEG_PER_RAD,
+                    p.phase_kp,
+                    p.phase_ki,
+                    limit,
+                    dt,
+                )
+            }
+            // Open, or closed in this very tick: no error measured yet, the
+            // integrator empty.
+            _ => 0.0,
+        };
+        [ramp_rad_s + 0.5 * dw, ramp_rad_s - 0.5 * dw]
+    }
+
+    /// Stage 7: the duties: in a run the speed loops' (feedforward + PI towards
+    /// `speed_ref`, rad/s, with the reference's acceleration `accel_rpm_s`), in the
+    /// self-test its own `test_duty`, otherwise 0.
+    fn duties(
+        &mut self,
+        supply_voltage: f32,
+        m: &Measurement,
+        speed_ref: [f32; 2],
+        accel_rpm_s: f32,
+        test_duty: [f32; 2],
+        dt: f32,
+    ) -> [f32; 2] {
+        let p = &self.params;
+        let run = match &mut self.mode {
+            Mode::Starting(run) | Mode::Running(run) | Mode::Stopping { run, .. } => run,
+            Mode::SelfTest(_) => return test_duty,
+            Mode::Idle | Mode::Fault(_) => return [0.0; 2],
+        };
+        // The measured supply, unless unusable: then the nominal one.
+        let supply_v = if supply_voltage.is_finite() && supply_voltage >= 0.5 * p.supply_nominal_v {
+            supply_voltage
+        } else {
+            p.supply_nominal_v
+        };
+        let accel_ref_rad_s2 = rpm_to_rad_s(accel_rpm_s);
+        let update = |k: usize, speed_loop: &mut SpeedLoop| {
+            let input = SpeedLoopInput {
+                speed_ref_rad_s: speed_ref[k],
+                accel_ref_rad_s2,
+                speed_rad_s: m.speed_rad_s[k],
+                supply_v,
+            };
+            speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
+        };
+        let [loop1, loop2] = &mut run.speed_loops;
+        if self.one_rotor {
+            // Rotor 2 is not driven: exactly 0.
+            [update(0, loop1), 0.0]
+        } else {
+            [update(0, loop1), update(1, loop2)]
+        }
+    }
+
+    /// Stage 8: the outputs, built afresh. The state after this tick decides which
+    /// bridges are driven; a latched fault is [`State::Fault`], which drives none:
+    /// the safe state overrides whatever the loops computed. A duty out of [-1, 1]
+    /// is clamped, a non-finite one written as 0.
+    fn outputs(
+        &mut self,
+        inputs: &Inputs,
+        m: &Measurement,
+        speed_ref: [f32; 2],
+        duty: [f32; 2],
+        rejected: bool,
+    ) -> Outputs {
+        let state = self.mode.state();
+        let driving = state.drives();
+        let duty = if driving {
+            map2(duty, |d| {
+                // In range already (the loops' duties are): as it is; otherwise
+                // clamped, and 0 if not finite.
+                if libm::fabsf(d) <= 1.0 {
+                    d
+                } else if d.is_finite() {
+                    d.clamp(-1.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+        } else {
+            [0.0; 2]
+        };
+        self.last_duty = duty;
+        let on = self.params.rotor_count.bridges_on(driving);
+        let phase_closed = self.mode.run().is_some_and(Run::phase_closed);
+        Outputs {
+            bridges: [
+                Bridge::driven_if(on[0], duty[0]),
+                Bridge::driven_if(on[1], duty[1]),
+            ],
+            state,
+            faults: self.mode.faults(),
+            telemetry: Telemetry {
+                speed_rpm: m.speed_rpm,
+                speed_ref_rpm: if !driving {
+                    [0.0; 2]
+                } else if self.one_rotor {
+                    [rad_s_to_rpm(speed_ref[0]), 0.0]
+                } else {
+                    map2(speed_ref, rad_s_to_rpm)
+                },
+                phase_valid: m.offset_deg.is_some(),
+                phase_offset_deg: m.offset_deg.unwrap_or(0.0),
+                phase_loop_closed: phase_closed,
+                commanded_offset_deg: self.offset.reference_deg(),
+                target_offset_deg: self.offset.target_deg(),
+                phase_error_deg: match m.phase_error {
+                    Some(e) if phase_closed => e.wrapped_deg,
+                    _ => 0.0,
+                },
+                current: inputs.current,
+                supply_voltage: inputs.supply_voltage,
+                duty,
+                command_rejected: rejected,
+                tick_late_us: saturating_us(inputs.timing.late_s),
+                tick_busy_us: saturating_us(inputs.timing.busy_s),
+                overruns: self.overruns,
+            },
+        }
     }
 }
 

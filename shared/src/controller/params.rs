@@ -123,10 +123,10 @@ impl RotorCount {
         matches!(self, RotorCount::Two)
     }
 
-    /// Which H-bridges a tick drives, rotor 1's and rotor 2's, given the
-    /// controller's [`super::Outputs::enable`]: both with it on two rotors; on one,
+    /// Which H-bridges a tick drives, rotor 1's and rotor 2's, given whether the
+    /// controller drives the motors (`enable`): both with it on two rotors; on one,
     /// rotor 1's with it and rotor 2's never (off: both inputs low, the winding
-    /// open). A bridge not driven is off.
+    /// open). A bridge not driven is off ([`super::Outputs::bridges`]).
     pub const fn bridges_on(self, enable: bool) -> [bool; 2] {
         [enable, enable && self.has_rotor2()]
     }
@@ -351,6 +351,16 @@ fn non_negative(x: f32) -> bool {
     x.is_finite() && x >= 0.0
 }
 
+/// `Err` naming `field` unless `x` is finite and > 0.
+fn check_positive(x: f32, field: &'static str) -> Result<(), ParamError> {
+    check(positive(x), field, "finite and > 0")
+}
+
+/// `Err` naming `field` unless `x` is finite and >= 0.
+fn check_non_negative(x: f32, field: &'static str) -> Result<(), ParamError> {
+    check(non_negative(x), field, "finite and >= 0")
+}
+
 impl Params {
     /// Parameters for a machine by the design rules of the module documentation,
     /// with the default tuning table.
@@ -461,10 +471,19 @@ impl Params {
         1.0 / self.rate_hz
     }
 
-    /// The first parameter that is out of its range, if any.
+    /// The first parameter that is out of its range, if any, in the order of the
+    /// checks below: the machine and the filters, the loops, the speeds and
+    /// ramps, the fault limits.
     pub fn validate(&self) -> Result<(), ParamError> {
-        const POS: &str = "finite and > 0";
-        const NONNEG: &str = "finite and >= 0";
+        self.validate_machine()?;
+        self.validate_loops()?;
+        self.validate_speeds()?;
+        self.validate_limits()
+    }
+
+    /// The control rate, the encoder, the supply, the rotors' models and the
+    /// filters' time constants.
+    fn validate_machine(&self) -> Result<(), ParamError> {
         check(
             positive(self.rate_hz) && self.rate_hz <= 100_000.0,
             "rate_hz",
@@ -475,53 +494,43 @@ impl Params {
             "encoder_counts",
             "in [4, 2^24]",
         )?;
-        check(positive(self.supply_nominal_v), "supply_nominal_v", POS)?;
+        check_positive(self.supply_nominal_v, "supply_nominal_v")?;
         for r in &self.rotors {
-            check(positive(r.resistance_ohm), "rotors.resistance_ohm", POS)?;
-            check(positive(r.torque_constant), "rotors.torque_constant", POS)?;
-            check(positive(r.inertia_kg_m2), "rotors.inertia_kg_m2", POS)?;
-            check(
-                non_negative(r.load_torque_nm),
-                "rotors.load_torque_nm",
-                NONNEG,
-            )?;
+            check_positive(r.resistance_ohm, "rotors.resistance_ohm")?;
+            check_positive(r.torque_constant, "rotors.torque_constant")?;
+            check_positive(r.inertia_kg_m2, "rotors.inertia_kg_m2")?;
+            check_non_negative(r.load_torque_nm, "rotors.load_torque_nm")?;
         }
-        check(
-            non_negative(self.speed_filter_tau_s),
-            "speed_filter_tau_s",
-            NONNEG,
-        )?;
-        check(
-            non_negative(self.current_filter_tau_s),
-            "current_filter_tau_s",
-            NONNEG,
-        )?;
+        check_non_negative(self.speed_filter_tau_s, "speed_filter_tau_s")?;
+        check_non_negative(self.current_filter_tau_s, "current_filter_tau_s")
+    }
+
+    /// The speed loops' gains and lowest duty, the phase loop's gains, trim and
+    /// closing speed.
+    fn validate_loops(&self) -> Result<(), ParamError> {
         for g in &self.speed_gains {
-            check(non_negative(g.kp), "speed_gains.kp", NONNEG)?;
-            check(non_negative(g.ki), "speed_gains.ki", NONNEG)?;
+            check_non_negative(g.kp, "speed_gains.kp")?;
+            check_non_negative(g.ki, "speed_gains.ki")?;
         }
         check(
             self.min_duty.is_finite() && (-1.0..=0.0).contains(&self.min_duty),
             "min_duty",
             "in [-1, 0]",
         )?;
-        check(non_negative(self.phase_kp), "phase_kp", NONNEG)?;
-        check(non_negative(self.phase_ki), "phase_ki", NONNEG)?;
-        check(
-            non_negative(self.phase_trim_max_rpm),
-            "phase_trim_max_rpm",
-            NONNEG,
-        )?;
+        check_non_negative(self.phase_kp, "phase_kp")?;
+        check_non_negative(self.phase_ki, "phase_ki")?;
+        check_non_negative(self.phase_trim_max_rpm, "phase_trim_max_rpm")?;
         check(
             (0.0..=1.0).contains(&self.phase_trim_fraction),
             "phase_trim_fraction",
             "in [0, 1]",
         )?;
-        check(
-            non_negative(self.phase_loop_min_rpm),
-            "phase_loop_min_rpm",
-            NONNEG,
-        )?;
+        check_non_negative(self.phase_loop_min_rpm, "phase_loop_min_rpm")
+    }
+
+    /// The speed range a run command may ask for, the speed and offset ramps, the
+    /// end of a stop.
+    fn validate_speeds(&self) -> Result<(), ParamError> {
         check(
             positive(self.min_speed_rpm) && self.min_speed_rpm >= self.phase_loop_min_rpm,
             "min_speed_rpm",
@@ -532,44 +541,32 @@ impl Params {
             "max_speed_rpm",
             "finite and >= min_speed_rpm",
         )?;
-        check(positive(self.speed_ramp_rpm_s), "speed_ramp_rpm_s", POS)?;
+        check_positive(self.speed_ramp_rpm_s, "speed_ramp_rpm_s")?;
         let [lo, hi] = self.resonance_band_rpm;
         check(
             non_negative(lo) && hi.is_finite() && lo <= hi,
             "resonance_band_rpm",
             "finite, 0 <= low <= high",
         )?;
-        check(
-            positive(self.resonance_ramp_rpm_s),
-            "resonance_ramp_rpm_s",
-            POS,
-        )?;
-        check(positive(self.offset_ramp_deg_s), "offset_ramp_deg_s", POS)?;
-        check(non_negative(self.stop_speed_rpm), "stop_speed_rpm", NONNEG)?;
-        check(positive(self.stop_timeout_s), "stop_timeout_s", POS)?;
+        check_positive(self.resonance_ramp_rpm_s, "resonance_ramp_rpm_s")?;
+        check_positive(self.offset_ramp_deg_s, "offset_ramp_deg_s")?;
+        check_non_negative(self.stop_speed_rpm, "stop_speed_rpm")?;
+        check_positive(self.stop_timeout_s, "stop_timeout_s")
+    }
 
+    /// The fault limits ([`FaultLimits`]), some against the encoder, the speed
+    /// range, the rate and the nominal supply.
+    fn validate_limits(&self) -> Result<(), ParamError> {
         let l = &self.limits;
         check(
             positive(l.stall_duty) && l.stall_duty <= 1.0,
             "limits.stall_duty",
             "in (0, 1]",
         )?;
-        check(
-            non_negative(l.stall_speed_rpm),
-            "limits.stall_speed_rpm",
-            NONNEG,
-        )?;
-        check(
-            non_negative(l.stall_current_a),
-            "limits.stall_current_a",
-            NONNEG,
-        )?;
-        check(non_negative(l.stall_time_s), "limits.stall_time_s", NONNEG)?;
-        check(
-            non_negative(l.encoder_time_s),
-            "limits.encoder_time_s",
-            NONNEG,
-        )?;
+        check_non_negative(l.stall_speed_rpm, "limits.stall_speed_rpm")?;
+        check_non_negative(l.stall_current_a, "limits.stall_current_a")?;
+        check_non_negative(l.stall_time_s, "limits.stall_time_s")?;
+        check_non_negative(l.encoder_time_s, "limits.encoder_time_s")?;
         check(
             l.index_tolerance_counts < self.encoder_counts / 4,
             "limits.index_tolerance_counts",
@@ -583,22 +580,14 @@ impl Params {
             "limits.encoder_max_speed_rpm",
             "finite, >= max_speed_rpm and < 30 rate_hz (half a turn a tick)",
         )?;
-        check(positive(l.over_current_a), "limits.over_current_a", POS)?;
-        check(
-            non_negative(l.over_current_time_s),
-            "limits.over_current_time_s",
-            NONNEG,
-        )?;
+        check_positive(l.over_current_a, "limits.over_current_a")?;
+        check_non_negative(l.over_current_time_s, "limits.over_current_time_s")?;
         check(
             positive(l.phase_error_max_deg) && l.phase_error_max_deg <= 180.0,
             "limits.phase_error_max_deg",
             "in (0, 180]",
         )?;
-        check(
-            non_negative(l.phase_lost_time_s),
-            "limits.phase_lost_time_s",
-            NONNEG,
-        )?;
+        check_non_negative(l.phase_lost_time_s, "limits.phase_lost_time_s")?;
         check(
             l.link_timeout_s > 0.0,
             "limits.link_timeout_s",
@@ -616,14 +605,9 @@ impl Params {
             "supply_nominal_v",
             "inside [limits.supply_min_v, limits.supply_max_v]",
         )?;
-        check(
-            non_negative(l.supply_time_s),
-            "limits.supply_time_s",
-            NONNEG,
-        )?;
-        check(positive(l.tick_late_max_s), "limits.tick_late_max_s", POS)?;
-        check(positive(l.tick_busy_max_s), "limits.tick_busy_max_s", POS)?;
-        Ok(())
+        check_non_negative(l.supply_time_s, "limits.supply_time_s")?;
+        check_positive(l.tick_late_max_s, "limits.tick_late_max_s")?;
+        check_positive(l.tick_busy_max_s, "limits.tick_busy_max_s")
     }
 
     /// The most counts a rotor can travel in `dt` s without an encoder fault.
@@ -655,5 +639,50 @@ mod tests {
         let mut p = Params::reference();
         p.limits.stall_time_s = f32::NAN;
         assert_eq!(p.validate().unwrap_err().field, "limits.stall_time_s");
+    }
+
+    /// A change that spoils one parameter, the field named and its requirement.
+    type Case = (fn(&mut Params), &'static str, &'static str);
+
+    /// One bad parameter of each group of checks is named with its requirement.
+    #[test]
+    fn each_group_names_its_parameter() {
+        let cases: [Case; 6] = [
+            (|p| p.rate_hz = 0.0, "rate_hz", "in (0, 100000] Hz"),
+            (
+                |p| p.rotors[1].load_torque_nm = -1.0,
+                "rotors.load_torque_nm",
+                "finite and >= 0",
+            ),
+            (
+                |p| p.phase_trim_max_rpm = f32::NAN,
+                "phase_trim_max_rpm",
+                "finite and >= 0",
+            ),
+            (
+                |p| p.stop_timeout_s = 0.0,
+                "stop_timeout_s",
+                "finite and > 0",
+            ),
+            (
+                |p| p.limits.tick_busy_max_s = f32::INFINITY,
+                "limits.tick_busy_max_s",
+                "finite and > 0",
+            ),
+            (
+                |p| p.supply_nominal_v = 2.0 * p.limits.supply_max_v,
+                "supply_nominal_v",
+                "inside [limits.supply_min_v, limits.supply_max_v]",
+            ),
+        ];
+        for (spoil, field, requirement) in cases {
+            let mut p = Params::reference();
+            spoil(&mut p);
+            assert_eq!(
+                p.validate(),
+                Err(ParamError { field, requirement }),
+                "{field}"
+            );
+        }
     }
 }

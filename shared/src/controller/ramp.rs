@@ -109,20 +109,25 @@ impl OffsetRamp {
         self.via_vertical
     }
 
-    /// A new target from a command (`command = true`: decide whether to pass the
-    /// vertical first) or the same command's target moving with the speed
-    /// (`command = false`: keep the current plan).
-    pub fn retarget(&mut self, target_deg: f32, command: bool) {
+    /// A new command's target, degrees: the ramp passes the vertical-force offset
+    /// first when the target lies on the other side of the vertical line than the
+    /// reference (a direction change), otherwise it takes the shorter arc.
+    pub fn command(&mut self, target_deg: f32) {
         self.target_deg = wrap_deg(target_deg);
-        if command {
-            self.via_vertical = match (
-                leans_right(self.reference_deg),
-                leans_right(self.target_deg),
-            ) {
-                (Some(a), Some(b)) => a != b,
-                _ => false,
-            };
-        }
+        self.via_vertical = match (
+            leans_right(self.reference_deg),
+            leans_right(self.target_deg),
+        ) {
+            (Some(a), Some(b)) => a != b,
+            _ => false,
+        };
+    }
+
+    /// The same command's target, moved, degrees (the tuning table's offset
+    /// following the ramped speed): the way there, through the vertical or not,
+    /// stays as the command decided it.
+    pub fn follow(&mut self, target_deg: f32) {
+        self.target_deg = wrap_deg(target_deg);
     }
 
     /// Move by at most `max_step_deg` (>= 0) towards the waypoint or the target;
@@ -174,13 +179,13 @@ mod tests {
     fn right_to_left_passes_180() {
         for (from, to) in [(90.0, 270.0), (10.0, 350.0), (60.0, 300.0), (170.0, 190.0)] {
             let mut r = OffsetRamp::new(from);
-            r.retarget(to, true);
+            r.command(to);
             let (near0, near180) = run(&mut r, 2000, 0.5);
             assert_eq!(r.reference_deg(), to);
             assert!(near180 < 0.5, "{from} -> {to}");
             assert!(near0 >= from.min(360.0 - to) - 1e-3, "{from} -> {to}");
             // And back.
-            r.retarget(from, true);
+            r.command(from);
             let (_, near180) = run(&mut r, 2000, 0.5);
             assert_eq!(r.reference_deg(), from);
             assert!(near180 < 0.5);
@@ -190,7 +195,7 @@ mod tests {
     #[test]
     fn same_side_takes_the_short_arc() {
         let mut r = OffsetRamp::new(80.0);
-        r.retarget(100.0, true);
+        r.command(100.0);
         let (_, near180) = run(&mut r, 100, 0.5);
         assert_eq!(r.reference_deg(), 100.0);
         assert!(near180 > 79.0);

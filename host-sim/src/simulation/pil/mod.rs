@@ -24,7 +24,7 @@ pub mod session;
 
 use std::path::{Path, PathBuf};
 
-use shared::controller::{Command, Outputs, RotorCount};
+use shared::controller::{Bridge, Command, Outputs, RotorCount};
 use shared::drive::{CentreAligned, BOARD_TIMER_HZ};
 use shared::pil::{Bytes, Drive, Hello, Sample, MAX_LATE_US};
 use shared::protocol::StatusReport;
@@ -300,9 +300,10 @@ impl Driver for FirmwareDriver {
                 self.observe(t, drive.status);
                 let bridges = self.bridges_of(&drive);
                 self.outputs = Some(Outputs {
-                    duty: bridges.1.map(|d| d as f32),
-                    enable: drive.enabled,
-                    bridges: bridges.0.map(|b| b != BridgeCommand::Off),
+                    bridges: [0, 1].map(|k| match bridges.0[k] {
+                        BridgeCommand::Off => Bridge::Off,
+                        _ => Bridge::Driven(bridges.1[k] as f32),
+                    }),
                     state: drive.status.state,
                     faults: drive.status.faults,
                     telemetry: drive.status.telemetry,
