@@ -47,8 +47,7 @@ use stm32f4xx_hal::pac::Interrupt;
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{
     Bridge, Direction, Faults, Params, RotorSelfTest, SelfTestReport, SelfTestStatus, State,
-    TuningTable,
-    CONTROL_RATE_HZ,
+    TuningTable, CONTROL_RATE_HZ,
 };
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
@@ -108,6 +107,14 @@ pub enum Progress {
     /// Done (every check logged).
     Done,
 }
+
+/// The link's state behind the RTIC lock the script takes it through.
+pub trait LinkLock: rtic::Mutex<T = LinkState> {}
+impl<M: rtic::Mutex<T = LinkState>> LinkLock for M {}
+
+/// The emulated world behind the RTIC lock the script takes it through.
+pub trait WorldLock: rtic::Mutex<T = World> {}
+impl<M: rtic::Mutex<T = World>> WorldLock for M {}
 
 /// What one pass of the script works on.
 pub struct Io<'a, L, W> {
@@ -196,11 +203,7 @@ impl Script {
     }
 
     /// One pass at control tick `io.tick`.
-    pub fn run<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Progress
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    pub fn run<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Progress {
         // The link task's pass with nothing received: telemetry when due.
         self.exchange(io, &[]);
         if self.keepalive && io.tick.wrapping_sub(self.last_request) >= HEARTBEAT_PERIOD_MS {
@@ -224,10 +227,7 @@ impl Script {
     }
 
     /// Push raw bytes through the link; the answers.
-    fn exchange<L, W>(&mut self, io: &mut Io<'_, L, W>, bytes: &[u8]) -> usize
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn exchange<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>, bytes: &[u8]) -> usize {
         let now_ms = io.state.lock(|l| l.status.uptime_ms);
         let mut device = Device {
             link: &mut *io.link,
@@ -239,10 +239,11 @@ impl Script {
     }
 
     /// Send `request`; its answer.
-    fn ask<L, W>(&mut self, io: &mut Io<'_, L, W>, request: &Request) -> Option<Response>
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn ask<L: LinkLock, W>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        request: &Request,
+    ) -> Option<Response> {
         self.last_request = io.tick;
         let now_ms = io.state.lock(|l| l.status.uptime_ms);
         let mut device = Device {
@@ -255,10 +256,12 @@ impl Script {
     }
 
     /// Send `request` and check that it is answered Ack.
-    fn ack<L, W>(&mut self, io: &mut Io<'_, L, W>, request: &Request, what: &str) -> bool
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn ack<L: LinkLock, W>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        request: &Request,
+        what: &str,
+    ) -> bool {
         let id = request_id(request);
         let answer = self.ask(io, request);
         check!(
@@ -269,16 +272,13 @@ impl Script {
     }
 
     /// Send `request` and check that it is answered `Nack(reason)`.
-    fn nack<L, W>(
+    fn nack<L: LinkLock, W>(
         &mut self,
         io: &mut Io<'_, L, W>,
         request: &Request,
         reason: NackReason,
         what: &str,
-    ) -> bool
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    ) -> bool {
         let id = request_id(request);
         let answer = self.ask(io, request);
         check!(
@@ -290,10 +290,7 @@ impl Script {
     }
 
     /// GetStatus; the report, checked to be one.
-    fn status<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<StatusReport>
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn status<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<StatusReport> {
         match self.ask(io, &Request::GetStatus) {
             Some(Response::Status(report)) => Some(report),
             _ => {
@@ -304,10 +301,7 @@ impl Script {
     }
 
     /// ReadTuningTable; the table, if the answer is one.
-    fn read_table<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<TuningTable>
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn read_table<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<TuningTable> {
         match self.ask(io, &Request::ReadTuningTable) {
             Some(Response::TuningTable(t)) => Some(t),
             _ => None,
@@ -315,10 +309,7 @@ impl Script {
     }
 
     /// ReadSelfTest; the report, if the answer is one.
-    fn read_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<SelfTestReport>
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn read_self_test<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<SelfTestReport> {
         match self.ask(io, &Request::ReadSelfTest) {
             Some(Response::SelfTest(report)) => Some(report),
             _ => None,
@@ -326,15 +317,17 @@ impl Script {
     }
 
     /// The state the control task published at its latest tick.
-    fn state_now<L: rtic::Mutex<T = LinkState>, W>(io: &mut Io<'_, L, W>) -> State {
+    fn state_now<L: LinkLock, W>(io: &mut Io<'_, L, W>) -> State {
         io.state.lock(|l| l.status.state)
     }
 
     /// Wait until the published state is `state`, at most `limit` ticks.
-    fn wait_state<L, W>(&mut self, io: &mut Io<'_, L, W>, state: State, limit: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn wait_state<L: LinkLock, W>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        state: State,
+        limit: u32,
+    ) -> Next {
         let waited = io.tick.wrapping_sub(self.since);
         if Self::state_now(io) == state {
             check!(
@@ -360,7 +353,7 @@ impl Script {
     }
 
     /// Inject `injected` faults into the model from the next tick on.
-    fn inject<W: rtic::Mutex<T = World>, L>(
+    fn inject<W: WorldLock, L>(
         &mut self,
         io: &mut Io<'_, L, W>,
         estop_open: bool,
@@ -376,10 +369,11 @@ impl Script {
 
     /// After a reset: the status idle without a fault; then the next part of the
     /// script (`what`) starts with a travel command.
-    fn reset_done_then_travel<L, W>(&mut self, io: &mut Io<'_, L, W>, what: &str) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn reset_done_then_travel<L: LinkLock, W>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        what: &str,
+    ) -> Next {
         let Some(s) = self.status(io) else {
             return Next::Abort;
         };
@@ -395,11 +389,7 @@ impl Script {
     }
 
     /// The script's steps in their order: step `self.step` at this tick.
-    fn step<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn step<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         let waited = io.tick.wrapping_sub(self.since);
         match self.step {
             0 => self.start_status(io),
@@ -436,11 +426,7 @@ impl Script {
 
     /// Part 1, at start (from tick 5): the status idle without a fault, the
     /// compiled-in tuning table read back, no self-test run.
-    fn start_status<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn start_status<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         if io.tick < 5 {
             return Next::Wait;
         }
@@ -473,11 +459,7 @@ impl Script {
 
     /// Part 2: a table written (the compiled-in one, its right offsets shifted by
     /// [`TABLE_SHIFT_DEG`]), read back, and found in the flash record.
-    fn write_table<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn write_table<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: tuning table written and read back");
         let rows = crate::tuning::TUNING_ROWS.map(|(s, r, l)| (s, r + TABLE_SHIFT_DEG, l));
         let Ok(table) = TuningTable::from_rows(&rows) else {
@@ -508,11 +490,7 @@ impl Script {
     /// Part 3: frames refused or ignored (a frame CRC error, a header CRC error,
     /// garbage before a frame, an unknown id, values out of their domain); still idle
     /// after them.
-    fn refused_frames<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn refused_frames<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: damaged and invalid frames");
         self.frame_crc_error(io);
         self.header_crc_error(io);
@@ -542,10 +520,7 @@ impl Script {
     }
 
     /// Frame CRC broken: `Nack BadCrc` with the frame's own sequence number.
-    fn frame_crc_error<L, W>(&mut self, io: &mut Io<'_, L, W>)
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn frame_crc_error<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) {
         let mut out = [0u8; MAX_FRAME];
         let (seq, len) = self.host.frame(&Request::GetStatus, &mut out);
         if let Some(b) = out.get_mut(len.saturating_sub(1)) {
@@ -562,10 +537,7 @@ impl Script {
     }
 
     /// Header CRC broken: no answer at all.
-    fn header_crc_error<L, W>(&mut self, io: &mut Io<'_, L, W>)
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn header_crc_error<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) {
         let mut out = [0u8; MAX_FRAME];
         let (_, len) = self.host.frame(&Request::GetStatus, &mut out);
         if let Some(b) = out.get_mut(8) {
@@ -577,10 +549,7 @@ impl Script {
     }
 
     /// Garbage, then a frame: the frame is found and answered.
-    fn garbage_before_frame<L, W>(&mut self, io: &mut Io<'_, L, W>)
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn garbage_before_frame<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) {
         let mut out = [0u8; MAX_FRAME];
         let mut frame = [0u8; 7 + MAX_FRAME];
         frame[..7].copy_from_slice(&[0x00, 0xA5, 0x13, 0x5A, 0xFF, 0xA5, 0xA5]);
@@ -595,10 +564,7 @@ impl Script {
     }
 
     /// An unknown message id: `Nack UnknownMessage`.
-    fn unknown_message<L, W>(&mut self, io: &mut Io<'_, L, W>)
-    where
-        L: rtic::Mutex<T = LinkState>,
-    {
+    fn unknown_message<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) {
         let mut out = [0u8; MAX_FRAME];
         let len = encode_frame(0x7E, 900, &[], &mut out).unwrap_or(0);
         let frame = out;
@@ -621,11 +587,7 @@ impl Script {
 
     /// Parts 4 and 5: telemetry on, every [`TELEMETRY_PERIOD_MS`], heartbeats from
     /// here on, and travel right.
-    fn travel_with_telemetry<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn travel_with_telemetry<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: travel right at 3000 rpm");
         self.ack(
             io,
@@ -642,11 +604,11 @@ impl Script {
     /// Part 5: the run, [`SETTLE_TICKS`] after `running`: the phase loop closed,
     /// the measured and true speeds, the written table's offset, the phase error and
     /// the model's true offset; then stop.
-    fn settled_run<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn settled_run<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         if waited < SETTLE_TICKS {
             return Next::Wait;
         }
@@ -691,11 +653,11 @@ impl Script {
 
     /// Part 6: both rotors at rest (true speeds 0, measured ones within
     /// `REST_RPM`) within [`REST_LIMIT_TICKS`] after idle.
-    fn await_rest<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn await_rest<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         let true_speed = io.world.lock(|w| w.true_speed_rpm);
         let measured = io.state.lock(|l| l.status.telemetry.speed_rpm);
         if true_speed == [0.0; 2] && measured.iter().all(|v| abs(*v) <= REST_RPM) {
@@ -725,11 +687,7 @@ impl Script {
 
     /// Part 6: the self-test asked for, the model's record of its drives cleared
     /// and the rotors' rest angles logged.
-    fn start_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn start_self_test<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: self-test");
         let angles = io.world.lock(|w| {
             w.self_test_ticks = 0;
@@ -752,11 +710,11 @@ impl Script {
 
     /// Part 6: the self-test polled every tick until it has ended, within
     /// [`self_test_limit_ticks`]; a `Travel` while it drives rotor 1 `Nack Busy`.
-    fn poll_self_test<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn poll_self_test<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         let Some(report) = self.read_self_test(io) else {
             check!(false, "ReadSelfTest: SelfTest");
             return Next::Abort;
@@ -813,11 +771,7 @@ impl Script {
     /// Part 6: the self-test's result: per rotor both polarities, the index, the
     /// model's counts a turn and the index offset the model predicts
     /// ([`index_offset_model`]); the result stored in flash with the table; idle.
-    fn self_test_result<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn self_test_result<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         let Some(report) = self.self_test else {
             return Next::Abort;
         };
@@ -869,11 +823,7 @@ impl Script {
     }
 
     /// Part 7, the E-stop fault: travel right again.
-    fn estop_travel<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn estop_travel<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: E-stop fault while running");
         self.ack(io, &travel_right(), "Travel right");
         Next::Advance
@@ -881,11 +831,11 @@ impl Script {
 
     /// Part 7: the E-stop circuit opened, [`RUN_BEFORE_FAULT_TICKS`] into the
     /// run.
-    fn open_estop<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn open_estop<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         if waited < RUN_BEFORE_FAULT_TICKS {
             return Next::Wait;
         }
@@ -896,11 +846,7 @@ impl Script {
 
     /// Part 7: `ESTOP` latched in the first tick that sees the circuit open, the
     /// outputs safe in that tick; a reset asked for while it is still open.
-    fn estop_latched<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn estop_latched<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         let Some(seen) = io.world.lock(|w| w.first_fault) else {
             check!(false, "ESTOP latched in the first tick that sees it");
             return Next::Abort;
@@ -917,11 +863,7 @@ impl Script {
 
     /// Part 7: the fault kept while the E-stop is open; the circuit closed and a
     /// reset asked for.
-    fn estop_reset<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn estop_reset<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         let Some(s) = self.status(io) else {
             return Next::Abort;
         };
@@ -938,11 +880,11 @@ impl Script {
 
     /// Part 8, the deadline: no overrun so far, then the control task made to
     /// work [`overrun_us`] longer once, [`RUN_BEFORE_FAULT_TICKS`] into the run.
-    fn inject_overrun<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn inject_overrun<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         if waited < RUN_BEFORE_FAULT_TICKS {
             return Next::Wait;
         }
@@ -965,11 +907,11 @@ impl Script {
     /// Part 8: `DEADLINE` latched in the tick after the overrun, the outputs safe
     /// in that tick, the overrun counted and its tick's busy time in the status; a
     /// reset asked for.
-    fn deadline_latched<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn deadline_latched<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         let Some(seen) = io.world.lock(|w| w.first_fault) else {
             if waited <= 3 {
                 return Next::Wait;
@@ -1006,11 +948,11 @@ impl Script {
     /// Part 9, the encoder fault: encoder 2 disconnected,
     /// [`RUN_BEFORE_FAULT_TICKS`] into the run; the controller's detection bound for
     /// its speed ([`encoder_bound_ticks`]).
-    fn disconnect_encoder<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn disconnect_encoder<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         if waited < RUN_BEFORE_FAULT_TICKS {
             return Next::Wait;
         }
@@ -1026,11 +968,11 @@ impl Script {
 
     /// Part 9: `ENCODER` (or `STALL`) latched within the bound, the outputs safe
     /// in that tick; heartbeats stop, the encoder stays disconnected.
-    fn encoder_fault_latched<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn encoder_fault_latched<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         match io.world.lock(|w| w.first_fault) {
             None if waited <= self.bound_ticks + 1 => Next::Wait,
             None => {
@@ -1060,11 +1002,7 @@ impl Script {
     /// Part 10: the status in `ENCODER` fault; the telemetry stream stopped, and
     /// what it delivered: frames in sequence, [`TELEMETRY_PERIOD_MS`] apart, every
     /// heartbeat answered, every frame parsed.
-    fn telemetry_off<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn telemetry_off<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         let Some(s) = self.status(io) else {
             return Next::Abort;
         };
@@ -1096,11 +1034,11 @@ impl Script {
 
     /// Part 10: the stream is off: nothing more comes. Part 11, an unexpected
     /// interrupt while driving: the encoder back, the fault reset.
-    fn stream_stopped<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn stream_stopped<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         let frames = self.host.telemetry.frames;
         if waited < 300 {
             return Next::Wait;
@@ -1117,11 +1055,7 @@ impl Script {
 
     /// Part 11: one command a tick: the run command at the tick after the reset;
     /// heartbeats again.
-    fn travel_to_drive<L, W>(&mut self, io: &mut Io<'_, L, W>) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn travel_to_drive<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         self.ack(io, &travel_right(), "Travel right");
         self.keepalive = true;
         Next::Advance
@@ -1129,11 +1063,11 @@ impl Script {
 
     /// Part 11: the bridges driven within [`RUNNING_LIMIT_TICKS`]: the script is
     /// done, and [`Script::end`] pends the unexpected interrupt after the report.
-    fn await_driving<L, W>(&mut self, io: &mut Io<'_, L, W>, waited: u32) -> Next
-    where
-        L: rtic::Mutex<T = LinkState>,
-        W: rtic::Mutex<T = World>,
-    {
+    fn await_driving<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
         let bridges = io.world.lock(|w| w.bridges);
         if bridges.iter().any(|b| b.duty() != 0.0) {
             check!(
@@ -1213,8 +1147,8 @@ fn check_rotor_self_test(rotor: usize, r: &RotorSelfTest, start: Option<DriveSta
     );
 }
 
-/// Check that the tick that latched a fault left the outputs safe: the driver
-/// disabled and both duties 0.
+/// Check that the tick that latched a fault left the outputs safe: both
+/// H-bridges off.
 fn check_outputs_cut(seen: &FaultSeen) {
     check!(
         seen.bridges == [Bridge::Off; 2],
