@@ -23,7 +23,7 @@
 //! from the file it compiles in, the host from the file it simulates.
 
 use crate::codec::wire::{Reader, Writer};
-use crate::protocol::message::StatusReport;
+use crate::protocol::StatusReport;
 
 /// Version of the record layouts.
 pub const VERSION: u16 = 3;

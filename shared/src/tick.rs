@@ -22,7 +22,9 @@
 //! its timing after [`run`] returns, so that a tick that panics or hangs never
 //! feeds it.
 
-use crate::controller::{Command, Controller, Inputs, Outputs, SelfTestReport};
+use crate::controller::{Command, Controller, Inputs, Outputs};
+
+use crate::controller::self_test::SelfTestReport;
 use crate::protocol::link::{ForTick, StateLock};
 
 /// What a board provides to a control tick: its sample, and where the outputs go.

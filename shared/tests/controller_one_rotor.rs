@@ -19,8 +19,10 @@
 
 use shared::controller::{
     Bridge, Command, Controller, Direction, Faults, Inputs, MachineConstants, Outputs, Params,
-    ResetCause, RotorCount, SelfTestStatus, State,
+    ResetCause, RotorCount, State,
 };
+
+use shared::controller::self_test::SelfTestStatus;
 
 use std::f64::consts::TAU;
 

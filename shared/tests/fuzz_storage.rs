@@ -11,7 +11,7 @@
 
 mod support;
 
-use shared::controller::{RotorSelfTest, SelfTest};
+use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::storage::{Record, SimFlash};
 use support::fuzz::{self, Rng};
 use support::power_cut::{store_and_check, STORE_WORK};

@@ -8,10 +8,8 @@ use std::collections::VecDeque;
 
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use proptest::prelude::*;
-use shared::controller::{
-    Bridge, Direction, Faults, Outputs, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus,
-    State, TuningTable,
-};
+use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
+use shared::controller::{Bridge, Direction, Faults, Outputs, State, TuningTable};
 use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{Decoder, Message, NackReason, Request, Response, FRAME_GAP_TIMEOUT_MS};
 use shared::storage::{self, SimFlash};

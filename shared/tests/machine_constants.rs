@@ -3,8 +3,10 @@
 //! formulas: the reference machine (`examples/vibro-driver.toml`), and the edge
 //! cases of the resonance band.
 
-use shared::controller::machine::{lift_off_speed_rad_s, resonance_band_rpm};
-use shared::controller::{MachineConstants, MachinePhysics, RotorCount, RotorModel, RotorPhysics};
+use shared::controller::{
+    lift_off_speed_rad_s, resonance_band_rpm, MachineConstants, MachinePhysics, RotorCount,
+    RotorModel, RotorPhysics,
+};
 use shared::drive::BridgeConfig;
 
 /// The reference machine's rotor and motor: `R = 2 ohm`, `k = 0.02 N m/A`,

@@ -4,10 +4,8 @@
 //! cases, and the answer rule on a mock device.
 
 use shared::codec::crc::{crc16_ccitt_false, crc32};
-use shared::controller::{
-    Command, Direction, Faults, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State,
-    Telemetry, TuningTable,
-};
+use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
+use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
 use shared::protocol::{
     answer_error, answer_event, answer_request, encode, encode_frame, Decoder, Device, EncodeError,
     Frame, FrameError, Message, MessageId, NackReason, ParseError, Request, Response, StatusReport,

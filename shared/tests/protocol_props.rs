@@ -5,10 +5,9 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{
-    Direction, Faults, RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus, State, Telemetry,
-    TuningTable,
-};
+use shared::controller::{Direction, Faults, State, Telemetry, TuningTable};
+
+use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 use shared::protocol::{
     Decoder, Frame, Message, NackReason, Request, Response, StatusReport, MAX_FRAME, MAX_PAYLOAD,
 };

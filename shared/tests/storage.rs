@@ -9,15 +9,16 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 use shared::codec::crc::crc32;
-use shared::controller::{Direction, RotorSelfTest, SelfTest, TuningTable};
-use shared::storage::record::{
+use shared::controller::self_test::{RotorSelfTest, SelfTest};
+use shared::controller::{Direction, TuningTable};
+use shared::storage::{
     encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
 };
-use shared::storage::sim::{SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 use shared::storage::{
     is_newer, load, slot_offset, store, Record, SimError, SimFlash, StoreError, Stored, MAGIC,
     MAX_UNIT,
 };
+use shared::storage::{SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 
 mod support;
 

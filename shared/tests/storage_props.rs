@@ -5,7 +5,7 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{RotorSelfTest, SelfTest};
+use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::storage::{Record, SimFlash};
 
 mod support;

@@ -30,9 +30,10 @@ use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::simulator::Plant;
 use host_sim::simulation::closed_loop::{ControllerDriver, InLoop};
 use host_sim::simulation::{simulate, Driver, RunOptions};
+use shared::controller::self_test::{SelfTestReport, SelfTestStatus};
 use shared::controller::{
     self_test, Bridge, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause,
-    SelfTestReport, SelfTestStatus, State,
+    State,
 };
 use tests::machine::TestMachine;
 

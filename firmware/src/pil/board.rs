@@ -10,7 +10,7 @@
 use heapless::spsc::{Consumer, Producer};
 use shared::controller::{Bridge, Inputs, Outputs, TickTiming};
 use shared::pil::{Bytes, Drive as DriveRecord, Hello, Sample};
-use shared::protocol::message::StatusReport;
+use shared::protocol::StatusReport;
 
 use super::channel::Channel;
 use crate::drive::Drive;

@@ -2,9 +2,9 @@
 //! [`shared::tick::run`] on `QemuBoard`, timed in SysTick counts
 //! ([`TickCounts`]).
 
-use shared::controller::{
-    Bridge, Command, Controller, Inputs, Outputs, SelfTestReport, TickTiming,
-};
+use shared::controller::{Bridge, Command, Controller, Inputs, Outputs, TickTiming};
+
+use shared::controller::self_test::SelfTestReport;
 use shared::protocol::link::LinkState;
 use shared::tick::Port;
 

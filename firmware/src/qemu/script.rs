@@ -44,11 +44,9 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m::peripheral::NVIC;
 use stm32f4xx_hal::pac::Interrupt;
 
+use shared::controller::self_test::{RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
-use shared::controller::{
-    Bridge, Direction, Faults, Params, RotorSelfTest, SelfTestReport, SelfTestStatus, State,
-    TuningTable, CONTROL_RATE_HZ,
-};
+use shared::controller::{Bridge, Direction, Faults, Params, State, TuningTable, CONTROL_RATE_HZ};
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
     encode_frame, MessageId, NackReason, Request, Response, StatusReport, HEARTBEAT_PERIOD_MS,

@@ -10,7 +10,9 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::controller::{Direction, SelfTestReport, SelfTestStatus, State, TuningTable};
+use shared::controller::{Direction, State, TuningTable};
+
+use shared::controller::self_test::{SelfTestReport, SelfTestStatus};
 use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS};
 
 use super::args::{

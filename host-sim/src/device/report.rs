@@ -1,7 +1,9 @@
 //! What `host-sim device` prints: a status report as aligned lines, a telemetry
 //! frame as one readable line or one CSV row, a self-test result per rotor.
 
-use shared::controller::{Faults, RotorSelfTest, SelfTestReport, SelfTestStatus, State};
+use shared::controller::{Faults, State};
+
+use shared::controller::self_test::{RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::protocol::link::no_telemetry;
 use shared::protocol::StatusReport;
 

@@ -327,7 +327,7 @@ impl SimDevice {
 mod tests {
     use super::*;
     use crate::device::plant::reference_bench_with;
-    use shared::controller::SelfTestStatus;
+    use shared::controller::self_test::SelfTestStatus;
     use shared::controller::{Command, Direction, Faults, State};
 
     fn run(dev: &mut SimDevice, ms: u32) {

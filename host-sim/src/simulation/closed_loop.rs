@@ -29,8 +29,10 @@
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Faults, Outputs, Params, ResetCause, RotorCount, SelfTestReport, State,
+    Command, Controller, Faults, Outputs, Params, ResetCause, RotorCount, State,
 };
+
+use shared::controller::self_test::SelfTestReport;
 use shared::tick::{self, Port};
 
 use crate::machine::input::Problem;

@@ -14,12 +14,12 @@
 //! host script can check a frame or a flash record without this crate.
 //!
 //! - CRC-16/CCITT-FALSE guards the 8-byte frame header, so that a frame's length is
-//!   never used before it is known to be right (see [`crate::protocol::frame`]).
+//!   never used before it is known to be right (see `crate::protocol::frame`).
 //! - CRC-32/ISO-HDLC guards whole frames and flash records. Its non-zero init and
 //!   xor-out make the CRC of a run of `0x00` bytes non-zero for every length but 0,
 //!   and the CRC of a run of `0xFF` bytes differ from `0xFFFFFFFF` for every length
 //!   but exactly 4 (those 4 bytes cancel the init). Records are far longer
-//!   than 4 bytes ([`crate::storage::record`]), so neither erased (`0xFF`) nor zeroed
+//!   than 4 bytes (`crate::storage::record`), so neither erased (`0xFF`) nor zeroed
 //!   flash can carry a matching CRC; `tests/storage.rs` checks every record length.
 
 use crc::{Crc, Digest, CRC_16_IBM_3740, CRC_32_ISO_HDLC};

@@ -5,8 +5,8 @@
 //! - `wire`: little-endian field readers and writers over fixed buffers, every access
 //!   bounds-checked, and the fixed layouts of values read and written whole
 //!   (crate-internal);
-//! - [`self_test`]: the self-test result's and report's bytes;
-//! - [`tuning_row`]: a tuning row's bytes.
+//! - `self_test`: the self-test result's and report's bytes;
+//! - `tuning_row`: a tuning row's bytes.
 //!
 //! Layers of `shared`, each using only those below it: [`crate::controller`] (knows
 //! nothing of bytes, flash or frames), `codec` (the controller's values as bytes),
@@ -14,8 +14,8 @@
 //! device's end of the link).
 
 pub mod crc;
-pub mod self_test;
-pub mod tuning_row;
+mod self_test;
+mod tuning_row;
 pub(crate) mod wire;
 
 pub use self_test::{ROTOR_SELF_TEST_LEN, SELF_TEST_LEN, SELF_TEST_REPORT_LEN};

@@ -19,7 +19,7 @@
 //!  4   both rotors
 //! ```
 
-use crate::controller::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
+use crate::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 
 use super::wire::{flag_byte, Field, Reader, Writer};
 

@@ -110,7 +110,7 @@ pub fn lift_off_speed_rad_s(total_mass_kg: f64, g: f64, unbalance_kg_m: f64) -> 
     libm::sqrt(total_mass_kg * g / (2.0 * unbalance_kg_m))
 }
 
-/// The resonance band, rpm: [`RESONANCE_BAND_LOW`] to [`RESONANCE_BAND_HIGH`] times
+/// The resonance band, rpm: `RESONANCE_BAND_LOW` to `RESONANCE_BAND_HIGH` times
 /// the lift-off speed ([`lift_off_speed_rad_s`]); `[0, 0]` (none) without an
 /// unbalance (`m e = 0`: nothing shakes the platform).
 pub fn resonance_band_rpm(total_mass_kg: f64, g: f64, unbalance_kg_m: f64) -> [f32; 2] {

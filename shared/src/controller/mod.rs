@@ -29,21 +29,21 @@
 //! taken only on [`RotorCount::One`]).
 //!
 //! Modules, one job each:
-//! - [`io`]: inputs, commands, outputs, telemetry, states;
+//! - `io`: inputs, commands, outputs, telemetry, states;
 //! - `mode`: the state with the data only it uses (a run's command, ramp and
 //!   loops; the self-test in progress; the latched faults);
-//! - [`params`]: parameters and the design rules of their defaults;
-//! - [`machine`]: the machine's physical values mapped to [`MachineConstants`];
-//! - [`encoder`]: speed from counts, angle from the index pulse, encoder checks;
+//! - `params`: parameters and the design rules of their defaults;
+//! - `machine`: the machine's physical values mapped to [`MachineConstants`];
+//! - `encoder`: speed from counts, angle from the index pulse, encoder checks;
 //! - [`ramp`]: speed ramp (soft start, fast through the resonance band) and offset
 //!   ramp (direction changes through the vertical-force offset);
 //! - [`speed_loop`]: feedforward + PI per rotor, anti-windup;
 //! - [`phase_loop`]: PI on the phase error, giving the rotors a speed difference;
-//! - [`faults`]: the fault flags and their checks;
-//! - [`tuning`]: the offset table, interpolated circularly;
+//! - `faults`: the fault flags and their checks;
+//! - `tuning`: the offset table, interpolated circularly;
 //! - [`self_test`]: the first-run self-test (polarities, index, counts per turn) and
 //!   its result;
-//! - [`stopped`]: whether the motors are stopped for a flash write;
+//! - `stopped`: whether the motors are stopped for a flash write;
 //! - [`angle`]: wrapping and units.
 //!
 //! # States
@@ -80,7 +80,7 @@
 //! Worst-case detection times, counted in the time passed in as `dt`, from the first
 //! tick whose inputs show the condition (reference parameters at 1 kHz in brackets).
 //! A timed condition fires at the latest in the `ceil(T/dt)`-th consecutive tick that
-//! shows it, i.e. at most `T` after the first one ([`faults`]):
+//! shows it, i.e. at most `T` after the first one (`faults`):
 //!
 //! | fault | condition | detected within |
 //! | --- | --- | --- |
@@ -119,30 +119,29 @@
 //!   ([`Telemetry::command_rejected`]) and changes nothing.
 
 pub mod angle;
-pub mod encoder;
-pub mod faults;
-pub mod io;
-pub mod machine;
+mod encoder;
+mod faults;
+mod io;
+mod machine;
 mod mode;
-pub mod params;
+mod params;
 pub mod phase_loop;
 pub mod ramp;
 pub mod self_test;
 pub mod speed_loop;
-pub mod stopped;
-pub mod tuning;
+mod stopped;
+mod tuning;
 
 pub use encoder::{EncoderAnomaly, EncoderSample, EncoderTracker, SpeedEstimator};
 pub use faults::{FaultMonitor, Faults, Observation};
 pub use io::{
     Bridge, Command, Direction, Inputs, Outputs, ResetCause, State, Telemetry, TickTiming,
 };
-pub use machine::{MachinePhysics, RotorPhysics};
+pub use machine::{lift_off_speed_rad_s, resonance_band_rpm, MachinePhysics, RotorPhysics};
 pub use params::{
     FaultLimits, MachineConstants, ParamError, Params, RotorCount, RotorModel, SpeedGains,
     CONTROL_RATE_HZ,
 };
-pub use self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 pub use stopped::{may_write_table, WRITE_MAX_SPEED_RPM};
 pub use tuning::{
     RowField, TableError, TuningRow, TuningTable, DEFAULT_ROW_SPEED_RPM, MAX_TUNING_ROWS,
@@ -152,7 +151,9 @@ use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, 
 use mode::{Mode, OffsetSource, PhaseLock, Run, RunTarget, UnwrappedError};
 use phase_loop::PhaseLoop;
 use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};
-use self_test::{SelfTestConfig, SelfTestRun, SelfTestSample};
+use self_test::{
+    SelfTest, SelfTestConfig, SelfTestReport, SelfTestRun, SelfTestSample, SelfTestStatus,
+};
 use speed_loop::{SpeedLoop, SpeedLoopInput};
 
 /// One tick's measurements.

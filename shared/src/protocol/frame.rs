@@ -181,7 +181,7 @@ enum Step {
 }
 
 /// A streaming frame decoder with a fixed buffer of [`MAX_FRAME`] bytes; see the
-/// [module documentation](self) for the algorithm.
+/// module documentation for the algorithm.
 ///
 /// ```
 /// use shared::protocol::{encode, Decoder, Message, Request, MAX_FRAME};

@@ -21,9 +21,9 @@
 //! | `ReadSelfTest` | `SelfTest` |
 //! | `StreamTelemetry` | `Ack` |
 
-use crate::controller::{
-    may_write_table, Command, SelfTestReport, SelfTestStatus, State, TuningTable,
-};
+use crate::controller::{may_write_table, Command, State, TuningTable};
+
+use crate::controller::self_test::{SelfTestReport, SelfTestStatus};
 
 use super::frame::{Frame, FrameError};
 use super::message::{Message, MessageId, NackReason, Request, Response, StatusReport};

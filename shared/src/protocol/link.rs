@@ -15,9 +15,9 @@ use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
     FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
+use crate::controller::self_test::{SelfTest, SelfTestReport, SelfTestStatus};
 use crate::controller::{
-    may_write_table, Command, Controller, Outputs, Params, SelfTest, SelfTestReport,
-    SelfTestStatus, Telemetry, TuningTable,
+    may_write_table, Command, Controller, Outputs, Params, Telemetry, TuningTable,
 };
 use crate::storage::{self, Record, Stored};
 use embedded_storage::nor_flash::NorFlash;

@@ -4,9 +4,9 @@
 
 use crate::codec::wire::{flag_byte, Field, Reader, Writer};
 use crate::codec::{SELF_TEST_REPORT_LEN, TUNING_ROW_LEN};
+use crate::controller::self_test::SelfTestReport;
 use crate::controller::{
-    Command, Direction, Faults, Outputs, SelfTestReport, State, Telemetry, TuningRow, TuningTable,
-    MAX_TUNING_ROWS,
+    Command, Direction, Faults, Outputs, State, Telemetry, TuningRow, TuningTable, MAX_TUNING_ROWS,
 };
 
 use super::frame::Frame;

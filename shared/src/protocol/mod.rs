@@ -4,9 +4,9 @@
 //! reference; this crate is its implementation, used by the firmware and by host-sim.
 //! Its CRCs and little-endian fields are [`crate::codec`]'s.
 //!
-//! - [`frame`]: the frame layout, [`encode_frame`], the streaming [`Decoder`];
-//! - [`message`]: message ids, [`Request`], [`Response`] and their payloads;
-//! - [`handler`]: the answer rule, on a [`Device`];
+//! - `frame`: the frame layout, [`encode_frame`], the streaming [`Decoder`];
+//! - `message`: message ids, [`Request`], [`Response`] and their payloads;
+//! - `handler`: the answer rule, on a [`Device`];
 //! - [`link`]: the device's end of the link as the firmware runs it ([`link::Link`]).
 //!
 //! # Link
@@ -28,10 +28,10 @@
 //! the decoder's buffer never holds more than one frame. `tests/protocol_props.rs`
 //! feeds arbitrary bytes.
 
-pub mod frame;
-pub mod handler;
+mod frame;
+mod handler;
 pub mod link;
-pub mod message;
+mod message;
 
 pub use frame::{
     encode_frame, Decoder, DecoderStats, EncodeError, Frame, FrameError, CRC_LEN, HEADER_LEN, SYNC,

@@ -6,9 +6,9 @@
 //!   [`NorFlash`] and [`ReadNorFlash`] traits (offsets from the flash's start,
 //!   erase in whole erase units of `ERASE_SIZE` bytes, program in units of
 //!   `WRITE_SIZE` bytes that can only clear bits);
-//! - [`record`]: the record layout (magic, version, length, sequence, payload,
+//! - `record`: the record layout (magic, version, length, sequence, payload,
 //!   CRC-32) and its checks;
-//! - [`sim`]: [`SimFlash`], a simulated flash that can lose power at any byte.
+//! - `sim`: [`SimFlash`], a simulated flash that can lose power at any byte.
 //!
 //! # Two slots in turn
 //!
@@ -60,11 +60,14 @@
 //! rotors at rest, it feeds or times its watchdog to outlast the erase, and it
 //! restarts its control tick timing afterwards.
 
-pub mod record;
-pub mod sim;
+mod record;
+mod sim;
 
-pub use record::{encode_record, parse_record, Record, MAGIC, RECORD_LEN};
-pub use sim::{SimError, SimFlash};
+pub use record::{
+    encode_record, parse_record, Record, CRC_LEN, FORMAT_VERSION, HEADER_LEN, MAGIC, PAYLOAD_LEN,
+    RECORD_LEN, RECORD_WORDS,
+};
+pub use sim::{SimError, SimFlash, SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 

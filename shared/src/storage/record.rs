@@ -34,7 +34,8 @@
 use crate::codec::crc::Crc32;
 use crate::codec::wire::{Field, Reader, Writer};
 use crate::codec::{SELF_TEST_LEN, TUNING_ROW_LEN};
-use crate::controller::{SelfTest, TuningRow, TuningTable, DEFAULT_ROW_SPEED_RPM, MAX_TUNING_ROWS};
+use crate::controller::self_test::SelfTest;
+use crate::controller::{TuningRow, TuningTable, DEFAULT_ROW_SPEED_RPM, MAX_TUNING_ROWS};
 
 /// The commit word, first in the record and written last: the bytes `"VIBT"`. Not
 /// `0xFFFFFFFF` (erased) nor `0` (zeroed), and no byte of it is `0xFF`, so a magic

@@ -71,7 +71,7 @@ impl From<NorFlashErrorKind> for SimError {
     }
 }
 
-/// Two simulated sectors; see the [module documentation](self).
+/// Two simulated sectors; see the module documentation.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SimFlash {
     /// The modelled bytes of each sector.

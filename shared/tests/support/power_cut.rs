@@ -1,8 +1,9 @@
 //! One store of a power-cut history on a [`SimFlash`], checked: what the parameter
 //! store's power-cut argument promises (`shared::storage`, module documentation).
 
-use shared::storage::sim::SIM_SECTOR_BYTES;
-use shared::storage::{load, store, Record, SimError, SimFlash, StoreError, RECORD_LEN};
+use shared::storage::{
+    load, store, Record, SimError, SimFlash, StoreError, RECORD_LEN, SIM_SECTOR_BYTES,
+};
 
 /// Bytes one store erases and programs on a `SimFlash`: its power-cut points.
 pub const STORE_WORK: usize = SIM_SECTOR_BYTES + RECORD_LEN;

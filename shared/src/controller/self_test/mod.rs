@@ -1,7 +1,7 @@
 //! The first-run self-test: per rotor, motor and encoder polarity, the
 //! index pulse, the counts per revolution and the index offset, as a pure state
 //! machine ([`SelfTestRun`]) the controller steps in [`super::State::SelfTest`]. The
-//! result is a [`SelfTest`] ([`result`]), which the device stores with the tuning
+//! result is a [`SelfTest`] (`result`), which the device stores with the tuning
 //! table and reports over the link.
 //!
 //! # Procedure
@@ -108,7 +108,7 @@
 //! whose job is to measure the index: a wrong configured `encoder_counts` or a dead
 //! index shows as `counts_per_rev` or `index_seen` instead of an `ENCODER` fault.
 
-pub mod result;
+mod result;
 
 pub use result::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 
