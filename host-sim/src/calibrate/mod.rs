@@ -42,7 +42,7 @@ use clap::Args;
 use rayon::prelude::*;
 
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::measured;
 use crate::numbers::count;
@@ -233,7 +233,7 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
     if let Some(shard) = args.shard {
         return part::run_shard(args, shard, console);
     }
-    let inputs = read_options(args).map_err(Failure::Usage)?;
+    let inputs = read_options(args).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
     fit_and_report(args, inputs, HashMap::new(), console)
 }
 
@@ -270,9 +270,10 @@ pub(crate) fn fit_and_report(
     // written (the fit is not thrown away), its error after it.
     let mut file = || -> Result<(), Failure> {
         if let (Some(i), Some(path)) = (out, &args.write) {
-            let (text, _) = read_machine_file(&args.machine.path).map_err(Failure::Usage)?;
+            let (text, _) = read_machine_file(&args.machine.path)
+                .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
             let written = report::machine_file(&args.machine.path, &text, &calibration, path)
-                .map_err(Failure::Run)?;
+                .map_err(|m| Failure::from_lines(Kind::Run, &m))?;
             staged.write(i, &written)?;
         }
         Ok(())
@@ -449,22 +450,23 @@ pub fn calibrate(
     });
     let found = found.map_err(|e| {
         trials.progress.finish_and_clear();
-        Failure::Run(e)
+        Failure::from_lines(Kind::Run, &e)
     })?;
 
     // The runs at the fit, point by point.
     let simulated = trials.outcomes.remove(&bits(&found.u)).unwrap_or_default();
     if simulated.len() != inputs.data.points.len() {
         trials.progress.finish_and_clear();
-        return Err(Failure::Run(
-            "error: calibrate: no point of the search ran (every one refused by the machine reader); nothing written".into(),
+        return Err(Failure::run(
+            "calibrate: no point of the search ran (every one refused by the machine reader); nothing written",
         ));
     }
 
     // 3. The numerical noise at the fit (its machine loaded: the search ran it).
     let mut sets = args.set.keys.clone();
     sets.extend(keys::sets_at(keys, &found.u));
-    let machine = load_machine(&args.machine.path, &inputs.text, &sets).map_err(Failure::Run)?;
+    let machine = load_machine(&args.machine.path, &inputs.text, &sets)
+        .map_err(|m| Failure::from_lines(Kind::Run, &m))?;
     let progress = &trials.progress;
     let noise = numerical::noise(
         &machine,

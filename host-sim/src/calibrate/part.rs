@@ -33,7 +33,7 @@ use super::{
     bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Evaluated, Inputs, Trials,
 };
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::machine::input;
 use crate::numbers;
 use crate::numbers::count;
@@ -188,7 +188,7 @@ pub(crate) fn run_shard(
     shard: Shard,
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
-    let inputs = read_options(args).map_err(Failure::Usage)?;
+    let inputs = read_options(args).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
     let output = staged.add("--out-part", &out)?;
@@ -212,7 +212,7 @@ pub(crate) fn run_shard(
     };
     let evaluated = trials.evaluate(&batch);
     trials.progress.finish_and_clear();
-    let evaluated = evaluated.map_err(Failure::Run)?;
+    let evaluated = evaluated.map_err(|m| Failure::from_lines(Kind::Run, &m))?;
     refuse_interrupted("calibrate", "the part is incomplete")?;
     let runs = trials.runs;
 
@@ -259,8 +259,8 @@ pub(crate) fn run_shard(
     };
     part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
-        Failure::Run(format!(
-            "error: calibrate --shard {shard}: the part does not serialize: {e}"
+        Failure::run(format!(
+            "calibrate --shard {shard}: the part does not serialize: {e}"
         ))
     })?;
     text.push('\n');
@@ -442,10 +442,13 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
     let first = &parts[0].1;
     let calibrate = calibrate_args(first, args);
     let inputs = read_options(&calibrate).map_err(|e| {
-        Failure::Usage(format!(
-            "{}: the files the parts were made from (merge where calibrate ran)\n",
-            e.trim_end()
-        ))
+        Failure::from_lines(
+            Kind::Usage,
+            &format!(
+                "{}: the files the parts were made from (merge where calibrate ran)\n",
+                e.trim_end()
+            ),
+        )
     })?;
     check_files(first, &inputs)?;
     let preset = evaluations(&parts, &calibrate, &inputs)?;
@@ -470,7 +473,7 @@ fn read_parts(args: &MergeArgs) -> Result<Vec<(PathBuf, Part)>, Failure> {
         }
     }
     if !refused.is_empty() {
-        return Err(Failure::Usage(refused.concat()));
+        return Err(Failure::from_lines(Kind::Usage, &refused.concat()));
     }
     Ok(parts)
 }
@@ -501,7 +504,7 @@ fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
         problems.extend(shard_problems(&given, "a fit"));
     }
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n") + "\n"));
+        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
     }
     Ok(())
 }
@@ -550,7 +553,7 @@ fn check_files(first: &Part, inputs: &Inputs) -> Result<(), Failure> {
         ));
     }
     if !changed.is_empty() {
-        return Err(Failure::Usage(changed.join("\n") + "\n"));
+        return Err(Failure::from_lines(Kind::Usage, &changed.join("\n")));
     }
     Ok(())
 }
@@ -570,8 +573,8 @@ fn evaluations(
     let mut preset: HashMap<Vec<u64>, Evaluated> = HashMap::new();
     for (path, part) in parts {
         let damaged = |why: String| {
-            Failure::Usage(format!(
-                "error: {}: a damaged partial result: {why}\n",
+            Failure::usage(format!(
+                "{}: a damaged partial result: {why}",
                 path.display()
             ))
         };

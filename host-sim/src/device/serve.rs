@@ -21,7 +21,7 @@ use super::args::DeviceSimArgs;
 use super::plant::{Platform, PlatformPose};
 use super::sim::{Noise, SimDevice};
 use super::truth::TruthFile;
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::interrupt;
 use crate::link::pipe::Port;
 use crate::link::port::{PortSpec, TcpPort};
@@ -300,8 +300,8 @@ fn check_whole_ms_tick(machine: &Machine, path: &std::path::Path) -> Result<(), 
     if tick_ms.round() >= 1.0 && (tick_ms - tick_ms.round()).abs() <= 1e-9 * tick_ms {
         Ok(())
     } else {
-        Err(Failure::Usage(format!(
-            "error: {}: controller.rate_hz: device-sim runs control ticks of whole milliseconds of uptime, as the link counts time: 1000 Hz, 500, 250, 200, ... (got {rate})",
+        Err(Failure::usage(format!(
+            "{}: controller.rate_hz: device-sim runs control ticks of whole milliseconds of uptime, as the link counts time: 1000 Hz, 500, 250, 200, ... (got {rate})",
             path.display()
         )))
     }
@@ -318,8 +318,8 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         ("--garbage-every", args.garbage_every),
     ] {
         if v == Some(0) {
-            return Err(Failure::Usage(format!(
-                "error: {flag}: must be at least 1 (got 0)"
+            return Err(Failure::usage(format!(
+                "{flag}: must be at least 1 (got 0)"
             )));
         }
     }
@@ -340,8 +340,8 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     ] {
         match v {
             Some(s) if !(s.is_finite() && s > 0.0 && fits) => {
-                return Err(Failure::Usage(format!(
-                    "error: {flag}: must be a number of seconds above 0 (got {})",
+                return Err(Failure::usage(format!(
+                    "{flag}: must be a number of seconds above 0 (got {})",
                     numbers::sig(s)
                 )))
             }
@@ -392,14 +392,14 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
             Ok(PortSpec::Tcp(addr)) => Endpoint::tcp(&addr)
                 .map_err(|e| format!("error: --listen: cannot listen on {addr}: {e}")),
             _ => {
-                return Err(Failure::Usage(format!(
-                    "error: --listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
+                return Err(Failure::usage(format!(
+                    "--listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
                 )))
             }
         },
     };
     // A port in use or not ours to take is the user's to change.
-    let mut endpoint = endpoint.map_err(Failure::Usage)?;
+    let mut endpoint = endpoint.map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
     let truth = match &args.truth {
         None => None,
         Some(path) => Some(TruthFile::create(path)?),
@@ -439,7 +439,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         console.note(&format!("device-sim: warning: {w}\n"));
     }
     match failed.or(stalled) {
-        Some(e) => Err(Failure::Run(e)),
+        Some(e) => Err(Failure::from_lines(Kind::Run, &e)),
         None => Ok(()),
     }
 }

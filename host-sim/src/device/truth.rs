@@ -16,7 +16,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::plant::PlatformPose;
-use crate::failure::Failure;
+use crate::failure::{Failure, Kind};
 use crate::numbers::fixed;
 use crate::output::file::Target;
 
@@ -45,10 +45,7 @@ impl TruthFile {
     /// to change.
     pub fn create(path: &Path) -> Result<TruthFile, Failure> {
         let refuse = |why: String| {
-            Failure::Usage(format!(
-                "error: --truth: cannot write {}: {why}",
-                path.display()
-            ))
+            Failure::usage(format!("--truth: cannot write {}: {why}", path.display()))
         };
         let file = match Target::of(path).map_err(&refuse)? {
             Target::Regular(p) => OpenOptions::new()
@@ -72,7 +69,7 @@ impl TruthFile {
         };
         truth
             .line(TRUTH_HEADER)
-            .map_err(|e| Failure::Usage(e.trim_end().to_string()))?;
+            .map_err(|e| Failure::from_lines(Kind::Usage, &e))?;
         Ok(truth)
     }
 

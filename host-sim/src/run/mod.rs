@@ -28,7 +28,7 @@ use shared::impact::MAX_CONTACTS;
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::event::EventRow;
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::interrupt;
 use crate::machine::{Machine, MachineContact};
@@ -230,8 +230,8 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // written whole; no summary of part of a run.
         staged.commit()?;
         let why = stop_message(stop, Some(t_end));
-        return Err(Failure::Run(format!(
-            "error: run: {why}; the files asked for hold the run up to there, no summary"
+        return Err(Failure::run(format!(
+            "run: {why}; the files asked for hold the run up to there, no summary"
         )));
     }
     staged.commit()?;
@@ -279,12 +279,12 @@ fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Fail
         problems.extend(animate::check_duration(t_end, t_end_origin(args)));
     }
     let Some(drive) = drive.filter(|_| problems.is_empty()) else {
-        return Err(Failure::Usage(problems.join("\n")));
+        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
     };
 
     problems.extend(limits::check(machine, t_end, t_end_origin(args)));
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n")));
+        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
     }
     Ok((drive, t_end))
 }
@@ -494,9 +494,12 @@ fn driver_failure(
 ) -> Failure {
     if let (InTheLoop::Firmware(f), Some(path)) = (driver, firmware_log) {
         let _ = std::fs::write(path, f.log());
-        return Failure::Run(format!("{why}\nthe firmware's log: {}", path.display()));
+        return Failure::from_lines(
+            Kind::Run,
+            &format!("{why}\nthe firmware's log: {}", path.display()),
+        );
     }
-    Failure::Run(why)
+    Failure::from_lines(Kind::Run, &why)
 }
 
 /// The summary on stdout in `format`; with the firmware in the loop

@@ -11,7 +11,7 @@ use super::file::InjectedFault;
 use super::file::Injection;
 use super::file::Scenario;
 use crate::event::EventRow;
-use crate::failure::Failure;
+use crate::failure::{Failure, Kind};
 use crate::machine::input::Problem;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
@@ -71,7 +71,7 @@ pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
     if refused.is_empty() {
         Ok(())
     } else {
-        Err(Failure::Usage(refused.join("\n")))
+        Err(Failure::from_lines(Kind::Usage, &refused.join("\n")))
     }
 }
 

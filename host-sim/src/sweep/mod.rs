@@ -112,8 +112,8 @@ pub fn progress_bar(name: &str, total: usize) -> Progress {
 /// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
 pub fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
     if crate::interrupt::interrupted() {
-        return Err(Failure::Run(format!(
-            "error: {command}: {}: {what}, nothing written",
+        return Err(Failure::run(format!(
+            "{command}: {}: {what}, nothing written",
             crate::interrupt::interruption()
         )));
     }

@@ -24,7 +24,7 @@ use std::time::Instant;
 use super::part;
 use super::robust;
 use super::{conclude, grid_problems, Report};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::numbers::count;
 use crate::numbers::warning_count;
 use crate::parts::{quote, read_machine_file, MergeArgs};
@@ -42,9 +42,9 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         }
     }
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n") + "\n"));
+        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
     }
-    let (first, runs) = part::assemble(&parts).map_err(Failure::Usage)?;
+    let (first, runs) = part::assemble(&parts).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
 
     // 2. The machine.
     let path = args
@@ -52,24 +52,28 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(&first.machine.path));
     let (text, sha256) = read_machine_file(&path).map_err(|e| {
-        Failure::Usage(format!(
-            "{}: the machine file the parts were made from{}",
-            e.trim_end(),
-            if args.machine.is_none() {
-                " (give its path with --machine)"
-            } else {
-                ""
-            }
-        ))
+        Failure::from_lines(
+            Kind::Usage,
+            &format!(
+                "{}: the machine file the parts were made from{}",
+                e.trim_end(),
+                if args.machine.is_none() {
+                    " (give its path with --machine)"
+                } else {
+                    ""
+                }
+            ),
+        )
     })?;
     if sha256 != first.machine.sha256 {
-        return Err(Failure::Usage(format!(
-            "error: {}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
+        return Err(Failure::usage(format!(
+            "{}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
             path.display(),
             first.machine.sha256
         )));
     }
-    let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
+    let machine = load_machine(&path, &text, &first.sweep.set)
+        .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
     let grid = first.sweep.grid();
     // The range texts as the messages quote them: cut (a part is anyone's file).
     let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
@@ -86,12 +90,12 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
                 )
             })
             .collect();
-        return Err(Failure::Usage(lines.join("\n") + "\n"));
+        return Err(Failure::from_lines(Kind::Usage, &lines.join("\n")));
     }
     if args.output.write.is_some() {
         let problems = table_problems(&grid.speeds_rpm, &speeds);
         if !problems.is_empty() {
-            return Err(Failure::Usage(problems.join("\n") + "\n"));
+            return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
         }
     }
 
@@ -105,7 +109,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // them; their runs machine by machine.
         let (uncertainty, machines) =
             robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)
-                .map_err(Failure::Usage)?;
+                .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
         let by_machine: Vec<Vec<_>> = runs
             .chunks(grid.points().len())
             .map(<[_]>::to_vec)

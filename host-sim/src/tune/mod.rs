@@ -51,7 +51,7 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::TuneOutputs;
 use crate::args::{MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
@@ -270,13 +270,14 @@ pub fn grid_problems(
 /// Runs the command (stages of the module doc).
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
-    let (machine, grid, request, text) = read_options(args).map_err(Failure::Usage)?;
+    let (machine, grid, request, text) =
+        read_options(args).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
     if args.robust {
         let (path, sets) = (&args.machine.path, &args.set.keys);
         let samples = args.samples.unwrap_or(robust::DEFAULT_SAMPLES);
         let seed = args.seed.unwrap_or(robust::DEFAULT_SEED);
-        let (uncertainty, machines) =
-            robust::machines(path, &text, sets, samples, seed).map_err(Failure::Usage)?;
+        let (uncertainty, machines) = robust::machines(path, &text, sets, samples, seed)
+            .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
         if let Some(shard) = args.shard {
             let on: Vec<&Machine> = machines.iter().map(|m| &m.2).collect();
             let robust = Some(part::RobustSweep { samples, seed });
@@ -395,7 +396,7 @@ impl Report {
     fn write(mut self, tuning: &Tuning, request: &Request) -> Result<(), Failure> {
         if let Some((i, path)) = &self.table {
             if tuning.right.is_empty() || tuning.left.is_empty() {
-                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above".into()));
+                return Err(Failure::run("--write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above"));
             }
             let text = table_file(tuning, request, path);
             // What is written must read back as a table the controller takes.
@@ -403,8 +404,8 @@ impl Report {
                 .ok()
                 .and_then(|rows| tuning_file::table(&rows).ok());
             if readable.is_none() {
-                return Err(Failure::Run(format!(
-                    "error: --write {}: the table does not read back (an internal error)",
+                return Err(Failure::run(format!(
+                    "--write {}: the table does not read back (an internal error)",
                     path.display()
                 )));
             }

@@ -337,8 +337,8 @@ pub(crate) fn run_shard(
     // A part merge reads: at most as many runs as the largest grid
     // ([`MAX_BYTES`] holds them with every warning kept).
     if held > MAX_POINTS {
-        return Err(Failure::Usage(format!(
-            "error: {command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}\n",
+        return Err(Failure::usage(format!(
+            "{command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}",
             held,
             all,
             all.div_ceil(MAX_POINTS)
@@ -394,8 +394,8 @@ pub(crate) fn run_shard(
     };
     part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
-        Failure::Run(format!(
-            "error: {command} --shard {shard}: the part does not serialize: {e}"
+        Failure::run(format!(
+            "{command} --shard {shard}: the part does not serialize: {e}"
         ))
     })?;
     text.push('\n');

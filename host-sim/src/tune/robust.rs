@@ -449,8 +449,8 @@ pub fn finish(
     let mut files = || -> Result<(), Failure> {
         if let Some((i, p)) = &write {
             let Some(text) = table_file(robust, request, p) else {
-                return Err(Failure::Run(
-                    "error: --write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above\n".into(),
+                return Err(Failure::run(
+                    "--write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above",
                 ));
             };
             staged.write(*i, &text)?;
