@@ -167,8 +167,9 @@ pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
             "error: --t-end {t_end}: must be a positive number of seconds\n"
         ));
     }
-    for p in limits::check(&machine, t_end, "--t-end") {
-        problems.push(p + "\n");
+    let beyond = limits::check(&machine, t_end, "--t-end");
+    if !beyond.is_empty() {
+        problems.push(Failure::new(Kind::Usage, beyond).message());
     }
     match (keys, rows) {
         (Some(keys), Some(())) if problems.is_empty() => Ok(Inputs {

@@ -43,7 +43,7 @@ use super::measured::{self, MeasuredFile};
 use super::report::faults_text;
 use super::rest::{at_rest, await_rest, motion, Poll};
 use super::tune_table;
-use crate::failure::{Console, Failure, Kind};
+use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::Client;
 use crate::link::requests::{command, HEARTBEAT_EVERY};
@@ -556,7 +556,7 @@ pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
             )));
         }
         if let Some(p) = table_problems(&grid.speeds_rpm, &a.speeds.text).first() {
-            return Err(Failure::from_lines(Kind::Usage, p));
+            return Err(Failure::usage(p.clone()));
         }
         let mut set = Staged::new();
         let i = set.add("--write", path)?;

@@ -60,7 +60,7 @@ pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
         })
         .map(|f| {
             format!(
-                "error: {}: {}: {}: cannot be injected with --firmware: {} us late or more skips a tick on the firmware",
+                "{}: {}: {}: cannot be injected with --firmware: {} us late or more skips a tick on the firmware",
                 scenario.file,
                 f.key,
                 f.fault.describe(),
@@ -71,7 +71,7 @@ pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
     if refused.is_empty() {
         Ok(())
     } else {
-        Err(Failure::from_lines(Kind::Usage, &refused.join("\n")))
+        Err(Failure::new(Kind::Usage, refused))
     }
 }
 
@@ -193,7 +193,7 @@ impl Driver for ScenarioDriver<'_> {
         self.driver().events()
     }
 
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<Failure> {
         self.driver_ref().failure()
     }
 }

@@ -76,7 +76,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
         problems.extend(animate::check_duration(scenario.t_end, &t_end_key));
     }
     if !problems.is_empty() {
-        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     }
 
     // 2. Run, the output files opened first (refused before the run).
@@ -110,13 +110,10 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     if let InTheLoop::Firmware(f) = &mut driver.inner {
         f.finish();
         report.warnings.extend(f.warnings());
-        if let (Some(why), Some(path)) = (&failure, &firmware_log) {
+        if let (Some(why), Some(path)) = (failure, &firmware_log) {
             // The firmware's log is kept, to say why; nothing else is written.
             let _ = std::fs::write(path, f.log());
-            return Err(Failure::from_lines(
-                Kind::Run,
-                &format!("{why}\nthe firmware's log: {}", path.display()),
-            ));
+            return Err(why.with_detail(format!("the firmware's log: {}", path.display())));
         }
         if let Some(i) = log {
             staged.write(i, f.log())?;

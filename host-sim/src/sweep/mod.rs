@@ -71,12 +71,13 @@ pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, 
 }
 
 /// Why `--write` cannot hold a table of `speeds` (given as `speeds_text`): more
-/// rows than the controller's table, or two speeds that print alike.
+/// rows than the controller's table, or two speeds that print alike; one text
+/// each.
 pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
     let mut problems = Vec::new();
     if speeds.len() > shared::controller::MAX_TUNING_ROWS {
         problems.push(format!(
-            "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
+            "--write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
             shared::controller::MAX_TUNING_ROWS,
             speeds.len()
         ));
@@ -84,7 +85,7 @@ pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
     let written: Vec<String> = speeds.iter().map(|v| format!("{v:.1}")).collect();
     if written.windows(2).any(|w| w[0] == w[1]) {
         problems.push(format!(
-            "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
+            "--write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
         ));
     }
     problems

@@ -81,21 +81,15 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     if !refused.is_empty() {
         // The parts are one sweep (checked): the first one names it.
         let file = parts[0].0.display();
-        let lines: Vec<String> = refused
+        let reasons = refused
             .iter()
-            .map(|p| {
-                format!(
-                    "error: {file}: a sweep tune refuses: {}",
-                    p.trim_start_matches("error: ")
-                )
-            })
-            .collect();
-        return Err(Failure::from_lines(Kind::Usage, &lines.join("\n")));
+            .map(|p| format!("{file}: a sweep tune refuses: {p}"));
+        return Err(Failure::new(Kind::Usage, reasons));
     }
     if args.output.write.is_some() {
         let problems = table_problems(&grid.speeds_rpm, &speeds);
         if !problems.is_empty() {
-            return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
+            return Err(Failure::new(Kind::Usage, problems));
         }
     }
 

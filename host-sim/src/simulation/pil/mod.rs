@@ -66,7 +66,7 @@ pub struct FirmwareDriver {
     /// The firmware's tick number of the next exchange.
     tick: u32,
     events: Vec<EventRow>,
-    failure: Option<String>,
+    failure: Option<Failure>,
     log: String,
     /// Whether the log's decoder had to be killed (its log may be cut).
     log_cut: bool,
@@ -120,7 +120,7 @@ impl FirmwareDriver {
             .filter_map(session::missing_tool)
             .collect();
         if !missing.is_empty() {
-            return Err(Failure::from_lines(Kind::Usage, &missing.join("\n")));
+            return Err(Failure::new(Kind::Usage, missing));
         }
         let bytes = std::fs::read(machine_path)
             .map_err(|e| Failure::usage(format!("{}: {e}", machine_path.display())))?;
@@ -316,10 +316,10 @@ impl Driver for FirmwareDriver {
                 ([BridgeCommand::Off; 2], [0.0; 2])
             }
             Err(e) => {
-                self.failure = Some(format!(
-                    "error: --firmware {}: at t = {t} s: {e}",
+                self.failure = Some(Failure::run(format!(
+                    "--firmware {}: at t = {t} s: {e}",
                     self.elf.display()
-                ));
+                )));
                 self.finish();
                 ([BridgeCommand::Off; 2], [0.0; 2])
             }
@@ -337,7 +337,7 @@ impl Driver for FirmwareDriver {
         std::mem::take(&mut self.events)
     }
 
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<Failure> {
         self.failure.clone()
     }
 }
