@@ -163,6 +163,11 @@ impl Failure {
         self
     }
 
+    /// Its reasons, to say with others in one failure.
+    pub fn into_reasons(self) -> Vec<Reason> {
+        self.reasons
+    }
+
     /// Whose failure it is.
     pub fn kind(&self) -> Kind {
         self.kind

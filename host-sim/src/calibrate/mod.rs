@@ -127,8 +127,8 @@ pub struct Inputs {
 /// Stage 1 (without the output).
 pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
     let path = &args.machine.path;
-    let (text, _) = read_machine_file(path)?;
-    let machine = load_machine(path, &text, &args.set.keys)?;
+    let (text, _) = read_machine_file(path).map_err(|p| Failure::from(p).message())?;
+    let machine = load_machine(path, &text, &args.set.keys).map_err(|f| f.message())?;
     let mut problems = Vec::new();
     let keys = keys::resolve(path, &text, &args.set.keys, &args.fit)
         .map_err(|e| problems.push(e))
@@ -271,8 +271,7 @@ pub(crate) fn fit_and_report(
     // written (the fit is not thrown away), its error after it.
     let mut file = || -> Result<(), Failure> {
         if let (Some(i), Some(path)) = (out, &args.write) {
-            let (text, _) = read_machine_file(&args.machine.path)
-                .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+            let (text, _) = read_machine_file(&args.machine.path)?;
             let written = report::machine_file(&args.machine.path, &text, &calibration, path)
                 .map_err(|m| Failure::from_lines(Kind::Run, &m))?;
             staged.write(i, &written)?;
@@ -329,6 +328,12 @@ struct Trials<'a> {
 /// the machine reader's refusal of its values.
 pub type Evaluated = Result<Vec<RunOutcome>, String>;
 
+/// The machine reader's refusal of a trial point as the user reads it, every
+/// `error: ` line of it: the warning quotes it, and a part records it so.
+pub fn refusal(f: &Failure) -> String {
+    f.message().trim_end().to_string()
+}
+
 /// The key of a point in [`Trials::outcomes`].
 fn bits(u: &[f64]) -> Vec<u64> {
     u.iter().map(|x| x.to_bits()).collect()
@@ -360,7 +365,7 @@ impl Trials<'_> {
                     machines.push(Some(m));
                 }
                 Err(e) => {
-                    done.push(Some(Err(e.trim_end().to_string())));
+                    done.push(Some(Err(refusal(&e))));
                     machines.push(None);
                 }
             }
@@ -466,8 +471,8 @@ pub fn calibrate(
     // 3. The numerical noise at the fit (its machine loaded: the search ran it).
     let mut sets = args.set.keys.clone();
     sets.extend(keys::sets_at(keys, &found.u));
-    let machine = load_machine(&args.machine.path, &inputs.text, &sets)
-        .map_err(|m| Failure::from_lines(Kind::Run, &m))?;
+    let machine =
+        load_machine(&args.machine.path, &inputs.text, &sets).map_err(|f| f.of_kind(Kind::Run))?;
     let progress = &trials.progress;
     let noise = numerical::noise(
         &machine,

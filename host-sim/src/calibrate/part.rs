@@ -30,7 +30,8 @@ use serde_json::Value;
 use super::fit::{self, Settings};
 use super::keys;
 use super::{
-    bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Evaluated, Inputs, Trials,
+    bits, fit_and_report, nominal_start, read_options, refusal, CalibrateArgs, Evaluated, Inputs,
+    Trials,
 };
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
 use crate::failure::{Console, Failure, Kind};
@@ -297,7 +298,8 @@ pub fn names_a_fit(parts: &[PathBuf]) -> bool {
 /// version, its fields, its hashes, its shard, the host-sim version, and its
 /// runs as `tune`'s run makes them.
 pub fn read(path: &Path) -> Result<Part, String> {
-    let part: Part = read_as(path, FORMAT, VERSION, "host-sim calibrate --shard")?;
+    let part: Part = read_as(path, FORMAT, VERSION, "host-sim calibrate --shard")
+        .map_err(|f| f.message().trim_end().to_string())?;
     let damaged =
         |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
     if part.fit_sha256 != fit_sha256(&part.machine.sha256, &part.fit) {
@@ -488,12 +490,12 @@ fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
         let d = differences(first, part, &a, &b);
         if !d.is_empty() {
             problems.push(format!(
-                "error: {b}: a part of another fit than {a}: {}",
+                "{b}: a part of another fit than {a}: {}",
                 d.join("; ")
             ));
         } else if part.shard.count != first.shard.count {
             problems.push(format!(
-                "error: {b}: part {} but {a} is part {}: the parts disagree on N",
+                "{b}: part {} but {a} is part {}: the parts disagree on N",
                 part.shard, first.shard
             ));
         }
@@ -504,7 +506,7 @@ fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
         problems.extend(shard_problems(&given, "a fit"));
     }
     if !problems.is_empty() {
-        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     }
     Ok(())
 }
@@ -610,7 +612,7 @@ fn evaluations(
             sets.extend(keys::sets_at(&inputs.keys, &s.u));
             let reader = load_machine(&calibrate.machine.path, &inputs.text, &sets)
                 .err()
-                .map(|e| e.trim_end().to_string());
+                .map(|e| refusal(&e));
             if reader != s.refused {
                 return Err(damaged(format!(
                     "start {}: refused: {} where the machine reader says {}",

@@ -56,15 +56,12 @@ pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 pub const DEFAULT_T_END: f64 = 5.0;
 
 /// The machine of file `path` (its `text`) with the `--set`s `set`, as tune
-/// runs it: two rotors, no tuning table.
-pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, String> {
+/// runs it: two rotors, no tuning table. Refused, the user's to fix.
+pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, Failure> {
     let dir = path.parent().unwrap_or(Path::new(""));
-    let mut machine = match Machine::from_text(&path.display().to_string(), text, dir, set) {
-        Ok(m) => m,
-        Err(problems) => return Err(input::render(&problems)),
-    };
+    let mut machine = Machine::from_text(&path.display().to_string(), text, dir, set)?;
     if machine.rotors.len() == 1 {
-        return Err(one_rotor_refusal(path, &machine));
+        return Err(Failure::usage(one_rotor_refusal(path, &machine)));
     }
     machine.controller.tuning_table = None;
     Ok(machine)
@@ -96,7 +93,7 @@ pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
 /// neither (its controller holds speed only).
 fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
     format!(
-        "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
+        "{}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`",
         path.display(),
         machine.rotors.rotor1().name,
         path.display()

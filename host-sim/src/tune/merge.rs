@@ -38,32 +38,28 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     for path in &args.parts {
         match part::read(path) {
             Ok(p) => parts.push((path.clone(), p)),
-            Err(e) => problems.push(e),
+            Err(e) => problems.extend(e.into_reasons()),
         }
     }
     if !problems.is_empty() {
-        return Err(Failure::from_lines(Kind::Usage, &problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     }
-    let (first, runs) = part::assemble(&parts).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+    let (first, runs) = part::assemble(&parts)?;
 
     // 2. The machine.
     let path = args
         .machine
         .clone()
         .unwrap_or_else(|| PathBuf::from(&first.machine.path));
-    let (text, sha256) = read_machine_file(&path).map_err(|e| {
-        Failure::from_lines(
-            Kind::Usage,
-            &format!(
-                "{}: the machine file the parts were made from{}",
-                e.trim_end(),
-                if args.machine.is_none() {
-                    " (give its path with --machine)"
-                } else {
-                    ""
-                }
-            ),
-        )
+    let (text, sha256) = read_machine_file(&path).map_err(|p| {
+        Failure::usage(format!(
+            "{p}: the machine file the parts were made from{}",
+            if args.machine.is_none() {
+                " (give its path with --machine)"
+            } else {
+                ""
+            }
+        ))
     })?;
     if sha256 != first.machine.sha256 {
         return Err(Failure::usage(format!(
@@ -72,8 +68,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
             first.machine.sha256
         )));
     }
-    let machine = load_machine(&path, &text, &first.sweep.set)
-        .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+    let machine = load_machine(&path, &text, &first.sweep.set)?;
     let grid = first.sweep.grid();
     // The range texts as the messages quote them: cut (a part is anyone's file).
     let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
@@ -102,8 +97,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // The machines the parts ran on, drawn again from the file as tune drew
         // them; their runs machine by machine.
         let (uncertainty, machines) =
-            robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)
-                .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+            robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)?;
         let by_machine: Vec<Vec<_>> = runs
             .chunks(grid.points().len())
             .map(<[_]>::to_vec)

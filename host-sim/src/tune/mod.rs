@@ -168,10 +168,8 @@ pub const DEFAULT_OFFSETS: &str = "0:360:15";
 /// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
 /// asked for (for the outputs).
 fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Failure> {
-    let (text, machine_sha256) =
-        read_machine_file(&args.machine.path).map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
-    let machine = load_machine(&args.machine.path, &text, &args.set.keys)
-        .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+    let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
+    let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
     let (lo, hi) = closed_loop::speed_range_rpm(&machine);
     let mut problems = Vec::new();
 
@@ -277,8 +275,7 @@ pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         let (path, sets) = (&args.machine.path, &args.set.keys);
         let samples = args.samples.unwrap_or(robust::DEFAULT_SAMPLES);
         let seed = args.seed.unwrap_or(robust::DEFAULT_SEED);
-        let (uncertainty, machines) = robust::machines(path, &text, sets, samples, seed)
-            .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+        let (uncertainty, machines) = robust::machines(path, &text, sets, samples, seed)?;
         if let Some(shard) = args.shard {
             let on: Vec<&Machine> = machines.iter().map(|m| &m.2).collect();
             let robust = Some(part::RobustSweep { samples, seed });
