@@ -163,6 +163,18 @@ impl Failure {
         self
     }
 
+    /// The failure with `words` at the end of its last line (its last reason's
+    /// last detail line, else its text): what the whole failure is about.
+    pub fn ending_with(mut self, words: &str) -> Self {
+        if let Some(last) = self.reasons.last_mut() {
+            match last.detail.last_mut() {
+                Some(line) => line.push_str(words),
+                None => last.text.push_str(words),
+            }
+        }
+        self
+    }
+
     /// Its reasons, to say with others in one failure.
     pub fn into_reasons(self) -> Vec<Reason> {
         self.reasons

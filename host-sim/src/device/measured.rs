@@ -12,7 +12,7 @@ use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::failure::{Failure, Kind};
+use crate::failure::Failure;
 use crate::machine::input;
 use crate::measured::{self, Header, Row};
 use crate::output::csv::csv_number;
@@ -83,8 +83,7 @@ impl MeasuredFile {
     pub fn resume(path: &Path) -> Result<MeasuredFile, Failure> {
         let text =
             input::read_text(path).map_err(|p| usage(path, format!("--resume: {}", p.message)))?;
-        let (header, rows) = measured::parse(&path.display().to_string(), &text, None)
-            .map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+        let (header, rows) = measured::parse(&path.display().to_string(), &text, None)?;
         let file = OpenOptions::new().append(true).open(path).map_err(|e| {
             usage(
                 path,
