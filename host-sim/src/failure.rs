@@ -127,19 +127,6 @@ impl Failure {
         }
     }
 
-    /// A failure from a message written whole: each `error: ` line a reason, the
-    /// other lines the detail of the reason before them.
-    pub fn from_lines(kind: Kind, message: &str) -> Self {
-        let mut f = Failure::reported(kind);
-        for line in message.lines() {
-            match line.strip_prefix("error: ") {
-                Some(text) => f.reasons.push(Reason::new(text)),
-                None => f = f.with_detail(line),
-            }
-        }
-        f
-    }
-
     /// The same reasons as another kind of failure.
     pub fn of_kind(self, kind: Kind) -> Self {
         Failure { kind, ..self }

@@ -26,8 +26,8 @@
 //! - a file may have no rows yet (a sweep started and stopped before its first
 //!   answer).
 //!
-//! Every problem at once, one line each: `error: FILE: line N: COLUMN: what is
-//! wrong (got ...)`; past [`MAX_PROBLEMS`] lines the rest are counted, and a field
+//! Every problem at once, each said as one line, `error: FILE: line N: COLUMN:
+//! what is wrong (got ...)`; past [`MAX_PROBLEMS`] the rest are counted, and a field
 //! quoted is cut past [`MAX_QUOTED`] bytes. A file over [`MAX_BYTES`] is refused
 //! unread ([`read_each`], which gives the rows one by one and keeps none).
 

@@ -2,7 +2,8 @@
 //!
 //! Reading a file never stops at the first mistake: every problem is recorded with
 //! the full key path it concerns (`contacts[2].friction`, `body.mass`), what is wrong
-//! and what is allowed, and all of them are returned together, one line each:
+//! and what is allowed, and all of them are returned together, each said as one
+//! line ([`error_line`]):
 //!
 //! ```text
 //! error: case.toml: contacts[2].friction: must be >= 0 (got -0.1)

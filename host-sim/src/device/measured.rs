@@ -35,7 +35,7 @@ pub struct MeasuredFile {
     pub rows: Vec<Row>,
 }
 
-/// "error: FILE: what", the user's to fix.
+/// "FILE: what", the user's to fix.
 fn usage(path: &Path, what: impl std::fmt::Display) -> Failure {
     Failure::usage(format!("{}: {what}", path.display()))
 }

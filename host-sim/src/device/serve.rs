@@ -21,7 +21,7 @@ use super::args::DeviceSimArgs;
 use super::plant::{Platform, PlatformPose};
 use super::sim::{Noise, SimDevice};
 use super::truth::TruthFile;
-use crate::failure::{Console, Failure, Kind};
+use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::pipe::Port;
 use crate::link::port::{PortSpec, TcpPort};
@@ -251,9 +251,9 @@ struct DeviceSimWatch<'c, 'w> {
     end: Option<Instant>,
     truth: Option<TruthFile>,
     /// Why the truth file could not be written on.
-    failed: Option<String>,
+    failed: Option<Failure>,
     /// Why the plant stopped advancing, ending the device ([`SimDevice::stopped`]).
-    stalled: Option<String>,
+    stalled: Option<Failure>,
     /// Device time skipped so far.
     skipped: Duration,
 }
@@ -265,9 +265,9 @@ impl Watch for DeviceSimWatch<'_, '_> {
 
     fn ticked(&mut self, device: &SimDevice) -> bool {
         if let Some(why) = device.stopped() {
-            self.stalled = Some(format!(
-                "error: device-sim: the machine's plant stopped: {why}"
-            ));
+            self.stalled = Some(Failure::run(format!(
+                "device-sim: the machine's plant stopped: {why}"
+            )));
             return false;
         }
         let Some(truth) = self.truth.as_mut() else {
@@ -390,7 +390,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         None => open_pty(),
         Some(spec) => match PortSpec::parse(spec) {
             Ok(PortSpec::Tcp(addr)) => Endpoint::tcp(&addr)
-                .map_err(|e| format!("error: --listen: cannot listen on {addr}: {e}")),
+                .map_err(|e| Failure::usage(format!("--listen: cannot listen on {addr}: {e}"))),
             _ => {
                 return Err(Failure::usage(format!(
                     "--listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
@@ -399,7 +399,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         },
     };
     // A port in use or not ours to take is the user's to change.
-    let mut endpoint = endpoint.map_err(|m| Failure::from_lines(Kind::Usage, &m))?;
+    let mut endpoint = endpoint?;
     let truth = match &args.truth {
         None => None,
         Some(path) => Some(TruthFile::create(path)?),
@@ -439,7 +439,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         console.note(&format!("device-sim: warning: {w}\n"));
     }
     match failed.or(stalled) {
-        Some(e) => Err(Failure::from_lines(Kind::Run, &e)),
+        Some(f) => Err(f),
         None => Ok(()),
     }
 }
@@ -475,13 +475,15 @@ fn stopped_note(device: &SimDevice, served: &Served, start: PlatformPose) -> Str
 }
 
 #[cfg(unix)]
-fn open_pty() -> Result<Endpoint, String> {
-    Endpoint::pty().map_err(|e| format!("error: cannot open a pseudo-terminal: {e}"))
+fn open_pty() -> Result<Endpoint, Failure> {
+    Endpoint::pty().map_err(|e| Failure::usage(format!("cannot open a pseudo-terminal: {e}")))
 }
 
 #[cfg(not(unix))]
-fn open_pty() -> Result<Endpoint, String> {
-    Err("error: pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0".into())
+fn open_pty() -> Result<Endpoint, Failure> {
+    Err(Failure::usage(
+        "pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0",
+    ))
 }
 
 #[cfg(test)]
