@@ -172,11 +172,6 @@ impl Failure {
         self.kind
     }
 
-    /// What is wrong, in order.
-    pub fn reasons(&self) -> &[Reason] {
-        &self.reasons
-    }
-
     /// The exit status this failure earns.
     pub fn status(&self) -> u8 {
         self.kind.status()
@@ -274,6 +269,29 @@ mod tests {
         let said = Failure::reported(Kind::Run);
         assert_eq!(said.message(), "");
         assert_eq!(said.status(), EXIT_FAILURE);
+    }
+
+    #[test]
+    fn a_failure_is_quoted_and_added_to_without_its_prefix() {
+        let f = Failure::device("3000 rpm: the port failed").map_text(|t| format!("{t}; stopped"));
+        assert_eq!(f.text(), "3000 rpm: the port failed; stopped");
+        let f = Failure::usage("a")
+            .with_detail("... and 2 more")
+            .ending_with(": the parts' files");
+        assert_eq!(f.message(), "error: a\n... and 2 more: the parts' files\n");
+        assert_eq!(
+            Failure::usage("a").ending_with("!").message(),
+            "error: a!\n"
+        );
+        let run = Failure::usage("a").of_kind(Kind::Run);
+        assert_eq!((run.kind(), run.status()), (Kind::Run, EXIT_FAILURE));
+        let both = Failure::new(
+            Kind::Usage,
+            [Failure::usage("a"), Failure::usage("b")]
+                .into_iter()
+                .flat_map(Failure::into_reasons),
+        );
+        assert_eq!(both.message(), "error: a\nerror: b\n");
     }
 
     #[test]

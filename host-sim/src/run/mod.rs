@@ -160,9 +160,9 @@ pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
     }
 }
 
-/// `--open-loop` against the machine: one voltage per rotor (`coast` fits any);
-/// the problem's text if not.
-pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), String> {
+/// `--open-loop` against the machine: one voltage per rotor (`coast` fits any),
+/// else the user's failure.
+pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Failure> {
     let rotors = machine.rotors.len();
     match open_loop.rotors() {
         Some(n) if n != rotors => {
@@ -171,11 +171,11 @@ pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Str
             } else {
                 "two winding voltages `V1,V2`"
             };
-            Err(format!(
+            Err(Failure::usage(format!(
                 "--open-loop {open_loop}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
                 if n == 1 { "" } else { "s" },
                 if rotors == 1 { "" } else { "s" },
-            ))
+            )))
         }
         _ => Ok(()),
     }
@@ -312,8 +312,8 @@ fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -
         },
         (None, Some(o)) => match check_open_loop(o, machine) {
             Ok(()) => Some(Drive::OpenLoop(o)),
-            Err(e) => {
-                problems.push(e);
+            Err(f) => {
+                problems.push(f.text());
                 None
             }
         },
