@@ -26,14 +26,15 @@
 //! - a file may have no rows yet (a sweep started and stopped before its first
 //!   answer).
 //!
-//! Every problem at once, one line each: `error: FILE: line N: COLUMN: what is
-//! wrong (got ...)`; past [`MAX_PROBLEMS`] lines the rest are counted, and a field
+//! Every problem at once, each said as one line, `error: FILE: line N: COLUMN:
+//! what is wrong (got ...)`; past [`MAX_PROBLEMS`] the rest are counted, and a field
 //! quoted is cut past [`MAX_QUOTED`] bytes. A file over [`MAX_BYTES`] is refused
 //! unread ([`read_each`], which gives the rows one by one and keeps none).
 
 use std::path::Path;
 
-use crate::machine::input::{self, MAX_QUOTED};
+use crate::failure::{Failure, Kind};
+use crate::machine::input::{self, Problem, MAX_QUOTED};
 use crate::numbers;
 use crate::numbers::decimals;
 use crate::simulation::trace::MAX_VELOCITY_MPS;
@@ -201,7 +202,7 @@ pub fn read_each(
     path: &Path,
     speed_range: Option<(f64, f64)>,
     each: &mut dyn FnMut(Row),
-) -> Result<Header, String> {
+) -> Result<Header, Failure> {
     let text = read_bounded(path)?;
     parse_each(&path.display().to_string(), &text, speed_range, each)
 }
@@ -209,29 +210,29 @@ pub fn read_each(
 /// The text of the file at `path` through the one reader of input files (a
 /// regular file, at most [`MAX_BYTES`] of it read: a device, a FIFO or a file
 /// that never ends is refused too); a file too large is told how to shrink.
-pub fn read_bounded(path: &Path) -> Result<String, String> {
+pub fn read_bounded(path: &Path) -> Result<String, Problem> {
     input::read_text_at_most(path, MAX_BYTES).map_err(|mut p| {
         if p.message.contains("too large") {
             p.message += ": a measured file holds one row a run; average repeated runs into one row, with their count as its weight";
         }
-        input::render(&[p])
+        p
     })
 }
 
 /// The header and rows of the text of a measured file named `file`, or every
-/// problem, one line each ([`parse_each`]).
+/// problem ([`parse_each`]).
 pub fn parse(
     file: &str,
     text: &str,
     speed_range: Option<(f64, f64)>,
-) -> Result<(Header, Vec<Row>), String> {
+) -> Result<(Header, Vec<Row>), Failure> {
     let mut rows = Vec::new();
     let header = parse_each(file, text, speed_range, &mut |r| rows.push(r))?;
     Ok((header, rows))
 }
 
 /// The header of the text of a measured file named `file`, each of its rows given
-/// to `each` in order; or every problem, one line each (the first
+/// to `each` in order; or every problem, the user's to fix (the first
 /// [`MAX_PROBLEMS`], then their count; a field longer than [`MAX_QUOTED`] cut).
 /// `speed_range`, when given, is the controller's `[min_speed_rpm,
 /// max_speed_rpm]`, rpm; without it a speed need only be above 0. `each` may
@@ -241,7 +242,7 @@ pub fn parse_each(
     text: &str,
     speed_range: Option<(f64, f64)>,
     each: &mut dyn FnMut(Row),
-) -> Result<Header, String> {
+) -> Result<Header, Failure> {
     let mut problems = Problems::default();
     // A spreadsheet's "CSV UTF-8" starts with a byte order mark: not part of the
     // header's first name.
@@ -254,20 +255,20 @@ pub fn parse_each(
 
     // The header: which column each field holds.
     let Some((header_line, header)) = lines.next() else {
-        return Err(format!(
-            "error: {file}: no header: expected the line `{},{WEIGHT}` (weight optional), then one row per run\n",
+        return Err(Failure::usage(format!(
+            "{file}: no header: expected the line `{},{WEIGHT}` (weight optional), then one row per run",
             COLUMNS.join(",")
-        ));
+        )));
     };
     let mut order = Vec::new();
     for name in header.split(',').map(str::trim) {
         match ALL.iter().position(|c| *c == name) {
             Some(k) if !order.contains(&k) => order.push(k),
             Some(_) => problems.push(format!(
-                "error: {file}: line {header_line}: header: column `{name}` twice"
+                "{file}: line {header_line}: header: column `{name}` twice"
             )),
             None => problems.push(format!(
-                "error: {file}: line {header_line}: header: unknown column `{}` (allowed: {})",
+                "{file}: line {header_line}: header: unknown column `{}` (allowed: {})",
                 input::cut(name, MAX_QUOTED),
                 ALL.join(", ")
             )),
@@ -276,13 +277,13 @@ pub fn parse_each(
     for (k, c) in COLUMNS.iter().enumerate() {
         if !order.contains(&k) {
             problems.push(format!(
-                "error: {file}: line {header_line}: header: missing column `{c}` (expected {},{WEIGHT}; weight optional)",
+                "{file}: line {header_line}: header: missing column `{c}` (expected {},{WEIGHT}; weight optional)",
                 COLUMNS.join(",")
             ));
         }
     }
     if !problems.is_empty() {
-        return Err(problems.render());
+        return Err(problems.into_failure());
     }
     let header = Header { order };
 
@@ -291,7 +292,7 @@ pub fn parse_each(
         let cells: Vec<&str> = l.split(',').map(str::trim).collect();
         if cells.len() != header.order.len() {
             problems.push(format!(
-                "error: {file}: line {line}: {} fields, the header has {} ({})",
+                "{file}: line {line}: {} fields, the header has {} ({})",
                 cells.len(),
                 header.order.len(),
                 header.line()
@@ -303,7 +304,7 @@ pub fn parse_each(
         for (&k, cell) in header.order.iter().zip(&cells) {
             let Some(v) = cell.parse::<f64>().ok().filter(|v| v.is_finite()) else {
                 problems.push(format!(
-                    "error: {file}: line {line}: {}: must be a finite number (got {:?})",
+                    "{file}: line {line}: {}: must be a finite number (got {:?})",
                     ALL[k],
                     input::cut(cell, MAX_QUOTED)
                 ));
@@ -311,7 +312,7 @@ pub fn parse_each(
             };
             match refusal(k, v, speed_range) {
                 Some(allowed) => problems.push(format!(
-                    "error: {file}: line {line}: {}: must be {allowed} (got {})",
+                    "{file}: line {line}: {}: must be {allowed} (got {})",
                     ALL[k],
                     input::cut(cell, MAX_QUOTED)
                 )),
@@ -331,7 +332,7 @@ pub fn parse_each(
     if problems.is_empty() {
         Ok(header)
     } else {
-        Err(problems.render())
+        Err(problems.into_failure())
     }
 }
 
@@ -355,17 +356,18 @@ impl Problems {
         self.kept.is_empty()
     }
 
-    /// One line each, then `... and N more problems` when some were left out.
-    fn render(&self) -> String {
-        let mut out = self.kept.join("\n") + "\n";
-        if self.more > 0 {
-            out += &format!(
-                "... and {} more problem{} (the first {MAX_PROBLEMS} are listed)\n",
-                self.more,
-                if self.more == 1 { "" } else { "s" }
-            );
+    /// The user's failure, the problems kept, then `... and N more problems`
+    /// after them when some were left out.
+    fn into_failure(self) -> Failure {
+        let failure = Failure::new(Kind::Usage, self.kept);
+        if self.more == 0 {
+            return failure;
         }
-        out
+        failure.with_detail(format!(
+            "... and {} more problem{} (the first {MAX_PROBLEMS} are listed)",
+            self.more,
+            if self.more == 1 { "" } else { "s" }
+        ))
     }
 }
 
@@ -380,7 +382,7 @@ mod tests {
     }
 
     fn err(text: &str) -> String {
-        parse("m.csv", text, RANGE).unwrap_err()
+        parse("m.csv", text, RANGE).unwrap_err().message()
     }
 
     #[test]
@@ -484,7 +486,7 @@ mod tests {
     fn without_the_controller_a_speed_need_only_be_above_0() {
         let text = "speed_rpm,offset_deg,velocity_mps\n9000,90,0.03\n0,90,0.1\n";
         assert_eq!(
-            parse("m.csv", text, None).unwrap_err(),
+            parse("m.csv", text, None).unwrap_err().message(),
             "error: m.csv: line 3: speed_rpm: must be > 0 and at most 60000 rpm (got 0)\n"
         );
         assert!(err(text).contains("line 3: speed_rpm: must be within"));
@@ -504,7 +506,7 @@ mod tests {
                     60000,-360,-10,1e-6\n\
                     3000,360,10,1e6\n";
         assert_eq!(
-            parse("m.csv", text, None).unwrap_err(),
+            parse("m.csv", text, None).unwrap_err().message(),
             "error: m.csv: line 2: weight: must be within [1e-6, 1e6] (weights are relative: scale them) (got 1e308)\n\
              error: m.csv: line 3: velocity_mps: must be within [-10, 10] m/s (got 1e308)\n\
              error: m.csv: line 4: speed_rpm: must be > 0 and at most 60000 rpm (got 1e308)\n\
@@ -581,7 +583,9 @@ mod tests {
         // Past the limit: refused, whatever it holds (a sparse file of zeros).
         let big = std::fs::File::create(&path).unwrap();
         big.set_len(MAX_BYTES + 1).unwrap();
-        let e = read_each(&path, None, &mut |_| panic!("no row")).unwrap_err();
+        let e = read_each(&path, None, &mut |_| panic!("no row"))
+            .unwrap_err()
+            .message();
         assert_eq!(
             e,
             format!(

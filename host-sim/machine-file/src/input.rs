@@ -2,7 +2,8 @@
 //!
 //! Reading a file never stops at the first mistake: every problem is recorded with
 //! the full key path it concerns (`contacts[2].friction`, `body.mass`), what is wrong
-//! and what is allowed, and all of them are returned together, one line each:
+//! and what is allowed, and all of them are returned together, each said as one
+//! line ([`error_line`]):
 //!
 //! ```text
 //! error: case.toml: contacts[2].friction: must be >= 0 (got -0.1)
@@ -59,32 +60,31 @@ pub struct Problem {
 }
 
 impl fmt::Display for Problem {
-    /// `error: FILE: KEY: MESSAGE`, `error: FILE:LINE:COLUMN: MESSAGE` or
-    /// `error: FILE: MESSAGE`.
+    /// `FILE: KEY: MESSAGE`, `FILE:LINE:COLUMN: MESSAGE` or `FILE: MESSAGE`: the
+    /// problem's text, which [`error_line`] says to the user.
     /// The file name, key path and message each [`cut`] at [`MAX_PATH_SHOWN`].
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let file = cut(&self.file, MAX_PATH_SHOWN);
         let message = cut(&self.message, MAX_PATH_SHOWN);
         match &self.location {
-            Location::File => write!(f, "error: {file}: {message}"),
-            Location::Line { line, column } => {
-                write!(f, "error: {file}:{line}:{column}: {message}")
-            }
-            Location::Key(key) => {
-                write!(f, "error: {file}: {}: {message}", cut(key, MAX_PATH_SHOWN))
-            }
+            Location::File => write!(f, "{file}: {message}"),
+            Location::Line { line, column } => write!(f, "{file}:{line}:{column}: {message}"),
+            Location::Key(key) => write!(f, "{file}: {}: {message}", cut(key, MAX_PATH_SHOWN)),
         }
     }
 }
 
-/// Formats problems one per line, each ending with a newline.
+/// One problem as the user reads it: `error: `, its text and a line break. The
+/// one place that prefix is written: host-sim prints every failure's problems
+/// through it, and the firmware's build its refusals of a machine file
+/// ([`render`]).
+pub fn error_line(text: impl fmt::Display) -> String {
+    format!("error: {text}\n")
+}
+
+/// Formats problems one per line ([`error_line`]).
 pub fn render(problems: &[Problem]) -> String {
-    let mut out = String::new();
-    for p in problems {
-        out.push_str(&p.to_string());
-        out.push('\n');
-    }
-    out
+    problems.iter().map(error_line).collect()
 }
 
 /// The problems found so far in one file. Shared by every [`Section`] of the file,
@@ -986,7 +986,11 @@ mod tests {
     }
 
     fn lines(problems: Problems) -> Vec<String> {
-        problems.into_vec().iter().map(|p| p.to_string()).collect()
+        problems
+            .into_vec()
+            .iter()
+            .map(|p| error_line(p).trim_end().to_string())
+            .collect()
     }
 
     /// `read_text_at_most(path, limit)` on a thread, failing the test if it has
@@ -995,7 +999,9 @@ mod tests {
         let path = path.to_path_buf();
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
-            let _ = tx.send(read_text_at_most(&path, limit).map_err(|p| p.to_string()));
+            let _ = tx.send(
+                read_text_at_most(&path, limit).map_err(|p| error_line(p).trim_end().to_string()),
+            );
         });
         rx.recv_timeout(std::time::Duration::from_secs(20))
             .expect("the read returned")
@@ -1158,9 +1164,9 @@ mod tests {
     fn syntax_errors_give_line_and_column() {
         let e = parse("t.toml", "a = 1\nb = = 2\n").unwrap_err();
         assert_eq!(e.location, Location::Line { line: 2, column: 5 });
-        let s = e.to_string();
+        let s = render(&[e]);
         assert!(s.starts_with("error: t.toml:2:5: TOML syntax: "), "{s}");
-        assert!(!s.contains('\n'));
+        assert_eq!(s.lines().count(), 1, "{s}");
     }
 
     #[test]

@@ -142,7 +142,7 @@ mod tests {
         let table = "[platform]\n[[rotors]]\n".parse::<Table>().unwrap();
         let p = wrong_kind("m.toml", &table, FileKind::ImpactCase).unwrap();
         assert_eq!(
-            p.to_string(),
+            crate::input::error_line(p).trim_end(),
             "error: m.toml: this is a machine file (it has [platform] and [[rotors]]), not an impact case: use host-sim run (or tune, calibrate, device-sim --machine); see docs/machine-file.md"
         );
         assert_eq!(wrong_kind("m.toml", &table, FileKind::Machine), None);

@@ -660,7 +660,7 @@ mod tests {
         let (applied, problems) = apply(table, &Override::command_line(&[arg.to_string()]));
         match (applied.first(), problems.first()) {
             (Some(a), None) => Ok(a.key_path.clone()),
-            (None, Some(p)) => Err(p.to_string()),
+            (None, Some(p)) => Err(crate::input::error_line(p).trim_end().to_string()),
             _ => unreachable!(),
         }
     }

@@ -25,6 +25,7 @@
 
 use std::collections::HashMap;
 
+use crate::failure::Failure;
 use crate::machine::uncertainty::latin_hypercube;
 
 /// Default step of the Jacobian's differences, normalised: 1/16 of each range,
@@ -84,7 +85,7 @@ impl Settings {
 
 /// A residual function: the residual vectors of a batch of points, in order.
 /// `Err`: stop (Ctrl-C), with why.
-pub type Residuals<'a> = dyn FnMut(&[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> + 'a;
+pub type Residuals<'a> = dyn FnMut(&[Vec<f64>]) -> Result<Vec<Vec<f64>>, Failure> + 'a;
 
 /// One local search.
 #[derive(Clone, Debug, PartialEq)]
@@ -140,7 +141,7 @@ struct Memo<'a, 'b> {
 
 impl Memo<'_, '_> {
     /// The residuals of `batch`, the new points evaluated as one batch.
-    fn get(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> {
+    fn get(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, Failure> {
         let key = |u: &Vec<f64>| u.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
         let mut new: Vec<Vec<f64>> = Vec::new();
         for u in batch {
@@ -172,7 +173,7 @@ pub fn fit(
     given: &[Vec<f64>],
     settings: &Settings,
     residuals: &mut Residuals<'_>,
-) -> Result<Fit, String> {
+) -> Result<Fit, Failure> {
     let mut memo = Memo {
         residuals,
         seen: HashMap::new(),
@@ -239,7 +240,7 @@ fn compass(
     f0: f64,
     index: usize,
     settings: &Settings,
-) -> Result<Search, String> {
+) -> Result<Search, Failure> {
     let (mut u, mut f) = (u0.to_vec(), f0);
     let mut h = settings.first_step;
     let before = memo.seen.len();
@@ -299,7 +300,7 @@ mod tests {
         let star = [0.3, 0.7];
         let a = [[1.0, 0.5], [0.2, 1.0], [1.0, -1.0]];
         let mut calls = 0;
-        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, String> {
+        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, Failure> {
             calls += 1;
             Ok(batch
                 .iter()
@@ -326,7 +327,7 @@ mod tests {
     /// the deep one.
     #[test]
     fn the_multistart_leaves_a_local_minimum() {
-        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, String> {
+        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, Failure> {
             Ok(batch
                 .iter()
                 .map(|u| {
@@ -346,7 +347,7 @@ mod tests {
     /// one-sided.
     #[test]
     fn the_box_holds() {
-        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, String> {
+        let mut f = |batch: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, Failure> {
             Ok(batch.iter().map(|u| vec![u[0] + 1.0]).collect())
         };
         let fit = fit(1, &[vec![0.5]], &Settings::for_keys(1), &mut f).unwrap();
@@ -357,10 +358,11 @@ mod tests {
     /// A stop from the residual function ends the search with its reason.
     #[test]
     fn a_stop_stops() {
-        let mut f = |_: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, String> { Err("stop".into()) };
+        let mut f =
+            |_: &[Vec<f64>]| -> Result<Vec<Vec<f64>>, Failure> { Err(Failure::run("stop")) };
         assert_eq!(
             fit(1, &[vec![0.5]], &Settings::for_keys(1), &mut f),
-            Err("stop".into())
+            Err(Failure::run("stop"))
         );
     }
 }

@@ -13,6 +13,7 @@
 
 use std::path::Path;
 
+use crate::failure::{Failure, Kind, Reason};
 use crate::machine::input::{self, Limit, NumberRead};
 use crate::machine::set;
 use crate::machine::uncertainty::{self, Uncertainty};
@@ -90,18 +91,18 @@ pub fn sets_at(keys: &[FitKey], u: &[f64]) -> Vec<String> {
 }
 
 /// The fitted keys `fit` of the machine file `path` (its `text`, with the `--set`s
-/// `sets`), checked: every problem at once, one line each.
+/// `sets`), checked: every problem at once, the user's to fix.
 pub fn resolve(
     path: &Path,
     text: &str,
     sets: &[String],
     fit: &[String],
-) -> Result<Vec<FitKey>, String> {
+) -> Result<Vec<FitKey>, Failure> {
     let file = path.display().to_string();
     let dir = path.parent().unwrap_or(Path::new(""));
-    let numbers = Machine::numbers(&file, text, dir, sets).map_err(|p| input::render(&p))?;
-    let ranges = Uncertainty::from_text(&file, text, dir, sets).map_err(|p| input::render(&p))?;
-    let mut table = input::parse(&file, text).map_err(|p| input::render(&[p]))?;
+    let numbers = Machine::numbers(&file, text, dir, sets)?;
+    let ranges = Uncertainty::from_text(&file, text, dir, sets)?;
+    let mut table = input::parse(&file, text)?;
     let (set_applied, _) = set::apply(&mut table, &set::Override::command_line(sets));
 
     let mut problems = Vec::new();
@@ -114,32 +115,34 @@ pub fn resolve(
                     .iter()
                     .find(|o| o.key_paths.iter().any(|p| k.key_paths.contains(p)))
                 {
-                    problems.push(format!(
-                        "error: --fit {key}: varies a key that --fit {} varies too: one fit a key",
+                    problems.push(Reason::new(format!(
+                        "--fit {key}: varies a key that --fit {} varies too: one fit a key",
                         other.key
-                    ));
+                    )));
                 } else if let Some(s) = set_applied
                     .iter()
                     .find(|a| k.key_paths.contains(&a.key_path))
                 {
-                    problems.push(format!(
-                        "error: --fit {key}: --set {} sets {} too: a fitted key is not also set",
+                    problems.push(Reason::new(format!(
+                        "--fit {key}: --set {} sets {} too: a fitted key is not also set",
                         s.arg, s.key_path
-                    ));
+                    )));
                 } else {
                     keys.push(k);
                 }
             }
-            Err(message) => problems.push(message),
+            Err(refused) => problems.extend(refused.into_reasons()),
         }
     }
     if keys.is_empty() && problems.is_empty() {
-        problems.push("error: --fit: no key to fit (e.g. --fit contacts.*.restitution)".into());
+        problems.push(Reason::new(
+            "--fit: no key to fit (e.g. --fit contacts.*.restitution)",
+        ));
     }
     if problems.is_empty() {
         Ok(keys)
     } else {
-        Err(problems.join("\n") + "\n")
+        Err(Failure::new(Kind::Usage, problems))
     }
 }
 
@@ -160,8 +163,8 @@ fn resolve_one(
     numbers: &[NumberRead],
     ranges: &Uncertainty,
     key: &str,
-) -> Result<FitKey, String> {
-    let refuse = |why: String| format!("error: --fit {key}: {why}");
+) -> Result<FitKey, Failure> {
+    let refuse = |why: String| Failure::usage(format!("--fit {key}: {why}"));
     let targets = uncertainty::expand(table, key).map_err(refuse)?;
     let paths = key_paths(table, &targets).map_err(refuse)?;
     let mut read = Vec::new();
@@ -195,26 +198,26 @@ fn resolve_one(
                     low = low.max(lo);
                     high = high.min(hi);
                 } else {
-                    return Err(format!(
-                        "error: {file}: --fit {key}: {} must be {} and has no finite range to search: give its range in the file's [uncertainty], e.g. \"{key}\" = [{}, {}] (docs/calibration.md)",
+                    return Err(Failure::usage(format!(
+                        "{file}: --fit {key}: {} must be {} and has no finite range to search: give its range in the file's [uncertainty], e.g. \"{key}\" = [{}, {}] (docs/calibration.md)",
                         n.key_path,
                         n.limit.describe(),
                         numbers::sig(example_range(n.value).0),
                         numbers::sig(example_range(n.value).1),
-                    ));
+                    )));
                 }
             }
             (low, high, Bound::Valid)
         }
     };
     if !(nominal >= low && nominal <= high) {
-        return Err(format!(
-            "error: {file}: --fit {key}: the file's value {} lies outside the range searched [{}, {}] ({}): widen the range or correct the value",
+        return Err(Failure::usage(format!(
+            "{file}: --fit {key}: the file's value {} lies outside the range searched [{}, {}] ({}): widen the range or correct the value",
             numbers::sig(nominal),
             numbers::sig(low),
             numbers::sig(high),
             bound.name()
-        ));
+        )));
     }
     Ok(FitKey {
         key: key.to_string(),
@@ -255,9 +258,10 @@ mod tests {
         format!("{}\n{extra}", reference())
     }
 
+    /// The keys, or the failure's message as the user reads it.
     fn keys(text: &str, fit: &[&str]) -> Result<Vec<FitKey>, String> {
         let fit: Vec<String> = fit.iter().map(|s| s.to_string()).collect();
-        resolve(Path::new("m.toml"), text, &[], &fit)
+        resolve(Path::new("m.toml"), text, &[], &fit).map_err(|f| f.message())
     }
 
     #[test]
@@ -325,7 +329,8 @@ mod tests {
             &sets,
             &["contacts.*.restitution".into()],
         )
-        .unwrap_err();
+        .unwrap_err()
+        .message();
         assert!(e.contains("a fitted key is not also set"), "{e}");
     }
 }

@@ -42,7 +42,7 @@ use clap::Args;
 use rayon::prelude::*;
 
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind, Reason};
 use crate::help::epilogue;
 use crate::measured;
 use crate::numbers::count;
@@ -125,18 +125,19 @@ pub struct Inputs {
 }
 
 /// Stage 1 (without the output).
-pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
+pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, Failure> {
     let path = &args.machine.path;
     let (text, _) = read_machine_file(path)?;
     let machine = load_machine(path, &text, &args.set.keys)?;
     let mut problems = Vec::new();
     let keys = keys::resolve(path, &text, &args.set.keys, &args.fit)
-        .map_err(|e| problems.push(e))
+        .map_err(|f| problems.extend(f.into_reasons()))
         .ok();
     let speeds = closed_loop::speed_range_rpm(&machine);
     let mut data = Gathered::default();
     let mut measured_sha256 = String::new();
     let rows = measured::read_bounded(&args.measured)
+        .map_err(Failure::from)
         .and_then(|text| {
             measured_sha256 = sha256_hex(text.as_bytes());
             let file = args.measured.display().to_string();
@@ -147,29 +148,31 @@ pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
             // A file with a header alone (a sweep stopped before its first
             // answer) is well formed, but there is nothing to fit.
             if data.rows == 0 {
-                Err(format!(
-                    "error: {file}: no rows after the header: one row per measured run\n"
-                ))
+                Err(Failure::usage(format!(
+                    "{file}: no rows after the header: one row per measured run"
+                )))
             } else if data.rows_beyond > 0 {
-                Err(format!(
-                    "error: {file}: more than {MAX_POINTS} distinct (speed, offset) points ({} beyond the first {MAX_POINTS} points): one evaluation of the fit runs each point, and a fit takes some 80 evaluations (docs/calibration.md, \"Cost\"); measure fewer points (a point repeated costs no run)\n",
+                Err(Failure::usage(format!(
+                    "{file}: more than {MAX_POINTS} distinct (speed, offset) points ({} beyond the first {MAX_POINTS} points): one evaluation of the fit runs each point, and a fit takes some 80 evaluations (docs/calibration.md, \"Cost\"); measure fewer points (a point repeated costs no run)",
                     count(data.rows_beyond, "row")
-                ))
+                )))
             } else {
                 Ok(())
             }
         })
-        .map_err(|e| problems.push(e))
+        .map_err(|f| problems.extend(f.into_reasons()))
         .ok();
     let t_end = args.t_end.seconds.unwrap_or(DEFAULT_T_END);
     if !(t_end.is_finite() && t_end > 0.0) {
-        problems.push(format!(
-            "error: --t-end {t_end}: must be a positive number of seconds\n"
-        ));
+        problems.push(Reason::new(format!(
+            "--t-end {t_end}: must be a positive number of seconds"
+        )));
     }
-    for p in limits::check(&machine, t_end, "--t-end") {
-        problems.push(p + "\n");
-    }
+    problems.extend(
+        limits::check(&machine, t_end, "--t-end")
+            .into_iter()
+            .map(Reason::new),
+    );
     match (keys, rows) {
         (Some(keys), Some(())) if problems.is_empty() => Ok(Inputs {
             text,
@@ -178,16 +181,7 @@ pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, String> {
             measured_sha256,
             t_end,
         }),
-        _ => Err(problems
-            .iter()
-            .map(|p| {
-                if p.ends_with('\n') {
-                    p.clone()
-                } else {
-                    format!("{p}\n")
-                }
-            })
-            .collect()),
+        _ => Err(Failure::new(Kind::Usage, problems)),
     }
 }
 
@@ -233,7 +227,7 @@ pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failur
     if let Some(shard) = args.shard {
         return part::run_shard(args, shard, console);
     }
-    let inputs = read_options(args).map_err(Failure::Usage)?;
+    let inputs = read_options(args)?;
     fit_and_report(args, inputs, HashMap::new(), console)
 }
 
@@ -270,9 +264,8 @@ pub(crate) fn fit_and_report(
     // written (the fit is not thrown away), its error after it.
     let mut file = || -> Result<(), Failure> {
         if let (Some(i), Some(path)) = (out, &args.write) {
-            let (text, _) = read_machine_file(&args.machine.path).map_err(Failure::Usage)?;
-            let written = report::machine_file(&args.machine.path, &text, &calibration, path)
-                .map_err(Failure::Run)?;
+            let (text, _) = read_machine_file(&args.machine.path)?;
+            let written = report::machine_file(&args.machine.path, &text, &calibration, path)?;
             staged.write(i, &written)?;
         }
         Ok(())
@@ -327,6 +320,12 @@ struct Trials<'a> {
 /// the machine reader's refusal of its values.
 pub type Evaluated = Result<Vec<RunOutcome>, String>;
 
+/// The machine reader's refusal of a trial point as the user reads it, every
+/// `error: ` line of it: the warning quotes it, and a part records it so.
+pub fn refusal(f: &Failure) -> String {
+    f.message().trim_end().to_string()
+}
+
 /// The key of a point in [`Trials::outcomes`].
 fn bits(u: &[f64]) -> Vec<u64> {
     u.iter().map(|x| x.to_bits()).collect()
@@ -335,7 +334,7 @@ fn bits(u: &[f64]) -> Vec<u64> {
 impl Trials<'_> {
     /// The runs of every trial point of `batch` (those in [`Trials::preset`]
     /// taken from there), in order; `Err` on Ctrl-C.
-    fn evaluate(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Evaluated>, String> {
+    fn evaluate(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Evaluated>, Failure> {
         let Inputs {
             text, keys, t_end, ..
         } = self.inputs;
@@ -358,7 +357,7 @@ impl Trials<'_> {
                     machines.push(Some(m));
                 }
                 Err(e) => {
-                    done.push(Some(Err(e.trim_end().to_string())));
+                    done.push(Some(Err(refusal(&e))));
                     machines.push(None);
                 }
             }
@@ -381,10 +380,10 @@ impl Trials<'_> {
             .collect();
         self.runs += ran.len();
         if crate::interrupt::interrupted() {
-            return Err(format!(
-                "error: calibrate: {}: the fit is incomplete, nothing written",
+            return Err(Failure::run(format!(
+                "calibrate: {}: the fit is incomplete, nothing written",
                 crate::interrupt::interruption()
-            ));
+            )));
         }
         let mut ran = ran.into_iter();
         Ok(done
@@ -395,7 +394,7 @@ impl Trials<'_> {
 
     /// The weighted residuals of every trial point of `batch`, one per measured
     /// point (not numbers for a trial point the reader refuses); `Err` on Ctrl-C.
-    fn residuals(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, String> {
+    fn residuals(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, Failure> {
         let evaluated = self.evaluate(batch)?;
         let data = &self.inputs.data;
         let mut out = Vec::new();
@@ -447,24 +446,22 @@ pub fn calibrate(
     let found = fit::fit(p, &[nominal_start(keys)], settings, &mut |b| {
         trials.residuals(b)
     });
-    let found = found.map_err(|e| {
-        trials.progress.finish_and_clear();
-        Failure::Run(e)
-    })?;
+    let found = found.inspect_err(|_| trials.progress.finish_and_clear())?;
 
     // The runs at the fit, point by point.
     let simulated = trials.outcomes.remove(&bits(&found.u)).unwrap_or_default();
     if simulated.len() != inputs.data.points.len() {
         trials.progress.finish_and_clear();
-        return Err(Failure::Run(
-            "error: calibrate: no point of the search ran (every one refused by the machine reader); nothing written".into(),
+        return Err(Failure::run(
+            "calibrate: no point of the search ran (every one refused by the machine reader); nothing written",
         ));
     }
 
     // 3. The numerical noise at the fit (its machine loaded: the search ran it).
     let mut sets = args.set.keys.clone();
     sets.extend(keys::sets_at(keys, &found.u));
-    let machine = load_machine(&args.machine.path, &inputs.text, &sets).map_err(Failure::Run)?;
+    let machine =
+        load_machine(&args.machine.path, &inputs.text, &sets).map_err(|f| f.of_kind(Kind::Run))?;
     let progress = &trials.progress;
     let noise = numerical::noise(
         &machine,

@@ -30,10 +30,11 @@ use serde_json::Value;
 use super::fit::{self, Settings};
 use super::keys;
 use super::{
-    bits, fit_and_report, nominal_start, read_options, CalibrateArgs, Evaluated, Inputs, Trials,
+    bits, fit_and_report, nominal_start, read_options, refusal, CalibrateArgs, Evaluated, Inputs,
+    Trials,
 };
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind, Reason};
 use crate::machine::input;
 use crate::numbers;
 use crate::numbers::count;
@@ -145,7 +146,7 @@ pub(crate) fn run_shard(
     shard: Shard,
     console: &mut Console<'_>,
 ) -> Result<(), Failure> {
-    let inputs = read_options(args).map_err(Failure::Usage)?;
+    let inputs = read_options(args)?;
     let out = args.out_part.clone().unwrap_or_else(|| PathBuf::from("-"));
     let mut staged = Staged::new();
     let output = staged.add("--out-part", &out)?;
@@ -169,7 +170,7 @@ pub(crate) fn run_shard(
     };
     let evaluated = trials.evaluate(&batch);
     trials.progress.finish_and_clear();
-    let evaluated = evaluated.map_err(Failure::Run)?;
+    let evaluated = evaluated?;
     refuse_interrupted("calibrate", "the part is incomplete")?;
     let runs = trials.runs;
 
@@ -216,8 +217,8 @@ pub(crate) fn run_shard(
     };
     part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
-        Failure::Run(format!(
-            "error: calibrate --shard {shard}: the part does not serialize: {e}"
+        Failure::run(format!(
+            "calibrate --shard {shard}: the part does not serialize: {e}"
         ))
     })?;
     text.push('\n');
@@ -253,10 +254,14 @@ pub fn names_a_fit(parts: &[PathBuf]) -> bool {
 /// Reads the partial result `path` and checks it on its own: its format and
 /// version, its fields, its hashes, its shard, the host-sim version, and its
 /// runs as `tune`'s run makes them.
-pub fn read(path: &Path) -> Result<Part, String> {
+pub fn read(path: &Path) -> Result<Part, Failure> {
     let part: Part = read_as(path, FORMAT, VERSION, "host-sim calibrate --shard")?;
-    let damaged =
-        |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
+    let damaged = |why: String| {
+        Failure::usage(format!(
+            "{}: a damaged partial result: {why}",
+            path.display()
+        ))
+    };
     if part.fit_sha256 != fit_sha256(&part.machine.sha256, &part.fit) {
         return Err(damaged(
             "fit_sha256 does not match the machine's hash and the fit it describes (the file was edited)".into(),
@@ -264,11 +269,11 @@ pub fn read(path: &Path) -> Result<Part, String> {
     }
     let this = env!("CARGO_PKG_VERSION");
     if part.fit.host_sim_version != this {
-        return Err(format!(
-            "error: {}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
+        return Err(Failure::usage(format!(
+            "{}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
             path.display(),
             quote(&part.fit.host_sim_version)
-        ));
+        )));
     }
     for (what, sha) in [
         ("machine.sha256", &part.machine.sha256),
@@ -398,11 +403,8 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
     check_one_fit(&parts)?;
     let first = &parts[0].1;
     let calibrate = calibrate_args(first, args);
-    let inputs = read_options(&calibrate).map_err(|e| {
-        Failure::Usage(format!(
-            "{}: the files the parts were made from (merge where calibrate ran)\n",
-            e.trim_end()
-        ))
+    let inputs = read_options(&calibrate).map_err(|f| {
+        f.ending_with(": the files the parts were made from (merge where calibrate ran)")
     })?;
     check_files(first, &inputs)?;
     let preset = evaluations(&parts, &calibrate, &inputs)?;
@@ -414,20 +416,20 @@ pub fn merge(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure>
 fn read_parts(args: &MergeArgs) -> Result<Vec<(PathBuf, Part)>, Failure> {
     let mut refused = Vec::new();
     if args.machine.is_some() {
-        refused.push("error: merge: --machine: a fit's parts are merged where they were made (its outputs name the machine and measured files as calibrate was given them)\n".to_string());
+        refused.push(Reason::new("merge: --machine: a fit's parts are merged where they were made (its outputs name the machine and measured files as calibrate was given them)"));
     }
     if args.output.plot.file.is_some() {
-        refused.push("error: merge: --plot: calibrate has no plot; a fit's parts merge to --write OUT.toml and --format table|json\n".to_string());
+        refused.push(Reason::new("merge: --plot: calibrate has no plot; a fit's parts merge to --write OUT.toml and --format table|json"));
     }
     let mut parts = Vec::new();
     for path in &args.parts {
         match read(path) {
             Ok(p) => parts.push((path.clone(), p)),
-            Err(e) => refused.push(e + "\n"),
+            Err(e) => refused.extend(e.into_reasons()),
         }
     }
     if !refused.is_empty() {
-        return Err(Failure::Usage(refused.concat()));
+        return Err(Failure::new(Kind::Usage, refused));
     }
     Ok(parts)
 }
@@ -442,12 +444,12 @@ fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
         let d = differences(first, part, &a, &b);
         if !d.is_empty() {
             problems.push(format!(
-                "error: {b}: a part of another fit than {a}: {}",
+                "{b}: a part of another fit than {a}: {}",
                 d.join("; ")
             ));
         } else if part.shard.count != first.shard.count {
             problems.push(format!(
-                "error: {b}: part {} but {a} is part {}: the parts disagree on N",
+                "{b}: part {} but {a} is part {}: the parts disagree on N",
                 part.shard, first.shard
             ));
         }
@@ -458,7 +460,7 @@ fn check_one_fit(parts: &[(PathBuf, Part)]) -> Result<(), Failure> {
         problems.extend(shard_problems(&given, "a fit"));
     }
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n") + "\n"));
+        return Err(Failure::new(Kind::Usage, problems));
     }
     Ok(())
 }
@@ -496,18 +498,18 @@ fn check_files(first: &Part, inputs: &Inputs) -> Result<(), Failure> {
     let mut changed = Vec::new();
     if sha != first.machine.sha256 {
         changed.push(format!(
-            "error: {}: not the machine file the parts were made from (its sha256 is {sha}, theirs {})",
+            "{}: not the machine file the parts were made from (its sha256 is {sha}, theirs {})",
             first.machine.path, first.machine.sha256
         ));
     }
     if inputs.measured_sha256 != fit.measured.sha256 {
         changed.push(format!(
-            "error: {}: not the measured file the parts were made from (its sha256 is {}, theirs {})",
+            "{}: not the measured file the parts were made from (its sha256 is {}, theirs {})",
             fit.measured.path, inputs.measured_sha256, fit.measured.sha256
         ));
     }
     if !changed.is_empty() {
-        return Err(Failure::Usage(changed.join("\n") + "\n"));
+        return Err(Failure::new(Kind::Usage, changed));
     }
     Ok(())
 }
@@ -527,8 +529,8 @@ fn evaluations(
     let mut preset: HashMap<Vec<u64>, Evaluated> = HashMap::new();
     for (path, part) in parts {
         let damaged = |why: String| {
-            Failure::Usage(format!(
-                "error: {}: a damaged partial result: {why}\n",
+            Failure::usage(format!(
+                "{}: a damaged partial result: {why}",
                 path.display()
             ))
         };
@@ -564,7 +566,7 @@ fn evaluations(
             sets.extend(keys::sets_at(&inputs.keys, &s.u));
             let reader = load_machine(&calibrate.machine.path, &inputs.text, &sets)
                 .err()
-                .map(|e| e.trim_end().to_string());
+                .map(|e| refusal(&e));
             if reader != s.refused {
                 return Err(damaged(format!(
                     "start {}: refused: {} where the machine reader says {}",

@@ -16,6 +16,7 @@ use super::points::NOT_HELD_RESIDUAL_MPS;
 use super::points::{Point, ROWS_SHOWN};
 use super::precision::{informative, Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
 use super::{CalibrateArgs, Calibration};
+use crate::failure::Failure;
 use crate::machine::input;
 use crate::machine::Machine;
 use crate::numbers;
@@ -435,12 +436,12 @@ pub fn machine_file(
     text: &str,
     c: &Calibration,
     out: &Path,
-) -> Result<String, String> {
+) -> Result<String, Failure> {
     let internal = |why: String| {
-        format!(
-            "error: --write {}: {why} (an internal error)",
+        Failure::run(format!(
+            "--write {}: {why} (an internal error)",
             out.display()
-        )
+        ))
     };
     let mut doc: DocumentMut = text
         .parse()

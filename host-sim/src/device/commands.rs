@@ -40,7 +40,7 @@ Rows: speed_rpm ascending; offsets in degrees for rightward and leftward travel.
 
 impl From<LinkError> for Failure {
     fn from(e: LinkError) -> Self {
-        Failure::Device(format!("error: {e}"))
+        Failure::device(e.to_string())
     }
 }
 
@@ -56,7 +56,7 @@ pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> 
     // A port that cannot be opened is a bad --port, as a missing file is.
     let port = port
         .open()
-        .map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
+        .map_err(|e| Failure::usage(format!("--port: {e}")))?;
     let mut client = Client::new(port, args.retries);
     run_on(&mut client, args, table, file, tune, console)
 }
@@ -83,19 +83,18 @@ fn staged(option: &str, path: &Path) -> Result<Option<(Staged, usize)>, Failure>
 /// option never reaches the device.
 fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
     let port = args.port.as_deref().ok_or_else(|| {
-        Failure::Usage(
-            "error: --port: missing: name the device, a serial port (e.g. --port /dev/ttyUSB0) \
-             or tcp:HOST:PORT (e.g. --port tcp:127.0.0.1:5555, as `host-sim device-sim --listen` serves)"
-                .into(),
+        Failure::usage(
+            "--port: missing: name the device, a serial port (e.g. --port /dev/ttyUSB0) \
+             or tcp:HOST:PORT (e.g. --port tcp:127.0.0.1:5555, as `host-sim device-sim --listen` serves)",
         )
     })?;
-    let port = PortSpec::parse(port).map_err(|e| Failure::Usage(format!("error: --port: {e}")))?;
+    let port = PortSpec::parse(port).map_err(|e| Failure::usage(format!("--port: {e}")))?;
     let positive = |flag: &str, v: f64, unit: &str| {
         if v.is_finite() && v > 0.0 {
             Ok(())
         } else {
-            Err(Failure::Usage(format!(
-                "error: {flag}: must be a number of {unit} above 0 (got {v})"
+            Err(Failure::usage(format!(
+                "{flag}: must be a number of {unit} above 0 (got {v})"
             )))
         }
     };
@@ -112,8 +111,8 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         DeviceCommand::Hold(a) => {
             positive("--speed", f64::from(a.speed), "rpm")?;
             if !a.offset.is_finite() {
-                return Err(Failure::Usage(format!(
-                    "error: --offset: must be a finite number of degrees (got {})",
+                return Err(Failure::usage(format!(
+                    "--offset: must be a finite number of degrees (got {})",
                     a.offset
                 )));
             }
@@ -123,8 +122,8 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         }
         DeviceCommand::Telemetry(a) => {
             if a.period < MIN_TELEMETRY_PERIOD_MS {
-                return Err(Failure::Usage(format!(
-                    "error: --period: must be {MIN_TELEMETRY_PERIOD_MS} to 65535 ms (got {})",
+                return Err(Failure::usage(format!(
+                    "--period: must be {MIN_TELEMETRY_PERIOD_MS} to 65535 ms (got {})",
                     a.period
                 )));
             }
@@ -138,9 +137,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
                 live::listen_address(addr, a.allow_remote)?;
             }
             if a.count == Some(0) {
-                return Err(Failure::Usage(
-                    "error: --count: must be at least 1 frame (got 0)".into(),
-                ));
+                return Err(Failure::usage("--count: must be at least 1 frame (got 0)"));
             }
         }
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
@@ -359,15 +356,15 @@ fn keep_alive(
         } else {
             String::new()
         };
-        return Err(Failure::Device(format!(
-            "error: {why}stop: accepted, but {}; stop it by hand (E-stop) or again with `host-sim device --port PORT stop`, and ask `host-sim device --port PORT status` until state idle with both rotors below 10 rpm (a table write and the self-test need that)",
+        return Err(Failure::device(format!(
+            "{why}stop: accepted, but {}; stop it by hand (E-stop) or again with `host-sim device --port PORT stop`, and ask `host-sim device --port PORT status` until state idle with both rotors below 10 rpm (a table write and the self-test need that)",
             rest.describe()
         )));
     }
     out.print(&format!("stop: {}\n", rest.describe()));
     if interrupted {
-        return Err(Failure::Device(format!(
-            "error: {} after {held:.1} s of --for {for_s} s; the motors were stopped and are at rest",
+        return Err(Failure::device(format!(
+            "{} after {held:.1} s of --for {for_s} s; the motors were stopped and are at rest",
             interrupt::interruption()
         )));
     }
@@ -415,8 +412,8 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
     if matches!(Poll::status(client)?.state, State::Idle | State::Fault) {
         let rest = await_steady_rest(client, REST_HOLD_S, REST_TIMEOUT_S)?;
         if !rest.reached {
-            return Err(Failure::Device(format!(
-                "error: the self-test needs the motors stopped and both rotors at rest (below {} rpm) for {REST_HOLD_S} s; not so within {REST_TIMEOUT_S} s: {}",
+            return Err(Failure::device(format!(
+                "the self-test needs the motors stopped and both rotors at rest (below {} rpm) for {REST_HOLD_S} s; not so within {REST_TIMEOUT_S} s: {}",
                 shared::controller::WRITE_MAX_SPEED_RPM,
                 rest::motion(&rest.status)
             )));
@@ -426,8 +423,8 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
     // Until the controller takes the request at its next tick, the device
     // reports the previous self-test's outcome: not this one's.
     if !self_test_taken(client)? {
-        return Err(Failure::Device(format!(
-            "error: the device accepted the self-test but its uptime stood for {TICK_WAIT_S} s: its report cannot be told from the last test's; ask `host-sim device --port PORT status` until its uptime moves, then again"
+        return Err(Failure::device(format!(
+            "the device accepted the self-test but its uptime stood for {TICK_WAIT_S} s: its report cannot be told from the last test's; ask `host-sim device --port PORT status` until its uptime moves, then again"
         )));
     }
     let start = Instant::now();
@@ -443,22 +440,22 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
                 return if r.status == SelfTestStatus::Done {
                     Ok(())
                 } else {
-                    Err(Failure::Device(
-                        "error: the self-test was aborted (a fault, the E-stop or a stop)".into(),
+                    Err(Failure::device(
+                        "the self-test was aborted (a fault, the E-stop or a stop)",
                     ))
                 };
             }
             SelfTestStatus::NotRun if start.elapsed() >= never_started => {
-                return Err(Failure::Device(format!(
-                    "error: the device accepted the self-test but has not started it after {:.1} s",
+                return Err(Failure::device(format!(
+                    "the device accepted the self-test but has not started it after {:.1} s",
                     never_started.as_secs_f64()
                 )));
             }
             _ => {}
         }
         if start.elapsed() >= timeout {
-            return Err(Failure::Device(format!(
-                "error: the self-test did not finish within {} s (--timeout); status: {}",
+            return Err(Failure::device(format!(
+                "the self-test did not finish within {} s (--timeout); status: {}",
                 a.timeout,
                 report::self_test_status(r.status)
             )));
@@ -467,8 +464,8 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
             command(client, &Request::Stop)?;
             let ticked = after_a_tick(client)?.1;
             let after = read_self_test(client)?;
-            return Err(Failure::Device(format!(
-                "error: {}: the self-test was stopped (Stop accepted); its status now: {}{}",
+            return Err(Failure::device(format!(
+                "{}: the self-test was stopped (Stop accepted); its status now: {}{}",
                 interrupt::interruption(),
                 report::self_test_status(after.status),
                 stood(ticked, "stop")

@@ -35,9 +35,9 @@ pub struct MeasuredFile {
     pub rows: Vec<Row>,
 }
 
-/// "error: FILE: what", the user's to fix.
+/// "FILE: what", the user's to fix.
 fn usage(path: &Path, what: impl std::fmt::Display) -> Failure {
-    Failure::Usage(format!("error: {}: {what}", path.display()))
+    Failure::usage(format!("{}: {what}", path.display()))
 }
 
 /// The refusal of an `--out` file that exists.
@@ -83,8 +83,7 @@ impl MeasuredFile {
     pub fn resume(path: &Path) -> Result<MeasuredFile, Failure> {
         let text =
             input::read_text(path).map_err(|p| usage(path, format!("--resume: {}", p.message)))?;
-        let (header, rows) =
-            measured::parse(&path.display().to_string(), &text, None).map_err(Failure::Usage)?;
+        let (header, rows) = measured::parse(&path.display().to_string(), &text, None)?;
         let file = OpenOptions::new().append(true).open(path).map_err(|e| {
             usage(
                 path,
@@ -130,8 +129,8 @@ impl MeasuredFile {
             .write_all(line.as_bytes())
             .and_then(|()| self.file.sync_data())
             .map_err(|e| {
-                Failure::Run(format!(
-                    "error: {}: cannot append the measurement ({} rpm, {} deg): {e}",
+                Failure::run(format!(
+                    "{}: cannot append the measurement ({} rpm, {} deg): {e}",
                     self.path.display(),
                     csv_number(speed_rpm),
                     csv_number(offset_deg)
@@ -220,12 +219,13 @@ mod tests {
         .unwrap();
         let e = MeasuredFile::resume(&path).unwrap_err();
         let file = path.display();
+        assert_eq!(e.status(), crate::failure::EXIT_USAGE);
         assert_eq!(
-            e,
-            Failure::Usage(format!(
+            e.message(),
+            format!(
                 "error: {file}: line 2: speed_rpm: must be > 0 and at most 60000 rpm (got 0)\n\
                  error: {file}: line 3: offset_deg: must be a finite number (got \"x\")\n"
-            ))
+            )
         );
         let _ = std::fs::remove_file(&path);
     }

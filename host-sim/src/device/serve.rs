@@ -251,9 +251,9 @@ struct DeviceSimWatch<'c, 'w> {
     end: Option<Instant>,
     truth: Option<TruthFile>,
     /// Why the truth file could not be written on.
-    failed: Option<String>,
+    failed: Option<Failure>,
     /// Why the plant stopped advancing, ending the device ([`SimDevice::stopped`]).
-    stalled: Option<String>,
+    stalled: Option<Failure>,
     /// Device time skipped so far.
     skipped: Duration,
 }
@@ -265,9 +265,9 @@ impl Watch for DeviceSimWatch<'_, '_> {
 
     fn ticked(&mut self, device: &SimDevice) -> bool {
         if let Some(why) = device.stopped() {
-            self.stalled = Some(format!(
-                "error: device-sim: the machine's plant stopped: {why}"
-            ));
+            self.stalled = Some(Failure::run(format!(
+                "device-sim: the machine's plant stopped: {why}"
+            )));
             return false;
         }
         let Some(truth) = self.truth.as_mut() else {
@@ -300,8 +300,8 @@ fn check_whole_ms_tick(machine: &Machine, path: &std::path::Path) -> Result<(), 
     if tick_ms.round() >= 1.0 && (tick_ms - tick_ms.round()).abs() <= 1e-9 * tick_ms {
         Ok(())
     } else {
-        Err(Failure::Usage(format!(
-            "error: {}: controller.rate_hz: device-sim runs control ticks of whole milliseconds of uptime, as the link counts time: 1000 Hz, 500, 250, 200, ... (got {rate})",
+        Err(Failure::usage(format!(
+            "{}: controller.rate_hz: device-sim runs control ticks of whole milliseconds of uptime, as the link counts time: 1000 Hz, 500, 250, 200, ... (got {rate})",
             path.display()
         )))
     }
@@ -318,8 +318,8 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         ("--garbage-every", args.garbage_every),
     ] {
         if v == Some(0) {
-            return Err(Failure::Usage(format!(
-                "error: {flag}: must be at least 1 (got 0)"
+            return Err(Failure::usage(format!(
+                "{flag}: must be at least 1 (got 0)"
             )));
         }
     }
@@ -340,8 +340,8 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
     ] {
         match v {
             Some(s) if !(s.is_finite() && s > 0.0 && fits) => {
-                return Err(Failure::Usage(format!(
-                    "error: {flag}: must be a number of seconds above 0 (got {})",
+                return Err(Failure::usage(format!(
+                    "{flag}: must be a number of seconds above 0 (got {})",
                     numbers::sig(s)
                 )))
             }
@@ -390,16 +390,16 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         None => open_pty(),
         Some(spec) => match PortSpec::parse(spec) {
             Ok(PortSpec::Tcp(addr)) => Endpoint::tcp(&addr)
-                .map_err(|e| format!("error: --listen: cannot listen on {addr}: {e}")),
+                .map_err(|e| Failure::usage(format!("--listen: cannot listen on {addr}: {e}"))),
             _ => {
-                return Err(Failure::Usage(format!(
-                    "error: --listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
+                return Err(Failure::usage(format!(
+                    "--listen: `{spec}` is no TCP address: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:5555 (port 0: any free port)"
                 )))
             }
         },
     };
     // A port in use or not ours to take is the user's to change.
-    let mut endpoint = endpoint.map_err(Failure::Usage)?;
+    let mut endpoint = endpoint?;
     let truth = match &args.truth {
         None => None,
         Some(path) => Some(TruthFile::create(path)?),
@@ -439,7 +439,7 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         console.note(&format!("device-sim: warning: {w}\n"));
     }
     match failed.or(stalled) {
-        Some(e) => Err(Failure::Run(e)),
+        Some(f) => Err(f),
         None => Ok(()),
     }
 }
@@ -475,13 +475,15 @@ fn stopped_note(device: &SimDevice, served: &Served, start: PlatformPose) -> Str
 }
 
 #[cfg(unix)]
-fn open_pty() -> Result<Endpoint, String> {
-    Endpoint::pty().map_err(|e| format!("error: cannot open a pseudo-terminal: {e}"))
+fn open_pty() -> Result<Endpoint, Failure> {
+    Endpoint::pty().map_err(|e| Failure::usage(format!("cannot open a pseudo-terminal: {e}")))
 }
 
 #[cfg(not(unix))]
-fn open_pty() -> Result<Endpoint, String> {
-    Err("error: pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0".into())
+fn open_pty() -> Result<Endpoint, Failure> {
+    Err(Failure::usage(
+        "pseudo-terminals need Unix; use --listen tcp:127.0.0.1:0",
+    ))
 }
 
 #[cfg(test)]

@@ -33,8 +33,8 @@ pub fn silence_limit(period_ms: u16) -> Duration {
 /// The failure of a silent stream: `quiet_s` seconds without a frame after
 /// `frames` frames.
 fn silent(quiet_s: f64, period_ms: u16, frames: u64) -> Failure {
-    Failure::Device(format!(
-        "error: no telemetry from the device in {quiet_s:.1} s (it acknowledged StreamTelemetry \
+    Failure::device(format!(
+        "no telemetry from the device in {quiet_s:.1} s (it acknowledged StreamTelemetry \
          every {period_ms} ms; {frames} frames before): the device does not stream, or no frame \
          crosses the line whole"
     ))

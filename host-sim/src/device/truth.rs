@@ -16,7 +16,7 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use super::plant::PlatformPose;
-use crate::failure::Failure;
+use crate::failure::{Failure, Kind};
 use crate::numbers::fixed;
 use crate::output::file::Target;
 
@@ -45,10 +45,7 @@ impl TruthFile {
     /// to change.
     pub fn create(path: &Path) -> Result<TruthFile, Failure> {
         let refuse = |why: String| {
-            Failure::Usage(format!(
-                "error: --truth: cannot write {}: {why}",
-                path.display()
-            ))
+            Failure::usage(format!("--truth: cannot write {}: {why}", path.display()))
         };
         let file = match Target::of(path).map_err(&refuse)? {
             Target::Regular(p) => OpenOptions::new()
@@ -72,14 +69,14 @@ impl TruthFile {
         };
         truth
             .line(TRUTH_HEADER)
-            .map_err(|e| Failure::Usage(e.trim_end().to_string()))?;
+            .map_err(|f| f.of_kind(Kind::Usage))?;
         Ok(truth)
     }
 
     /// The row at uptime `uptime_ms` if one is due (the first at 0, then every
-    /// [`TRUTH_PERIOD_MS`]), flushed. An error says why the file cannot be written
-    /// on (the disk full, say).
-    pub fn record(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), String> {
+    /// [`TRUTH_PERIOD_MS`]), flushed. A failure of the run says why the file
+    /// cannot be written on (the disk full, say).
+    pub fn record(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), Failure> {
         if uptime_ms < self.next_ms {
             return Ok(());
         }
@@ -88,14 +85,14 @@ impl TruthFile {
     }
 
     /// The last row, at uptime `uptime_ms`, unless a row was written there.
-    pub fn finish(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), String> {
+    pub fn finish(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), Failure> {
         if self.last_ms == Some(uptime_ms) {
             return Ok(());
         }
         self.row(uptime_ms, pose)
     }
 
-    fn row(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), String> {
+    fn row(&mut self, uptime_ms: u64, pose: PlatformPose) -> Result<(), Failure> {
         self.last_ms = Some(uptime_ms);
         // Micrometres and microradians: far below what a run moves in a period.
         let row = format!(
@@ -108,10 +105,15 @@ impl TruthFile {
         self.line(&row)
     }
 
-    fn line(&mut self, line: &str) -> Result<(), String> {
+    fn line(&mut self, line: &str) -> Result<(), Failure> {
         writeln!(self.out, "{line}")
             .and_then(|()| self.out.flush())
-            .map_err(|e| format!("error: --truth: cannot write {}: {e}", self.path.display()))
+            .map_err(|e| {
+                Failure::run(format!(
+                    "--truth: cannot write {}: {e}",
+                    self.path.display()
+                ))
+            })
     }
 }
 

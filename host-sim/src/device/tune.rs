@@ -291,8 +291,8 @@ pub fn sweep(
                     "q".to_string()
                 }
                 Reply::Interrupted => {
-                    return Err(Failure::Run(format!(
-                        "error: {} at the prompt of {here}: the machine was at rest before the prompt; that point is not recorded",
+                    return Err(Failure::run(format!(
+                        "{} at the prompt of {here}: the machine was at rest before the prompt; that point is not recorded",
                         interrupt::interruption()
                     )))
                 }
@@ -356,7 +356,7 @@ pub fn sweep(
 /// with what the status says. "The machine is stopped" only when the status
 /// says so: a device may acknowledge the stop and run on.
 fn stopped(f: Failure, here: &str, rig: &mut dyn Rig, timeout_s: f64) -> Failure {
-    let cause = |e: Failure| e.message().trim().trim_start_matches("error: ").to_string();
+    let cause = |e: Failure| e.text();
     let link_lost =
         "the device stops the motors itself 0.5 s after its last request (fault link_lost)";
     let stop = match rig.stop().map(|()| await_rest(rig, timeout_s)) {
@@ -371,12 +371,10 @@ fn stopped(f: Failure, here: &str, rig: &mut dyn Rig, timeout_s: f64) -> Failure
         ),
         Err(e) => format!("the stop failed too ({}): {link_lost}", cause(e)),
     };
-    let tell = |m: String| {
-        let m = m.trim_end().trim_start_matches("error: ");
+    f.map_text(|m| {
         let m = m.strip_prefix(&format!("{here}: ")).unwrap_or(m);
-        format!("error: {here}: {m}; {stop}")
-    };
-    map_message(f, tell)
+        format!("{here}: {m}; {stop}")
+    })
 }
 
 /// Steps 1 to 4 of the module doc for one point.
@@ -485,13 +483,13 @@ fn watch(
     let start = Instant::now();
     loop {
         let s = rig.status()?;
-        let fail = |why: String| Failure::Device(format!("error: {here}: {doing}: {why}"));
+        let fail = |why: String| Failure::device(format!("{here}: {doing}: {why}"));
         if !s.faults.is_empty() {
             return Err(fail(format!("fault {} latched", faults_text(s.faults))));
         }
         if op.interrupted() {
-            return Err(Failure::Run(format!(
-                "error: {here}: {doing}: {}",
+            return Err(Failure::run(format!(
+                "{here}: {doing}: {}",
                 interrupt::interruption()
             )));
         }
@@ -517,7 +515,7 @@ pub struct Prepared {
 /// Checks the options, reads a `--resume` file (every row), refuses an existing
 /// `--out`, stages `--write`: every user mistake before the port is opened.
 pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
-    let usage = |m: String| Failure::Usage(format!("error: {m}"));
+    let usage = Failure::usage;
     let positive = |flag: &str, v: f64| {
         if v.is_finite() && v > 0.0 {
             Ok(())
@@ -558,7 +556,7 @@ pub fn prepare(a: &DeviceTuneArgs) -> Result<Prepared, Failure> {
             )));
         }
         if let Some(p) = table_problems(&grid.speeds_rpm, &a.speeds.text).first() {
-            return Err(Failure::Usage(p.clone()));
+            return Err(Failure::usage(p.clone()));
         }
         let mut set = Staged::new();
         let i = set.add("--write", path)?;
@@ -634,7 +632,7 @@ pub fn run(
     );
     let tally = match result {
         Ok(t) => t,
-        Err(f) => return Err(with_note(f, &kept)),
+        Err(f) => return Err(f.with_detail(kept)),
     };
     out.print(&format!(
         "device tune: {} measured, {} skipped, {} repeated, {} left; {kept}\n",
@@ -652,20 +650,6 @@ pub fn run(
     Ok(())
 }
 
-/// `f`'s message changed by `change`, its kind kept.
-fn map_message(f: Failure, change: impl Fn(String) -> String) -> Failure {
-    match f {
-        Failure::Usage(m) => Failure::Usage(change(m)),
-        Failure::Run(m) => Failure::Run(change(m)),
-        Failure::Device(m) => Failure::Device(change(m)),
-    }
-}
-
-/// `f` with a line more.
-fn with_note(f: Failure, note: &str) -> Failure {
-    map_message(f, |m| format!("{}\n{note}", m.trim_end()))
-}
-
 /// `--write`: the table of every row of `file`, written whole to `path`.
 fn write_table(
     file: &MeasuredFile,
@@ -675,8 +659,8 @@ fn write_table(
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
     let refuse = |why: String| {
-        Failure::Usage(format!(
-            "error: --write {}: {}: {why}; nothing written",
+        Failure::usage(format!(
+            "--write {}: {}: {why}; nothing written",
             path.display(),
             file.path().display()
         ))

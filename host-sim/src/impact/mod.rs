@@ -68,14 +68,14 @@ impl From<LawArg> for ImpactLaw {
 /// mistake), or the solver's own limit (a failed run).
 pub fn explain(error: ImpactError, file: &str) -> Failure {
     match error {
-        ImpactError::NoApproach => Failure::Usage(format!(
-            "error: {file}: no contact approaches (all normal velocities >= 0): nothing to solve"
+        ImpactError::NoApproach => Failure::usage(format!(
+            "{file}: no contact approaches (all normal velocities >= 0): nothing to solve"
         )),
-        ImpactError::InvalidProblem => Failure::Usage(format!(
-            "error: {file}: the solver refused the problem as malformed (no contact, too many, or a number that is not finite)"
+        ImpactError::InvalidProblem => Failure::usage(format!(
+            "{file}: the solver refused the problem as malformed (no contact, too many, or a number that is not finite)"
         )),
-        ImpactError::TooManyEvents => Failure::Run(format!(
-            "error: {file}: internal failure: the solver gave up after too many slip/stick events (friction states chattering); please report this case file"
+        ImpactError::TooManyEvents => Failure::run(format!(
+            "{file}: internal failure: the solver gave up after too many slip/stick events (friction states chattering); please report this case file"
         )),
     }
 }

@@ -17,8 +17,8 @@ pub const HEARTBEAT_EVERY: Duration = Duration::from_millis(HEARTBEAT_PERIOD_MS 
 /// reason. The client has checked that the answer is one to `request`.
 pub fn ask(client: &mut Client, request: &Request) -> Result<Response, Failure> {
     match client.request(request)? {
-        Response::Nack { reason, .. } => Err(Failure::Device(format!(
-            "error: the device refused {}: {}",
+        Response::Nack { reason, .. } => Err(Failure::device(format!(
+            "the device refused {}: {}",
             request_name(request),
             nack_text(reason)
         ))),

@@ -166,10 +166,7 @@ impl Default for Staged {
 
 /// "OPTION: cannot write PATH: why", a user mistake (the path is the user's to fix).
 fn cannot_write(option: &str, path: &Path, why: impl std::fmt::Display) -> Failure {
-    Failure::Usage(format!(
-        "error: {option}: cannot write {}: {why}",
-        path.display()
-    ))
+    Failure::usage(format!("{option}: cannot write {}: {why}", path.display()))
 }
 
 impl Staged {
@@ -331,12 +328,7 @@ mod tests {
     /// Writes `contents` to `path` whole or not at all ([`write_files`] with one file);
     /// the message names `path` and the reason.
     fn write_whole(path: &Path, contents: &str) -> Result<(), String> {
-        write_files(&[(path, contents.to_string())]).map_err(|f| {
-            f.message()
-                .trim_end()
-                .trim_start_matches("error: ")
-                .to_string()
-        })
+        write_files(&[(path, contents.to_string())]).map_err(|f| f.text())
     }
 
     /// A fresh directory for one test.

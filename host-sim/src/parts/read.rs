@@ -8,7 +8,8 @@ use serde_json::Value;
 
 use super::hash::sha256_hex;
 use super::Shard;
-use crate::machine::input;
+use crate::failure::Failure;
+use crate::machine::input::{self, Problem};
 
 /// The largest partial result read, bytes: 64 MiB. A run's outcome takes about
 /// 200 bytes, so the largest grid, 10 000 runs, about 2 MB; with the most plant
@@ -18,8 +19,8 @@ pub const MAX_BYTES: u64 = 64 << 20;
 
 /// The machine file's text and the SHA-256 of it: read once, so that the hash a
 /// partial result names is of the very text checked and run.
-pub fn read_machine_file(path: &Path) -> Result<(String, String), String> {
-    let text = input::read_text(path).map_err(|p| input::render(&[p]))?;
+pub fn read_machine_file(path: &Path) -> Result<(String, String), Problem> {
+    let text = input::read_text(path)?;
     let sha256 = sha256_hex(text.as_bytes());
     Ok((text, sha256))
 }
@@ -47,15 +48,14 @@ pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
     format: &str,
     version: u64,
     command: &str,
-) -> Result<P, String> {
+) -> Result<P, Failure> {
     let not_a_part = |why: &str| {
-        format!(
-            "error: {}: not a partial result of `{command}`: {why}",
+        Failure::usage(format!(
+            "{}: not a partial result of `{command}`: {why}",
             path.display()
-        )
+        ))
     };
-    let text = input::read_text_at_most(path, MAX_BYTES)
-        .map_err(|p| input::render(&[p]).trim_end().to_string())?;
+    let text = input::read_text_at_most(path, MAX_BYTES)?;
     let value: Value =
         serde_json::from_str(&text).map_err(|e| not_a_part(&format!("not JSON ({e})")))?;
     match value.get("format") {
@@ -69,25 +69,25 @@ pub(crate) fn read_as<P: serde::de::DeserializeOwned>(
         None => return Err(not_a_part(&format!("no \"format\": {format:?}"))),
     }
     if value.get("version").and_then(Value::as_u64) != Some(version) {
-        return Err(format!(
-            "error: {}: partial result version {}: this host-sim reads version {version}",
+        return Err(Failure::usage(format!(
+            "{}: partial result version {}: this host-sim reads version {version}",
             path.display(),
             quote(&value.get("version").unwrap_or(&Value::Null).to_string())
-        ));
+        )));
     }
     // serde's message quotes the value it refused: cut as the reader's are.
     serde_json::from_value(value).map_err(|e| {
-        format!(
-            "error: {}: a damaged partial result: {}",
+        Failure::usage(format!(
+            "{}: a damaged partial result: {}",
             path.display(),
             input::cut(&e.to_string(), input::MAX_PATH_SHOWN)
-        )
+        ))
     })
 }
 
 /// What is wrong with the shards `given` (each part's file and shard, all of one
 /// N, the first's): a part given twice, a part missing (`whole` names what the N
-/// parts make, `a sweep` or `a fit`); one line each.
+/// parts make, `a sweep` or `a fit`); one text each.
 pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
     let mut problems = Vec::new();
     let Some(count) = given.first().map(|g| g.1.count) else {
@@ -97,7 +97,7 @@ pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
     for &(path, shard) in given {
         match seen[shard.index - 1] {
             Some(other) => problems.push(format!(
-                "error: {}: part {shard} again ({} is part {shard} too)",
+                "{}: part {shard} again ({} is part {shard} too)",
                 path.display(),
                 other.display(),
             )),
@@ -115,7 +115,7 @@ pub fn shard_problems(given: &[(&Path, Shard)], whole: &str) -> Vec<String> {
             .filter_map(|(p, i)| p.map(|p| format!("{i}/{count} ({})", p.display())))
             .collect();
         problems.push(format!(
-            "error: merge: part{} {} of {count} missing: given {}; {whole} in {count} parts needs all of them",
+            "merge: part{} {} of {count} missing: given {}; {whole} in {count} parts needs all of them",
             if missing.len() == 1 { "" } else { "s" },
             missing.join(", "),
             shown.join(", ")

@@ -28,7 +28,7 @@ use shared::impact::MAX_CONTACTS;
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
 use crate::event::EventRow;
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::interrupt;
 use crate::machine::{Machine, MachineContact};
@@ -160,8 +160,9 @@ pub fn parse_open_loop(text: &str) -> Result<OpenLoop, String> {
     }
 }
 
-/// `--open-loop` against the machine: one voltage per rotor (`coast` fits any).
-pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), String> {
+/// `--open-loop` against the machine: one voltage per rotor (`coast` fits any),
+/// else the user's failure.
+pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Failure> {
     let rotors = machine.rotors.len();
     match open_loop.rotors() {
         Some(n) if n != rotors => {
@@ -170,11 +171,11 @@ pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Str
             } else {
                 "two winding voltages `V1,V2`"
             };
-            Err(format!(
-                "error: --open-loop {open_loop}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
+            Err(Failure::usage(format!(
+                "--open-loop {open_loop}: {n} voltage{} for a machine with {rotors} rotor{}: give {want} (V, signed), or `coast`",
                 if n == 1 { "" } else { "s" },
                 if rotors == 1 { "" } else { "s" },
-            ))
+            )))
         }
         _ => Ok(()),
     }
@@ -230,8 +231,8 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // written whole; no summary of part of a run.
         staged.commit()?;
         let why = stop_message(stop, Some(t_end));
-        return Err(Failure::Run(format!(
-            "error: run: {why}; the files asked for hold the run up to there, no summary"
+        return Err(Failure::run(format!(
+            "run: {why}; the files asked for hold the run up to there, no summary"
         )));
     }
     staged.commit()?;
@@ -262,29 +263,29 @@ fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Fail
     let drive = choose_drive(args, machine, &mut problems);
     if args.firmware.is_some() && args.command.is_none() {
         problems.push(
-            "error: --firmware runs the firmware as the controller: give --command right|left|stop"
+            "--firmware runs the firmware as the controller: give --command right|left|stop"
                 .to_string(),
         );
     }
     if args.command.is_none() && (args.speed.is_some() || args.offset.is_some()) {
-        problems.push("error: --speed and --offset go with --command".to_string());
+        problems.push("--speed and --offset go with --command".to_string());
     }
     let t_end = args.t_end.seconds.unwrap_or(machine.simulation.t_end);
     if !(t_end.is_finite() && t_end > 0.0) {
         problems.push(format!(
-            "error: --t-end {t_end}: must be a positive number of seconds"
+            "--t-end {t_end}: must be a positive number of seconds"
         ));
     }
     if args.animate.is_some() {
         problems.extend(animate::check_duration(t_end, t_end_origin(args)));
     }
     let Some(drive) = drive.filter(|_| problems.is_empty()) else {
-        return Err(Failure::Usage(problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     };
 
     problems.extend(limits::check(machine, t_end, t_end_origin(args)));
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     }
     Ok((drive, t_end))
 }
@@ -297,7 +298,7 @@ fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -
     match (args.command, args.open_loop) {
         (Some(_), Some(_)) => {
             problems.push(
-                "error: run: give either --command (the controller drives) or --open-loop, not both"
+                "run: give either --command (the controller drives) or --open-loop, not both"
                     .to_string(),
             );
             None
@@ -311,14 +312,14 @@ fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -
         },
         (None, Some(o)) => match check_open_loop(o, machine) {
             Ok(()) => Some(Drive::OpenLoop(o)),
-            Err(e) => {
-                problems.push(e);
+            Err(f) => {
+                problems.push(f.text());
                 None
             }
         },
         (None, None) => {
             problems.push(
-                "error: run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
+                "run: nothing drives the motors: give --command right|left|stop (the controller), --open-loop V1,V2 (winding voltages, V; one V for a one-rotor machine) or --open-loop coast"
                     .to_string(),
             );
             None
@@ -441,7 +442,7 @@ fn simulate_to_files(
     t_end: f64,
     staged: &mut Staged,
     files: &Outputs,
-) -> Result<(RunResult, Option<String>, Option<Frames>), Failure> {
+) -> Result<(RunResult, Option<Failure>, Option<Frames>), Failure> {
     let mut options = RunOptions::new(t_end);
     options.keep_rows = files.plot.is_some();
     options.keep_events = files.plot.is_some();
@@ -486,17 +487,17 @@ fn finish_firmware(
 }
 
 /// The failure of a run whose driver failed (`why`): the firmware's log is kept
-/// at `firmware_log`, to say why; nothing else is written.
+/// at `firmware_log`, to say why, and named after it; nothing else is written.
 fn driver_failure(
-    why: String,
+    why: Failure,
     driver: &InTheLoop<dyn Driver>,
     firmware_log: Option<&Path>,
 ) -> Failure {
     if let (InTheLoop::Firmware(f), Some(path)) = (driver, firmware_log) {
         let _ = std::fs::write(path, f.log());
-        return Failure::Run(format!("{why}\nthe firmware's log: {}", path.display()));
+        return why.with_detail(format!("the firmware's log: {}", path.display()));
     }
-    Failure::Run(why)
+    why
 }
 
 /// The summary on stdout in `format`; with the firmware in the loop
@@ -656,20 +657,18 @@ fn controller_schedule(
             "controller.speed_rpm"
         };
         problems.push(format!(
-            "error: {origin} {speed}: the controller runs the rotors from {:.0} to {:.0} rpm (80 % of the motors' no-load speed)",
+            "{origin} {speed}: the controller runs the rotors from {:.0} to {:.0} rpm (80 % of the motors' no-load speed)",
             limits.0, limits.1
         ));
     }
     if let Some(o) = args.offset {
         if machine.rotors.len() == 1 {
             problems.push(format!(
-                "error: --offset {o}: the machine has one rotor ({:?}): there is no phase offset to hold (the controller holds its speed only)",
+                "--offset {o}: the machine has one rotor ({:?}): there is no phase offset to hold (the controller holds its speed only)",
                 machine.rotors[0].name
             ));
         } else if !o.is_finite() {
-            problems.push(format!(
-                "error: --offset {o}: must be a finite angle in degrees"
-            ));
+            problems.push(format!("--offset {o}: must be a finite angle in degrees"));
         }
     }
     if !problems.is_empty() {

@@ -11,7 +11,7 @@ use super::file::InjectedFault;
 use super::file::Injection;
 use super::file::Scenario;
 use crate::event::EventRow;
-use crate::failure::Failure;
+use crate::failure::{Failure, Kind};
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::Injected;
@@ -59,7 +59,7 @@ pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
         })
         .map(|f| {
             format!(
-                "error: {}: {}: {}: cannot be injected with --firmware: {} us late or more skips a tick on the firmware",
+                "{}: {}: {}: cannot be injected with --firmware: {} us late or more skips a tick on the firmware",
                 scenario.file,
                 f.key,
                 f.fault.describe(),
@@ -70,7 +70,7 @@ pub fn refused_in_pil(scenario: &Scenario) -> Result<(), Failure> {
     if refused.is_empty() {
         Ok(())
     } else {
-        Err(Failure::Usage(refused.join("\n")))
+        Err(Failure::new(Kind::Usage, refused))
     }
 }
 
@@ -193,7 +193,7 @@ impl Driver for ScenarioDriver<'_> {
         self.driver().events()
     }
 
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<Failure> {
         self.driver_ref().failure()
     }
 }

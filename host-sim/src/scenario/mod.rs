@@ -24,7 +24,7 @@ use clap::Args;
 
 use crate::args::Format;
 use crate::args::FormatArg;
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::output::animate::{self, frames::Frames, Film};
 use crate::output::file::Staged;
@@ -76,7 +76,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
         problems.extend(animate::check_duration(scenario.t_end, &t_end_key));
     }
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n")));
+        return Err(Failure::new(Kind::Usage, problems));
     }
 
     // 2. Run, the output files opened first (refused before the run).
@@ -110,13 +110,10 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     if let InTheLoop::Firmware(f) = &mut driver.inner {
         f.finish();
         report.warnings.extend(f.warnings());
-        if let (Some(why), Some(path)) = (&failure, &firmware_log) {
+        if let (Some(why), Some(path)) = (failure, &firmware_log) {
             // The firmware's log is kept, to say why; nothing else is written.
             let _ = std::fs::write(path, f.log());
-            return Err(Failure::Run(format!(
-                "{why}\nthe firmware's log: {}",
-                path.display()
-            )));
+            return Err(why.with_detail(format!("the firmware's log: {}", path.display())));
         }
         if let Some(i) = log {
             staged.write(i, f.log())?;
@@ -135,8 +132,8 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     staged.commit()?;
     if let Some(stop) = &report.stopped {
         let why = crate::simulation::stop_message(stop, None);
-        return Err(Failure::Run(format!(
-            "error: scenario: {why}: nothing judged{}",
+        return Err(Failure::run(format!(
+            "scenario: {why}: nothing judged{}",
             if args.animate.is_some() {
                 "; the animation holds the run up to there"
             } else {
@@ -152,7 +149,7 @@ pub fn run(args: &ScenarioArgs, console: &mut Console<'_>) -> Result<(), Failure
     if report.passed() {
         Ok(())
     } else {
-        Err(Failure::Run(String::new()))
+        Err(Failure::reported(Kind::Run))
     }
 }
 

@@ -14,10 +14,15 @@ fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
 }
 
+/// A problem's line as the user reads it.
+fn said(p: &crate::machine::input::Problem) -> String {
+    crate::machine::input::error_line(p).trim_end().to_string()
+}
+
 /// A scenario on the reference machine with `body` appended.
 fn parse(body: &str) -> Result<Scenario, Vec<String>> {
     let text = format!("machine = \"vibro-driver.toml\"\n{body}");
-    from_text("s.toml", &text, &examples()).map_err(|ps| ps.iter().map(|p| p.to_string()).collect())
+    from_text("s.toml", &text, &examples()).map_err(|ps| ps.iter().map(said).collect())
 }
 
 #[test]
@@ -107,7 +112,7 @@ fn every_problem_is_reported_with_its_key_path() {
 #[test]
 fn a_scenario_needs_a_machine_and_an_expectation() {
     let e = from_text("s.toml", "t_end = 1\n", &examples()).unwrap_err();
-    let e: Vec<String> = e.iter().map(|p| p.to_string()).collect();
+    let e: Vec<String> = e.iter().map(said).collect();
     assert!(e[0].contains("machine: missing"), "{e:?}");
     assert!(e[1].contains("expect: is missing"), "{e:?}");
     let e = parse("[[expect]]\nkind = \"no_fault\"\n").map(|_| ());
@@ -118,7 +123,7 @@ fn a_scenario_needs_a_machine_and_an_expectation() {
         &examples(),
     )
     .unwrap_err();
-    assert!(e[0].to_string().contains("machine: no such file"), "{e:?}");
+    assert!(said(&e[0]).contains("machine: no such file"), "{e:?}");
 }
 
 #[test]
@@ -218,7 +223,7 @@ fn every_kind_of_expectation_can_fail() {
 fn one_foot(body: &str) -> Result<Scenario, Vec<String>> {
     let text = format!("machine = \"one-foot-machine.toml\"\nt_end = 0.5\n{body}");
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures");
-    from_text("s.toml", &text, &dir).map_err(|ps| ps.iter().map(|p| p.to_string()).collect())
+    from_text("s.toml", &text, &dir).map_err(|ps| ps.iter().map(said).collect())
 }
 
 #[test]
@@ -292,7 +297,7 @@ fn a_breach_expectation_names_a_body_there_is() {
          [[expect]]\nkind = \"through_fundament\"\nbody = \"arm\"\n",
         &dir,
     )
-    .map_err(|ps| ps.iter().map(|p| p.to_string()).collect::<Vec<_>>())
+    .map_err(|ps| ps.iter().map(said).collect::<Vec<_>>())
     .unwrap_err();
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(

@@ -32,7 +32,7 @@ pub fn describe() -> Vec<String> {
 
 /// The problems of a run of `machine` to `t_end`, s, whose end
 /// time was given as `t_end_key` (`--t-end`, `simulation.t_end`, `FILE: t_end`):
-/// one line each, `error: ` first.
+/// one text each, as a [`crate::failure::Failure`]'s reasons say them.
 pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
     let mut problems = Vec::new();
     if !(t_end.is_finite() && t_end > 0.0) {
@@ -41,7 +41,7 @@ pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
     }
     if t_end > MAX_T_END_S {
         problems.push(format!(
-            "error: {t_end_key} {}: at most {} s of simulated time in one run (split a longer study into runs)",
+            "{t_end_key} {}: at most {} s of simulated time in one run (split a longer study into runs)",
             sig(t_end),
             sig(MAX_T_END_S)
         ));
@@ -51,7 +51,7 @@ pub fn check(machine: &Machine, t_end: f64, t_end_key: &str) -> Vec<String> {
     let rows = t_end / step;
     if rows > MAX_TRACE_ROWS {
         problems.push(format!(
-            "error: simulation.output_step {}: {} trace rows over {} s, at most {:.0e}: make output_step at least {} s",
+            "simulation.output_step {}: {} trace rows over {} s, at most {:.0e}: make output_step at least {} s",
             sig(step),
             sig(rows.floor()),
             sig(t_end),

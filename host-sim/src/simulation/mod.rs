@@ -28,6 +28,7 @@ pub mod trace;
 use std::sync::atomic::AtomicUsize;
 
 use crate::event::{EventKind, EventRow};
+use crate::failure::Failure;
 use crate::machine::Machine;
 use crate::numbers::sig;
 use crate::plant::bridge::BridgeCommand;
@@ -97,7 +98,7 @@ pub trait Driver {
     }
     /// Why the driver cannot go on (the firmware in the loop lost): the run ends
     /// at that tick. `None` by default.
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<Failure> {
         None
     }
 }

@@ -57,27 +57,25 @@ pub(crate) const OFFSET_RESOLUTION_DEG: f64 = 0.1;
 pub const DEFAULT_T_END: f64 = 5.0;
 
 /// The machine of file `path` (its `text`) with the `--set`s `set`, as tune
-/// runs it: two rotors, no tuning table.
-pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, String> {
+/// runs it: two rotors, no tuning table. Refused, the user's to fix.
+pub fn load_machine(path: &Path, text: &str, set: &[String]) -> Result<Machine, Failure> {
     let dir = path.parent().unwrap_or(Path::new(""));
-    let mut machine = match Machine::from_text(&path.display().to_string(), text, dir, set) {
-        Ok(m) => m,
-        Err(problems) => return Err(input::render(&problems)),
-    };
+    let mut machine = Machine::from_text(&path.display().to_string(), text, dir, set)?;
     if machine.rotors.len() == 1 {
-        return Err(one_rotor_refusal(path, &machine));
+        return Err(Failure::usage(one_rotor_refusal(path, &machine)));
     }
     machine.controller.tuning_table = None;
     Ok(machine)
 }
 
 /// Why `--write` cannot hold a table of `speeds` (given as `speeds_text`): more
-/// rows than the controller's table, or two speeds that print alike.
+/// rows than the controller's table, or two speeds that print alike; one text
+/// each.
 pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
     let mut problems = Vec::new();
     if speeds.len() > shared::controller::MAX_TUNING_ROWS {
         problems.push(format!(
-            "error: --write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
+            "--write: the controller's table holds at most {} rows (speeds), --speeds {speeds_text} gives {}",
             shared::controller::MAX_TUNING_ROWS,
             speeds.len()
         ));
@@ -85,7 +83,7 @@ pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
     let written: Vec<String> = speeds.iter().map(|v| format!("{v:.1}")).collect();
     if written.windows(2).any(|w| w[0] == w[1]) {
         problems.push(format!(
-            "error: --write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
+            "--write: --speeds {speeds_text} has speeds closer than the table's 0.1 rpm"
         ));
     }
     problems
@@ -96,7 +94,7 @@ pub fn table_problems(speeds: &[f64], speeds_text: &str) -> Vec<String> {
 /// neither (its controller holds speed only).
 fn one_rotor_refusal(path: &std::path::Path, machine: &Machine) -> String {
     format!(
-        "error: {}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`\n",
+        "{}: rotors: the machine has one rotor (\"{}\"): tune sweeps the phase offset between two rotors and writes their offsets, and one rotor has no offset (its controller holds speed only); nothing to tune: run it with `host-sim run {} --command right --speed RPM`",
         path.display(),
         machine.rotors.rotor1().name,
         path.display()
@@ -113,8 +111,8 @@ pub fn progress_bar(name: &str, total: usize) -> Progress {
 /// ([`crate::interrupt`]; `what` is what that left undone): nothing is written then.
 pub fn refuse_interrupted(command: &str, what: &str) -> Result<(), Failure> {
     if crate::interrupt::interrupted() {
-        return Err(Failure::Run(format!(
-            "error: {command}: {}: {what}, nothing written",
+        return Err(Failure::run(format!(
+            "{command}: {}: {what}, nothing written",
             crate::interrupt::interruption()
         )));
     }

@@ -24,7 +24,7 @@ use std::time::Instant;
 use super::part;
 use super::robust;
 use super::{conclude, grid_problems, Report};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::numbers::count;
 use crate::numbers::warning_count;
 use crate::parts::{quote, read_machine_file, MergeArgs};
@@ -38,23 +38,22 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     for path in &args.parts {
         match part::read(path) {
             Ok(p) => parts.push((path.clone(), p)),
-            Err(e) => problems.push(e),
+            Err(e) => problems.extend(e.into_reasons()),
         }
     }
     if !problems.is_empty() {
-        return Err(Failure::Usage(problems.join("\n") + "\n"));
+        return Err(Failure::new(Kind::Usage, problems));
     }
-    let (first, runs) = part::assemble(&parts).map_err(Failure::Usage)?;
+    let (first, runs) = part::assemble(&parts)?;
 
     // 2. The machine.
     let path = args
         .machine
         .clone()
         .unwrap_or_else(|| PathBuf::from(&first.machine.path));
-    let (text, sha256) = read_machine_file(&path).map_err(|e| {
-        Failure::Usage(format!(
-            "{}: the machine file the parts were made from{}",
-            e.trim_end(),
+    let (text, sha256) = read_machine_file(&path).map_err(|p| {
+        Failure::usage(format!(
+            "{p}: the machine file the parts were made from{}",
             if args.machine.is_none() {
                 " (give its path with --machine)"
             } else {
@@ -63,13 +62,13 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         ))
     })?;
     if sha256 != first.machine.sha256 {
-        return Err(Failure::Usage(format!(
-            "error: {}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
+        return Err(Failure::usage(format!(
+            "{}: not the machine file the parts were made from (its sha256 is {sha256}, theirs {})",
             path.display(),
             first.machine.sha256
         )));
     }
-    let machine = load_machine(&path, &text, &first.sweep.set).map_err(Failure::Usage)?;
+    let machine = load_machine(&path, &text, &first.sweep.set)?;
     let grid = first.sweep.grid();
     // The range texts as the messages quote them: cut (a part is anyone's file).
     let (speeds, offsets) = (quote(&first.sweep.speeds), quote(&first.sweep.offsets));
@@ -77,21 +76,15 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     if !refused.is_empty() {
         // The parts are one sweep (checked): the first one names it.
         let file = parts[0].0.display();
-        let lines: Vec<String> = refused
+        let reasons = refused
             .iter()
-            .map(|p| {
-                format!(
-                    "error: {file}: a sweep tune refuses: {}",
-                    p.trim_start_matches("error: ")
-                )
-            })
-            .collect();
-        return Err(Failure::Usage(lines.join("\n") + "\n"));
+            .map(|p| format!("{file}: a sweep tune refuses: {p}"));
+        return Err(Failure::new(Kind::Usage, reasons));
     }
     if args.output.write.is_some() {
         let problems = table_problems(&grid.speeds_rpm, &speeds);
         if !problems.is_empty() {
-            return Err(Failure::Usage(problems.join("\n") + "\n"));
+            return Err(Failure::new(Kind::Usage, problems));
         }
     }
 
@@ -104,8 +97,7 @@ pub fn run(args: &MergeArgs, console: &mut Console<'_>) -> Result<(), Failure> {
         // The machines the parts ran on, drawn again from the file as tune drew
         // them; their runs machine by machine.
         let (uncertainty, machines) =
-            robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)
-                .map_err(Failure::Usage)?;
+            robust::machines(&path, &text, &first.sweep.set, r.samples, r.seed)?;
         let by_machine: Vec<Vec<_>> = runs
             .chunks(grid.points().len())
             .map(<[_]>::to_vec)

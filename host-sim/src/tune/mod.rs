@@ -51,7 +51,7 @@ use clap::Args;
 use crate::args::Format;
 use crate::args::TuneOutputs;
 use crate::args::{MachineArg, SetArgs, TEndArg};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
 use crate::machine::tuning_file;
 use crate::machine::Machine;
@@ -167,7 +167,7 @@ pub const DEFAULT_OFFSETS: &str = "0:360:15";
 
 /// Stage 1: the machine ([`load_machine`]) and the grid, with how they were
 /// asked for (for the outputs).
-fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), String> {
+fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Failure> {
     let (text, machine_sha256) = read_machine_file(&args.machine.path)?;
     let machine = load_machine(&args.machine.path, &text, &args.set.keys)?;
     let (lo, hi) = closed_loop::speed_range_rpm(&machine);
@@ -180,7 +180,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
             let (s, t) = default_speeds(machine.controller.speed_rpm, lo, hi);
             if s.is_empty() {
                 problems.push(format!(
-                    "error: tune: [controller].speed_rpm = {} is outside the controller's speed range [{}, {}] rpm; give --speeds",
+                    "tune: [controller].speed_rpm = {} is outside the controller's speed range [{}, {}] rpm; give --speeds",
                     numbers::sig(machine.controller.speed_rpm),
                     numbers::sig(lo),
                     numbers::sig(hi)
@@ -210,7 +210,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
         problems.extend(table_problems(&grid.speeds_rpm, &speeds_text));
     }
     if !problems.is_empty() {
-        return Err(problems.join("\n") + "\n");
+        return Err(Failure::new(Kind::Usage, problems));
     }
     let request = Request {
         machine_path: args.machine.path.clone(),
@@ -223,7 +223,7 @@ fn read_options(args: &TuneArgs) -> Result<(Machine, Grid, Request, String), Str
 }
 
 /// What `tune` refuses in a sweep of `grid` on `machine` (with `--speeds` given
-/// as `speeds_text`, `--offsets` as `offsets_text`), one line each: speeds
+/// as `speeds_text`, `--offsets` as `offsets_text`), one text each: speeds
 /// outside the controller's range, an end time that is not a positive number
 /// or beyond one run's limits ([`limits::check`], the trace rows of
 /// `simulation.output_step` included), more than [`MAX_POINTS`] runs. The one
@@ -244,7 +244,7 @@ pub fn grid_problems(
         .collect();
     if !outside.is_empty() {
         problems.push(format!(
-            "error: --speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
+            "--speeds {speeds_text}: {} rpm outside the controller's speed range [{}, {}] rpm (min_speed_rpm to max_speed_rpm, 80 % of the no-load speed): the controller would refuse the command",
             outside.join(", "),
             numbers::sig(lo),
             numbers::sig(hi)
@@ -253,14 +253,14 @@ pub fn grid_problems(
     let t_end = grid.t_end;
     if !(t_end.is_finite() && t_end > 0.0) {
         problems.push(format!(
-            "error: --t-end {t_end}: must be a positive number of seconds"
+            "--t-end {t_end}: must be a positive number of seconds"
         ));
     }
     problems.extend(limits::check(machine, t_end, "--t-end"));
     let (s, o) = (grid.speeds_rpm.len(), grid.offsets_deg.len());
     if s.saturating_mul(o) > MAX_POINTS {
         problems.push(format!(
-            "error: --speeds {speeds_text} --offsets {offsets_text}: {s} speeds x {o} offsets = {} runs, at most {MAX_POINTS}",
+            "--speeds {speeds_text} --offsets {offsets_text}: {s} speeds x {o} offsets = {} runs, at most {MAX_POINTS}",
             s.saturating_mul(o)
         ));
     }
@@ -270,13 +270,12 @@ pub fn grid_problems(
 /// Runs the command (stages of the module doc).
 pub fn run(args: &TuneArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the grid.
-    let (machine, grid, request, text) = read_options(args).map_err(Failure::Usage)?;
+    let (machine, grid, request, text) = read_options(args)?;
     if args.robust {
         let (path, sets) = (&args.machine.path, &args.set.keys);
         let samples = args.samples.unwrap_or(robust::DEFAULT_SAMPLES);
         let seed = args.seed.unwrap_or(robust::DEFAULT_SEED);
-        let (uncertainty, machines) =
-            robust::machines(path, &text, sets, samples, seed).map_err(Failure::Usage)?;
+        let (uncertainty, machines) = robust::machines(path, &text, sets, samples, seed)?;
         if let Some(shard) = args.shard {
             let on: Vec<&Machine> = machines.iter().map(|m| &m.2).collect();
             let robust = Some(part::RobustSweep { samples, seed });
@@ -395,7 +394,7 @@ impl Report {
     fn write(mut self, tuning: &Tuning, request: &Request) -> Result<(), Failure> {
         if let Some((i, path)) = &self.table {
             if tuning.right.is_empty() || tuning.left.is_empty() {
-                return Err(Failure::Run("error: --write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above".into()));
+                return Err(Failure::run("--write: no speed has a best offset both ways (no run gave a mean velocity): nothing written; the sweep is above"));
             }
             let text = table_file(tuning, request, path);
             // What is written must read back as a table the controller takes.
@@ -403,8 +402,8 @@ impl Report {
                 .ok()
                 .and_then(|rows| tuning_file::table(&rows).ok());
             if readable.is_none() {
-                return Err(Failure::Run(format!(
-                    "error: --write {}: the table does not read back (an internal error)",
+                return Err(Failure::run(format!(
+                    "--write {}: the table does not read back (an internal error)",
                     path.display()
                 )));
             }

@@ -37,7 +37,7 @@ use rayon::prelude::*;
 
 use super::robust::{MAX_SAMPLES, STARTS};
 use super::{Request, TuneArgs};
-use crate::failure::{Console, Failure};
+use crate::failure::{Console, Failure, Kind};
 use crate::machine::{input, Machine};
 use crate::numbers;
 use crate::output::file::Staged;
@@ -336,8 +336,8 @@ pub(crate) fn run_shard(
     // A part merge reads: at most as many runs as the largest grid
     // ([`MAX_BYTES`] holds them with every warning kept).
     if held > MAX_POINTS {
-        return Err(Failure::Usage(format!(
-            "error: {command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}\n",
+        return Err(Failure::usage(format!(
+            "{command} --shard {shard}: {} runs in this part, at most {MAX_POINTS} a part: the sweep has {} runs, give N of at least {}",
             held,
             all,
             all.div_ceil(MAX_POINTS)
@@ -393,8 +393,8 @@ pub(crate) fn run_shard(
     };
     part.seal();
     let mut text = serde_json::to_string_pretty(&part).map_err(|e| {
-        Failure::Run(format!(
-            "error: {command} --shard {shard}: the part does not serialize: {e}"
+        Failure::run(format!(
+            "{command} --shard {shard}: the part does not serialize: {e}"
         ))
     })?;
     text.push('\n');
@@ -426,10 +426,14 @@ pub(crate) fn run_shard(
 /// held its offset has a mean velocity (a number, as [`run_point`] makes it).
 ///
 /// [`run_point`]: crate::sweep::run_point
-pub fn read(path: &Path) -> Result<Part, String> {
+pub fn read(path: &Path) -> Result<Part, Failure> {
     let part: Part = read_as(path, FORMAT, VERSION, "host-sim tune --shard")?;
-    let damaged =
-        |why: String| format!("error: {}: a damaged partial result: {why}", path.display());
+    let damaged = |why: String| {
+        Failure::usage(format!(
+            "{}: a damaged partial result: {why}",
+            path.display()
+        ))
+    };
     if part.sweep_sha256 != spec_sha256(&part.machine.sha256, &part.sweep) {
         return Err(damaged(
             "sweep_sha256 does not match the machine's hash and the sweep it describes (the file was edited)".into(),
@@ -441,11 +445,11 @@ pub fn read(path: &Path) -> Result<Part, String> {
     // merge's check runs are this host-sim's: the parts' runs must be too.
     let this = env!("CARGO_PKG_VERSION");
     if part.sweep.host_sim_version != this {
-        return Err(format!(
-            "error: {}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
+        return Err(Failure::usage(format!(
+            "{}: a part of host-sim {}, this is host-sim {this}: run the parts and the merge with one host-sim",
             path.display(),
             quote(&part.sweep.host_sim_version)
-        ));
+        )));
     }
     // The machine file's hash and path as `tune` writes them: a path no file can
     // have is not opened, and no output names it.
@@ -509,12 +513,12 @@ pub fn read(path: &Path) -> Result<Part, String> {
 
 /// The parts `(file, part)` as one sweep: the first part's, with every run's
 /// outcome in run order ([`Sweep::run`]: the grid's points in grid order,
-/// machine by machine). Refused, every problem one line naming the
-/// files: parts of different sweeps (what differs), parts that disagree on N, a
-/// part given twice, a part missing.
-pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), String> {
+/// machine by machine). Refused, every problem naming the files: parts of
+/// different sweeps (what differs), parts that disagree on N, a part given
+/// twice, a part missing.
+pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), Failure> {
     let Some((first_path, first)) = parts.first() else {
-        return Err("error: merge: no parts given\n".into());
+        return Err(Failure::usage("merge: no parts given"));
     };
     let a = first_path.display().to_string();
     let mut problems = Vec::new();
@@ -530,12 +534,12 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
         differences.extend(first.sweep.differences(&part.sweep, &a, &b));
         if !differences.is_empty() {
             problems.push(format!(
-                "error: {b}: a part of another sweep than {a}: {}",
+                "{b}: a part of another sweep than {a}: {}",
                 differences.join("; ")
             ));
         } else if part.shard.count != first.shard.count {
             problems.push(format!(
-                "error: {b}: part {} but {a} is part {}: the parts disagree on N",
+                "{b}: part {} but {a} is part {}: the parts disagree on N",
                 part.shard, first.shard
             ));
         }
@@ -548,7 +552,7 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
         problems.extend(shard_problems(&given, "a sweep"));
     }
     if !problems.is_empty() {
-        return Err(problems.join("\n") + "\n");
+        return Err(Failure::new(Kind::Usage, problems));
     }
     // The grid's own speeds and offsets (equal to the runs', checked by `read`).
     let points = first.sweep.grid().points();
@@ -567,7 +571,9 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), St
     // Every run is some part's (each part checked on its own, none missing).
     let runs = runs.into_iter().flatten().collect::<Vec<_>>();
     if runs.len() != all {
-        return Err("error: merge: the parts do not cover the sweep (an internal error)\n".into());
+        return Err(Failure::usage(
+            "merge: the parts do not cover the sweep (an internal error)",
+        ));
     }
     Ok((first.clone(), runs))
 }

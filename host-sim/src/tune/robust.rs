@@ -33,7 +33,6 @@ use super::plot;
 use super::{Report, Request, TuneArgs};
 use crate::args::Format;
 use crate::failure::{Console, Failure};
-use crate::machine::input;
 use crate::machine::tuning_file;
 use crate::machine::uncertainty::Uncertainty;
 use crate::machine::Machine;
@@ -202,15 +201,17 @@ pub fn machines(
     sets: &[String],
     samples: usize,
     seed: u64,
-) -> Result<(Uncertainty, Machines), String> {
+) -> Result<(Uncertainty, Machines), Failure> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let file = path.display().to_string();
-    let uncertainty = Uncertainty::from_text(&file, text, dir, sets)
-        .map_err(|problems| input::render(&problems))?;
+    let uncertainty = Uncertainty::from_text(&file, text, dir, sets)?;
     if uncertainty.ranges.is_empty() {
-        return Err(format!(
-            "error: {file}: tune --robust: the machine file has no [uncertainty] ranges to draw machines from; add e.g.\n  [uncertainty]\n  \"contacts.*.restitution\" = [0.2, 0.45]\n(docs/machine-file.md)\n"
-        ));
+        return Err(Failure::usage(format!(
+            "{file}: tune --robust: the machine file has no [uncertainty] ranges to draw machines from; add e.g."
+        ))
+        .with_detail("  [uncertainty]")
+        .with_detail("  \"contacts.*.restitution\" = [0.2, 0.45]")
+        .with_detail("(docs/machine-file.md)"));
     }
     let nominal = load_machine(path, text, sets)?;
     let angle0 = nominal.rotors[0].angle;
@@ -449,8 +450,8 @@ pub fn finish(
     let mut files = || -> Result<(), Failure> {
         if let Some((i, p)) = &write {
             let Some(text) = table_file(robust, request, p) else {
-                return Err(Failure::Run(
-                    "error: --write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above\n".into(),
+                return Err(Failure::run(
+                    "--write: no speed has a best offset both ways (no run there held its offset and travelled; see the warnings): nothing written; the sweep is above",
                 ));
             };
             staged.write(*i, &text)?;

@@ -49,20 +49,20 @@ pub fn listen_address(addr: &str, allow_remote: bool) -> Result<Vec<SocketAddr>,
     let addrs: Vec<SocketAddr> = addr
         .to_socket_addrs()
         .map_err(|e| {
-            Failure::Usage(format!(
-                "error: --serve: `{addr}` is no address to listen on ({e}): expected HOST:PORT, \
+            Failure::usage(format!(
+                "--serve: `{addr}` is no address to listen on ({e}): expected HOST:PORT, \
                  e.g. 127.0.0.1:8321 (port 0: any free port)"
             ))
         })?
         .collect();
     if addrs.is_empty() {
-        return Err(Failure::Usage(format!(
-            "error: --serve: `{addr}` resolves to no address: expected HOST:PORT, e.g. 127.0.0.1:8321"
+        return Err(Failure::usage(format!(
+            "--serve: `{addr}` resolves to no address: expected HOST:PORT, e.g. 127.0.0.1:8321"
         )));
     }
     if !allow_remote && addrs.iter().any(|a| !a.ip().is_loopback()) {
-        return Err(Failure::Usage(format!(
-            "error: --serve: {addr} is not a loopback address: the page and its Stop button \
+        return Err(Failure::usage(format!(
+            "--serve: {addr} is not a loopback address: the page and its Stop button \
              would be reachable from other machines; add --allow-remote to serve there, or \
              serve on 127.0.0.1:PORT"
         )));
@@ -94,11 +94,7 @@ impl Sink for Served<'_, '_> {
         // on (its own watch ends a link that is gone).
         let answer = match command(client, &Request::Stop) {
             Ok(()) => Ok("stop: accepted".to_string()),
-            Err(f) => Err(f
-                .message()
-                .trim_end()
-                .trim_start_matches("error: ")
-                .to_string()),
+            Err(f) => Err(f.text()),
         };
         self.out.print(&match &answer {
             Ok(a) => format!("{a} (from the page)\n"),
@@ -123,10 +119,10 @@ pub fn run(
     let addrs = listen_address(addr, a.allow_remote)?;
     // An address in use or not ours is the user's to change, as for device-sim.
     let listener = TcpListener::bind(&addrs[..])
-        .map_err(|e| Failure::Usage(format!("error: --serve: cannot listen on {addr}: {e}")))?;
+        .map_err(|e| Failure::usage(format!("--serve: cannot listen on {addr}: {e}")))?;
     let local = listener
         .local_addr()
-        .map_err(|e| Failure::Usage(format!("error: --serve: {addr}: {e}")))?;
+        .map_err(|e| Failure::usage(format!("--serve: {addr}: {e}")))?;
     let page = Page {
         device: device.to_string(),
         period_ms: a.period,
@@ -134,7 +130,7 @@ pub fn run(
     };
     let (link, pages) = hub::hub();
     let server = Server::start(listener, &page, pages, Limits::default())
-        .map_err(|e| Failure::Usage(format!("error: --serve: {addr}: {e}")))?;
+        .map_err(|e| Failure::usage(format!("--serve: {addr}: {e}")))?;
     out.note(&format!(
         "telemetry: live page on http://{local}/ (a frame every {} ms; Ctrl-C ends it)\n",
         a.period

@@ -43,9 +43,7 @@ impl FakeRig {
 
     fn gone(&self) -> Result<(), Failure> {
         match self.gone_after {
-            Some(n) if self.polls >= n => {
-                Err(Failure::Device("error: the port failed: closed".into()))
-            }
+            Some(n) if self.polls >= n => Err(Failure::device("the port failed: closed")),
             _ => Ok(()),
         }
     }

@@ -49,7 +49,7 @@ pub fn option_help() -> String {
 pub fn check_duration(t_end: f64, origin: &str) -> Option<String> {
     (t_end > MAX_SECONDS).then(|| {
         format!(
-            "error: --animate: {origin} {t_end}: an animation holds at most {MAX_SECONDS} s of simulated time (a frame every {} ms, about 40 MB at {MAX_SECONDS} s for a machine on two feet): animate a shorter run",
+            "--animate: {origin} {t_end}: an animation holds at most {MAX_SECONDS} s of simulated time (a frame every {} ms, about 40 MB at {MAX_SECONDS} s for a machine on two feet): animate a shorter run",
             FRAME_STEP * 1e3
         )
     })

@@ -31,7 +31,7 @@ use shared::protocol::StatusReport;
 use shared::tick::Board;
 
 use crate::event::EventRow;
-use crate::failure::Failure;
+use crate::failure::{Failure, Kind};
 use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
@@ -66,7 +66,7 @@ pub struct FirmwareDriver {
     /// The firmware's tick number of the next exchange.
     tick: u32,
     events: Vec<EventRow>,
-    failure: Option<String>,
+    failure: Option<Failure>,
     log: String,
     /// Whether the log's decoder had to be killed (its log may be cut).
     log_cut: bool,
@@ -110,8 +110,8 @@ impl FirmwareDriver {
         schedule: Vec<(f64, Command)>,
     ) -> Result<Self, Failure> {
         if !elf.is_file() {
-            return Err(Failure::Usage(format!(
-                "error: --firmware {}: no such file; build it with `{BUILD}` (VIBRO_MACHINE=FILE for another machine file than examples/vibro-driver.toml)",
+            return Err(Failure::usage(format!(
+                "--firmware {}: no such file; build it with `{BUILD}` (VIBRO_MACHINE=FILE for another machine file than examples/vibro-driver.toml)",
                 elf.display()
             )));
         }
@@ -120,31 +120,31 @@ impl FirmwareDriver {
             .filter_map(session::missing_tool)
             .collect();
         if !missing.is_empty() {
-            return Err(Failure::Usage(missing.join("\n")));
+            return Err(Failure::new(Kind::Usage, missing));
         }
         let bytes = std::fs::read(machine_path)
-            .map_err(|e| Failure::Usage(format!("error: {}: {e}", machine_path.display())))?;
+            .map_err(|e| Failure::usage(format!("{}: {e}", machine_path.display())))?;
         let rate = machine.controller.rate_hz;
         let p = params(machine)?;
         let mut session =
-            Session::start(elf).map_err(|e| Failure::Run(format!("error: --firmware: {e}")))?;
+            Session::start(elf).map_err(|e| Failure::run(format!("--firmware: {e}")))?;
         let mut buf = [0u8; Hello::LEN];
         session.receive(&mut buf).map_err(|e| {
-            Failure::Usage(format!(
-                "error: --firmware {}: no hello record from the firmware ({e}): is it the binary `pil`? build it with `{BUILD}`",
+            Failure::usage(format!(
+                "--firmware {}: no hello record from the firmware ({e}): is it the binary `pil`? build it with `{BUILD}`",
                 elf.display()
             ))
         })?;
         let hello = Hello::parse(&buf).map_err(|e| {
-            Failure::Usage(format!(
-                "error: --firmware {}: its first record is no PIL hello ({e}): is it the binary `pil`? build it with `{BUILD}`",
+            Failure::usage(format!(
+                "--firmware {}: its first record is no PIL hello ({e}): is it the binary `pil`? build it with `{BUILD}`",
                 elf.display()
             ))
         })?;
         let crc = shared::codec::crc::crc32(&bytes);
         if (hello.machine_crc, hello.machine_len) != (crc, bytes.len() as u32) {
-            return Err(Failure::Usage(format!(
-                "error: --firmware {}: built for the machine file {} (CRC-32 {:08x}, {} bytes), not for {} (CRC-32 {crc:08x}, {} bytes): rebuild it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil`",
+            return Err(Failure::usage(format!(
+                "--firmware {}: built for the machine file {} (CRC-32 {:08x}, {} bytes), not for {} (CRC-32 {crc:08x}, {} bytes): rebuild it with `cd firmware && VIBRO_MACHINE={} cargo build --release --features pil --bin pil`",
                 elf.display(),
                 String::from_utf8_lossy(hello.path_bytes()),
                 hello.machine_crc,
@@ -158,8 +158,8 @@ impl FirmwareDriver {
         }
         let tick_us = (1e6 / rate).round() as u32;
         if hello.tick_us != tick_us {
-            return Err(Failure::Usage(format!(
-                "error: --firmware {}: ticks every {} us, the machine's rate_hz {rate} every {tick_us} us",
+            return Err(Failure::usage(format!(
+                "--firmware {}: ticks every {} us, the machine's rate_hz {rate} every {tick_us} us",
                 elf.display(),
                 hello.tick_us
             )));
@@ -317,10 +317,10 @@ impl Driver for FirmwareDriver {
                 ([BridgeCommand::Off; 2], [0.0; 2])
             }
             Err(e) => {
-                self.failure = Some(format!(
-                    "error: --firmware {}: at t = {t} s: {e}",
+                self.failure = Some(Failure::run(format!(
+                    "--firmware {}: at t = {t} s: {e}",
                     self.elf.display()
-                ));
+                )));
                 self.finish();
                 ([BridgeCommand::Off; 2], [0.0; 2])
             }
@@ -338,7 +338,7 @@ impl Driver for FirmwareDriver {
         std::mem::take(&mut self.events)
     }
 
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<Failure> {
         self.failure.clone()
     }
 }

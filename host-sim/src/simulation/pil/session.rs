@@ -43,7 +43,7 @@ pub const DECODER_S: u64 = 10;
 /// Sessions started by this process (the directory's name).
 static SESSIONS: AtomicU32 = AtomicU32::new(0);
 
-/// A tool not on `PATH`: the error with the command that installs it.
+/// A tool not on `PATH`: the problem, with the command that installs it.
 pub fn missing_tool(name: &str) -> Option<String> {
     let on_path = std::env::var_os("PATH")
         .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(name).is_file()));
@@ -55,7 +55,7 @@ pub fn missing_tool(name: &str) -> Option<String> {
         _ => "cargo install --locked defmt-print",
     };
     Some(format!(
-        "error: --firmware: `{name}` is not on PATH: install it with `{install}` (or `bash scripts/test-all.sh setup`, which installs every tool the gates use)"
+        "--firmware: `{name}` is not on PATH: install it with `{install}` (or `bash scripts/test-all.sh setup`, which installs every tool the gates use)"
     ))
 }
 
