@@ -768,7 +768,7 @@ fn an_ack_for_another_request_is_no_acceptance() {
     // The other way round: the heartbeats of `travel --for` answered by an Ack
     // for Travel; and an Ack where a report is due (status, table read).
     let port = fake_device::answering(|request| match request {
-        Request::Heartbeat => vec![Response::Ack {
+        Request::Command(shared::controller::Command::Heartbeat) => vec![Response::Ack {
             request: MessageId::Travel as u8,
         }],
         _ => vec![ack(request)],

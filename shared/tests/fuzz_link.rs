@@ -19,7 +19,7 @@
 mod support;
 
 use shared::codec::crc::crc16_ccitt_false;
-use shared::controller::Direction;
+use shared::controller::{Command, Direction};
 use shared::protocol::{
     answer_error, Decoder, Request, Response, HEADER_LEN, MAX_PAYLOAD, PROTOCOL_VERSION, SYNC,
 };
@@ -41,22 +41,22 @@ fn request(rng: &mut Rng) -> Request {
         _ => rng.uniform(0.0, 5000.0),
     };
     match rng.below(11) {
-        0 => Request::Heartbeat,
+        0 => Request::Command(Command::Heartbeat),
         1 => Request::GetStatus,
-        2 => Request::Stop,
-        3 => Request::Travel {
+        2 => Request::Command(Command::Stop),
+        3 => Request::Command(Command::Travel {
             direction: if rng.one_in(2) {
                 Direction::Right
             } else {
                 Direction::Left
             },
             speed_rpm: speed(rng),
-        },
-        4 => Request::HoldOffset {
+        }),
+        4 => Request::Command(Command::HoldOffset {
             speed_rpm: speed(rng),
             offset_deg: rng.uniform(-720.0, 720.0),
-        },
-        5 => Request::ResetFaults,
+        }),
+        5 => Request::Command(Command::ResetFaults),
         6 => Request::ReadTuningTable,
         7 => Request::WriteTuningTable(fuzz::table(rng)),
         8 => Request::RunSelfTest,

@@ -9,7 +9,7 @@ use std::collections::VecDeque;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use proptest::prelude::*;
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
-use shared::controller::{Bridge, Direction, Faults, Outputs, State, TuningTable};
+use shared::controller::{Bridge, Command, Direction, Faults, Outputs, State, TuningTable};
 use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{Decoder, Message, NackReason, Request, Response, FRAME_GAP_TIMEOUT_MS};
 use shared::storage::{self, SimFlash};
@@ -27,18 +27,18 @@ fn table(rows: &[(f32, f32, f32)]) -> TuningTable {
 fn every_frame_is_answered_once_in_order() {
     let mut dev = Device::new();
     let requests = [
-        Request::Heartbeat,
+        Request::Command(Command::Heartbeat),
         Request::GetStatus,
-        Request::Travel {
+        Request::Command(Command::Travel {
             direction: Direction::Right,
             speed_rpm: 3000.0,
-        },
-        Request::HoldOffset {
+        }),
+        Request::Command(Command::HoldOffset {
             speed_rpm: 2800.0,
             offset_deg: 120.0,
-        },
-        Request::Stop,
-        Request::ResetFaults,
+        }),
+        Request::Command(Command::Stop),
+        Request::Command(Command::ResetFaults),
         Request::ReadTuningTable,
         Request::WriteTuningTable(table(&[(2500.0, 90.0, 270.0), (3000.0, 81.1, 278.9)])),
         Request::ReadSelfTest,
@@ -292,7 +292,7 @@ fn a_frame_cut_short_is_abandoned_after_the_frame_gap() {
         ),
         2,
     );
-    let ping = frame_bytes(&Request::Heartbeat, 3);
+    let ping = frame_bytes(&Request::Command(Command::Heartbeat), 3);
 
     // Without the gap, the next frame is swallowed as the cut frame's payload.
     let mut dev = Device::new();
@@ -312,7 +312,7 @@ fn a_frame_cut_short_is_abandoned_after_the_frame_gap() {
         [(
             3,
             Response::Ack {
-                request: Request::Heartbeat.id() as u8
+                request: Request::Command(Command::Heartbeat).id() as u8
             }
         )]
     );

@@ -124,22 +124,22 @@ fn sample_self_test() -> SelfTest {
 
 fn every_request() -> Vec<Request> {
     vec![
-        Request::Heartbeat,
+        Request::Command(Command::Heartbeat),
         Request::GetStatus,
-        Request::Stop,
-        Request::Travel {
+        Request::Command(Command::Stop),
+        Request::Command(Command::Travel {
             direction: Direction::Right,
             speed_rpm: 3000.0,
-        },
-        Request::Travel {
+        }),
+        Request::Command(Command::Travel {
             direction: Direction::Left,
             speed_rpm: 1200.5,
-        },
-        Request::HoldOffset {
+        }),
+        Request::Command(Command::HoldOffset {
             speed_rpm: 2500.0,
             offset_deg: 180.0,
-        },
-        Request::ResetFaults,
+        }),
+        Request::Command(Command::ResetFaults),
         Request::ReadTuningTable,
         Request::WriteTuningTable(sample_table()),
         Request::WriteTuningTable(full_table()),
@@ -184,15 +184,15 @@ fn frames_match_the_documented_bytes() {
     // The examples of docs/protocol.md, computed with Python (zlib.crc32 and a
     // bitwise CRC-16/CCITT-FALSE), not with this crate.
     assert_eq!(
-        frame_of(&Request::Heartbeat, 1),
+        frame_of(&Request::Command(Command::Heartbeat), 1),
         hex("A5 5A 02 01 01 00 00 00 15 B1 69 D8 5A EF")
     );
     assert_eq!(
         frame_of(
-            &Request::Travel {
+            &Request::Command(Command::Travel {
                 direction: Direction::Right,
                 speed_rpm: 1500.0
-            },
+            }),
             0x1234
         ),
         hex("A5 5A 02 04 34 12 05 00 18 D0 00 00 80 BB 44 83 E7 B5 94")
@@ -262,7 +262,7 @@ fn message_ids_are_unique_and_split_by_direction() {
 fn encode_refuses_what_does_not_fit() {
     let mut small = [0u8; 13];
     assert_eq!(
-        encode(&Request::Stop, 0, &mut small),
+        encode(&Request::Command(Command::Stop), 0, &mut small),
         Err(EncodeError::BufferTooSmall)
     );
     let mut buf = [0u8; MAX_FRAME + 10];
@@ -340,10 +340,10 @@ fn commands_convert_both_ways() {
     for request in every_request() {
         let motion = matches!(
             request,
-            Request::Stop
-                | Request::Travel { .. }
-                | Request::HoldOffset { .. }
-                | Request::ResetFaults
+            Request::Command(Command::Stop)
+                | Request::Command(Command::Travel { .. })
+                | Request::Command(Command::HoldOffset { .. })
+                | Request::Command(Command::ResetFaults)
         );
         assert_eq!(request.is_command(), motion);
         if !motion {
@@ -399,7 +399,7 @@ fn a_length_above_max_payload_is_refused_at_the_header() {
     );
     // u16::MAX as well, and the next frame straight after is taken.
     let mut bytes = raw_header(PROTOCOL_VERSION, 0x01, 1, u16::MAX);
-    bytes.extend(frame_of(&Request::Stop, 2));
+    bytes.extend(frame_of(&Request::Command(Command::Stop), 2));
     let got = events(&mut decoder, &bytes);
     assert!(matches!(
         got[0],
@@ -438,7 +438,7 @@ fn another_version_is_answered_bad_version() {
 fn a_corrupt_header_gets_no_answer_and_the_next_frame_is_found() {
     let mut bytes = frame_of(&Request::GetStatus, 5);
     bytes[6] ^= 0x01; // length 0 -> 1: header CRC wrong
-    bytes.extend(frame_of(&Request::Stop, 6));
+    bytes.extend(frame_of(&Request::Command(Command::Stop), 6));
     let mut decoder = Decoder::new();
     let got = events(&mut decoder, &bytes);
     assert_eq!(got[0], Err(FrameError::HeaderCrc));
@@ -450,10 +450,10 @@ fn a_corrupt_header_gets_no_answer_and_the_next_frame_is_found() {
 #[test]
 fn a_corrupt_payload_is_answered_bad_crc_to_its_sequence_number() {
     let mut bytes = frame_of(
-        &Request::Travel {
+        &Request::Command(Command::Travel {
             direction: Direction::Left,
             speed_rpm: 2000.0,
-        },
+        }),
         300,
     );
     bytes[12] ^= 0x40;
@@ -479,15 +479,15 @@ fn a_lost_byte_costs_one_frame_only() {
     // next frame's first byte as its CRC's last, rejects it, and finds that next
     // frame again among the bytes it holds.
     let mut first = frame_of(
-        &Request::HoldOffset {
+        &Request::Command(Command::HoldOffset {
             speed_rpm: 2000.0,
             offset_deg: 90.0,
-        },
+        }),
         1,
     );
     first.remove(13);
     let mut bytes = first;
-    bytes.extend(frame_of(&Request::Heartbeat, 2));
+    bytes.extend(frame_of(&Request::Command(Command::Heartbeat), 2));
     bytes.extend(frame_of(&Request::GetStatus, 3));
     let mut decoder = Decoder::new();
     let got = events(&mut decoder, &bytes);
@@ -502,7 +502,7 @@ fn a_frame_inside_a_rejected_candidate_is_found() {
     // Garbage with a right header announcing 400 bytes swallows two real frames;
     // when its CRC fails at byte 414, both are found among the bytes held.
     let mut bytes = raw_header(PROTOCOL_VERSION, 0x42, 0, MAX_PAYLOAD as u16);
-    bytes.extend(frame_of(&Request::Stop, 10));
+    bytes.extend(frame_of(&Request::Command(Command::Stop), 10));
     bytes.extend(frame_of(&Request::GetStatus, 11));
     bytes.resize(MAX_FRAME, 0x00);
     let mut decoder = Decoder::new();
@@ -520,7 +520,7 @@ fn abandoning_a_cut_frame_releases_the_frames_after_it() {
     // line goes quiet and the firmware abandons the cut frame.
     let table = frame_of(&Request::WriteTuningTable(full_table()), 1);
     let mut bytes = table[..30].to_vec();
-    bytes.extend(frame_of(&Request::Stop, 1));
+    bytes.extend(frame_of(&Request::Command(Command::Stop), 1));
     let mut decoder = Decoder::new();
     assert!(events(&mut decoder, &bytes).is_empty());
     assert!(decoder.held() > 0);
@@ -533,7 +533,7 @@ fn abandoning_a_cut_frame_releases_the_frames_after_it() {
 #[test]
 fn garbage_is_skipped_silently() {
     let mut bytes = vec![0x00, 0xFF, 0xA5, 0xA5, 0x13, 0x5A, 0xA5];
-    bytes.extend(frame_of(&Request::ResetFaults, 3));
+    bytes.extend(frame_of(&Request::Command(Command::ResetFaults), 3));
     let mut decoder = Decoder::new();
     let got = events(&mut decoder, &bytes);
     assert_eq!(got, vec![Ok((0x06, 3, vec![]))]);
@@ -652,18 +652,18 @@ fn every_request_gets_its_answer_and_one_command() {
 fn a_refused_command_is_nacked_with_the_device_reason() {
     let mut device = Mock::new(State::Idle, 0.0);
     device.refuse_commands = Some(NackReason::Busy);
-    let travel = Request::Travel {
+    let travel = Request::Command(Command::Travel {
         direction: Direction::Right,
         speed_rpm: 3000.0,
-    };
+    });
     assert_eq!(
         answer_request(&mut device, &travel),
         nack(travel.clone(), NackReason::Busy)
     );
     // A heartbeat is still acknowledged.
     assert_eq!(
-        answer_request(&mut device, &Request::Heartbeat),
-        ack(Request::Heartbeat)
+        answer_request(&mut device, &Request::Command(Command::Heartbeat)),
+        ack(Request::Command(Command::Heartbeat))
     );
 }
 
@@ -743,23 +743,23 @@ fn every_frame_from_the_host_is_answered_end_to_end() {
     // one answer per frame, with the frame's sequence number, except the frame
     // whose header is corrupt.
     let mut host_bytes = Vec::new();
-    host_bytes.extend(frame_of(&Request::Heartbeat, 1));
+    host_bytes.extend(frame_of(&Request::Command(Command::Heartbeat), 1));
     host_bytes.extend(frame_of(&Request::GetStatus, 2));
     host_bytes.extend(encode_raw(0x7E, 3, &[])); // unknown id
     host_bytes.extend(encode_raw(0x03, 4, &[1, 2])); // Stop with a payload
-    let mut corrupt = frame_of(&Request::Stop, 5);
+    let mut corrupt = frame_of(&Request::Command(Command::Stop), 5);
     corrupt[3] ^= 0x10; // header CRC fails: no answer
     host_bytes.extend(corrupt);
-    let mut bad_crc = frame_of(&Request::ResetFaults, 6);
+    let mut bad_crc = frame_of(&Request::Command(Command::ResetFaults), 6);
     let last = bad_crc.len() - 1;
     bad_crc[last] ^= 0x80;
     host_bytes.extend(bad_crc);
     host_bytes.extend(frame_of(&Request::StreamTelemetry { period_ms: 1 }, 7));
     host_bytes.extend(frame_of(
-        &Request::Travel {
+        &Request::Command(Command::Travel {
             direction: Direction::Left,
             speed_rpm: 2500.0,
-        },
+        }),
         8,
     ));
 
@@ -787,7 +787,7 @@ fn every_frame_from_the_host_is_answered_end_to_end() {
         })
         .collect();
     let expected = vec![
-        (1, ack(Request::Heartbeat)),
+        (1, ack(Request::Command(Command::Heartbeat))),
         (2, Response::Status(device.status)),
         (
             3,
@@ -796,8 +796,14 @@ fn every_frame_from_the_host_is_answered_end_to_end() {
                 reason: NackReason::UnknownMessage,
             },
         ),
-        (4, nack(Request::Stop, NackReason::BadLength)),
-        (6, nack(Request::ResetFaults, NackReason::BadCrc)),
+        (
+            4,
+            nack(Request::Command(Command::Stop), NackReason::BadLength),
+        ),
+        (
+            6,
+            nack(Request::Command(Command::ResetFaults), NackReason::BadCrc),
+        ),
         (
             7,
             nack(
@@ -807,10 +813,10 @@ fn every_frame_from_the_host_is_answered_end_to_end() {
         ),
         (
             8,
-            ack(Request::Travel {
+            ack(Request::Command(Command::Travel {
                 direction: Direction::Left,
                 speed_rpm: 2500.0,
-            }),
+            })),
         ),
     ];
     assert_eq!(answers, expected);

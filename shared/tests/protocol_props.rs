@@ -5,7 +5,7 @@
 
 use proptest::prelude::*;
 
-use shared::controller::{Direction, Faults, State, Telemetry, TuningTable};
+use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
 
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 use shared::protocol::{
@@ -32,18 +32,22 @@ fn direction() -> impl Strategy<Value = Direction> {
 
 fn request() -> impl Strategy<Value = Request> {
     prop_oneof![
-        Just(Request::Heartbeat),
+        Just(Request::Command(Command::Heartbeat)),
         Just(Request::GetStatus),
-        Just(Request::Stop),
-        (direction(), finite()).prop_map(|(direction, speed_rpm)| Request::Travel {
-            direction,
-            speed_rpm
-        }),
-        (finite(), finite()).prop_map(|(speed_rpm, offset_deg)| Request::HoldOffset {
-            speed_rpm,
-            offset_deg
-        }),
-        Just(Request::ResetFaults),
+        Just(Request::Command(Command::Stop)),
+        (direction(), finite()).prop_map(|(direction, speed_rpm)| Request::Command(
+            Command::Travel {
+                direction,
+                speed_rpm
+            }
+        )),
+        (finite(), finite()).prop_map(|(speed_rpm, offset_deg)| Request::Command(
+            Command::HoldOffset {
+                speed_rpm,
+                offset_deg
+            }
+        )),
+        Just(Request::Command(Command::ResetFaults)),
         Just(Request::ReadTuningTable),
         table().prop_map(Request::WriteTuningTable),
         Just(Request::RunSelfTest),
@@ -270,7 +274,7 @@ proptest! {
         prop_assert!(events.iter().all(|e| e.is_err()), "accepted: {:?}", events);
 
         // Recovery: the next frame is found.
-        let next = frame_bytes(&Request::Heartbeat, seq);
+        let next = frame_bytes(&Request::Command(Command::Heartbeat), seq);
         let mut decoder = Decoder::new();
         let mut stream = corrupt;
         stream.extend_from_slice(&next);

@@ -46,7 +46,9 @@ use stm32f4xx_hal::pac::Interrupt;
 
 use shared::controller::self_test::{RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
-use shared::controller::{Bridge, Direction, Faults, Params, State, TuningTable, CONTROL_RATE_HZ};
+use shared::controller::{
+    Bridge, Command, Direction, Faults, Params, State, TuningTable, CONTROL_RATE_HZ,
+};
 use shared::protocol::link::{Link, LinkState};
 use shared::protocol::{
     encode_frame, MessageId, NackReason, Request, Response, StatusReport, HEARTBEAT_PERIOD_MS,
@@ -205,7 +207,7 @@ impl Script {
         // The link task's pass with nothing received: telemetry when due.
         self.exchange(io, &[]);
         if self.keepalive && io.tick.wrapping_sub(self.last_request) >= HEARTBEAT_PERIOD_MS {
-            let answer = self.ask(io, &Request::Heartbeat);
+            let answer = self.ask(io, &Request::Command(Command::Heartbeat));
             if !matches!(answer, Some(Response::Ack { .. })) {
                 self.heartbeat_failures += 1;
             }
@@ -497,10 +499,10 @@ impl Script {
         // Values out of their domain.
         self.nack(
             io,
-            &Request::Travel {
+            &Request::Command(Command::Travel {
                 direction: Direction::Right,
                 speed_rpm: f32::NAN,
-            },
+            }),
             NackReason::BadValue,
             "Travel at NaN rpm",
         );
@@ -551,7 +553,9 @@ impl Script {
         let mut out = [0u8; MAX_FRAME];
         let mut frame = [0u8; 7 + MAX_FRAME];
         frame[..7].copy_from_slice(&[0x00, 0xA5, 0x13, 0x5A, 0xFF, 0xA5, 0xA5]);
-        let (seq, len) = self.host.frame(&Request::Heartbeat, &mut out);
+        let (seq, len) = self
+            .host
+            .frame(&Request::Command(Command::Heartbeat), &mut out);
         frame[7..].copy_from_slice(&out);
         self.exchange(io, frame.get(..7 + len).unwrap_or(&[]));
         let answers = self.host_answers();
@@ -645,7 +649,7 @@ impl Script {
             "phase error and true offset within {=f32} deg",
             PHASE_TOLERANCE_DEG
         );
-        self.ack(io, &Request::Stop, "Stop");
+        self.ack(io, &Request::Command(Command::Stop), "Stop");
         Next::Advance
     }
 
@@ -855,7 +859,11 @@ impl Script {
             seen.faults
         );
         check_outputs_cut(&seen);
-        self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop open");
+        self.ack(
+            io,
+            &Request::Command(Command::ResetFaults),
+            "ResetFaults, E-stop open",
+        );
         Next::Advance
     }
 
@@ -872,7 +880,11 @@ impl Script {
         );
         defmt::info!("E-stop closed");
         self.inject(io, false, [false; 2]);
-        self.ack(io, &Request::ResetFaults, "ResetFaults, E-stop closed");
+        self.ack(
+            io,
+            &Request::Command(Command::ResetFaults),
+            "ResetFaults, E-stop closed",
+        );
         Next::Advance
     }
 
@@ -939,7 +951,11 @@ impl Script {
             t.overruns,
             t.tick_busy_us
         );
-        self.ack(io, &Request::ResetFaults, "ResetFaults after the overrun");
+        self.ack(
+            io,
+            &Request::Command(Command::ResetFaults),
+            "ResetFaults after the overrun",
+        );
         Next::Advance
     }
 
@@ -1047,7 +1063,7 @@ impl Script {
         );
         defmt::info!("script: an unexpected interrupt while the motors are driven");
         self.inject(io, false, [false; 2]);
-        self.ack(io, &Request::ResetFaults, "ResetFaults");
+        self.ack(io, &Request::Command(Command::ResetFaults), "ResetFaults");
         Next::Advance
     }
 
@@ -1156,10 +1172,10 @@ fn check_outputs_cut(seen: &FaultSeen) {
 
 /// Travel right at [`SPEED_RPM`].
 fn travel_right() -> Request {
-    Request::Travel {
+    Request::Command(Command::Travel {
         direction: Direction::Right,
         speed_rpm: SPEED_RPM,
-    }
+    })
 }
 
 /// The longest a self-test can take, ticks: the documented worst case, three

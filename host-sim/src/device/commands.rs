@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::controller::{Direction, State, TuningTable};
+use shared::controller::{Command, Direction, State, TuningTable};
 
 use shared::controller::self_test::{SelfTestReport, SelfTestStatus};
 use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS};
@@ -178,11 +178,11 @@ fn run_on(
         DeviceCommand::Travel(a) => travel(client, a, out)?,
         DeviceCommand::Hold(a) => hold(client, a, out)?,
         DeviceCommand::Stop => {
-            command(client, &Request::Stop)?;
+            command(client, &Request::Command(Command::Stop))?;
             out.print("stop: accepted\n");
         }
         DeviceCommand::Reset => {
-            command(client, &Request::ResetFaults)?;
+            command(client, &Request::Command(Command::ResetFaults))?;
             let (s, ticked) = after_a_tick(client)?;
             out.print(&format!(
                 "reset: accepted; state {}, faults {}{}\n",
@@ -260,10 +260,10 @@ fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<
     catch_for(a.for_s);
     command(
         client,
-        &Request::Travel {
+        &Request::Command(Command::Travel {
             direction,
             speed_rpm: a.speed,
-        },
+        }),
     )?;
     out.print(&format!("travel {name} at {} rpm: accepted\n", a.speed));
     keep_alive(client, a.for_s, Some(name), out)
@@ -287,10 +287,10 @@ fn hold(client: &mut Client, a: &HoldArgs, out: &mut Console<'_>) -> Result<(), 
     catch_for(a.for_s);
     command(
         client,
-        &Request::HoldOffset {
+        &Request::Command(Command::HoldOffset {
             speed_rpm: a.speed,
             offset_deg: a.offset,
-        },
+        }),
     )?;
     out.print(&format!(
         "hold offset {} deg at {} rpm: accepted\n",
@@ -327,7 +327,7 @@ fn keep_alive(
     let started = Instant::now();
     let end = started + Duration::from_secs_f64(for_s);
     while Instant::now() < end && !interrupt::interrupted() {
-        client.request(&Request::Heartbeat)?;
+        client.request(&Request::Command(Command::Heartbeat))?;
         client.pump(HEARTBEAT_EVERY.min(end.saturating_duration_since(Instant::now())))?;
     }
     // The time held: all of --for, or up to the signal.
@@ -338,7 +338,7 @@ fn keep_alive(
         for_s
     };
     let s = client.status()?;
-    command(client, &Request::Stop)?;
+    command(client, &Request::Command(Command::Stop))?;
     out.print(&format!(
         "after {held:.1} s: {}\nstop: accepted\n",
         report::telemetry_line(&s).trim_start()
@@ -461,7 +461,7 @@ fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Re
             )));
         }
         if interrupt::interrupted() {
-            command(client, &Request::Stop)?;
+            command(client, &Request::Command(Command::Stop))?;
             let ticked = after_a_tick(client)?.1;
             let after = read_self_test(client)?;
             return Err(Failure::device(format!(

@@ -10,6 +10,7 @@
 //! that no frame crosses it whole). Without that watch a `--count` run waited for
 //! ever, heartbeating all the while.
 
+use shared::controller::Command;
 use std::time::{Duration, Instant};
 
 use shared::protocol::{Request, StatusReport};
@@ -97,7 +98,7 @@ fn watch(
             return Ok(frames);
         }
         // A heartbeat, then frames until the next one is due.
-        client.request(&Request::Heartbeat)?;
+        client.request(&Request::Command(Command::Heartbeat))?;
         let next = Instant::now() + HEARTBEAT_EVERY;
         loop {
             for (at, report) in client.take_telemetry() {

@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, TryRecvError};
 use std::time::{Duration, Instant};
 
-use shared::controller::State;
+use shared::controller::{Command, State};
 use shared::protocol::{Request, StatusReport};
 
 use super::args::DeviceTuneArgs;
@@ -80,15 +80,15 @@ impl Rig for Client {
     fn hold(&mut self, speed_rpm: f64, offset_deg: f64) -> Result<(), Failure> {
         command(
             self,
-            &Request::HoldOffset {
+            &Request::Command(Command::HoldOffset {
                 speed_rpm: speed_rpm as f32,
                 offset_deg: offset_deg as f32,
-            },
+            }),
         )
     }
 
     fn stop(&mut self) -> Result<(), Failure> {
-        command(self, &Request::Stop)
+        command(self, &Request::Command(Command::Stop))
     }
 }
 

@@ -184,14 +184,15 @@ enum Step {
 /// module documentation for the algorithm.
 ///
 /// ```
+/// use shared::controller::Command;
 /// use shared::protocol::{encode, Decoder, Message, Request, MAX_FRAME};
 ///
 /// let mut out = [0u8; MAX_FRAME];
-/// let n = encode(&Request::Stop, 7, &mut out).unwrap();
+/// let n = encode(&Request::Command(Command::Stop), 7, &mut out).unwrap();
 /// let mut decoder = Decoder::new();
 /// let mut input = &out[..n];
 /// let frame = decoder.decode(&mut input).unwrap().unwrap();
-/// assert_eq!((frame.seq, Request::parse(&frame)), (7, Ok(Request::Stop)));
+/// assert_eq!((frame.seq, Request::parse(&frame)), (7, Ok(Request::Command(Command::Stop))));
 /// assert!(decoder.decode(&mut input).is_none());
 /// ```
 #[derive(Clone, Debug)]

@@ -74,11 +74,11 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
     // One command per valid request: the motion command, or a heartbeat.
     let commanded = device.command(request.command());
     match request {
-        Request::Stop
-        | Request::Travel { .. }
-        | Request::HoldOffset { .. }
-        | Request::ResetFaults
-        | Request::Heartbeat => verdict(id, commanded),
+        Request::Command(Command::Stop)
+        | Request::Command(Command::Travel { .. })
+        | Request::Command(Command::HoldOffset { .. })
+        | Request::Command(Command::ResetFaults)
+        | Request::Command(Command::Heartbeat) => verdict(id, commanded),
         Request::GetStatus => Response::Status(device.status()),
         Request::ReadTuningTable => Response::TuningTable(device.tuning_table()),
         Request::ReadSelfTest => Response::SelfTest(device.self_test()),

@@ -17,17 +17,17 @@ use super::frame::Frame;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum MessageId {
-    /// [`Request::Heartbeat`].
+    /// [`Command::Heartbeat`] ([`Request::Command`]).
     Heartbeat = 0x01,
     /// [`Request::GetStatus`].
     GetStatus = 0x02,
-    /// [`Request::Stop`].
+    /// [`Command::Stop`] ([`Request::Command`]).
     Stop = 0x03,
-    /// [`Request::Travel`].
+    /// [`Command::Travel`] ([`Request::Command`]).
     Travel = 0x04,
-    /// [`Request::HoldOffset`].
+    /// [`Command::HoldOffset`] ([`Request::Command`]).
     HoldOffset = 0x05,
-    /// [`Request::ResetFaults`].
+    /// [`Command::ResetFaults`] ([`Request::Command`]).
     ResetFaults = 0x06,
     /// [`Request::ReadTuningTable`].
     ReadTuningTable = 0x07,
@@ -171,30 +171,16 @@ pub const MIN_TELEMETRY_PERIOD_MS: u16 = 20;
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Request {
-    /// "The link is alive" (a ping): answered [`Response::Ack`]. Every valid request
-    /// counts as a heartbeat; this one is for a host with nothing else to say.
-    Heartbeat,
+    /// A controller command, each its own message (docs/protocol.md): a
+    /// [`Command::Heartbeat`] ("the link is alive", for a host with nothing else
+    /// to say; every valid request counts as one) answered [`Response::Ack`];
+    /// [`Command::Stop`] and [`Command::ResetFaults`] answered Ack;
+    /// [`Command::Travel`] and [`Command::HoldOffset`] (speeds and offsets
+    /// finite) answered Ack (handed to the controller; its range check shows in
+    /// [`Telemetry::command_rejected`]) or Nack.
+    Command(Command),
     /// Answered [`Response::Status`].
     GetStatus,
-    /// [`Command::Stop`]; answered Ack.
-    Stop,
-    /// [`Command::Travel`]; answered Ack (handed to the controller; its range check
-    /// shows in [`Telemetry::command_rejected`]) or Nack.
-    Travel {
-        /// Which way.
-        direction: Direction,
-        /// Rotor speed, rpm, finite.
-        speed_rpm: f32,
-    },
-    /// [`Command::HoldOffset`]; answered like [`Request::Travel`].
-    HoldOffset {
-        /// Rotor speed, rpm, finite.
-        speed_rpm: f32,
-        /// Phase offset, degrees, finite.
-        offset_deg: f32,
-    },
-    /// [`Command::ResetFaults`]; answered Ack.
-    ResetFaults,
     /// Answered [`Response::TuningTable`]: the table in use.
     ReadTuningTable,
     /// Replace the tuning table, in use and in flash; only with the motors stopped.
@@ -478,24 +464,8 @@ impl Request {
     /// request to the controller ([`super::Device::command`]).
     pub fn command(&self) -> Command {
         match *self {
-            Request::Stop => Command::Stop,
-            Request::Travel {
-                direction,
-                speed_rpm,
-            } => Command::Travel {
-                direction,
-                speed_rpm,
-            },
-            Request::HoldOffset {
-                speed_rpm,
-                offset_deg,
-            } => Command::HoldOffset {
-                speed_rpm,
-                offset_deg,
-            },
-            Request::ResetFaults => Command::ResetFaults,
-            Request::Heartbeat
-            | Request::GetStatus
+            Request::Command(command) => command,
+            Request::GetStatus
             | Request::ReadTuningTable
             | Request::WriteTuningTable(_)
             | Request::RunSelfTest
@@ -514,37 +484,19 @@ impl Request {
 impl From<Command> for Request {
     /// The request that carries `command` (the host side of [`Request::command`]).
     fn from(command: Command) -> Self {
-        match command {
-            Command::Stop => Request::Stop,
-            Command::Travel {
-                direction,
-                speed_rpm,
-            } => Request::Travel {
-                direction,
-                speed_rpm,
-            },
-            Command::HoldOffset {
-                speed_rpm,
-                offset_deg,
-            } => Request::HoldOffset {
-                speed_rpm,
-                offset_deg,
-            },
-            Command::ResetFaults => Request::ResetFaults,
-            Command::Heartbeat => Request::Heartbeat,
-        }
+        Request::Command(command)
     }
 }
 
 impl Message for Request {
     fn id(&self) -> MessageId {
         match self {
-            Request::Heartbeat => MessageId::Heartbeat,
+            Request::Command(Command::Heartbeat) => MessageId::Heartbeat,
             Request::GetStatus => MessageId::GetStatus,
-            Request::Stop => MessageId::Stop,
-            Request::Travel { .. } => MessageId::Travel,
-            Request::HoldOffset { .. } => MessageId::HoldOffset,
-            Request::ResetFaults => MessageId::ResetFaults,
+            Request::Command(Command::Stop) => MessageId::Stop,
+            Request::Command(Command::Travel { .. }) => MessageId::Travel,
+            Request::Command(Command::HoldOffset { .. }) => MessageId::HoldOffset,
+            Request::Command(Command::ResetFaults) => MessageId::ResetFaults,
             Request::ReadTuningTable => MessageId::ReadTuningTable,
             Request::WriteTuningTable(_) => MessageId::WriteTuningTable,
             Request::RunSelfTest => MessageId::RunSelfTest,
@@ -556,26 +508,24 @@ impl Message for Request {
     fn write_payload(&self, out: &mut [u8]) -> Option<usize> {
         let mut w = Writer::new(out);
         match self {
-            Request::Travel {
+            Request::Command(Command::Travel {
                 direction,
                 speed_rpm,
-            } => {
+            }) => {
                 w.u8(direction_code(*direction));
                 w.f32(*speed_rpm);
             }
-            Request::HoldOffset {
+            Request::Command(Command::HoldOffset {
                 speed_rpm,
                 offset_deg,
-            } => {
+            }) => {
                 w.f32(*speed_rpm);
                 w.f32(*offset_deg);
             }
             Request::WriteTuningTable(table) => write_table(&mut w, table),
             Request::StreamTelemetry { period_ms } => w.u16(*period_ms),
-            Request::Heartbeat
+            Request::Command(Command::Heartbeat | Command::Stop | Command::ResetFaults)
             | Request::GetStatus
-            | Request::Stop
-            | Request::ResetFaults
             | Request::ReadTuningTable
             | Request::RunSelfTest
             | Request::ReadSelfTest => {}
@@ -590,10 +540,10 @@ impl Message for Request {
         let p = frame.payload;
         let empty = |request: Request| expect_len(p, 0).map(|_| request);
         match id {
-            MessageId::Heartbeat => empty(Request::Heartbeat),
+            MessageId::Heartbeat => empty(Request::Command(Command::Heartbeat)),
             MessageId::GetStatus => empty(Request::GetStatus),
-            MessageId::Stop => empty(Request::Stop),
-            MessageId::ResetFaults => empty(Request::ResetFaults),
+            MessageId::Stop => empty(Request::Command(Command::Stop)),
+            MessageId::ResetFaults => empty(Request::Command(Command::ResetFaults)),
             MessageId::ReadTuningTable => empty(Request::ReadTuningTable),
             MessageId::RunSelfTest => empty(Request::RunSelfTest),
             MessageId::ReadSelfTest => empty(Request::ReadSelfTest),
@@ -606,19 +556,19 @@ impl Message for Request {
                     None => return Err(ParseError::BadLength),
                 };
                 let speed_rpm = finite(r.f32())?;
-                Ok(Request::Travel {
+                Ok(Request::Command(Command::Travel {
                     direction,
                     speed_rpm,
-                })
+                }))
             }
             MessageId::HoldOffset => {
                 let mut r = expect_len(p, 8)?;
                 let speed_rpm = finite(r.f32())?;
                 let offset_deg = finite(r.f32())?;
-                Ok(Request::HoldOffset {
+                Ok(Request::Command(Command::HoldOffset {
                     speed_rpm,
                     offset_deg,
-                })
+                }))
             }
             MessageId::WriteTuningTable => read_table(p).map(Request::WriteTuningTable),
             MessageId::StreamTelemetry => {

@@ -77,7 +77,7 @@ pub const STORE_ANSWER_TIMEOUT_MS: u32 = 5_000;
 /// timer), so 50 ms of silence inside a frame means that its sender stopped.
 pub const FRAME_GAP_TIMEOUT_MS: u32 = 50;
 
-/// How often the host sends a request (a [`Request::Heartbeat`] when it has
+/// How often the host sends a request (a [`Request::Command`] with [`crate::controller::Command::Heartbeat`] when it has
 /// nothing else to say) while the motors run, ms: five chances within the
 /// controller's 0.5 s link timeout.
 pub const HEARTBEAT_PERIOD_MS: u32 = 100;

@@ -26,6 +26,7 @@ pub mod server;
 pub mod stops;
 pub mod stream;
 
+use shared::controller::Command;
 use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
 use std::time::Duration;
 
@@ -92,7 +93,7 @@ impl Sink for Served<'_, '_> {
         }
         // A refused or unanswered Stop is the page's to show; the stream goes
         // on (its own watch ends a link that is gone).
-        let answer = match command(client, &Request::Stop) {
+        let answer = match command(client, &Request::Command(Command::Stop)) {
             Ok(()) => Ok("stop: accepted".to_string()),
             Err(f) => Err(f.text()),
         };

@@ -69,7 +69,7 @@ impl Host {
                 .last_sent
                 .is_some_and(|s| t - s >= self.heartbeat_s - 1e-12)
         {
-            requests.push(Request::Heartbeat);
+            requests.push(Request::Command(Command::Heartbeat));
         }
         for r in requests {
             let mut frame = [0u8; MAX_FRAME];
