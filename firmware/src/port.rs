@@ -63,7 +63,7 @@ pub fn log_refusals(taken: &ForTick) {
 
 /// Idle's look at the link's state, every pass: the bytes the receive ring has
 /// lost so far noted in it, and the status the control task published.
-pub fn idle_status<M: rtic::Mutex<T = LinkState>>(link: &mut M) -> StatusReport {
+fn idle_status<M: rtic::Mutex<T = LinkState>>(link: &mut M) -> StatusReport {
     let dropped = link::dropped();
     link.lock(|l| {
         l.rx_dropped = dropped;

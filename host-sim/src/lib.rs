@@ -13,7 +13,12 @@
 //!   the plant and the controller in the loop both write;
 //! - [`simulation`]: a whole run, tick by tick, with the `shared` controller in the
 //!   loop, its trace, events and summary statistics;
-//! - [`output`]: whole files, CSV, SVG pieces and text for people;
+//! - [`output`]: whole files, CSV, SVG pieces and tables for people;
+//! - [`numbers`]: figures and counts written for people and files;
+//! - [`failure`]: the error model, a failure's kind and its reasons;
+//! - [`sweep`]: the sweep of speeds and phase offsets, below the commands that
+//!   sweep (`tune`, `calibrate`, `device tune`);
+//! - [`parts`]: a computation in parts (`--shard`) and `merge`'s arguments;
 //! - [`link`]: the host's end of the UART link to a board (a serial port, TCP or
 //!   a pseudo-terminal, and the protocol's client);
 //! - the commands: [`impact`] (one impact from a case file), [`run`] (a machine file
@@ -21,9 +26,13 @@
 //!   expectations), [`tune`] (the sweep of speed and phase offset), [`calibrate`]
 //!   (machine keys fitted to measured travel), [`device`] (a board over the
 //!   link, and a simulated board);
-//! - [`cli`]: the top-level command line, the arguments commands share, the end of
-//!   every `--help` ([`help`]: examples and documents), and the one place that
-//!   turns a command's result into output and an exit status.
+//! - [`cli`]: the top-level command line and the one place that turns a
+//!   command's result into output and an exit status; [`args`]: the arguments
+//!   commands share; [`help`]: the end of every `--help` (examples and documents);
+//!   [`interrupt`]: Ctrl-C and the termination signals as a flag.
+//!
+//! docs/development.md draws these as layers (a module uses only lower ones),
+//! checked by `host-sim/tests/layers.rs`.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

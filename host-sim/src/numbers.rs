@@ -95,7 +95,7 @@ pub fn fixed_signed(x: f64, places: usize) -> String {
 }
 
 /// A plane vector as `[x, y]` with [`sig`] numbers.
-pub fn vec2(v: [f64; 2]) -> String {
+pub fn pair(v: [f64; 2]) -> String {
     format!("[{}, {}]", sig(v[0]), sig(v[1]))
 }
 

@@ -30,9 +30,6 @@ use shared::protocol::link::no_telemetry;
 use shared::protocol::{MessageId, Request, Response, StatusReport};
 use shared::storage;
 
-/// The telemetry CSV's header, as docs/cli-device.md documents it.
-const CSV_HEADER: &str = "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,tick_late_us,tick_busy_us,overruns,rx_dropped";
-
 /// The bound against a hang: a command, or a wait for what the device shows.
 const HANG: Duration = Duration::from_secs(120);
 
@@ -339,8 +336,8 @@ fn telemetry_as_csv_has_a_header_and_n_rows() {
     let text = std::fs::read_to_string(&csv).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 7, "{text}");
-    assert_eq!(lines[0], CSV_HEADER);
-    let columns = CSV_HEADER.split(',').count();
+    assert_eq!(lines[0], common::TELEMETRY_CSV_HEADER);
+    let columns = common::TELEMETRY_CSV_HEADER.split(',').count();
     let mut last = None;
     for row in &lines[1..] {
         let fields: Vec<&str> = row.split(',').collect();
@@ -355,7 +352,7 @@ fn telemetry_as_csv_has_a_header_and_n_rows() {
     let t = dev.run(&["telemetry", "--period", "20", "--count", "3", "--csv", "-"]);
     let lines: Vec<&str> = t.ok().lines().collect();
     assert_eq!(lines.len(), 4, "{}", t.stdout);
-    assert_eq!(lines[0], CSV_HEADER);
+    assert_eq!(lines[0], common::TELEMETRY_CSV_HEADER);
 
     // By duration, readable lines: about 5 frames in 0.5 s at 100 ms.
     let t = dev.run(&["telemetry", "--duration", "0.5"]);
@@ -890,4 +887,16 @@ fn device_sim_on_a_busy_port_is_a_usage_error() {
     );
     assert_eq!(r.stdout, "");
     drop(taken);
+}
+
+/// The telemetry CSV's header the tests hold is the one docs/cli-device.md
+/// documents, as a line of its own.
+#[test]
+fn telemetry_csv_header_is_the_documented_one() {
+    let doc = std::fs::read_to_string(common::root().join("docs/cli-device.md")).unwrap();
+    assert!(
+        doc.lines().any(|l| l == common::TELEMETRY_CSV_HEADER),
+        "docs/cli-device.md does not show the header {}",
+        common::TELEMETRY_CSV_HEADER
+    );
 }

@@ -20,9 +20,6 @@ mod browser;
 mod common;
 use common::device_sim::DeviceSim;
 
-/// The telemetry CSV's header, as docs/cli-device.md documents it.
-const CSV_HEADER: &str = "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,tick_late_us,tick_busy_us,overruns,rx_dropped";
-
 impl DeviceSim {
     /// `host-sim device --port PORT args...` to its end.
     fn run(&self, args: &[&str]) -> common::Run {
@@ -221,7 +218,7 @@ fn the_routes_over_plain_http() {
             frames.push(serde_json::from_str::<Value>(data).expect("JSON"));
         }
     }
-    let names: Vec<&str> = CSV_HEADER.split(',').collect();
+    let names: Vec<&str> = common::TELEMETRY_CSV_HEADER.split(',').collect();
     assert_eq!(common::keys(&frames[0]), names);
     // Frames in order, about a period apart (the device's clock, ms): later
     // each time, and three within 3 periods and a heartbeat's slack.
@@ -514,7 +511,7 @@ fn the_live_page_draws_the_offset_only_while_driven_and_clean_axis_labels() {
     );
 
     // The ranges of the page's axes where adding steps left a residue at 0 (found
-    // by trying random ranges against the page's former loop), and usual ones.
+    // by trying random ranges against a loop that adds the steps), and usual ones.
     let ranges = [
         (-0.2444567336, 0.0000518796),
         (-0.4521962937, 0.0000063742),

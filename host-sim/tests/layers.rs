@@ -15,7 +15,9 @@
 //!   `impl Plant`) counts as the module.
 //!
 //! Paths are found wherever they are written (`use` lines and paths inside the
-//! code), except in comments and in a file's `#[cfg(test)]` module at its end.
+//! code), except in comments, in a file's `#[cfg(test)]` module at its end and in
+//! the test files `tests.rs` beside a module's code; a single `#[cfg(test)]` item
+//! inside the code (a method of an `impl`) does not end the reading.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
@@ -97,7 +99,9 @@ fn files_of(m: &str) -> Vec<PathBuf> {
             let path = e.unwrap().path();
             if path.is_dir() {
                 folders.push(path);
-            } else if path.extension().is_some_and(|x| x == "rs") {
+            } else if path.extension().is_some_and(|x| x == "rs")
+                && path.file_name().is_some_and(|n| n != "tests.rs")
+            {
                 files.push(path);
             }
         }
@@ -129,10 +133,20 @@ fn code(path: &Path) -> Vec<(usize, String)> {
 fn lines_of(text: &str) -> Vec<(usize, String)> {
     let mut lines: Vec<(usize, String)> = Vec::new();
     let mut open_use = false;
-    for (i, line) in text.lines().enumerate() {
+    let all: Vec<&str> = text.lines().collect();
+    for (i, line) in all.iter().enumerate() {
         let t = line.trim_start();
+        // The test module at a file's end stops the reading; a single test-only
+        // item (a method inside an `impl`) is read as code.
         if t.starts_with("#[cfg(test)]") {
-            break;
+            let next = all[i + 1..]
+                .iter()
+                .map(|l| l.trim_start())
+                .find(|l| !l.is_empty());
+            if next.is_some_and(|l| l.split_whitespace().any(|w| w == "mod")) {
+                break;
+            }
+            continue;
         }
         if t.starts_with("//") {
             continue;
@@ -322,7 +336,7 @@ fn the_modules_use_only_the_layers_below_them() {
     );
 }
 
-/// The utilities every layer may take, which the modules' table leaves out of its
+/// The utilities every layer above them may take, which the modules' table leaves out of its
 /// column "uses".
 const UTILITIES: [&str; 5] = ["args", "help", "interrupt", "numbers", "failure"];
 
@@ -504,6 +518,18 @@ fn paths_are_read_as_the_compiler_reads_them() {
         ["dynamics", "model"]
     );
     assert_eq!(lines[1], (5, "fn f() {}".to_string()));
+    // A test-only method is skipped over; the test module ends the reading.
+    let lines = lines_of(
+        "impl A {\n    #[cfg(test)]\n    fn t() {}\n    fn g() { crate::x::y(); }\n}\n#[cfg(test)]\nmod tests {\n    use crate::z;\n}\n",
+    );
+    assert!(
+        lines.iter().any(|(_, l)| l.contains("crate::x")),
+        "{lines:?}"
+    );
+    assert!(
+        !lines.iter().any(|(_, l)| l.contains("crate::z")),
+        "{lines:?}"
+    );
     let line = "use super::super::{dynamics::{Frame, Vector}, model::MAX_DOF};";
     assert_eq!(
         first_segments(line, "super::super::"),

@@ -22,10 +22,13 @@
 //!   publish) over a [`tick::Board`] and a [`tick::Port`];
 //! - [`timing`]: the control tick's lateness and duration from a cycle counter, for
 //!   the controller's deadline check;
-//! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`.
+//! - [`real`]: the scalar trait that makes the numerics generic over `f32` and `f64`;
+//! - [`vec2`]: plane vectors, for the impact model, the plant and the tests;
+//! - [`Enumerated`]: values with a name in files and outputs, and the list of them.
 //!
-//! The controller is the bottom layer; `codec` uses it, `storage` uses both,
-//! `protocol` uses all three, and `tick` the controller and the protocol's link.
+//! `real`, `vec2` and `Enumerated` are the ground. Above them the controller is
+//! the bottom layer; `codec` uses it, `storage` uses both, `protocol` uses all
+//! three, and `tick` the controller and the protocol's link.
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -37,7 +40,7 @@ pub mod codec;
 pub mod controller;
 pub mod drive;
 pub mod impact;
-pub mod named;
+mod named;
 pub mod pil;
 pub mod protocol;
 pub mod real;

@@ -1,5 +1,5 @@
 //! The machine's physical values to the controller's constants
-//! (`shared::controller::machine`), against values worked out by hand from the
+//! (`shared/src/controller/machine.rs`), against values worked out by hand from the
 //! formulas: the reference machine (`examples/vibro-driver.toml`), and the edge
 //! cases of the resonance band.
 

@@ -333,9 +333,25 @@ fn commands_convert_both_ways() {
         Command::ResetFaults,
         Command::Heartbeat,
     ];
+    // Each command through the wire: its own message id, and back to itself.
+    let mut ids = Vec::new();
     for command in commands {
-        assert_eq!(Request::from(command).command(), command);
+        let request = Request::from(command);
+        let mut out = [0u8; MAX_FRAME];
+        let n = encode(&request, 3, &mut out).expect("a command fits a frame");
+        let mut decoder = Decoder::new();
+        let mut input = &out[..n];
+        let frame = decoder.decode(&mut input).expect("a frame").expect("whole");
+        assert_eq!(Request::parse(&frame).map(|r| r.command()), Ok(command));
+        ids.push(frame.id);
     }
+    ids.sort_unstable();
+    ids.dedup();
+    assert_eq!(
+        ids.len(),
+        commands.len(),
+        "one message id per command: {ids:?}"
+    );
     // Every request gives exactly one command; those without motion a heartbeat.
     for request in every_request() {
         let motion = matches!(
@@ -345,7 +361,7 @@ fn commands_convert_both_ways() {
                 | Request::Command(Command::HoldOffset { .. })
                 | Request::Command(Command::ResetFaults)
         );
-        assert_eq!(request.is_command(), motion);
+        assert_eq!(request.is_motion_command(), motion);
         if !motion {
             assert_eq!(request.command(), Command::Heartbeat);
         }

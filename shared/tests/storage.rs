@@ -12,7 +12,7 @@ use shared::codec::crc::crc32;
 use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::controller::{Direction, TuningTable};
 use shared::storage::{
-    encode_record, parse_record, HEADER_LEN, PAYLOAD_LEN, RECORD_LEN, RECORD_WORDS,
+    encode_record, parse_record, PAYLOAD_LEN, RECORD_HEADER_LEN, RECORD_LEN, RECORD_WORDS,
 };
 use shared::storage::{
     is_newer, load, slot_offset, store, Record, SimError, SimFlash, StoreError, Stored, MAGIC,
@@ -59,7 +59,7 @@ fn record(k: u32) -> Record {
 
 #[test]
 fn the_layout_is_as_documented() {
-    assert_eq!(HEADER_LEN, 12);
+    assert_eq!(RECORD_HEADER_LEN, 12);
     assert_eq!(PAYLOAD_LEN, 412);
     assert_eq!(RECORD_LEN, 428);
     assert_eq!(RECORD_WORDS * 4, RECORD_LEN);

@@ -8,18 +8,12 @@
 //! on both feet.
 
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::path::PathBuf;
 
-use crate::machine::{example_path, TestMachine};
+use crate::machine::TestMachine;
 
 use host_sim::machine::Machine;
 use host_sim::plant::model::PlantModel;
 use host_sim::plant::simulator::{Holds, Plant, Settings};
-
-/// The reference machine file.
-pub fn reference_path() -> PathBuf {
-    example_path()
-}
 
 /// The reference machine with `sets` (`--set` overrides), its rotors started at
 /// the phase offset `offset_deg`.

@@ -40,11 +40,6 @@ pub const DRIVE_12V: &str = "
 supply_voltage = 12.0
 ";
 
-/// The shipped reference machine's file.
-pub fn example_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/vibro-driver.toml")
-}
-
 /// A machine file a test builds: its name (for messages), its text, the folder
 /// its relative paths are read from, and `--set` changes.
 #[derive(Clone, Debug)]

@@ -1,7 +1,8 @@
 //! A machine described in the test, written as a machine file, and the mechanics
 //! of its state computed from the geometry with formulas written here (never the
 //! plant's own mass matrix, energy or forces): the independent side of the plant's
-//! reference tests.
+//! reference tests. Plane-vector arithmetic is `shared::vec2`'s, whose own tests
+//! check each operation against its meaning.
 //!
 //! Conventions: world `x` right, `y` up, the fundament `y = 0` with normal
 //! `n = (0, 1)` and tangent `t = (-n_y, n_x) = (-1, 0)`; gravity `(0, -G)`; state

@@ -57,7 +57,7 @@ fn the_driver_holds_rotor_1_and_leaves_rotor_2_off() {
     };
     let mut driver = ControllerDriver::new(&one, vec![(0.0, travel)]).expect("the controller");
     assert_eq!(driver.rotor_count(), RotorCount::One);
-    assert!(!driver.in_loop().expect("a controller").phase_loop());
+    assert!(!driver.last_tick().expect("a controller").phase_loop());
 
     // Two seconds at the control rate, as `simulate` steps it.
     let rate = one.controller.rate_hz;
@@ -90,9 +90,9 @@ fn the_driver_holds_rotor_1_and_leaves_rotor_2_off() {
     assert!((rpm - 3000.0).abs() < 60.0, "rotor 1 at {rpm} rpm");
     // There is no rotor 2, and no current in its winding.
     assert_eq!(plant.currents()[1], 0.0);
-    let in_loop = driver.in_loop().expect("a controller");
-    assert_eq!(in_loop.held_offset_deg(), None);
-    assert_eq!(in_loop.state(), State::Running);
+    let last_tick = driver.last_tick().expect("a controller");
+    assert_eq!(last_tick.held_offset_deg(), None);
+    assert_eq!(last_tick.state(), State::Running);
 }
 
 /// The one-rotor machine's numbers: platform mass, eccentric mass, eccentricity (kg,

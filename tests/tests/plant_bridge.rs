@@ -26,7 +26,7 @@
 //!     `(a (d T - tau (1 - e1)) - b t_z + (i1 + b) tau (1 - exp(-t_z / tau))) / T`.
 //!
 //! For the reference motor (2 ohm, 0.5 mH, 12 V, 20 kHz) these give what the
-//! first board would have drawn with the former fast-decay drive against what the
+//! first board would draw with a fast-decay drive against what the
 //! controller assumes (slow decay): at standstill and `d = 0.049` (the
 //! self-test's duty) 2.9 mA against 0.294 A; at `d = 0.5` 0.273 A against 3 A; at
 //! 3000 rpm and `d = 0.049` 0.9 mA against -2.85 A (braking). (The diodes' forward

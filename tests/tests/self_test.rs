@@ -28,7 +28,7 @@ use host_sim::event::EventRow;
 use host_sim::machine::Machine;
 use host_sim::plant::bridge::BridgeCommand;
 use host_sim::plant::simulator::Plant;
-use host_sim::simulation::closed_loop::{ControllerDriver, InLoop};
+use host_sim::simulation::closed_loop::{ControllerDriver, LastTick};
 use host_sim::simulation::{simulate, Driver, RunOptions};
 use shared::controller::self_test::{SelfTestReport, SelfTestStatus};
 use shared::controller::{
@@ -96,8 +96,8 @@ impl Driver for Probe {
         w
     }
 
-    fn in_loop(&self) -> Option<InLoop<'_>> {
-        self.inner.in_loop()
+    fn last_tick(&self) -> Option<LastTick<'_>> {
+        self.inner.last_tick()
     }
 
     fn events(&mut self) -> Vec<EventRow> {
@@ -720,7 +720,7 @@ fn noisy_sensors_still_pass() {
 /// The bridge as wired decides whether the self-test can work. Its duty (0.049 on
 /// the reference machine: twice the load torque at rest with the mean voltage
 /// `d V_s`) means that voltage only in slow decay; a bridge driven in fast decay
-/// (drive, then coast: the firmware's drive before this was fixed) draws 2.9 mA
+/// (drive, then coast) draws 2.9 mA
 /// instead of 0.29 A at standstill (`plant_bridge.rs`), so neither rotor turns and
 /// both fail: the current does not follow the duty, no counts, no index. With
 /// slow decay (the reference run) both pass.

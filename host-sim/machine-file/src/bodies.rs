@@ -57,7 +57,7 @@ pub const MAX_ROTORS: usize = 2;
 pub const MAX_DOF: usize = 12;
 /// How far a contact point may be behind its face at t = 0, m (rounding of the
 /// file's decimals).
-pub const GAP_TOLERANCE: f64 = 1e-9;
+pub const FACE_GAP_TOLERANCE: f64 = 1e-9;
 
 /// A further rigid body: its name, and the same keys as `[platform]` (mass, kg;
 /// inertia about its centre of mass, kg m^2; centre of mass, angle, velocity and
@@ -394,7 +394,7 @@ fn check_contact_face(root: &Section, i: usize, c: &MachineContact) -> bool {
     // The face through the point unless given ([`read_ends`]'s caller).
     let face = ends.face.unwrap_or(*point);
     let gap = unit[0] * (point[0] - face[0]) + unit[1] * (point[1] - face[1]);
-    if gap < -GAP_TOLERANCE {
+    if gap < -FACE_GAP_TOLERANCE {
         root.problem(
             &key("point"),
             format!(

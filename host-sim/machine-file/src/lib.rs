@@ -341,7 +341,7 @@ impl Machine {
             Ok(m) if set_problems.is_empty() => Ok(m),
             Ok(_) => Err(set_problems),
             Err(file_problems) => {
-                // Stage 7: say which value came from the command line.
+                // Stage 7: say which value an override wrote.
                 let mut all = set_problems;
                 all.extend(file_problems.into_iter().map(|p| blame_set(p, &applied)));
                 Err(all)
@@ -435,7 +435,8 @@ fn read_all<T>(list: Vec<Option<Section>>, read: fn(usize, &Section) -> Named<T>
 }
 
 /// Appends `(from --set KEY=VALUE)` to a problem in a key (or an element of it) that
-/// the last `--set` of that key gave.
+/// the last override of that key gave, from the command line or a scenario's `set`
+/// alike (docs/scenarios.md shows the scenario's case).
 fn blame_set(mut problem: Problem, applied: &[set::Applied]) -> Problem {
     if let Location::Key(key) = &problem.location {
         let from = applied.iter().rev().find(|a| {
@@ -501,7 +502,7 @@ pub const RTOL_RANGE: (f64, f64) = (1.0e-12, 1.0e-3);
 /// How far below the fundament a contact point may lie at `t = 0`, m: far above the
 /// rounding of positions a generator computes on a tilted fundament (1e-17 m at
 /// these sizes), far below any real mistake.
-pub const GAP_TOLERANCE: f64 = 1.0e-12;
+pub const FUNDAMENT_GAP_TOLERANCE: f64 = 1.0e-12;
 
 /// A key read on its own: absent, present but refused (reported), or a value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1063,7 +1064,7 @@ fn check_rotors(root: &Section, list: Vec<Named<Rotor>>) -> Option<Rotors> {
 
 /// Stage 6: every contact on or above the fundament at `t = 0`:
 /// `gap = n . (K - P) >= 0` with `P` the fundament's point and `n` its unit normal
-/// (within [`GAP_TOLERANCE`]).
+/// (within [`FUNDAMENT_GAP_TOLERANCE`]).
 fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]) {
     let (p, n) = (fundament.point, fundament.normal);
     for (i, c) in contacts.iter().enumerate() {
@@ -1071,7 +1072,7 @@ fn check_gaps(root: &Section, fundament: &Fundament, contacts: &[MachineContact]
             continue;
         }
         let gap = n[0] * (c.point[0] - p[0]) + n[1] * (c.point[1] - p[1]);
-        if gap < -GAP_TOLERANCE {
+        if gap < -FUNDAMENT_GAP_TOLERANCE {
             root.problem(
                 &format!("contacts[{i}].point"),
                 format!(

@@ -16,11 +16,18 @@
 //!    (`simulation.t_end=2` works without a `[simulation]`; so does
 //!    `rotors.left.motor.resistance=3` without a `[rotors.motor]`).
 //!
-//! A problem names the whole argument in place of a file:
+//! A refused override is said where it was given ([`Origin`]): on the command
+//! line its problem names the whole argument in place of a file,
 //!
 //! ```text
 //! error: --set contacts.K9.friction=0.2: no contact named K9 (contacts: K1, K2)
 //! ```
+//!
+//! and in a file's list of overrides (a scenario's `set`) it is that file's
+//! entry, the argument quoted (`error: s.toml: set[0]: "contacts.K9.friction=0.2":
+//! no contact named K9 ...`). A value an override wrote that the machine's checks
+//! refuse is the machine file's problem at its key, with `(from --set
+//! KEY=VALUE)` added wherever the override came from.
 
 use serde::Deserialize;
 use toml::{Table, Value};

@@ -41,7 +41,7 @@ use crate::numbers::count;
 use crate::output::file::Staged;
 use crate::parts::{
     is_sha256, quote, read_as, sha256_hex, shard_problems, spec_sha256, unsealed_sha256,
-    MachineFile, MergeArgs, Shard, MAX_BYTES,
+    HashedFile, MergeArgs, Shard, MAX_BYTES,
 };
 use crate::sweep::RunOutcome;
 use crate::sweep::{load_machine, progress_bar, refuse_interrupted};
@@ -60,7 +60,7 @@ pub struct FitSpec {
     /// The version of host-sim that ran it.
     pub host_sim_version: String,
     /// The measured file, as named on `calibrate`'s command line, and its SHA-256.
-    pub measured: MachineFile,
+    pub measured: HashedFile,
     /// `--fit`, the keys as given.
     pub keys: Vec<String>,
     /// The `--set` overrides, in order.
@@ -94,7 +94,7 @@ pub struct Part {
     /// [`VERSION`].
     pub version: u64,
     /// The machine file.
-    pub machine: MachineFile,
+    pub machine: HashedFile,
     /// The fit.
     pub fit: FitSpec,
     /// The hash of `machine.sha256` and `fit`.
@@ -177,13 +177,13 @@ pub(crate) fn run_shard(
     let mut part = Part {
         format: FORMAT.into(),
         version: VERSION,
-        machine: MachineFile {
+        machine: HashedFile {
             path: args.machine.path.display().to_string(),
             sha256: sha256_hex(inputs.text.as_bytes()),
         },
         fit: FitSpec {
             host_sim_version: env!("CARGO_PKG_VERSION").to_string(),
-            measured: MachineFile {
+            measured: HashedFile {
                 path: args.measured.display().to_string(),
                 sha256: inputs.measured_sha256.clone(),
             },

@@ -274,7 +274,7 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
     let n = case.contacts.len();
     let plural = if n == 1 { "" } else { "s" };
     let body = match case.pivot {
-        Some(o) => format!("pinned at {}", numbers::vec2(o)),
+        Some(o) => format!("pinned at {}", numbers::pair(o)),
         None => "free".to_string(),
     };
     out.push_str(&format!(
@@ -292,8 +292,8 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
     ]);
     motion.row(vec![
         "velocity of C [m/s]".into(),
-        numbers::vec2(result.velocity_before),
-        numbers::vec2(result.velocity_after),
+        numbers::pair(result.velocity_before),
+        numbers::pair(result.velocity_after),
     ]);
     motion.row(vec![
         "angular velocity [rad/s]".into(),
@@ -309,9 +309,9 @@ pub fn table(case: &ImpactCase, result: &Solved) -> String {
     if let Some(p) = &result.pivot {
         out.push_str(&format!(
             "pivot impulse [N s]: {} (compression {}, restitution {})\n",
-            numbers::vec2(p.impulse),
-            numbers::vec2(p.compression),
-            numbers::vec2(p.restitution)
+            numbers::pair(p.impulse),
+            numbers::pair(p.compression),
+            numbers::pair(p.restitution)
         ));
     }
     out.push('\n');

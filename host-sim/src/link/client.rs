@@ -193,7 +193,7 @@ pub fn answer_text(response: &Response) -> String {
 }
 
 /// Whether `response` answers `request` (the device's answer rule,
-/// `shared::protocol::handler`): a Nack naming the request's id; an Ack naming it,
+/// `shared::protocol::answer_request`): a Nack naming the request's id; an Ack naming it,
 /// for the requests answered by Ack; the report asked for by `GetStatus`,
 /// `ReadTuningTable` and `ReadSelfTest`.
 pub fn answers(request: &Request, response: &Response) -> bool {

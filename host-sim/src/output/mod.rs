@@ -7,7 +7,8 @@
 //!   terminal);
 //! - [`svg`]: the SVG figures' common pieces;
 //! - [`temporary`]: where a file waits until its set is committed;
-//! - [`text`]: numbers and aligned tables for people.
+//! - [`text`]: aligned tables for people (their numbers written by
+//!   [`crate::numbers`]).
 
 pub mod animate;
 pub mod csv;

@@ -2,7 +2,7 @@
 //! multistart (`host-sim calibrate --shard I/N`) split into N partial results
 //! that run anywhere, and `host-sim merge`, which reads them back, checks them
 //! and concludes the whole. What both kinds of part share lives here: the shard
-//! ([`Shard`], `--shard`), the machine file named by its hash ([`MachineFile`],
+//! ([`Shard`], `--shard`), an input file named with its hash ([`HashedFile`],
 //! [`read_machine_file`]), the hashes that tie a part to what made it
 //! ([`sha256_hex`], [`spec_sha256`], [`unsealed_sha256`]), the one reader of a
 //! part's JSON and the check that the N parts are all there
@@ -78,11 +78,12 @@ pub fn parse_shard(text: &str) -> Result<Shard, String> {
     Ok(Shard { index, count })
 }
 
-/// The machine file a part was made from.
+/// An input file a part was made from (the machine file, a fit's measured
+/// file), as named and with its SHA-256.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct MachineFile {
-    /// As named on `tune`'s command line (the outputs name it so).
+pub struct HashedFile {
+    /// As named on the command line (the outputs name it so).
     pub path: String,
     /// SHA-256 of its bytes, lowercase hex.
     pub sha256: String,

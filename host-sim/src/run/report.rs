@@ -159,7 +159,7 @@ pub fn summary_table(s: &Summary) -> String {
         t.row(vec![name.to_string(), value, unit.to_string()]);
     };
     let motion = |x: f64| numbers::rounded(x, MOTION_DECIMALS);
-    let motion2 = |v: [f64; 2]| numbers::vec2([motion(v[0]), motion(v[1])]);
+    let motion2 = |v: [f64; 2]| numbers::pair([motion(v[0]), motion(v[1])]);
     match s.not_a_travel() {
         None => {
             row(

@@ -16,7 +16,7 @@ use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::Injected;
 use crate::simulation::closed_loop::ControllerDriver;
-use crate::simulation::closed_loop::InLoop;
+use crate::simulation::closed_loop::LastTick;
 use crate::simulation::Driver;
 
 /// One control tick as recorded.
@@ -185,8 +185,8 @@ impl Driver for ScenarioDriver<'_> {
         w
     }
 
-    fn in_loop(&self) -> Option<InLoop<'_>> {
-        self.driver_ref().in_loop()
+    fn last_tick(&self) -> Option<LastTick<'_>> {
+        self.driver_ref().last_tick()
     }
 
     fn events(&mut self) -> Vec<EventRow> {

@@ -11,7 +11,6 @@ use super::file::Expectation;
 use super::file::Scenario;
 use super::file::When;
 use super::file::TIME_EPS;
-use crate::machine::input::Problem;
 use crate::numbers::sig;
 use crate::plant::progress::Stop;
 use crate::simulation::breach::Breach;
@@ -76,16 +75,11 @@ impl Report {
     }
 }
 
-/// Runs `scenario` with the controller in the loop (stages of the module doc).
-/// Fails only if the controller's parameters cannot be built (the tuning table
-/// changed since [`super::file::load`]).
-pub fn run(scenario: &Scenario) -> Result<Report, Vec<Problem>> {
+/// Runs `scenario` with the controller in the loop (stages of the module doc),
+/// on the parameters its check read.
+pub fn run(scenario: &Scenario) -> Report {
     let mut driver = ScenarioDriver::controller(scenario);
-    Ok(run_observed(
-        scenario,
-        &mut driver,
-        &mut Interruptible::new(),
-    ))
+    run_observed(scenario, &mut driver, &mut Interruptible::new())
 }
 
 /// Runs `scenario` with `driver`, `observer` watching the simulation (the
@@ -145,7 +139,7 @@ pub fn run_observed(
         t_end: scenario.t_end,
         outcomes,
         detections,
-        final_state: driver.in_loop().map_or(State::Idle, |c| c.state()),
+        final_state: driver.last_tick().map_or(State::Idle, |c| c.state()),
         stopped: result.stopped,
         warnings: result.summary.warnings,
     }

@@ -80,14 +80,14 @@ pub fn speed_range_rpm(m: &Machine) -> (f64, f64) {
 /// outputs (`None` before its first) and the rotors it drives. The controller
 /// in the loop's and the firmware's alike.
 #[derive(Clone, Copy, Debug)]
-pub struct InLoop<'a> {
+pub struct LastTick<'a> {
     /// The outputs of its last tick.
     pub last: Option<&'a Outputs>,
     /// One rotor or two.
     pub rotors: RotorCount,
 }
 
-impl InLoop<'_> {
+impl LastTick<'_> {
     /// Its state after the last tick; [`State::Idle`] before the first.
     pub fn state(&self) -> State {
         self.last.map_or(State::Idle, |o| o.state)
@@ -236,8 +236,8 @@ impl Driver for ControllerDriver {
         bridges
     }
 
-    fn in_loop(&self) -> Option<InLoop<'_>> {
-        Some(InLoop {
+    fn last_tick(&self) -> Option<LastTick<'_>> {
+        Some(LastTick {
             last: self.last.as_ref(),
             rotors: self.rotor_count,
         })

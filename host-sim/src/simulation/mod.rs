@@ -37,7 +37,7 @@ use crate::plant::model::PlantModel;
 use crate::plant::model::NY;
 use crate::plant::progress::Stop;
 use crate::plant::simulator::{Holds, Output, Plant, Settings};
-use crate::simulation::closed_loop::InLoop;
+use crate::simulation::closed_loop::LastTick;
 use crate::simulation::summary::{ImpactInstants, SummaryBuilder};
 use crate::simulation::trace::{Summary, TraceRow};
 
@@ -89,7 +89,7 @@ pub trait Driver {
     fn bridges(&mut self, t: f64, plant: &Plant) -> ([BridgeCommand; 2], [f64; 2]);
     /// The controller in the loop, for the summary: its last tick and its
     /// rotors. `None` by default: open loop, no controller.
-    fn in_loop(&self) -> Option<InLoop<'_>> {
+    fn last_tick(&self) -> Option<LastTick<'_>> {
         None
     }
     /// Events of the driver since the last call (state changes, faults).
@@ -442,7 +442,7 @@ pub fn simulate_observed(
     events.take(&mut plant, driver, rec.observer);
     let summary = rec.summary.finish(
         events.impacts.count(),
-        driver.in_loop(),
+        driver.last_tick(),
         plant.warnings.clone(),
     );
     RunResult {

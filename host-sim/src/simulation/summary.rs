@@ -21,7 +21,7 @@ use shared::controller::angle::{wrap_deg_f64, wrap_deg_signed_f64};
 use shared::controller::Faults;
 
 use crate::event::{EventKind, EventRow};
-use crate::simulation::closed_loop::InLoop;
+use crate::simulation::closed_loop::LastTick;
 use crate::simulation::trace::{EndState, FinalState, Summary, TraceRow};
 
 /// Converts rad/s to rpm: `60 / (2 pi)`.
@@ -236,7 +236,7 @@ impl<'m> SummaryBuilder<'m> {
     }
 
     /// The summary of the rows taken, with `impacts` the number of distinct
-    /// impact times and `in_loop` the controller that drove the windings
+    /// impact times and `last_tick` the controller that drove the windings
     /// (`None`: open loop):
     ///
     /// - `mean_velocity = (x(T) - x(T/2)) / (T/2)`, `distance = x(T) - x(0)`;
@@ -256,10 +256,10 @@ impl<'m> SummaryBuilder<'m> {
     pub fn finish(
         self,
         impacts: usize,
-        in_loop: Option<InLoop<'_>>,
+        last_tick: Option<LastTick<'_>>,
         warnings: Vec<String>,
     ) -> Summary {
-        self.conclude(impacts, Drive::of(in_loop), warnings)
+        self.conclude(impacts, Drive::of(last_tick), warnings)
     }
 
     /// [`Self::finish`] with what drove the windings.
@@ -372,8 +372,8 @@ struct Drive {
 }
 
 impl Drive {
-    fn of(in_loop: Option<InLoop<'_>>) -> Self {
-        match in_loop {
+    fn of(last_tick: Option<LastTick<'_>>) -> Self {
+        match last_tick {
             None => Drive {
                 state: EndState::OpenLoop,
                 faults: Faults::NONE,

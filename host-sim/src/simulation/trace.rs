@@ -1,4 +1,5 @@
-//! What a simulation run records: trace rows, events and the summary.
+//! What a simulation run records: trace rows and the summary, with what held
+//! the windings at its end ([`EndState`]); the event rows are [`crate::event`]'s.
 
 use shared::controller::{Faults, State};
 use shared::impact::MAX_CONTACTS;

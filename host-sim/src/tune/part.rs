@@ -42,7 +42,7 @@ use crate::machine::{input, Machine};
 use crate::numbers;
 use crate::output::file::Staged;
 use crate::parts::{
-    is_sha256, quote, read_as, shard_problems, spec_sha256, unsealed_sha256, MachineFile, Shard,
+    is_sha256, quote, read_as, shard_problems, spec_sha256, unsealed_sha256, HashedFile, Shard,
 };
 use crate::sweep::{maybe_finite, run_point, Grid, RunOutcome};
 use crate::sweep::{progress_bar, refuse_interrupted, MAX_POINTS};
@@ -138,7 +138,7 @@ pub struct Part {
     /// [`VERSION`].
     pub version: u64,
     /// The machine file.
-    pub machine: MachineFile,
+    pub machine: HashedFile,
     /// The sweep.
     pub sweep: Sweep,
     /// The hash of `machine.sha256` and `sweep` ([module doc](self)).
@@ -210,7 +210,7 @@ impl Sweep {
 
     /// How it was asked for, with the machine file as `tune` named it and its
     /// SHA-256.
-    pub fn request(&self, machine: &MachineFile) -> Request {
+    pub fn request(&self, machine: &HashedFile) -> Request {
         Request {
             machine_path: PathBuf::from(&machine.path),
             machine_sha256: machine.sha256.clone(),
@@ -368,7 +368,7 @@ pub(crate) fn run_shard(
     let mut part = Part {
         format: FORMAT.into(),
         version: VERSION,
-        machine: MachineFile {
+        machine: HashedFile {
             path: request.machine_path.display().to_string(),
             sha256: request.machine_sha256.clone(),
         },

@@ -24,6 +24,10 @@ pub fn machine() -> PathBuf {
     root().join("examples/vibro-driver.toml")
 }
 
+/// The telemetry CSV's header, as docs/cli-device.md documents it
+/// (`telemetry_csv_header_is_the_documented_one` checks the document).
+pub const TELEMETRY_CSV_HEADER: &str = "uptime_ms,state,faults,speed1_rpm,speed2_rpm,speed_ref1_rpm,speed_ref2_rpm,phase_valid,phase_loop_closed,phase_offset_deg,commanded_offset_deg,target_offset_deg,phase_error_deg,current1_a,current2_a,supply_voltage_v,duty1,duty2,command_rejected,tick_late_us,tick_busy_us,overruns,rx_dropped";
+
 /// The tuning tests' tiny grid: 2 speeds x 4 offsets (0, 90, 180, 270; 360 is 0
 /// and runs once). 4 s: the offset reference ramps at 180 deg/s along the shorter
 /// arc, holding 180 degrees, the farthest, from 1.18 s on (docs/tuning.md,

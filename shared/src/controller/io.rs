@@ -242,7 +242,7 @@ pub enum Bridge {
 
 impl Bridge {
     /// `Driven(duty)` when `on`, otherwise `Off`.
-    pub fn driven_if(on: bool, duty: f32) -> Bridge {
+    pub(crate) fn driven_if(on: bool, duty: f32) -> Bridge {
         if on {
             Bridge::Driven(duty)
         } else {

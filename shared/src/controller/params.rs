@@ -124,11 +124,11 @@ impl RotorCount {
     }
 
     /// Which H-bridges a tick drives, rotor 1's and rotor 2's, given whether the
-    /// controller drives the motors (`enable`): both with it on two rotors; on one,
-    /// rotor 1's with it and rotor 2's never (off: both inputs low, the winding
-    /// open). A bridge not driven is off ([`super::Outputs::bridges`]).
-    pub const fn bridges_on(self, enable: bool) -> [bool; 2] {
-        [enable, enable && self.has_rotor2()]
+    /// controller drives the motors (`driving`): both with it on two rotors; on
+    /// one, rotor 1's with it and rotor 2's never (off: both inputs low, the
+    /// winding open). A bridge not driven is off ([`super::Outputs::bridges`]).
+    pub const fn bridges_on(self, driving: bool) -> [bool; 2] {
+        [driving, driving && self.has_rotor2()]
     }
 }
 

@@ -74,7 +74,7 @@
 
 use embedded_hal::pwm::SetDutyCycle;
 
-use crate::named::Enumerated;
+use crate::Enumerated;
 
 /// How the two bridge inputs make a duty (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

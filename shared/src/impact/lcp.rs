@@ -27,8 +27,8 @@
 //! complementarity problem (Stewart & Trinkle's form, `ContactLcp`), solved by
 //! Lemke's method ([`super::lemke`]) within its pivot cap: `O(m)` pivots of
 //! `O(m^2)` each for `m <= 4` unknowns per contact, so polynomial in the contacts.
-//! (It replaced the enumeration of active sets and friction states, `4^k`
-//! candidates for `k` contacts at zero slip, kept in the tests as their oracle.)
+//! (The enumeration of active sets and friction states, `4^k` candidates for `k`
+//! contacts at zero slip, is the tests' oracle.)
 //! The modes are read off its solution with the enumeration's tie-breaks (larger
 //! active sets, stick first), and the rates are then those of the modes'
 //! equations ([`solve_states`]): where the equations leave the impulses

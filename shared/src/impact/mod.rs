@@ -3,6 +3,8 @@
 //! with collisions at several points*; docs/impact-model.md).
 //!
 //! Layers, from numerics to mechanics:
+//! - `outcome`'s `SlipState` (slip either way or stick) at the bottom: the
+//!   problem's friction coupling of a contact depends on it;
 //! - `problem`: the impact problem in contact coordinates: the Delassus matrix
 //!   `W = J M^-1 J^T`, pre-impact contact velocities, per-contact laws. A plain
 //!   struct that can be dumped and solved on its own.

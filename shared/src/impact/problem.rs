@@ -7,8 +7,8 @@
 //! pre-impact contact velocities and the laws; the mechanics stays with the caller.
 
 use super::outcome::SlipState;
-use crate::named::Enumerated;
 use crate::real::Real;
+use crate::Enumerated;
 
 /// The impact law that ends the restitution phase.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

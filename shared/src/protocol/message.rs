@@ -476,7 +476,7 @@ impl Request {
 
     /// Whether the request is a motion command (stop, travel, hold, reset): its
     /// Ack or Nack is the controller's acceptance ([`super::Device::command`]).
-    pub fn is_command(&self) -> bool {
+    pub fn is_motion_command(&self) -> bool {
         !matches!(self.command(), Command::Heartbeat)
     }
 }

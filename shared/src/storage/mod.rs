@@ -32,7 +32,7 @@
 //!
 //! The newest valid record is never erased nor written: only the other slot is.
 //! Until the magic's last bit is programmed, the written slot's first word is not
-//! [`record::MAGIC`] (erased `0xFFFFFFFF`, or a partly programmed word that still has
+//! [`MAGIC`] (erased `0xFFFFFFFF`, or a partly programmed word that still has
 //! some of the 1 bits that should be 0), so its record is invalid and [`load`] returns
 //! the previous one. A cut during the erase leaves that slot with the older record,
 //! partly erased bytes, or `0xFF`: an older or invalid record, never a newer valid one
@@ -64,7 +64,7 @@ mod record;
 mod sim;
 
 pub use record::{
-    encode_record, parse_record, Record, CRC_LEN, FORMAT_VERSION, HEADER_LEN, MAGIC, PAYLOAD_LEN,
+    encode_record, parse_record, Record, FORMAT_VERSION, MAGIC, PAYLOAD_LEN, RECORD_HEADER_LEN,
     RECORD_LEN, RECORD_WORDS,
 };
 pub use sim::{SimError, SimFlash, SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};

@@ -46,16 +46,16 @@ pub const MAGIC: u32 = u32::from_le_bytes(*b"VIBT");
 pub const FORMAT_VERSION: u16 = 1;
 
 /// Bytes before the payload: magic, version, length, sequence.
-pub const HEADER_LEN: usize = 12;
+pub const RECORD_HEADER_LEN: usize = 12;
 
 /// Payload bytes: counts and flags (4), [`MAX_TUNING_ROWS`] rows, a [`SelfTest`].
 pub const PAYLOAD_LEN: usize = 4 + MAX_TUNING_ROWS * TUNING_ROW_LEN + SELF_TEST_LEN;
 
 /// Bytes of the CRC at the end.
-pub const CRC_LEN: usize = 4;
+pub const RECORD_CRC_LEN: usize = 4;
 
 /// Bytes of a whole record, a multiple of 4 (whole words).
-pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + CRC_LEN;
+pub const RECORD_LEN: usize = RECORD_HEADER_LEN + PAYLOAD_LEN + RECORD_CRC_LEN;
 
 /// Words of a record.
 pub const RECORD_WORDS: usize = RECORD_LEN / 4;
@@ -105,7 +105,7 @@ pub fn encode_record(record: &Record, sequence: u32) -> [u8; RECORD_LEN] {
     let crc = Crc32::new()
         .update(bytes.get(..end).unwrap_or(&[]))
         .finish();
-    if let Some(slot) = bytes.get_mut(end..end + CRC_LEN) {
+    if let Some(slot) = bytes.get_mut(end..end + RECORD_CRC_LEN) {
         slot.copy_from_slice(&crc.to_le_bytes());
     }
     bytes
@@ -137,7 +137,7 @@ fn from_earlier_rule(rows: &mut [(f32, f32, f32)]) {
 /// module documentation).
 pub fn parse_record(bytes: &[u8; RECORD_LEN]) -> Option<(Record, u32)> {
     // CRC first: it covers everything else.
-    let (body, crc) = bytes.split_last_chunk::<CRC_LEN>()?;
+    let (body, crc) = bytes.split_last_chunk::<RECORD_CRC_LEN>()?;
     if Crc32::new().update(body).finish() != u32::from_le_bytes(*crc) {
         return None;
     }

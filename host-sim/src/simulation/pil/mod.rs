@@ -36,7 +36,7 @@ use crate::machine::Machine;
 use crate::plant::bridge::BridgeCommand;
 use crate::plant::simulator::Plant;
 use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
-use crate::simulation::closed_loop::{controller_events, params, InLoop};
+use crate::simulation::closed_loop::{controller_events, params, LastTick};
 use crate::simulation::Driver;
 use host::Host;
 use session::Session;
@@ -327,8 +327,8 @@ impl Driver for FirmwareDriver {
         }
     }
 
-    fn in_loop(&self) -> Option<InLoop<'_>> {
-        Some(InLoop {
+    fn last_tick(&self) -> Option<LastTick<'_>> {
+        Some(LastTick {
             last: self.outputs.as_ref(),
             rotors: self.rotor_count,
         })
