@@ -72,7 +72,7 @@ fn idle_status<M: rtic::Mutex<T = LinkState>>(link: &mut M) -> StatusReport {
 }
 
 /// One pass of idle's link task: idle's look at the link's state
-/// ([`idle_status`]), the control task's events logged, then `link` polled at the
+/// (`idle_status`), the control task's events logged, then `link` polled at the
 /// published uptime on the bytes received into `rx` and the parameter `flash`,
 /// its answers handed to `send`. Whether a byte came (idle sleeps otherwise).
 pub fn serve<M, F>(
