@@ -395,9 +395,22 @@ pub(crate) mod tests {
     use super::*;
     use shared::controller::State;
 
+    /// [`summarize`] of `rows` without events, the controller running with
+    /// `commanded_offset_deg` held, no fault and no warning.
+    fn running(rows: &[TraceRow], machine: &Machine, commanded_offset_deg: Option<f64>) -> Summary {
+        summarize(
+            rows,
+            &[],
+            machine,
+            commanded_offset_deg,
+            EndState::Controller(State::Running),
+            Faults::NONE,
+            vec![],
+        )
+    }
+
     /// The summary of `rows` and `events` ending in `state`, `commanded_offset_deg`
-    /// held (no phase loop), as [`SummaryBuilder::finish`]
-    /// makes it.
+    /// held (no phase loop), as [`SummaryBuilder::finish`] makes it.
     pub(crate) fn summarize(
         rows: &[TraceRow],
         events: &[EventRow],
@@ -563,15 +576,7 @@ pub(crate) mod tests {
                 ..TraceRow::default()
             })
             .collect();
-        let s = summarize(
-            &trace,
-            &[],
-            &machine([0.0; 2]),
-            None,
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &machine([0.0; 2]), None);
         assert!(close(s.mean_velocity, 2.79, TOL), "{}", s.mean_velocity);
         assert!(close(s.distance, 4.0, TOL));
     }
@@ -594,15 +599,7 @@ pub(crate) mod tests {
             row(1.5, 2.0, 3.0),
             row(2.0, 3.0, 3.0),
         ];
-        let s = summarize(
-            &trace,
-            &[],
-            &machine([0.0; 2]),
-            None,
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &machine([0.0; 2]), None);
         assert!(close(s.mean_velocity, 2.0, TOL), "{}", s.mean_velocity);
         assert_eq!(s.final_state.velocity, [3.0, 0.0]);
     }
@@ -654,15 +651,7 @@ pub(crate) mod tests {
             ..TraceRow::default()
         });
         let m = machine([0.0; 2]);
-        let s = summarize(
-            &trace,
-            &[],
-            &m,
-            Some(80.0),
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &m, Some(80.0));
         assert!(close(offset(&s), 90.0, 1e-6), "{}", offset(&s));
         assert!(
             close(s.phase_error_deg_rms, 10.0, 1e-6),
@@ -670,15 +659,7 @@ pub(crate) mod tests {
             s.phase_error_deg_rms
         );
         // Commanded 270: error 180 (wrapped to +180), RMS 180.
-        let s = summarize(
-            &trace,
-            &[],
-            &m,
-            Some(270.0),
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &m, Some(270.0));
         assert!(
             close(s.phase_error_deg_rms, 180.0, 1e-6),
             "{}",
@@ -705,15 +686,7 @@ pub(crate) mod tests {
         });
         // Rows at 1.0 (350), 1.5 (10), 2.0 (350) with trapezoid weights 0.25, 0.5,
         // 0.25: the sines cancel, the mean is exactly 0 (or 360 rounded to 0).
-        let s = summarize(
-            &trace,
-            &[],
-            &machine([0.0; 2]),
-            Some(0.0),
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &machine([0.0; 2]), Some(0.0));
         let off = wrap_deg_signed_f64(offset(&s));
         assert!(close(off, 0.0, 1e-9), "{}", offset(&s));
         assert!(offset(&s) >= 0.0 && offset(&s) < 360.0);
@@ -797,15 +770,7 @@ pub(crate) mod tests {
             phi2: 7.0 * t * t,
             ..TraceRow::default()
         });
-        let s = summarize(
-            &trace,
-            &[],
-            &m,
-            None,
-            EndState::Controller(State::Running),
-            Faults::NONE,
-            vec![],
-        );
+        let s = running(&trace, &m, None);
         assert_eq!(s.rotor_speed_rpm.len(), 1);
         assert!(
             close(s.rotor_speed_rpm[0], 3000.0, 1e-6),
