@@ -385,7 +385,7 @@ impl Layout {
                     inertia: r.inertia,
                     mount: self.mount[b].expect("every body is in a tree"),
                     angle: self.angle[b],
-                    com: to_body(r.angle, sub(r.position, self.reference[b])),
+                    com: self.local(file, b, r.position),
                     chain,
                 }
             })
