@@ -116,7 +116,7 @@ impl Rig {
         let h = DT as f64 / SUBSTEPS as f64;
         for _ in 0..SUBSTEPS {
             for k in 0..2 {
-                self.rotors[k].advance(out.duties()[k] as f64, out.drives(), h);
+                self.rotors[k].advance(out.duties()[k] as f64, out.bridges[k].is_driven(), h);
             }
         }
         // Index pulses crossed during this tick, reported at the next sample.

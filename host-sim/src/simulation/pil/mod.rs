@@ -300,8 +300,10 @@ impl Driver for FirmwareDriver {
                 self.observe(t, drive.status);
                 let bridges = self.bridges_of(&drive);
                 self.outputs = Some(Outputs {
+                    // Both inputs low is a coasting bridge, off, as the
+                    // plant's bridge reads it.
                     bridges: [0, 1].map(|k| match bridges.0[k] {
-                        BridgeCommand::Off => Bridge::Off,
+                        BridgeCommand::Off | BridgeCommand::Inputs([0.0, 0.0]) => Bridge::Off,
                         _ => Bridge::Driven(bridges.1[k] as f32),
                     }),
                     state: drive.status.state,
