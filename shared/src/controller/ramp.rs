@@ -104,11 +104,6 @@ impl OffsetRamp {
         self.target_deg
     }
 
-    /// Whether the ramp is still heading for the vertical-force offset.
-    pub fn via_vertical(&self) -> bool {
-        self.via_vertical
-    }
-
     /// A new command's target, degrees: the ramp passes the vertical-force offset
     /// first when the target lies on the other side of the vertical line than the
     /// reference (a direction change), otherwise it takes the shorter arc.
