@@ -34,6 +34,11 @@ use shared::Real;
 #[path = "../../../shared/benches/landing/mod.rs"]
 mod landing;
 
+/// SysTick as an instruction counter: the firmware's own module, so the
+/// benchmark and the firmware's QEMU measurements count alike.
+#[cfg(target_os = "none")]
+#[path = "../../../firmware/src/qemu/counter.rs"]
+mod counter;
 #[cfg(target_os = "none")]
 mod target;
 

@@ -4,8 +4,8 @@
 //! **Counting.** Under `-icount shift=0` every guest instruction advances QEMU's
 //! virtual clock by exactly 1 ns, and netduinoplus2's SysTick counts that clock
 //! at 168 MHz: `n` instructions move it by `0.168 n` counts (one count every
-//! 5.95 instructions). [`calibrate`] measures the ratio on a loop of known
-//! length rather than assuming it. A measurement reads the counter (counting
+//! 5.95 instructions). [`calibrate`] measures the ratio on the firmware's loop
+//! of known length (`firmware/src/qemu/counter.rs`) rather than assuming it. A measurement reads the counter (counting
 //! down from its 24-bit maximum, interrupts off) before and after `runs`
 //! repetitions and fails if it wrapped in between (COUNTFLAG); the same
 //! loop without the work is timed the same way and subtracted.
@@ -20,6 +20,7 @@ use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use cortex_m_semihosting::{hio, hprintln};
 use shared::impact::solve;
 
+use crate::counter::{count_loop, elapsed, now};
 use crate::{describe, landing};
 
 /// Impacts timed in `f32`: about 6 900 SysTick counts each (the counter holds
@@ -27,7 +28,7 @@ use crate::{describe, landing};
 const RUNS_F32: u32 = 200;
 /// Impacts timed in `f64`: soft-float, about 51 000 counts each.
 const RUNS_F64: u32 = 50;
-/// Iterations of the calibration loop, 2 instructions each (`subs`, `bne`).
+/// Passes of the calibration loop, 2 instructions each.
 const CAL_ITERATIONS: u32 = 1_000_000;
 /// SysTick's reload: the 24-bit maximum.
 const RELOAD: u32 = 0x00FF_FFFF;
@@ -122,12 +123,6 @@ pub extern "C" fn trace_end() {
     black_box(2u32);
 }
 
-/// The counter now (counts down).
-#[inline(always)]
-fn now() -> u32 {
-    SYST::get_current()
-}
-
 /// Restarts the counter at its maximum and clears COUNTFLAG.
 fn restart(syst: &mut SYST) {
     syst.clear_current();
@@ -136,39 +131,15 @@ fn restart(syst: &mut SYST) {
     let _ = syst.has_wrapped();
 }
 
-/// Counts between two back-to-back reads of the counter.
-fn read_overhead() -> u32 {
-    let a = now();
-    let b = now();
-    a.wrapping_sub(b)
-}
-
-/// `(instructions, counts)` of a register-only loop of known length, the counts
-/// corrected for the reads of the counter.
+/// `(instructions, counts)` of the firmware's calibration loop
+/// ([`count_loop`]); fails if the counter wrapped meanwhile.
 fn calibrate(syst: &mut SYST) -> (u32, u32) {
     restart(syst);
-    let overhead = read_overhead();
-    let before = now();
-    let mut n = CAL_ITERATIONS;
-    // SAFETY: a register-only countdown loop.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "subs {n}, {n}, #1",
-            "bne 2b",
-            n = inout(reg) n,
-            options(nomem, nostack),
-        );
-    }
-    let after = now();
-    black_box(n);
+    let calibration = count_loop(CAL_ITERATIONS);
     if syst.has_wrapped() {
         fail("the calibration loop wrapped SysTick");
     }
-    (
-        2 * CAL_ITERATIONS,
-        before.wrapping_sub(after).saturating_sub(overhead),
-    )
+    calibration
 }
 
 /// SysTick counts of `runs` calls of `work` (loop included); fails if the
@@ -184,7 +155,7 @@ fn time(syst: &mut SYST, runs: u32, mut work: impl FnMut()) -> u32 {
     if syst.has_wrapped() {
         fail("a measurement wrapped SysTick: fewer runs");
     }
-    before.wrapping_sub(after)
+    elapsed(before, after)
 }
 
 /// Prints the counts of one type and the instructions per impact, the empty

@@ -32,6 +32,7 @@ mod app {
     use firmware::pil::board::{PilBoard, PilLink};
     use firmware::pil::{self, TxRing};
     use firmware::port::{run_tick, serve};
+    use firmware::qemu::counter;
     use firmware::qemu::cycles::{self, SysTickClock};
     use firmware::qemu::pwm::{self, SimPwm};
     use firmware::start::start_in_qemu;
@@ -132,7 +133,7 @@ mod app {
         // lateness.
         if board.next_late_us > 0 {
             let late = u32::from(board.next_late_us) * (cycles::SYSTICK_HZ / 1_000_000);
-            cycles::spin(cycles::now().saturating_add(late), cycles::RELOAD);
+            cycles::spin(counter::now().saturating_add(late), cycles::RELOAD);
         }
     }
 

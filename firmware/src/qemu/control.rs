@@ -8,7 +8,7 @@ use shared::controller::self_test::SelfTestReport;
 use shared::protocol::link::LinkState;
 use shared::tick::Port;
 
-use super::cycles::{elapsed, now};
+use super::counter::{elapsed, now};
 use super::plant::{Injected, Plant};
 use super::pwm::SimPwm;
 use crate::drive::Drive;

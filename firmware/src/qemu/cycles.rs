@@ -14,6 +14,8 @@ use cortex_m::peripheral::SYST;
 use shared::controller::TickTiming;
 use shared::timing::TickClock;
 
+use super::counter::{count_loop, now};
+
 /// SysTick's clock in QEMU's netduinoplus2, Hz.
 pub const SYSTICK_HZ: u32 = 168_000_000;
 /// SysTick reload for one control tick.
@@ -30,12 +32,6 @@ pub fn start(syst: &mut SYST, reload: u32) {
     syst.clear_current();
     syst.enable_interrupt();
     syst.enable_counter();
-}
-
-/// The counter now (counts down).
-#[inline(always)]
-pub fn now() -> u32 {
-    SYST::get_current()
 }
 
 /// Counts since the counter last reloaded from `reload`: the latency of the
@@ -119,44 +115,13 @@ pub fn spin(counts: u32, reload: u32) {
     }
 }
 
-/// Counts elapsed from `before` to `after` (no wrap in between).
-pub fn elapsed(before: u32, after: u32) -> u32 {
-    before.wrapping_sub(after)
-}
-
-/// The calibration: `(instructions, counts)` of a loop of known length, the
-/// counts corrected for the cost of reading the counter. SysTick must be running
-/// with a reload above the loop's counts, interrupts off.
+/// The calibration: `(instructions, counts)` of a loop of known length
+/// ([`count_loop`]). SysTick must be running with a reload above the loop's
+/// counts, interrupts off.
 pub fn calibrate() -> (u32, u32) {
     // Right after it is cleared the counter reads 0 until it reloads.
     while now() == 0 {}
-    let overhead = read_overhead();
-    let before = now();
-    let mut n = CAL_ITERATIONS;
-    // SAFETY: a register-only countdown loop.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "subs {n}, {n}, #1",
-            "bne 2b",
-            n = inout(reg) n,
-            options(nomem, nostack),
-        );
-    }
-    let after = now();
-    let _ = n;
-    (
-        2 * CAL_ITERATIONS,
-        elapsed(before, after).saturating_sub(overhead),
-    )
-}
-
-/// Counts between two back-to-back reads of the counter (subtracted from every
-/// measurement).
-pub fn read_overhead() -> u32 {
-    let a = now();
-    let b = now();
-    elapsed(a, b)
+    count_loop(CAL_ITERATIONS)
 }
 
 /// `counts` of SysTick in instructions, by the calibration `(instructions,

@@ -10,7 +10,8 @@
 //! - stores parameters in RAM ([`shared::storage::SimFlash`]);
 //! - runs a scripted host in `idle` ([`script`], over [`host`]) that talks to the
 //!   real `Link::poll` in bytes, and injects faults into the model ([`world`]);
-//! - measures the stack ([`stack`]) and the control step's instruction count;
+//! - measures the stack ([`stack`]) and the control step's instruction count
+//!   ([`counter`]);
 //! - logs over semihosting and exits with the verdict of its checks ([`checks`]).
 //!
 //! The binary `qemu` runs the scripted host; the binary `qemu-uart` leaves out the
@@ -21,6 +22,7 @@
 
 pub mod checks;
 pub mod control;
+pub mod counter;
 pub mod cycles;
 pub mod host;
 pub mod plant;
