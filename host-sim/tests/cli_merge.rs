@@ -99,12 +99,12 @@ fn runs_through_the_floor_merge_as_no_travel() {
     part(&d, &m, &grid, "1/2", "p1.json");
     part(&d, &m, &grid, "2/2", "p2.json");
     let p: Value = serde_json::from_slice(&bytes(d.join("p1.json"))).unwrap();
-    assert_eq!(p["version"], 4);
+    assert_eq!(p["version"], 5);
     assert_eq!(
-        p["runs"][0]["not_a_travel"],
+        p["runs"][0]["run"]["not_a_travel"],
         "platform went through the fundament at t = 0.053 s"
     );
-    assert!(p["runs"][0]["not_held"].is_null());
+    assert!(p["runs"][0]["run"]["not_held"].is_null());
     let merged = merge(&d, &["p1.json", "p2.json", "--format", "json"]);
     assert_eq!(merged.status, 0, "{}", merged.stderr);
     assert_eq!(merged.stdout, whole.stdout);
@@ -257,12 +257,13 @@ fn merge_within(cwd: &Path, args: &[&str]) -> Run {
 /// the defects these tests guard against never end.
 const WATCHDOG: Duration = Duration::from_secs(120);
 
-/// The run of `part` at `speed_rpm`, `offset_deg`.
+/// The outcome of the run of `part` at `speed_rpm`, `offset_deg`.
 fn run_at(part: &mut Value, speed_rpm: f64, offset_deg: f64) -> &mut Value {
     part["runs"]
         .as_array_mut()
         .unwrap()
         .iter_mut()
+        .map(|r| &mut r["run"])
         .find(|r| r["speed_rpm"] == speed_rpm && r["offset_deg"] == offset_deg)
         .expect("the part has the run")
 }
@@ -332,7 +333,7 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
     for (k, v) in [f64::NAN, f64::INFINITY].into_iter().enumerate() {
         let name = format!("value{k}.json");
         resealed(&d, "p2.json", &name, |p: &mut Part| {
-            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            let r = &mut p.runs.iter_mut().find(|r| r.point == 4).unwrap().run;
             r.mean_velocity = v;
         });
         merge_within(&d, &["p1.json", &name, "p3.json"]).refused(&format!(
@@ -368,8 +369,8 @@ fn merge_checks_a_resealed_part_as_tune_checks_its_options() {
         |p| {
             // The grid's speed and its runs'.
             p.sweep.speeds_rpm[1] = 9000.0;
-            for r in p.runs.iter_mut().filter(|r| r.speed_rpm == 3000.0) {
-                r.speed_rpm = 9000.0;
+            for r in p.runs.iter_mut().filter(|r| r.run.speed_rpm == 3000.0) {
+                r.run.speed_rpm = 9000.0;
             }
         },
         "error: speed1.json: a sweep tune refuses: --speeds 2750:3000:250: 9000 rpm outside the controller's speed range",
@@ -425,7 +426,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     {
         let name = format!("fast{k}.json");
         resealed(&d, "p2.json", &name, |p: &mut Part| {
-            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            let r = &mut p.runs.iter_mut().find(|r| r.point == 4).unwrap().run;
             r.mean_velocity = v;
             r.not_held = not_held.map(String::from);
         });
@@ -439,7 +440,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     }
     // A run that was no travel has no mean velocity.
     resealed(&d, "p2.json", "travel.json", |p: &mut Part| {
-        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        let r = &mut p.runs.iter_mut().find(|r| r.point == 4).unwrap().run;
         r.not_a_travel = Some("platform went through the fundament".into());
     });
     refused_short(
@@ -448,7 +449,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     );
     // More plant warnings than a run keeps, or a longer one.
     resealed(&d, "p2.json", "many.json", |p: &mut Part| {
-        let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+        let r = &mut p.runs.iter_mut().find(|r| r.point == 4).unwrap().run;
         r.plant_warnings = vec!["contacts: Painleve configuration".into(); 100];
     });
     refused_short(
@@ -458,7 +459,7 @@ fn merge_bounds_the_values_of_a_resealed_part() {
     for field in ["warning", "not_held"] {
         let name = format!("long-{field}.json");
         resealed(&d, "p2.json", &name, |p: &mut Part| {
-            let r = p.runs.iter_mut().find(|r| r.point == 4).unwrap();
+            let r = &mut p.runs.iter_mut().find(|r| r.point == 4).unwrap().run;
             match field {
                 "warning" => r.plant_warnings = vec![long.clone()],
                 _ => r.not_held = Some(long.clone()),

@@ -84,7 +84,7 @@ fn three_robust_parts_merge_to_the_output_of_the_whole_robust_sweep() {
     let mut seen = Vec::new();
     for i in 1..=3 {
         let p = read(sharded.join(format!("p{i}.json")));
-        assert_eq!(p["version"], 4);
+        assert_eq!(p["version"], 5);
         assert_eq!(p["sweep"]["robust"]["samples"], 2);
         let runs = p["runs"].as_array().unwrap();
         assert_eq!(runs.len(), 8, "part {i}");
@@ -128,7 +128,7 @@ fn merge_refuses_robust_parts_that_are_not_one_sweep_or_were_edited() {
     }
     // A run's mean velocity edited by hand (the hashes left as they were).
     let mut edited = read(d.join("p2.json"));
-    edited["runs"][0]["mean_velocity"] = 0.05.into();
+    edited["runs"][0]["run"]["mean_velocity"] = 0.05.into();
     std::fs::write(d.join("edited.json"), edited.to_string()).unwrap();
     // Resealed: a run moved to another machine; a run dropped; no samples.
     resealed(&d, "p2.json", "moved.json", |p: &mut Part| {
@@ -187,7 +187,7 @@ fn merge_refuses_robust_parts_that_are_not_one_sweep_or_were_edited() {
     old["version"] = 3.into();
     std::fs::write(d.join("old.json"), old.to_string()).unwrap();
     merge(&d, &["p1.json", "p2.json", "old.json", "p4.json"])
-        .refused("error: old.json: partial result version 3: this host-sim reads version 4");
+        .refused("error: old.json: partial result version 3: this host-sim reads version 5");
     // The four parts as written merge.
     let r = merge(&d, &["p1.json", "p2.json", "p3.json", "p4.json"]);
     assert_eq!(r.status, 0, "{}", r.stderr);

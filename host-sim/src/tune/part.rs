@@ -44,16 +44,16 @@ use crate::output::file::Staged;
 use crate::parts::{
     is_sha256, quote, read_as, shard_problems, spec_sha256, unsealed_sha256, HashedFile, Shard,
 };
-use crate::sweep::{maybe_finite, run_point, Grid, RunOutcome};
 use crate::sweep::{progress_bar, refuse_interrupted, MAX_POINTS};
+use crate::sweep::{run_point, Grid, RunOutcome};
 
 /// The `format` of a partial result.
 pub const FORMAT: &str = "host-sim-tune-part";
 
 /// The `version` of the format this host-sim writes and reads (2: with
 /// `part_sha256`; 3: with each run's `not_a_travel`; 4: with `sweep.robust` and
-/// each run's `machine`).
-pub const VERSION: u64 = 4;
+/// each run's `machine`; 5: each run's outcome in its `run` object).
+pub const VERSION: u64 = 5;
 
 /// Everything besides the machine file that changes a run's outcome, and the
 /// range texts the outputs name.
@@ -100,33 +100,8 @@ pub struct PartRun {
     /// The machine it ran on: 0 in the plain sweep; in a robust one, sample
     /// `machine / 3` from start `machine % 3` ([`RobustSweep`]).
     pub machine: usize,
-    /// Rotor speed, rpm.
-    pub speed_rpm: f64,
-    /// Offset held, degrees.
-    pub offset_deg: f64,
-    /// Mean velocity over the second half, m/s.
-    #[serde(with = "maybe_finite")]
-    pub mean_velocity: f64,
-    /// Why the offset was not held, if it was not.
-    pub not_held: Option<String>,
-    /// Why the run was no travel, if it was not.
-    pub not_a_travel: Option<String>,
-    /// The plant's warnings.
-    pub plant_warnings: Vec<String>,
-}
-
-impl PartRun {
-    /// The run's outcome, as `tune` made it.
-    pub fn outcome(&self) -> RunOutcome {
-        RunOutcome {
-            speed_rpm: self.speed_rpm,
-            offset_deg: self.offset_deg,
-            mean_velocity: self.mean_velocity,
-            not_held: self.not_held.clone(),
-            not_a_travel: self.not_a_travel.clone(),
-            plant_warnings: self.plant_warnings.clone(),
-        }
-    }
+    /// What the run gave, as `tune` makes it.
+    pub run: RunOutcome,
 }
 
 /// A partial result ([module doc](self)).
@@ -378,15 +353,10 @@ pub(crate) fn run_shard(
         runs: mine
             .iter()
             .zip(runs)
-            .map(|(&j, r)| PartRun {
+            .map(|(&j, run)| PartRun {
                 point: sweep.run(j).1,
                 machine: sweep.run(j).0,
-                speed_rpm: r.speed_rpm,
-                offset_deg: r.offset_deg,
-                mean_velocity: r.mean_velocity,
-                not_held: r.not_held,
-                not_a_travel: r.not_a_travel,
-                plant_warnings: r.plant_warnings,
+                run,
             })
             .collect(),
         part_sha256: String::new(),
@@ -477,7 +447,7 @@ pub fn read(path: &Path) -> Result<Part, Failure> {
     let same = part.runs.iter().all(|r| {
         mine.next().is_some_and(|j| {
             (r.machine, r.point) == part.sweep.run(j)
-                && (r.speed_rpm, r.offset_deg) == points[r.point]
+                && (r.run.speed_rpm, r.run.offset_deg) == points[r.point]
         })
     }) && mine.next().is_none();
     if !same {
@@ -494,7 +464,7 @@ pub fn read(path: &Path) -> Result<Part, Failure> {
     }
     // As `run_point` makes them ([`RunOutcome::problem`]).
     for r in &part.runs {
-        if let Some(why) = r.outcome().problem() {
+        if let Some(why) = r.run.problem() {
             let on = if part.sweep.robust.is_some() {
                 format!(" on machine {}", r.machine)
             } else {
@@ -503,8 +473,8 @@ pub fn read(path: &Path) -> Result<Part, Failure> {
             return Err(damaged(format!(
                 "run {}{on} ({} rpm, {} deg): {why}",
                 r.point,
-                numbers::sig(r.speed_rpm),
-                numbers::sig(r.offset_deg),
+                numbers::sig(r.run.speed_rpm),
+                numbers::sig(r.run.offset_deg),
             )));
         }
     }
@@ -564,7 +534,7 @@ pub fn assemble(parts: &[(PathBuf, Part)]) -> Result<(Part, Vec<RunOutcome>), Fa
             runs[r.machine * count + r.point] = Some(RunOutcome {
                 speed_rpm: points[r.point].0,
                 offset_deg: points[r.point].1,
-                ..r.outcome()
+                ..r.run.clone()
             });
         }
     }
@@ -597,20 +567,25 @@ mod tests {
             f64::NEG_INFINITY,
         ];
         for v in values {
-            let run = PartRun {
+            let part_run = PartRun {
                 point: 0,
                 machine: 0,
-                speed_rpm: 3000.0,
-                offset_deg: 0.1 * 3.0,
-                mean_velocity: v,
-                not_held: None,
-                not_a_travel: None,
-                plant_warnings: vec![],
+                run: RunOutcome {
+                    speed_rpm: 3000.0,
+                    offset_deg: 0.1 * 3.0,
+                    mean_velocity: v,
+                    not_held: None,
+                    not_a_travel: None,
+                    plant_warnings: vec![],
+                },
             };
             let back: PartRun =
-                serde_json::from_str(&serde_json::to_string_pretty(&run).unwrap()).unwrap();
-            assert_eq!(back.mean_velocity.to_bits(), v.to_bits(), "{v}");
-            assert_eq!(back.offset_deg.to_bits(), run.offset_deg.to_bits());
+                serde_json::from_str(&serde_json::to_string_pretty(&part_run).unwrap()).unwrap();
+            assert_eq!(back.run.mean_velocity.to_bits(), v.to_bits(), "{v}");
+            assert_eq!(
+                back.run.offset_deg.to_bits(),
+                part_run.run.offset_deg.to_bits()
+            );
         }
     }
 }
