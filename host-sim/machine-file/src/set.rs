@@ -2,7 +2,8 @@
 //! table before it is checked, so an overridden value meets exactly the checks of a
 //! value written in the file.
 //!
-//! Applying one `--set` (see [`apply`]):
+//! One `--set` is parsed once, when it is made ([`Override::new`], stages 1 to
+//! 3), and applied to a file's table by [`apply`] (stages 4 and 5):
 //! 1. split `KEY=VALUE` at the first `=`; a missing `=` or an empty key is a problem;
 //! 2. split `KEY` into segments at `.` and at `[...]` (`contacts[0].friction` is
 //!    `contacts`, `0`, `friction`);
@@ -232,24 +233,44 @@ pub enum Origin {
     },
 }
 
-/// One `KEY=VALUE` override of a machine-file key, as given, and where it was
-/// given: a problem with it is said there.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// One `KEY=VALUE` override of a machine-file key: the argument as given, where
+/// it was given, and its key and value parsed once, when it is made (stages 1 to
+/// 3 of the module doc). A problem with it is said where it was given.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Override {
     /// `KEY=VALUE`, as given.
     pub arg: String,
     /// Where it was given.
     pub origin: Origin,
+    /// The key's segments and the value, or why `arg` is not an override.
+    parsed: Result<Parsed, Refusal>,
+}
+
+/// An override's key and value, as parsed from `KEY=VALUE`.
+#[derive(Clone, Debug, PartialEq)]
+struct Parsed {
+    /// The key's segments: `contacts[0].friction` is `contacts`, `0`, `friction`.
+    segments: Vec<String>,
+    /// The value, a TOML value (text that is not TOML stands as a string).
+    value: Value,
 }
 
 impl Override {
+    /// `arg` given at `origin`, its key and value parsed (stages 1 to 3 of the
+    /// module doc); an argument that does not parse is refused when applied.
+    pub fn new(arg: String, origin: Origin) -> Override {
+        let parsed = parse(&arg);
+        Override {
+            arg,
+            origin,
+            parsed,
+        }
+    }
+
     /// The `--set` arguments of a command line, in order.
     pub fn command_line(args: &[String]) -> Vec<Override> {
         args.iter()
-            .map(|arg| Override {
-                arg: arg.clone(),
-                origin: Origin::CommandLine,
-            })
+            .map(|arg| Override::new(arg.clone(), Origin::CommandLine))
             .collect()
     }
 
@@ -273,15 +294,16 @@ impl Override {
 
 /// Why an override was refused: not `KEY=VALUE` at all, or a key or value
 /// the machine file does not take.
+#[derive(Clone, Debug, PartialEq)]
 enum Refusal {
     NotKeyValue(String),
     Refused(String),
 }
 
 impl Refusal {
-    fn message(self) -> String {
+    fn message(&self) -> String {
         match self {
-            Refusal::NotKeyValue(m) | Refusal::Refused(m) => m,
+            Refusal::NotKeyValue(m) | Refusal::Refused(m) => m.clone(),
         }
     }
 }
@@ -291,8 +313,8 @@ impl Refusal {
 pub fn not_key_value(overrides: &[Override]) -> Vec<Problem> {
     overrides
         .iter()
-        .filter_map(|o| match key_value(&o.arg) {
-            Err(Refusal::NotKeyValue(why)) => Some(o.refused(why)),
+        .filter_map(|o| match &o.parsed {
+            Err(Refusal::NotKeyValue(why)) => Some(o.refused(why.clone())),
             _ => None,
         })
         .collect()
@@ -315,7 +337,11 @@ pub fn apply(table: &mut Table, overrides: &[Override]) -> (Vec<Applied>, Vec<Pr
     let mut applied = Vec::new();
     let mut problems = Vec::new();
     for o in overrides {
-        match apply_one(table, &o.arg) {
+        let written = match &o.parsed {
+            Ok(parsed) => apply_one(table, parsed),
+            Err(refusal) => Err(refusal.clone()),
+        };
+        match written {
             Ok(key_path) => applied.push(Applied {
                 arg: o.arg.clone(),
                 key_path,
@@ -324,6 +350,23 @@ pub fn apply(table: &mut Table, overrides: &[Override]) -> (Vec<Applied>, Vec<Pr
         }
     }
     (applied, problems)
+}
+
+/// One step from a table to what it holds: a key, or an element of an array.
+enum Step {
+    Key(String),
+    Element(usize),
+}
+
+/// Stages 1 to 3 of the module doc for one argument.
+fn parse(arg: &str) -> Result<Parsed, Refusal> {
+    // Stage 1: KEY=VALUE.
+    let (key, value_text) = key_value(arg)?;
+    // Stage 2: the key's segments.
+    let segments = segments(key).map_err(Refusal::Refused)?;
+    // Stage 3: the value.
+    let value = parse_value(value_text);
+    Ok(Parsed { segments, value })
 }
 
 /// Stage 1 of the module doc: `KEY=VALUE` split at the first `=`, both trimmed,
@@ -344,24 +387,13 @@ fn key_value(arg: &str) -> Result<(&str, &str), Refusal> {
     Ok((key, value_text))
 }
 
-/// One step from a table to what it holds: a key, or an element of an array.
-enum Step {
-    Key(String),
-    Element(usize),
-}
-
-/// Stages 1 to 5 of the module doc for one argument; `Ok` the reader's key path.
-fn apply_one(table: &mut Table, arg: &str) -> Result<String, Refusal> {
-    // Stage 1: KEY=VALUE.
-    let (key, value_text) = key_value(arg)?;
-    // Stage 2: the key's segments.
-    let segments = segments(key).map_err(Refusal::Refused)?;
-    // Stage 3: the value.
-    let value = parse_value(value_text);
+/// Stages 4 and 5 of the module doc for one parsed override; `Ok` the reader's
+/// key path.
+fn apply_one(table: &mut Table, parsed: &Parsed) -> Result<String, Refusal> {
     // Stage 4: resolve against the schema and the file.
-    let (steps, key_path) = resolve(table, &segments).map_err(Refusal::Refused)?;
+    let (steps, key_path) = resolve(table, &parsed.segments).map_err(Refusal::Refused)?;
     // Stage 5: write, creating the omitted tables.
-    write(table, &steps, value);
+    write(table, &steps, parsed.value.clone());
     Ok(key_path)
 }
 
@@ -630,12 +662,14 @@ mod tests {
     /// one without `=` is refused without the machine file.
     #[test]
     fn a_refusal_is_said_where_the_override_was_given() {
-        let given = |arg: &str, i: usize| Override {
-            arg: arg.to_string(),
-            origin: Origin::Entry {
-                file: "s.toml".to_string(),
-                key_path: format!("set[{i}]"),
-            },
+        let given = |arg: &str, i: usize| {
+            Override::new(
+                arg.to_string(),
+                Origin::Entry {
+                    file: "s.toml".to_string(),
+                    key_path: format!("set[{i}]"),
+                },
+            )
         };
         let overrides = [
             given("platform.mass=3", 0),

@@ -545,12 +545,14 @@ fn load_machine(
     let overrides: Vec<Override> = sets
         .iter()
         .enumerate()
-        .map(|(i, arg)| Override {
-            arg: arg.clone(),
-            origin: Origin::Entry {
-                file: file.to_string(),
-                key_path: format!("set[{i}]"),
-            },
+        .map(|(i, arg)| {
+            Override::new(
+                arg.clone(),
+                Origin::Entry {
+                    file: file.to_string(),
+                    key_path: format!("set[{i}]"),
+                },
+            )
         })
         .collect();
     match Machine::load_overridden(path, &overrides) {
