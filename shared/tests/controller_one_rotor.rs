@@ -27,6 +27,7 @@ use shared::controller::self_test::SelfTestStatus;
 use std::f64::consts::TAU;
 
 mod support;
+use support::fuzz::Rng;
 use support::rig::{Rotor, DT, N, SUBSTEPS, V};
 
 /// The reference machine's parameters with `rotors` rotors.
@@ -54,8 +55,8 @@ struct Rig {
     /// Rotor 1 (load torque: its `disturbance`).
     rotor: Rotor,
     rotor2: Rotor2,
-    /// xorshift state for rotor 2's garbage.
-    noise: u32,
+    /// The generator of rotor 2's garbage.
+    noise: Rng,
     counter2: u32,
     pending_index: Option<u32>,
     queued: Option<Command>,
@@ -68,7 +69,7 @@ impl Rig {
             ctl: Controller::new(&params(rotors), ResetCause::PowerOn),
             rotor: Rotor::new(0.3),
             rotor2,
-            noise: 0x1234_5678,
+            noise: Rng::new(0x1234_5678),
             counter2: 0,
             pending_index: None,
             queued: None,
@@ -77,12 +78,7 @@ impl Rig {
     }
 
     fn random(&mut self) -> u32 {
-        let mut x = self.noise;
-        x ^= x << 13;
-        x ^= x >> 17;
-        x ^= x << 5;
-        self.noise = x;
-        x
+        (self.noise.next_u64() >> 32) as u32
     }
 
     fn count(&self) -> u32 {

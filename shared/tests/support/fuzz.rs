@@ -1,4 +1,4 @@
-//! The fuzzers' deterministic generator and run length.
+//! The fuzzers' run length and seeds, on the tests' generator ([`Rng`]).
 //!
 //! A run is `VIBRO_FUZZ_ITERS` cases (each test's default when unset), case `i`
 //! generated from the seed `VIBRO_FUZZ_SEED + i` (default seed [`DEFAULT_SEED`]), so
@@ -8,57 +8,7 @@
 /// The seed of case 0 when `VIBRO_FUZZ_SEED` is unset.
 pub const DEFAULT_SEED: u64 = 0x5eed_f0e2;
 
-/// SplitMix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number
-/// generators", OOPSLA 2014): a 64-bit counter stepped by the golden ratio and
-/// mixed, so that consecutive seeds give unrelated streams.
-pub struct Rng(u64);
-
-impl Rng {
-    /// The generator of seed `seed`.
-    pub fn new(seed: u64) -> Self {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `0..n` (0 when `n` is 0); the bias of the modulo is below
-    /// `n / 2^64`.
-    pub fn below(&mut self, n: usize) -> usize {
-        if n == 0 {
-            0
-        } else {
-            (self.next_u64() % n as u64) as usize
-        }
-    }
-
-    /// Uniform in `lo..=hi`.
-    pub fn range(&mut self, lo: usize, hi: usize) -> usize {
-        lo + self.below(hi.saturating_sub(lo) + 1)
-    }
-
-    /// True with probability `1 / n`.
-    pub fn one_in(&mut self, n: usize) -> bool {
-        self.below(n) == 0
-    }
-
-    /// A random byte.
-    pub fn byte(&mut self) -> u8 {
-        self.next_u64() as u8
-    }
-
-    /// Uniform in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        let unit = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * unit
-    }
-}
+pub use super::rng::Rng;
 
 /// The value of environment variable `name`, if set and a number.
 fn env_u64(name: &str) -> Option<u64> {

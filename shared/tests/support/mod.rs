@@ -11,4 +11,5 @@ pub mod frames;
 pub mod fuzz;
 pub mod power_cut;
 pub mod rig;
+pub mod rng;
 pub mod tables;
