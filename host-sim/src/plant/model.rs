@@ -416,9 +416,13 @@ fn tree_of(first: usize, joints: &[FileJoint]) -> Vec<usize> {
 /// The index in `file` of the body `name` names (a checked machine names known
 /// bodies).
 fn body_of(file: &[FileBody<'_>], name: &str) -> usize {
-    file.iter()
-        .position(|b| b.name == name)
-        .expect("a checked machine names known bodies")
+    find_body(file, name).expect("a checked machine names known bodies")
+}
+
+/// The index of the body named `name`, `None` for a name that is not a body's
+/// (a joint's `fundament`).
+fn find_body(file: &[FileBody<'_>], name: &str) -> Option<usize> {
+    file.iter().position(|b| b.name == name)
 }
 
 /// The rotors of `m`, each in the frame of the body carrying it, their `phi`
@@ -506,12 +510,17 @@ impl PlantModel {
     /// no loops: the machine file's checks).
     pub fn new(m: &Machine) -> Self {
         let file = file_bodies(m);
-        let index = |name: &str| file.iter().position(|b| b.name == name);
         // The joints as (body A, body B, world point), `None` for the fundament.
         let joints: Vec<FileJoint> = m
             .joints
             .iter()
-            .map(|j| (index(&j.bodies[0]), index(&j.bodies[1]), j.point))
+            .map(|j| {
+                (
+                    find_body(&file, &j.bodies[0]),
+                    find_body(&file, &j.bodies[1]),
+                    j.point,
+                )
+            })
             .collect();
         let layout = Layout::of(&file, &joints);
         let body_dof = layout.next;
