@@ -121,6 +121,7 @@
 pub mod angle;
 mod encoder;
 mod faults;
+pub mod identify;
 mod io;
 mod machine;
 mod mode;
