@@ -6,6 +6,7 @@
 //!   bounds-checked, and the fixed layouts of values read and written whole
 //!   (crate-internal);
 //! - `self_test`: the self-test result's and report's bytes;
+//! - `identity`: the motor identification's bytes;
 //! - `tuning_row`: a tuning row's bytes.
 //!
 //! Layers of `shared`, each using only those below it: [`crate::controller`] (knows
@@ -14,9 +15,11 @@
 //! device's end of the link).
 
 pub mod crc;
+mod identity;
 mod self_test;
 mod tuning_row;
 pub(crate) mod wire;
 
+pub use identity::{IDENTITY_LEN, ROTOR_IDENTITY_LEN};
 pub use self_test::{ROTOR_SELF_TEST_LEN, SELF_TEST_LEN, SELF_TEST_REPORT_LEN};
 pub use tuning_row::TUNING_ROW_LEN;
