@@ -38,6 +38,7 @@ fn main() {
     let record = Record {
         tuning: table,
         self_test: None,
+        identity: None,
     };
 
     let mut out = [0u8; MAX_FRAME];

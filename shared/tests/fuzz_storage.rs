@@ -11,6 +11,7 @@
 
 mod support;
 
+use shared::controller::identify::{Estimate, Identity, RotorIdentity};
 use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::storage::{Record, SimFlash};
 use support::fuzz::{self, Rng};
@@ -30,13 +31,43 @@ fn rotor(rng: &mut Rng) -> RotorSelfTest {
     }
 }
 
-/// A random record: a random table, and half the time a self-test result.
+/// A random record: a random table, and half the time each a self-test result
+/// and a motor identification.
 fn record(rng: &mut Rng) -> Record {
     Record {
         tuning: fuzz::table(rng),
         self_test: rng.one_in(2).then(|| SelfTest {
             rotors: [rotor(rng), rotor(rng)],
         }),
+        identity: rng.one_in(2).then(|| identity(rng)),
+    }
+}
+
+/// A random motor identification: every value finite, every spread positive.
+fn identity(rng: &mut Rng) -> Identity {
+    let mut rotor = || {
+        let mut e = || Estimate {
+            value: rng.uniform(-10.0, 10.0),
+            std_error: rng.uniform(0.0, 1.0),
+        };
+        RotorIdentity {
+            shortfall: None,
+            resistance_ohm: e(),
+            torque_constant: e(),
+            coulomb_friction_nm: e(),
+            viscous_friction: e(),
+            inertia_kg_m2: e(),
+            offset_v: e(),
+            drop_v: e(),
+            voltage_residual_v: rng.uniform(0.0, 1.0),
+            friction_residual_nm: rng.uniform(0.0, 1.0),
+            standstill_levels: rng.byte(),
+            speed_levels: rng.byte(),
+        }
+    };
+    Identity {
+        rotors: [rotor(), rotor()],
+        rotors_run: 1 + rng.below(2) as u8,
     }
 }
 

@@ -9,10 +9,12 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 use shared::codec::crc::crc32;
+use shared::controller::identify::{Estimate, Identity, RotorIdentity, Shortfall};
 use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::controller::{Direction, TuningTable};
 use shared::storage::{
     encode_record, parse_record, PAYLOAD_LEN, RECORD_HEADER_LEN, RECORD_LEN, RECORD_WORDS,
+    V1_PAYLOAD_LEN,
 };
 use shared::storage::{
     is_newer, load, slot_offset, store, Record, SimError, SimFlash, StoreError, Stored, MAGIC,
@@ -54,14 +56,55 @@ fn record(k: u32) -> Record {
                 },
             ],
         }),
+        identity: (k % 3 != 1).then(|| identity(k)),
     }
+}
+
+/// A motor identification that differs with `k`.
+fn identity(k: u32) -> Identity {
+    let e = |v: f32| Estimate {
+        value: v * (1.0 + k as f32 / 100.0),
+        std_error: v / 100.0,
+    };
+    Identity {
+        rotors: [
+            RotorIdentity {
+                shortfall: None,
+                resistance_ohm: e(2.0),
+                torque_constant: e(0.02),
+                coulomb_friction_nm: e(1e-3),
+                viscous_friction: e(1e-6),
+                inertia_kg_m2: e(1e-5),
+                offset_v: e(0.001),
+                drop_v: e(0.002),
+                voltage_residual_v: 1e-4,
+                friction_residual_nm: 1e-7,
+                standstill_levels: 4,
+                speed_levels: 4,
+            },
+            RotorIdentity::short(Shortfall::NoTurn),
+        ],
+        rotors_run: 2,
+    }
+}
+
+/// `v2`'s first 412 payload bytes as a version 1 record (what the firmware before
+/// the identification wrote), its CRC recomputed.
+fn as_version_1(v2: &[u8]) -> Vec<u8> {
+    let mut b = v2[..RECORD_HEADER_LEN + V1_PAYLOAD_LEN].to_vec();
+    b[4..6].copy_from_slice(&1u16.to_le_bytes());
+    b[6..8].copy_from_slice(&(V1_PAYLOAD_LEN as u16).to_le_bytes());
+    let crc = crc32(&b);
+    b.extend_from_slice(&crc.to_le_bytes());
+    b
 }
 
 #[test]
 fn the_layout_is_as_documented() {
     assert_eq!(RECORD_HEADER_LEN, 12);
-    assert_eq!(PAYLOAD_LEN, 412);
-    assert_eq!(RECORD_LEN, 428);
+    assert_eq!(V1_PAYLOAD_LEN, 412);
+    assert_eq!(PAYLOAD_LEN, 552);
+    assert_eq!(RECORD_LEN, 568);
     assert_eq!(RECORD_WORDS * 4, RECORD_LEN);
     const { assert!(RECORD_LEN <= SIM_SECTOR_BYTES) };
     assert_eq!(MAGIC.to_le_bytes(), *b"VIBT");
@@ -69,20 +112,66 @@ fn the_layout_is_as_documented() {
     let r = Record {
         tuning: TuningTable::from_rows(&[(500.0, 90.0, 270.0), (3000.0, 80.0, 280.0)]).unwrap(),
         self_test: None,
+        identity: None,
     };
     let bytes = encode_record(&r, 0x0102_0304);
     assert_eq!(&bytes[0..4], b"VIBT");
-    assert_eq!(&bytes[4..6], &1u16.to_le_bytes());
-    assert_eq!(&bytes[6..8], &412u16.to_le_bytes());
+    assert_eq!(&bytes[4..6], &2u16.to_le_bytes());
+    assert_eq!(&bytes[6..8], &552u16.to_le_bytes());
     assert_eq!(&bytes[8..12], &[4, 3, 2, 1]);
     assert_eq!(&bytes[12..16], &[2, 0, 0, 0]); // 2 rows, no self-test
     assert_eq!(&bytes[16..20], &500f32.to_le_bytes());
     assert_eq!(&bytes[20..24], &90f32.to_le_bytes());
     assert_eq!(&bytes[24..28], &270f32.to_le_bytes());
     assert_eq!(&bytes[28..32], &3000f32.to_le_bytes());
-    assert!(bytes[40..424].iter().all(|&b| b == 0));
-    assert_eq!(&bytes[424..428], &crc32(&bytes[..424]).to_le_bytes());
-    assert_eq!(parse_record(&bytes), Some((r, 0x0102_0304)));
+    assert!(bytes[40..564].iter().all(|&b| b == 0));
+    assert_eq!(&bytes[564..568], &crc32(&bytes[..564]).to_le_bytes());
+    assert_eq!(parse_record(&bytes), Some((r.clone(), 0x0102_0304)));
+
+    // Both results present: bits 0 and 1, the identification at payload byte 412.
+    let both = Record {
+        self_test: record(1).self_test,
+        identity: Some(identity(0)),
+        ..r
+    };
+    let bytes = encode_record(&both, 7);
+    assert_eq!(bytes[13], 0b11);
+    assert_eq!(bytes[12 + 412], 2, "rotors identified");
+    assert_eq!(&bytes[12 + 416 + 4..12 + 416 + 8], &2.0f32.to_le_bytes());
+    assert_eq!(parse_record(&bytes), Some((both, 7)));
+}
+
+/// A version 1 record (a firmware before the identification wrote it) loads, from
+/// bytes and from flash, with its table and self-test and no identification;
+/// the next store writes version 2 over it, and the table survives.
+#[test]
+fn a_version_1_record_still_loads() {
+    let mut old = record(3);
+    old.identity = None;
+    let v1 = as_version_1(&encode_record(&old, 41));
+    assert_eq!(v1.len(), 428);
+    assert_eq!(parse_record(&v1), Some((old.clone(), 41)));
+    // In flash, erased beyond it.
+    let mut flash = SimFlash::new();
+    let mut padded = v1.clone();
+    padded.resize(v1.len().next_multiple_of(4), 0xFF);
+    flash.write(0, &padded).unwrap();
+    let stored = load(&flash).expect("the version 1 record loads");
+    assert_eq!(stored.record, old);
+    assert_eq!(stored.sequence, 41);
+    // A store keeps its table and writes version 2 in the other slot.
+    let mut new = stored.record.clone();
+    new.identity = Some(identity(5));
+    let written = store(&mut flash, &new).unwrap();
+    assert_eq!((written.slot, written.sequence), (1, 42));
+    assert_eq!(load(&flash).unwrap().record, new);
+    // A version 1 record has no identification bit.
+    let mut bits = as_version_1(&encode_record(&old, 41));
+    bits[13] |= 0b10;
+    let n = bits.len();
+    let crc = crc32(&bits[..n - 4]);
+    bits[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(parse_record(&bits), None);
 }
 
 #[test]
@@ -123,7 +212,10 @@ fn a_valid_crc_is_not_enough() {
     b[0] ^= 1; // magic
     cases.push(b);
     let mut b = good;
-    b[4] = 2; // version
+    b[4] = 3; // version
+    cases.push(b);
+    let mut b = good;
+    b[4] = 1; // version 1 with version 2's length
     cases.push(b);
     let mut b = good;
     b[6] = 0; // length
@@ -135,7 +227,7 @@ fn a_valid_crc_is_not_enough() {
     b[12] = 33; // too many rows
     cases.push(b);
     let mut b = good;
-    b[13] = 2; // self-test flag neither 0 nor 1
+    b[13] = 4; // an unknown present bit
     cases.push(b);
     let mut b = good;
     b[14] = 1; // reserved
@@ -154,6 +246,15 @@ fn a_valid_crc_is_not_enough() {
     cases.push(b);
     let mut b = encode_record(&record(2), 9); // no self-test ...
     b[12 + 388 + 4] = 1; // ... but bytes in its place
+    cases.push(b);
+    let mut b = encode_record(&record(4), 9); // no identification ...
+    b[12 + 412 + 20] = 1; // ... but bytes in its place
+    cases.push(b);
+    let mut b = good; // record(3) has one
+    b[12 + 412 + 1] = 1; // a reserved byte of it
+    cases.push(b);
+    let mut b = good;
+    b[12 + 416 + 8..12 + 416 + 12].copy_from_slice(&(-1f32).to_le_bytes()); // a negative spread
     cases.push(b);
     for (i, case) in cases.into_iter().enumerate() {
         assert_eq!(parse_record(&reseal(case)), None, "case {i}");

@@ -31,6 +31,7 @@ fn record() -> impl Strategy<Value = Record> {
                 self_test: test.map(|(b, n)| SelfTest {
                     rotors: [rotor(&b[..3], n[0], n[1]), rotor(&b[3..], n[2], n[3])],
                 }),
+                identity: None,
             }
         })
 }

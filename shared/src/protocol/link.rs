@@ -15,6 +15,7 @@ use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
     FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
+use crate::controller::identify::Identity;
 use crate::controller::self_test::{SelfTest, SelfTestReport, SelfTestStatus};
 use crate::controller::{
     may_write_table, Command, Controller, Outputs, Params, Telemetry, TuningTable,
@@ -49,6 +50,9 @@ pub struct LinkState {
     /// when a test finishes. What a store writes with the table, so that a test
     /// aborted later never drops a good result from flash.
     pub finished_self_test: Option<SelfTest>,
+    /// The newest finished motor identification: the stored one at start. What a
+    /// store writes with the table, so that storing a table never drops it.
+    pub finished_identity: Option<Identity>,
     /// Telemetry period, ms (0: none).
     pub telemetry_period_ms: u16,
     /// Received bytes lost since the start (the receive ring full, or the UART's
@@ -78,7 +82,7 @@ impl LinkState {
                 status: SelfTestStatus::Done,
                 result,
             });
-        LinkState::new(
+        let mut state = LinkState::new(
             StatusReport {
                 uptime_ms: 0,
                 state: controller.state(),
@@ -88,7 +92,9 @@ impl LinkState {
             },
             controller.params().tuning.clone(),
             self_test,
-        )
+        );
+        state.finished_identity = stored.and_then(|s| s.record.identity);
+        state
     }
 
     /// The state at start: `status` of the controller before its first tick, the
@@ -107,6 +113,7 @@ impl LinkState {
             tuning,
             new_tuning: None,
             finished_self_test,
+            finished_identity: None,
             self_test: self_test.unwrap_or(SelfTestReport {
                 status: SelfTestStatus::NotRun,
                 result: Default::default(),
@@ -174,11 +181,13 @@ impl LinkState {
         }
     }
 
-    /// The record to store: `tuning` and the newest finished self-test's result.
+    /// The record to store: `tuning`, the newest finished self-test's result and
+    /// motor identification.
     fn record(&self, tuning: &TuningTable) -> Record {
         Record {
             tuning: tuning.clone(),
             self_test: self.finished_self_test,
+            identity: self.finished_identity,
         }
     }
 }

@@ -1,4 +1,5 @@
-//! Parameters in flash: the tuning table and the self-test results, in
+//! Parameters in flash: the tuning table, the self-test and the motor
+//! identification results, in
 //! two flash slots used in turn, so that a power cut during a write never loses
 //! the last good copy (after ODrive's `Firmware/Drivers/STM32/nvm.c`).
 //!
@@ -65,7 +66,7 @@ mod sim;
 
 pub use record::{
     encode_record, parse_record, Record, FORMAT_VERSION, MAGIC, PAYLOAD_LEN, RECORD_HEADER_LEN,
-    RECORD_LEN, RECORD_WORDS,
+    RECORD_LEN, RECORD_WORDS, V1_PAYLOAD_LEN,
 };
 pub use sim::{SimError, SimFlash, SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 
@@ -159,8 +160,7 @@ fn read_slot<F: ReadNorFlash>(flash: &mut F, slot: usize) -> Option<Stored> {
     }
     let mut padded = [0xFFu8; PADDED_MAX];
     flash.read(offset, padded.get_mut(..len)?).ok()?;
-    let bytes = padded.first_chunk::<RECORD_LEN>()?;
-    let (record, sequence) = parse_record(bytes)?;
+    let (record, sequence) = parse_record(padded.get(..len)?)?;
     Some(Stored {
         record,
         sequence,
