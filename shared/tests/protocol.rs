@@ -4,6 +4,9 @@
 //! cases, and the answer rule on a mock device.
 
 use shared::codec::crc::{crc16_ccitt_false, crc32};
+use shared::controller::identify::{
+    Estimate, IdentifyReport, IdentifyStatus, Identity, RotorIdentity, Shortfall,
+};
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
 use shared::protocol::{
@@ -145,6 +148,8 @@ fn every_request() -> Vec<Request> {
         Request::WriteTuningTable(full_table()),
         Request::RunSelfTest,
         Request::ReadSelfTest,
+        Request::RunIdentify,
+        Request::ReadIdentify,
         Request::StreamTelemetry { period_ms: 0 },
         Request::StreamTelemetry { period_ms: 50 },
     ]
@@ -170,7 +175,44 @@ fn every_response() -> Vec<Response> {
             result: SelfTest::default(),
         }),
         Response::Telemetry(sample_status(State::Starting, 1000.0)),
+        Response::Identify(IdentifyReport {
+            status: IdentifyStatus::Done,
+            identity: sample_identity(),
+        }),
+        Response::Identify(IdentifyReport {
+            status: IdentifyStatus::NotRun,
+            identity: Identity::default(),
+        }),
+        Response::Status(sample_status(State::Identify, 750.0)),
     ]
+}
+
+/// Rotor 1 identified, rotor 2 short of a whole turn.
+fn sample_identity() -> Identity {
+    let e = |value: f32| Estimate {
+        value,
+        std_error: value.abs() / 50.0,
+    };
+    Identity {
+        rotors: [
+            RotorIdentity {
+                shortfall: None,
+                resistance_ohm: e(2.1),
+                torque_constant: e(0.019),
+                coulomb_friction_nm: e(1.1e-3),
+                viscous_friction: e(9e-7),
+                inertia_kg_m2: e(1.02e-5),
+                offset_v: e(-0.003),
+                drop_v: e(0.01),
+                voltage_residual_v: 2e-4,
+                friction_residual_nm: 3e-7,
+                standstill_levels: 4,
+                speed_levels: 4,
+            },
+            RotorIdentity::short(Shortfall::NoTurn),
+        ],
+        rotors_run: 2,
+    }
 }
 
 #[test]
@@ -185,7 +227,7 @@ fn frames_match_the_documented_bytes() {
     // bitwise CRC-16/CCITT-FALSE), not with this crate.
     assert_eq!(
         frame_of(&Request::Command(Command::Heartbeat), 1),
-        hex("A5 5A 02 01 01 00 00 00 15 B1 69 D8 5A EF")
+        hex("A5 5A 03 01 01 00 00 00 B5 F4 01 D1 41 8B")
     );
     assert_eq!(
         frame_of(
@@ -195,11 +237,11 @@ fn frames_match_the_documented_bytes() {
             }),
             0x1234
         ),
-        hex("A5 5A 02 04 34 12 05 00 18 D0 00 00 80 BB 44 83 E7 B5 94")
+        hex("A5 5A 03 04 34 12 05 00 B8 95 00 00 80 BB 44 B7 76 1D 51")
     );
     assert_eq!(
         frame_of(&Response::Ack { request: 0x01 }, 1),
-        hex("A5 5A 02 80 01 00 01 00 A5 0A 01 A8 79 1A F1")
+        hex("A5 5A 03 80 01 00 01 00 05 4F 01 CB 8B 17 B2")
     );
     assert_eq!(
         frame_of(
@@ -209,7 +251,7 @@ fn frames_match_the_documented_bytes() {
             },
             0x1234
         ),
-        hex("A5 5A 02 81 34 12 02 00 08 48 04 03 B4 55 1C 8E")
+        hex("A5 5A 03 81 34 12 02 00 A8 0D 04 03 A4 68 E4 5A")
     );
 }
 
@@ -563,6 +605,8 @@ struct Mock {
     status: StatusReport,
     table: TuningTable,
     self_test: SelfTestReport,
+    identify: IdentifyReport,
+    identifications_started: u32,
     commands: Vec<Command>,
     refuse_commands: Option<NackReason>,
     stored: Vec<TuningTable>,
@@ -580,6 +624,11 @@ impl Mock {
                 status: SelfTestStatus::NotRun,
                 result: SelfTest::default(),
             },
+            identify: IdentifyReport {
+                status: IdentifyStatus::NotRun,
+                identity: Identity::default(),
+            },
+            identifications_started: 0,
             commands: Vec::new(),
             refuse_commands: None,
             stored: Vec::new(),
@@ -620,6 +669,14 @@ impl Device for Mock {
         self.self_test.status = SelfTestStatus::Running;
         Ok(())
     }
+    fn identify(&self) -> IdentifyReport {
+        self.identify
+    }
+    fn start_identify(&mut self) -> Result<(), NackReason> {
+        self.identifications_started += 1;
+        self.identify.status = IdentifyStatus::Running;
+        Ok(())
+    }
     fn set_telemetry_period(&mut self, period_ms: u16) {
         self.telemetry_period_ms = Some(period_ms);
     }
@@ -650,9 +707,14 @@ fn every_request_gets_its_answer_and_one_command() {
             Request::GetStatus => Response::Status(device.status),
             Request::ReadTuningTable => Response::TuningTable(device.table.clone()),
             Request::ReadSelfTest => Response::SelfTest(device.self_test),
+            Request::ReadIdentify => Response::Identify(device.identify),
             Request::RunSelfTest => {
                 // Started once; the next one is refused while it runs.
                 device.self_test.status = SelfTestStatus::NotRun;
+                ack(request.clone())
+            }
+            Request::RunIdentify => {
+                device.identify.status = IdentifyStatus::NotRun;
                 ack(request.clone())
             }
             _ => ack(request.clone()),
@@ -661,6 +723,7 @@ fn every_request_gets_its_answer_and_one_command() {
     }
     assert_eq!(device.stored, vec![sample_table(), full_table()]);
     assert_eq!(device.self_tests_started, 1);
+    assert_eq!(device.identifications_started, 1);
     assert_eq!(device.telemetry_period_ms, Some(50));
 }
 
@@ -723,9 +786,15 @@ fn the_table_is_written_only_with_the_motors_stopped() {
         nack(write.clone(), NackReason::StorageFailed)
     );
     assert_eq!(device.table, TuningTable::default());
-    // Not while a self-test runs.
+    // Not while a self-test or an identification runs.
     let mut device = Mock::new(State::Idle, 0.0);
     device.self_test.status = SelfTestStatus::Running;
+    assert_eq!(
+        answer_request(&mut device, &write),
+        nack(write.clone(), NackReason::Busy)
+    );
+    let mut device = Mock::new(State::Idle, 0.0);
+    device.identify.status = IdentifyStatus::Running;
     assert_eq!(
         answer_request(&mut device, &write),
         nack(write.clone(), NackReason::Busy)
@@ -733,23 +802,38 @@ fn the_table_is_written_only_with_the_motors_stopped() {
 }
 
 #[test]
-fn the_self_test_starts_only_idle_at_rest() {
-    let run = Request::RunSelfTest;
-    let cases = [
-        (State::Fault, 0.0, Some(NackReason::Faulted)),
-        (State::Running, 3000.0, Some(NackReason::NotStopped)),
-        (State::Stopping, 5.0, Some(NackReason::NotStopped)),
-        (State::Idle, 80.0, Some(NackReason::NotStopped)),
-        (State::Idle, 0.0, None),
-    ];
-    for (state, speed, refused) in cases {
-        let mut device = Mock::new(state, speed);
-        let expected = match refused {
-            Some(reason) => nack(run.clone(), reason),
-            None => ack(run.clone()),
-        };
-        assert_eq!(answer_request(&mut device, &run), expected, "{state:?}");
-        assert_eq!(device.self_tests_started, u32::from(refused.is_none()));
+fn the_self_test_and_the_identification_start_only_idle_at_rest() {
+    for run in [Request::RunSelfTest, Request::RunIdentify] {
+        let cases = [
+            (State::Fault, 0.0, Some(NackReason::Faulted)),
+            (State::Running, 3000.0, Some(NackReason::NotStopped)),
+            (State::Stopping, 5.0, Some(NackReason::NotStopped)),
+            (State::Idle, 80.0, Some(NackReason::NotStopped)),
+            (State::Idle, 0.0, None),
+        ];
+        for (state, speed, refused) in cases {
+            let mut device = Mock::new(state, speed);
+            let expected = match refused {
+                Some(reason) => nack(run.clone(), reason),
+                None => ack(run.clone()),
+            };
+            assert_eq!(answer_request(&mut device, &run), expected, "{state:?}");
+            let started = device.self_tests_started + device.identifications_started;
+            assert_eq!(started, u32::from(refused.is_none()));
+        }
+        // Neither while the other runs.
+        let mut device = Mock::new(State::Idle, 0.0);
+        device.self_test.status = SelfTestStatus::Running;
+        assert_eq!(
+            answer_request(&mut device, &run),
+            nack(run.clone(), NackReason::Busy)
+        );
+        let mut device = Mock::new(State::Idle, 0.0);
+        device.identify.status = IdentifyStatus::Running;
+        assert_eq!(
+            answer_request(&mut device, &run),
+            nack(run.clone(), NackReason::Busy)
+        );
     }
 }
 

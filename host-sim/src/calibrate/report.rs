@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use serde_json::{json, Value};
-use toml_edit::{DocumentMut, Item, Table};
+use toml_edit::DocumentMut;
 
 use super::fit::Fit;
 use super::keys::FitKey;
@@ -20,6 +20,7 @@ use crate::failure::Failure;
 use crate::machine::input;
 use crate::machine::Machine;
 use crate::numbers;
+use crate::output::machine_edit::set_value;
 use crate::output::text::{self, Align};
 use crate::sweep::RunOutcome;
 
@@ -471,48 +472,6 @@ pub fn machine_file(
     Ok(written)
 }
 
-/// Sets the key at the reader's key path `key_path` (`contacts[0].restitution`) of
-/// `root` to `x`, keeping the old value's comment and spacing; creates the key
-/// (and a missing table on the way) when the file gives none.
-fn set_value(root: &mut Table, key_path: &str, x: f64) -> Result<(), String> {
-    let segments: Vec<&str> = key_path.split('.').collect();
-    let Some((last, path)) = segments.split_last() else {
-        return Err("an empty key path".into());
-    };
-    let mut here: &mut dyn toml_edit::TableLike = root;
-    for seg in path {
-        let (name, index) = match seg.split_once('[') {
-            Some((n, i)) => (n, i.trim_end_matches(']').parse::<usize>().ok()),
-            None => (*seg, None),
-        };
-        if here.get(name).is_none() {
-            here.insert(name, Item::Table(Table::new()));
-        }
-        let item = here.get_mut(name).ok_or("a table vanished")?;
-        here = match index {
-            Some(i) => item
-                .as_array_of_tables_mut()
-                .and_then(|a| a.get_mut(i))
-                .map(|t| t as &mut dyn toml_edit::TableLike)
-                .ok_or_else(|| format!("{name}[{i}] is not a table of an array"))?,
-            None => item
-                .as_table_like_mut()
-                .ok_or_else(|| format!("{name} is not a table"))?,
-        };
-    }
-    match here.get_mut(last).and_then(Item::as_value_mut) {
-        Some(v) => {
-            let decor = v.decor().clone();
-            *v = toml_edit::Value::from(x);
-            *v.decor_mut() = decor;
-        }
-        None => {
-            here.insert(last, toml_edit::value(x));
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -563,19 +522,5 @@ mod tests {
         let coarser = warning(vec![1e-12, 2e-12, 4e-12, 8e-12, 1.6e-11]);
         assert_eq!(coarser.len(), 1);
         assert!(!coarser[0].contains("finer"), "{coarser:?}");
-    }
-
-    #[test]
-    fn values_change_and_nothing_else() {
-        let text = "# top\n[[contacts]]\nname = \"K1\"\nrestitution = 0.3   # guess\n\n[[contacts]]\nrestitution = 0.3\n[motor]\nresistance = 2 # ohm\n";
-        let mut doc: DocumentMut = text.parse().unwrap();
-        set_value(doc.as_table_mut(), "contacts[1].restitution", 0.41).unwrap();
-        set_value(doc.as_table_mut(), "motor.resistance", 2.25).unwrap();
-        set_value(doc.as_table_mut(), "contacts[0].friction", 0.5).unwrap();
-        set_value(doc.as_table_mut(), "simulation.rtol", 1e-3).unwrap();
-        assert_eq!(
-            doc.to_string(),
-            "# top\n[[contacts]]\nname = \"K1\"\nrestitution = 0.3   # guess\nfriction = 0.5\n\n[[contacts]]\nrestitution = 0.41\n[motor]\nresistance = 2.25 # ohm\n\n[simulation]\nrtol = 0.001\n"
-        );
     }
 }

@@ -164,6 +164,8 @@ fn id_name(id: MessageId) -> &'static str {
         MessageId::RunSelfTest => "RunSelfTest",
         MessageId::ReadSelfTest => "ReadSelfTest",
         MessageId::StreamTelemetry => "StreamTelemetry",
+        MessageId::RunIdentify => "RunIdentify",
+        MessageId::ReadIdentify => "ReadIdentify",
         _ => "a response",
     }
 }
@@ -188,6 +190,7 @@ pub fn answer_text(response: &Response) -> String {
         Response::Status(_) => "a status report".into(),
         Response::TuningTable(_) => "a tuning table".into(),
         Response::SelfTest(_) => "a self-test report".into(),
+        Response::Identify(_) => "an identification report".into(),
         Response::Telemetry(_) => "a telemetry frame".into(),
     }
 }
@@ -195,12 +198,15 @@ pub fn answer_text(response: &Response) -> String {
 /// Whether `response` answers `request` (the device's answer rule,
 /// `shared::protocol::answer_request`): a Nack naming the request's id; an Ack naming it,
 /// for the requests answered by Ack; the report asked for by `GetStatus`,
-/// `ReadTuningTable` and `ReadSelfTest`.
+/// `ReadTuningTable`, `ReadSelfTest` and `ReadIdentify`.
 pub fn answers(request: &Request, response: &Response) -> bool {
     let asked = request.id() as u8;
     let wants_report = matches!(
         request,
-        Request::GetStatus | Request::ReadTuningTable | Request::ReadSelfTest
+        Request::GetStatus
+            | Request::ReadTuningTable
+            | Request::ReadSelfTest
+            | Request::ReadIdentify
     );
     match response {
         Response::Nack { request: id, .. } => *id == asked,
@@ -208,6 +214,7 @@ pub fn answers(request: &Request, response: &Response) -> bool {
         Response::Status(_) => matches!(request, Request::GetStatus),
         Response::TuningTable(_) => matches!(request, Request::ReadTuningTable),
         Response::SelfTest(_) => matches!(request, Request::ReadSelfTest),
+        Response::Identify(_) => matches!(request, Request::ReadIdentify),
         Response::Telemetry(_) => false,
     }
 }
@@ -228,7 +235,7 @@ pub fn nack_text(reason: NackReason) -> &'static str {
         NackReason::StorageFailed => {
             "the flash write failed; the previous table is still in use and in flash"
         }
-        NackReason::Busy => "busy: a self-test is running",
+        NackReason::Busy => "busy: a self-test or an identification is running",
     }
 }
 

@@ -1,6 +1,7 @@
 //! The motor identification's bytes, the same in the flash record and in the
-//! identification's message payload: one rotor's result in
-//! [`ROTOR_IDENTITY_LEN`] bytes, both rotors' in [`IDENTITY_LEN`].
+//! [`crate::protocol::Response::Identify`] payload: one rotor's result in
+//! [`ROTOR_IDENTITY_LEN`] bytes, both rotors' in [`IDENTITY_LEN`], and the report
+//! (status and result) in [`IDENTIFY_REPORT_LEN`].
 //!
 //! ```text
 //!  one rotor (68 bytes)
@@ -16,15 +17,22 @@
 //!  64  friction residual f32, N m
 //!
 //!  both rotors (140 bytes)
-//!  0   rotors identified u8: 1 or 2
+//!  0   rotors identified u8: 0 (none run), 1 or 2
 //!  1   3 reserved zero bytes
 //!  4   rotor 1, then rotor 2
+//!
+//!  report (144 bytes)
+//!  0   status u8: 0 not run, 1 running, 2 done, 3 aborted
+//!  1   3 reserved zero bytes
+//!  4   both rotors
 //! ```
 //!
 //! Every number read must be finite, and a standard error or a residual not
 //! negative.
 
-use crate::controller::identify::{Estimate, Identity, RotorIdentity, Shortfall};
+use crate::controller::identify::{
+    Estimate, IdentifyReport, IdentifyStatus, Identity, RotorIdentity, Shortfall,
+};
 
 use super::wire::{Field, Reader, Writer};
 
@@ -32,6 +40,16 @@ use super::wire::{Field, Reader, Writer};
 pub const ROTOR_IDENTITY_LEN: usize = 68;
 /// Bytes of both rotors' identification.
 pub const IDENTITY_LEN: usize = 4 + 2 * ROTOR_IDENTITY_LEN;
+/// Bytes of an identification report: status, reserved, both rotors.
+pub const IDENTIFY_REPORT_LEN: usize = 4 + IDENTITY_LEN;
+
+/// The statuses in code order, from 0.
+const STATUSES: [IdentifyStatus; 4] = [
+    IdentifyStatus::NotRun,
+    IdentifyStatus::Running,
+    IdentifyStatus::Done,
+    IdentifyStatus::Aborted,
+];
 
 /// The shortfalls in code order, from 1 (0 is none).
 const SHORTFALLS: [Shortfall; 7] = [
@@ -140,11 +158,29 @@ impl Field for Identity {
     }
 
     fn read(r: &mut Reader<'_>) -> Option<Self> {
-        let rotors_run = r.u8().filter(|n| (1..=2).contains(n))?;
+        let rotors_run = r.u8().filter(|n| *n <= 2)?;
         r.zeros(3)?;
         Some(Identity {
             rotors_run,
             rotors: [RotorIdentity::read(r)?, RotorIdentity::read(r)?],
+        })
+    }
+}
+
+impl Field for IdentifyReport {
+    fn write(&self, w: &mut Writer<'_>) {
+        let code = STATUSES.iter().position(|s| *s == self.status).unwrap_or(0);
+        w.u8(code as u8);
+        w.zeros(3);
+        self.identity.write(w);
+    }
+
+    fn read(r: &mut Reader<'_>) -> Option<Self> {
+        let status = *STATUSES.get(usize::from(r.u8()?))?;
+        r.zeros(3)?;
+        Some(IdentifyReport {
+            status,
+            identity: Identity::read(r)?,
         })
     }
 }
@@ -206,6 +242,18 @@ mod tests {
         for s in SHORTFALLS {
             assert_eq!(shortfall_from_code(shortfall_code(Some(s))), Some(Some(s)));
         }
+        for (code, status) in STATUSES.into_iter().enumerate() {
+            let report = IdentifyReport {
+                status,
+                identity: sample(),
+            };
+            let mut buf = [0u8; IDENTIFY_REPORT_LEN];
+            let mut w = Writer::new(&mut buf);
+            report.write(&mut w);
+            assert_eq!(w.finish(), Some(IDENTIFY_REPORT_LEN));
+            assert_eq!(usize::from(buf[0]), code);
+            assert_eq!(IdentifyReport::read(&mut Reader::new(&buf)), Some(report));
+        }
     }
 
     /// A byte out of its domain, a non-finite value or a negative spread is
@@ -218,7 +266,6 @@ mod tests {
             edit(&mut buf);
             Identity::read(&mut Reader::new(&buf)).is_none()
         };
-        assert!(refused(&|b| b[0] = 0), "no rotor");
         assert!(refused(&|b| b[0] = 3), "three rotors");
         assert!(refused(&|b| b[1] = 1), "reserved");
         assert!(refused(&|b| b[4] = 8), "an unknown shortfall");

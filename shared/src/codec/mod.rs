@@ -20,6 +20,6 @@ mod self_test;
 mod tuning_row;
 pub(crate) mod wire;
 
-pub use identity::{IDENTITY_LEN, ROTOR_IDENTITY_LEN};
+pub use identity::{IDENTIFY_REPORT_LEN, IDENTITY_LEN, ROTOR_IDENTITY_LEN};
 pub use self_test::{ROTOR_SELF_TEST_LEN, SELF_TEST_LEN, SELF_TEST_REPORT_LEN};
 pub use tuning_row::TUNING_ROW_LEN;

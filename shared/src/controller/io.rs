@@ -157,10 +157,14 @@ pub enum State {
     /// loop ([`super::self_test`]); then [`State::Idle`]. [`Command::Stop`] aborts it
     /// (idle), a fault too ([`State::Fault`]); run commands are refused meanwhile.
     SelfTest,
+    /// The motor identification drives the motors, one at a time, open loop
+    /// ([`super::identify`]); then [`State::Idle`]. Aborted as the self-test is.
+    Identify,
 }
 
 impl State {
-    /// `idle`, `starting`, `running`, `stopping`, `fault` or `self_test`.
+    /// `idle`, `starting`, `running`, `stopping`, `fault`, `self_test` or
+    /// `identify`.
     pub fn name(self) -> &'static str {
         match self {
             State::Idle => "idle",
@@ -169,6 +173,7 @@ impl State {
             State::Stopping => "stopping",
             State::Fault => "fault",
             State::SelfTest => "self_test",
+            State::Identify => "identify",
         }
     }
 
@@ -176,7 +181,7 @@ impl State {
     pub fn drives(self) -> bool {
         matches!(
             self,
-            State::Starting | State::Running | State::Stopping | State::SelfTest
+            State::Starting | State::Running | State::Stopping | State::SelfTest | State::Identify
         )
     }
 }

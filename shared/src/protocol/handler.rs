@@ -16,13 +16,15 @@
 //! | `GetStatus` | `Status` |
 //! | `Stop`, `Travel`, `HoldOffset`, `ResetFaults` | `Ack`, or `Nack` with the device's reason |
 //! | `ReadTuningTable` | `TuningTable` |
-//! | `WriteTuningTable` | `Ack` once stored; `Nack(Busy)` while a self-test runs; `Nack(NotStopped)` unless [`may_write_table`]; `Nack(StorageFailed)` |
-//! | `RunSelfTest` | `Ack` once started; `Nack(Busy)` while one runs; `Nack(Faulted)` in fault; `Nack(NotStopped)` unless idle and at rest |
+//! | `WriteTuningTable` | `Ack` once stored; `Nack(Busy)` while a self-test or an identification runs; `Nack(NotStopped)` unless [`may_write_table`]; `Nack(StorageFailed)` |
+//! | `RunSelfTest`, `RunIdentify` | `Ack` once started; `Nack(Busy)` while a self-test or an identification runs; `Nack(Faulted)` in fault; `Nack(NotStopped)` unless idle and at rest |
 //! | `ReadSelfTest` | `SelfTest` |
+//! | `ReadIdentify` | `Identify` |
 //! | `StreamTelemetry` | `Ack` |
 
 use crate::controller::{may_write_table, Command, State, TuningTable};
 
+use crate::controller::identify::{IdentifyReport, IdentifyStatus};
 use crate::controller::self_test::{SelfTestReport, SelfTestStatus};
 
 use super::frame::{Frame, FrameError};
@@ -56,6 +58,12 @@ pub trait Device {
     /// Start the self-test (the caller checked: idle, rotors at rest).
     fn start_self_test(&mut self) -> Result<(), NackReason>;
 
+    /// The motor identification's status and its latest result.
+    fn identify(&self) -> IdentifyReport;
+
+    /// Start the motor identification (the caller checked: idle, rotors at rest).
+    fn start_identify(&mut self) -> Result<(), NackReason>;
+
     /// Send [`Response::Telemetry`] every `period_ms` from now on (0: none).
     fn set_telemetry_period(&mut self, period_ms: u16);
 }
@@ -65,6 +73,29 @@ fn verdict(request: u8, result: Result<(), NackReason>) -> Response {
     match result {
         Ok(()) => Response::Ack { request },
         Err(reason) => Response::Nack { request, reason },
+    }
+}
+
+/// Whether a procedure that drives the motors on its own (the self-test, the
+/// identification) runs: the other requests that need the motors stopped wait.
+fn busy<D: Device + ?Sized>(device: &D) -> bool {
+    device.self_test().status == SelfTestStatus::Running
+        || device.identify().status == IdentifyStatus::Running
+}
+
+/// Whether a procedure may start now: `Busy`, `Faulted` or `NotStopped` if not.
+fn may_start<D: Device + ?Sized>(device: &D) -> Result<(), NackReason> {
+    let status = device.status();
+    if busy(device) {
+        Err(NackReason::Busy)
+    } else if status.state == State::Fault {
+        Err(NackReason::Faulted)
+    } else if status.state != State::Idle
+        || !may_write_table(status.state, status.telemetry.speed_rpm)
+    {
+        Err(NackReason::NotStopped)
+    } else {
+        Ok(())
     }
 }
 
@@ -82,13 +113,14 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
         Request::GetStatus => Response::Status(device.status()),
         Request::ReadTuningTable => Response::TuningTable(device.tuning_table()),
         Request::ReadSelfTest => Response::SelfTest(device.self_test()),
+        Request::ReadIdentify => Response::Identify(device.identify()),
         Request::StreamTelemetry { period_ms } => {
             device.set_telemetry_period(*period_ms);
             Response::Ack { request: id }
         }
         Request::WriteTuningTable(table) => {
             let status = device.status();
-            if device.self_test().status == SelfTestStatus::Running {
+            if busy(device) {
                 verdict(id, Err(NackReason::Busy))
             } else if may_write_table(status.state, status.telemetry.speed_rpm) {
                 verdict(id, device.store_tuning_table(table))
@@ -96,20 +128,12 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
                 verdict(id, Err(NackReason::NotStopped))
             }
         }
-        Request::RunSelfTest => {
-            let status = device.status();
-            let result = if device.self_test().status == SelfTestStatus::Running {
-                Err(NackReason::Busy)
-            } else if status.state == State::Fault {
-                Err(NackReason::Faulted)
-            } else if status.state != State::Idle
-                || !may_write_table(status.state, status.telemetry.speed_rpm)
-            {
-                Err(NackReason::NotStopped)
-            } else {
-                device.start_self_test()
-            };
-            verdict(id, result)
+        Request::RunSelfTest => verdict(
+            id,
+            may_start(device).and_then(|()| device.start_self_test()),
+        ),
+        Request::RunIdentify => {
+            verdict(id, may_start(device).and_then(|()| device.start_identify()))
         }
     }
 }

@@ -15,7 +15,7 @@ use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
     FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use crate::controller::identify::Identity;
+use crate::controller::identify::{IdentifyReport, IdentifyStatus, Identity};
 use crate::controller::self_test::{SelfTest, SelfTestReport, SelfTestStatus};
 use crate::controller::{
     may_write_table, Command, Controller, Outputs, Params, Telemetry, TuningTable,
@@ -50,8 +50,17 @@ pub struct LinkState {
     /// when a test finishes. What a store writes with the table, so that a test
     /// aborted later never drops a good result from flash.
     pub finished_self_test: Option<SelfTest>,
-    /// The newest finished motor identification: the stored one at start. What a
-    /// store writes with the table, so that storing a table never drops it.
+    /// The motor identification's status and latest result (written by the
+    /// control task).
+    pub identify: IdentifyReport,
+    /// An identification was requested and waits for the control task to start
+    /// it.
+    pub identify_requested: bool,
+    /// A finished identification waits to be stored in flash with the table.
+    pub identify_unsaved: bool,
+    /// The newest finished motor identification: the stored one at start,
+    /// replaced when one finishes. What a store writes with the table, so that
+    /// storing a table never drops it.
     pub finished_identity: Option<Identity>,
     /// Telemetry period, ms (0: none).
     pub telemetry_period_ms: u16,
@@ -93,7 +102,13 @@ impl LinkState {
             controller.params().tuning.clone(),
             self_test,
         );
-        state.finished_identity = stored.and_then(|s| s.record.identity);
+        if let Some(identity) = stored.and_then(|s| s.record.identity) {
+            state.finished_identity = Some(identity);
+            state.identify = IdentifyReport {
+                status: IdentifyStatus::Done,
+                identity,
+            };
+        }
         state
     }
 
@@ -114,6 +129,12 @@ impl LinkState {
             new_tuning: None,
             finished_self_test,
             finished_identity: None,
+            identify: IdentifyReport {
+                status: IdentifyStatus::NotRun,
+                identity: Identity::default(),
+            },
+            identify_requested: false,
+            identify_unsaved: false,
             self_test: self_test.unwrap_or(SelfTestReport {
                 status: SelfTestStatus::NotRun,
                 result: Default::default(),
@@ -267,10 +288,12 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
 
     fn command(&mut self, command: Command) -> Result<(), NackReason> {
         self.locked(|state| {
-            // A self-test drives the motors itself: only stop (which aborts it)
-            // and heartbeats while it runs.
-            let testing =
-                state.self_test.status == SelfTestStatus::Running || state.self_test_requested;
+            // A self-test or an identification drives the motors itself: only
+            // stop (which aborts it) and heartbeats while it runs.
+            let testing = state.self_test.status == SelfTestStatus::Running
+                || state.self_test_requested
+                || state.identify.status == IdentifyStatus::Running
+                || state.identify_requested;
             if testing && !matches!(command, Command::Stop | Command::Heartbeat) {
                 return Err(NackReason::Busy);
             }
@@ -295,8 +318,8 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
         // control tick between a check and the mark could take a waiting run
         // command and start the motors just before the erase stalls everything.
         let record = self.locked(|state| {
-            // A self-test asked for but not yet started would start meanwhile.
-            if state.self_test_requested {
+            // A procedure asked for but not yet started would start meanwhile.
+            if state.self_test_requested || state.identify_requested {
                 return Err(NackReason::Busy);
             }
             if !may_write_table(state.status.state, state.status.telemetry.speed_rpm) {
@@ -311,8 +334,9 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
             if stored.is_ok() {
                 state.tuning = table.clone();
                 state.new_tuning = Some(table.clone());
-                // The self-test result went into this record too.
+                // The finished results went into this record too.
                 state.self_test_unsaved = false;
+                state.identify_unsaved = false;
             }
         });
         stored.map(|_| ()).map_err(|_| NackReason::StorageFailed)
@@ -324,6 +348,15 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
 
     fn start_self_test(&mut self) -> Result<(), NackReason> {
         self.locked(|s| s.self_test_requested = true);
+        Ok(())
+    }
+
+    fn identify(&self) -> IdentifyReport {
+        self.locked(|s| s.identify)
+    }
+
+    fn start_identify(&mut self) -> Result<(), NackReason> {
+        self.locked(|s| s.identify_requested = true);
         Ok(())
     }
 
@@ -371,7 +404,8 @@ impl Link {
     /// 3. decode and answer every frame on the state (reached through `state`,
     ///    its lock taken for each access; a flash write runs outside it) and
     ///    `flash`, and `send` the answers;
-    /// 4. store a finished self-test's result, when the motors allow a write;
+    /// 4. store a finished self-test's or identification's result, when the
+    ///    motors allow a write;
     /// 5. send telemetry when due.
     ///
     /// Returns whether a byte came (the caller sleeps otherwise).
@@ -424,10 +458,10 @@ impl Link {
             }
         }
 
-        // 4. A self-test result to keep: the record under the lock, the flash
-        // written outside it.
+        // 4. A result to keep: the record under the lock, the flash written
+        // outside it.
         let record = state.lock(|s| {
-            let due = s.self_test_unsaved
+            let due = (s.self_test_unsaved || s.identify_unsaved)
                 && may_write_table(s.status.state, s.status.telemetry.speed_rpm);
             s.storing |= due;
             due.then(|| s.record(&s.tuning))
@@ -439,6 +473,7 @@ impl Link {
             state.lock(|s| {
                 s.storing = false;
                 s.self_test_unsaved = false;
+                s.identify_unsaved = false;
             });
         }
 

@@ -3,7 +3,8 @@
 //! 754 binary32). Every layout is listed in `docs/protocol.md`.
 
 use crate::codec::wire::{flag_byte, Field, Reader, Writer};
-use crate::codec::{SELF_TEST_REPORT_LEN, TUNING_ROW_LEN};
+use crate::codec::{IDENTIFY_REPORT_LEN, SELF_TEST_REPORT_LEN, TUNING_ROW_LEN};
+use crate::controller::identify::IdentifyReport;
 use crate::controller::self_test::SelfTestReport;
 use crate::controller::{
     Command, Direction, Faults, Outputs, State, Telemetry, TuningRow, TuningTable, MAX_TUNING_ROWS,
@@ -39,6 +40,10 @@ pub enum MessageId {
     ReadSelfTest = 0x0A,
     /// [`Request::StreamTelemetry`].
     StreamTelemetry = 0x0B,
+    /// [`Request::RunIdentify`].
+    RunIdentify = 0x0C,
+    /// [`Request::ReadIdentify`].
+    ReadIdentify = 0x0D,
     /// [`Response::Ack`].
     Ack = 0x80,
     /// [`Response::Nack`].
@@ -51,11 +56,13 @@ pub enum MessageId {
     SelfTestResult = 0x84,
     /// [`Response::Telemetry`] (unsolicited).
     Telemetry = 0x85,
+    /// [`Response::Identify`].
+    IdentifyResult = 0x86,
 }
 
 impl MessageId {
     /// Every id, requests first.
-    pub const ALL: [MessageId; 17] = [
+    pub const ALL: [MessageId; 20] = [
         MessageId::Heartbeat,
         MessageId::GetStatus,
         MessageId::Stop,
@@ -67,12 +74,15 @@ impl MessageId {
         MessageId::RunSelfTest,
         MessageId::ReadSelfTest,
         MessageId::StreamTelemetry,
+        MessageId::RunIdentify,
+        MessageId::ReadIdentify,
         MessageId::Ack,
         MessageId::Nack,
         MessageId::Status,
         MessageId::TuningTable,
         MessageId::SelfTestResult,
         MessageId::Telemetry,
+        MessageId::IdentifyResult,
     ];
 
     /// The id of byte `b`, if there is one.
@@ -121,12 +131,14 @@ pub enum NackReason {
     /// [`crate::controller::WRITE_MAX_SPEED_RPM`]
     /// ([`crate::controller::may_write_table`]).
     NotStopped = 7,
-    /// A fault is latched: reset it first (for [`Request::RunSelfTest`]).
+    /// A fault is latched: reset it first (for [`Request::RunSelfTest`] and
+    /// [`Request::RunIdentify`]).
     Faulted = 8,
     /// The flash write failed; the previous table is still the one in use and in
     /// flash.
     StorageFailed = 9,
-    /// The device is busy (a self-test runs) and refuses this request for now.
+    /// The device is busy (a self-test or an identification runs) and refuses this
+    /// request for now.
     Busy = 10,
 }
 
@@ -190,6 +202,11 @@ pub enum Request {
     RunSelfTest,
     /// Answered [`Response::SelfTest`].
     ReadSelfTest,
+    /// Start the motor identification (motors stopped, no fault); answered Ack
+    /// once started.
+    RunIdentify,
+    /// Answered [`Response::Identify`].
+    ReadIdentify,
     /// Send [`Response::Telemetry`] every `period_ms` (0: stop the stream); answered
     /// Ack, or Nack `BadValue` below [`MIN_TELEMETRY_PERIOD_MS`].
     StreamTelemetry {
@@ -266,6 +283,8 @@ pub enum Response {
     TuningTable(TuningTable),
     /// The answer to [`Request::ReadSelfTest`].
     SelfTest(SelfTestReport),
+    /// The answer to [`Request::ReadIdentify`].
+    Identify(IdentifyReport),
     /// Sent unsolicited every period of [`Request::StreamTelemetry`], with the
     /// device's own sequence counter in the header.
     Telemetry(StatusReport),
@@ -293,7 +312,7 @@ fn direction_code(d: Direction) -> u8 {
 }
 
 /// Wire code of a state: 0 idle, 1 starting, 2 running, 3 stopping, 4 fault,
-/// 5 self-test.
+/// 5 self-test, 6 identify.
 fn state_code(s: State) -> u8 {
     match s {
         State::Idle => 0,
@@ -302,6 +321,7 @@ fn state_code(s: State) -> u8 {
         State::Stopping => 3,
         State::Fault => 4,
         State::SelfTest => 5,
+        State::Identify => 6,
     }
 }
 
@@ -314,6 +334,7 @@ fn state_from_code(b: u8) -> Option<State> {
         State::Stopping,
         State::Fault,
         State::SelfTest,
+        State::Identify,
     ]
     .into_iter()
     .find(|s| state_code(*s) == b)
@@ -470,6 +491,8 @@ impl Request {
             | Request::WriteTuningTable(_)
             | Request::RunSelfTest
             | Request::ReadSelfTest
+            | Request::RunIdentify
+            | Request::ReadIdentify
             | Request::StreamTelemetry { .. } => Command::Heartbeat,
         }
     }
@@ -502,6 +525,8 @@ impl Message for Request {
             Request::RunSelfTest => MessageId::RunSelfTest,
             Request::ReadSelfTest => MessageId::ReadSelfTest,
             Request::StreamTelemetry { .. } => MessageId::StreamTelemetry,
+            Request::RunIdentify => MessageId::RunIdentify,
+            Request::ReadIdentify => MessageId::ReadIdentify,
         }
     }
 
@@ -528,7 +553,9 @@ impl Message for Request {
             | Request::GetStatus
             | Request::ReadTuningTable
             | Request::RunSelfTest
-            | Request::ReadSelfTest => {}
+            | Request::ReadSelfTest
+            | Request::RunIdentify
+            | Request::ReadIdentify => {}
         }
         w.finish()
     }
@@ -547,6 +574,8 @@ impl Message for Request {
             MessageId::ReadTuningTable => empty(Request::ReadTuningTable),
             MessageId::RunSelfTest => empty(Request::RunSelfTest),
             MessageId::ReadSelfTest => empty(Request::ReadSelfTest),
+            MessageId::RunIdentify => empty(Request::RunIdentify),
+            MessageId::ReadIdentify => empty(Request::ReadIdentify),
             MessageId::Travel => {
                 let mut r = expect_len(p, 5)?;
                 let direction = match r.u8() {
@@ -585,7 +614,8 @@ impl Message for Request {
             | MessageId::Status
             | MessageId::TuningTable
             | MessageId::SelfTestResult
-            | MessageId::Telemetry => Err(ParseError::UnknownId),
+            | MessageId::Telemetry
+            | MessageId::IdentifyResult => Err(ParseError::UnknownId),
         }
     }
 }
@@ -599,6 +629,7 @@ impl Message for Response {
             Response::TuningTable(_) => MessageId::TuningTable,
             Response::SelfTest(_) => MessageId::SelfTestResult,
             Response::Telemetry(_) => MessageId::Telemetry,
+            Response::Identify(_) => MessageId::IdentifyResult,
         }
     }
 
@@ -613,6 +644,7 @@ impl Message for Response {
             Response::Status(s) | Response::Telemetry(s) => write_status(&mut w, s),
             Response::TuningTable(table) => write_table(&mut w, table),
             Response::SelfTest(report) => report.write(&mut w),
+            Response::Identify(report) => report.write(&mut w),
         }
         w.finish()
     }
@@ -644,6 +676,11 @@ impl Message for Response {
                 let report = SelfTestReport::read(&mut r).ok_or(ParseError::BadValue)?;
                 Ok(Response::SelfTest(report))
             }
+            MessageId::IdentifyResult => {
+                let mut r = expect_len(p, IDENTIFY_REPORT_LEN)?;
+                let report = IdentifyReport::read(&mut r).ok_or(ParseError::BadValue)?;
+                Ok(Response::Identify(report))
+            }
             // Requests were filtered out above.
             MessageId::Heartbeat
             | MessageId::GetStatus
@@ -655,7 +692,9 @@ impl Message for Response {
             | MessageId::WriteTuningTable
             | MessageId::RunSelfTest
             | MessageId::ReadSelfTest
-            | MessageId::StreamTelemetry => Err(ParseError::UnknownId),
+            | MessageId::StreamTelemetry
+            | MessageId::RunIdentify
+            | MessageId::ReadIdentify => Err(ParseError::UnknownId),
         }
     }
 }

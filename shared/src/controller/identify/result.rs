@@ -83,14 +83,16 @@ impl RotorIdentity {
     }
 }
 
-/// Both rotors' identification (rotor 2's `NotRun`-like default on a one-rotor
-/// machine: `shortfall: None` and every value 0, with [`Identity::rotors_run`] 1).
+/// Both rotors' identification. A rotor not identified (rotor 2 of a one-rotor
+/// machine, or both before any identification) has `shortfall: None` and every
+/// value 0, and [`Identity::rotors_run`] says how many were.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Identity {
     /// Rotor 1 and rotor 2.
     pub rotors: [RotorIdentity; 2],
-    /// How many rotors were identified: 1 on a one-rotor machine, else 2.
+    /// How many rotors were identified: 1 on a one-rotor machine, else 2; 0 in
+    /// the default (none run).
     pub rotors_run: u8,
 }
 
