@@ -4,9 +4,7 @@
 //! cases, and the answer rule on a mock device.
 
 use shared::codec::crc::{crc16_ccitt_false, crc32};
-use shared::controller::identify::{
-    Estimate, IdentifyReport, IdentifyStatus, Identity, RotorIdentity, Shortfall,
-};
+use shared::controller::identify::{IdentifyReport, IdentifyStatus, Identity};
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::{Command, Direction, Faults, State, Telemetry, TuningTable};
 use shared::protocol::{
@@ -14,6 +12,10 @@ use shared::protocol::{
     Frame, FrameError, Message, MessageId, NackReason, ParseError, Request, Response, StatusReport,
     HEADER_LEN, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,
 };
+
+mod support;
+
+use support::identities::identity;
 
 /// A decoder event with the frame copied out as `(id, seq, payload)`.
 type Event = Result<(u8, u16, Vec<u8>), FrameError>;
@@ -177,7 +179,7 @@ fn every_response() -> Vec<Response> {
         Response::Telemetry(sample_status(State::Starting, 1000.0)),
         Response::Identify(IdentifyReport {
             status: IdentifyStatus::Done,
-            identity: sample_identity(),
+            identity: identity(3),
         }),
         Response::Identify(IdentifyReport {
             status: IdentifyStatus::NotRun,
@@ -185,34 +187,6 @@ fn every_response() -> Vec<Response> {
         }),
         Response::Status(sample_status(State::Identify, 750.0)),
     ]
-}
-
-/// Rotor 1 identified, rotor 2 short of a whole turn.
-fn sample_identity() -> Identity {
-    let e = |value: f32| Estimate {
-        value,
-        std_error: value.abs() / 50.0,
-    };
-    Identity {
-        rotors: [
-            RotorIdentity {
-                shortfall: None,
-                resistance_ohm: e(2.1),
-                torque_constant: e(0.019),
-                coulomb_friction_nm: e(1.1e-3),
-                viscous_friction: e(9e-7),
-                inertia_kg_m2: e(1.02e-5),
-                offset_v: e(-0.003),
-                drop_v: e(0.01),
-                voltage_residual_v: 2e-4,
-                friction_residual_nm: 3e-7,
-                standstill_levels: 4,
-                speed_levels: 4,
-            },
-            RotorIdentity::short(Shortfall::NoTurn),
-        ],
-        rotors_run: 2,
-    }
 }
 
 #[test]

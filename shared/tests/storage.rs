@@ -9,7 +9,6 @@ use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
 use shared::codec::crc::crc32;
-use shared::controller::identify::{Estimate, Identity, RotorIdentity, Shortfall};
 use shared::controller::self_test::{RotorSelfTest, SelfTest};
 use shared::controller::{Direction, TuningTable};
 use shared::storage::{
@@ -24,6 +23,7 @@ use shared::storage::{SIM_SECTOR_BYTES, SIM_SECTOR_SIZE};
 
 mod support;
 
+use support::identities::identity;
 use support::power_cut::STORE_WORK;
 
 fn record(k: u32) -> Record {
@@ -57,34 +57,6 @@ fn record(k: u32) -> Record {
             ],
         }),
         identity: (k % 3 != 1).then(|| identity(k)),
-    }
-}
-
-/// A motor identification that differs with `k`.
-fn identity(k: u32) -> Identity {
-    let e = |v: f32| Estimate {
-        value: v * (1.0 + k as f32 / 100.0),
-        std_error: v / 100.0,
-    };
-    Identity {
-        rotors: [
-            RotorIdentity {
-                shortfall: None,
-                resistance_ohm: e(2.0),
-                torque_constant: e(0.02),
-                coulomb_friction_nm: e(1e-3),
-                viscous_friction: e(1e-6),
-                inertia_kg_m2: e(1e-5),
-                offset_v: e(0.001),
-                drop_v: e(0.002),
-                voltage_residual_v: 1e-4,
-                friction_residual_nm: 1e-7,
-                standstill_levels: 4,
-                speed_levels: 4,
-            },
-            RotorIdentity::short(Shortfall::NoTurn),
-        ],
-        rotors_run: 2,
     }
 }
 
