@@ -184,6 +184,11 @@ impl EncoderTracker {
         }
     }
 
+    /// The filtered speed of the last update, rad/s (0 before the first).
+    pub fn speed_rad_s(&self) -> f32 {
+        self.speed.speed_rad_s()
+    }
+
     /// Whether an index pulse has been seen.
     pub fn index_seen(&self) -> bool {
         self.index_count.is_some()

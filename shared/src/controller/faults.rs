@@ -274,9 +274,11 @@ impl FaultMonitor {
             found |= Faults::SUPPLY;
         }
 
-        // Per rotor, written out for both (straight-line code, constant indices).
-        found |= self.check_rotor(0, obs, limits, dt);
-        found |= self.check_rotor(1, obs, limits, dt);
+        // Per rotor, written out for both (straight-line code, constant indices),
+        // with whether the state drives the motors worked out once.
+        let driving = obs.state.drives();
+        found |= self.check_rotor(0, obs, driving, limits, dt);
+        found |= self.check_rotor(1, obs, driving, limits, dt);
 
         // Phase lock: only while running with the loop closed.
         let phase_bad = obs.state == State::Running
@@ -288,7 +290,7 @@ impl FaultMonitor {
         }
 
         // Deadline: a starved loop while the motors are driven, at once.
-        if obs.state.drives() && obs.deadline_missed {
+        if driving && obs.deadline_missed {
             found |= Faults::DEADLINE;
         }
 
@@ -309,12 +311,14 @@ impl FaultMonitor {
         !(t.late_s <= limits.tick_late_max_s && t.busy_s <= limits.tick_busy_max_s)
     }
 
-    /// The checks of rotor `k` (see [`FaultMonitor::check`]).
+    /// The checks of rotor `k` (see [`FaultMonitor::check`]); `driving`: whether
+    /// `obs.state` drives the motors.
     #[inline(always)]
     fn check_rotor(
         &mut self,
         k: usize,
         obs: &Observation,
+        driving: bool,
         limits: &FaultLimits,
         dt: f32,
     ) -> Faults {
@@ -339,7 +343,7 @@ impl FaultMonitor {
 
         // Driven but not turning: stall or encoder, by the current.
         let duty = obs.duty[k];
-        let driven = obs.state.drives() && libm::fabsf(duty) >= limits.stall_duty;
+        let driven = driving && libm::fabsf(duty) >= limits.stall_duty;
         let forward = if duty < 0.0 {
             -obs.speed_rpm[k]
         } else {

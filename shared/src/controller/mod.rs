@@ -160,6 +160,8 @@ use speed_loop::{SpeedLoop, SpeedLoopInput};
 /// One tick's measurements.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Measurement {
+    /// The state they were taken in (before this tick's command).
+    state: State,
     /// Filtered speeds, rad/s.
     speed_rad_s: [f32; 2],
     /// The same in rpm.
@@ -256,6 +258,8 @@ pub struct Controller {
     deg_per_count: f32,
     /// [`Params::phase_trim_max_rpm`] in rad/s (computed once).
     phase_trim_max_rad_s: f32,
+    /// The speed ramp's rates and band, from the parameters (gathered once).
+    speed_rates: SpeedRampRates,
     /// The machine has one rotor ([`RotorCount::One`]): rotor 2 is neither read
     /// nor driven (computed once).
     one_rotor: bool,
@@ -285,8 +289,6 @@ pub struct Controller {
     offset: OffsetRamp,
     /// Duties written in the previous tick.
     last_duty: [f32; 2],
-    /// Filtered speeds of the previous tick, rpm (whether a self-test may start).
-    last_speed_rpm: [f32; 2],
     /// The report of the last self-test that ended, `Done` or `Aborted` (`NotRun`,
     /// all zero: none has run on this controller).
     last_self_test: SelfTestReport,
@@ -328,7 +330,6 @@ impl Controller {
             overruns: 0,
             offset: OffsetRamp::new(ramp::VERTICAL_OFFSET_DEG),
             last_duty: [0.0; 2],
-            last_speed_rpm: [0.0; 2],
             last_self_test: SelfTestReport {
                 status: SelfTestStatus::NotRun,
                 result: SelfTest::default(),
@@ -336,6 +337,11 @@ impl Controller {
             tick_s: params.tick_s(),
             deg_per_count: TURN_DEG / params.encoder_counts as f32,
             phase_trim_max_rad_s: rpm_to_rad_s(params.phase_trim_max_rpm),
+            speed_rates: SpeedRampRates {
+                normal_rpm_s: params.speed_ramp_rpm_s,
+                resonance_rpm_s: params.resonance_ramp_rpm_s,
+                band_rpm: params.resonance_band_rpm,
+            },
             one_rotor: params.rotor_count == RotorCount::One,
             dt_constants: DtConstants {
                 given_dt: f32::NAN,
@@ -378,10 +384,11 @@ impl Controller {
     /// `Done`) or is aborted by a fault ([`State::Fault`]) or [`Command::Stop`]
     /// ([`State::Idle`]), both with status `Aborted`.
     pub fn start_self_test(&mut self) -> bool {
+        // The speeds the last tick measured.
         let at_rest = self
-            .last_speed_rpm
+            .encoders
             .iter()
-            .all(|w| libm::fabsf(*w) <= self_test::REST_RPM);
+            .all(|e| libm::fabsf(rad_s_to_rpm(e.speed_rad_s())) <= self_test::REST_RPM);
         if !matches!(self.mode, Mode::Idle) || !at_rest {
             return false;
         }
@@ -476,29 +483,15 @@ impl Controller {
         let obs = self.observe(inputs, &m);
         let found = self.check_faults(&obs, dt);
 
-        // 4. Command; the self-test's duties, or its end.
+        // 4. Command.
         let rejected = self.command(inputs.command, &obs, &m, found);
-        self.last_speed_rpm = m.speed_rpm;
-        let test_duty = self.self_test_tick(inputs, &m, dt);
 
-        // 5. References.
-        let (accel_rpm_s, offset_rate_deg_s) = self.references(&m, dt);
-
-        // 6. Phase loop.
-        let speed_ref = self.speed_references(&m, offset_rate_deg_s, dt);
-
-        // 7. Speed loops.
-        let duty = self.duties(
-            inputs.supply_voltage,
-            &m,
-            speed_ref,
-            accel_rpm_s,
-            test_duty,
-            dt,
-        );
+        // 4 to 7: the self-test's tick, or a run's references, phase loop and
+        // speed loops.
+        let actuation = self.drive(inputs, &m, dt);
 
         // 8. Output.
-        self.outputs(inputs, &m, speed_ref, duty, rejected)
+        self.outputs(inputs, &m, &actuation, rejected)
     }
 
     /// Stage 1: the usable `dt`, s: NaN, infinite or <= 0 taken as one nominal tick,
@@ -564,12 +557,14 @@ impl Controller {
         filter(i1, inputs.current[0]);
         filter(i2, inputs.current[1]);
 
+        let (state, phase_error) = self.phase_error(offset_deg);
         Measurement {
+            state,
             speed_rad_s,
             speed_rpm: map2(speed_rad_s, rad_s_to_rpm),
             anomaly,
             offset_deg,
-            phase_error: self.phase_error(offset_deg),
+            phase_error,
         }
     }
 
@@ -577,19 +572,22 @@ impl Controller {
     /// offset known, against the offset reference in force over the tick just
     /// ended. Its unwrapped sum is carried from tick to tick for the lock check: a
     /// rotor slipping whole turns would otherwise bring the wrapped error back
-    /// through 0 every turn and restart the check's timer.
-    fn phase_error(&mut self, offset_deg: Option<f32>) -> Option<PhaseError> {
+    /// through 0 every turn and restart the check's timer. Returns the state
+    /// too, found on the same look at it.
+    fn phase_error(&mut self, offset_deg: Option<f32>) -> (State, Option<PhaseError>) {
         let reference_deg = self.offset.reference_deg();
-        let Some(Run {
-            phase: PhaseLock::Closed { error, .. },
-            ..
-        }) = self.mode.run_mut()
-        else {
-            return None;
+        let (state, run) = match &mut self.mode {
+            Mode::Starting(run) => (State::Starting, run),
+            Mode::Running(run) => (State::Running, run),
+            Mode::Stopping { run, .. } => (State::Stopping, run),
+            Mode::Idle => return (State::Idle, None),
+            Mode::SelfTest(_) => return (State::SelfTest, None),
+            Mode::Fault(_) => return (State::Fault, None),
         };
-        let Some(o) = offset_deg else {
-            *error = None;
-            return None;
+        // No offset measured: the loop opens in this tick's stage 5 (or the run
+        // ends before), which drops the error with it.
+        let (PhaseLock::Closed { error, .. }, Some(o)) = (&mut run.phase, offset_deg) else {
+            return (state, None);
         };
         let e = wrap_deg_signed(reference_deg - o);
         let unwrapped = match *error {
@@ -603,10 +601,11 @@ impl Controller {
             },
         };
         *error = Some(unwrapped);
-        Some(PhaseError {
+        let phase_error = PhaseError {
             wrapped_deg: e,
             unwrapped_deg: unwrapped.sum_deg,
-        })
+        };
+        (state, Some(phase_error))
     }
 
     /// Stage 3, what the fault checks look at: this tick's inputs and
@@ -614,7 +613,7 @@ impl Controller {
     /// command. A reset in this tick's command looks at it too (the causes still
     /// present).
     fn observe(&self, inputs: &Inputs, m: &Measurement) -> Observation {
-        let state = self.mode.state();
+        let state = m.state;
         // The self-test measures the index itself: only count jumps are faults.
         let testing = state == State::SelfTest;
         let encoder_anomaly = map2(m.anomaly, |a| match a {
@@ -778,213 +777,105 @@ impl Controller {
         }
     }
 
-    /// Stage 4, the self-test's tick: in [`State::SelfTest`] the test steps on this
-    /// tick's sample and gives its duties, or it has finished (idle, status
-    /// `Done`); [0, 0] in any other state.
-    fn self_test_tick(&mut self, inputs: &Inputs, m: &Measurement, dt: f32) -> [f32; 2] {
-        let Mode::SelfTest(run) = &mut self.mode else {
-            return [0.0; 2];
-        };
-        let step = run.step(
-            &SelfTestSample {
-                encoder: inputs.encoder,
-                index: inputs.index,
-                current: inputs.current,
-                speed_rpm: m.speed_rpm,
-            },
-            dt,
-        );
-        if step.done {
-            self.end_self_test(SelfTestStatus::Done);
-            self.mode = Mode::Idle;
-        }
-        step.duty
-    }
-
-    /// Stage 5: ramp the speed and the offset, open or close the phase loop, move
-    /// between states (starting to running, a finished stop to idle). Returns the
-    /// speed reference's acceleration (rpm/s) and the offset reference's rate
-    /// (degrees/s), both 0 outside a run.
-    fn references(&mut self, m: &Measurement, dt: f32) -> (f32, f32) {
-        let p = &self.params;
-        // The run, the speed it heads for, whether it is starting, and a stop's
-        // time at zero speed.
-        let (run, target_rpm, starting, stop) = match &mut self.mode {
-            Mode::Starting(run) => {
-                let target_rpm = run.target.speed_rpm;
-                (run, target_rpm, true, None)
-            }
-            Mode::Running(run) => {
-                let target_rpm = run.target.speed_rpm;
-                (run, target_rpm, false, None)
-            }
+    /// Stages 4 (the self-test's tick) to 7, on one look at the state: in
+    /// [`State::SelfTest`] the test steps on this tick's sample and gives its
+    /// duties, or it has finished (idle, status `Done`); in a run the references,
+    /// the phase loop and the speed loops ([`RunStages`]), after which a start may
+    /// be running and a stop idle; nothing driven in any other state.
+    fn drive(&mut self, inputs: &Inputs, m: &Measurement, dt: f32) -> Actuation {
+        let (run, stage) = match &mut self.mode {
+            Mode::Starting(run) => (run, Stage::Starting),
+            Mode::Running(run) => (run, Stage::Running),
             Mode::Stopping {
                 run,
                 ramp_at_zero_s,
-            } => (run, 0.0, false, Some(ramp_at_zero_s)),
-            Mode::Idle | Mode::SelfTest(_) | Mode::Fault(_) => return (0.0, 0.0),
-        };
-
-        // Speed ramp.
-        let rates = SpeedRampRates {
-            normal_rpm_s: p.speed_ramp_rpm_s,
-            resonance_rpm_s: p.resonance_ramp_rpm_s,
-            band_rpm: p.resonance_band_rpm,
-        };
-        let (ramp, accel) = ramp_speed(run.ramp_rpm, target_rpm, &rates, dt);
-        run.ramp_rpm = ramp;
-
-        // Phase loop open or closed: closed with both angles known above its speed.
-        let can_close = m.offset_deg.is_some() && run.ramp_rpm >= p.phase_loop_min_rpm;
-        if can_close && !run.phase_closed() {
-            run.phase = PhaseLock::Closed {
-                pi: PhaseLoop::new(),
-                error: None,
-            };
-            // From the measured offset along the shorter arc: at closing the
-            // rotors are slow (the loop closes at `phase_loop_min_rpm`) and the
-            // platform barely excited, so the through-180 rule of direction
-            // changes would only delay a start to the left by half a turn.
-            self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
-            let to = target_offset(run, &p.tuning, &mut self.table_offset);
-            self.offset.follow(to);
-        } else if !can_close && run.phase_closed() {
-            run.phase = PhaseLock::Open;
-        }
-
-        // Offset ramp; the table's offset follows the ramped speed, except in a
-        // stop, which keeps heading where the run left it.
-        let phase_closed = run.phase_closed();
-        let mut offset_rate = 0.0;
-        if phase_closed {
-            if stop.is_none() {
-                let to = target_offset(run, &p.tuning, &mut self.table_offset);
-                self.offset.follow(to);
-            }
-            let moved = self.offset.step(p.offset_ramp_deg_s * dt);
-            offset_rate = moved / dt;
-        }
-
-        // State changes: a start at the commanded speed with the phase loop closed
-        // (one rotor: no phase loop to wait for) is running; a stop ends once the
-        // ramp is at 0 and the rotors are slow, or after its timeout.
-        match stop {
-            Some(ramp_at_zero_s) if run.ramp_rpm == 0.0 => {
-                *ramp_at_zero_s += dt;
-                let slow = m
-                    .speed_rad_s
-                    .iter()
-                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < p.stop_speed_rpm);
-                if slow || *ramp_at_zero_s >= p.stop_timeout_s {
-                    self.mode = Mode::Idle;
-                }
-            }
-            None if starting && run.ramp_rpm == target_rpm && (phase_closed || self.one_rotor) => {
-                if let Mode::Starting(run) = self.mode {
-                    self.mode = Mode::Running(run);
-                }
-            }
-            _ => {}
-        }
-        (accel, offset_rate)
-    }
-
-    /// Stage 6: the speed references of the speed loops, rad/s: the ramp's, plus
-    /// and minus half the speed difference `dw = w1 - w2` the phase loop asks for
-    /// to correct the phase error (none with the loop open); 0 outside a run.
-    fn speed_references(&mut self, m: &Measurement, offset_rate_deg_s: f32, dt: f32) -> [f32; 2] {
-        let p = &self.params;
-        let Some(run) = self.mode.run_mut() else {
-            return [0.0; 2];
-        };
-        let ramp_rad_s = rpm_to_rad_s(run.ramp_rpm);
-        let dw = match (&mut run.phase, m.phase_error) {
-            (PhaseLock::Closed { pi, .. }, Some(e)) => {
-                // min(trim_max, fraction x max(ramp, 0)), written out: `f32::min`
-                // and `max` are library calls on the Cortex-M4F. The ramp is
-                // finite; a NaN would give 0 as `max` does.
-                let ramp_pos = if ramp_rad_s > 0.0 { ramp_rad_s } else { 0.0 };
-                let fraction = p.phase_trim_fraction * ramp_pos;
-                let limit = if fraction < self.phase_trim_max_rad_s {
-                    fraction
-                } else {
-                    self.phase_trim_max_rad_s
-                };
-                pi.update(
-                    e.wrapped_deg / DEG_PER_RAD,
-                    offset_rate_deg_s / DEG_PER_RAD,
-                    p.phase_kp,
-                    p.phase_ki,
-                    limit,
+            } => (run, Stage::Stopping(ramp_at_zero_s)),
+            Mode::SelfTest(test) => {
+                let step = test.step(
+                    &SelfTestSample {
+                        encoder: inputs.encoder,
+                        index: inputs.index,
+                        current: inputs.current,
+                        speed_rpm: m.speed_rpm,
+                    },
                     dt,
-                )
+                );
+                if !step.done {
+                    return Actuation {
+                        duty: step.duty,
+                        ..Actuation::off(State::SelfTest, Faults::NONE)
+                    };
+                }
+                self.end_self_test(SelfTestStatus::Done);
+                self.mode = Mode::Idle;
+                return Actuation::off(State::Idle, Faults::NONE);
             }
-            // Open, or closed in this very tick: no error measured yet, the
-            // integrator empty.
-            _ => 0.0,
+            Mode::Idle => return Actuation::off(State::Idle, Faults::NONE),
+            Mode::Fault(faults) => return Actuation::off(State::Fault, *faults),
         };
-        [ramp_rad_s + 0.5 * dw, ramp_rad_s - 0.5 * dw]
-    }
+        let mut stages = RunStages {
+            params: &self.params,
+            speed_rates: &self.speed_rates,
+            offset: &mut self.offset,
+            table_offset: &mut self.table_offset,
+            one_rotor: self.one_rotor,
+            phase_trim_max_rad_s: self.phase_trim_max_rad_s,
+        };
 
-    /// Stage 7: the duties: in a run the speed loops' (feedforward + PI towards
-    /// `speed_ref`, rad/s, with the reference's acceleration `accel_rpm_s`), in the
-    /// self-test its own `test_duty`, otherwise 0.
-    fn duties(
-        &mut self,
-        supply_voltage: f32,
-        m: &Measurement,
-        speed_ref: [f32; 2],
-        accel_rpm_s: f32,
-        test_duty: [f32; 2],
-        dt: f32,
-    ) -> [f32; 2] {
-        let p = &self.params;
-        let run = match &mut self.mode {
-            Mode::Starting(run) | Mode::Running(run) | Mode::Stopping { run, .. } => run,
-            Mode::SelfTest(_) => return test_duty,
-            Mode::Idle | Mode::Fault(_) => return [0.0; 2],
-        };
-        // The measured supply, unless unusable: then the nominal one.
-        let supply_v = if supply_voltage.is_finite() && supply_voltage >= 0.5 * p.supply_nominal_v {
-            supply_voltage
-        } else {
-            p.supply_nominal_v
-        };
-        let accel_ref_rad_s2 = rpm_to_rad_s(accel_rpm_s);
-        let update = |k: usize, speed_loop: &mut SpeedLoop| {
-            let input = SpeedLoopInput {
-                speed_ref_rad_s: speed_ref[k],
-                accel_ref_rad_s2,
-                speed_rad_s: m.speed_rad_s[k],
-                supply_v,
-            };
-            speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
-        };
-        let [loop1, loop2] = &mut run.speed_loops;
-        if self.one_rotor {
-            // Rotor 2 is not driven: exactly 0.
-            [update(0, loop1), 0.0]
-        } else {
-            [update(0, loop1), update(1, loop2)]
+        // 5. References.
+        let starting = matches!(stage, Stage::Starting);
+        let refs = stages.references(run, stage, m, dt);
+        if refs.state == State::Idle {
+            // The stop has ended: the run is gone.
+            self.mode = Mode::Idle;
+            return Actuation::off(State::Idle, Faults::NONE);
+        }
+
+        // 6. Phase loop.
+        let speed_ref = stages.speed_references(run, m, refs.offset_rate_deg_s, dt);
+
+        // 7. Speed loops.
+        let duty = stages.duties(
+            run,
+            inputs.supply_voltage,
+            m,
+            speed_ref,
+            refs.accel_rpm_s,
+            dt,
+        );
+
+        let phase_closed = run.phase_closed();
+        if starting && refs.state == State::Running {
+            // The same run, now running: the run stays where it is in the state,
+            // only its tag is written.
+            if let Mode::Starting(run) = self.mode {
+                self.mode = Mode::Running(run);
+            }
+        }
+        Actuation {
+            state: refs.state,
+            faults: Faults::NONE,
+            phase_closed,
+            speed_ref,
+            duty,
         }
     }
 
-    /// Stage 8: the outputs, built afresh. The state after this tick decides which
-    /// bridges are driven; a latched fault is [`State::Fault`], which drives none:
-    /// the safe state overrides whatever the loops computed. A duty out of [-1, 1]
-    /// is clamped, a non-finite one written as 0.
+    /// Stage 8: the outputs, built afresh. The state after this tick (`drive`'s)
+    /// decides which bridges are driven; a latched fault is [`State::Fault`],
+    /// which drives none: the safe state overrides whatever the loops computed. A
+    /// duty out of [-1, 1] is clamped, a non-finite one written as 0.
     fn outputs(
         &mut self,
         inputs: &Inputs,
         m: &Measurement,
-        speed_ref: [f32; 2],
-        duty: [f32; 2],
+        actuation: &Actuation,
         rejected: bool,
     ) -> Outputs {
-        let state = self.mode.state();
+        let state = actuation.state;
         let driving = state.drives();
         let duty = if driving {
-            map2(duty, |d| {
+            map2(actuation.duty, |d| {
                 // In range already (the loops' duties are): as it is; otherwise
                 // clamped, and 0 if not finite.
                 if libm::fabsf(d) <= 1.0 {
@@ -999,15 +890,17 @@ impl Controller {
             [0.0; 2]
         };
         self.last_duty = duty;
-        let on = self.params.rotor_count.bridges_on(driving);
-        let phase_closed = self.mode.run().is_some_and(Run::phase_closed);
+        // [`RotorCount::bridges_on`]: rotor 2's bridge only on two rotors.
+        let on = [driving, driving && !self.one_rotor];
+        let phase_closed = actuation.phase_closed;
+        let speed_ref = actuation.speed_ref;
         Outputs {
             bridges: [
                 Bridge::driven_if(on[0], duty[0]),
                 Bridge::driven_if(on[1], duty[1]),
             ],
             state,
-            faults: self.mode.faults(),
+            faults: actuation.faults,
             telemetry: Telemetry {
                 speed_rpm: m.speed_rpm,
                 speed_ref_rpm: if !driving {
@@ -1038,9 +931,240 @@ impl Controller {
     }
 }
 
+/// What stages 4 to 7 leave for the output: the state after them, with its
+/// latched faults and, in a run, the phase loop's state, the speed references
+/// (rad/s) and the duties (before the output's clamp).
+#[derive(Clone, Copy, Debug)]
+struct Actuation {
+    /// The state after this tick.
+    state: State,
+    /// The latched faults (none outside [`State::Fault`]).
+    faults: Faults,
+    /// Whether a run's phase loop is closed.
+    phase_closed: bool,
+    /// The speed loops' references, rad/s (0 outside a run).
+    speed_ref: [f32; 2],
+    /// The duties.
+    duty: [f32; 2],
+}
+
+impl Actuation {
+    /// Nothing driven in `state`, `faults` latched.
+    fn off(state: State, faults: Faults) -> Actuation {
+        Actuation {
+            state,
+            faults,
+            phase_closed: false,
+            speed_ref: [0.0; 2],
+            duty: [0.0; 2],
+        }
+    }
+}
+
+/// Where a run is: starting, running, or stopping with the time its speed ramp
+/// has been at 0 (s).
+enum Stage<'a> {
+    /// [`Mode::Starting`].
+    Starting,
+    /// [`Mode::Running`].
+    Running,
+    /// [`Mode::Stopping`], with its time at zero speed.
+    Stopping(&'a mut f32),
+}
+
+/// What stage 5 gives: the speed reference's acceleration, the offset
+/// reference's rate, and the state the run is in after it.
+struct References {
+    /// The speed reference's acceleration, rpm/s.
+    accel_rpm_s: f32,
+    /// The offset reference's rate, degrees/s.
+    offset_rate_deg_s: f32,
+    /// Starting, running, stopping, or idle once a stop has ended.
+    state: State,
+}
+
+/// Stages 5 to 7 of a run: what they use of the controller besides the run,
+/// borrowed apart from the state that holds the run.
+struct RunStages<'a> {
+    /// The parameters in use.
+    params: &'a Params,
+    /// The speed ramp's rates and band, from the parameters.
+    speed_rates: &'a SpeedRampRates,
+    /// The offset reference ([`Controller`]'s).
+    offset: &'a mut OffsetRamp,
+    /// The last table offset looked up ([`target_offset`]).
+    table_offset: &'a mut Option<TableOffset>,
+    /// The machine has one rotor.
+    one_rotor: bool,
+    /// [`Params::phase_trim_max_rpm`] in rad/s.
+    phase_trim_max_rad_s: f32,
+}
+
+impl RunStages<'_> {
+    /// Stage 5: ramp the speed and the offset, open or close the phase loop, and
+    /// say where the run is now: a start at the commanded speed with the phase
+    /// loop closed is running, a stop at rest idle.
+    fn references(
+        &mut self,
+        run: &mut Run,
+        stage: Stage<'_>,
+        m: &Measurement,
+        dt: f32,
+    ) -> References {
+        let p = self.params;
+        let target_rpm = match stage {
+            Stage::Starting | Stage::Running => run.target.speed_rpm,
+            Stage::Stopping(_) => 0.0,
+        };
+
+        // Speed ramp.
+        let (ramp, accel) = ramp_speed(run.ramp_rpm, target_rpm, self.speed_rates, dt);
+        run.ramp_rpm = ramp;
+
+        // Phase loop open or closed: closed with both angles known above its speed.
+        let can_close = m.offset_deg.is_some() && run.ramp_rpm >= p.phase_loop_min_rpm;
+        if can_close && !run.phase_closed() {
+            run.phase = PhaseLock::Closed {
+                pi: PhaseLoop::new(),
+                error: None,
+            };
+            // From the measured offset along the shorter arc: at closing the
+            // rotors are slow (the loop closes at `phase_loop_min_rpm`) and the
+            // platform barely excited, so the through-180 rule of direction
+            // changes would only delay a start to the left by half a turn.
+            *self.offset = OffsetRamp::new(m.offset_deg.unwrap_or(0.0));
+            let to = target_offset(run, &p.tuning, self.table_offset);
+            self.offset.follow(to);
+        } else if !can_close && run.phase_closed() {
+            run.phase = PhaseLock::Open;
+        }
+
+        // Offset ramp; the table's offset follows the ramped speed, except in a
+        // stop, which keeps heading where the run left it.
+        let phase_closed = run.phase_closed();
+        let mut offset_rate_deg_s = 0.0;
+        if phase_closed {
+            if !matches!(stage, Stage::Stopping(_)) {
+                let to = target_offset(run, &p.tuning, self.table_offset);
+                self.offset.follow(to);
+            }
+            let moved = self.offset.step(p.offset_ramp_deg_s * dt);
+            offset_rate_deg_s = moved / dt;
+        }
+
+        // State changes: a start at the commanded speed with the phase loop closed
+        // (one rotor: no phase loop to wait for) is running; a stop ends once the
+        // ramp is at 0 and the rotors are slow, or after its timeout.
+        let state = match stage {
+            Stage::Stopping(ramp_at_zero_s) if run.ramp_rpm == 0.0 => {
+                *ramp_at_zero_s += dt;
+                let slow = m
+                    .speed_rad_s
+                    .iter()
+                    .all(|w| libm::fabsf(rad_s_to_rpm(*w)) < p.stop_speed_rpm);
+                if slow || *ramp_at_zero_s >= p.stop_timeout_s {
+                    State::Idle
+                } else {
+                    State::Stopping
+                }
+            }
+            Stage::Stopping(_) => State::Stopping,
+            Stage::Starting if run.ramp_rpm == target_rpm && (phase_closed || self.one_rotor) => {
+                State::Running
+            }
+            Stage::Starting => State::Starting,
+            Stage::Running => State::Running,
+        };
+        References {
+            accel_rpm_s: accel,
+            offset_rate_deg_s,
+            state,
+        }
+    }
+
+    /// Stage 6: the speed references of the speed loops, rad/s: the ramp's, plus
+    /// and minus half the speed difference `dw = w1 - w2` the phase loop asks for
+    /// to correct the phase error (none with the loop open).
+    fn speed_references(
+        &self,
+        run: &mut Run,
+        m: &Measurement,
+        offset_rate_deg_s: f32,
+        dt: f32,
+    ) -> [f32; 2] {
+        let p = self.params;
+        let ramp_rad_s = rpm_to_rad_s(run.ramp_rpm);
+        let dw = match (&mut run.phase, m.phase_error) {
+            (PhaseLock::Closed { pi, .. }, Some(e)) => {
+                // min(trim_max, fraction x max(ramp, 0)), written out: `f32::min`
+                // and `max` are library calls on the Cortex-M4F. The ramp is
+                // finite; a NaN would give 0 as `max` does.
+                let ramp_pos = if ramp_rad_s > 0.0 { ramp_rad_s } else { 0.0 };
+                let fraction = p.phase_trim_fraction * ramp_pos;
+                let limit = if fraction < self.phase_trim_max_rad_s {
+                    fraction
+                } else {
+                    self.phase_trim_max_rad_s
+                };
+                pi.update(
+                    e.wrapped_deg / DEG_PER_RAD,
+                    offset_rate_deg_s / DEG_PER_RAD,
+                    p.phase_kp,
+                    p.phase_ki,
+                    limit,
+                    dt,
+                )
+            }
+            // Open, or closed in this very tick: no error measured yet, the
+            // integrator empty.
+            _ => 0.0,
+        };
+        [ramp_rad_s + 0.5 * dw, ramp_rad_s - 0.5 * dw]
+    }
+
+    /// Stage 7: the speed loops' duties: feedforward + PI towards `speed_ref`
+    /// (rad/s), with the reference's acceleration `accel_rpm_s`.
+    fn duties(
+        &self,
+        run: &mut Run,
+        supply_voltage: f32,
+        m: &Measurement,
+        speed_ref: [f32; 2],
+        accel_rpm_s: f32,
+        dt: f32,
+    ) -> [f32; 2] {
+        let p = self.params;
+        // The measured supply, unless unusable: then the nominal one.
+        let supply_v = if supply_voltage.is_finite() && supply_voltage >= 0.5 * p.supply_nominal_v {
+            supply_voltage
+        } else {
+            p.supply_nominal_v
+        };
+        let accel_ref_rad_s2 = rpm_to_rad_s(accel_rpm_s);
+        let update = |k: usize, speed_loop: &mut SpeedLoop| {
+            let input = SpeedLoopInput {
+                speed_ref_rad_s: speed_ref[k],
+                accel_ref_rad_s2,
+                speed_rad_s: m.speed_rad_s[k],
+                supply_v,
+            };
+            speed_loop.update(&input, &p.speed_gains[k], &p.rotors[k], p.min_duty, dt)
+        };
+        let [loop1, loop2] = &mut run.speed_loops;
+        if self.one_rotor {
+            // Rotor 2 is not driven: exactly 0.
+            [update(0, loop1), 0.0]
+        } else {
+            [update(0, loop1), update(1, loop2)]
+        }
+    }
+}
+
 /// `s` seconds in whole microseconds, saturating at `u16::MAX` (NaN and negative
 /// values give 0).
 fn saturating_us(s: f32) -> u16 {
-    // A float-to-integer `as` saturates, and takes NaN to 0.
-    (s * 1e6) as u16
+    // A float-to-integer `as` saturates, and takes NaN to 0: to `u32` it is one
+    // conversion instruction on the Cortex-M4F (to `u16` it is followed by two
+    // compares of the float), then the bound of `u16` on the integer.
+    ((s * 1e6) as u32).min(u16::MAX as u32) as u16
 }

@@ -131,22 +131,6 @@ impl Mode {
         }
     }
 
-    /// The run, when starting, running or stopping.
-    pub fn run(&self) -> Option<&Run> {
-        match self {
-            Mode::Starting(run) | Mode::Running(run) | Mode::Stopping { run, .. } => Some(run),
-            Mode::Idle | Mode::SelfTest(_) | Mode::Fault(_) => None,
-        }
-    }
-
-    /// The run, when starting, running or stopping.
-    pub fn run_mut(&mut self) -> Option<&mut Run> {
-        match self {
-            Mode::Starting(run) | Mode::Running(run) | Mode::Stopping { run, .. } => Some(run),
-            Mode::Idle | Mode::SelfTest(_) | Mode::Fault(_) => None,
-        }
-    }
-
     /// The latched faults (none outside [`Mode::Fault`]).
     pub fn faults(&self) -> Faults {
         match self {

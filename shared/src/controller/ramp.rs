@@ -126,7 +126,9 @@ impl OffsetRamp {
     }
 
     /// Move by at most `max_step_deg` (>= 0) towards the waypoint or the target;
-    /// returns the signed change, degrees.
+    /// returns the signed change, degrees. Inlined into the controller's tick,
+    /// which calls it every tick the phase loop is closed.
+    #[inline]
     pub fn step(&mut self, max_step_deg: f32) -> f32 {
         let goal = if self.via_vertical {
             VERTICAL_OFFSET_DEG

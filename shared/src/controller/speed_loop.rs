@@ -55,6 +55,10 @@ impl SpeedLoop {
 
     /// The duty for this tick, in `[min_duty, 1]`; 0 (and the integral emptied) if
     /// any input is not finite.
+    ///
+    /// Always inlined: the controller's tick calls it for each rotor, and out of
+    /// line its input, gains and model go through memory at every call.
+    #[inline(always)]
     pub fn update(
         &mut self,
         input: &SpeedLoopInput,
