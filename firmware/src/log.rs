@@ -33,6 +33,8 @@ pub enum Event {
     TuningRefused = 1 << 0,
     /// A self-test was not started: not idle, a fault, or a rotor turning.
     SelfTestRefused = 1 << 1,
+    /// An identification was not started: not idle, a fault, or a rotor turning.
+    IdentifyRefused = 1 << 2,
 }
 
 /// The flags raised since idle last looked.
@@ -78,6 +80,9 @@ impl Logger {
         }
         if events & Event::SelfTestRefused as u8 != 0 {
             defmt::warn!("self-test not started: not idle, a fault, or a rotor turning");
+        }
+        if events & Event::IdentifyRefused as u8 != 0 {
+            defmt::warn!("identification not started: not idle, a fault, or a rotor turning");
         }
         if status.rx_dropped != self.last_rx_dropped {
             defmt::warn!(

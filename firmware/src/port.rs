@@ -59,6 +59,9 @@ pub fn log_refusals(taken: &ForTick) {
     if taken.self_test_refused {
         log::note(log::Event::SelfTestRefused);
     }
+    if taken.identify_refused {
+        log::note(log::Event::IdentifyRefused);
+    }
 }
 
 /// Idle's look at the link's state, every pass: the bytes the receive ring has

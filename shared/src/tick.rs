@@ -11,20 +11,19 @@
 //!    long the previous one worked);
 //! 2. [`Port::take`]: the command received since the last tick (and, through the
 //!    link's state, a stored tuning table handed over and a requested self-test
-//!    started, before the step);
+//!    or identification started, before the step);
 //! 3. [`Controller::step`] with the nominal tick `dt`;
 //! 4. [`Board::apply`]: each bridge driven at its duty or off (through
 //!    [`crate::drive`] on a board: the timer's compare values and its output
 //!    enable);
-//! 5. [`Port::publish`]: the tick's status and the self-test's, for the link.
+//! 5. [`Port::publish`]: the tick's status and the procedures' reports, for the
+//!    link.
 //!
 //! What follows a tick is the board's: the firmware feeds its watchdog and ends
 //! its timing after [`run`] returns, so that a tick that panics or hangs never
 //! feeds it.
 
 use crate::controller::{Command, Controller, Inputs, Outputs};
-
-use crate::controller::self_test::SelfTestReport;
 use crate::protocol::link::{ForTick, StateLock};
 
 /// What a board provides to a control tick: its sample, and where the outputs go.
@@ -42,8 +41,9 @@ pub trait Port {
     /// The command for this tick (stage 2), after anything the link hands the
     /// controller before its step.
     fn take(&mut self, controller: &mut Controller) -> Option<Command>;
-    /// Publishes the tick's status and the self-test's (stage 5).
-    fn publish(&mut self, out: &Outputs, self_test: SelfTestReport);
+    /// Publishes the tick's status and the procedures' reports, read from
+    /// `controller` (stage 5).
+    fn publish(&mut self, out: &Outputs, controller: &Controller);
 }
 
 /// One control tick: sample, take the command, step with `dt` (s), apply,
@@ -58,7 +58,7 @@ pub fn run(
     inputs.command = port.take(controller);
     let out = controller.step(&inputs, dt);
     board.apply(&out);
-    port.publish(&out, controller.self_test_report());
+    port.publish(&out, controller);
     out
 }
 
@@ -71,7 +71,8 @@ pub struct LinkPort<L: StateLock> {
     /// Time since start, ms, for the status report.
     pub uptime_ms: u32,
     /// What the last [`Port::take`] did besides the command: a tuning table or a
-    /// self-test the controller refused (for the board's log).
+    /// self-test or an identification the controller refused (for the board's
+    /// log).
     pub taken: ForTick,
 }
 
@@ -92,9 +93,9 @@ impl<L: StateLock> Port for LinkPort<L> {
         self.taken.command
     }
 
-    fn publish(&mut self, out: &Outputs, self_test: SelfTestReport) {
+    fn publish(&mut self, out: &Outputs, controller: &Controller) {
         let uptime_ms = self.uptime_ms;
-        self.state.lock(|l| l.publish(uptime_ms, out, self_test));
+        self.state.lock(|l| l.publish(uptime_ms, out, controller));
     }
 }
 

@@ -6,9 +6,12 @@
 //! (its settings derive from them) and must find the motor's own.
 
 use shared::controller::identify::{
-    IdentifyConfig, IdentifyRun, IdentifySample, Identity, RotorIdentity, Shortfall,
+    IdentifyConfig, IdentifyRun, IdentifySample, IdentifyStatus, Identity, RotorIdentity, Shortfall,
 };
-use shared::controller::{Bridge, MachineConstants, Params, RotorCount, RotorModel};
+use shared::controller::{
+    Bridge, Command, Controller, Direction, Inputs, MachineConstants, Params, ResetCause,
+    RotorCount, RotorModel, State,
+};
 use std::f64::consts::TAU;
 
 /// Control tick, s.
@@ -72,6 +75,9 @@ struct Rotor {
     /// The controller's filtered speed, rpm.
     speed_rpm: f64,
     last_count: u32,
+    /// The count latched at the last index pulse of the tick (the index at
+    /// `theta = 0` modulo a turn), taken by [`Rotor::index`].
+    index: Option<u32>,
 }
 
 impl Rotor {
@@ -84,6 +90,7 @@ impl Rotor {
             count0: 1_000_000,
             speed_rpm: 0.0,
             last_count: 0,
+            index: None,
         };
         r.last_count = r.count();
         r
@@ -141,7 +148,14 @@ impl Rotor {
                 // Friction stops the rotor; it does not reverse it.
                 self.omega = if next * direction < 0.0 { 0.0 } else { next };
             }
+            let turns_before = (self.theta / TAU).floor();
             self.theta += self.omega * h;
+            let turns_after = (self.theta / TAU).floor();
+            if turns_after != turns_before {
+                // Crossed theta = 2 pi k: the encoder's count there.
+                let k = turns_after.max(turns_before) as i64;
+                self.index = Some(self.count0.wrapping_add((k * i64::from(N)) as u32));
+            }
             amps += self.current;
         }
         // The controller's speed: counts over the tick, filtered (5 ms).
@@ -186,10 +200,7 @@ fn params(file: [Truth; 2], rotors: RotorCount) -> Params {
 fn identify(truth: [Truth; 2], file: [Truth; 2], noise_a: f64) -> (Identity, f64) {
     let p = params(file, RotorCount::Two);
     let mut rotors = [Rotor::new(truth[0], 0.3), Rotor::new(truth[1], -0.2)];
-    let mut run = IdentifyRun::new(
-        IdentifyConfig::from_params(&p),
-        [rotors[0].count(), rotors[1].count()],
-    );
+    let mut run = IdentifyRun::new(IdentifyConfig::from_params(&p));
     let mut noise = Noise(7);
     let mut bridges = [Bridge::Off; 2];
     let mut ticks = 0u32;
@@ -365,7 +376,7 @@ fn one_rotor_and_an_abort() {
     let t = Truth::REFERENCE;
     let p = params([t; 2], RotorCount::One);
     let mut rotor = Rotor::new(t, 0.1);
-    let mut run = IdentifyRun::new(IdentifyConfig::from_params(&p), [rotor.count(), 0]);
+    let mut run = IdentifyRun::new(IdentifyConfig::from_params(&p));
     let mut bridge = Bridge::Off;
     for tick in 0..3000 {
         let amps = rotor.tick(bridge);
@@ -396,4 +407,106 @@ fn one_rotor_and_an_abort() {
         DT as f32,
     );
     assert!(step.done && step.bridges == [Bridge::Off; 2]);
+}
+
+/// The controller runs the identification from `start_identify` to idle, on
+/// two reference motors: state `identify` meanwhile, then `Done` with the
+/// motors' constants; run commands are refused while it runs.
+#[test]
+fn the_controller_runs_it() {
+    let t = Truth::REFERENCE;
+    let p = params([t; 2], RotorCount::Two);
+    let mut c = Controller::new(&p, ResetCause::PowerOn);
+    let mut rotors = [Rotor::new(t, 0.3), Rotor::new(t, -0.2)];
+    let mut bridges = [Bridge::Off; 2];
+    let inputs = |rotors: &[Rotor; 2], amps: [f64; 2], command| Inputs {
+        encoder: [rotors[0].count(), rotors[1].count()],
+        current: amps.map(|a| a as f32),
+        supply_voltage: SUPPLY as f32,
+        command,
+        ..Inputs::default()
+    };
+    c.step(&inputs(&rotors, [0.0; 2], None), DT as f32);
+    assert!(c.start_identify());
+    assert!(!c.start_self_test(), "one procedure at a time");
+    let mut ticks = 0;
+    loop {
+        let amps = [0, 1].map(|k| rotors[k].tick(bridges[k]));
+        let index = [0, 1].map(|k| rotors[k].index.take());
+        let command = (ticks == 100).then_some(Command::Travel {
+            direction: Direction::Right,
+            speed_rpm: 3000.0,
+        });
+        let out = c.step(
+            &Inputs {
+                index,
+                ..inputs(&rotors, amps, command)
+            },
+            DT as f32,
+        );
+        if ticks == 100 {
+            assert!(out.telemetry.command_rejected, "a run command is refused");
+        }
+        bridges = out.bridges;
+        ticks += 1;
+        if out.state != State::Identify {
+            assert_eq!(
+                out.state,
+                State::Idle,
+                "faults {:?} after {ticks} ticks",
+                out.faults
+            );
+            assert_eq!(out.bridges, [Bridge::Off; 2]);
+            break;
+        }
+        assert!(ticks < 40_000, "never ends");
+    }
+    let report = c.identify_report();
+    assert_eq!(report.status, IdentifyStatus::Done);
+    for r in &report.identity.rotors {
+        check(r, &t, 0.02, 0.05);
+    }
+}
+
+/// A stop aborts it (idle) and the E-stop does too (fault), the bridges off in
+/// that very tick; the rotor under test is marked aborted.
+#[test]
+fn a_stop_or_the_estop_aborts_it() {
+    let t = Truth::REFERENCE;
+    for estop in [false, true] {
+        let mut c = Controller::new(&params([t; 2], RotorCount::Two), ResetCause::PowerOn);
+        let mut rotors = [Rotor::new(t, 0.3), Rotor::new(t, -0.2)];
+        let mut bridges = [Bridge::Off; 2];
+        assert!(c.start_identify());
+        for tick in 0..3000 {
+            let amps = [0, 1].map(|k| rotors[k].tick(bridges[k]));
+            let index = [0, 1].map(|k| rotors[k].index.take());
+            let last = tick == 2999;
+            let out = c.step(
+                &Inputs {
+                    encoder: [rotors[0].count(), rotors[1].count()],
+                    index,
+                    current: amps.map(|a| a as f32),
+                    supply_voltage: SUPPLY as f32,
+                    estop: last && estop,
+                    command: (last && !estop).then_some(Command::Stop),
+                    ..Inputs::default()
+                },
+                DT as f32,
+            );
+            bridges = out.bridges;
+            if last {
+                assert_eq!(out.bridges, [Bridge::Off; 2], "estop {estop}");
+                assert_eq!(out.state, if estop { State::Fault } else { State::Idle });
+            } else {
+                assert_eq!(out.state, State::Identify);
+            }
+        }
+        let report = c.identify_report();
+        assert_eq!(report.status, IdentifyStatus::Aborted);
+        assert_eq!(
+            report.identity.rotors[0].shortfall,
+            Some(Shortfall::Aborted)
+        );
+    }
 }

@@ -9,7 +9,10 @@ use std::collections::VecDeque;
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use proptest::prelude::*;
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
-use shared::controller::{Bridge, Command, Direction, Faults, Outputs, State, TuningTable};
+use shared::controller::{
+    Bridge, Command, Controller, Direction, Faults, Inputs, Outputs, Params, ResetCause, State,
+    TuningTable,
+};
 use shared::protocol::link::{no_telemetry, Link, LinkState, StateLock};
 use shared::protocol::{Decoder, Message, NackReason, Request, Response, FRAME_GAP_TIMEOUT_MS};
 use shared::storage::{self, SimFlash};
@@ -199,14 +202,19 @@ fn an_aborted_self_test_does_not_drop_the_stored_result() {
         faults: Faults::NONE,
         telemetry: no_telemetry(),
     };
-    dev.state.publish(
-        10,
-        &outputs,
-        SelfTestReport {
-            status: SelfTestStatus::Aborted,
-            result: SelfTest::default(),
-        },
+    let mut controller = Controller::new(&Params::reference(), ResetCause::PowerOn);
+    assert!(controller.start_self_test());
+    let stop = Inputs {
+        supply_voltage: 12.0,
+        command: Some(Command::Stop),
+        ..Inputs::default()
+    };
+    controller.step(&stop, 1e-3);
+    assert_eq!(
+        controller.self_test_report().status,
+        SelfTestStatus::Aborted
     );
+    dev.state.publish(10, &outputs, &controller);
     assert_eq!(dev.state.self_test.status, SelfTestStatus::Aborted);
     assert!(!dev.state.self_test_unsaved);
 

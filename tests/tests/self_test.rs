@@ -661,7 +661,7 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
         );
         duty = out.duties();
         let was_running = dev.state.self_test.status == SelfTestStatus::Running;
-        dev.state.publish(ms, &out, c.self_test_report());
+        dev.state.publish(ms, &out, &c);
         if was_running && dev.state.self_test.status == SelfTestStatus::Done {
             assert!(dev.state.self_test_unsaved);
             done_at = Some(ms);

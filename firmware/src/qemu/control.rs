@@ -4,7 +4,6 @@
 
 use shared::controller::{Bridge, Command, Controller, Inputs, Outputs, TickTiming};
 
-use shared::controller::self_test::SelfTestReport;
 use shared::protocol::link::LinkState;
 use shared::tick::Port;
 
@@ -91,8 +90,8 @@ impl<P: Port> Port for QemuPort<P> {
         command
     }
 
-    fn publish(&mut self, out: &Outputs, self_test: SelfTestReport) {
-        self.port.publish(out, self_test);
+    fn publish(&mut self, out: &Outputs, controller: &Controller) {
+        self.port.publish(out, controller);
     }
 }
 

@@ -36,14 +36,27 @@ pub fn set_value(root: &mut Table, key_path: &str, x: f64) -> Result<(), String>
     match here.get_mut(last).and_then(Item::as_value_mut) {
         Some(v) => {
             let decor = v.decor().clone();
-            *v = toml_edit::Value::from(x);
+            *v = number(x);
             *v.decor_mut() = decor;
         }
         None => {
-            here.insert(last, toml_edit::value(x));
+            here.insert(last, Item::Value(number(x)));
         }
     }
     Ok(())
+}
+
+/// `x` as a TOML number in the shortest form that reads back as `x`: with an
+/// exponent below 1e-3 and from 1e6 (`6e-6`, as a person writes an inertia),
+/// plainly between (`0.41`, `2.25`).
+fn number(x: f64) -> toml_edit::Value {
+    let magnitude = x.abs();
+    let text = if x != 0.0 && x.is_finite() && !(1e-3..1e6).contains(&magnitude) {
+        format!("{x:e}")
+    } else {
+        return toml_edit::Value::from(x);
+    };
+    text.parse().unwrap_or_else(|_| toml_edit::Value::from(x))
 }
 
 #[cfg(test)]

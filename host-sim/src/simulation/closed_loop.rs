@@ -31,8 +31,6 @@
 use shared::controller::{
     Command, Controller, Faults, Outputs, Params, ResetCause, RotorCount, State,
 };
-
-use shared::controller::self_test::SelfTestReport;
 use shared::tick::{self, Port};
 
 use crate::machine::input::Problem;
@@ -316,5 +314,5 @@ impl Port for SchedulePort<'_> {
         command
     }
 
-    fn publish(&mut self, _out: &Outputs, _self_test: SelfTestReport) {}
+    fn publish(&mut self, _out: &Outputs, _controller: &Controller) {}
 }

@@ -43,6 +43,8 @@
 //! - `tuning`: the offset table, interpolated circularly;
 //! - [`self_test`]: the first-run self-test (polarities, index, counts per turn) and
 //!   its result;
+//! - [`identify`]: the motor identification (resistance, torque constant,
+//!   friction, inertia) and its result;
 //! - `stopped`: whether the motors are stopped for a flash write;
 //! - [`angle`]: wrapping and units.
 //!
@@ -54,7 +56,10 @@
 //!   Stopping --Travel/HoldOffset--> Starting
 //!   Idle --start_self_test()--> SelfTest --done--> Idle
 //!   SelfTest --Stop--> Idle (aborted)
-//!   any --fault--> Fault --ResetFaults, causes gone--> Idle   (a self-test: aborted)
+//!   Idle --start_identify()--> Identify --done--> Idle
+//!   Identify --Stop--> Idle (aborted)
+//!   any --fault--> Fault --ResetFaults, causes gone--> Idle   (a self-test or an
+//!                                                              identification: aborted)
 //! ```
 //!
 //! A run starts from the measured speed (0 at rest) and ramps at
@@ -149,6 +154,10 @@ pub use tuning::{
 };
 
 use angle::{rad_s_to_rpm, rpm_to_rad_s, wrap_deg, wrap_deg_signed, DEG_PER_RAD, TURN_DEG};
+use identify::{
+    IdentifyConfig, IdentifyProgress, IdentifyReport, IdentifyRun, IdentifySample, IdentifyStatus,
+    Identity,
+};
 use mode::{Mode, OffsetSource, PhaseLock, Run, RunTarget, UnwrappedError};
 use phase_loop::PhaseLoop;
 use ramp::{ramp_speed, OffsetRamp, SpeedRampRates};
@@ -248,6 +257,7 @@ fn map2<T: Copy, U>(a: [T; 2], f: impl Fn(T) -> U) -> [U; 2] {
 
 /// The vibro driver's motor controller. See the module documentation.
 #[derive(Clone, Debug)]
+#[repr(C)]
 pub struct Controller {
     /// The parameters in use (the reference ones if those given were invalid).
     params: Params,
@@ -270,9 +280,6 @@ pub struct Controller {
     table_offset: Option<TableOffset>,
     /// Why the given parameters were refused.
     params_error: Option<ParamError>,
-    /// The state, with the data only it uses: a run's command, speed ramp and
-    /// loops; the self-test in progress; the latched faults.
-    mode: Mode,
     /// Encoder tracking, per rotor.
     encoders: [EncoderTracker; 2],
     /// Filtered currents, A.
@@ -292,6 +299,12 @@ pub struct Controller {
     /// The report of the last self-test that ended, `Done` or `Aborted` (`NotRun`,
     /// all zero: none has run on this controller).
     last_self_test: SelfTestReport,
+    /// The report of the last identification that ended, as the self-test's.
+    last_identify: IdentifyReport,
+    /// The state, with the data only it uses: a run's command, speed ramp and
+    /// loops; the self-test or the identification in progress; the latched
+    /// faults.
+    mode: Mode,
 }
 
 impl Controller {
@@ -333,6 +346,10 @@ impl Controller {
             last_self_test: SelfTestReport {
                 status: SelfTestStatus::NotRun,
                 result: SelfTest::default(),
+            },
+            last_identify: IdentifyReport {
+                status: IdentifyStatus::NotRun,
+                identity: Identity::default(),
             },
             tick_s: params.tick_s(),
             deg_per_count: TURN_DEG / params.encoder_counts as f32,
@@ -409,14 +426,80 @@ impl Controller {
         }
     }
 
-    /// Keep the report of the self-test in progress, if one is, ended with
-    /// `status`; the caller moves the mode on.
-    fn end_self_test(&mut self, status: SelfTestStatus) {
-        if let Mode::SelfTest(run) = &self.mode {
-            self.last_self_test = SelfTestReport {
-                status,
-                result: run.result(),
-            };
+    /// Start the motor identification ([`identify`]): only from [`State::Idle`]
+    /// (no fault latched) with both rotors at rest (the last tick's speeds within
+    /// [`identify::REST_RPM`]); `false` says it did not start and changes nothing.
+    /// The state is [`State::Identify`] until it finishes ([`State::Idle`], status
+    /// `Done`) or is aborted by a fault ([`State::Fault`]) or [`Command::Stop`]
+    /// ([`State::Idle`]), both with status `Aborted`.
+    pub fn start_identify(&mut self) -> bool {
+        let at_rest = self
+            .encoders
+            .iter()
+            .all(|e| libm::fabsf(rad_s_to_rpm(e.speed_rad_s())) <= identify::REST_RPM);
+        if !matches!(self.mode, Mode::Idle) || !at_rest {
+            return false;
+        }
+        self.mode = Mode::Identify(IdentifyRun::new(IdentifyConfig::from_params(&self.params)));
+        true
+    }
+
+    /// The identification's status and result: `NotRun` until one is started on
+    /// this controller, then `Running` with the rotors finished so far, then
+    /// `Done` or `Aborted`.
+    pub fn identify_report(&self) -> IdentifyReport {
+        match &self.mode {
+            Mode::Identify(run) => IdentifyReport {
+                status: IdentifyStatus::Running,
+                identity: run.result(),
+            },
+            _ => self.last_identify,
+        }
+    }
+
+    /// Keep the report of the self-test or identification in progress, if one
+    /// is, ended: `done` (finished) or aborted; the caller moves the mode on.
+    fn end_procedure(&mut self, done: bool) {
+        match &mut self.mode {
+            Mode::SelfTest(run) => {
+                self.last_self_test = SelfTestReport {
+                    status: if done {
+                        SelfTestStatus::Done
+                    } else {
+                        SelfTestStatus::Aborted
+                    },
+                    result: run.result(),
+                };
+            }
+            Mode::Identify(run) => {
+                if !done {
+                    run.abort();
+                }
+                self.last_identify = IdentifyReport {
+                    status: if done {
+                        IdentifyStatus::Done
+                    } else {
+                        IdentifyStatus::Aborted
+                    },
+                    identity: run.result(),
+                };
+            }
+            _ => {}
+        }
+    }
+
+    /// How far the identification has come: what changes whenever its report
+    /// does ([`Controller::identify_report`]), cheap to ask every tick.
+    pub fn identify_progress(&self) -> IdentifyProgress {
+        match &self.mode {
+            Mode::Identify(run) => IdentifyProgress {
+                status: IdentifyStatus::Running,
+                rotors_finished: run.rotors_finished(),
+            },
+            _ => IdentifyProgress {
+                status: self.last_identify.status,
+                rotors_finished: self.last_identify.identity.rotors_run,
+            },
         }
     }
 
@@ -582,6 +665,7 @@ impl Controller {
             Mode::Stopping { run, .. } => (State::Stopping, run),
             Mode::Idle => return (State::Idle, None),
             Mode::SelfTest(_) => return (State::SelfTest, None),
+            Mode::Identify(_) => return (State::Identify, None),
             Mode::Fault(_) => return (State::Fault, None),
         };
         // No offset measured: the loop opens in this tick's stage 5 (or the run
@@ -654,7 +738,7 @@ impl Controller {
     /// already latched; a run ends (motors off, references and loops gone), a
     /// self-test is aborted.
     fn latch(&mut self, found: Faults) {
-        self.end_self_test(SelfTestStatus::Aborted);
+        self.end_procedure(false);
         self.mode = Mode::Fault(self.mode.faults() | found);
     }
 
@@ -710,12 +794,12 @@ impl Controller {
         }
     }
 
-    /// A stop: a self-test is aborted (idle); a run starting or running ramps
-    /// down to rest (stopping).
+    /// A stop: a self-test or an identification is aborted (idle); a run
+    /// starting or running ramps down to rest (stopping).
     fn stop(&mut self) {
         match self.mode {
-            Mode::SelfTest(_) => {
-                self.end_self_test(SelfTestStatus::Aborted);
+            Mode::SelfTest(_) | Mode::Identify(_) => {
+                self.end_procedure(false);
                 self.mode = Mode::Idle;
             }
             Mode::Starting(run) | Mode::Running(run) => {
@@ -740,7 +824,7 @@ impl Controller {
         }
         let target = RunTarget { speed_rpm, offset };
         match &mut self.mode {
-            Mode::Fault(_) | Mode::SelfTest(_) => return true,
+            Mode::Fault(_) | Mode::SelfTest(_) | Mode::Identify(_) => return true,
             Mode::Idle => {
                 // Start from the speed the rotors have (0 at rest, more if
                 // coasting).
@@ -806,7 +890,28 @@ impl Controller {
                         ..Actuation::off(State::SelfTest, Faults::NONE)
                     };
                 }
-                self.end_self_test(SelfTestStatus::Done);
+                self.end_procedure(true);
+                self.mode = Mode::Idle;
+                return Actuation::off(State::Idle, Faults::NONE);
+            }
+            Mode::Identify(run) => {
+                let step = run.step(
+                    &IdentifySample {
+                        encoder: inputs.encoder,
+                        current: inputs.current,
+                        supply_voltage: inputs.supply_voltage,
+                        speed_rpm: m.speed_rpm,
+                    },
+                    dt,
+                );
+                if !step.done {
+                    return Actuation {
+                        duty: step.bridges.map(Bridge::duty),
+                        open: step.bridges.map(|b| !b.is_driven()),
+                        ..Actuation::off(State::Identify, Faults::NONE)
+                    };
+                }
+                self.end_procedure(true);
                 self.mode = Mode::Idle;
                 return Actuation::off(State::Idle, Faults::NONE);
             }
@@ -858,6 +963,7 @@ impl Controller {
             phase_closed,
             speed_ref,
             duty,
+            open: [false; 2],
         }
     }
 
@@ -890,8 +996,12 @@ impl Controller {
             [0.0; 2]
         };
         self.last_duty = duty;
-        // [`RotorCount::bridges_on`]: rotor 2's bridge only on two rotors.
-        let on = [driving, driving && !self.one_rotor];
+        // [`RotorCount::bridges_on`]: rotor 2's bridge only on two rotors; a
+        // bridge the identification leaves open (a rotor coasting) is off.
+        let on = [
+            driving && !actuation.open[0],
+            driving && !self.one_rotor && !actuation.open[1],
+        ];
         let phase_closed = actuation.phase_closed;
         let speed_ref = actuation.speed_ref;
         Outputs {
@@ -946,6 +1056,8 @@ struct Actuation {
     speed_ref: [f32; 2],
     /// The duties.
     duty: [f32; 2],
+    /// Bridges left off although the state drives (the identification's coast).
+    open: [bool; 2],
 }
 
 impl Actuation {
@@ -957,6 +1069,7 @@ impl Actuation {
             phase_closed: false,
             speed_ref: [0.0; 2],
             duty: [0.0; 2],
+            open: [false; 2],
         }
     }
 }

@@ -9,13 +9,14 @@
 //! hands the encoded answers to a send function. Commands reach the control task
 //! through [`LinkState::command`], one per tick; a new tuning table through
 //! [`LinkState::new_tuning`]; a self-test request through
-//! [`LinkState::self_test_requested`].
+//! [`LinkState::self_test_requested`], an identification's through
+//! [`LinkState::identify_requested`].
 
 use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
     FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
-use crate::controller::identify::{IdentifyReport, IdentifyStatus, Identity};
+use crate::controller::identify::{IdentifyProgress, IdentifyReport, IdentifyStatus, Identity};
 use crate::controller::self_test::{SelfTest, SelfTestReport, SelfTestStatus};
 use crate::controller::{
     may_write_table, Command, Controller, Outputs, Params, Telemetry, TuningTable,
@@ -56,6 +57,8 @@ pub struct LinkState {
     /// An identification was requested and waits for the control task to start
     /// it.
     pub identify_requested: bool,
+    /// The identification's progress when its report was last copied.
+    pub identify_progress: IdentifyProgress,
     /// A finished identification waits to be stored in flash with the table.
     pub identify_unsaved: bool,
     /// The newest finished motor identification: the stored one at start,
@@ -134,6 +137,10 @@ impl LinkState {
                 identity: Identity::default(),
             },
             identify_requested: false,
+            identify_progress: IdentifyProgress {
+                status: IdentifyStatus::NotRun,
+                rotors_finished: 0,
+            },
             identify_unsaved: false,
             self_test: self_test.unwrap_or(SelfTestReport {
                 status: SelfTestStatus::NotRun,
@@ -148,10 +155,10 @@ impl LinkState {
     }
 
     /// The control task's side, before its step: hand a newly stored tuning
-    /// table to `controller`, start a requested self-test, and take the waiting
-    /// command for this tick. A self-test the controller refuses (the link
-    /// checked idle and at rest on the previous tick's status; the controller
-    /// checks again) is reported aborted, nothing measured.
+    /// table to `controller`, start a requested self-test or identification, and
+    /// take the waiting command for this tick. A procedure the controller refuses
+    /// (the link checked idle and at rest on the previous tick's status; the
+    /// controller checks again) is reported aborted, nothing measured.
     pub fn take_for_tick(&mut self, controller: &mut Controller) -> ForTick {
         let tuning_refused = match self.new_tuning.take() {
             Some(table) => !controller.set_tuning(table),
@@ -168,6 +175,16 @@ impl LinkState {
                 result: Default::default(),
             };
         }
+        // The identification, likewise.
+        let identify_refused = !self.storing
+            && core::mem::take(&mut self.identify_requested)
+            && !controller.start_identify();
+        if identify_refused {
+            self.identify = IdentifyReport {
+                status: IdentifyStatus::Aborted,
+                identity: Identity::default(),
+            };
+        }
         // While the flash is written, a motion command waits (a stop or a
         // heartbeat passes: they never start the motors).
         let command = match self.command {
@@ -181,16 +198,20 @@ impl LinkState {
             command,
             tuning_refused,
             self_test_refused,
+            identify_refused,
         }
     }
 
     /// The control task's side, after its step: the tick's status at
-    /// `uptime_ms`, and the controller's `self_test` report. A report still
-    /// `NotRun` (no test since the start) keeps the result loaded from flash; a
-    /// test that just finished is marked for storing with the table.
-    pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, self_test: SelfTestReport) {
+    /// `uptime_ms`, and `controller`'s reports. A report still `NotRun` (none
+    /// since the start) keeps the result loaded from flash; one that just
+    /// finished is marked for storing with the table. The identification's
+    /// report is copied only when its progress changes (a rotor finished, its
+    /// status), not every tick.
+    pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, controller: &Controller) {
         self.status = StatusReport::from_outputs(uptime_ms, out);
         self.status.rx_dropped = u16::try_from(self.rx_dropped).unwrap_or(u16::MAX);
+        let self_test = controller.self_test_report();
         if self_test.status != SelfTestStatus::NotRun {
             if self.self_test.status == SelfTestStatus::Running
                 && self_test.status == SelfTestStatus::Done
@@ -199,6 +220,18 @@ impl LinkState {
                 self.finished_self_test = Some(self_test.result);
             }
             self.self_test = self_test;
+        }
+        let progress = controller.identify_progress();
+        if progress.status != IdentifyStatus::NotRun && progress != self.identify_progress {
+            let identify = controller.identify_report();
+            if self.identify.status == IdentifyStatus::Running
+                && identify.status == IdentifyStatus::Done
+            {
+                self.identify_unsaved = true;
+                self.finished_identity = Some(identify.identity);
+            }
+            self.identify = identify;
+            self.identify_progress = progress;
         }
     }
 
@@ -222,6 +255,8 @@ pub struct ForTick {
     pub tuning_refused: bool,
     /// A self-test was requested but the controller did not start it.
     pub self_test_refused: bool,
+    /// An identification was requested but the controller did not start it.
+    pub identify_refused: bool,
 }
 
 /// Telemetry before the first control tick: all zero, nothing measured.

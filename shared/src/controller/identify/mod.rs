@@ -50,7 +50,9 @@ mod result;
 
 pub use assemble::INERTIA_SPEED_FRACTION;
 pub use fit::{LeastSquares, Solution};
-pub use result::{Estimate, IdentifyReport, IdentifyStatus, Identity, RotorIdentity, Shortfall};
+pub use result::{
+    Estimate, IdentifyProgress, IdentifyReport, IdentifyStatus, Identity, RotorIdentity, Shortfall,
+};
 
 use super::angle::rpm_to_rad_s;
 use super::io::Bridge;
@@ -186,13 +188,14 @@ pub struct IdentifyStep {
 }
 
 /// The tested rotor's tick just sampled: its interval's mean voltage (the duty
-/// written in the previous tick times the supply), V, its mean current, A, and
-/// its travel, counts.
+/// written in the previous tick times the supply), V, its mean current, A, its
+/// travel, counts, and its count now.
 #[derive(Clone, Copy, Debug)]
 struct Tick {
     volts: f32,
     amps: f32,
     d_count: i32,
+    count: u32,
 }
 
 /// Means over a level's measured ticks.
@@ -305,7 +308,8 @@ pub struct IdentifyRun {
     last: [Bridge; 2],
     /// The tested rotor's counts.
     counts: Counts,
-    last_count: u32,
+    /// The tested rotor's count in the previous tick (`None` before the first).
+    last_count: Option<u32>,
     /// The control tick, s.
     dt: f32,
     /// The tested rotor's voltage rows.
@@ -321,9 +325,8 @@ pub struct IdentifyRun {
 }
 
 impl IdentifyRun {
-    /// An identification about to settle before rotor 1, `encoder` the counters
-    /// now.
-    pub fn new(config: IdentifyConfig, encoder: [u32; 2]) -> Self {
+    /// An identification about to settle before rotor 1.
+    pub fn new(config: IdentifyConfig) -> Self {
         IdentifyRun {
             config,
             rotor: 0,
@@ -334,7 +337,7 @@ impl IdentifyRun {
             },
             last: [Bridge::Off; 2],
             counts: Counts::default(),
-            last_count: encoder[0],
+            last_count: None,
             dt: 0.0,
             voltage: LeastSquares::new(),
             holds: [0; 2],
@@ -363,6 +366,11 @@ impl IdentifyRun {
         self.phase == Phase::Done
     }
 
+    /// How many rotors have finished (their results final).
+    pub fn rotors_finished(&self) -> u8 {
+        self.rotor as u8
+    }
+
     /// The rotor under test, while one is.
     pub fn rotor(&self) -> Option<usize> {
         (self.phase != Phase::Done).then_some(self.rotor)
@@ -378,6 +386,9 @@ impl IdentifyRun {
     }
 
     /// One tick, `dt` s after the previous one (> 0): the bridges to write now.
+    /// Kept out of line: its frame is on the stack only while an identification
+    /// runs, not in every control tick's.
+    #[inline(never)]
     pub fn step(&mut self, s: &IdentifySample, dt: f32) -> IdentifyStep {
         if self.phase == Phase::Done {
             return self.finish_step(None);
@@ -386,12 +397,13 @@ impl IdentifyRun {
         let r = self.rotor;
         let count = s.encoder[r];
         let tick = self.counts.push(count);
-        let d_count = count.wrapping_sub(self.last_count) as i32;
-        self.last_count = count;
+        let d_count = count.wrapping_sub(self.last_count.unwrap_or(count)) as i32;
+        self.last_count = Some(count);
         let sampled = Tick {
             volts: self.last[r].duty() * s.supply_voltage,
             amps: s.current[r],
             d_count,
+            count,
         };
         let n = self.config.counts_per_rev;
         if let Some(spin) = &mut self.spin {
@@ -502,7 +514,7 @@ impl IdentifyRun {
         let dt = self.dt;
         let n = self.config.counts_per_rev;
         h.elapsed_s += dt;
-        let travel = self.last_count.wrapping_sub(h.start) as i32;
+        let travel = sampled.count.wrapping_sub(h.start) as i32;
         if travel.unsigned_abs() > n / 4 || h.elapsed_s >= HOLD_TIMEOUT_S {
             return self.end_holds();
         }
@@ -519,7 +531,7 @@ impl IdentifyRun {
                 self.voltage.add([i, speed, 1.0, sign], v);
                 self.holds[h.level % 2] += 1;
                 return if h.level + 1 < 2 * HOLD_LEVELS.len() {
-                    self.start_hold(h.level + 1, self.last_count)
+                    self.start_hold(h.level + 1, sampled.count)
                 } else {
                     self.end_holds()
                 };
@@ -674,7 +686,7 @@ impl IdentifyRun {
             return;
         }
         self.counts = Counts::default();
-        self.last_count = s.encoder[self.rotor];
+        self.last_count = Some(s.encoder[self.rotor]);
         self.voltage = LeastSquares::new();
         self.holds = [0; 2];
         self.speed_rows = 0;

@@ -111,6 +111,16 @@ pub enum IdentifyStatus {
     Aborted,
 }
 
+/// How far an identification has come: its status and the rotors finished. Its
+/// result changes only when this does, so a reader copies the result only then.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IdentifyProgress {
+    /// Where it stands.
+    pub status: IdentifyStatus,
+    /// Rotors whose results are final.
+    pub rotors_finished: u8,
+}
+
 /// The identification's status with its result (the last finished one, or what
 /// the one running has measured so far).
 #[derive(Clone, Copy, Debug, PartialEq)]
