@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand, ValueEnum};
 
+use crate::args::Format;
 use crate::help::epilogue;
 use crate::link::client::DEFAULT_RETRIES;
 use crate::sweep::{parse_offsets, parse_speeds, Range};
@@ -70,6 +71,15 @@ pub enum DeviceCommand {
     /// first waits for the rotors at rest for 0.5 s (at most 10 s).
     #[command(after_help = help(&["host-sim device --port /dev/ttyUSB0 self-test"]))]
     SelfTest(SelfTestArgs),
+    /// Measure each motor (resistance, torque constant, Coulomb and viscous
+    /// friction, the rotor's inertia) with the motors stopped first, one rotor
+    /// at a time, and print the values with their standard errors; with
+    /// `--machine` beside the file's, with `--write` into a copy of it.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 identify --machine examples/vibro-driver.toml",
+        "host-sim device --port /dev/ttyUSB0 identify --machine examples/vibro-driver.toml --write identified.toml",
+    ]))]
+    Identify(IdentifyArgs),
     /// Read or write the device's tuning table (the file format of `host-sim tune
     /// --write`).
     #[command(subcommand)]
@@ -180,6 +190,30 @@ pub struct SelfTestArgs {
     pub timeout: f64,
 }
 
+/// Arguments of `host-sim device identify`.
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// Give up when the identification has not finished after S seconds.
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 60.0,
+        allow_negative_numbers = true
+    )]
+    pub timeout: f64,
+    /// The machine file the board was built for: its values are printed beside
+    /// the measured ones.
+    #[arg(long, value_name = "MACHINE.toml")]
+    pub machine: Option<PathBuf>,
+    /// Write the machine file with the measured motor keys and rotor inertias,
+    /// every comment kept (needs `--machine`).
+    #[arg(long, value_name = "OUT.toml", requires = "machine")]
+    pub write: Option<PathBuf>,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = Format::Table)]
+    pub format: Format,
+}
+
 /// `host-sim device table ...`.
 #[derive(Debug, Subcommand)]
 pub enum TableCommand {
@@ -265,6 +299,7 @@ pub struct DeviceTuneArgs {
     "host-sim device-sim",
     "host-sim device-sim --machine examples/vibro-driver.toml --listen tcp:127.0.0.1:5555",
     "host-sim device --port tcp:127.0.0.1:5555 status",
+    "host-sim device-sim --machine truth.toml --firmware-machine examples/vibro-driver.toml",
 ]))]
 pub struct DeviceSimArgs {
     /// Listen on `tcp:HOST:PORT` (port 0: any free port) instead of opening a
@@ -278,6 +313,12 @@ pub struct DeviceSimArgs {
     /// machine's rotors with the platform held.
     #[arg(long, value_name = "MACHINE.toml")]
     pub machine: Option<PathBuf>,
+    /// The machine file the simulated board's firmware was built for: its
+    /// controller's constants and tuning table come from it, the plant from
+    /// `--machine` (the machine as it really is), as on a bench where the file
+    /// is a guess (default: `--machine` itself).
+    #[arg(long, value_name = "FILE.toml", requires = "machine")]
+    pub firmware_machine: Option<PathBuf>,
     /// Hold the machine's platform (and every other body) still at its start
     /// pose: only the rotors turn, as on a bench with the platform clamped.
     #[arg(long, requires = "machine")]

@@ -10,7 +10,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use shared::controller::{Command, Direction, State, TuningTable};
+use shared::controller::{Command, Direction, TuningTable};
 
 use shared::controller::self_test::{SelfTestReport, SelfTestStatus};
 use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS};
@@ -18,9 +18,10 @@ use shared::protocol::{Request, Response, StatusReport, MIN_TELEMETRY_PERIOD_MS}
 use super::args::{
     DeviceArgs, DeviceCommand, DirectionArg, HoldArgs, SelfTestArgs, TableCommand, TravelArgs,
 };
+use super::procedure::{self, after_a_tick, stood, Procedure, Stage};
 use super::report;
-use super::rest::{self, await_rest, await_steady_rest, Poll, REST_HOLD_S, REST_TIMEOUT_S};
-use super::{live, telemetry, tune};
+use super::rest::{await_rest, Poll, REST_TIMEOUT_S};
+use super::{identify, live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::{Client, LinkError};
@@ -29,9 +30,6 @@ use crate::link::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
 use crate::machine::tuning_file;
 use crate::numbers;
 use crate::output::file::Staged;
-
-/// How often the self-test is polled.
-const SELF_TEST_POLL: Duration = Duration::from_millis(50);
 
 /// The header comment of a table read from the device.
 pub const TABLE_HEADER: &str =
@@ -52,13 +50,14 @@ pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> 
         table,
         file,
         tune,
+        identify,
     } = check(args)?;
     // A port that cannot be opened is a bad --port, as a missing file is.
     let port = port
         .open()
         .map_err(|e| Failure::usage(format!("--port: {e}")))?;
     let mut client = Client::new(port, args.retries);
-    run_on(&mut client, args, table, file, tune, console)
+    run_on(&mut client, args, table, file, tune, identify, console)
 }
 
 /// What [`check`] found: the port, the table to write, and the output file staged
@@ -70,6 +69,8 @@ struct Checked {
     file: Option<(Staged, usize)>,
     /// `tune`'s grid, measured file and table output.
     tune: Option<tune::Prepared>,
+    /// `identify`'s machine file and output.
+    identify: Option<identify::Prepared>,
 }
 
 /// `path`, given as `option`, staged as the command's one output file.
@@ -101,6 +102,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
     let mut table = None;
     let mut file = None;
     let mut tune = None;
+    let mut identify = None;
     match &args.command {
         DeviceCommand::Travel(a) => {
             positive("--speed", f64::from(a.speed), "rpm")?;
@@ -141,6 +143,10 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
             }
         }
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
+        DeviceCommand::Identify(a) => {
+            positive("--timeout", a.timeout, "seconds")?;
+            identify = Some(identify::prepare(a)?);
+        }
         DeviceCommand::Table(TableCommand::Write { file }) => {
             table = Some(tuning_file::read_table(file)?);
         }
@@ -158,6 +164,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         table,
         file,
         tune,
+        identify,
     })
 }
 
@@ -168,6 +175,7 @@ fn run_on(
     table: Option<TuningTable>,
     file: Option<(Staged, usize)>,
     tune: Option<tune::Prepared>,
+    identify: Option<identify::Prepared>,
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
     match &args.command {
@@ -200,6 +208,11 @@ fn run_on(
             }
         }
         DeviceCommand::SelfTest(a) => self_test(client, a, out)?,
+        DeviceCommand::Identify(a) => {
+            if let Some(prepared) = identify {
+                identify::run(client, a, prepared, out)?;
+            }
+        }
         DeviceCommand::Table(TableCommand::Read { out: path }) => {
             table_read(client, path.as_deref().zip(file), out)?
         }
@@ -214,42 +227,6 @@ fn run_on(
         }
     }
     Ok(())
-}
-
-/// The longest wait for the device's next control tick, s: the board ticks
-/// every millisecond; a device whose uptime stands this long is said to.
-const TICK_WAIT_S: f64 = 1.0;
-
-/// The status once the controller has taken the command just acknowledged,
-/// which it does at its next control tick: a status whose uptime differs from
-/// that of the first status asked after the Ack (that one may still be from
-/// the tick before the command came), asked every few milliseconds, at most
-/// [`TICK_WAIT_S`]; with whether the device ticked (if not, the status may be
-/// from before the command, and the caller must say so).
-fn after_a_tick(client: &mut Client) -> Result<(StatusReport, bool), Failure> {
-    let first = client.status()?;
-    let start = Instant::now();
-    loop {
-        client.pump(Duration::from_millis(2))?;
-        let s = client.status()?;
-        if s.uptime_ms != first.uptime_ms {
-            return Ok((s, true));
-        }
-        if start.elapsed().as_secs_f64() >= TICK_WAIT_S {
-            return Ok((s, false));
-        }
-    }
-}
-
-/// What a status after a command says when the device did not tick.
-fn stood(ticked: bool, command: &str) -> String {
-    if ticked {
-        String::new()
-    } else {
-        format!(
-            " (the device's uptime stood for {TICK_WAIT_S} s: this status may be from before the {command})"
-        )
-    }
 }
 
 fn travel(client: &mut Client, a: &TravelArgs, out: &mut Console<'_>) -> Result<(), Failure> {
@@ -378,100 +355,33 @@ fn read_self_test(client: &mut Client) -> Result<SelfTestReport, Failure> {
     }
 }
 
-/// Whether the controller took the self-test just acknowledged, asked every few
-/// milliseconds for at most [`TICK_WAIT_S`]: a self-test reported running is
-/// this one (a device refuses the request while one runs), and so is any
-/// report once the device's uptime moved past that of the first status asked
-/// after the Ack. (A device whose clock stands while its self-test runs, as a
-/// debugger can hold a board's control task, takes the test at the tick
-/// before that first status can be asked: its uptime never moves again, but
-/// the test is running.)
-fn self_test_taken(client: &mut Client) -> Result<bool, Failure> {
-    let first = client.status()?;
-    let start = Instant::now();
-    loop {
-        if read_self_test(client)?.status == SelfTestStatus::Running {
-            return Ok(true);
-        }
-        client.pump(Duration::from_millis(2))?;
-        if client.status()?.uptime_ms != first.uptime_ms {
-            return Ok(true);
-        }
-        if start.elapsed().as_secs_f64() >= TICK_WAIT_S {
-            return Ok(false);
-        }
+/// The self-test, for [`procedure::run`].
+const SELF_TEST: Procedure<SelfTestReport> = Procedure {
+    name: "self-test",
+    last: "the last test's",
+    start: Request::RunSelfTest,
+    read: read_self_test,
+    stage: self_test_stage,
+};
+
+fn self_test_stage(r: &SelfTestReport) -> Stage {
+    match r.status {
+        SelfTestStatus::NotRun => Stage::NotRun,
+        SelfTestStatus::Running => Stage::Running,
+        SelfTestStatus::Done => Stage::Done,
+        SelfTestStatus::Aborted => Stage::Aborted,
     }
 }
 
 fn self_test(client: &mut Client, a: &SelfTestArgs, out: &mut Console<'_>) -> Result<(), Failure> {
-    interrupt::catch();
-    // The device takes the test only with both rotors at rest; after a stop an
-    // eccentric may swing on for a while (module `rest`). With the motors
-    // driven (or a self-test running) there is nothing to wait for: the device
-    // answers the request with its reason.
-    if matches!(Poll::status(client)?.state, State::Idle | State::Fault) {
-        let rest = await_steady_rest(client, REST_HOLD_S, REST_TIMEOUT_S)?;
-        if !rest.reached {
-            return Err(Failure::device(format!(
-                "the self-test needs the motors stopped and both rotors at rest (below {} rpm) for {REST_HOLD_S} s; not so within {REST_TIMEOUT_S} s: {}",
-                shared::controller::WRITE_MAX_SPEED_RPM,
-                rest::motion(&rest.status)
-            )));
-        }
-    }
-    command(client, &Request::RunSelfTest)?;
-    // Until the controller takes the request at its next tick, the device
-    // reports the previous self-test's outcome: not this one's.
-    if !self_test_taken(client)? {
-        return Err(Failure::device(format!(
-            "the device accepted the self-test but its uptime stood for {TICK_WAIT_S} s: its report cannot be told from the last test's; ask `host-sim device --port PORT status` until its uptime moves, then again"
-        )));
-    }
-    let start = Instant::now();
-    let timeout = Duration::from_secs_f64(a.timeout);
-    // A device that accepted the test but never reports it running.
-    let never_started = Duration::from_secs(2).min(timeout);
-    loop {
-        // Every poll is a heartbeat too.
-        let r = read_self_test(client)?;
-        match r.status {
-            SelfTestStatus::Done | SelfTestStatus::Aborted => {
-                out.print(&report::self_test_text(&r));
-                return if r.status == SelfTestStatus::Done {
-                    Ok(())
-                } else {
-                    Err(Failure::device(
-                        "the self-test was aborted (a fault, the E-stop or a stop)",
-                    ))
-                };
-            }
-            SelfTestStatus::NotRun if start.elapsed() >= never_started => {
-                return Err(Failure::device(format!(
-                    "the device accepted the self-test but has not started it after {:.1} s",
-                    never_started.as_secs_f64()
-                )));
-            }
-            _ => {}
-        }
-        if start.elapsed() >= timeout {
-            return Err(Failure::device(format!(
-                "the self-test did not finish within {} s (--timeout); status: {}",
-                a.timeout,
-                report::self_test_status(r.status)
-            )));
-        }
-        if interrupt::interrupted() {
-            command(client, &Request::Command(Command::Stop))?;
-            let ticked = after_a_tick(client)?.1;
-            let after = read_self_test(client)?;
-            return Err(Failure::device(format!(
-                "{}: the self-test was stopped (Stop accepted); its status now: {}{}",
-                interrupt::interruption(),
-                report::self_test_status(after.status),
-                stood(ticked, "stop")
-            )));
-        }
-        client.pump(SELF_TEST_POLL)?;
+    let r = procedure::run(client, &SELF_TEST, a.timeout)?;
+    out.print(&report::self_test_text(&r));
+    if r.status == SelfTestStatus::Done {
+        Ok(())
+    } else {
+        Err(Failure::device(
+            "the self-test was aborted (a fault, the E-stop or a stop)",
+        ))
     }
 }
 

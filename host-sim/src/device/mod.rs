@@ -12,6 +12,10 @@
 //! - [`tune`]: `host-sim device tune`, the tuning sweep on the machine, answers
 //!   from the operator appended to a [`measured`] file, the table made by
 //!   [`tune_table`];
+//! - [`procedure`]: a procedure the device runs on its own (the self-test, the
+//!   motor identification), asked for, watched and stopped on Ctrl-C;
+//! - [`identify`]: `host-sim device identify`, the motors measured, compared with
+//!   a machine file and written into one;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - [`rest`]: the machine at rest after a stop, as its status says;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
@@ -24,9 +28,11 @@
 
 pub mod args;
 pub mod commands;
+pub mod identify;
 pub mod live;
 pub mod measured;
 pub mod plant;
+pub mod procedure;
 pub mod report;
 pub mod rest;
 pub mod serve;

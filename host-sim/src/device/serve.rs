@@ -360,21 +360,37 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
         ),
         Some(path) => {
             let machine = Machine::load(path, &[])?;
-            check_whole_ms_tick(&machine, path)?;
-            if let Some(w) = constants_warning(&machine) {
-                console.note(&format!("warning: {}: {w}\n", path.display()));
+            // The firmware's file: the controller's constants and table.
+            let (firmware_path, firmware) = match &args.firmware_machine {
+                None => (path, machine.clone()),
+                Some(f) => (f, Machine::load(f, &[])?),
+            };
+            check_whole_ms_tick(&firmware, firmware_path)?;
+            if let Some(w) = constants_warning(&firmware) {
+                console.note(&format!("warning: {}: {w}\n", firmware_path.display()));
             }
-            let (platform, plant) = if args.platform_held {
-                (Platform::Held, "its rotors, the platform held (motors, H-bridges, sensors)")
+            let whose = if args.firmware_machine.is_some() {
+                format!("{}'s ", path.display())
             } else {
-                (Platform::Free, "its whole plant (platform, contacts, motors, sensors)")
+                "its ".to_string()
+            };
+            let (platform, plant) = if args.platform_held {
+                (
+                    Platform::Held,
+                    format!("{whose}rotors, the platform held (motors, H-bridges, sensors)"),
+                )
+            } else {
+                (
+                    Platform::Free,
+                    format!("{whose}whole plant (platform, contacts, motors, sensors)"),
+                )
             };
             (
-                SimDevice::with_machine(&machine, platform, table, noise)?,
+                SimDevice::with_machines(&machine, &firmware, platform, table, noise)?,
                 format!(
                     "{}'s controller at {} Hz on {plant}",
-                    path.display(),
-                    machine.controller.rate_hz
+                    firmware_path.display(),
+                    firmware.controller.rate_hz
                 ),
             )
         }

@@ -154,8 +154,22 @@ impl SimDevice {
         tuning: Option<TuningTable>,
         noise: Noise,
     ) -> Result<SimDevice, Vec<Problem>> {
-        let params = params(machine)?;
-        let plant = PlantMechanics::new(machine, platform);
+        SimDevice::with_machines(machine, machine, platform, tuning, noise)
+    }
+
+    /// The bench a real board is on: the controller `firmware` builds (the
+    /// machine file the firmware was built for: its parameters and tuning table)
+    /// on the plant of `truth` (the machine as it really is), as
+    /// [`SimDevice::with_machine`] otherwise.
+    pub fn with_machines(
+        truth: &Machine,
+        firmware: &Machine,
+        platform: Platform,
+        tuning: Option<TuningTable>,
+        noise: Noise,
+    ) -> Result<SimDevice, Vec<Problem>> {
+        let params = params(firmware)?;
+        let plant = PlantMechanics::new(truth, platform);
         Ok(SimDevice::on(params, tuning, plant, noise))
     }
 

@@ -10,13 +10,18 @@
 //! 2. **Friction** (the torque balance averaged over whole turns at a steady
 //!    speed, where the kinetic and the eccentric's potential energy come back to
 //!    where they were, so the mean is taken over the angle, not over time):
-//!    `k <i>_theta = T_c + b <w>_theta`, one row per speed level, with `k` from 1.
+//!    `k <i>_theta = T_c + b <w>_theta`, one row per speed level, with `k` from 1,
+//!    each row weighted by the standard error of its mean current (the spread
+//!    of the level's samples over the square root of their number).
 //! 3. **Inertia**: [`super::energy`], with `k`, `T_c` and `b` from 1 and 2, at the
 //!    first whole turn of the spin-up where the speed has reached
 //!    [`INERTIA_SPEED_FRACTION`] of the top level's.
 //!
-//! Standard errors: those of the fits (`s sqrt([(X^T X)^-1]_jj)`), the friction
-//! values' widened by `k`'s relative error (they are proportional to `k`), and the
+//! Standard errors: the voltage fit's from its residuals (`s sqrt([(X^T
+//! X)^-1]_jj)`, eight degrees of freedom); the friction fit's from its rows' own
+//! errors (`sqrt([(X^T W X)^-1]_jj)`, the scatter's `s` taken where it is above
+//! 1: four rows say little of their own scatter), widened by `k`'s relative
+//! error (the values are proportional to `k`); and the
 //! inertia's propagated from `k`, `T_c`, `b` and the boundary speed's count
 //! quantization, plus the eccentric's work over the boundary's miss of the whole
 //! turn (at most `T_L |miss|`, taken as uniform: `/ sqrt 3`), each to first
@@ -38,6 +43,8 @@ pub struct SpeedRow {
     pub speed_by_angle: f64,
     /// `<i>_theta`, A.
     pub amps_by_angle: f64,
+    /// Its standard error, A ([`SpeedRow::amps_by_angle`]).
+    pub amps_std_error: f64,
     /// The time-mean speed, rad/s.
     pub speed: f64,
 }
@@ -71,16 +78,39 @@ pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
     }
     let k_rel = v.std_errors[1] / k;
 
+    // Each row weighted by its own standard error (the current's, times k), so
+    // that the errors come from what was measured, not only from the scatter of
+    // four rows about a line; widened by the scatter where it is the larger.
     let mut friction = LeastSquares::<2>::new();
     for row in g.speeds {
-        friction.add([1.0, row.speed_by_angle], k * row.amps_by_angle);
+        let se = (k * row.amps_std_error).max(f64::MIN_POSITIVE);
+        friction.add(
+            [1.0 / se, row.speed_by_angle / se],
+            k * row.amps_by_angle / se,
+        );
     }
     let Some(f) = friction.solve() else {
         return RotorIdentity::short(Shortfall::NoFit);
     };
     let [t_c, b] = f.coefficients;
+    let scale = f.residual_scale.max(1.0);
     let widen = |value: f64, se: f64| libm::sqrt(se * se + (value * k_rel) * (value * k_rel));
-    let (se_tc, se_b) = (widen(t_c, f.std_errors[0]), widen(b, f.std_errors[1]));
+    let (se_tc, se_b) = (
+        widen(t_c, scale * f.unit_errors[0]),
+        widen(b, scale * f.unit_errors[1]),
+    );
+    // The friction fit's residual in N m, unweighted.
+    let friction_residual = {
+        let sum: f64 = g
+            .speeds
+            .iter()
+            .map(|r| {
+                let e = k * r.amps_by_angle - t_c - b * r.speed_by_angle;
+                e * e
+            })
+            .sum();
+        libm::sqrt(sum / g.speeds.len().max(1) as f64)
+    };
 
     let Some(top) = g.speeds.first() else {
         return RotorIdentity::short(Shortfall::NoSpeed);
@@ -126,7 +156,7 @@ pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
         offset_v: est(c0, v.std_errors[2]),
         drop_v: est(c1, v.std_errors[3]),
         voltage_residual_v: v.residual_rms as f32,
-        friction_residual_nm: f.residual_rms as f32,
+        friction_residual_nm: friction_residual as f32,
         standstill_levels: g.levels.0,
         speed_levels: g.levels.1,
     }

@@ -40,6 +40,13 @@ pub struct Solution<const P: usize> {
     pub std_errors: [f64; P],
     /// The root-mean-square residual `sqrt(RSS / n)`, in the units of `y`.
     pub residual_rms: f64,
+    /// The residual's scale `s = sqrt(RSS / (n - P))` (0 without a degree of
+    /// freedom): for rows weighted by their own standard errors, about 1 when
+    /// the model fits within them.
+    pub residual_scale: f64,
+    /// `sqrt([(X^T X)^-1]_jj)`: the standard errors for rows weighted by their own
+    /// standard errors (known variances), whatever the residual.
+    pub unit_errors: [f64; P],
     /// Rows used.
     pub rows: u32,
 }
@@ -94,21 +101,23 @@ impl<const P: usize> LeastSquares<P> {
         // Rounding can take RSS a hair below 0 on an exact fit.
         let rss = (self.yty - explained).max(0.0);
         let dof = self.n as usize - P;
+        let s2 = if dof > 0 { rss / dof as f64 } else { 0.0 };
         let mut std_errors = [0.0; P];
-        if dof > 0 {
-            let s2 = rss / dof as f64;
-            for j in 0..P {
-                let mut e = [0.0; P];
-                e[j] = 1.0;
-                // [(X^T X)^-1]_jj = e_j^T (X^T X)^-1 e_j.
-                let column = cholesky_solve(&l, &e);
-                std_errors[j] = libm::sqrt(s2 * column[j].max(0.0));
-            }
+        let mut unit_errors = [0.0; P];
+        for j in 0..P {
+            let mut e = [0.0; P];
+            e[j] = 1.0;
+            // [(X^T X)^-1]_jj = e_j^T (X^T X)^-1 e_j.
+            let column = cholesky_solve(&l, &e);
+            unit_errors[j] = libm::sqrt(column[j].max(0.0));
+            std_errors[j] = libm::sqrt(s2) * unit_errors[j];
         }
         Some(Solution {
             coefficients,
             std_errors,
             residual_rms: libm::sqrt(rss / f64::from(self.n)),
+            residual_scale: libm::sqrt(s2),
+            unit_errors,
             rows: self.n,
         })
     }

@@ -198,16 +198,23 @@ struct Tick {
     count: u32,
 }
 
-/// Means over a level's measured ticks.
+/// Means over a level's measured ticks; a speed level's last tick counts only
+/// up to the whole turn it ends at.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Window {
-    ticks: u32,
+    /// Ticks, the last one's fraction included.
+    ticks: f64,
     /// `sum V`, V.
     volts: f64,
     /// `sum i`, A.
     amps: f64,
+    /// `sum (i_n - i_(n-1))^2` over the measured ticks, A^2, and how many.
+    amps_steps_sq: f64,
+    amps_steps: f64,
+    /// The last tick's current, A.
+    last_amps: Option<f32>,
     /// Counts travelled.
-    travel: i64,
+    travel: f64,
     /// `sum i dtheta`, A rad.
     amps_by_angle: f64,
     /// `sum w dtheta`, rad^2/s.
@@ -216,34 +223,57 @@ struct Window {
 
 impl Window {
     fn add(&mut self, t: Tick, n: u32, dt: f32) {
-        let d_theta = TAU * f64::from(t.d_count) / f64::from(n);
-        self.ticks += 1;
-        self.volts += f64::from(t.volts);
-        self.amps += f64::from(t.amps);
-        self.travel += i64::from(t.d_count);
+        self.add_part(t, 1.0, n, dt);
+    }
+
+    /// The first `fraction` of tick `t` (its means held over the tick).
+    fn add_part(&mut self, t: Tick, fraction: f64, n: u32, dt: f32) {
+        let counts = fraction * f64::from(t.d_count);
+        let d_theta = TAU * counts / f64::from(n);
+        let speed = TAU * f64::from(t.d_count) / (f64::from(n) * f64::from(dt));
+        self.ticks += fraction;
+        self.volts += fraction * f64::from(t.volts);
+        self.amps += fraction * f64::from(t.amps);
+        if let Some(last) = self.last_amps {
+            let step = f64::from(t.amps) - f64::from(last);
+            self.amps_steps_sq += fraction * step * step;
+            self.amps_steps += fraction;
+        }
+        self.last_amps = Some(t.amps);
+        self.travel += counts;
         self.amps_by_angle += f64::from(t.amps) * d_theta;
-        self.speed_by_angle += d_theta * d_theta / f64::from(dt);
+        self.speed_by_angle += speed * d_theta;
     }
 
     fn seconds(&self, dt: f32) -> f32 {
-        self.ticks as f32 * dt
+        (self.ticks * f64::from(dt)) as f32
     }
 
     /// `(V, i, w)`: the time means, V, A, rad/s.
     fn means(&self, n: u32, dt: f32) -> (f64, f64, f64) {
-        let ticks = f64::from(self.ticks.max(1));
+        let ticks = self.ticks.max(1.0);
         let time = ticks * f64::from(dt);
         (
             self.volts / ticks,
             self.amps / ticks,
-            TAU * self.travel as f64 / (f64::from(n) * time),
+            TAU * self.travel / (f64::from(n) * time),
         )
     }
 
     /// `(<w>_theta, <i>_theta)`: the means over the angle, rad/s and A.
     fn by_angle(&self, n: u32) -> (f64, f64) {
-        let theta = TAU * self.travel as f64 / f64::from(n);
+        let theta = TAU * self.travel / f64::from(n);
         (self.speed_by_angle / theta, self.amps_by_angle / theta)
+    }
+
+    /// The standard error of the mean current, A: the sense's noise from the
+    /// tick-to-tick steps, `sigma^2 = <(i_n - i_(n-1))^2> / 2` (von Neumann's
+    /// estimator: the current's swing over a turn, tens of ticks long, hardly
+    /// enters a step, and whole turns average it out of the mean), over
+    /// `sqrt(ticks)`.
+    fn amps_std_error(&self) -> f64 {
+        let steps = self.amps_steps.max(1.0);
+        libm::sqrt(self.amps_steps_sq / (2.0 * steps) / self.ticks.max(1.0))
     }
 }
 
@@ -591,15 +621,22 @@ impl IdentifyRun {
             window = Some(Window::default());
         }
         if let Some(w) = &mut window {
-            w.add(sampled, n, dt);
-            let turns = w.travel.unsigned_abs() >= u64::from(MIN_TURNS) * u64::from(n);
-            if turns && w.seconds(dt) >= MIN_MEASURE_S - 0.5 * dt {
+            // The level ends at the first whole turn (from the window's start)
+            // after both MIN_TURNS turns and MIN_MEASURE_S: that tick counts up
+            // to it, so the eccentric's weight does no net work over the window.
+            let n_f = f64::from(n);
+            let next_turn = (libm::floor(w.travel / n_f) + 1.0).max(f64::from(MIN_TURNS)) * n_f;
+            let d = f64::from(sampled.d_count);
+            let timed = w.seconds(dt) + dt >= MIN_MEASURE_S - 0.5 * dt;
+            if timed && d > 0.0 && w.travel + d >= next_turn {
+                w.add_part(sampled, (next_turn - w.travel) / d, n, dt);
                 let (v, i, speed) = w.means(n, dt);
                 let (speed_by_angle, amps_by_angle) = w.by_angle(n);
                 self.voltage.add([i, speed, 1.0, 1.0], v);
                 self.speeds[self.speed_rows] = SpeedRow {
                     speed_by_angle,
                     amps_by_angle,
+                    amps_std_error: w.amps_std_error(),
                     speed,
                 };
                 self.speed_rows += 1;
@@ -609,6 +646,7 @@ impl IdentifyRun {
                     self.start_coast(None)
                 };
             }
+            w.add(sampled, n, dt);
             if w.seconds(dt) >= MAX_MEASURE_S {
                 return self.start_coast(Some(Shortfall::NoSpeed));
             }
