@@ -7,7 +7,6 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use serde_json::{json, Value};
-use toml_edit::DocumentMut;
 
 use super::fit::Fit;
 use super::keys::FitKey;
@@ -17,10 +16,8 @@ use super::points::{Point, ROWS_SHOWN};
 use super::precision::{informative, Precision, MAX_CONDITION, UNIDENTIFIED_SHARE};
 use super::{CalibrateArgs, Calibration};
 use crate::failure::Failure;
-use crate::machine::input;
-use crate::machine::Machine;
 use crate::numbers;
-use crate::output::machine_edit::set_value;
+use crate::output::machine_edit::with_values;
 use crate::output::text::{self, Align};
 use crate::sweep::RunOutcome;
 
@@ -438,38 +435,18 @@ pub fn machine_file(
     c: &Calibration,
     out: &Path,
 ) -> Result<String, Failure> {
-    let internal = |why: String| {
+    let values: Vec<(String, f64)> = c
+        .keys
+        .iter()
+        .zip(&c.fitted)
+        .flat_map(|(k, x)| k.key_paths.iter().map(move |p| (p.clone(), *x)))
+        .collect();
+    with_values(path, text, &values, out).map_err(|why| {
         Failure::run(format!(
             "--write {}: {why} (an internal error)",
             out.display()
         ))
-    };
-    let mut doc: DocumentMut = text
-        .parse()
-        .map_err(|e| internal(format!("{} does not parse again: {e}", path.display())))?;
-    for (k, x) in c.keys.iter().zip(&c.fitted) {
-        for p in &k.key_paths {
-            set_value(doc.as_table_mut(), p, *x).map_err(|why| internal(format!("{p}: {why}")))?;
-        }
-    }
-    let written = doc.to_string();
-    // It reads back, with the fitted values.
-    let name = out.display().to_string();
-    let dir = out.parent().unwrap_or(Path::new(""));
-    let numbers = Machine::numbers(&name, &written, dir, &[]).map_err(|p| {
-        internal(format!(
-            "the file written does not read back: {}",
-            input::render(&p).trim_end()
-        ))
-    })?;
-    for (k, x) in c.keys.iter().zip(&c.fitted) {
-        for p in &k.key_paths {
-            if !numbers.iter().any(|n| n.key_path == *p && n.value == *x) {
-                return Err(internal(format!("{p} does not read back as {x}")));
-            }
-        }
-    }
-    Ok(written)
+    })
 }
 
 #[cfg(test)]

@@ -40,7 +40,7 @@ use crate::link::requests::{ask, unexpected};
 use crate::machine::{input, Machine};
 use crate::numbers;
 use crate::output::file::Staged;
-use crate::output::machine_edit::set_value;
+use crate::output::machine_edit::with_values;
 use crate::output::text::{Align, Table};
 
 /// Two motors agree on a key when their values differ by at most this many
@@ -319,7 +319,7 @@ fn written(file: &MachineFile, rotors: &[RotorIdentity], out: &Path) -> Result<S
             numbers::count(m.rotors.len(), "rotor")
         )));
     }
-    let mut doc: DocumentMut = file
+    let doc: DocumentMut = file
         .text
         .parse()
         .map_err(|e| fail(format!("{} does not parse again: {e}", file.path.display())))?;
@@ -381,28 +381,8 @@ fn written(file: &MachineFile, rotors: &[RotorIdentity], out: &Path) -> Result<S
         }
         values.push((format!("rotors[{k}].inertia"), rounded(own)));
     }
-    for (path, x) in &values {
-        set_value(doc.as_table_mut(), path, *x)
-            .map_err(|why| fail(format!("{path}: {why} (an internal error)")))?;
-    }
-    let text = doc.to_string();
-    // It reads back with these values.
-    let name = out.display().to_string();
-    let dir = out.parent().unwrap_or(Path::new(""));
-    let numbers = Machine::numbers(&name, &text, dir, &[]).map_err(|p| {
-        fail(format!(
-            "the file written does not read back: {} (an internal error)",
-            input::render(&p).trim_end()
-        ))
-    })?;
-    for (path, x) in &values {
-        if !numbers.iter().any(|n| n.key_path == *path && n.value == *x) {
-            return Err(fail(format!(
-                "{path} does not read back as {x} (an internal error)"
-            )));
-        }
-    }
-    Ok(text)
+    with_values(&file.path, &file.text, &values, out)
+        .map_err(|why| fail(format!("{why} (an internal error)")))
 }
 
 fn sq(x: f32) -> f64 {

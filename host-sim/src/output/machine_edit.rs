@@ -2,7 +2,44 @@
 //! comments, spacing and order, as a person wrote them (`calibrate --write`,
 //! `device identify --write`).
 
-use toml_edit::{Item, Table};
+use std::path::Path;
+
+use toml_edit::{DocumentMut, Item, Table};
+
+use crate::machine::{input, Machine};
+
+/// The machine file `text` (read from `path`) with each `(key path, value)` of
+/// `values` set ([`set_value`]), checked to read back with exactly those values
+/// as the file `out` (whose directory a relative tuning table is resolved
+/// against). `Err`: why not, for an internal error's message.
+pub fn with_values(
+    path: &Path,
+    text: &str,
+    values: &[(String, f64)],
+    out: &Path,
+) -> Result<String, String> {
+    let mut doc: DocumentMut = text
+        .parse()
+        .map_err(|e| format!("{} does not parse again: {e}", path.display()))?;
+    for (key_path, x) in values {
+        set_value(doc.as_table_mut(), key_path, *x).map_err(|why| format!("{key_path}: {why}"))?;
+    }
+    let written = doc.to_string();
+    let name = out.display().to_string();
+    let dir = out.parent().unwrap_or(Path::new(""));
+    let numbers = Machine::numbers(&name, &written, dir, &[]).map_err(|p| {
+        format!(
+            "the file written does not read back: {}",
+            input::render(&p).trim_end()
+        )
+    })?;
+    for (key_path, x) in values {
+        if !numbers.iter().any(|n| n.key_path == *key_path && n.value == *x) {
+            return Err(format!("{key_path} does not read back as {x}"));
+        }
+    }
+    Ok(written)
+}
 
 /// Sets the key at the reader's key path `key_path` (`contacts[0].restitution`) of
 /// `root` to `x`, keeping the old value's comment and spacing; creates the key
