@@ -34,7 +34,10 @@ pub fn with_values(
         )
     })?;
     for (key_path, x) in values {
-        if !numbers.iter().any(|n| n.key_path == *key_path && n.value == *x) {
+        if !numbers
+            .iter()
+            .any(|n| n.key_path == *key_path && n.value == *x)
+        {
             return Err(format!("{key_path} does not read back as {x}"));
         }
     }

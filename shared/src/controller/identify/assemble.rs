@@ -17,11 +17,13 @@
 //!    first whole turn of the spin-up where the speed has reached
 //!    [`INERTIA_SPEED_FRACTION`] of the top level's.
 //!
-//! Standard errors: the voltage fit's from its residuals (`s sqrt([(X^T
-//! X)^-1]_jj)`, eight degrees of freedom); the friction fit's from its rows' own
-//! errors (`sqrt([(X^T W X)^-1]_jj)`, the scatter's `s` taken where it is above
-//! 1: four rows say little of their own scatter), widened by `k`'s relative
-//! error (the values are proportional to `k`); and the
+//! Standard errors: both fits weigh each row by its own errors (the mean
+//! current's, by von Neumann's estimator of the sense's noise; the mean speed's,
+//! a count of quantization at each end of the level) and give
+//! `sqrt([(X^T W X)^-1]_jj)`, times the scatter's `s` where it is above 1 (the
+//! model misses by more than the rows' errors; a dozen rows, or four, say little
+//! of their own scatter otherwise). The friction values are widened by `k`'s
+//! relative error (they are proportional to `k`); and the
 //! inertia's propagated from `k`, `T_c`, `b` and the boundary speed's count
 //! quantization, plus the eccentric's work over the boundary's miss of the whole
 //! turn (at most `T_L |miss|`, taken as uniform: `/ sqrt 3`), each to first
@@ -35,6 +37,27 @@ use super::result::{Estimate, RotorIdentity, Shortfall};
 /// fraction of the top level's (most of the kinetic energy, little of the
 /// friction's work).
 pub const INERTIA_SPEED_FRACTION: f64 = 0.8;
+
+/// The most rows of the voltage fit: the standstill levels both ways and the
+/// speed levels.
+pub const VOLTAGE_ROWS: usize = 2 * super::HOLD_LEVELS.len() + super::SPEED_LEVELS.len();
+
+/// One level's row of the voltage fit: its time means and their errors.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VoltageRow {
+    /// Mean voltage (duty times supply), V.
+    pub volts: f64,
+    /// Mean current, A.
+    pub amps: f64,
+    /// Mean speed, rad/s.
+    pub speed: f64,
+    /// The current's direction, +1 or -1.
+    pub sign: f64,
+    /// The mean current's standard error, A.
+    pub amps_std_error: f64,
+    /// The mean speed's standard error, rad/s (the counts' quantization).
+    pub speed_std_error: f64,
+}
 
 /// One speed level's means.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -52,7 +75,10 @@ pub struct SpeedRow {
 /// What one rotor's run gathered.
 pub struct Gathered<'a> {
     /// The voltage rows.
-    pub voltage: &'a LeastSquares<4>,
+    pub voltage: &'a [VoltageRow],
+    /// The machine file's resistance, ohm, and torque constant, N m/A: the rows'
+    /// weights.
+    pub file_motor: (f32, f32),
     /// The speed levels, in order (the top level first).
     pub speeds: &'a [SpeedRow],
     /// The spin-up's whole turns.
@@ -69,14 +95,43 @@ pub struct Gathered<'a> {
 
 /// The identity of one rotor from what its run gathered, or where it fell short.
 pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
-    let Some(v) = g.voltage.solve() else {
+    // Each row weighted by its own error: the current's and the speed's, through
+    // the file's R and k (`sigma_V^2 = (R sigma_i)^2 + (k sigma_w)^2`).
+    let (r_file, k_file) = (f64::from(g.file_motor.0), f64::from(g.file_motor.1));
+    let mut voltage = LeastSquares::<4>::new();
+    for row in g.voltage {
+        let se = libm::sqrt(
+            (r_file * row.amps_std_error) * (r_file * row.amps_std_error)
+                + (k_file * row.speed_std_error) * (k_file * row.speed_std_error),
+        )
+        .max(f64::MIN_POSITIVE);
+        voltage.add(
+            [row.amps / se, row.speed / se, 1.0 / se, row.sign / se],
+            row.volts / se,
+        );
+    }
+    let Some(v) = voltage.solve() else {
         return RotorIdentity::short(Shortfall::NoFit);
     };
     let [r, k, c0, c1] = v.coefficients;
     if !(r > 0.0 && k > 0.0 && r.is_finite() && k.is_finite()) {
         return RotorIdentity::short(Shortfall::NoFit);
     }
-    let k_rel = v.std_errors[1] / k;
+    let v_scale = v.residual_scale.max(1.0);
+    let v_se = v.unit_errors.map(|u| v_scale * u);
+    // The voltage fit's residual in V, unweighted.
+    let voltage_residual = {
+        let sum: f64 = g
+            .voltage
+            .iter()
+            .map(|row| {
+                let e = row.volts - r * row.amps - k * row.speed - c0 - c1 * row.sign;
+                e * e
+            })
+            .sum();
+        libm::sqrt(sum / g.voltage.len().max(1) as f64)
+    };
+    let k_rel = v_se[1] / k;
 
     // Each row weighted by its own standard error (the current's, times k), so
     // that the errors come from what was measured, not only from the scatter of
@@ -134,7 +189,7 @@ pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
         / (f64::from(g.counts_per_rev) * 2.0 * HALF_WINDOW as f64 * f64::from(g.dt));
     let se_w = count_speed * libm::sqrt(2.0 / 12.0);
     let terms = [
-        2.0 * s.s_i / w2 * v.std_errors[1],
+        2.0 * s.s_i / w2 * v_se[1],
         2.0 * s.s_1 / w2 * se_tc,
         2.0 * s.s_w / w2 * se_b,
         2.0 * j * se_w / s.speed,
@@ -148,14 +203,14 @@ pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
     };
     RotorIdentity {
         shortfall: None,
-        resistance_ohm: est(r, v.std_errors[0]),
-        torque_constant: est(k, v.std_errors[1]),
+        resistance_ohm: est(r, v_se[0]),
+        torque_constant: est(k, v_se[1]),
         coulomb_friction_nm: est(t_c, se_tc),
         viscous_friction: est(b, se_b),
         inertia_kg_m2: est(j, se_j),
-        offset_v: est(c0, v.std_errors[2]),
-        drop_v: est(c1, v.std_errors[3]),
-        voltage_residual_v: v.residual_rms as f32,
+        offset_v: est(c0, v_se[2]),
+        drop_v: est(c1, v_se[3]),
+        voltage_residual_v: voltage_residual as f32,
         friction_residual_nm: friction_residual as f32,
         standstill_levels: g.levels.0,
         speed_levels: g.levels.1,

@@ -57,7 +57,7 @@ pub use result::{
 use super::angle::rpm_to_rad_s;
 use super::io::Bridge;
 use super::params::{Params, RotorCount};
-use assemble::{Gathered, SpeedRow};
+use assemble::{Gathered, SpeedRow, VoltageRow, VOLTAGE_ROWS};
 use core::f64::consts::TAU;
 use energy::{Counts, SpinUp};
 
@@ -111,6 +111,9 @@ pub struct IdentifyConfig {
     /// The largest load torque at low speed per rotor, N m (the machine file's
     /// `m e g + T_c`).
     pub load_torque_nm: [f32; 2],
+    /// The machine file's resistance, ohm, and torque constant, N m/A, per rotor:
+    /// what weighs the voltage fit's rows by their errors.
+    pub motor: [(f32, f32); 2],
     /// Configured counts per revolution `N`.
     pub counts_per_rev: u32,
     /// A rotor faster than this ends its run, rpm.
@@ -157,6 +160,7 @@ impl IdentifyConfig {
             speed_duty,
             settle_s,
             load_torque_nm: p.rotors.map(|r| r.load_torque_nm),
+            motor: p.rotors.map(|r| (r.resistance_ohm, r.torque_constant)),
             counts_per_rev: p.encoder_counts.max(1),
             max_speed_rpm: p.max_speed_rpm,
             rotor_count: p.rotor_count,
@@ -266,6 +270,14 @@ impl Window {
         (self.speed_by_angle / theta, self.amps_by_angle / theta)
     }
 
+    /// The standard error of the mean speed, rad/s: a count of quantization at
+    /// each end of the window, each uniform over one count (`1 / sqrt 12`), over
+    /// its time.
+    fn speed_std_error(&self, n: u32, dt: f32) -> f64 {
+        let counts = libm::sqrt(2.0 / 12.0);
+        TAU * counts / (f64::from(n) * self.ticks.max(1.0) * f64::from(dt))
+    }
+
     /// The standard error of the mean current, A: the sense's noise from the
     /// tick-to-tick steps, `sigma^2 = <(i_n - i_(n-1))^2> / 2` (von Neumann's
     /// estimator: the current's swing over a turn, tens of ticks long, hardly
@@ -342,8 +354,9 @@ pub struct IdentifyRun {
     last_count: Option<u32>,
     /// The control tick, s.
     dt: f32,
-    /// The tested rotor's voltage rows.
-    voltage: LeastSquares<4>,
+    /// The tested rotor's voltage rows (standstill levels, then speed levels).
+    voltage: [VoltageRow; VOLTAGE_ROWS],
+    voltage_rows: usize,
     /// Standstill levels measured, forward and reverse.
     holds: [u8; 2],
     /// Its speed levels.
@@ -369,7 +382,8 @@ impl IdentifyRun {
             counts: Counts::default(),
             last_count: None,
             dt: 0.0,
-            voltage: LeastSquares::new(),
+            voltage: [VoltageRow::default(); VOLTAGE_ROWS],
+            voltage_rows: 0,
             holds: [0; 2],
             speeds: [SpeedRow::default(); SPEED_LEVELS.len()],
             speed_rows: 0,
@@ -555,10 +569,9 @@ impl IdentifyRun {
         if let Some(w) = &mut h.window {
             w.add(sampled, n, dt);
             if w.seconds(dt) >= HOLD_MEASURE_S - 0.5 * dt {
-                let (v, i, speed) = w.means(n, dt);
                 let forward = h.level.is_multiple_of(2);
                 let sign = if forward { 1.0 } else { -1.0 };
-                self.voltage.add([i, speed, 1.0, sign], v);
+                self.add_voltage_row(w, sign);
                 self.holds[h.level % 2] += 1;
                 return if h.level + 1 < 2 * HOLD_LEVELS.len() {
                     self.start_hold(h.level + 1, sampled.count)
@@ -630,9 +643,9 @@ impl IdentifyRun {
             let timed = w.seconds(dt) + dt >= MIN_MEASURE_S - 0.5 * dt;
             if timed && d > 0.0 && w.travel + d >= next_turn {
                 w.add_part(sampled, (next_turn - w.travel) / d, n, dt);
-                let (v, i, speed) = w.means(n, dt);
+                let (_, _, speed) = w.means(n, dt);
                 let (speed_by_angle, amps_by_angle) = w.by_angle(n);
-                self.voltage.add([i, speed, 1.0, 1.0], v);
+                self.add_voltage_row(w, 1.0);
                 self.speeds[self.speed_rows] = SpeedRow {
                     speed_by_angle,
                     amps_by_angle,
@@ -657,6 +670,24 @@ impl IdentifyRun {
             window,
         };
         Some(self.config.speed_duty[self.rotor][level])
+    }
+
+    /// A level's row of the voltage fit: its means and their errors, `sign` the
+    /// current's direction (the bridge's drop follows it).
+    fn add_voltage_row(&mut self, w: &Window, sign: f64) {
+        let (n, dt) = (self.config.counts_per_rev, self.dt);
+        let (volts, amps, speed) = w.means(n, dt);
+        if let Some(row) = self.voltage.get_mut(self.voltage_rows) {
+            *row = VoltageRow {
+                volts,
+                amps,
+                speed,
+                sign,
+                amps_std_error: w.amps_std_error(),
+                speed_std_error: w.speed_std_error(n, dt),
+            };
+            self.voltage_rows += 1;
+        }
     }
 
     fn start_coast(&mut self, shortfall: Option<Shortfall>) -> Option<f32> {
@@ -706,7 +737,8 @@ impl IdentifyRun {
     fn assemble(&self) -> RotorIdentity {
         let snapshots = self.spin.as_ref().map_or(&[][..], |s| s.snapshots());
         assemble::identity(&Gathered {
-            voltage: &self.voltage,
+            voltage: &self.voltage[..self.voltage_rows],
+            file_motor: self.config.motor[self.rotor],
             speeds: &self.speeds[..self.speed_rows],
             snapshots,
             levels: (self.holds[0].min(self.holds[1]), self.speed_rows as u8),
@@ -725,7 +757,7 @@ impl IdentifyRun {
         }
         self.counts = Counts::default();
         self.last_count = Some(s.encoder[self.rotor]);
-        self.voltage = LeastSquares::new();
+        self.voltage_rows = 0;
         self.holds = [0; 2];
         self.speed_rows = 0;
         self.spin = None;

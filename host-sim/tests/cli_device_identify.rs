@@ -1,0 +1,247 @@
+//! `host-sim device identify` through the real binaries, against a hidden truth:
+//! `host-sim device-sim --machine TRUE.toml --firmware-machine
+//! examples/vibro-driver.toml` is a board built for the example file on a
+//! machine whose motors are 10 to 30 % off it, the two unlike; `identify
+//! --machine examples/vibro-driver.toml --write OUT.toml` must find each motor's
+//! constants (within 5 %, friction within 20 %, each within three of its
+//! standard errors) and write them where the machine file takes them, and the
+//! file written must run. Bad input: exit 2, nothing asked of the device,
+//! nothing written.
+
+use std::path::{Path, PathBuf};
+use std::process::Stdio;
+
+use host_sim::machine::Machine;
+use host_sim::output::machine_edit::with_values;
+
+mod common;
+use common::device_sim::DeviceSim;
+use common::Run;
+
+fn host_sim(args: &[&str]) -> Run {
+    let mut cmd = common::host_sim();
+    cmd.args(args).stdin(Stdio::null());
+    common::finish(cmd)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("cli-device-identify", name)
+}
+
+fn example() -> PathBuf {
+    common::machine()
+}
+
+/// One rotor's motor as it really is.
+struct TrueMotor {
+    resistance: f64,
+    torque_constant: f64,
+    coulomb_friction: f64,
+    viscous_friction: f64,
+    /// The rotor's inertia without the eccentric, kg m^2 (the file's convention).
+    inertia: f64,
+}
+
+/// The example's rotors with motors 10 to 30 % off its `[motor]` (2 ohm,
+/// 0.02 N m/A, 1e-3 N m, 1e-6 N m s) and inertias off its 6e-6 kg m^2, the two
+/// unlike.
+const TRUTH: [TrueMotor; 2] = [
+    TrueMotor {
+        resistance: 1.6,
+        torque_constant: 0.023,
+        coulomb_friction: 1.3e-3,
+        viscous_friction: 0.8e-6,
+        inertia: 7.5e-6,
+    },
+    TrueMotor {
+        resistance: 2.4,
+        torque_constant: 0.017,
+        coulomb_friction: 0.8e-3,
+        viscous_friction: 1.2e-6,
+        inertia: 5.0e-6,
+    },
+];
+
+/// The truth's machine file: the example with each rotor's own motor and inertia.
+fn truth_file() -> PathBuf {
+    let text = std::fs::read_to_string(example()).unwrap();
+    let mut values = Vec::new();
+    for (k, t) in TRUTH.iter().enumerate() {
+        for (key, x) in [
+            ("motor.resistance", t.resistance),
+            ("motor.torque_constant", t.torque_constant),
+            ("motor.coulomb_friction", t.coulomb_friction),
+            ("motor.viscous_friction", t.viscous_friction),
+            ("inertia", t.inertia),
+        ] {
+            values.push((format!("rotors[{k}].{key}"), x));
+        }
+    }
+    let path = scratch("truth.toml");
+    let written = with_values(&example(), &text, &values, &path).unwrap();
+    std::fs::write(&path, written).unwrap();
+    path
+}
+
+/// `value` within `tolerance` (relative) of `truth`.
+fn within(what: &str, value: f64, truth: f64, tolerance: f64) {
+    let off = (value - truth) / truth;
+    assert!(
+        off.abs() <= tolerance,
+        "{what}: {value} against {truth} ({:+.2} %, allowed {} %)",
+        100.0 * off,
+        100.0 * tolerance
+    );
+}
+
+/// The whole check: identify on the bench, the values and their errors against
+/// the truth, the file written against the truth, and a tune of the file
+/// written.
+#[cfg(unix)]
+#[test]
+fn identify_finds_the_true_motors_and_writes_them() {
+    let truth = truth_file();
+    let example = example();
+    let dev = DeviceSim::start(&[
+        "--machine",
+        truth.to_str().unwrap(),
+        "--firmware-machine",
+        example.to_str().unwrap(),
+    ]);
+    let out = scratch("identified.toml");
+    let _ = std::fs::remove_file(&out);
+    let json = dev.device(&[
+        "identify",
+        "--machine",
+        example.to_str().unwrap(),
+        "--write",
+        out.to_str().unwrap(),
+        "--format",
+        "json",
+    ]);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(report["status"], "done", "{json}");
+    for (k, t) in TRUTH.iter().enumerate() {
+        let values = &report["rotors"][k]["values"];
+        let m = Machine::load(&example, &[]).unwrap();
+        let r = &m.rotors[k];
+        let eccentric = r.eccentric_mass * r.eccentricity * r.eccentricity;
+        for (key, truth, tolerance) in [
+            ("resistance", t.resistance, 0.05),
+            ("torque_constant", t.torque_constant, 0.05),
+            ("coulomb_friction", t.coulomb_friction, 0.2),
+            ("viscous_friction", t.viscous_friction, 0.2),
+            ("inertia", t.inertia + eccentric, 0.05),
+        ] {
+            let v = values[key]["value"].as_f64().unwrap();
+            let se = values[key]["std_error"].as_f64().unwrap();
+            within(&format!("rotor {} {key}", k + 1), v, truth, tolerance);
+            assert!(
+                (v - truth).abs() <= 3.0 * se,
+                "rotor {} {key}: {v} +- {se} does not cover {truth}",
+                k + 1
+            );
+        }
+    }
+
+    // The file written: each rotor's own motor (the two are unlike), and its
+    // inertia without the eccentric; everything else as the example has it.
+    let written = Machine::load(&out, &[]).unwrap();
+    for (k, t) in TRUTH.iter().enumerate() {
+        let r = &written.rotors[k];
+        let name = format!("rotor {}", k + 1);
+        within(
+            &format!("{name} resistance"),
+            r.motor.resistance,
+            t.resistance,
+            0.05,
+        );
+        within(
+            &format!("{name} torque_constant"),
+            r.motor.torque_constant,
+            t.torque_constant,
+            0.05,
+        );
+        within(
+            &format!("{name} coulomb_friction"),
+            r.motor.coulomb_friction,
+            t.coulomb_friction,
+            0.2,
+        );
+        within(
+            &format!("{name} viscous_friction"),
+            r.motor.viscous_friction,
+            t.viscous_friction,
+            0.2,
+        );
+        within(&format!("{name} inertia"), r.inertia, t.inertia, 0.05);
+    }
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("[rotors.motor]"), "{text}");
+    let original = std::fs::read_to_string(&example).unwrap();
+    for comment in original.lines().filter(|l| l.trim_start().starts_with('#')) {
+        assert!(text.contains(comment), "comment dropped: {comment}");
+    }
+
+    // The file written is a machine host-sim runs and tunes.
+    let tuned = host_sim(&[
+        "tune",
+        out.to_str().unwrap(),
+        "--speeds",
+        "3000:3000:1",
+        "--offsets",
+        "0:360:90",
+        "--t-end",
+        "1",
+    ]);
+    assert_eq!(tuned.status, 0, "{}{}", tuned.stdout, tuned.stderr);
+}
+
+/// Mistakes in the options are refused with exit 2 before the device is asked
+/// anything (the port here answers nothing), and nothing is written.
+#[test]
+fn bad_options_are_refused_before_the_device() {
+    let out = scratch("never.toml");
+    let _ = std::fs::remove_file(&out);
+    let example = example();
+    let port = "tcp:127.0.0.1:9";
+    let cases: [(Vec<&str>, &str); 4] = [
+        (
+            vec!["identify", "--write", out.to_str().unwrap()],
+            "--machine",
+        ),
+        (
+            vec!["identify", "--machine", "no-such-machine.toml"],
+            "no-such-machine.toml",
+        ),
+        (
+            vec![
+                "identify",
+                "--timeout",
+                "0",
+                "--machine",
+                example.to_str().unwrap(),
+            ],
+            "--timeout: must be a number of seconds above 0",
+        ),
+        (
+            vec![
+                "identify",
+                "--machine",
+                example.to_str().unwrap(),
+                "--write",
+                "/no/such/dir/out.toml",
+            ],
+            "--write",
+        ),
+    ];
+    for (args, said) in cases {
+        let mut all = vec!["device", "--port", port];
+        all.extend_from_slice(&args);
+        let r = host_sim(&all);
+        assert_eq!(r.status, 2, "{args:?}: {}{}", r.stdout, r.stderr);
+        assert!(r.stderr.contains(said), "{args:?}: {}", r.stderr);
+        assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+    }
+    assert!(!Path::new(&out).exists());
+}
