@@ -283,6 +283,7 @@ fn shorten(mut words: Vec<String>) -> Result<Vec<String>, String> {
                 "reset",
                 "telemetry",
                 "self-test",
+                "identify",
                 "table",
                 "tune",
             ];
