@@ -256,6 +256,11 @@ fn map2<T: Copy, U>(a: [T; 2], f: impl Fn(T) -> U) -> [U; 2] {
 }
 
 /// The vibro driver's motor controller. See the module documentation.
+///
+/// `repr(C)`: its fields in the order written, the identification's working
+/// memory last, so that what the tick uses stays within the short offsets of
+/// the FPU's loads and stores (in Rust's own order the step while driving is
+/// about 10 % dearer, benchmarks/firmware.md).
 #[derive(Clone, Debug)]
 #[repr(C)]
 pub struct Controller {
@@ -302,9 +307,15 @@ pub struct Controller {
     /// The report of the last identification that ended, as the self-test's.
     last_identify: IdentifyReport,
     /// The state, with the data only it uses: a run's command, speed ramp and
-    /// loops; the self-test or the identification in progress; the latched
-    /// faults.
+    /// loops; the self-test in progress; the latched faults.
     mode: Mode,
+    /// The identification's working memory (its fits' sums, the spin-up's
+    /// turns: 1.6 KB), meaningful in [`Mode::Identify`] only, where it is
+    /// started afresh. Kept apart from the mode and last, so that the mode and
+    /// the fields the tick uses stay within the short offsets of the FPU's loads
+    /// and stores (a mode holding it made every tick 20 to 40 instructions
+    /// dearer: benchmarks/firmware.md).
+    identify_run: IdentifyRun,
 }
 
 impl Controller {
@@ -367,6 +378,7 @@ impl Controller {
                 current_alpha: 0.0,
             },
             table_offset: None,
+            identify_run: IdentifyRun::new(IdentifyConfig::from_params(&params)),
             params,
         }
     }
@@ -440,7 +452,8 @@ impl Controller {
         if !matches!(self.mode, Mode::Idle) || !at_rest {
             return false;
         }
-        self.mode = Mode::Identify(IdentifyRun::new(IdentifyConfig::from_params(&self.params)));
+        self.identify_run = IdentifyRun::new(IdentifyConfig::from_params(&self.params));
+        self.mode = Mode::Identify;
         true
     }
 
@@ -448,10 +461,10 @@ impl Controller {
     /// this controller, then `Running` with the rotors finished so far, then
     /// `Done` or `Aborted`.
     pub fn identify_report(&self) -> IdentifyReport {
-        match &self.mode {
-            Mode::Identify(run) => IdentifyReport {
+        match self.mode {
+            Mode::Identify => IdentifyReport {
                 status: IdentifyStatus::Running,
-                identity: run.result(),
+                identity: self.identify_run.result(),
             },
             _ => self.last_identify,
         }
@@ -471,7 +484,8 @@ impl Controller {
                     result: run.result(),
                 };
             }
-            Mode::Identify(run) => {
+            Mode::Identify => {
+                let run = &mut self.identify_run;
                 if !done {
                     run.abort();
                 }
@@ -491,10 +505,10 @@ impl Controller {
     /// How far the identification has come: what changes whenever its report
     /// does ([`Controller::identify_report`]), cheap to ask every tick.
     pub fn identify_progress(&self) -> IdentifyProgress {
-        match &self.mode {
-            Mode::Identify(run) => IdentifyProgress {
+        match self.mode {
+            Mode::Identify => IdentifyProgress {
                 status: IdentifyStatus::Running,
-                rotors_finished: run.rotors_finished(),
+                rotors_finished: self.identify_run.rotors_finished(),
             },
             _ => IdentifyProgress {
                 status: self.last_identify.status,
@@ -665,7 +679,7 @@ impl Controller {
             Mode::Stopping { run, .. } => (State::Stopping, run),
             Mode::Idle => return (State::Idle, None),
             Mode::SelfTest(_) => return (State::SelfTest, None),
-            Mode::Identify(_) => return (State::Identify, None),
+            Mode::Identify => return (State::Identify, None),
             Mode::Fault(_) => return (State::Fault, None),
         };
         // No offset measured: the loop opens in this tick's stage 5 (or the run
@@ -798,7 +812,7 @@ impl Controller {
     /// starting or running ramps down to rest (stopping).
     fn stop(&mut self) {
         match self.mode {
-            Mode::SelfTest(_) | Mode::Identify(_) => {
+            Mode::SelfTest(_) | Mode::Identify => {
                 self.end_procedure(false);
                 self.mode = Mode::Idle;
             }
@@ -824,7 +838,7 @@ impl Controller {
         }
         let target = RunTarget { speed_rpm, offset };
         match &mut self.mode {
-            Mode::Fault(_) | Mode::SelfTest(_) | Mode::Identify(_) => return true,
+            Mode::Fault(_) | Mode::SelfTest(_) | Mode::Identify => return true,
             Mode::Idle => {
                 // Start from the speed the rotors have (0 at rest, more if
                 // coasting).
@@ -894,8 +908,8 @@ impl Controller {
                 self.mode = Mode::Idle;
                 return Actuation::off(State::Idle, Faults::NONE);
             }
-            Mode::Identify(run) => {
-                let step = run.step(
+            Mode::Identify => {
+                let step = self.identify_run.step(
                     &IdentifySample {
                         encoder: inputs.encoder,
                         current: inputs.current,

@@ -2,11 +2,12 @@
 //! uses, so that a combination the state machine never reaches cannot be
 //! written: a run carries its command, speed ramp and loops (starting, running,
 //! stopping); the phase loop's integrator and error history exist only while the
-//! loop is closed within a run; the self-test or the identification in progress
-//! exists only in its state; latched faults only in `Fault`.
+//! loop is closed within a run; the self-test in progress exists only in the
+//! self-test; latched faults only in `Fault`. (The identification's working
+//! memory, 1.6 KB, is the controller's own field, kept apart from the mode for
+//! the tick's sake.)
 
 use super::faults::Faults;
-use super::identify::IdentifyRun;
 use super::io::{Direction, State};
 use super::phase_loop::PhaseLoop;
 use super::self_test::SelfTestRun;
@@ -95,20 +96,15 @@ impl Run {
 
 /// The controller's state with its data. [`Mode::state`] names it as
 /// [`State`] (telemetry, protocol, host output).
-///
-/// The identification's variant is the largest by far (about 1.1 KB: its
-/// fits' sums and the spin-up's turns). There is no heap to box it in, and none
-/// is needed: the controller is made once (a static on the board) and its mode
-/// is matched in place every tick, never copied whole.
-#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Mode {
     /// Motors off, waiting for a run command.
     Idle,
     /// The first-run self-test, in progress.
     SelfTest(SelfTestRun),
-    /// The motor identification, in progress.
-    Identify(IdentifyRun),
+    /// The motor identification, in progress (its working memory is the
+    /// controller's, kept apart for the tick's sake).
+    Identify,
     /// The speed ramps up to the commanded speed; the phase loop closes on the
     /// way.
     Starting(Run),
@@ -133,7 +129,7 @@ impl Mode {
         match self {
             Mode::Idle => State::Idle,
             Mode::SelfTest(_) => State::SelfTest,
-            Mode::Identify(_) => State::Identify,
+            Mode::Identify => State::Identify,
             Mode::Starting(_) => State::Starting,
             Mode::Running(_) => State::Running,
             Mode::Stopping { .. } => State::Stopping,
