@@ -61,8 +61,9 @@ pub enum Command {
     /// (see docs/calibration.md).
     Calibrate(CalibrateArgs),
     /// Talk to the board over its UART (a serial port or tcp:HOST:PORT): status,
-    /// travel, stop, hold, reset, telemetry, self-test, table (the tuning table),
-    /// tune (a sweep measured on the machine) (see docs/cli-device.md).
+    /// travel, stop, hold, reset, telemetry, self-test, identify (the motors
+    /// measured), table (the tuning table), tune (a sweep measured on the machine)
+    /// (see docs/cli-device.md).
     Device(DeviceArgs),
     /// A simulated board to talk to with `device`: the firmware's controller and
     /// link on a simulated machine (the reference machine's rotors, the platform

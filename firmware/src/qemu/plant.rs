@@ -42,9 +42,9 @@ use shared::drive::{lengths, period};
 /// constant `J R / k^2 = 50 ms`.
 pub const SUBSTEPS: u32 = 10;
 /// Coulomb friction of each rotor, N m (the reference machine file).
-const COULOMB_NM: f32 = 1.0e-3;
+pub const COULOMB_NM: f32 = 1.0e-3;
 /// Viscous friction of each rotor, N m s (the reference machine file).
-const VISCOUS_NM_S: f32 = 1.0e-6;
+pub const VISCOUS_NM_S: f32 = 1.0e-6;
 /// Source resistance of the supply, ohm: the supply the controller reads is
 /// `V - R_s (|i_1| + |i_2|)`.
 pub const SUPPLY_RESISTANCE_OHM: f32 = 0.1;

@@ -1,6 +1,7 @@
 //! The `qemu` run's measurements, logged at its end as lines starting with
 //! `measure:` (left out of the comparison with the expected output): the SysTick
-//! calibration, the control step's and the control tick's cost, the stack used.
+//! calibration, the control step's and the control tick's cost (the motor
+//! identification's apart), the stack used.
 
 use super::cycles;
 use super::stack;
@@ -21,12 +22,13 @@ pub fn report(
         ins,
         counts
     );
-    let (off, driving, tick_off, tick_driving, control_stack) = world.lock(|w| {
+    let (off, driving, tick_off, tick_driving, tick_identify, control_stack) = world.lock(|w| {
         (
             w.cost_off,
             w.cost_driving,
             w.tick_off,
             w.tick_driving,
+            w.tick_identify,
             w.control_stack,
         )
     });
@@ -37,6 +39,10 @@ pub fn report(
         (
             "control tick without the rotor model, driving",
             tick_driving,
+        ),
+        (
+            "control tick without the rotor model, identify",
+            tick_identify,
         ),
     ] {
         defmt::info!(

@@ -20,7 +20,12 @@
 //!    `Travel` meanwhile `Nack Busy`; status `Done`; per rotor both polarities, the
 //!    index, the model's counts a turn and the index offset the model predicts from
 //!    its true rest angle ([`index_offset_model`]); the result stored in flash with
-//!    the table;
+//!    the table; then the motor identification, the rotors at rest: `RunIdentify`
+//!    Acked, `ReadIdentify` polled every tick until it is no longer running (at
+//!    most [`IDENTIFY_LIMIT_TICKS`]), a `Travel` meanwhile `Nack Busy`; status
+//!    `Done`; per rotor every value measured and within 5 % of the model's
+//!    constants (friction within 20 %); the result stored in flash with the table
+//!    and the self-test's;
 //! 7. fault: travel again, open the E-stop: `ESTOP` latched in the first tick that
 //!    sees it, the driver disabled and both duties 0 in that tick; a reset while
 //!    it is open keeps the fault, a reset after it closed goes idle;
@@ -44,6 +49,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m::peripheral::NVIC;
 use stm32f4xx_hal::pac::Interrupt;
 
+use shared::controller::identify::{IdentifyReport, IdentifyStatus, RotorIdentity};
 use shared::controller::self_test::{RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
 use shared::controller::{
@@ -88,6 +94,12 @@ pub const REST_LIMIT_TICKS: u32 = 1000;
 /// Longest from `RunSelfTest` to the test reported running, ticks (the control
 /// task starts it at its next tick).
 pub const START_LIMIT_TICKS: u32 = 10;
+/// Longest from `RunIdentify` to its end, ticks: 40 s, twice what it takes on the
+/// reference machine's rotors.
+pub const IDENTIFY_LIMIT_TICKS: u32 = 40_000;
+
+/// The script's steps ([`Script::step`] numbers them from 0).
+const STEPS: u8 = 31;
 
 /// What a script step did.
 enum Next {
@@ -154,6 +166,8 @@ pub struct Script {
     travel_nacked: bool,
     /// The self-test's final report.
     self_test: Option<SelfTestReport>,
+    /// The identification's final report.
+    identify: Option<IdentifyReport>,
     /// The motors are driven and the unexpected interrupt may be pended.
     armed: bool,
 }
@@ -198,6 +212,7 @@ impl Script {
             bound_ticks: 0,
             travel_nacked: false,
             self_test: None,
+            identify: None,
             armed: false,
         }
     }
@@ -316,6 +331,14 @@ impl Script {
         }
     }
 
+    /// ReadIdentify; the report, if the answer is one.
+    fn read_identify<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) -> Option<IdentifyReport> {
+        match self.ask(io, &Request::ReadIdentify) {
+            Some(Response::Identify(report)) => Some(report),
+            _ => None,
+        }
+    }
+
     /// The state the control task published at its latest tick.
     fn state_now<L: LinkLock, W>(io: &mut Io<'_, L, W>) -> State {
         io.state.lock(|l| l.status.state)
@@ -403,23 +426,26 @@ impl Script {
             8 => self.start_self_test(io),
             9 => self.poll_self_test(io, waited),
             10 => self.self_test_result(io),
-            11 => self.estop_travel(io),
-            12 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            13 => self.open_estop(io, waited),
-            14 => self.estop_latched(io),
-            15 => self.estop_reset(io),
-            16 => self.reset_done_then_travel(io, "control tick overrun while running"),
-            17 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            18 => self.inject_overrun(io, waited),
-            19 => self.deadline_latched(io, waited),
-            20 => self.reset_done_then_travel(io, "encoder 2 disconnected while running"),
-            21 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
-            22 => self.disconnect_encoder(io, waited),
-            23 => self.encoder_fault_latched(io, waited),
-            24 => self.telemetry_off(io),
-            25 => self.stream_stopped(io, waited),
-            26 => self.travel_to_drive(io),
-            27 => self.await_driving(io, waited),
+            11 => self.start_identify(io),
+            12 => self.poll_identify(io, waited),
+            13 => self.identify_result(io),
+            14 => self.estop_travel(io),
+            15 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
+            16 => self.open_estop(io, waited),
+            17 => self.estop_latched(io),
+            18 => self.estop_reset(io),
+            19 => self.reset_done_then_travel(io, "control tick overrun while running"),
+            20 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
+            21 => self.inject_overrun(io, waited),
+            22 => self.deadline_latched(io, waited),
+            23 => self.reset_done_then_travel(io, "encoder 2 disconnected while running"),
+            24 => self.wait_state(io, State::Running, RUNNING_LIMIT_TICKS),
+            25 => self.disconnect_encoder(io, waited),
+            26 => self.encoder_fault_latched(io, waited),
+            27 => self.telemetry_off(io),
+            28 => self.stream_stopped(io, waited),
+            29 => self.travel_to_drive(io),
+            30 => self.await_driving(io, waited),
             _ => Next::Abort,
         }
     }
@@ -824,6 +850,99 @@ impl Script {
         Next::Advance
     }
 
+    /// Part 6: the identification asked for, the rotors at rest after the
+    /// self-test.
+    fn start_identify<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
+        defmt::info!("script: motor identification");
+        self.travel_nacked = false;
+        if !self.ack(io, &Request::RunIdentify, "RunIdentify") {
+            return Next::Abort;
+        }
+        Next::Advance
+    }
+
+    /// Part 6: the identification polled every tick until it has ended, within
+    /// [`IDENTIFY_LIMIT_TICKS`]; a `Travel` while it runs `Nack Busy`.
+    fn poll_identify<L: LinkLock, W: WorldLock>(
+        &mut self,
+        io: &mut Io<'_, L, W>,
+        waited: u32,
+    ) -> Next {
+        let Some(report) = self.read_identify(io) else {
+            check!(false, "ReadIdentify: Identify");
+            return Next::Abort;
+        };
+        match report.status {
+            IdentifyStatus::Done | IdentifyStatus::Aborted => {
+                check!(
+                    report.status == IdentifyStatus::Done,
+                    "identification {} after {=u32} ticks (limit {=u32})",
+                    report.status,
+                    waited,
+                    IDENTIFY_LIMIT_TICKS
+                );
+                self.identify = Some(report);
+                Next::Advance
+            }
+            _ if waited >= IDENTIFY_LIMIT_TICKS => {
+                check!(
+                    false,
+                    "identification finished within {=u32} ticks: still {}",
+                    IDENTIFY_LIMIT_TICKS,
+                    report.status
+                );
+                Next::Abort
+            }
+            _ => {
+                if report.status == IdentifyStatus::Running && !self.travel_nacked {
+                    self.travel_nacked = true;
+                    self.nack(
+                        io,
+                        &travel_right(),
+                        NackReason::Busy,
+                        "Travel while the identification runs",
+                    );
+                }
+                Next::Wait
+            }
+        }
+    }
+
+    /// Part 6: the identification's result against the model's constants, its
+    /// cost, and the flash record.
+    fn identify_result<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
+        let Some(report) = self.identify else {
+            return Next::Abort;
+        };
+        if !self.travel_nacked {
+            check!(false, "a Travel sent while the identification ran");
+        }
+        let cost = io.world.lock(|w| w.cost_identify);
+        // Left out of the comparison as the other measurements.
+        defmt::info!(
+            "measure: control step, identify: {=u32} steps, mean {=u32} / max {=u32} SysTick counts",
+            cost.steps,
+            cost.mean(),
+            cost.max
+        );
+        for (k, r) in report.identity.rotors.iter().enumerate() {
+            check_rotor_identity(k + 1, r);
+        }
+        let stored = storage::load(&*io.flash);
+        check!(
+            stored.as_ref().is_some_and(|s| s.sequence == 3
+                && s.record.identity == Some(report.identity)
+                && s.record.self_test == self.self_test.map(|t| t.result)),
+            "flash record {=u32}: the identification with the table and the self-test",
+            stored.as_ref().map_or(0, |s| s.sequence)
+        );
+        check!(
+            Self::state_now(io) == State::Idle,
+            "idle after the identification"
+        );
+        Next::Advance
+    }
+
     /// Part 7, the E-stop fault: travel right again.
     fn estop_travel<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
         defmt::info!("script: E-stop fault while running");
@@ -1106,7 +1225,7 @@ impl Script {
 
     /// Whether every step ran.
     pub fn completed(&self) -> bool {
-        self.step >= 28
+        self.step >= STEPS
     }
 
     /// The run's end, after the measurements. When the last step left the motors
@@ -1171,6 +1290,30 @@ fn check_outputs_cut(seen: &FaultSeen) {
 }
 
 /// Travel right at [`SPEED_RPM`].
+/// One rotor's identification against the rotor model's constants
+/// ([`super::plant`]: the reference machine's motor, `J = 1e-5 kg m^2`): every
+/// value measured, within 5 % (friction within 20 %).
+fn check_rotor_identity(rotor: usize, r: &RotorIdentity) {
+    let reference = Params::reference().rotors[0];
+    let within = |value: f32, truth: f32, tolerance: f32| abs(value - truth) <= tolerance * truth;
+    check!(
+        r.shortfall.is_none()
+            && within(r.resistance_ohm.value, reference.resistance_ohm, 0.05)
+            && within(r.torque_constant.value, reference.torque_constant, 0.05)
+            && within(r.inertia_kg_m2.value, reference.inertia_kg_m2, 0.05)
+            && within(r.coulomb_friction_nm.value, super::plant::COULOMB_NM, 0.2)
+            && within(r.viscous_friction.value, super::plant::VISCOUS_NM_S, 0.2),
+        "rotor {=usize} identified: R {=f32} ohm, k {=f32} N m/A, J {=f32} kg m^2, T_c {=f32} N m, b {=f32} N m s (shortfall {})",
+        rotor,
+        r.resistance_ohm.value,
+        r.torque_constant.value,
+        r.inertia_kg_m2.value,
+        r.coulomb_friction_nm.value,
+        r.viscous_friction.value,
+        r.shortfall
+    );
+}
+
 fn travel_right() -> Request {
     Request::Command(Command::Travel {
         direction: Direction::Right,

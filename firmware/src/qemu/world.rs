@@ -91,10 +91,19 @@ pub struct World {
     pub cost_driving: StepCost,
     /// Step cost in the self-test (kept apart: its steps are lighter than a run's).
     pub cost_self_test: StepCost,
+    /// Step cost in the motor identification, its last step (which ends it)
+    /// included (kept apart: a rotor's coast puts its fits together a share a
+    /// step).
+    pub cost_identify: StepCost,
+    /// The state the previous tick ended in.
+    pub last_state: Option<State>,
     /// The whole tick's cost without the rotor model, motors off.
     pub tick_off: StepCost,
-    /// The whole tick's cost without the rotor model, driving (self-test included).
+    /// The whole tick's cost without the rotor model, driving (self-test included,
+    /// the identification not).
     pub tick_driving: StepCost,
+    /// The whole tick's cost without the rotor model in the identification.
+    pub tick_identify: StepCost,
     /// Most stack the control task used below its stack pointer at entry, bytes.
     pub control_stack: usize,
 }
@@ -103,7 +112,11 @@ impl World {
     /// Record the tick `tick`: its outputs, the model after it, its counts.
     pub fn observe(&mut self, tick: u32, out: &Outputs, plant: &Plant, counts: TickCounts) {
         let step_counts = counts.step;
-        if out.state.drives() {
+        let identify = out.state == State::Identify || self.last_state == Some(State::Identify);
+        self.last_state = Some(out.state);
+        if identify {
+            self.tick_identify.add(counts.tick);
+        } else if out.state.drives() {
             self.tick_driving.add(counts.tick);
         } else {
             self.tick_off.add(counts.tick);
@@ -134,6 +147,8 @@ impl World {
         }
         if out.state == State::SelfTest {
             self.cost_self_test.add(step_counts);
+        } else if identify {
+            self.cost_identify.add(step_counts);
         } else if out.state.drives() {
             self.cost_driving.add(step_counts);
         } else {

@@ -93,126 +93,231 @@ pub struct Gathered<'a> {
     pub dt: f32,
 }
 
-/// The identity of one rotor from what its run gathered, or where it fell short.
-pub fn identity(g: &Gathered<'_>) -> RotorIdentity {
-    // Each row weighted by its own error: the current's and the speed's, through
-    // the file's R and k (`sigma_V^2 = (R sigma_i)^2 + (k sigma_w)^2`).
-    let (r_file, k_file) = (f64::from(g.file_motor.0), f64::from(g.file_motor.1));
-    let mut voltage = LeastSquares::<4>::new();
-    for row in g.voltage {
-        let se = libm::sqrt(
-            (r_file * row.amps_std_error) * (r_file * row.amps_std_error)
-                + (k_file * row.speed_std_error) * (k_file * row.speed_std_error),
-        )
-        .max(f64::MIN_POSITIVE);
-        voltage.add(
-            [row.amps / se, row.speed / se, 1.0 / se, row.sign / se],
-            row.volts / se,
-        );
-    }
-    let Some(v) = voltage.solve() else {
-        return RotorIdentity::short(Shortfall::NoFit);
-    };
-    let [r, k, c0, c1] = v.coefficients;
-    if !(r > 0.0 && k > 0.0 && r.is_finite() && k.is_finite()) {
-        return RotorIdentity::short(Shortfall::NoFit);
-    }
-    let v_scale = v.residual_scale.max(1.0);
-    let v_se = v.unit_errors.map(|u| v_scale * u);
-    // The voltage fit's residual in V, unweighted.
-    let voltage_residual = {
-        let sum: f64 = g
-            .voltage
-            .iter()
-            .map(|row| {
-                let e = row.volts - r * row.amps - k * row.speed - c0 - c1 * row.sign;
-                e * e
-            })
-            .sum();
-        libm::sqrt(sum / g.voltage.len().max(1) as f64)
-    };
-    let k_rel = v_se[1] / k;
+/// Voltage rows added to the fit in one tick of the assembly.
+const ROWS_A_TICK: usize = 3;
 
-    // Each row weighted by its own standard error (the current's, times k), so
-    // that the errors come from what was measured, not only from the scatter of
-    // four rows about a line; widened by the scatter where it is the larger.
+/// The voltage fit's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct VoltageFit {
+    /// `R, k, c_0, c_1`.
+    values: [f64; 4],
+    /// Their standard errors.
+    std_errors: [f64; 4],
+}
+
+/// The friction fit's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FrictionFit {
+    /// `T_c, b`.
+    values: [f64; 2],
+    /// Their standard errors, `k`'s relative error included.
+    std_errors: [f64; 2],
+    /// The fit's residual, N m.
+    residual: f64,
+}
+
+/// One rotor's measurements put together a share at a time, one share a control
+/// tick while the rotor coasts: the fits in `f64` are soft-float on the board,
+/// and all at once they took about 104 000 instructions in one tick (QEMU), over
+/// the tick's 0.5 ms budget at 168 MHz. In shares: [`ROWS_A_TICK`] voltage rows
+/// a tick, then the voltage fit's solve, its residual, the friction fit, the
+/// inertia.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Assembly {
+    /// Voltage rows added so far.
+    rows: usize,
+    voltage: LeastSquares<4>,
+    voltage_fit: Option<VoltageFit>,
+    voltage_residual: Option<f64>,
+    friction_fit: Option<FrictionFit>,
+    /// Where it fell short, once it has.
+    short: Option<Shortfall>,
+}
+
+impl Default for Assembly {
+    fn default() -> Self {
+        Assembly::new()
+    }
+}
+
+impl Assembly {
+    /// Nothing done yet.
+    pub const fn new() -> Self {
+        Assembly {
+            rows: 0,
+            voltage: LeastSquares::new(),
+            voltage_fit: None,
+            voltage_residual: None,
+            friction_fit: None,
+            short: None,
+        }
+    }
+
+    /// One tick's share of the work on `g`; the identity once the last share is
+    /// done (or where it fell short).
+    pub fn step(&mut self, g: &Gathered<'_>) -> Option<RotorIdentity> {
+        if let Some(why) = self.short {
+            return Some(RotorIdentity::short(why));
+        }
+        if self.rows < g.voltage.len() {
+            let end = (self.rows + ROWS_A_TICK).min(g.voltage.len());
+            for row in &g.voltage[self.rows..end] {
+                add_voltage_row(&mut self.voltage, row, g.file_motor);
+            }
+            self.rows = end;
+            return None;
+        }
+        let Some(v) = self.voltage_fit else {
+            self.voltage_fit = solve_voltage(&self.voltage);
+            if self.voltage_fit.is_none() {
+                self.short = Some(Shortfall::NoFit);
+            }
+            return None;
+        };
+        let Some(voltage_residual) = self.voltage_residual else {
+            self.voltage_residual = Some(voltage_residual(g.voltage, &v.values));
+            return None;
+        };
+        let Some(f) = self.friction_fit else {
+            self.friction_fit = friction_fit(g.speeds, &v);
+            if self.friction_fit.is_none() {
+                self.short = Some(Shortfall::NoFit);
+            }
+            return None;
+        };
+        Some(
+            inertia(g, &v, &f).map_or_else(RotorIdentity::short, |(j, se_j)| {
+                let est = |value: f64, se: f64| Estimate {
+                    value: value as f32,
+                    std_error: se as f32,
+                };
+                let [r, k, c0, c1] = v.values;
+                RotorIdentity {
+                    shortfall: None,
+                    resistance_ohm: est(r, v.std_errors[0]),
+                    torque_constant: est(k, v.std_errors[1]),
+                    coulomb_friction_nm: est(f.values[0], f.std_errors[0]),
+                    viscous_friction: est(f.values[1], f.std_errors[1]),
+                    inertia_kg_m2: est(j, se_j),
+                    offset_v: est(c0, v.std_errors[2]),
+                    drop_v: est(c1, v.std_errors[3]),
+                    voltage_residual_v: voltage_residual as f32,
+                    friction_residual_nm: f.residual as f32,
+                    standstill_levels: g.levels.0,
+                    speed_levels: g.levels.1,
+                }
+            }),
+        )
+    }
+}
+
+/// Adds a voltage row, weighted by its own error: the current's and the speed's,
+/// through the file's R and k (`sigma_V^2 = (R sigma_i)^2 + (k sigma_w)^2`).
+fn add_voltage_row(fit: &mut LeastSquares<4>, row: &VoltageRow, file_motor: (f32, f32)) {
+    let (r_file, k_file) = (f64::from(file_motor.0), f64::from(file_motor.1));
+    let se = libm::sqrt(
+        (r_file * row.amps_std_error) * (r_file * row.amps_std_error)
+            + (k_file * row.speed_std_error) * (k_file * row.speed_std_error),
+    )
+    .max(f64::MIN_POSITIVE);
+    fit.add(
+        [row.amps / se, row.speed / se, 1.0 / se, row.sign / se],
+        row.volts / se,
+    );
+}
+
+/// The voltage fit, `None` if its rows do not tell `R, k, c_0, c_1` apart or
+/// `R` or `k` is not positive.
+fn solve_voltage(fit: &LeastSquares<4>) -> Option<VoltageFit> {
+    let v = fit.solve()?;
+    let [r, k, _, _] = v.coefficients;
+    if !(r > 0.0 && k > 0.0 && r.is_finite() && k.is_finite()) {
+        return None;
+    }
+    let scale = v.residual_scale.max(1.0);
+    Some(VoltageFit {
+        values: v.coefficients,
+        std_errors: v.unit_errors.map(|u| scale * u),
+    })
+}
+
+/// The voltage fit's residual in V, unweighted.
+fn voltage_residual(rows: &[VoltageRow], values: &[f64; 4]) -> f64 {
+    let [r, k, c0, c1] = *values;
+    let sum: f64 = rows
+        .iter()
+        .map(|row| {
+            let e = row.volts - r * row.amps - k * row.speed - c0 - c1 * row.sign;
+            e * e
+        })
+        .sum();
+    libm::sqrt(sum / rows.len().max(1) as f64)
+}
+
+/// The friction fit on `speeds`, with `k` from the voltage fit: each row
+/// weighted by its own standard error (the current's, times k), so that the
+/// errors come from what was measured, not only from the scatter of four rows
+/// about a line; widened by the scatter where it is the larger, and by `k`'s
+/// relative error.
+fn friction_fit(speeds: &[SpeedRow], v: &VoltageFit) -> Option<FrictionFit> {
+    let k = v.values[1];
+    let k_rel = v.std_errors[1] / k;
     let mut friction = LeastSquares::<2>::new();
-    for row in g.speeds {
+    for row in speeds {
         let se = (k * row.amps_std_error).max(f64::MIN_POSITIVE);
         friction.add(
             [1.0 / se, row.speed_by_angle / se],
             k * row.amps_by_angle / se,
         );
     }
-    let Some(f) = friction.solve() else {
-        return RotorIdentity::short(Shortfall::NoFit);
-    };
+    let f = friction.solve()?;
     let [t_c, b] = f.coefficients;
     let scale = f.residual_scale.max(1.0);
     let widen = |value: f64, se: f64| libm::sqrt(se * se + (value * k_rel) * (value * k_rel));
-    let (se_tc, se_b) = (
-        widen(t_c, scale * f.unit_errors[0]),
-        widen(b, scale * f.unit_errors[1]),
-    );
-    // The friction fit's residual in N m, unweighted.
-    let friction_residual = {
-        let sum: f64 = g
-            .speeds
-            .iter()
-            .map(|r| {
-                let e = k * r.amps_by_angle - t_c - b * r.speed_by_angle;
-                e * e
-            })
-            .sum();
-        libm::sqrt(sum / g.speeds.len().max(1) as f64)
-    };
+    let sum: f64 = speeds
+        .iter()
+        .map(|r| {
+            let e = k * r.amps_by_angle - t_c - b * r.speed_by_angle;
+            e * e
+        })
+        .sum();
+    Some(FrictionFit {
+        values: [t_c, b],
+        std_errors: [
+            widen(t_c, scale * f.unit_errors[0]),
+            widen(b, scale * f.unit_errors[1]),
+        ],
+        residual: libm::sqrt(sum / speeds.len().max(1) as f64),
+    })
+}
 
-    let Some(top) = g.speeds.first() else {
-        return RotorIdentity::short(Shortfall::NoSpeed);
-    };
+/// The inertia and its standard error from the spin-up (module documentation,
+/// 3), or where it fell short.
+fn inertia(g: &Gathered<'_>, v: &VoltageFit, f: &FrictionFit) -> Result<(f64, f64), Shortfall> {
+    let top = g.speeds.first().ok_or(Shortfall::NoSpeed)?;
     let mut resolved = g.snapshots.iter().filter(|s| s.resolved());
-    let chosen = resolved
+    let s = resolved
         .clone()
         .find(|s| s.speed >= INERTIA_SPEED_FRACTION * top.speed)
-        .or_else(|| resolved.next_back());
-    let Some(s) = chosen else {
-        return RotorIdentity::short(Shortfall::NoTurn);
-    };
+        .or_else(|| resolved.next_back())
+        .ok_or(Shortfall::NoTurn)?;
+    let k = v.values[1];
+    let [t_c, b] = f.values;
     let w2 = s.speed * s.speed;
-    let work = k * s.s_i - t_c * s.s_1 - b * s.s_w;
-    let j = 2.0 * work / w2;
+    let j = 2.0 * (k * s.s_i - t_c * s.s_1 - b * s.s_w) / w2;
     if !(j > 0.0 && j.is_finite()) {
-        return RotorIdentity::short(Shortfall::NoFit);
+        return Err(Shortfall::NoFit);
     }
     // One count of quantization at each end of the central difference.
     let count_speed = core::f64::consts::TAU
         / (f64::from(g.counts_per_rev) * 2.0 * HALF_WINDOW as f64 * f64::from(g.dt));
     let se_w = count_speed * libm::sqrt(2.0 / 12.0);
     let terms = [
-        2.0 * s.s_i / w2 * v_se[1],
-        2.0 * s.s_1 / w2 * se_tc,
-        2.0 * s.s_w / w2 * se_b,
+        2.0 * s.s_i / w2 * v.std_errors[1],
+        2.0 * s.s_1 / w2 * f.std_errors[0],
+        2.0 * s.s_w / w2 * f.std_errors[1],
         2.0 * j * se_w / s.speed,
         2.0 * f64::from(g.load_torque_nm) * s.miss_rad.abs() / w2 / libm::sqrt(3.0),
     ];
-    let se_j = libm::sqrt(terms.iter().map(|t| t * t).sum());
-
-    let est = |value: f64, se: f64| Estimate {
-        value: value as f32,
-        std_error: se as f32,
-    };
-    RotorIdentity {
-        shortfall: None,
-        resistance_ohm: est(r, v_se[0]),
-        torque_constant: est(k, v_se[1]),
-        coulomb_friction_nm: est(t_c, se_tc),
-        viscous_friction: est(b, se_b),
-        inertia_kg_m2: est(j, se_j),
-        offset_v: est(c0, v_se[2]),
-        drop_v: est(c1, v_se[3]),
-        voltage_residual_v: voltage_residual as f32,
-        friction_residual_nm: friction_residual as f32,
-        standstill_levels: g.levels.0,
-        speed_levels: g.levels.1,
-    }
+    Ok((j, libm::sqrt(terms.iter().map(|t| t * t).sum())))
 }

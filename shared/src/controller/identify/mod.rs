@@ -57,7 +57,7 @@ pub use result::{
 use super::angle::rpm_to_rad_s;
 use super::io::Bridge;
 use super::params::{Params, RotorCount};
-use assemble::{Gathered, SpeedRow, VoltageRow, VOLTAGE_ROWS};
+use assemble::{Assembly, Gathered, SpeedRow, VoltageRow, VOLTAGE_ROWS};
 use core::f64::consts::TAU;
 use energy::{Counts, SpinUp};
 
@@ -364,6 +364,8 @@ pub struct IdentifyRun {
     speed_rows: usize,
     /// Its spin-up from rest.
     spin: Option<SpinUp>,
+    /// Its measurements put together, a share a tick while it coasts.
+    assembly: Assembly,
     result: Identity,
 }
 
@@ -388,6 +390,7 @@ impl IdentifyRun {
             speeds: [SpeedRow::default(); SPEED_LEVELS.len()],
             speed_rows: 0,
             spin: None,
+            assembly: Assembly::new(),
             result: Identity {
                 rotors: [RotorIdentity::default(); 2],
                 rotors_run: config.rotor_count.count() as u8,
@@ -433,6 +436,7 @@ impl IdentifyRun {
     /// Kept out of line: its frame is on the stack only while an identification
     /// runs, not in every control tick's.
     #[inline(never)]
+    #[cold]
     pub fn step(&mut self, s: &IdentifySample, dt: f32) -> IdentifyStep {
         if self.phase == Phase::Done {
             return self.finish_step(None);
@@ -718,25 +722,33 @@ impl IdentifyRun {
             0.0
         };
         let elapsed_s = elapsed_s + dt;
-        if rest_s < REST_TIME_S - 0.5 * dt && elapsed_s < COAST_TIMEOUT_S {
-            self.phase = Phase::Coast {
-                rest_s,
-                elapsed_s,
-                shortfall,
-            };
-            return None;
-        }
-        self.result.rotors[self.rotor] = match shortfall {
-            Some(why) => RotorIdentity::short(why),
-            None => self.assemble(),
+        // The measurements put together a share a tick meanwhile.
+        let identity = match shortfall {
+            Some(why) => Some(RotorIdentity::short(why)),
+            None => self.assemble_share(),
         };
-        self.next_rotor(s);
+        let rested = rest_s >= REST_TIME_S - 0.5 * dt || elapsed_s >= COAST_TIMEOUT_S;
+        match identity {
+            Some(identity) if rested => {
+                self.result.rotors[self.rotor] = identity;
+                self.next_rotor(s);
+            }
+            _ => {
+                self.phase = Phase::Coast {
+                    rest_s,
+                    elapsed_s,
+                    shortfall,
+                };
+            }
+        }
         None
     }
 
-    fn assemble(&self) -> RotorIdentity {
+    /// One tick's share of putting the rotor's measurements together
+    /// ([`Assembly`]); its identity once done.
+    fn assemble_share(&mut self) -> Option<RotorIdentity> {
         let snapshots = self.spin.as_ref().map_or(&[][..], |s| s.snapshots());
-        assemble::identity(&Gathered {
+        self.assembly.step(&Gathered {
             voltage: &self.voltage[..self.voltage_rows],
             file_motor: self.config.motor[self.rotor],
             speeds: &self.speeds[..self.speed_rows],
@@ -758,6 +770,7 @@ impl IdentifyRun {
         self.counts = Counts::default();
         self.last_count = Some(s.encoder[self.rotor]);
         self.voltage_rows = 0;
+        self.assembly = Assembly::new();
         self.holds = [0; 2];
         self.speed_rows = 0;
         self.spin = None;
