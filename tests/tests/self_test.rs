@@ -686,6 +686,31 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
         }
         other => panic!("{other:?}"),
     }
+
+    // A later request the controller refuses (a fault latched, the E-stop
+    // open): reported aborted, and it stays so, though the controller's own
+    // last report is still the finished test's.
+    let estop = Inputs {
+        encoder: count.map(|n| n as u32),
+        supply_voltage: 12.0,
+        estop: true,
+        ..Inputs::default()
+    };
+    let out = c.step(&estop, 0.001);
+    assert_eq!(out.state, State::Fault);
+    dev.state.publish(done_at + 2, &out, &c);
+    dev.state.self_test_requested = true;
+    assert!(dev.state.take_for_tick(&mut c).self_test_refused);
+    assert_eq!(dev.state.self_test.status, SelfTestStatus::Aborted);
+    for ms in done_at + 3..done_at + 10 {
+        let out = c.step(&estop, 0.001);
+        dev.state.publish(ms, &out, &c);
+        assert_eq!(
+            dev.state.self_test.status,
+            SelfTestStatus::Aborted,
+            "at {ms} ms"
+        );
+    }
 }
 
 #[test]

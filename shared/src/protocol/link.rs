@@ -42,6 +42,10 @@ pub struct LinkState {
     pub new_tuning: Option<TuningTable>,
     /// The self-test's status and latest result (written by the control task).
     pub self_test: SelfTestReport,
+    /// The status of the controller's self-test report when it was last copied:
+    /// a finished report is copied once, so that a later request the controller
+    /// refuses stays reported aborted.
+    pub self_test_seen: SelfTestStatus,
     /// A self-test was requested and waits for the control task to start it.
     pub self_test_requested: bool,
     /// A finished self-test's result waits to be stored in flash with the table
@@ -147,6 +151,7 @@ impl LinkState {
                 result: Default::default(),
             }),
             self_test_requested: false,
+            self_test_seen: SelfTestStatus::NotRun,
             self_test_unsaved: false,
             telemetry_period_ms: 0,
             rx_dropped: 0,
@@ -205,21 +210,28 @@ impl LinkState {
     /// The control task's side, after its step: the tick's status at
     /// `uptime_ms`, and `controller`'s reports. A report still `NotRun` (none
     /// since the start) keeps the result loaded from flash; one that just
-    /// finished is marked for storing with the table. The identification's
-    /// report is copied only when its progress changes (a rotor finished, its
-    /// status), not every tick.
+    /// finished is marked for storing with the table. A finished report is
+    /// copied once, not every tick (the identification's when its progress
+    /// changes: a rotor finished, its status), so that a later request the
+    /// controller refuses stays reported aborted.
     pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, controller: &Controller) {
         self.status = StatusReport::from_outputs(uptime_ms, out);
         self.status.rx_dropped = u16::try_from(self.rx_dropped).unwrap_or(u16::MAX);
+        // The self-test's report while it runs (its result grows) and once when
+        // it ends.
         let self_test = controller.self_test_report();
-        if self_test.status != SelfTestStatus::NotRun {
+        let changed = self_test.status != self.self_test_seen;
+        if self_test.status == SelfTestStatus::Running || changed {
             if self.self_test.status == SelfTestStatus::Running
                 && self_test.status == SelfTestStatus::Done
             {
                 self.self_test_unsaved = true;
                 self.finished_self_test = Some(self_test.result);
             }
-            self.self_test = self_test;
+            if self_test.status != SelfTestStatus::NotRun {
+                self.self_test = self_test;
+            }
+            self.self_test_seen = self_test.status;
         }
         let progress = controller.identify_progress();
         if progress.status != IdentifyStatus::NotRun && progress != self.identify_progress {
