@@ -1289,7 +1289,6 @@ fn check_outputs_cut(seen: &FaultSeen) {
     );
 }
 
-/// Travel right at [`SPEED_RPM`].
 /// One rotor's identification against the rotor model's constants
 /// ([`super::plant`]: the reference machine's motor, `J = 1e-5 kg m^2`): every
 /// value measured, within 5 % (friction within 20 %).
@@ -1314,6 +1313,7 @@ fn check_rotor_identity(rotor: usize, r: &RotorIdentity) {
     );
 }
 
+/// Travel right at [`SPEED_RPM`].
 fn travel_right() -> Request {
     Request::Command(Command::Travel {
         direction: Direction::Right,

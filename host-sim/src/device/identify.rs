@@ -225,6 +225,8 @@ fn table(report: &IdentifyReport, file: Option<&MachineFile>) -> String {
         for (key, e, unit) in keys(r) {
             let (v, se) = (f64::from(e.value), f64::from(e.std_error));
             let (given, diff) = match file.and_then(|f| file_value(&f.machine, k, key)) {
+                // A file's 0 (no friction, say) has no relative difference.
+                Some(x) if x == 0.0 => (numbers::sig(x), "-".to_string()),
                 Some(x) => (
                     numbers::sig(x),
                     format!("{} %", numbers::fixed_signed(100.0 * (v - x) / x, 1)),
@@ -345,6 +347,21 @@ fn written(file: &MachineFile, rotors: &[RotorIdentity], out: &Path) -> Result<S
                 let spread = (sq(a.std_error) + sq(b.std_error)).sqrt();
                 f64::from((a.value - b.value).abs()) <= AGREE_SIGMAS * spread
             });
+    // The machine file takes no negative friction: a value below 0 (the viscous
+    // friction, a small term the sense's noise can take below 0) is said, not
+    // written.
+    for (k, r) in rotors.iter().enumerate() {
+        for (key, e) in motor_keys(r) {
+            if e.value < 0.0 {
+                return Err(fail(format!(
+                    "rotor {}: {key} came out {} +- {}, below 0, which the machine file does not take: not written; measure again, or set it by hand",
+                    k + 1,
+                    numbers::sig(f64::from(e.value)),
+                    numbers::sig(two_digits(f64::from(e.std_error)))
+                )));
+            }
+        }
+    }
     // (key path, value) to write.
     let mut values: Vec<(String, f64)> = Vec::new();
     if agree && !own_motor {

@@ -185,29 +185,33 @@ impl Assembly {
             }
             return None;
         };
-        Some(
-            inertia(g, &v, &f).map_or_else(RotorIdentity::short, |(j, se_j)| {
-                let est = |value: f64, se: f64| Estimate {
-                    value: value as f32,
-                    std_error: se as f32,
-                };
-                let [r, k, c0, c1] = v.values;
-                RotorIdentity {
-                    shortfall: None,
-                    resistance_ohm: est(r, v.std_errors[0]),
-                    torque_constant: est(k, v.std_errors[1]),
-                    coulomb_friction_nm: est(f.values[0], f.std_errors[0]),
-                    viscous_friction: est(f.values[1], f.std_errors[1]),
-                    inertia_kg_m2: est(j, se_j),
-                    offset_v: est(c0, v.std_errors[2]),
-                    drop_v: est(c1, v.std_errors[3]),
-                    voltage_residual_v: voltage_residual as f32,
-                    friction_residual_nm: f.residual as f32,
-                    standstill_levels: g.levels.0,
-                    speed_levels: g.levels.1,
-                }
-            }),
-        )
+        let identity = inertia(g, &v, &f).map_or_else(RotorIdentity::short, |(j, se_j)| {
+            let est = |value: f64, se: f64| Estimate {
+                value: value as f32,
+                std_error: se as f32,
+            };
+            let [r, k, c0, c1] = v.values;
+            RotorIdentity {
+                shortfall: None,
+                resistance_ohm: est(r, v.std_errors[0]),
+                torque_constant: est(k, v.std_errors[1]),
+                coulomb_friction_nm: est(f.values[0], f.std_errors[0]),
+                viscous_friction: est(f.values[1], f.std_errors[1]),
+                inertia_kg_m2: est(j, se_j),
+                offset_v: est(c0, v.std_errors[2]),
+                drop_v: est(c1, v.std_errors[3]),
+                voltage_residual_v: voltage_residual as f32,
+                friction_residual_nm: f.residual as f32,
+                standstill_levels: g.levels.0,
+                speed_levels: g.levels.1,
+            }
+        });
+        // Only finite numbers are reported and stored (the record refuses others).
+        Some(if identity.is_finite() {
+            identity
+        } else {
+            RotorIdentity::short(Shortfall::NoFit)
+        })
     }
 }
 

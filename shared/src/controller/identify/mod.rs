@@ -232,6 +232,11 @@ impl Window {
 
     /// The first `fraction` of tick `t` (its means held over the tick).
     fn add_part(&mut self, t: Tick, fraction: f64, n: u32, dt: f32) {
+        // A non-finite reading (an ADC glitch the fault checks let pass for a
+        // tick or two) is left out of the means.
+        if !(t.volts.is_finite() && t.amps.is_finite()) {
+            return;
+        }
         let counts = fraction * f64::from(t.d_count);
         let d_theta = TAU * counts / f64::from(n);
         let speed = TAU * f64::from(t.d_count) / (f64::from(n) * f64::from(dt));
@@ -423,11 +428,15 @@ impl IdentifyRun {
         (self.phase != Phase::Done).then_some(self.rotor)
     }
 
-    /// Stop where it stands: the rotor under test is marked
+    /// Stop where it stands: the rotor under test and those after it are marked
     /// [`Shortfall::Aborted`], the finished ones are kept.
     pub fn abort(&mut self) {
-        if self.phase != Phase::Done && self.rotor < 2 {
-            self.result.rotors[self.rotor] = RotorIdentity::short(Shortfall::Aborted);
+        if self.phase != Phase::Done {
+            // The rotor under test and every one after it: none was measured.
+            let count = self.config.rotor_count.count();
+            for r in self.result.rotors.iter_mut().take(count).skip(self.rotor) {
+                *r = RotorIdentity::short(Shortfall::Aborted);
+            }
         }
         self.phase = Phase::Done;
     }

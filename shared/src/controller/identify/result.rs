@@ -28,11 +28,11 @@ pub enum Shortfall {
     /// A rotor ran faster than the controller's top speed (a motor much unlike
     /// its machine file): its run ended there.
     TooFast,
-    /// The spin-up from rest made no whole turn before the top level's settle
-    /// ended: the inertia is not measured.
+    /// The spin-up from rest made no whole turn while the top speed level ran:
+    /// the inertia is not measured.
     NoTurn,
-    /// A fit's rows did not tell its unknowns apart, or a value came out
-    /// non-finite or not positive.
+    /// A fit's rows did not tell its unknowns apart, the resistance, the torque
+    /// constant or the inertia came out not positive, or a value not finite.
     NoFit,
     /// A stop command, the E-stop or a fault ended the identification before this
     /// rotor was done.
@@ -74,6 +74,26 @@ pub struct RotorIdentity {
 }
 
 impl RotorIdentity {
+    /// Every value, standard error and residual finite, the errors and
+    /// residuals not negative (what the bytes of a result allow).
+    pub fn is_finite(&self) -> bool {
+        let estimates = [
+            self.resistance_ohm,
+            self.torque_constant,
+            self.coulomb_friction_nm,
+            self.viscous_friction,
+            self.inertia_kg_m2,
+            self.offset_v,
+            self.drop_v,
+        ];
+        estimates
+            .iter()
+            .all(|e| e.value.is_finite() && e.std_error.is_finite() && e.std_error >= 0.0)
+            && [self.voltage_residual_v, self.friction_residual_nm]
+                .iter()
+                .all(|r| r.is_finite() && *r >= 0.0)
+    }
+
     /// A rotor that stopped short at `shortfall`, nothing kept.
     pub fn short(shortfall: Shortfall) -> Self {
         RotorIdentity {
