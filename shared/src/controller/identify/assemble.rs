@@ -215,6 +215,13 @@ impl Assembly {
     }
 }
 
+/// The least error a mean of `x` can have: the resolution of the `f32` its
+/// samples came in (a current sense that reads the same every tick gives no
+/// noise to estimate; without a floor its weight would overflow the fit).
+fn resolution(x: f64) -> f64 {
+    (x.abs() * f64::from(f32::EPSILON)).max(f64::from(f32::MIN_POSITIVE))
+}
+
 /// Adds a voltage row, weighted by its own error: the current's and the speed's,
 /// through the file's R and k (`sigma_V^2 = (R sigma_i)^2 + (k sigma_w)^2`).
 fn add_voltage_row(fit: &mut LeastSquares<4>, row: &VoltageRow, file_motor: (f32, f32)) {
@@ -223,7 +230,7 @@ fn add_voltage_row(fit: &mut LeastSquares<4>, row: &VoltageRow, file_motor: (f32
         (r_file * row.amps_std_error) * (r_file * row.amps_std_error)
             + (k_file * row.speed_std_error) * (k_file * row.speed_std_error),
     )
-    .max(f64::MIN_POSITIVE);
+    .max(resolution(row.volts));
     fit.add(
         [row.amps / se, row.speed / se, 1.0 / se, row.sign / se],
         row.volts / se,
@@ -268,7 +275,7 @@ fn friction_fit(speeds: &[SpeedRow], v: &VoltageFit) -> Option<FrictionFit> {
     let k_rel = v.std_errors[1] / k;
     let mut friction = LeastSquares::<2>::new();
     for row in speeds {
-        let se = (k * row.amps_std_error).max(f64::MIN_POSITIVE);
+        let se = (k * row.amps_std_error).max(resolution(k * row.amps_by_angle));
         friction.add(
             [1.0 / se, row.speed_by_angle / se],
             k * row.amps_by_angle / se,
@@ -324,4 +331,32 @@ fn inertia(g: &Gathered<'_>, v: &VoltageFit, f: &FrictionFit) -> Result<(f64, f6
         2.0 * f64::from(g.load_torque_nm) * s.miss_rad.abs() / w2 / libm::sqrt(3.0),
     ];
     Ok((j, libm::sqrt(terms.iter().map(|t| t * t).sum())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A current that reads the same every tick (no noise to estimate, as a
+    /// quantized reading of a steady current gives): the friction fit still
+    /// solves, to the line through the rows.
+    #[test]
+    fn a_noise_free_current_still_fits() {
+        let (t_c, b, k) = (1e-3, 1e-6, 0.02);
+        let speeds: [SpeedRow; 4] = [80.0, 64.0, 48.0, 32.0].map(|w| SpeedRow {
+            speed_by_angle: w,
+            amps_by_angle: (t_c + b * w) / k,
+            amps_std_error: 0.0,
+            speed: w,
+        });
+        let v = VoltageFit {
+            values: [2.0, k, 0.0, 0.0],
+            std_errors: [0.0; 4],
+        };
+        let f = friction_fit(&speeds, &v).expect("a fit");
+        assert!(
+            (f.values[0] - t_c).abs() < 1e-9 && (f.values[1] - b).abs() < 1e-12,
+            "{f:?}"
+        );
+    }
 }
