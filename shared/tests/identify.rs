@@ -402,6 +402,9 @@ fn the_reference_settings_are_as_documented() {
     );
     let (_, seconds) = identify([t; 2], [t; 2], 0.0);
     assert!((14.0..=22.0).contains(&seconds), "{seconds} s");
+    // The worst case every timeout allows, which `device identify --timeout`'s
+    // default covers (docs/cli-device.md).
+    assert_eq!(shared::controller::identify::WORST_ROTOR_S, 60.0);
 }
 
 /// On a one-rotor machine rotor 2's bridge stays off and only rotor 1 is

@@ -193,11 +193,13 @@ pub struct SelfTestArgs {
 /// Arguments of `host-sim device identify`.
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
-    /// Give up when the identification has not finished after S seconds.
+    /// Give up when the identification has not finished after S seconds
+    /// (default: above the worst case its own timeouts allow, 60 s a rotor, for
+    /// two rotors and the link).
     #[arg(
         long,
         value_name = "S",
-        default_value_t = 60.0,
+        default_value_t = 2.0 * f64::from(shared::controller::identify::WORST_ROTOR_S) + 30.0,
         allow_negative_numbers = true
     )]
     pub timeout: f64,

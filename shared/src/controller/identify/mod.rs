@@ -96,6 +96,15 @@ pub const MIN_MEASURE_S: f32 = 0.3;
 pub const MAX_MEASURE_S: f32 = 4.0;
 /// The coast to rest ends after this long whatever the rotor does, s.
 pub const COAST_TIMEOUT_S: f32 = 6.0;
+/// The longest one rotor's identification can take with every wait at its
+/// timeout, s: two settles, every standstill level held to its timeout, every
+/// speed level settling and measuring to theirs, and the coast [60 s; about 9 s
+/// on the reference machine].
+pub const WORST_ROTOR_S: f32 = 2.0 * SETTLE_TIMEOUT_S
+    + 2.0 * HOLD_LEVELS.len() as f32 * HOLD_TIMEOUT_S
+    + SPEED_LEVELS.len() as f32 * 2.0 * MAX_MEASURE_S
+    + COAST_TIMEOUT_S;
+
 /// The identification never drives harder than this duty.
 pub const MAX_DUTY: f32 = 0.9;
 
