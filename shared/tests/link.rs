@@ -600,3 +600,40 @@ fn a_store_waits_for_a_requested_self_test() {
     );
     assert!(dev.flash == before, "nothing erased or written");
 }
+
+/// Two procedures asked for before a control tick has taken the first: the
+/// second is refused `Busy` (it would otherwise be Acked, then reported aborted
+/// with nothing measured when the tick started the first), whichever comes
+/// first; one asked for twice, likewise.
+#[test]
+fn a_second_procedure_asked_before_the_first_starts_is_busy() {
+    for (first, second) in [
+        (Request::RunSelfTest, Request::RunIdentify),
+        (Request::RunIdentify, Request::RunSelfTest),
+        (Request::RunIdentify, Request::RunIdentify),
+    ] {
+        let mut dev = Device::new();
+        let mut bytes = frame_bytes(&first, 1);
+        bytes.extend(frame_bytes(&second, 2));
+        let answers = responses(&dev.exchange(&bytes, 10));
+        assert_eq!(
+            answers,
+            vec![
+                (
+                    1,
+                    Response::Ack {
+                        request: first.id() as u8
+                    }
+                ),
+                (
+                    2,
+                    Response::Nack {
+                        request: second.id() as u8,
+                        reason: NackReason::Busy
+                    }
+                ),
+            ],
+            "{first:?} then {second:?}"
+        );
+    }
+}

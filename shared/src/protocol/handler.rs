@@ -17,7 +17,7 @@
 //! | `Stop`, `Travel`, `HoldOffset`, `ResetFaults` | `Ack`, or `Nack` with the device's reason |
 //! | `ReadTuningTable` | `TuningTable` |
 //! | `WriteTuningTable` | `Ack` once stored; `Nack(Busy)` while a self-test or an identification runs; `Nack(NotStopped)` unless [`may_write_table`]; `Nack(StorageFailed)` |
-//! | `RunSelfTest`, `RunIdentify` | `Ack` once started; `Nack(Busy)` while a self-test or an identification runs; `Nack(Faulted)` in fault; `Nack(NotStopped)` unless idle and at rest |
+//! | `RunSelfTest`, `RunIdentify` | `Ack` once started; `Nack(Busy)` while a self-test or an identification runs or waits to start; `Nack(Faulted)` in fault; `Nack(NotStopped)` unless idle and at rest |
 //! | `ReadSelfTest` | `SelfTest` |
 //! | `ReadIdentify` | `Identify` |
 //! | `StreamTelemetry` | `Ack` |
@@ -55,13 +55,15 @@ pub trait Device {
     /// The self-test's status and its latest result.
     fn self_test(&self) -> SelfTestReport;
 
-    /// Start the self-test (the caller checked: idle, rotors at rest).
+    /// Start the self-test (the caller checked: idle, rotors at rest); `Busy`
+    /// while a procedure asked for has not started yet.
     fn start_self_test(&mut self) -> Result<(), NackReason>;
 
     /// The motor identification's status and its latest result.
     fn identify(&self) -> IdentifyReport;
 
-    /// Start the motor identification (the caller checked: idle, rotors at rest).
+    /// Start the motor identification (the caller checked: idle, rotors at
+    /// rest); `Busy` while a procedure asked for has not started yet.
     fn start_identify(&mut self) -> Result<(), NackReason>;
 
     /// Send [`Response::Telemetry`] every `period_ms` from now on (0: none).

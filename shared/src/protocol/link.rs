@@ -247,6 +247,20 @@ impl LinkState {
         }
     }
 
+    /// Ask the control task to start a procedure (its request flag `flag`):
+    /// `Busy` while one asked for has not started yet, which the handler's
+    /// check of the reports cannot see.
+    fn request_procedure(
+        &mut self,
+        flag: fn(&mut LinkState) -> &mut bool,
+    ) -> Result<(), NackReason> {
+        if self.self_test_requested || self.identify_requested {
+            return Err(NackReason::Busy);
+        }
+        *flag(self) = true;
+        Ok(())
+    }
+
     /// The record to store: `tuning`, the newest finished self-test's result and
     /// motor identification.
     fn record(&self, tuning: &TuningTable) -> Record {
@@ -394,8 +408,7 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
     }
 
     fn start_self_test(&mut self) -> Result<(), NackReason> {
-        self.locked(|s| s.self_test_requested = true);
-        Ok(())
+        self.locked(|s| s.request_procedure(|s| &mut s.self_test_requested))
     }
 
     fn identify(&self) -> IdentifyReport {
@@ -403,8 +416,7 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
     }
 
     fn start_identify(&mut self) -> Result<(), NackReason> {
-        self.locked(|s| s.identify_requested = true);
-        Ok(())
+        self.locked(|s| s.request_procedure(|s| &mut s.identify_requested))
     }
 
     fn set_telemetry_period(&mut self, period_ms: u16) {
