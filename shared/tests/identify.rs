@@ -548,3 +548,71 @@ fn a_stop_or_the_estop_aborts_it() {
         }
     }
 }
+
+/// The link's copy of the report follows a new run even where it ends as the
+/// last one did: a run stopped after rotor 1 finished, then a second stopped in
+/// its first tick, leave the link reporting the second (nothing measured), not
+/// the first's rotor 1.
+#[test]
+fn the_link_reports_the_latest_run() {
+    use shared::protocol::link::{no_telemetry, LinkState};
+    use shared::protocol::StatusReport;
+    let t = Truth::REFERENCE;
+    let mut c = Controller::new(&params([t; 2], RotorCount::Two), ResetCause::PowerOn);
+    let mut link = LinkState::new(
+        StatusReport {
+            uptime_ms: 0,
+            state: c.state(),
+            faults: c.faults(),
+            telemetry: no_telemetry(),
+            rx_dropped: 0,
+        },
+        c.params().tuning.clone(),
+        None,
+    );
+    let mut rotors = [Rotor::new(t, 0.3), Rotor::new(t, -0.2)];
+    let mut bridges = [Bridge::Off; 2];
+    let mut tick =
+        |c: &mut Controller, link: &mut LinkState, rotors: &mut [Rotor; 2], stop: bool| {
+            let amps = [0, 1].map(|k| rotors[k].tick(bridges[k]));
+            let index = [0, 1].map(|k| rotors[k].index.take());
+            let out = c.step(
+                &Inputs {
+                    encoder: [rotors[0].count(), rotors[1].count()],
+                    index,
+                    current: amps.map(|a| a as f32),
+                    supply_voltage: SUPPLY as f32,
+                    command: stop.then_some(Command::Stop),
+                    ..Inputs::default()
+                },
+                DT as f32,
+            );
+            bridges = out.bridges;
+            link.publish(0, &out, c);
+        };
+    assert!(c.start_identify());
+    let mut ticks = 0;
+    while c.identify_progress().rotors_finished < 1 {
+        tick(&mut c, &mut link, &mut rotors, false);
+        ticks += 1;
+        assert!(ticks < 30_000, "rotor 1 never finished");
+    }
+    tick(&mut c, &mut link, &mut rotors, true);
+    assert_eq!(link.identify.status, IdentifyStatus::Aborted);
+    assert_eq!(
+        link.identify.identity.rotors[0].shortfall, None,
+        "rotor 1 kept"
+    );
+    // Rest, then a second run stopped at once.
+    for _ in 0..3000 {
+        tick(&mut c, &mut link, &mut rotors, false);
+    }
+    assert!(c.start_identify());
+    tick(&mut c, &mut link, &mut rotors, true);
+    assert_eq!(link.identify.status, IdentifyStatus::Aborted);
+    assert_eq!(
+        link.identify.identity.rotors[0].shortfall,
+        Some(Shortfall::Aborted),
+        "the second run's report, not the first's"
+    );
+}

@@ -306,6 +306,8 @@ pub struct Controller {
     last_self_test: SelfTestReport,
     /// The report of the last identification that ended, as the self-test's.
     last_identify: IdentifyReport,
+    /// Identifications started (wrapping), for [`IdentifyProgress::run`].
+    identify_runs: u16,
     /// The state, with the data only it uses: a run's command, speed ramp and
     /// loops; the self-test in progress; the latched faults.
     mode: Mode,
@@ -362,6 +364,7 @@ impl Controller {
                 status: IdentifyStatus::NotRun,
                 identity: Identity::default(),
             },
+            identify_runs: 0,
             tick_s: params.tick_s(),
             deg_per_count: TURN_DEG / params.encoder_counts as f32,
             phase_trim_max_rad_s: rpm_to_rad_s(params.phase_trim_max_rpm),
@@ -453,6 +456,7 @@ impl Controller {
             return false;
         }
         self.identify_run = IdentifyRun::new(IdentifyConfig::from_params(&self.params));
+        self.identify_runs = self.identify_runs.wrapping_add(1);
         self.mode = Mode::Identify;
         true
     }
@@ -507,10 +511,12 @@ impl Controller {
     pub fn identify_progress(&self) -> IdentifyProgress {
         match self.mode {
             Mode::Identify => IdentifyProgress {
+                run: self.identify_runs,
                 status: IdentifyStatus::Running,
                 rotors_finished: self.identify_run.rotors_finished(),
             },
             _ => IdentifyProgress {
+                run: self.identify_runs,
                 status: self.last_identify.status,
                 rotors_finished: self.last_identify.identity.rotors_run,
             },

@@ -142,6 +142,7 @@ impl LinkState {
             },
             identify_requested: false,
             identify_progress: IdentifyProgress {
+                run: 0,
                 status: IdentifyStatus::NotRun,
                 rotors_finished: 0,
             },
@@ -212,7 +213,7 @@ impl LinkState {
     /// since the start) keeps the result loaded from flash; one that just
     /// finished is marked for storing with the table. A finished report is
     /// copied once, not every tick (the identification's when its progress
-    /// changes: a rotor finished, its status), so that a later request the
+    /// changes: a new run, a rotor finished, its status), so that a later request the
     /// controller refuses stays reported aborted.
     pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, controller: &Controller) {
         self.status = StatusReport::from_outputs(uptime_ms, out);

@@ -135,6 +135,9 @@ pub enum IdentifyStatus {
 /// result changes only when this does, so a reader copies the result only then.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct IdentifyProgress {
+    /// Identifications started on this controller (wrapping): a new run is new
+    /// progress even where it ends as the last one did.
+    pub run: u16,
     /// Where it stands.
     pub status: IdentifyStatus,
     /// Rotors whose results are final.
