@@ -3,6 +3,7 @@
 //! or the compiled-in one ([`crate::tuning`]) when none is stored.
 
 use embedded_storage::nor_flash::ReadNorFlash;
+use shared::capture::{Capture, MachineFingerprint, Slot, BOARD_CAPACITY};
 use shared::controller::{Controller, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, LinkState};
 use shared::storage;
@@ -10,14 +11,30 @@ use shared::storage;
 #[cfg(feature = "qemu")]
 use shared::storage::SimFlash;
 
-use crate::machine::MACHINE;
+use crate::machine::{MACHINE, MACHINE_FILE_CRC32, MACHINE_FILE_LEN};
 use crate::tuning::TUNING_ROWS;
+
+/// The capture's buffer: [`BOARD_CAPACITY`] ticks of [`shared::capture::RECORD_LEN`]
+/// bytes, 72 KiB of the SRAM (benchmarks/firmware.md). Each app's `init` owns
+/// one as a local (a zeroed static, never on a stack).
+pub type CaptureBuffer = [Slot; BOARD_CAPACITY];
+
+/// A zeroed [`CaptureBuffer`], for an `init` local's initialiser: RTIC makes
+/// that local a static, so the constant is evaluated at compile time into
+/// `.bss` and never copied through a stack.
+#[allow(clippy::large_const_arrays)]
+pub const CAPTURE_BUFFER: CaptureBuffer = [[0; shared::capture::RECORD_LEN]; BOARD_CAPACITY];
 
 /// The controller and the link's state at start: the compiled-in machine with the
 /// tuning table stored in `flash` (`&mut` the driver, or `&` a simulated flash), or
 /// the compiled-in one when none is stored (first start); the stored self-test
-/// result, if any.
-pub fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller, LinkState) {
+/// result, if any; the capture recording into `capture`, stamped with the
+/// compiled-in machine file's fingerprint.
+pub fn start<F: ReadNorFlash>(
+    flash: F,
+    reset_cause: ResetCause,
+    capture: &'static mut CaptureBuffer,
+) -> (Controller, LinkState) {
     let mut params = Params::from_machine(&MACHINE);
     let stored = storage::load(flash);
     match &stored {
@@ -46,7 +63,12 @@ pub fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller,
     if !MACHINE.rotor_count.has_rotor2() {
         defmt::info!("one rotor: its speed held, no phase loop; motor 2's bridge off");
     }
-    let link = LinkState::at_start(&controller, stored.as_ref());
+    let fingerprint = MachineFingerprint {
+        crc32: MACHINE_FILE_CRC32,
+        len: MACHINE_FILE_LEN,
+    };
+    let link = LinkState::at_start(&controller, stored.as_ref())
+        .with_capture(Capture::new(capture, fingerprint, params.tick_s()));
     (controller, link)
 }
 
@@ -59,8 +81,8 @@ pub fn start<F: ReadNorFlash>(flash: F, reset_cause: ResetCause) -> (Controller,
 /// the binary's code to the instruction.
 #[cfg(feature = "qemu")]
 #[inline]
-pub fn start_in_qemu() -> (SimFlash, Controller, LinkState) {
+pub fn start_in_qemu(capture: &'static mut CaptureBuffer) -> (SimFlash, Controller, LinkState) {
     let flash = SimFlash::filled(0x00);
-    let (controller, link) = start(&flash, ResetCause::PowerOn);
+    let (controller, link) = start(&flash, ResetCause::PowerOn, capture);
     (flash, controller, link)
 }

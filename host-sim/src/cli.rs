@@ -19,10 +19,11 @@ use crate::failure::{Console, Failure, EXIT_OK};
 use crate::help::epilogue;
 use crate::impact::ImpactArgs;
 use crate::parts::MergeArgs;
+use crate::replay::ReplayArgs;
 use crate::run::RunArgs;
 use crate::scenario::ScenarioArgs;
 use crate::tune::TuneArgs;
-use crate::{calibrate, device, impact, run, scenario, tune};
+use crate::{calibrate, device, impact, replay, run, scenario, tune};
 
 /// The vibro driver's host simulator, impact analysis and tuning tool.
 #[derive(Debug, Parser)]
@@ -60,9 +61,14 @@ pub enum Command {
     /// Fit keys of the machine file to travel speeds measured on the real machine
     /// (see docs/calibration.md).
     Calibrate(CalibrateArgs),
+    /// Drive the twin with a capture's commands from the capture's start and
+    /// compare, tick by tick, speeds, phase offset, currents and duties with
+    /// what the board recorded (see docs/calibration.md).
+    Replay(ReplayArgs),
     /// Talk to the board over its UART (a serial port or tcp:HOST:PORT): status,
     /// travel, stop, hold, reset, telemetry, self-test, identify (the motors
-    /// measured), table (the tuning table), tune (a sweep measured on the machine)
+    /// measured), capture (every control tick of a window, recorded on the
+    /// board), table (the tuning table), tune (a sweep measured on the machine)
     /// (see docs/cli-device.md).
     Device(DeviceArgs),
     /// A simulated board to talk to with `device`: the firmware's controller and
@@ -97,6 +103,7 @@ pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
             | Command::Tune(_)
             | Command::Merge(_)
             | Command::Calibrate(_)
+            | Command::Replay(_)
     ) {
         crate::interrupt::catch();
     }
@@ -111,6 +118,7 @@ pub fn execute(cli: Cli, console: &mut Console<'_>) -> u8 {
         }
         Command::Merge(args) => tune::merge::run(&args, console),
         Command::Calibrate(args) => calibrate::run(&args, console),
+        Command::Replay(args) => replay::run(&args, console),
         Command::Device(args) => device::commands::run(&args, console),
         Command::DeviceSim(args) => device::serve::run(&args, console),
     };

@@ -38,6 +38,7 @@
 
 pub mod args;
 pub mod calibrate;
+pub mod capture;
 pub mod cli;
 pub mod device;
 pub mod event;
@@ -52,6 +53,7 @@ pub mod numbers;
 pub mod output;
 pub mod parts;
 pub mod plant;
+pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod simulation;

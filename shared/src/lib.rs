@@ -36,6 +36,7 @@
 // chains would hide the formulas they implement.
 #![allow(clippy::needless_range_loop)]
 
+pub mod capture;
 pub mod codec;
 pub mod controller;
 pub mod drive;

@@ -42,8 +42,8 @@ pub trait Port {
     /// controller before its step.
     fn take(&mut self, controller: &mut Controller) -> Option<Command>;
     /// Publishes the tick's status and the procedures' reports, read from
-    /// `controller` (stage 5).
-    fn publish(&mut self, out: &Outputs, controller: &Controller);
+    /// `controller`, and the tick stepped on `inputs` for a capture (stage 5).
+    fn publish(&mut self, inputs: &Inputs, out: &Outputs, controller: &Controller);
 }
 
 /// One control tick: sample, take the command, step with `dt` (s), apply,
@@ -58,7 +58,7 @@ pub fn run(
     inputs.command = port.take(controller);
     let out = controller.step(&inputs, dt);
     board.apply(&out);
-    port.publish(&out, controller);
+    port.publish(&inputs, &out, controller);
     out
 }
 
@@ -93,9 +93,10 @@ impl<L: StateLock> Port for LinkPort<L> {
         self.taken.command
     }
 
-    fn publish(&mut self, out: &Outputs, controller: &Controller) {
+    fn publish(&mut self, inputs: &Inputs, out: &Outputs, controller: &Controller) {
         let uptime_ms = self.uptime_ms;
-        self.state.lock(|l| l.publish(uptime_ms, out, controller));
+        self.state
+            .lock(|l| l.publish(uptime_ms, inputs, out, controller));
     }
 }
 

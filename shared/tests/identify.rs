@@ -576,19 +576,17 @@ fn the_link_reports_the_latest_run() {
         |c: &mut Controller, link: &mut LinkState, rotors: &mut [Rotor; 2], stop: bool| {
             let amps = [0, 1].map(|k| rotors[k].tick(bridges[k]));
             let index = [0, 1].map(|k| rotors[k].index.take());
-            let out = c.step(
-                &Inputs {
-                    encoder: [rotors[0].count(), rotors[1].count()],
-                    index,
-                    current: amps.map(|a| a as f32),
-                    supply_voltage: SUPPLY as f32,
-                    command: stop.then_some(Command::Stop),
-                    ..Inputs::default()
-                },
-                DT as f32,
-            );
+            let inputs = Inputs {
+                encoder: [rotors[0].count(), rotors[1].count()],
+                index,
+                current: amps.map(|a| a as f32),
+                supply_voltage: SUPPLY as f32,
+                command: stop.then_some(Command::Stop),
+                ..Inputs::default()
+            };
+            let out = c.step(&inputs, DT as f32);
             bridges = out.bridges;
-            link.publish(0, &out, c);
+            link.publish(0, &inputs, &out, c);
         };
     assert!(c.start_identify());
     let mut ticks = 0;

@@ -214,7 +214,7 @@ fn an_aborted_self_test_does_not_drop_the_stored_result() {
         controller.self_test_report().status,
         SelfTestStatus::Aborted
     );
-    dev.state.publish(10, &outputs, &controller);
+    dev.state.publish(10, &stop, &outputs, &controller);
     assert_eq!(dev.state.self_test.status, SelfTestStatus::Aborted);
     assert!(!dev.state.self_test_unsaved);
 

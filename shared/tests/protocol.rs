@@ -3,6 +3,10 @@
 //! see `docs/protocol.md`), every message's round trip, the decoder's recovery
 //! cases, and the answer rule on a mock device.
 
+use shared::capture::{
+    CaptureInfo, CaptureStatus, CommandEntry, CommandKind, MachineFingerprint, Record, Start,
+    Trigger, RECORDS_PER_FRAME, RECORD_LEN,
+};
 use shared::codec::crc::{crc16_ccitt_false, crc32};
 use shared::controller::identify::{IdentifyReport, IdentifyStatus, Identity};
 use shared::controller::self_test::{RotorSelfTest, SelfTest, SelfTestReport, SelfTestStatus};
@@ -154,6 +158,16 @@ fn every_request() -> Vec<Request> {
         Request::ReadIdentify,
         Request::StreamTelemetry { period_ms: 0 },
         Request::StreamTelemetry { period_ms: 50 },
+        Request::ArmCapture {
+            trigger: Trigger::Fault,
+            window: 2048,
+        },
+        Request::ArmCapture {
+            trigger: Trigger::Now,
+            window: 0,
+        },
+        Request::GetCapture,
+        Request::ReadCapture { first: 2047 },
     ]
 }
 
@@ -186,7 +200,86 @@ fn every_response() -> Vec<Response> {
             identity: Identity::default(),
         }),
         Response::Status(sample_status(State::Identify, 750.0)),
+        Response::Capture(sample_capture_info()),
+        Response::CaptureRecords {
+            first: 22,
+            count: 2,
+            records: {
+                let mut slots = [[0u8; RECORD_LEN]; RECORDS_PER_FRAME];
+                slots[0] = sample_record(false).to_bytes();
+                slots[1] = sample_record(true).to_bytes();
+                slots
+            },
+        },
+        Response::CaptureRecords {
+            first: 2000,
+            count: 0,
+            records: [[0u8; RECORD_LEN]; RECORDS_PER_FRAME],
+        },
     ]
+}
+
+/// A capture's info with a command of each kind that carries values.
+fn sample_capture_info() -> CaptureInfo {
+    let mut commands = heapless::Vec::new();
+    commands
+        .push(CommandEntry {
+            record: 0,
+            command: Command::Travel {
+                direction: Direction::Left,
+                speed_rpm: 2800.0,
+            },
+        })
+        .unwrap();
+    commands
+        .push(CommandEntry {
+            record: 900,
+            command: Command::HoldOffset {
+                speed_rpm: 3000.0,
+                offset_deg: 95.5,
+            },
+        })
+        .unwrap();
+    CaptureInfo {
+        id: 3,
+        status: CaptureStatus::Done,
+        trigger: Trigger::Command,
+        capacity: 2048,
+        window: 2000,
+        recorded: 2000,
+        ended_early: false,
+        tick_us: 1000,
+        start: Start {
+            state: State::Idle,
+            speed_rpm: [0.5, -0.25],
+            index: [Some(4096), None],
+            uptime_ms: 123_456,
+        },
+        machine: MachineFingerprint {
+            crc32: 0x7e36_8ed6,
+            len: 7459,
+        },
+        commands,
+    }
+}
+
+/// A record with every field set; `off`: rotor 2's bridge off.
+fn sample_record(off: bool) -> Record {
+    Record {
+        encoder: [u32::MAX - 3, 12],
+        index: [Some(u32::MAX - 100), None],
+        current: [0.125, -0.5],
+        supply_voltage: 11.9,
+        estop: off,
+        command: Some(CommandKind::Travel),
+        self_test_started: false,
+        identify_started: off,
+        tuning_changed: !off,
+        timing_us: [3, 412],
+        duty_raw: [Some(-32767), if off { None } else { Some(16000) }],
+        state: State::Running,
+        faults: Faults::from_bits(Faults::LINK_LOST.bits() | Faults::ESTOP.bits()),
+    }
 }
 
 #[test]
@@ -201,7 +294,7 @@ fn frames_match_the_documented_bytes() {
     // bitwise CRC-16/CCITT-FALSE), not with this crate.
     assert_eq!(
         frame_of(&Request::Command(Command::Heartbeat), 1),
-        hex("A5 5A 03 01 01 00 00 00 B5 F4 01 D1 41 8B")
+        hex("A5 5A 04 01 01 00 00 00 F4 3C DE EC 59 FD")
     );
     assert_eq!(
         frame_of(
@@ -211,11 +304,11 @@ fn frames_match_the_documented_bytes() {
             }),
             0x1234
         ),
-        hex("A5 5A 03 04 34 12 05 00 B8 95 00 00 80 BB 44 B7 76 1D 51")
+        hex("A5 5A 04 04 34 12 05 00 F9 5D 00 00 80 BB 44 FB 92 A9 33")
     );
     assert_eq!(
         frame_of(&Response::Ack { request: 0x01 }, 1),
-        hex("A5 5A 03 80 01 00 01 00 05 4F 01 CB 8B 17 B2")
+        hex("A5 5A 04 80 01 00 01 00 44 87 01 B3 5C 0D A4")
     );
     assert_eq!(
         frame_of(
@@ -225,7 +318,21 @@ fn frames_match_the_documented_bytes() {
             },
             0x1234
         ),
-        hex("A5 5A 03 81 34 12 02 00 A8 0D 04 03 A4 68 E4 5A")
+        hex("A5 5A 04 81 34 12 02 00 E9 C5 04 03 7D 8B 2C 04")
+    );
+    assert_eq!(
+        frame_of(
+            &Request::ArmCapture {
+                trigger: Trigger::Command,
+                window: 2000
+            },
+            7
+        ),
+        hex("A5 5A 04 0E 07 00 03 00 C7 2B 01 D0 07 04 3B 02 1E")
+    );
+    assert_eq!(
+        frame_of(&Request::ReadCapture { first: 11 }, 8),
+        hex("A5 5A 04 10 08 00 02 00 EA 07 0B 00 60 B6 EE 65")
     );
 }
 
@@ -691,6 +798,17 @@ fn every_request_gets_its_answer_and_one_command() {
                 device.identify.status = IdentifyStatus::NotRun;
                 ack(request.clone())
             }
+            // The mock has no capture buffer (the trait's defaults): only a
+            // window of 0 (disarm) is taken, and nothing is recorded.
+            Request::ArmCapture { window, .. } if *window > 0 => {
+                nack(request.clone(), NackReason::BadValue)
+            }
+            Request::GetCapture => Response::Capture(device.capture_info()),
+            Request::ReadCapture { first } => Response::CaptureRecords {
+                first: *first,
+                count: 0,
+                records: [[0; RECORD_LEN]; RECORDS_PER_FRAME],
+            },
             _ => ack(request.clone()),
         };
         assert_eq!(response, expected, "{request:?}");

@@ -647,21 +647,19 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
         let taken = dev.state.take_for_tick(&mut c);
         assert!(!taken.self_test_refused);
         let command = taken.command;
-        let out = c.step(
-            &Inputs {
-                encoder: count.map(|n| n as u32),
-                index,
-                current,
-                supply_voltage: 12.0,
-                estop: false,
-                command,
-                timing: Default::default(),
-            },
-            0.001,
-        );
+        let inputs = Inputs {
+            encoder: count.map(|n| n as u32),
+            index,
+            current,
+            supply_voltage: 12.0,
+            estop: false,
+            command,
+            timing: Default::default(),
+        };
+        let out = c.step(&inputs, 0.001);
         duty = out.duties();
         let was_running = dev.state.self_test.status == SelfTestStatus::Running;
-        dev.state.publish(ms, &out, &c);
+        dev.state.publish(ms, &inputs, &out, &c);
         if was_running && dev.state.self_test.status == SelfTestStatus::Done {
             assert!(dev.state.self_test_unsaved);
             done_at = Some(ms);
@@ -698,13 +696,13 @@ fn a_requested_self_test_runs_and_is_stored_with_the_table() {
     };
     let out = c.step(&estop, 0.001);
     assert_eq!(out.state, State::Fault);
-    dev.state.publish(done_at + 2, &out, &c);
+    dev.state.publish(done_at + 2, &estop, &out, &c);
     dev.state.self_test_requested = true;
     assert!(dev.state.take_for_tick(&mut c).self_test_refused);
     assert_eq!(dev.state.self_test.status, SelfTestStatus::Aborted);
     for ms in done_at + 3..done_at + 10 {
         let out = c.step(&estop, 0.001);
-        dev.state.publish(ms, &out, &c);
+        dev.state.publish(ms, &estop, &out, &c);
         assert_eq!(
             dev.state.self_test.status,
             SelfTestStatus::Aborted,

@@ -43,7 +43,7 @@ mod app {
     use firmware::motor_out::{self, MotorOut};
     use firmware::port::{run_tick, serve};
     use firmware::sense::Sense;
-    use firmware::start::start;
+    use firmware::start::{start, CaptureBuffer, CAPTURE_BUFFER};
     use firmware::watchdog::Watchdog;
     use firmware::{exceptions, TICK_MS};
 
@@ -85,7 +85,7 @@ mod app {
         uptime_ms: u32,
     }
 
-    #[init(local = [rx_ring: RxRing = RxRing::new()])]
+    #[init(local = [rx_ring: RxRing = RxRing::new(), capture: CaptureBuffer = CAPTURE_BUFFER])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         // Faults to their own handlers, which cut first, and a stack overflow
         // caught while a handler can still run.
@@ -98,7 +98,7 @@ mod app {
 
         // Parameters: the reference machine with the table stored in flash, or
         // the compiled-in one when none is stored (first start).
-        let (controller, link) = start(&mut b.flash, b.reset_cause);
+        let (controller, link) = start(&mut b.flash, b.reset_cause, cx.local.capture);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
 
         (

@@ -35,7 +35,7 @@ mod app {
     use firmware::qemu::counter;
     use firmware::qemu::cycles::{self, SysTickClock};
     use firmware::qemu::pwm::{self, SimPwm};
-    use firmware::start::start_in_qemu;
+    use firmware::start::{start_in_qemu, CaptureBuffer, CAPTURE_BUFFER};
     use firmware::{exceptions, qemu, TICK_MS};
 
     #[shared]
@@ -61,14 +61,18 @@ mod app {
         tx_out: Consumer<'static, u8>,
     }
 
-    #[init(local = [rx_ring: RxRing = RxRing::new(), tx_ring: TxRing = TxRing::new()])]
+    #[init(local = [
+        rx_ring: RxRing = RxRing::new(),
+        tx_ring: TxRing = TxRing::new(),
+        capture: CaptureBuffer = CAPTURE_BUFFER,
+    ])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         let mut syst = cx.core.SYST;
         let (rx_in, rx_out) = cx.local.rx_ring.split();
         let (tx_in, tx_out) = cx.local.tx_ring.split();
 
-        let (flash, controller, link) = start_in_qemu();
+        let (flash, controller, link) = start_in_qemu(cx.local.capture);
         let hello = Hello::new(
             MACHINE_FILE_CRC32,
             MACHINE_FILE_LEN,

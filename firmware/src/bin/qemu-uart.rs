@@ -30,7 +30,7 @@ mod app {
     use firmware::qemu::pwm::{self, SimPwm};
     use firmware::qemu::uart::{self, UartRx, UartTx};
     use firmware::qemu::{self, cycles};
-    use firmware::start::start_in_qemu;
+    use firmware::start::{start_in_qemu, CaptureBuffer, CAPTURE_BUFFER};
     use firmware::{exceptions, TICK_MS};
 
     #[shared]
@@ -53,7 +53,7 @@ mod app {
         rx_out: Consumer<'static, u8>,
     }
 
-    #[init(local = [rx_ring: RxRing = RxRing::new()])]
+    #[init(local = [rx_ring: RxRing = RxRing::new(), capture: CaptureBuffer = CAPTURE_BUFFER])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         let mut syst = cx.core.SYST;
@@ -61,7 +61,7 @@ mod app {
         let (rx, tx) = uart::split(cx.device.USART2);
         let (rx_in, rx_out) = cx.local.rx_ring.split();
 
-        let (flash, controller, link) = start_in_qemu();
+        let (flash, controller, link) = start_in_qemu(cx.local.capture);
         defmt::info!("qemu-uart: the link on USART2 at 115200 baud");
 
         cycles::start(&mut syst, cycles::RELOAD);

@@ -27,7 +27,7 @@ mod app {
     use firmware::qemu::script::{Io, Progress, Script};
     use firmware::qemu::world::World;
     use firmware::qemu::{self, cycles, stack};
-    use firmware::start::start_in_qemu;
+    use firmware::start::{start_in_qemu, CaptureBuffer, CAPTURE_BUFFER};
     use firmware::{exceptions, TICK_MS};
 
     #[shared]
@@ -52,7 +52,7 @@ mod app {
         calibration: (u32, u32),
     }
 
-    #[init]
+    #[init(local = [capture: CaptureBuffer = CAPTURE_BUFFER])]
     fn init(mut cx: init::Context) -> (Shared, Local) {
         exceptions::setup(&mut cx.core.SCB, &mut cx.core.MPU);
         stack::paint();
@@ -67,7 +67,7 @@ mod app {
         syst.disable_counter();
 
         // No board::setup: RCC waits would hang in QEMU.
-        let (flash, controller, link) = start_in_qemu();
+        let (flash, controller, link) = start_in_qemu(cx.local.capture);
 
         // The control tick.
         cycles::start(&mut syst, cycles::RELOAD);

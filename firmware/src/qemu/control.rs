@@ -90,8 +90,8 @@ impl<P: Port> Port for QemuPort<P> {
         command
     }
 
-    fn publish(&mut self, out: &Outputs, controller: &Controller) {
-        self.port.publish(out, controller);
+    fn publish(&mut self, inputs: &Inputs, out: &Outputs, controller: &Controller) {
+        self.port.publish(inputs, out, controller);
     }
 }
 

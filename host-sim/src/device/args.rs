@@ -80,6 +80,15 @@ pub enum DeviceCommand {
         "host-sim device --port /dev/ttyUSB0 identify --machine examples/vibro-driver.toml --write identified.toml",
     ]))]
     Identify(IdentifyArgs),
+    /// Record every control tick of a window on the board (sample, command,
+    /// outputs, state) from a trigger and write it as a capture file; with
+    /// `--travel` or `--hold` the capture starts that run, stops it after the
+    /// window and waits for rest before reading.
+    #[command(after_help = help(&[
+        "host-sim device --port /dev/ttyUSB0 capture --for 2 --travel right --speed 3000 --out travel.csv",
+        "host-sim device --port /dev/ttyUSB0 capture --for 1 --trigger fault --out fault.csv",
+    ]))]
+    Capture(CaptureArgs),
     /// Read or write the device's tuning table (the file format of `host-sim tune
     /// --write`).
     #[command(subcommand)]
@@ -214,6 +223,48 @@ pub struct IdentifyArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = Format::Table)]
     pub format: Format,
+}
+
+/// What starts a capture's recording.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TriggerArg {
+    /// The next control tick.
+    Now,
+    /// The next command other than a heartbeat (a travel, hold, stop, reset),
+    /// or a self-test or identification started.
+    Command,
+    /// The next change of the controller's state.
+    State,
+    /// The next fault.
+    Fault,
+}
+
+/// Arguments of `host-sim device capture`.
+#[derive(Debug, Args)]
+pub struct CaptureArgs {
+    /// The window, s: every control tick of it is recorded (at most the
+    /// device's buffer, 2.048 s at 1 kHz on the board).
+    #[arg(long = "for", value_name = "S", allow_negative_numbers = true)]
+    pub for_s: f64,
+    /// What starts the recording (default: `command` with `--travel` or
+    /// `--hold`, else `now`).
+    #[arg(long, value_enum)]
+    pub trigger: Option<TriggerArg>,
+    /// Start this travel once armed (needs `--speed`).
+    #[arg(long, value_enum, value_name = "right|left")]
+    pub travel: Option<DirectionArg>,
+    /// Start holding this phase offset, degrees, once armed (needs `--speed`).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub hold: Option<f32>,
+    /// The rotor speed of `--travel` or `--hold`, rpm.
+    #[arg(long, value_name = "RPM", allow_negative_numbers = true)]
+    pub speed: Option<f32>,
+    /// Give up when the capture is not done S seconds after it was armed.
+    #[arg(long, value_name = "S", default_value_t = super::capture::DEFAULT_TIMEOUT_S, allow_negative_numbers = true)]
+    pub timeout: f64,
+    /// The capture file to write (whole, or not at all).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: std::path::PathBuf,
 }
 
 /// `host-sim device table ...`.

@@ -21,7 +21,7 @@ use super::args::{
 use super::procedure::{self, after_a_tick, stood, Procedure, Stage};
 use super::report;
 use super::rest::{await_rest, Poll, REST_TIMEOUT_S};
-use super::{identify, live, telemetry, tune};
+use super::{capture, identify, live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::{Client, LinkError};
@@ -51,13 +51,21 @@ pub fn run(args: &DeviceArgs, console: &mut Console<'_>) -> Result<(), Failure> 
         file,
         tune,
         identify,
+        capture,
     } = check(args)?;
     // A port that cannot be opened is a bad --port, as a missing file is.
     let port = port
         .open()
         .map_err(|e| Failure::usage(format!("--port: {e}")))?;
     let mut client = Client::new(port, args.retries);
-    run_on(&mut client, args, table, file, tune, identify, console)
+    let prepared = Prepared {
+        table,
+        file,
+        tune,
+        identify,
+        capture,
+    };
+    run_on(&mut client, args, prepared, console)
 }
 
 /// What [`check`] found: the port, the table to write, and the output file staged
@@ -71,6 +79,17 @@ struct Checked {
     tune: Option<tune::Prepared>,
     /// `identify`'s machine file and output.
     identify: Option<identify::Prepared>,
+    /// `capture`'s output and run command.
+    capture: Option<capture::Prepared>,
+}
+
+/// What a command prepared before the port was opened.
+struct Prepared {
+    table: Option<TuningTable>,
+    file: Option<(Staged, usize)>,
+    tune: Option<tune::Prepared>,
+    identify: Option<identify::Prepared>,
+    capture: Option<capture::Prepared>,
 }
 
 /// `path`, given as `option`, staged as the command's one output file.
@@ -103,6 +122,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
     let mut file = None;
     let mut tune = None;
     let mut identify = None;
+    let mut capture = None;
     match &args.command {
         DeviceCommand::Travel(a) => {
             positive("--speed", f64::from(a.speed), "rpm")?;
@@ -154,6 +174,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
             file = staged("--out", path)?
         }
         DeviceCommand::Tune(a) => tune = Some(tune::prepare(a)?),
+        DeviceCommand::Capture(a) => capture = Some(capture::prepare(a)?),
         DeviceCommand::Table(TableCommand::Read { out: None })
         | DeviceCommand::Status
         | DeviceCommand::Stop
@@ -165,6 +186,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         file,
         tune,
         identify,
+        capture,
     })
 }
 
@@ -172,12 +194,16 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
 fn run_on(
     client: &mut Client,
     args: &DeviceArgs,
-    table: Option<TuningTable>,
-    file: Option<(Staged, usize)>,
-    tune: Option<tune::Prepared>,
-    identify: Option<identify::Prepared>,
+    prepared: Prepared,
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
+    let Prepared {
+        table,
+        file,
+        tune,
+        identify,
+        capture,
+    } = prepared;
     match &args.command {
         DeviceCommand::Status => {
             let s = client.status()?;
@@ -211,6 +237,11 @@ fn run_on(
         DeviceCommand::Identify(a) => {
             if let Some(prepared) = identify {
                 identify::run(client, a, prepared, out)?;
+            }
+        }
+        DeviceCommand::Capture(a) => {
+            if let Some(prepared) = capture {
+                capture::run(client, a, prepared, out)?;
             }
         }
         DeviceCommand::Table(TableCommand::Read { out: path }) => {

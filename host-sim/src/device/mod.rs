@@ -16,6 +16,8 @@
 //!   motor identification), asked for, watched and stopped on Ctrl-C;
 //! - [`identify`]: `host-sim device identify`, the motors measured, compared with
 //!   a machine file and written into one;
+//! - [`capture`]: `host-sim device capture`, a window of control ticks recorded
+//!   on the board, read out and written as a capture file;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
 //! - [`rest`]: the machine at rest after a stop, as its status says;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
@@ -27,6 +29,7 @@
 //!   pseudo-terminal or a TCP port.
 
 pub mod args;
+pub mod capture;
 pub mod commands;
 pub mod identify;
 pub mod live;

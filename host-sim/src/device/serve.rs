@@ -385,8 +385,12 @@ pub fn run(args: &DeviceSimArgs, console: &mut Console<'_>) -> Result<(), Failur
                     format!("{whose}whole plant (platform, contacts, motors, sensors)"),
                 )
             };
+            let bytes = std::fs::read(firmware_path).map_err(|e| {
+                Failure::usage(format!("{}: cannot read: {e}", firmware_path.display()))
+            })?;
             (
-                SimDevice::with_machines(&machine, &firmware, platform, table, noise)?,
+                SimDevice::with_machines(&machine, &firmware, platform, table, noise)?
+                    .built_for(&bytes),
                 format!(
                     "{}'s controller at {} Hz on {plant}",
                     firmware_path.display(),

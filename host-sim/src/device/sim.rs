@@ -15,6 +15,7 @@
 
 use std::collections::VecDeque;
 
+use shared::capture::{Capture, MachineFingerprint, BOARD_CAPACITY, RECORD_LEN};
 use shared::controller::Inputs;
 use shared::controller::{Controller, Outputs, Params, ResetCause, TuningTable};
 use shared::protocol::link::{use_stored, Link, LinkState};
@@ -188,7 +189,13 @@ impl SimDevice {
         let stored = storage::load(&flash);
         use_stored(&mut params, stored.as_ref());
         let controller = Controller::new(&params, ResetCause::PowerOn);
-        let state = LinkState::at_start(&controller, stored.as_ref());
+        // The board's capture buffer; a device lives as long as its process.
+        let buffer = Box::leak(vec![[0u8; RECORD_LEN]; BOARD_CAPACITY].into_boxed_slice());
+        let state = LinkState::at_start(&controller, stored.as_ref()).with_capture(Capture::new(
+            buffer,
+            MachineFingerprint::default(),
+            params.tick_s(),
+        ));
         let tick_ms = (params.tick_s() * 1000.0).round().max(1.0) as u32;
         SimDevice {
             mechanics: Box::new(mechanics),
@@ -226,6 +233,17 @@ impl SimDevice {
     /// The controller's link timeout, s.
     pub fn link_timeout_s(&self) -> f32 {
         self.controller.params().limits.link_timeout_s
+    }
+
+    /// The device's firmware built for the machine file of `bytes`: its
+    /// captures carry the file's fingerprint (CRC-32 and length), as the
+    /// board's build stamps them. Without it they carry none (0, 0).
+    pub fn built_for(mut self, bytes: &[u8]) -> SimDevice {
+        self.state.capture.set_machine(MachineFingerprint {
+            crc32: shared::codec::crc::crc32(bytes),
+            len: bytes.len() as u32,
+        });
+        self
     }
 
     /// Milliseconds per control tick.

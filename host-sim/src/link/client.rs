@@ -166,6 +166,9 @@ fn id_name(id: MessageId) -> &'static str {
         MessageId::StreamTelemetry => "StreamTelemetry",
         MessageId::RunIdentify => "RunIdentify",
         MessageId::ReadIdentify => "ReadIdentify",
+        MessageId::ArmCapture => "ArmCapture",
+        MessageId::GetCapture => "GetCapture",
+        MessageId::ReadCapture => "ReadCapture",
         _ => "a response",
     }
 }
@@ -191,6 +194,8 @@ pub fn answer_text(response: &Response) -> String {
         Response::TuningTable(_) => "a tuning table".into(),
         Response::SelfTest(_) => "a self-test report".into(),
         Response::Identify(_) => "an identification report".into(),
+        Response::Capture(_) => "a capture's status".into(),
+        Response::CaptureRecords { .. } => "a capture's records".into(),
         Response::Telemetry(_) => "a telemetry frame".into(),
     }
 }
@@ -198,7 +203,8 @@ pub fn answer_text(response: &Response) -> String {
 /// Whether `response` answers `request` (the device's answer rule,
 /// `shared::protocol::answer_request`): a Nack naming the request's id; an Ack naming it,
 /// for the requests answered by Ack; the report asked for by `GetStatus`,
-/// `ReadTuningTable`, `ReadSelfTest` and `ReadIdentify`.
+/// `ReadTuningTable`, `ReadSelfTest`, `ReadIdentify` and `GetCapture`, and
+/// the records from the first asked for by `ReadCapture`.
 pub fn answers(request: &Request, response: &Response) -> bool {
     let asked = request.id() as u8;
     let wants_report = matches!(
@@ -207,6 +213,8 @@ pub fn answers(request: &Request, response: &Response) -> bool {
             | Request::ReadTuningTable
             | Request::ReadSelfTest
             | Request::ReadIdentify
+            | Request::GetCapture
+            | Request::ReadCapture { .. }
     );
     match response {
         Response::Nack { request: id, .. } => *id == asked,
@@ -215,6 +223,10 @@ pub fn answers(request: &Request, response: &Response) -> bool {
         Response::TuningTable(_) => matches!(request, Request::ReadTuningTable),
         Response::SelfTest(_) => matches!(request, Request::ReadSelfTest),
         Response::Identify(_) => matches!(request, Request::ReadIdentify),
+        Response::Capture(_) => matches!(request, Request::GetCapture),
+        Response::CaptureRecords { first, .. } => {
+            matches!(request, Request::ReadCapture { first: f } if f == first)
+        }
         Response::Telemetry(_) => false,
     }
 }

@@ -29,7 +29,7 @@
 //! link asks: [`Controller::start_self_test`] just before that tick's step.
 
 use shared::controller::{
-    Command, Controller, Faults, Outputs, Params, ResetCause, RotorCount, State,
+    Command, Controller, Faults, Inputs, Outputs, Params, ResetCause, RotorCount, State,
 };
 use shared::tick::{self, Port};
 
@@ -314,5 +314,5 @@ impl Port for SchedulePort<'_> {
         command
     }
 
-    fn publish(&mut self, _out: &Outputs, _controller: &Controller) {}
+    fn publish(&mut self, _inputs: &Inputs, _out: &Outputs, _controller: &Controller) {}
 }

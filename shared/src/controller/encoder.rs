@@ -189,6 +189,11 @@ impl EncoderTracker {
         self.speed.speed_rad_s()
     }
 
+    /// The count latched at the last index pulse, `None` before the first.
+    pub fn index_count(&self) -> Option<u32> {
+        self.index_count
+    }
+
     /// Whether an index pulse has been seen.
     pub fn index_seen(&self) -> bool {
         self.index_count.is_some()

@@ -177,6 +177,41 @@ impl State {
         }
     }
 
+    /// Every state, in wire-code order.
+    pub const ALL: [State; 7] = [
+        State::Idle,
+        State::Starting,
+        State::Running,
+        State::Stopping,
+        State::Fault,
+        State::SelfTest,
+        State::Identify,
+    ];
+
+    /// The state's code on the wire and in a capture: 0 idle, 1 starting,
+    /// 2 running, 3 stopping, 4 fault, 5 self-test, 6 identify.
+    pub fn code(self) -> u8 {
+        match self {
+            State::Idle => 0,
+            State::Starting => 1,
+            State::Running => 2,
+            State::Stopping => 3,
+            State::Fault => 4,
+            State::SelfTest => 5,
+            State::Identify => 6,
+        }
+    }
+
+    /// The state of wire code `b`, if there is one.
+    pub fn from_code(b: u8) -> Option<State> {
+        State::ALL.into_iter().find(|s| s.code() == b)
+    }
+
+    /// The state named `name` ([`State::name`]), if there is one.
+    pub fn from_name(name: &str) -> Option<State> {
+        State::ALL.into_iter().find(|s| s.name() == name)
+    }
+
     /// Whether the motors are driven in this state (before the fault override).
     pub fn drives(self) -> bool {
         matches!(

@@ -523,6 +523,16 @@ impl Controller {
         }
     }
 
+    /// The count each encoder latched at its last index pulse, `None` until one
+    /// has been seen: where `theta = 0` is for the controller (a capture's start,
+    /// [`crate::capture`]).
+    pub fn index_counts(&self) -> [Option<u32>; 2] {
+        [
+            self.encoders[0].index_count(),
+            self.encoders[1].index_count(),
+        ]
+    }
+
     /// The current state.
     pub fn state(&self) -> State {
         self.mode.state()

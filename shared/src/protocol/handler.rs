@@ -21,11 +21,16 @@
 //! | `ReadSelfTest` | `SelfTest` |
 //! | `ReadIdentify` | `Identify` |
 //! | `StreamTelemetry` | `Ack` |
+//! | `ArmCapture` | `Ack`; `Nack(BadValue)` for a window longer than the buffer |
+//! | `GetCapture` | `Capture` |
+//! | `ReadCapture` | `CaptureRecords` |
 
 use crate::controller::{may_write_table, Command, State, TuningTable};
 
 use crate::controller::identify::{IdentifyReport, IdentifyStatus};
 use crate::controller::self_test::{SelfTestReport, SelfTestStatus};
+
+use crate::capture::{Capture, CaptureInfo, Slot, Trigger, RECORDS_PER_FRAME, RECORD_LEN};
 
 use super::frame::{Frame, FrameError};
 use super::message::{Message, MessageId, NackReason, Request, Response, StatusReport};
@@ -68,6 +73,25 @@ pub trait Device {
 
     /// Send [`Response::Telemetry`] every `period_ms` from now on (0: none).
     fn set_telemetry_period(&mut self, period_ms: u16);
+
+    /// Arm the capture ([`Capture::arm`]): `BadValue` for a window longer than
+    /// the buffer. A device without a capture buffer (the default) refuses
+    /// every window but 0.
+    fn arm_capture(&mut self, trigger: Trigger, window: u16) -> Result<(), NackReason> {
+        Capture::none()
+            .arm(trigger, window)
+            .map_err(|_| NackReason::BadValue)
+    }
+
+    /// The capture's status and everything besides its records.
+    fn capture_info(&self) -> CaptureInfo {
+        Capture::none().info()
+    }
+
+    /// The capture's records from `first` on, copied into `out`; how many.
+    fn read_capture(&self, first: u16, out: &mut [Slot; RECORDS_PER_FRAME]) -> usize {
+        Capture::none().read(first, out)
+    }
 }
 
 /// The Ack or Nack of request id `request`.
@@ -136,6 +160,19 @@ pub fn answer_request<D: Device + ?Sized>(device: &mut D, request: &Request) -> 
         ),
         Request::RunIdentify => {
             verdict(id, may_start(device).and_then(|()| device.start_identify()))
+        }
+        Request::ArmCapture { trigger, window } => {
+            verdict(id, device.arm_capture(*trigger, *window))
+        }
+        Request::GetCapture => Response::Capture(device.capture_info()),
+        Request::ReadCapture { first } => {
+            let mut records = [[0u8; RECORD_LEN]; RECORDS_PER_FRAME];
+            let count = device.read_capture(*first, &mut records);
+            Response::CaptureRecords {
+                first: *first,
+                count: count as u8,
+                records,
+            }
         }
     }
 }

@@ -16,10 +16,11 @@ use super::{
     answer_event, encode, Decoder, Device, NackReason, Response, StatusReport,
     FRAME_GAP_TIMEOUT_MS, MAX_FRAME,
 };
+use crate::capture::{Capture, CaptureInfo, Slot, Start, Trigger, RECORDS_PER_FRAME};
 use crate::controller::identify::{IdentifyProgress, IdentifyReport, IdentifyStatus, Identity};
 use crate::controller::self_test::{SelfTest, SelfTestReport, SelfTestStatus};
 use crate::controller::{
-    may_write_table, Command, Controller, Outputs, Params, Telemetry, TuningTable,
+    may_write_table, Command, Controller, Inputs, Outputs, Params, Telemetry, TuningTable,
 };
 use crate::storage::{self, Record, Stored};
 use embedded_storage::nor_flash::NorFlash;
@@ -29,7 +30,7 @@ use embedded_storage::nor_flash::NorFlash;
 pub const POLL_CHUNK: usize = 64;
 
 /// What the link and the control task share (under a lock on the board).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct LinkState {
     /// The latest control tick's report (written by the control task each tick).
     pub status: StatusReport,
@@ -78,6 +79,9 @@ pub struct LinkState {
     /// motion commands and a requested self-test back until it ends, so the
     /// motors stay stopped while the flash is written.
     pub storing: bool,
+    /// The capture: armed by the link, recorded by the control task
+    /// ([`crate::capture`]); none until [`LinkState::with_capture`].
+    pub capture: Capture,
 }
 
 /// Take the stored record's tuning table into `params` (a table written over the
@@ -157,7 +161,14 @@ impl LinkState {
             telemetry_period_ms: 0,
             rx_dropped: 0,
             storing: false,
+            capture: Capture::none(),
         }
+    }
+
+    /// The state with `capture` as its capture (a buffer of the board's).
+    pub fn with_capture(mut self, capture: Capture) -> Self {
+        self.capture = capture;
+        self
     }
 
     /// The control task's side, before its step: hand a newly stored tuning
@@ -166,15 +177,19 @@ impl LinkState {
     /// (the link checked idle and at rest on the previous tick's status; the
     /// controller checks again) is reported aborted, nothing measured.
     pub fn take_for_tick(&mut self, controller: &mut Controller) -> ForTick {
-        let tuning_refused = match self.new_tuning.take() {
-            Some(table) => !controller.set_tuning(table),
-            None => false,
+        let state_before = controller.state();
+        let (tuning_handed, tuning_refused) = match self.new_tuning.take() {
+            Some(table) => {
+                let taken = controller.set_tuning(table);
+                (taken, !taken)
+            }
+            None => (false, false),
         };
         // A self-test drives the motors: like a motion command, it waits while the
         // flash is written.
-        let self_test_refused = !self.storing
-            && core::mem::take(&mut self.self_test_requested)
-            && !controller.start_self_test();
+        let self_test_asked = !self.storing && core::mem::take(&mut self.self_test_requested);
+        let self_test_started = self_test_asked && controller.start_self_test();
+        let self_test_refused = self_test_asked && !self_test_started;
         if self_test_refused {
             self.self_test = SelfTestReport {
                 status: SelfTestStatus::Aborted,
@@ -182,9 +197,9 @@ impl LinkState {
             };
         }
         // The identification, likewise.
-        let identify_refused = !self.storing
-            && core::mem::take(&mut self.identify_requested)
-            && !controller.start_identify();
+        let identify_asked = !self.storing && core::mem::take(&mut self.identify_requested);
+        let identify_started = identify_asked && controller.start_identify();
+        let identify_refused = identify_asked && !identify_started;
         if identify_refused {
             self.identify = IdentifyReport {
                 status: IdentifyStatus::Aborted,
@@ -200,6 +215,16 @@ impl LinkState {
             Some(_) if self.storing => None,
             Some(_) => self.command.take(),
         };
+        if self.capture.waiting() {
+            let before = Start {
+                state: state_before,
+                speed_rpm: self.status.telemetry.speed_rpm,
+                index: controller.index_counts(),
+                uptime_ms: self.status.uptime_ms,
+            };
+            let started = [self_test_started, identify_started, tuning_handed];
+            self.capture.note_before(before, started);
+        }
         ForTick {
             command,
             tuning_refused,
@@ -214,8 +239,16 @@ impl LinkState {
     /// finished is marked for storing with the table. A finished report is
     /// copied once, not every tick (the identification's when its progress
     /// changes: a new run, a rotor finished, its status), so that a later request the
-    /// controller refuses stays reported aborted.
-    pub fn publish(&mut self, uptime_ms: u32, out: &Outputs, controller: &Controller) {
+    /// controller refuses stays reported aborted. The tick, stepped on `inputs`,
+    /// goes to the capture.
+    pub fn publish(
+        &mut self,
+        uptime_ms: u32,
+        inputs: &Inputs,
+        out: &Outputs,
+        controller: &Controller,
+    ) {
+        self.capture.record(inputs, out);
         self.status = StatusReport::from_outputs(uptime_ms, out);
         self.status.rx_dropped = u16::try_from(self.rx_dropped).unwrap_or(u16::MAX);
         // The self-test's report while it runs (its result grows) and once when
@@ -422,6 +455,19 @@ impl<L: StateLock, F: NorFlash> Device for Session<'_, L, F> {
 
     fn set_telemetry_period(&mut self, period_ms: u16) {
         self.locked(|s| s.telemetry_period_ms = period_ms);
+    }
+
+    fn arm_capture(&mut self, trigger: Trigger, window: u16) -> Result<(), NackReason> {
+        self.locked(|s| s.capture.arm(trigger, window))
+            .map_err(|_| NackReason::BadValue)
+    }
+
+    fn capture_info(&self) -> CaptureInfo {
+        self.locked(|s| s.capture.info())
+    }
+
+    fn read_capture(&self, first: u16, out: &mut [Slot; RECORDS_PER_FRAME]) -> usize {
+        self.locked(|s| s.capture.read(first, out))
     }
 }
 

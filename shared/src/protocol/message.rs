@@ -11,6 +11,9 @@ use crate::controller::{
 };
 
 use super::frame::Frame;
+use crate::capture::{
+    CaptureInfo, Record, Slot, Trigger, CAPTURE_INFO_LEN, RECORDS_PER_FRAME, RECORD_LEN,
+};
 
 /// Message ids: requests (host to device) below `0x80`, responses (device to host)
 /// from `0x80`.
@@ -44,6 +47,12 @@ pub enum MessageId {
     RunIdentify = 0x0C,
     /// [`Request::ReadIdentify`].
     ReadIdentify = 0x0D,
+    /// [`Request::ArmCapture`].
+    ArmCapture = 0x0E,
+    /// [`Request::GetCapture`].
+    GetCapture = 0x0F,
+    /// [`Request::ReadCapture`].
+    ReadCapture = 0x10,
     /// [`Response::Ack`].
     Ack = 0x80,
     /// [`Response::Nack`].
@@ -58,11 +67,15 @@ pub enum MessageId {
     Telemetry = 0x85,
     /// [`Response::Identify`].
     IdentifyResult = 0x86,
+    /// [`Response::Capture`].
+    CaptureInfo = 0x87,
+    /// [`Response::CaptureRecords`].
+    CaptureRecords = 0x88,
 }
 
 impl MessageId {
     /// Every id, requests first.
-    pub const ALL: [MessageId; 20] = [
+    pub const ALL: [MessageId; 25] = [
         MessageId::Heartbeat,
         MessageId::GetStatus,
         MessageId::Stop,
@@ -76,6 +89,9 @@ impl MessageId {
         MessageId::StreamTelemetry,
         MessageId::RunIdentify,
         MessageId::ReadIdentify,
+        MessageId::ArmCapture,
+        MessageId::GetCapture,
+        MessageId::ReadCapture,
         MessageId::Ack,
         MessageId::Nack,
         MessageId::Status,
@@ -83,6 +99,8 @@ impl MessageId {
         MessageId::SelfTestResult,
         MessageId::Telemetry,
         MessageId::IdentifyResult,
+        MessageId::CaptureInfo,
+        MessageId::CaptureRecords,
     ];
 
     /// The id of byte `b`, if there is one.
@@ -207,6 +225,22 @@ pub enum Request {
     RunIdentify,
     /// Answered [`Response::Identify`].
     ReadIdentify,
+    /// Arm the capture ([`crate::capture`]) for `window` ticks from `trigger`
+    /// (a window of 0 disarms); answered Ack, or Nack `BadValue` for a window
+    /// longer than the device's buffer.
+    ArmCapture {
+        /// What starts the recording.
+        trigger: Trigger,
+        /// Ticks to record, 0 to the buffer's capacity.
+        window: u16,
+    },
+    /// Answered [`Response::Capture`].
+    GetCapture,
+    /// Answered [`Response::CaptureRecords`]: the records from `first` on.
+    ReadCapture {
+        /// The first record wanted (a tick of the window, from 0).
+        first: u16,
+    },
     /// Send [`Response::Telemetry`] every `period_ms` (0: stop the stream); answered
     /// Ack, or Nack `BadValue` below [`MIN_TELEMETRY_PERIOD_MS`].
     StreamTelemetry {
@@ -285,6 +319,18 @@ pub enum Response {
     SelfTest(SelfTestReport),
     /// The answer to [`Request::ReadIdentify`].
     Identify(IdentifyReport),
+    /// The answer to [`Request::GetCapture`].
+    Capture(CaptureInfo),
+    /// The answer to [`Request::ReadCapture`]: `count` records from `first`
+    /// (none from the last recorded on).
+    CaptureRecords {
+        /// The first record sent.
+        first: u16,
+        /// How many, at most [`RECORDS_PER_FRAME`].
+        count: u8,
+        /// The records' bytes (the first `count` slots).
+        records: [Slot; RECORDS_PER_FRAME],
+    },
     /// Sent unsolicited every period of [`Request::StreamTelemetry`], with the
     /// device's own sequence counter in the header.
     Telemetry(StatusReport),
@@ -309,35 +355,6 @@ fn direction_code(d: Direction) -> u8 {
         Direction::Right => 0,
         Direction::Left => 1,
     }
-}
-
-/// Wire code of a state: 0 idle, 1 starting, 2 running, 3 stopping, 4 fault,
-/// 5 self-test, 6 identify.
-fn state_code(s: State) -> u8 {
-    match s {
-        State::Idle => 0,
-        State::Starting => 1,
-        State::Running => 2,
-        State::Stopping => 3,
-        State::Fault => 4,
-        State::SelfTest => 5,
-        State::Identify => 6,
-    }
-}
-
-/// The state of a wire code.
-fn state_from_code(b: u8) -> Option<State> {
-    [
-        State::Idle,
-        State::Starting,
-        State::Running,
-        State::Stopping,
-        State::Fault,
-        State::SelfTest,
-        State::Identify,
-    ]
-    .into_iter()
-    .find(|s| state_code(*s) == b)
 }
 
 /// Telemetry flag bits.
@@ -383,7 +400,7 @@ fn write_status(w: &mut Writer<'_>, s: &StatusReport) {
         (t.command_rejected, COMMAND_REJECTED),
     ]);
     w.u32(s.uptime_ms);
-    w.u8(state_code(s.state));
+    w.u8(s.state.code());
     w.u8(flags);
     w.u16(s.faults.bits());
     for v in [
@@ -429,7 +446,7 @@ fn read_status(payload: &[u8]) -> Result<StatusReport, ParseError> {
     else {
         return Err(ParseError::BadLength);
     };
-    let state = state_from_code(state).ok_or(ParseError::BadValue)?;
+    let state = State::from_code(state).ok_or(ParseError::BadValue)?;
     let faults = Faults::from_bits(bits);
     if faults.bits() != bits || flags & !(PHASE_VALID | PHASE_LOOP_CLOSED | COMMAND_REJECTED) != 0 {
         return Err(ParseError::BadValue);
@@ -457,6 +474,32 @@ fn read_status(payload: &[u8]) -> Result<StatusReport, ParseError> {
             overruns,
         },
         rx_dropped,
+    })
+}
+
+/// Read a [`Response::CaptureRecords`] payload: first `u16`, count, then the
+/// count's records exactly, each a valid [`crate::capture::Record`].
+fn read_records(p: &[u8]) -> Result<Response, ParseError> {
+    let mut r = Reader::new(p);
+    let (Some(first), Some(count)) = (r.u16(), r.u8()) else {
+        return Err(ParseError::BadLength);
+    };
+    let n = usize::from(count);
+    if n > RECORDS_PER_FRAME {
+        return Err(ParseError::BadValue);
+    }
+    if p.len() != 3 + n * RECORD_LEN {
+        return Err(ParseError::BadLength);
+    }
+    let mut records = [[0u8; RECORD_LEN]; RECORDS_PER_FRAME];
+    for slot in records.iter_mut().take(n) {
+        *slot = r.array().ok_or(ParseError::BadLength)?;
+        Record::from_bytes(slot).ok_or(ParseError::BadValue)?;
+    }
+    Ok(Response::CaptureRecords {
+        first,
+        count,
+        records,
     })
 }
 
@@ -493,6 +536,9 @@ impl Request {
             | Request::ReadSelfTest
             | Request::RunIdentify
             | Request::ReadIdentify
+            | Request::ArmCapture { .. }
+            | Request::GetCapture
+            | Request::ReadCapture { .. }
             | Request::StreamTelemetry { .. } => Command::Heartbeat,
         }
     }
@@ -527,6 +573,9 @@ impl Message for Request {
             Request::StreamTelemetry { .. } => MessageId::StreamTelemetry,
             Request::RunIdentify => MessageId::RunIdentify,
             Request::ReadIdentify => MessageId::ReadIdentify,
+            Request::ArmCapture { .. } => MessageId::ArmCapture,
+            Request::GetCapture => MessageId::GetCapture,
+            Request::ReadCapture { .. } => MessageId::ReadCapture,
         }
     }
 
@@ -549,13 +598,19 @@ impl Message for Request {
             }
             Request::WriteTuningTable(table) => write_table(&mut w, table),
             Request::StreamTelemetry { period_ms } => w.u16(*period_ms),
+            Request::ArmCapture { trigger, window } => {
+                w.u8(trigger.code());
+                w.u16(*window);
+            }
+            Request::ReadCapture { first } => w.u16(*first),
             Request::Command(Command::Heartbeat | Command::Stop | Command::ResetFaults)
             | Request::GetStatus
             | Request::ReadTuningTable
             | Request::RunSelfTest
             | Request::ReadSelfTest
             | Request::RunIdentify
-            | Request::ReadIdentify => {}
+            | Request::ReadIdentify
+            | Request::GetCapture => {}
         }
         w.finish()
     }
@@ -576,6 +631,20 @@ impl Message for Request {
             MessageId::ReadSelfTest => empty(Request::ReadSelfTest),
             MessageId::RunIdentify => empty(Request::RunIdentify),
             MessageId::ReadIdentify => empty(Request::ReadIdentify),
+            MessageId::GetCapture => empty(Request::GetCapture),
+            MessageId::ArmCapture => {
+                let mut r = expect_len(p, 3)?;
+                let (Some(trigger), Some(window)) = (r.u8(), r.u16()) else {
+                    return Err(ParseError::BadLength);
+                };
+                let trigger = Trigger::from_code(trigger).ok_or(ParseError::BadValue)?;
+                Ok(Request::ArmCapture { trigger, window })
+            }
+            MessageId::ReadCapture => {
+                let mut r = expect_len(p, 2)?;
+                let first = r.u16().ok_or(ParseError::BadLength)?;
+                Ok(Request::ReadCapture { first })
+            }
             MessageId::Travel => {
                 let mut r = expect_len(p, 5)?;
                 let direction = match r.u8() {
@@ -615,7 +684,9 @@ impl Message for Request {
             | MessageId::TuningTable
             | MessageId::SelfTestResult
             | MessageId::Telemetry
-            | MessageId::IdentifyResult => Err(ParseError::UnknownId),
+            | MessageId::IdentifyResult
+            | MessageId::CaptureInfo
+            | MessageId::CaptureRecords => Err(ParseError::UnknownId),
         }
     }
 }
@@ -630,6 +701,8 @@ impl Message for Response {
             Response::SelfTest(_) => MessageId::SelfTestResult,
             Response::Telemetry(_) => MessageId::Telemetry,
             Response::Identify(_) => MessageId::IdentifyResult,
+            Response::Capture(_) => MessageId::CaptureInfo,
+            Response::CaptureRecords { .. } => MessageId::CaptureRecords,
         }
     }
 
@@ -645,6 +718,18 @@ impl Message for Response {
             Response::TuningTable(table) => write_table(&mut w, table),
             Response::SelfTest(report) => report.write(&mut w),
             Response::Identify(report) => report.write(&mut w),
+            Response::Capture(info) => w.bytes(&info.to_bytes()),
+            Response::CaptureRecords {
+                first,
+                count,
+                records,
+            } => {
+                w.u16(*first);
+                w.u8(*count);
+                for slot in records.iter().take(usize::from(*count)) {
+                    w.bytes(slot);
+                }
+            }
         }
         w.finish()
     }
@@ -681,6 +766,12 @@ impl Message for Response {
                 let report = IdentifyReport::read(&mut r).ok_or(ParseError::BadValue)?;
                 Ok(Response::Identify(report))
             }
+            MessageId::CaptureInfo => {
+                expect_len(p, CAPTURE_INFO_LEN)?;
+                let info = CaptureInfo::from_bytes(p).ok_or(ParseError::BadValue)?;
+                Ok(Response::Capture(info))
+            }
+            MessageId::CaptureRecords => read_records(p),
             // Requests were filtered out above.
             MessageId::Heartbeat
             | MessageId::GetStatus
@@ -694,7 +785,10 @@ impl Message for Response {
             | MessageId::ReadSelfTest
             | MessageId::StreamTelemetry
             | MessageId::RunIdentify
-            | MessageId::ReadIdentify => Err(ParseError::UnknownId),
+            | MessageId::ReadIdentify
+            | MessageId::ArmCapture
+            | MessageId::GetCapture
+            | MessageId::ReadCapture => Err(ParseError::UnknownId),
         }
     }
 }

@@ -42,9 +42,10 @@ pub use message::{
     MIN_TELEMETRY_PERIOD_MS,
 };
 
-/// Protocol version, byte 2 of every frame: 3 since the motor identification's
-/// requests, its report and the state `identify` (2: the 68-byte status report).
-pub const PROTOCOL_VERSION: u8 = 3;
+/// Protocol version, byte 2 of every frame: 4 since the capture's requests and
+/// answers (3: the motor identification's requests, its report and the state
+/// `identify`; 2: the 68-byte status report).
+pub const PROTOCOL_VERSION: u8 = 4;
 
 /// UART speed, baud (8N1). 115200 is the rate every USB-serial adapter and every
 /// terminal program supports; it carries 11520 bytes/s, so the largest frame
