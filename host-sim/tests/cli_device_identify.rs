@@ -1,12 +1,16 @@
-//! `host-sim device identify` through the real binaries, against a hidden truth:
+//! `host-sim device identify`, `device capture` and `replay` through the real
+//! binaries, against a hidden truth, end to end as a bench would run them:
 //! `host-sim device-sim --machine TRUE.toml --firmware-machine
 //! examples/vibro-driver.toml` is a board built for the example file on a
-//! machine whose motors are 10 to 30 % off it, the two unlike; `identify
-//! --machine examples/vibro-driver.toml --write OUT.toml` must find each motor's
-//! constants (within 5 %, friction within 20 %, each within three of its
-//! standard errors) and write them where the machine file takes them, and the
-//! file written must run. Bad input: exit 2, nothing asked of the device,
-//! nothing written.
+//! machine whose motors are 10 to 30 % off it, the two unlike.
+//! 1. `identify --machine examples/vibro-driver.toml --write OUT.toml` must find
+//!    each motor's constants (within 5 %, friction within 20 %, each within three
+//!    of its standard errors) and write them where the machine file takes them;
+//! 2. a capture of a travel, replayed on the file written, must leave residuals
+//!    at least 5 times smaller than on the example file, in every quantity;
+//! 3. the file written must tune.
+//!
+//! Bad input: exit 2, nothing asked of the device, nothing written.
 
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
@@ -99,7 +103,7 @@ fn within(what: &str, value: f64, truth: f64, tolerance: f64) {
 /// written.
 #[cfg(unix)]
 #[test]
-fn identify_finds_the_true_motors_and_writes_them() {
+fn identify_write_capture_replay_and_tune_end_to_end() {
     let truth = truth_file();
     let example = example();
     let dev = DeviceSim::start(&[
@@ -182,6 +186,50 @@ fn identify_finds_the_true_motors_and_writes_them() {
     for comment in original.lines().filter(|l| l.trim_start().starts_with('#')) {
         assert!(text.contains(comment), "comment dropped: {comment}");
     }
+
+    // A travel captured on the bench, replayed on the file the firmware was
+    // built for and on the file identify wrote: every residual at least 5 times
+    // smaller on the latter.
+    let capture = scratch("travel.csv");
+    let said = dev.device(&[
+        "capture",
+        "--for",
+        "2",
+        "--travel",
+        "right",
+        "--speed",
+        "3000",
+        "--out",
+        capture.to_str().unwrap(),
+    ]);
+    assert!(said.contains("capture: 2000 ticks"), "{said}");
+    let replay = |machine: &Path| -> serde_json::Value {
+        let r = host_sim(&[
+            "replay",
+            machine.to_str().unwrap(),
+            capture.to_str().unwrap(),
+            "--firmware-machine",
+            example.to_str().unwrap(),
+            "--format",
+            "json",
+        ]);
+        assert_eq!(r.status, 0, "{}{}", r.stdout, r.stderr);
+        serde_json::from_str(&r.stdout).unwrap()
+    };
+    let before = replay(&example);
+    let after = replay(&out);
+    let rows = |v: &serde_json::Value| v["residuals"].as_array().unwrap().clone();
+    assert_eq!(rows(&before).len(), 7, "{before}");
+    for (b, a) in rows(&before).iter().zip(rows(&after)) {
+        let (rb, ra) = (b["rms"].as_f64().unwrap(), a["rms"].as_f64().unwrap());
+        assert!(
+            ra * 5.0 <= rb,
+            "{} rotor {}: rms {ra} on the identified file, {rb} on the example: not 5 times smaller",
+            a["quantity"],
+            a["rotor"]
+        );
+    }
+    assert_eq!(after["state_differs_ticks"], 0, "{after}");
 
     // The file written is a machine host-sim runs and tunes.
     let tuned = host_sim(&[

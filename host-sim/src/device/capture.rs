@@ -5,8 +5,11 @@
 //! Stages:
 //! 1. ask the capture's status: its buffer and tick; a window longer than the
 //!    buffer is refused (exit 2) before anything is armed;
-//! 2. arm it; with `--travel` or `--hold` send that command (the trigger
-//!    `command` by default fires on it);
+//! 2. with `--travel` or `--hold`, wait until the controller has been idle
+//!    with both speed estimates within 0.01 rpm for 0.5 s (a rotor that swings
+//!    as a pendulum after a stop, or creeps, passes 10 rpm long before; the
+//!    start a replay needs), at most 30 s; arm the capture, then send that command (the trigger `command` by
+//!    default fires on it);
 //! 3. ask the capture's status every 50 ms (each request keeps the link alive)
 //!    until it is done, or `--timeout`, or Ctrl-C;
 //! 4. a run command sent in 2 is followed by a stop, and the rotors awaited at
@@ -23,8 +26,8 @@ use shared::controller::{Command, Direction, TuningTable};
 use shared::protocol::{Request, Response};
 
 use super::args::{CaptureArgs, DirectionArg, TriggerArg};
-use super::rest::{await_rest, REST_TIMEOUT_S};
-use crate::capture::CaptureFile;
+use super::rest::{await_rest, await_steady, REST_HOLD_S, REST_TIMEOUT_S};
+use crate::capture::{settled, CaptureFile, SETTLED_RPM};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::Client;
@@ -151,9 +154,18 @@ pub fn run(
     }
     let window = window as u16;
 
-    // 2. Arm, then the run command.
+    // 2. Arm, then the run command: from rest held for a while, so that the
+    // controller's speed estimates have settled at 0 and a replay starts where
+    // the board was.
     if prepared.run.is_some() {
         interrupt::catch();
+        let rest = await_steady(client, REST_HOLD_S, SETTLE_TIMEOUT_S, settled)?;
+        if !rest.reached {
+            return Err(Failure::device(format!(
+                "capture: a run is captured from rest: state idle and both speed estimates within {SETTLED_RPM} rpm for {REST_HOLD_S} s, not so within {SETTLE_TIMEOUT_S} s: {}; nothing armed",
+                super::rest::motion(&rest.status)
+            )));
+        }
     }
     command(
         client,
@@ -352,6 +364,11 @@ fn state_path(file: &CaptureFile) -> String {
     }
     path.join(" -> ")
 }
+
+/// The longest wait for the machine settled before a run is captured, s: a
+/// rotor swinging on its eccentric after a stop comes to rest within a few
+/// seconds on the reference machine.
+const SETTLE_TIMEOUT_S: f64 = 30.0;
 
 /// How long the capture's wait may take at most by default, s.
 pub const DEFAULT_TIMEOUT_S: f64 = 30.0;

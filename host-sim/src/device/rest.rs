@@ -131,12 +131,22 @@ pub fn await_steady_rest(
     hold_s: f64,
     timeout_s: f64,
 ) -> Result<Rest, Failure> {
+    await_steady(link, hold_s, timeout_s, at_rest)
+}
+
+/// [`await_steady_rest`] with `still` in place of [`at_rest`].
+pub fn await_steady(
+    link: &mut dyn Poll,
+    hold_s: f64,
+    timeout_s: f64,
+    still: fn(&StatusReport) -> bool,
+) -> Result<Rest, Failure> {
     let start = Instant::now();
     let mut since: Option<u32> = None;
     loop {
         let status = link.status()?;
         let after_s = start.elapsed().as_secs_f64();
-        since = at_rest(&status).then(|| since.unwrap_or(status.uptime_ms));
+        since = still(&status).then(|| since.unwrap_or(status.uptime_ms));
         let held =
             since.is_some_and(|u0| f64::from(status.uptime_ms.wrapping_sub(u0)) >= hold_s * 1e3);
         if held || after_s >= timeout_s {

@@ -28,10 +28,10 @@ use clap::Args;
 use serde_json::{json, Value};
 
 use shared::capture::MachineFingerprint;
-use shared::controller::{identify::REST_RPM, Params, State};
+use shared::controller::{Params, State};
 
 use crate::args::{FormatArg, MachineArg, PlotArg};
-use crate::capture::CaptureFile;
+use crate::capture::{CaptureFile, SETTLED_RPM};
 use crate::failure::{Console, Failure};
 use crate::help::epilogue;
 use crate::machine::Machine;
@@ -145,14 +145,14 @@ pub fn controller_params(
         )));
     }
     let start = &capture.header.start;
-    let moving = start.speed_rpm.iter().any(|s| s.abs() > REST_RPM);
+    let moving = start.speed_rpm.iter().any(|s| s.abs() > SETTLED_RPM);
     if start.state != State::Idle || moving {
         return Err(Failure::usage(format!(
-            "{}: it starts in state {} with the rotors at {} and {} rpm: a replay starts the twin idle and at rest (the platform's motion before a capture is not measured); capture from rest, e.g. `host-sim device --port PORT capture --for 2 --travel right --speed 3000 --out FILE.csv`",
+            "{}: it starts in state {} with the rotors' speed estimates at {} and {} rpm: a replay starts the twin idle and at rest (the platform's motion before a capture is not measured, nor the controller's filters), so the capture must start idle with both estimates settled below {SETTLED_RPM} rpm; capture from rest, e.g. `host-sim device --port PORT capture --for 2 --travel right --speed 3000 --out FILE.csv` (which waits for rest)",
             capture_path.display(),
             start.state.name(),
-            numbers::fixed(f64::from(start.speed_rpm[0]), 1),
-            numbers::fixed(f64::from(start.speed_rpm[1]), 1),
+            numbers::sig(f64::from(start.speed_rpm[0])),
+            numbers::sig(f64::from(start.speed_rpm[1])),
         )));
     }
     if let Some(k) = capture.records.iter().position(|r| r.tuning_changed) {
