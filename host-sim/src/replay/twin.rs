@@ -9,8 +9,8 @@
 //! at rest at the angle the capture gives it (from the index latch the board
 //! knew, or the first one the capture records: `theta = 2 pi ((count - latch)
 //! mod N) / N`, `phi = index_angle + s theta`), and the twin's controller told
-//! the same latch at its first tick, so that it knows the angle when the
-//! board's did.
+//! the same latch at its first tick where the board's knew it, so that it
+//! knows each angle when the board's did.
 
 use std::f64::consts::TAU;
 
@@ -67,19 +67,24 @@ pub struct ReplayDriver<'c> {
 }
 
 impl<'c> ReplayDriver<'c> {
-    /// The driver of `capture` on the twin `machine` (placed, [`placed`]) with
-    /// the controller of `params`.
+    /// The driver of `capture` on the twin `machine` (placed, [`placed`], at
+    /// the start `angles`) with the controller of `params`. The twin's
+    /// controller is told the angle of a rotor whose index the board's
+    /// controller knew before the capture; a rotor whose index it did not know
+    /// shows the twin's controller its index when the twin's rotor passes it,
+    /// as the board's saw it.
     pub fn new(
         capture: &'c CaptureFile,
         machine: &Machine,
         params: &Params,
         angles: [Option<u32>; 2],
     ) -> Self {
+        let known = capture.header.start.index;
         ReplayDriver {
             capture,
             controller: Controller::new(params, ResetCause::PowerOn),
             sensors: BoardSensors::new(machine),
-            angles,
+            angles: [0, 1].map(|r| angles[r].filter(|_| known[r].is_some())),
             dt: capture.header.tick_s as f32,
             tick: 0,
             ticks: Vec::with_capacity(capture.records.len()),
