@@ -43,7 +43,7 @@
 //!   test checks it of every run: a block that runs `tune` or `calibrate` must
 //!   say of no run that its offset was `not held` or that it was `not a travel`
 //!   (`no travel`), so its numbers are its sweep's, not a shortened run's; `device travel`,
-//!   `hold` and `tune`: `--for 0.5` whatever the docs say, and `device tune
+//!   `hold`, `capture` and `tune`: `--for 0.5` whatever the docs say, and `device tune
 //!   --settle 0.2`; `device telemetry` without `--count` or `--duration` gets
 //!   `--duration 2`, standing for the operator's Ctrl-C;
 //! - `device tune` asks the operator how far the platform went: this test
@@ -273,7 +273,7 @@ fn shorten(mut words: Vec<String>) -> Result<Vec<String>, String> {
                 words.extend(["--set".into(), "simulation.rtol=1e-3".into()]);
             }
         }
-        Some("merge" | "impact" | "scenario") => {}
+        Some("merge" | "impact" | "scenario" | "replay") => {}
         Some("device") => {
             let known = [
                 "status",
@@ -284,6 +284,7 @@ fn shorten(mut words: Vec<String>) -> Result<Vec<String>, String> {
                 "telemetry",
                 "self-test",
                 "identify",
+                "capture",
                 "table",
                 "tune",
             ];
