@@ -26,9 +26,12 @@
 //!    `Done`; per rotor every value measured and within 5 % of the model's
 //!    constants (friction within 20 %); the result stored in flash with the table
 //!    and the self-test's;
-//! 7. fault: travel again, open the E-stop: `ESTOP` latched in the first tick that
-//!    sees it, the driver disabled and both duties 0 in that tick; a reset while
-//!    it is open keeps the fault, a reset after it closed goes idle;
+//! 7. fault: a capture armed on the trigger `fault`, travel again, open the
+//!    E-stop: `ESTOP` latched in the first tick that sees it, the driver disabled
+//!    and both duties 0 in that tick; the capture read over the link holds that
+//!    tick (state fault, `ESTOP`, the E-stop open, both bridges off) after a
+//!    `running` start, stamped with the compiled-in machine file; a reset while it
+//!    is open keeps the fault, a reset after it closed goes idle;
 //! 8. fault: travel again, make the control task work [`overrun_us`] longer once
 //!    (over its 500 us budget): `DEADLINE` latched in the next tick, the outputs
 //!    safe, one overrun counted in the status; a reset goes idle;
@@ -49,6 +52,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m::peripheral::NVIC;
 use stm32f4xx_hal::pac::Interrupt;
 
+use shared::capture::{CaptureStatus, Record, Trigger};
 use shared::controller::identify::{IdentifyReport, IdentifyStatus, RotorIdentity};
 use shared::controller::self_test::{RotorSelfTest, SelfTestReport, SelfTestStatus};
 use shared::controller::self_test::{DRIVE_TIMEOUT_S, REST_RPM, SETTLE_TIMEOUT_S};
@@ -945,9 +949,54 @@ impl Script {
 
     /// Part 7, the E-stop fault: travel right again.
     fn estop_travel<L: LinkLock, W: WorldLock>(&mut self, io: &mut Io<'_, L, W>) -> Next {
-        defmt::info!("script: E-stop fault while running");
+        defmt::info!("script: E-stop fault while running, captured");
+        self.ack(
+            io,
+            &Request::ArmCapture {
+                trigger: Trigger::Fault,
+                window: 1,
+            },
+            "ArmCapture on a fault",
+        );
         self.ack(io, &travel_right(), "Travel right");
         Next::Advance
+    }
+
+    /// Part 7: the capture of the fault's tick, read over the link.
+    fn check_fault_capture<L: LinkLock, W>(&mut self, io: &mut Io<'_, L, W>) {
+        let info = match self.ask(io, &Request::GetCapture) {
+            Some(Response::Capture(info)) => info,
+            _ => {
+                check!(false, "GetCapture: CaptureInfo");
+                return;
+            }
+        };
+        check!(
+            info.status == CaptureStatus::Done
+                && info.recorded == 1
+                && info.capacity as usize == shared::capture::BOARD_CAPACITY
+                && info.start.state == State::Running
+                && info.machine.crc32 == crate::machine::MACHINE_FILE_CRC32
+                && info.machine.len == crate::machine::MACHINE_FILE_LEN,
+            "capture on the fault: done, 1 of {=u16} ticks, from {=str}, machine file stamped",
+            info.capacity,
+            info.start.state.name()
+        );
+        let record = match self.ask(io, &Request::ReadCapture { first: 0 }) {
+            Some(Response::CaptureRecords {
+                first: 0,
+                count: 1,
+                records,
+            }) => Record::from_bytes(&records[0]),
+            _ => None,
+        };
+        check!(
+            record.is_some_and(|r| r.state == State::Fault
+                && r.faults.contains(Faults::ESTOP)
+                && r.estop
+                && r.duty_raw == [None, None]),
+            "the captured tick: fault, ESTOP, the E-stop open, both bridges off"
+        );
     }
 
     /// Part 7: the E-stop circuit opened, [`RUN_BEFORE_FAULT_TICKS`] into the
@@ -978,6 +1027,7 @@ impl Script {
             seen.faults
         );
         check_outputs_cut(&seen);
+        self.check_fault_capture(io);
         self.ack(
             io,
             &Request::Command(Command::ResetFaults),
