@@ -113,7 +113,8 @@ step_doc() {
 
 # The host tests. The output is kept to total the counts at the end of the run.
 step_test() {
-    # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs)
+    # The processor in the loop's tests (host-sim/tests/pil.rs, pil_scenarios.rs,
+    # pil_asks.rs)
     # run the firmware's binary `pil` on QEMU; in CI they fail without it, so it
     # is built first: for the other machines the tests run (the scenario
     # one-foot.toml's, wide-rotors-machine.toml, one-rotor-machine.toml) as

@@ -328,20 +328,31 @@ fn write(
     table: &TuningTable,
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
-    let n = records.len();
     let file = CaptureFile::from_device(info, records, table)
         .map_err(|e| Failure::device(format!("capture: {e}; nothing written")))?;
     set.write(i, &file.to_text())?;
     set.commit()?;
-    let tick_s = file.header.tick_s;
-    let states = state_path(&file);
     out.print(&format!(
-        "capture: {} ({} s) from uptime {} s, trigger {}{}; states {states}\ncapture: written to {}\n",
+        "capture: {}\ncapture: written to {}\n",
+        contents(&file),
+        a.out.display()
+    ));
+    Ok(())
+}
+
+/// What a capture holds, for people: `2000 ticks (2 s) from uptime 0.002 s,
+/// trigger command; states idle -> starting -> running` (and whether it ended
+/// early).
+pub fn contents(file: &CaptureFile) -> String {
+    let h = &file.header;
+    let n = file.records.len();
+    format!(
+        "{} ({} s) from uptime {} s, trigger {}{}; states {}",
         numbers::count(n, "tick"),
-        numbers::sig(n as f64 * tick_s),
-        numbers::fixed(f64::from(info.start.uptime_ms) * 1e-3 + tick_s, 3),
-        info.trigger.name(),
-        if info.ended_early {
+        numbers::sig(n as f64 * h.tick_s),
+        numbers::fixed(f64::from(h.start.uptime_ms) * 1e-3 + h.tick_s, 3),
+        h.trigger.name(),
+        if h.ended_early {
             format!(
                 "; ended early: more than {} run commands",
                 shared::capture::MAX_COMMANDS
@@ -349,9 +360,8 @@ fn write(
         } else {
             String::new()
         },
-        a.out.display()
-    ));
-    Ok(())
+        state_path(file)
+    )
 }
 
 /// The states the capture went through, in order: `idle -> starting -> running`.

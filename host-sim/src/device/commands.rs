@@ -165,7 +165,7 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
         DeviceCommand::Identify(a) => {
             positive("--timeout", a.timeout, "seconds")?;
-            identify = Some(identify::prepare(a)?);
+            identify = Some(identify::prepare(a.machine.as_deref(), a.write.as_deref())?);
         }
         DeviceCommand::Table(TableCommand::Write { file }) => {
             table = Some(tuning_file::read_table(file)?);

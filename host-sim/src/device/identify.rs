@@ -79,8 +79,8 @@ fn identify_stage(r: &IdentifyReport) -> Stage {
 /// The machine file given, read and checked before the device is asked.
 pub struct Prepared {
     file: Option<MachineFile>,
-    /// `--write`'s staged file.
-    write: Option<(Staged, usize)>,
+    /// `--write`'s staged file and its path.
+    write: Option<(Staged, usize, PathBuf)>,
 }
 
 /// `--machine`: its path, text and reading.
@@ -90,28 +90,29 @@ struct MachineFile {
     machine: Machine,
 }
 
-/// Reads `--machine` and stages `--write` (a user's mistake: exit 2, before
-/// any request).
-pub fn prepare(a: &IdentifyArgs) -> Result<Prepared, Failure> {
-    let file = match &a.machine {
+/// Reads the machine file `machine` (`--machine`, the file the board was built
+/// for) and stages `write` (`--write`): a user's mistake is exit 2, before any
+/// request.
+pub fn prepare(machine: Option<&Path>, write: Option<&Path>) -> Result<Prepared, Failure> {
+    let file = match machine {
         None => None,
         Some(path) => {
             let text = input::read_text(path)?;
             let dir = path.parent().unwrap_or(Path::new(""));
             let machine = Machine::from_text(&path.display().to_string(), &text, dir, &[])?;
             Some(MachineFile {
-                path: path.clone(),
+                path: path.to_path_buf(),
                 text,
                 machine,
             })
         }
     };
-    let write = match &a.write {
+    let write = match write {
         None => None,
         Some(path) => {
             let mut staged = Staged::new();
             let index = staged.add("--write", path)?;
-            Some((staged, index))
+            Some((staged, index, path.to_path_buf()))
         }
     };
     Ok(Prepared { file, write })
@@ -125,10 +126,23 @@ pub fn run(
     out: &mut Console<'_>,
 ) -> Result<(), Failure> {
     let report = procedure::run(client, &IDENTIFY, a.timeout)?;
+    conclude(&report, prepared, a.format, out)
+}
+
+/// The identification's final `report` printed in `format`, beside the
+/// machine file's values if one was given, and the file `--write` written:
+/// a failure (exit 1) if it was aborted or a rotor fell short, and then
+/// nothing is written. The device's and the firmware in the loop's alike.
+pub fn conclude(
+    report: &IdentifyReport,
+    prepared: Prepared,
+    format: Format,
+    out: &mut Console<'_>,
+) -> Result<(), Failure> {
     let file = prepared.file.as_ref();
-    out.print(&match a.format {
-        Format::Table => table(&report, file),
-        Format::Json => format!("{:#}\n", to_json(&report, file)),
+    out.print(&match format {
+        Format::Table => table(report, file),
+        Format::Json => format!("{:#}\n", to_json(report, file)),
     });
     if report.status != IdentifyStatus::Done {
         return Err(Failure::device(
@@ -148,9 +162,8 @@ pub fn run(
             }
         )));
     }
-    if let (Some((mut staged, index)), Some(file)) = (prepared.write, file) {
-        let out_path = a.write.as_deref().unwrap_or(Path::new(""));
-        let text = written(file, rotors, out_path)?;
+    if let (Some((mut staged, index, out_path)), Some(file)) = (prepared.write, file) {
+        let text = written(file, rotors, &out_path)?;
         staged.write(index, &text)?;
         staged.commit()?;
         out.note(&format!("wrote {}\n", out_path.display()));

@@ -1,7 +1,12 @@
 //! `host-sim run MACHINE [--command right|left|stop] [--speed RPM] [--offset DEG]
 //! [--open-loop V1,V2|V|coast] [--t-end T] [--out FILE.csv]
 //! [--events FILE.csv] [--plot FILE.svg] [--animate FILE.html] [--format table|json]
-//! [--set KEY=VALUE]...`
+//! [--set KEY=VALUE]... [--firmware ELF [--firmware-log FILE] [--identify [--write
+//! OUT.toml] | --capture FILE.csv --capture-for S]]`
+//!
+//! With the firmware in the loop, `--identify` runs its motor identification
+//! instead of a command and `--capture` records its control ticks from the
+//! command ([`asks`]).
 //!
 //! A machine with one rotor: `--open-loop V` takes one voltage (`V1,V2` is for two
 //! rotors, `coast` for both kinds); `--command` runs the controller, which holds
@@ -15,6 +20,7 @@
 //! 3. write the files asked for, each whole or not at all (the animation:
 //!    [`crate::output::animate`]), then the summary on stdout as a table or JSON.
 
+pub mod asks;
 pub mod plot;
 pub mod report;
 
@@ -27,6 +33,7 @@ use shared::impact::MAX_CONTACTS;
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
+use crate::device::identify;
 use crate::event::EventRow;
 use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
@@ -44,6 +51,7 @@ use crate::simulation::{
     limits, simulate_observed, stop_message, Driver, InTheLoop, Observer, OpenLoop, OpenLoopDriver,
     RunOptions, RunResult,
 };
+use asks::{Asks, CaptureNote};
 use plot::plot_svg;
 use report::{summary_json, summary_table, summary_value};
 
@@ -94,12 +102,31 @@ pub struct RunArgs {
     /// Run the firmware's binary `pil` (built for this machine file:
     /// `cd firmware && cargo build --release --features pil --bin pil`) on QEMU as
     /// the controller, with the plant as its board (processor in the loop,
-    /// docs/pil.md); with --command.
+    /// docs/pil.md); with --command or --identify.
     #[arg(long, value_name = "ELF")]
     pub firmware: Option<PathBuf>,
     /// With --firmware: where its decoded defmt log goes (default: ELF.log).
     #[arg(long, value_name = "FILE", requires = "firmware")]
     pub firmware_log: Option<PathBuf>,
+    /// With --firmware, instead of --command: run the firmware's motor
+    /// identification on the simulated plant and print its result as `host-sim
+    /// device identify` does; the run ends with it (default --t-end: its worst
+    /// case, 60 s a rotor and 10 s for rest).
+    #[arg(long)]
+    pub identify: bool,
+    /// With --identify: write the machine file with the measured motor keys and
+    /// rotor inertias, every comment kept (as `device identify --write`).
+    #[arg(long, value_name = "OUT.toml")]
+    pub write: Option<PathBuf>,
+    /// With --firmware and --command: arm the firmware's capture before the
+    /// command, read it out after its window and write it as a capture file
+    /// (`host-sim replay MACHINE FILE.csv` replays it).
+    #[arg(long, value_name = "FILE.csv")]
+    pub capture: Option<PathBuf>,
+    /// The capture's window from the command, s (at most the firmware's
+    /// buffer, 2.048 s at 1 kHz).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub capture_for: Option<f64>,
     /// Overrides.
     #[command(flatten)]
     pub set: SetArgs,
@@ -121,9 +148,11 @@ fn help() -> String {
             "host-sim run examples/vibro-driver.toml --command right --t-end 5",
             "host-sim run examples/vibro-driver.toml --open-loop 12,12 --t-end 2 --out trace.csv --events events.csv --plot run.svg",
             "host-sim run examples/vibro-driver.toml --command left --set contacts.K1.friction=0.2 --format json",
+            "host-sim run examples/vibro-driver.toml --firmware firmware/target/thumbv7em-none-eabihf/release/pil --identify",
+            "host-sim run examples/vibro-driver.toml --firmware firmware/target/thumbv7em-none-eabihf/release/pil --command right --t-end 4 --capture travel.csv --capture-for 2",
         ],
         &[limits],
-        &["docs/cli-run.md", "docs/machine-file.md"],
+        &["docs/cli-run.md", "docs/machine-file.md", "docs/pil.md"],
     )
 }
 
@@ -185,12 +214,25 @@ pub fn check_open_loop(open_loop: OpenLoop, machine: &Machine) -> Result<(), Fai
 pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // 1. The machine and the options.
     let machine = Machine::load(&args.machine.path, &args.set.keys)?;
-    let (drive, t_end) = check_options(args, &machine)?;
+    let (drive, t_end, window) = check_options(args, &machine)?;
+    // What the run asks of the firmware beyond its command: the machine file
+    // the identification compares with read, and its --write staged, before
+    // anything runs.
+    let asks = match (args.identify, window, &drive) {
+        (true, _, _) => Some(Asks::Identify(Box::new(identify::prepare(
+            Some(&args.machine.path),
+            args.write.as_deref(),
+        )?))),
+        (false, Some(w), Drive::Controller(schedule)) => {
+            schedule.first().map(|(_, c)| Asks::Capture(w, *c))
+        }
+        _ => None,
+    };
 
     // What drives the motors, built before any output is opened: a controller
     // that cannot be built (its tuning table) is refused with nothing written.
     let mut warnings = Vec::new();
-    let (mut driver, how) = build_driver(args, &machine, &drive, &mut warnings)?;
+    let (mut driver, how) = build_driver(args, &machine, &drive, asks.as_ref(), &mut warnings)?;
     let firmware_log = args.firmware.as_ref().map(|elf| {
         args.firmware_log
             .clone()
@@ -198,8 +240,11 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     });
 
     // The output files, checked and opened before the run: a path that cannot be
-    // written is refused at once and nothing is left behind.
+    // written is refused at once and nothing is left behind. The capture is
+    // staged on its own: written only once it was read out whole.
     let (mut staged, files) = open_outputs(args, &machine, firmware_log.as_deref())?;
+    let mut capture_out = Staged::new();
+    let capture_index = capture_out.add_optional("--capture", args.capture.as_deref())?;
 
     // 2. Simulate, the trace and the events streamed to their files.
     let (mut result, failure, frames) =
@@ -228,20 +273,60 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     }
     if let Some(stop) = &result.stopped {
         // A signal, or a plant that stopped advancing: what was simulated is
-        // written whole; no summary of part of a run.
+        // written whole; no summary of part of a run, no capture.
         staged.commit()?;
         let why = stop_message(stop, Some(t_end));
+        let capture = if args.capture.is_some() {
+            ", no capture"
+        } else {
+            ""
+        };
         return Err(Failure::run(format!(
-            "run: {why}; the files asked for hold the run up to there, no summary"
+            "run: {why}; the files asked for hold the run up to there, no summary{capture}"
         )));
     }
+    // The capture read out of the firmware, or nothing written.
+    let capture = match (capture_index, &driver, &args.capture) {
+        (Some(i), InTheLoop::Firmware(f), Some(path)) => {
+            let file = asks::captured(f, path, (t_end, t_end_origin(args)))?;
+            capture_out.write(i, &file.to_text())?;
+            Some(CaptureNote::of(&file, path))
+        }
+        _ => None,
+    };
     staged.commit()?;
+    capture_out.commit()?;
     let firmware_line = args.firmware.as_ref().zip(firmware_log.as_ref());
+    if let (Some(Asks::Identify(prepared)), InTheLoop::Firmware(f), Some((elf, log))) =
+        (asks, &driver, firmware_line)
+    {
+        let ended = result.last_row.map_or(0.0, |r| r.t);
+        let mut note = format!(
+            "identification: the firmware {} on QEMU (processor in the loop) on the plant of {}, {} s simulated; its log: {}\n{}\n",
+            elf.display(),
+            args.machine.path.display(),
+            sig(ended),
+            log.display(),
+            cost_line(&cost.unwrap_or_default())
+        );
+        for w in &result.summary.warnings {
+            note.push_str(&format!("warning: {w}\n"));
+        }
+        return asks::conclude_identify(
+            f,
+            prepared,
+            args.format.format,
+            (t_end, t_end_origin(args)),
+            &note,
+            console,
+        );
+    }
     console.print(&summary_text(
         args.format.format,
         &result.summary,
         firmware_line,
         &cost.unwrap_or_default(),
+        capture.as_ref(),
     ));
     Ok(())
 }
@@ -250,18 +335,21 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
 fn t_end_origin(args: &RunArgs) -> &'static str {
     if args.t_end.seconds.is_some() {
         "--t-end"
+    } else if args.identify {
+        "--identify's default end time"
     } else {
         "simulation.t_end"
     }
 }
 
-/// Stage 1's check of the options against the machine: what drives the motors and
-/// the run's end time, s. Every problem at once, as a usage failure (exit 2); the
-/// limits of a run are checked only once the options themselves are sound.
-fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Failure> {
+/// Stage 1's check of the options against the machine: what drives the motors,
+/// the run's end time, s, and the capture's window, ticks (with `--capture`).
+/// Every problem at once, as a usage failure (exit 2); the limits of a run are
+/// checked only once the options themselves are sound.
+fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64, Option<u16>), Failure> {
     let mut problems = Vec::new();
     let drive = choose_drive(args, machine, &mut problems);
-    if args.firmware.is_some() && args.command.is_none() {
+    if args.firmware.is_some() && args.command.is_none() && !args.identify {
         problems.push(
             "--firmware runs the firmware as the controller: give --command right|left|stop"
                 .to_string(),
@@ -270,12 +358,17 @@ fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Fail
     if args.command.is_none() && (args.speed.is_some() || args.offset.is_some()) {
         problems.push("--speed and --offset go with --command".to_string());
     }
-    let t_end = args.t_end.seconds.unwrap_or(machine.simulation.t_end);
+    let t_end = args.t_end.seconds.unwrap_or(if args.identify {
+        asks::identify_t_end(machine)
+    } else {
+        machine.simulation.t_end
+    });
     if !(t_end.is_finite() && t_end > 0.0) {
         problems.push(format!(
             "--t-end {t_end}: must be a positive number of seconds"
         ));
     }
+    let window = asks::check(args, machine, t_end, t_end_origin(args), &mut problems);
     if args.animate.is_some() {
         problems.extend(animate::check_duration(t_end, t_end_origin(args)));
     }
@@ -287,7 +380,7 @@ fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Fail
     if !problems.is_empty() {
         return Err(Failure::new(Kind::Usage, problems));
     }
-    Ok((drive, t_end))
+    Ok((drive, t_end, window))
 }
 
 /// What drives the motors: exactly one of `--command` (the controller, with its
@@ -295,6 +388,11 @@ fn check_options(args: &RunArgs, machine: &Machine) -> Result<(Drive, f64), Fail
 /// `None` with the problems added to `problems` when neither or both are given or
 /// the one given does not fit the machine.
 fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -> Option<Drive> {
+    if args.identify {
+        // The firmware drives the motors itself, no command sent
+        // ([`asks::check`] says what does not go with it).
+        return Some(Drive::Controller(Vec::new()));
+    }
     match (args.command, args.open_loop) {
         (Some(_), Some(_)) => {
             problems.push(
@@ -328,13 +426,15 @@ fn choose_drive(args: &RunArgs, machine: &Machine, problems: &mut Vec<String>) -
 }
 
 /// The driver of the windings for `drive` (the open loop, the controller in the
-/// loop, or with `--firmware` the firmware on QEMU) and the plot title's words for
-/// it. Warnings about the drive (voltages clamped to the supply, the controller's
-/// constants, `--set` unseen by the firmware) go to `warnings`.
+/// loop, or with `--firmware` the firmware on QEMU, asked `asks` beyond its
+/// command) and the plot title's words for it. Warnings about the drive
+/// (voltages clamped to the supply, the controller's constants, `--set` unseen
+/// by the firmware) go to `warnings`.
 fn build_driver(
     args: &RunArgs,
     machine: &Machine,
     drive: &Drive,
+    asks: Option<&Asks>,
     warnings: &mut Vec<String>,
 ) -> Result<(InTheLoop<dyn Driver>, String), Failure> {
     let supply = machine.drive.supply_voltage;
@@ -357,7 +457,11 @@ fn build_driver(
         }
         Drive::Controller(schedule) => {
             warnings.extend(closed_loop::constants_warning(machine));
-            let how = describe_command(args, machine);
+            let how = if args.identify {
+                "the firmware's identification".to_string()
+            } else {
+                describe_command(args, machine)
+            };
             match &args.firmware {
                 Some(elf) => {
                     if !args.set.keys.is_empty() {
@@ -366,8 +470,16 @@ fn build_driver(
                                 .to_string(),
                         );
                     }
-                    let firmware =
-                        FirmwareDriver::start(machine, &args.machine.path, elf, schedule.clone())?;
+                    // A capture sends the command itself, once it is armed.
+                    let schedule = match asks {
+                        Some(Asks::Capture(..)) => Vec::new(),
+                        _ => schedule.clone(),
+                    };
+                    let mut firmware =
+                        FirmwareDriver::start(machine, &args.machine.path, elf, schedule)?;
+                    if let Some(asks) = asks {
+                        firmware = firmware.with_script(asks::script(asks));
+                    }
                     (
                         InTheLoop::Firmware(Box::new(firmware)),
                         format!("{how}, firmware {}", elf.display()),
@@ -502,12 +614,13 @@ fn driver_failure(
 
 /// The summary on stdout in `format`; with the firmware in the loop
 /// (`firmware_line`: its ELF and its log) also the firmware, its log and its
-/// control task's `cost`.
+/// control task's `cost`, and the `capture` written, if one was.
 fn summary_text(
     format: Format,
     summary: &Summary,
     firmware_line: Option<(&PathBuf, &PathBuf)>,
     cost: &TickCost,
+    capture: Option<&CaptureNote>,
 ) -> String {
     match (format, firmware_line) {
         (Format::Json, None) => summary_json(summary),
@@ -523,16 +636,28 @@ fn summary_text(
                     "max": cost.max,
                 },
             });
+            if let Some(c) = capture {
+                v["firmware"]["capture"] = serde_json::json!({
+                    "file": c.path.display().to_string(),
+                    "ticks": c.ticks,
+                    "contents": c.contents,
+                });
+            }
             let mut text = serde_json::to_string_pretty(&v).unwrap_or_default();
             text.push('\n');
             text
         }
         (Format::Table, Some((elf, log))) => format!(
-            "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n{}\n",
+            "{}\nthe controller: the firmware {} on QEMU (processor in the loop); its log: {}\n{}\n{}",
             summary_table(summary),
             elf.display(),
             log.display(),
-            cost_line(cost)
+            cost_line(cost),
+            capture.map_or(String::new(), |c| format!(
+                "its capture: {}; written to {}\n",
+                c.contents,
+                c.path.display()
+            ))
         ),
     }
 }

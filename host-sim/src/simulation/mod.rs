@@ -101,6 +101,12 @@ pub trait Driver {
     fn failure(&self) -> Option<Failure> {
         None
     }
+    /// Whether the driver has done what the run was for (the firmware's
+    /// identification reported): the run ends after this tick, as at its end
+    /// time. `false` by default.
+    fn finished(&self) -> bool {
+        false
+    }
 }
 
 /// Open loop: constant winding voltages, or open windings (coast).
@@ -426,6 +432,9 @@ pub fn simulate_observed(
         events.take(&mut plant, driver, rec.observer);
         if let Err(stop) = advanced {
             stopped = Some(stop);
+            break;
+        }
+        if driver.finished() {
             break;
         }
         if t_next < options.t_end && !rec.observer.go_on(t_next) {

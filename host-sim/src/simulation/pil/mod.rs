@@ -18,8 +18,18 @@
 //!
 //! Before tick 1 the firmware's [`Hello`] must name the machine file simulated
 //! (its CRC-32 and length) and the machine's tick period.
+//!
+//! A [`Script`] (the identification, the capture) may ask the firmware's link
+//! more than the run's commands: at every exchange it is given the answers
+//! received since the last one and says what to send; every answer is kept
+//! ([`FirmwareDriver::answers`]). A script that has what it came for may end
+//! the run ([`Driver::finished`]); one that fails ends it as a lost firmware
+//! does.
 
+pub mod capture;
 pub mod host;
+pub mod identify;
+pub mod script;
 pub mod session;
 
 use std::path::{Path, PathBuf};
@@ -38,7 +48,8 @@ use crate::plant::simulator::Plant;
 use crate::simulation::board::{BoardSensors, Injected, PlantBoard};
 use crate::simulation::closed_loop::{controller_events, params, LastTick};
 use crate::simulation::Driver;
-use host::Host;
+use host::{Answer, Host};
+use script::Script;
 use session::Session;
 
 /// The command that builds the ELF.
@@ -72,6 +83,10 @@ pub struct FirmwareDriver {
     log_cut: bool,
     /// The control task's instructions per tick, from the drive records.
     cost: TickCost,
+    /// What the host asks beyond the commands, if anything.
+    script: Option<Box<dyn Script>>,
+    /// Every answer to the script's requests, in order.
+    answers: Vec<Answer>,
 }
 
 /// The firmware's control task's instructions per tick: each drive record's
@@ -181,11 +196,27 @@ impl FirmwareDriver {
             log: String::new(),
             log_cut: false,
             cost: TickCost::default(),
+            script: None,
+            answers: Vec::new(),
         })
     }
 
-    /// Stop QEMU and keep the firmware's log ([`FirmwareDriver::log`]).
+    /// Let `script` ask the firmware's link, from the first exchange on.
+    pub fn with_script(mut self, script: Box<dyn Script>) -> Self {
+        self.script = Some(script);
+        self
+    }
+
+    /// Every answer to the script's requests so far, in order (all of them
+    /// after [`FirmwareDriver::finish`]).
+    pub fn answers(&self) -> &[Answer] {
+        &self.answers
+    }
+
+    /// Stop QEMU and keep the firmware's log ([`FirmwareDriver::log`]) and
+    /// the answers of the last exchange.
     pub fn finish(&mut self) {
+        self.answers.extend(self.host.answers());
         if let Some(s) = self.session.take() {
             let (log, whole) = s.finish();
             self.log = log;
@@ -227,6 +258,16 @@ impl FirmwareDriver {
             bridges: ([BridgeCommand::Off; 2], [0.0; 2]),
         };
         let inputs = board.sample();
+        if let Some(script) = self.script.as_mut() {
+            let answers = self.host.answers();
+            for r in script.step(t, &answers) {
+                self.host.ask(r);
+            }
+            self.answers.extend(answers);
+            if let Some(why) = script.failure() {
+                return Err(why);
+            }
+        }
         // The bytes the UART receives until the next tick: the link decodes them
         // after this tick's step, so that a command due by the next tick is
         // taken there, as the controller in the loop takes it.
@@ -342,5 +383,9 @@ impl Driver for FirmwareDriver {
 
     fn failure(&self) -> Option<Failure> {
         self.failure.clone()
+    }
+
+    fn finished(&self) -> bool {
+        self.script.as_ref().is_some_and(|s| s.ends_run())
     }
 }
