@@ -44,6 +44,7 @@ pub mod device;
 pub mod event;
 pub mod failure;
 pub mod help;
+pub mod identity;
 pub mod impact;
 pub mod interrupt;
 pub mod link;

@@ -119,6 +119,41 @@ impl CaptureFile {
         })
     }
 
+    /// What a capture holds, for people: `2000 ticks (2 s) from uptime 0.002 s,
+    /// trigger command; states idle -> starting -> running` (and whether it ended
+    /// early).
+    pub fn contents(&self) -> String {
+        let h = &self.header;
+        let n = self.records.len();
+        format!(
+            "{} ({} s) from uptime {} s, trigger {}{}; states {}",
+            crate::numbers::count(n, "tick"),
+            crate::numbers::sig(n as f64 * h.tick_s),
+            crate::numbers::fixed(f64::from(h.start.uptime_ms) * 1e-3 + h.tick_s, 3),
+            h.trigger.name(),
+            if h.ended_early {
+                format!(
+                    "; ended early: more than {} run commands",
+                    shared::capture::MAX_COMMANDS
+                )
+            } else {
+                String::new()
+            },
+            self.state_path()
+        )
+    }
+
+    /// The states the capture went through, in order: `idle -> starting -> running`.
+    fn state_path(&self) -> String {
+        let mut path = vec![self.header.start.state.name()];
+        for r in &self.records {
+            if path.last() != Some(&r.state.name()) {
+                path.push(r.state.name());
+            }
+        }
+        path.join(" -> ")
+    }
+
     /// The tuning table of the header.
     pub fn tuning_table(&self) -> Result<TuningTable, String> {
         TuningTable::from_rows(&self.header.tuning).map_err(|e| e.to_string())

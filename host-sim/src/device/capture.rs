@@ -26,12 +26,12 @@ use shared::controller::{Command, Direction, TuningTable};
 use shared::protocol::{Request, Response};
 
 use super::args::{CaptureArgs, DirectionArg, TriggerArg};
-use super::rest::{await_rest, await_steady, REST_HOLD_S, REST_TIMEOUT_S};
 use crate::capture::{settled, CaptureFile, SETTLED_RPM};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::Client;
 use crate::link::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
+use crate::link::rest::{await_rest, await_steady, REST_HOLD_S, REST_TIMEOUT_S};
 use crate::numbers;
 use crate::output::file::Staged;
 
@@ -163,7 +163,7 @@ pub fn run(
         if !rest.reached {
             return Err(Failure::device(format!(
                 "capture: a run is captured from rest: state idle and both speed estimates within {SETTLED_RPM} rpm for {REST_HOLD_S} s, not so within {SETTLE_TIMEOUT_S} s: {}; nothing armed",
-                super::rest::motion(&rest.status)
+                crate::link::rest::motion(&rest.status)
             )));
         }
     }
@@ -334,45 +334,10 @@ fn write(
     set.commit()?;
     out.print(&format!(
         "capture: {}\ncapture: written to {}\n",
-        contents(&file),
+        file.contents(),
         a.out.display()
     ));
     Ok(())
-}
-
-/// What a capture holds, for people: `2000 ticks (2 s) from uptime 0.002 s,
-/// trigger command; states idle -> starting -> running` (and whether it ended
-/// early).
-pub fn contents(file: &CaptureFile) -> String {
-    let h = &file.header;
-    let n = file.records.len();
-    format!(
-        "{} ({} s) from uptime {} s, trigger {}{}; states {}",
-        numbers::count(n, "tick"),
-        numbers::sig(n as f64 * h.tick_s),
-        numbers::fixed(f64::from(h.start.uptime_ms) * 1e-3 + h.tick_s, 3),
-        h.trigger.name(),
-        if h.ended_early {
-            format!(
-                "; ended early: more than {} run commands",
-                shared::capture::MAX_COMMANDS
-            )
-        } else {
-            String::new()
-        },
-        state_path(file)
-    )
-}
-
-/// The states the capture went through, in order: `idle -> starting -> running`.
-fn state_path(file: &CaptureFile) -> String {
-    let mut path = vec![file.header.start.state.name()];
-    for r in &file.records {
-        if path.last() != Some(&r.state.name()) {
-            path.push(r.state.name());
-        }
-    }
-    path.join(" -> ")
 }
 
 /// The longest wait for the machine settled before a run is captured, s: a

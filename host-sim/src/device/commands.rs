@@ -20,13 +20,13 @@ use super::args::{
 };
 use super::procedure::{self, after_a_tick, stood, Procedure, Stage};
 use super::report;
-use super::rest::{await_rest, Poll, REST_TIMEOUT_S};
 use super::{capture, identify, live, telemetry, tune};
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::{Client, LinkError};
 use crate::link::port::PortSpec;
 use crate::link::requests::{ask, command, unexpected, HEARTBEAT_EVERY};
+use crate::link::rest::{await_rest, Poll, REST_TIMEOUT_S};
 use crate::machine::tuning_file;
 use crate::numbers;
 use crate::output::file::Staged;
@@ -78,7 +78,7 @@ struct Checked {
     /// `tune`'s grid, measured file and table output.
     tune: Option<tune::Prepared>,
     /// `identify`'s machine file and output.
-    identify: Option<identify::Prepared>,
+    identify: Option<crate::identity::Prepared>,
     /// `capture`'s output and run command.
     capture: Option<capture::Prepared>,
 }
@@ -88,7 +88,7 @@ struct Prepared {
     table: Option<TuningTable>,
     file: Option<(Staged, usize)>,
     tune: Option<tune::Prepared>,
-    identify: Option<identify::Prepared>,
+    identify: Option<crate::identity::Prepared>,
     capture: Option<capture::Prepared>,
 }
 
@@ -165,7 +165,10 @@ fn check(args: &DeviceArgs) -> Result<Checked, Failure> {
         DeviceCommand::SelfTest(a) => positive("--timeout", a.timeout, "seconds")?,
         DeviceCommand::Identify(a) => {
             positive("--timeout", a.timeout, "seconds")?;
-            identify = Some(identify::prepare(a.machine.as_deref(), a.write.as_deref())?);
+            identify = Some(crate::identity::prepare(
+                a.machine.as_deref(),
+                a.write.as_deref(),
+            )?);
         }
         DeviceCommand::Table(TableCommand::Write { file }) => {
             table = Some(tuning_file::read_table(file)?);

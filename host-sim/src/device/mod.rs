@@ -19,7 +19,6 @@
 //! - [`capture`]: `host-sim device capture`, a window of control ticks recorded
 //!   on the board, read out and written as a capture file;
 //! - [`report`]: status, telemetry (lines, CSV) and self-test for people;
-//! - [`rest`]: the machine at rest after a stop, as its status says;
 //! - Ctrl-C as a flag, so streams end cleanly: [`crate::interrupt`];
 //! - [`plant`]: what the simulated device drives and senses, a tick at a time: a
 //!   machine's plant with its sensors, its platform free or held;
@@ -37,7 +36,6 @@ pub mod measured;
 pub mod plant;
 pub mod procedure;
 pub mod report;
-pub mod rest;
 pub mod serve;
 pub mod sim;
 pub mod telemetry;

@@ -8,11 +8,11 @@ use std::time::{Duration, Instant};
 use shared::controller::{Command, State};
 use shared::protocol::{Request, StatusReport};
 
-use super::rest::{self, await_steady_rest, Poll, REST_HOLD_S, REST_TIMEOUT_S};
 use crate::failure::Failure;
 use crate::interrupt;
 use crate::link::client::Client;
 use crate::link::requests::command;
+use crate::link::rest::{self, await_steady_rest, Poll, REST_HOLD_S, REST_TIMEOUT_S};
 
 /// How often a procedure's report is asked for.
 const POLL: Duration = Duration::from_millis(50);

@@ -23,7 +23,7 @@
 //! While a point runs, every status is watched: a latched fault (the E-stop is
 //! one), a state other than the expected, a refused command, the link lost
 //! (no answer), and Ctrl-C stop the machine (a best-effort `Stop`, then the
-//! status asked until it is at rest, within `--timeout`: [`super::rest`]) and end
+//! status asked until it is at rest, within `--timeout`: [`crate::link::rest`]) and end
 //! the sweep with exit 1, saying what the status said; the rows already appended
 //! stay.
 //!
@@ -41,12 +41,12 @@ use shared::protocol::{Request, StatusReport};
 use super::args::DeviceTuneArgs;
 use super::measured::{self, MeasuredFile};
 use super::report::faults_text;
-use super::rest::{at_rest, await_rest, motion, Poll};
 use super::tune_table;
 use crate::failure::{Console, Failure};
 use crate::interrupt;
 use crate::link::client::Client;
 use crate::link::requests::{command, HEARTBEAT_EVERY};
+use crate::link::rest::{at_rest, await_rest, motion, Poll};
 use crate::measured::velocity_refusal;
 use crate::numbers;
 use crate::numbers::count;

@@ -7,7 +7,8 @@
 //! - [`serial`]: a serial port raw at 115200 baud 8N1;
 //! - [`pty`]: the pseudo-terminal `device-sim` serves (Unix);
 //! - [`client`]: requests numbered, sent, retried, answers matched, telemetry kept;
-//! - [`requests`]: a request and its expected answer, as a [`crate::failure::Failure`].
+//! - [`requests`]: a request and its expected answer, as a [`crate::failure::Failure`];
+//! - [`rest`]: the machine at rest after a stop, as its status says, awaited.
 
 pub mod client;
 pub mod pipe;
@@ -15,4 +16,5 @@ pub mod port;
 #[cfg(unix)]
 pub mod pty;
 pub mod requests;
+pub mod rest;
 pub mod serial;

@@ -33,10 +33,10 @@ use shared::impact::MAX_CONTACTS;
 
 use crate::args::Format;
 use crate::args::{FormatArg, MachineArg, PlotArg, SetArgs, TEndArg};
-use crate::device::identify;
 use crate::event::EventRow;
 use crate::failure::{Console, Failure, Kind};
 use crate::help::epilogue;
+use crate::identity;
 use crate::interrupt;
 use crate::machine::{Machine, MachineContact};
 use crate::numbers::{sig, signed};
@@ -219,7 +219,7 @@ pub fn run(args: &RunArgs, console: &mut Console<'_>) -> Result<(), Failure> {
     // the identification compares with read, and its --write staged, before
     // anything runs.
     let asks = match (args.identify, window, &drive) {
-        (true, _, _) => Some(Asks::Identify(Box::new(identify::prepare(
+        (true, _, _) => Some(Asks::Identify(Box::new(identity::prepare(
             Some(&args.machine.path),
             args.write.as_deref(),
         )?))),

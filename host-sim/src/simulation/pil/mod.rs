@@ -26,9 +26,7 @@
 //! the run ([`Driver::finished`]); one that fails ends it as a lost firmware
 //! does.
 
-pub mod capture;
 pub mod host;
-pub mod identify;
 pub mod script;
 pub mod session;
 

@@ -11,8 +11,12 @@
 //!   replays.
 //!
 //! The options are checked together here, every problem at once (exit 2);
-//! the requests are [`crate::simulation::pil::identify`]'s and
-//! [`crate::simulation::pil::capture`]'s.
+//! the requests are [`identify`]'s and [`capture`]'s, on
+//! [`mod@script`]'s shared parts.
+
+pub mod capture;
+pub mod identify;
+pub mod script;
 
 use std::path::{Path, PathBuf};
 
@@ -23,16 +27,16 @@ use shared::controller::Command;
 use super::RunArgs;
 use crate::args::Format;
 use crate::capture::CaptureFile;
-use crate::device::capture::contents;
-use crate::device::identify::{self, Prepared};
-use crate::device::rest::REST_TIMEOUT_S;
+
 use crate::failure::{Console, Failure};
+use crate::identity::{self, Prepared};
+use crate::link::rest::REST_TIMEOUT_S;
 use crate::machine::Machine;
 use crate::numbers::sig;
-use crate::simulation::pil::capture::{capture_file, needed_s, CaptureScript};
-use crate::simulation::pil::identify::{final_report, last_status, IdentifyScript};
 use crate::simulation::pil::script::Script;
 use crate::simulation::pil::{FirmwareDriver, BUILD};
+use capture::{capture_file, needed_s, CaptureScript};
+use identify::{final_report, last_status, IdentifyScript};
 
 /// What the run asks of the firmware besides its command.
 pub enum Asks {
@@ -176,7 +180,7 @@ pub fn conclude_identify(
             last_status(firmware.answers())
         )));
     };
-    identify::conclude(&report, *prepared, format, out)
+    identity::conclude(&report, *prepared, format, out)
 }
 
 /// `--capture`: the capture read out of the firmware by the run's end at
@@ -201,7 +205,7 @@ pub fn captured(
 pub struct CaptureNote {
     /// Where.
     pub path: PathBuf,
-    /// What it holds ([`contents`]).
+    /// What it holds ([`CaptureFile::contents`]).
     pub contents: String,
     /// Its ticks.
     pub ticks: usize,
@@ -212,7 +216,7 @@ impl CaptureNote {
     pub fn of(file: &CaptureFile, path: &Path) -> Self {
         CaptureNote {
             path: path.to_path_buf(),
-            contents: contents(file),
+            contents: file.contents(),
             ticks: file.records.len(),
         }
     }

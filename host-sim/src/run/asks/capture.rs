@@ -26,10 +26,11 @@ use shared::controller::{Command, TuningTable};
 use shared::pil::MAX_BYTES;
 use shared::protocol::{Request, Response, CRC_LEN, HEADER_LEN};
 
-use super::host::Answer;
-use super::script::{no_answer, refused, Poll, RestWait, Script, POLL_S};
+use super::script::{exchange, refused, Asker, Poll, RestWait, POLL_S};
 use crate::capture::CaptureFile;
-use crate::device::rest::REST_HOLD_S;
+use crate::link::rest::REST_HOLD_S;
+use crate::simulation::pil::host::Answer;
+use crate::simulation::pil::script::Script;
 
 /// Where the capture stands.
 #[derive(Clone, Debug, PartialEq)]
@@ -74,7 +75,7 @@ impl CaptureScript {
         CaptureScript {
             window,
             command,
-            stage: Stage::Rest(RestWait::default()),
+            stage: Stage::Rest(RestWait::settled()),
             poll: Poll::new(POLL_S),
             awaited: None,
             failure: None,
@@ -150,34 +151,27 @@ impl CaptureScript {
     }
 }
 
-impl Script for CaptureScript {
-    fn step(&mut self, t: f64, answers: &[Answer]) -> Vec<Request> {
-        let mut out = Vec::new();
-        for a in answers {
-            out.extend(self.take(t, a));
-            if self.failure.is_some() {
-                return Vec::new();
-            }
-        }
-        if let Some(r) = &self.awaited {
-            if self.poll.overdue(t) {
-                self.failure = Some(no_answer(r, t));
-                return Vec::new();
-            }
-        }
-        let poll = match self.stage {
+impl Asker for CaptureScript {
+    fn take(&mut self, t: f64, a: &Answer) -> Option<Request> {
+        CaptureScript::take(self, t, a)
+    }
+
+    fn poll_request(&self) -> Option<Request> {
+        match self.stage {
             Stage::Rest(_) => Some(Request::GetStatus),
             Stage::Waiting => Some(Request::GetCapture),
             _ => None,
-        };
-        if let Some(r) = out.first() {
-            self.poll.asked(t);
-            self.awaited = Some(r.clone());
-        } else if let Some(r) = poll.filter(|_| self.poll.due(t)) {
-            self.awaited = Some(r.clone());
-            out.push(r);
         }
-        out
+    }
+
+    fn asking(&mut self) -> (&mut Poll, &mut Option<Request>, &mut Option<String>) {
+        (&mut self.poll, &mut self.awaited, &mut self.failure)
+    }
+}
+
+impl Script for CaptureScript {
+    fn step(&mut self, t: f64, answers: &[Answer]) -> Vec<Request> {
+        exchange(self, t, answers)
     }
 
     fn failure(&self) -> Option<String> {

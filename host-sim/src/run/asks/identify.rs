@@ -14,8 +14,9 @@
 use shared::controller::identify::{IdentifyReport, IdentifyStatus};
 use shared::protocol::{Request, Response};
 
-use super::host::Answer;
-use super::script::{no_answer, refused, Poll, RestWait, Script, POLL_S};
+use super::script::{exchange, refused, Asker, Poll, RestWait, POLL_S};
+use crate::simulation::pil::host::Answer;
+use crate::simulation::pil::script::Script;
 
 /// A report still `not run` this long after the firmware accepted
 /// `RunIdentify` is a failure, s: its control task takes the request at its
@@ -95,35 +96,28 @@ impl IdentifyScript {
     }
 }
 
-impl Script for IdentifyScript {
-    fn step(&mut self, t: f64, answers: &[Answer]) -> Vec<Request> {
-        let mut out = Vec::new();
-        for a in answers {
-            out.extend(self.take(t, a));
-            if self.failure.is_some() {
-                return Vec::new();
-            }
-        }
-        if let Some(r) = &self.awaited {
-            if self.poll.overdue(t) {
-                self.failure = Some(no_answer(r, t));
-                return Vec::new();
-            }
-        }
-        let poll = match self.stage {
+impl Asker for IdentifyScript {
+    fn take(&mut self, t: f64, a: &Answer) -> Option<Request> {
+        IdentifyScript::take(self, t, a)
+    }
+
+    fn poll_request(&self) -> Option<Request> {
+        match self.stage {
             Stage::Rest(_) => Some(Request::GetStatus),
             Stage::Running { .. } => Some(Request::ReadIdentify),
             Stage::Asked | Stage::Over => None,
-        };
-        if let Some(r) = out.first() {
-            // RunIdentify, just decided: its answer is awaited.
-            self.poll.asked(t);
-            self.awaited = Some(r.clone());
-        } else if let Some(r) = poll.filter(|_| self.poll.due(t)) {
-            self.awaited = Some(r.clone());
-            out.push(r);
         }
-        out
+    }
+
+    fn asking(&mut self) -> (&mut Poll, &mut Option<Request>, &mut Option<String>) {
+        (&mut self.poll, &mut self.awaited, &mut self.failure)
+    }
+}
+
+impl Script for IdentifyScript {
+    fn step(&mut self, t: f64, answers: &[Answer]) -> Vec<Request> {
+        // RunIdentify, once decided, is awaited as any request.
+        exchange(self, t, answers)
     }
 
     fn ends_run(&self) -> bool {
