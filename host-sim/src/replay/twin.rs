@@ -8,9 +8,14 @@
 //! The start: the platform as the machine file places it, at rest; each rotor
 //! at rest at the angle the capture gives it (from the index latch the board
 //! knew, or the first one the capture records: `theta = 2 pi ((count - latch)
-//! mod N) / N`, `phi = index_angle + s theta`), and the twin's controller told
-//! the same latch at its first tick, so that it knows the angle when the
-//! board's did.
+//! mod N) / N`, `phi = index_angle + s theta`). The twin's controller is told
+//! at its first tick the latch the board's controller knew before the capture
+//! ([`told_at_start`]), so that it knows the angle when the board's did; a
+//! rotor whose first latch is in the capture is left to the twin's own index
+//! pulse, which fires at the tick the board's did (told at the first tick, the
+//! twin's controller held the phase from the start where the board's waited
+//! for its index: 4 rpm of speed residual over a first capture of the
+//! reference machine, 0.4 rpm without).
 
 use std::f64::consts::TAU;
 
@@ -39,6 +44,14 @@ pub fn start_angles(capture: &CaptureFile, counts_per_rev: u32) -> [Option<u32>;
     })
 }
 
+/// Of the start `angles` ([`start_angles`]), those the board's controller knew
+/// before the capture (its latch in the capture's start): what the twin's
+/// controller is told at its first tick.
+pub fn told_at_start(capture: &CaptureFile, angles: [Option<u32>; 2]) -> [Option<u32>; 2] {
+    let known = capture.header.start.index;
+    [0, 1].map(|r| angles[r].filter(|_| known[r].is_some()))
+}
+
 /// `machine` with each rotor placed at the capture's start angle `angles`
 /// (counts from the index), where known.
 pub fn placed(machine: &Machine, angles: [Option<u32>; 2]) -> Machine {
@@ -59,6 +72,7 @@ pub struct ReplayDriver<'c> {
     capture: &'c CaptureFile,
     controller: Controller,
     sensors: BoardSensors,
+    /// The start angles told at the first tick ([`told_at_start`]).
     angles: [Option<u32>; 2],
     dt: f32,
     tick: usize,
@@ -67,8 +81,8 @@ pub struct ReplayDriver<'c> {
 }
 
 impl<'c> ReplayDriver<'c> {
-    /// The driver of `capture` on the twin `machine` (placed, [`placed`]) with
-    /// the controller of `params`.
+    /// The driver of `capture` on the twin `machine` (placed at the start
+    /// `angles`, [`placed`]) with the controller of `params`.
     pub fn new(
         capture: &'c CaptureFile,
         machine: &Machine,
@@ -79,7 +93,7 @@ impl<'c> ReplayDriver<'c> {
             capture,
             controller: Controller::new(params, ResetCause::PowerOn),
             sensors: BoardSensors::new(machine),
-            angles,
+            angles: told_at_start(capture, angles),
             dt: capture.header.tick_s as f32,
             tick: 0,
             ticks: Vec::with_capacity(capture.records.len()),
