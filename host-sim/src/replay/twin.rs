@@ -52,15 +52,20 @@ pub fn told_at_start(capture: &CaptureFile, angles: [Option<u32>; 2]) -> [Option
     [0, 1].map(|r| angles[r].filter(|_| known[r].is_some()))
 }
 
+/// Where in its count's angle span a rotor is placed at the start: the middle,
+/// the angle the count says with the least error (the count says only that
+/// the angle lies in the span).
+pub const MIDDLE_OF_THE_COUNT: f64 = 0.5;
+
 /// `machine` with each rotor placed at the capture's start angle `angles`
-/// (counts from the index), where known.
-pub fn placed(machine: &Machine, angles: [Option<u32>; 2]) -> Machine {
+/// (counts from the index), where known, `within` of the count's span in
+/// (in [0, 1); [`MIDDLE_OF_THE_COUNT`] for a replay).
+pub fn placed(machine: &Machine, angles: [Option<u32>; 2], within: f64) -> Machine {
     let mut m = machine.clone();
     let n = f64::from(m.sensors.encoder_counts.max(1));
     for (r, rotor) in m.rotors.iter_mut().enumerate() {
         if let Some(a) = angles.get(r).copied().flatten() {
-            // Half a count in: the middle of the count's angle span.
-            let theta = TAU * (f64::from(a) + 0.5) / n;
+            let theta = TAU * (f64::from(a) + within) / n;
             rotor.angle = rotor.index_angle + rotor.sense.sign() * theta;
         }
     }
