@@ -58,8 +58,8 @@ pub enum Command {
     /// Combine the partial results of `tune --shard I/N` into the whole sweep's
     /// output, as `tune` without `--shard` gives it (see docs/scale-out.md).
     Merge(MergeArgs),
-    /// Fit keys of the machine file to travel speeds measured on the real machine
-    /// (see docs/calibration.md).
+    /// Fit keys of the machine file to travel speeds measured on the real machine,
+    /// or its motor keys to a capture of the board (see docs/calibration.md).
     Calibrate(CalibrateArgs),
     /// Drive the twin with a capture's commands from the capture's start and
     /// compare, tick by tick, speeds, phase offset, currents and duties with

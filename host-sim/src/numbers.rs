@@ -23,6 +23,16 @@ pub fn sig(x: f64) -> String {
     }
 }
 
+/// The value of the last of the 6 significant digits [`sig`] writes of `x`
+/// (`1e-7` for 0.0229999): the step of the numbers it can write there; 0 for 0
+/// or a number not finite.
+pub fn last_digit(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return 0.0;
+    }
+    10f64.powi(x.abs().log10().floor() as i32 - 5)
+}
+
 /// `x` with `places` decimals, for people (`12.00 V`, `0.0 rpm`): what rounds to
 /// zero has no sign (`0.0`, never `-0.0`); `NaN`, `inf` as they are.
 pub fn fixed(x: f64, places: usize) -> String {
@@ -136,6 +146,15 @@ mod tests {
         assert_eq!(signed(0.0123), "+0.0123");
         assert_eq!(sig(-1e-7), "-1e-7");
         assert_eq!(sig(-0.0000001234567), "-1.23457e-7");
+    }
+
+    #[test]
+    fn the_last_of_six_digits() {
+        assert_eq!(last_digit(0.0229999), 1e-7);
+        assert_eq!(last_digit(-123456.7), 1.0);
+        assert_eq!(last_digit(7.5e-6), 1e-11);
+        assert_eq!(last_digit(0.0), 0.0);
+        assert_eq!(last_digit(f64::NAN), 0.0);
     }
 
     /// `device-sim` printed `-0.0000 m` for a travel of -3e-6 m, and `table read`

@@ -9,13 +9,20 @@
 //! 1. multistart: the starts given (the file's values) and a Latin hypercube of
 //!    [`Settings::starts`] points (`latin_hypercube`, seeded: deterministic),
 //!    evaluated as one batch;
-//! 2. local search from the best [`Settings::local_searches`] starts: a compass
-//!    (pattern) search, derivative-free and bounded (Kolda, Lewis & Torczon, *SIAM
-//!    Review* 45, 2003, section 3): poll `u +- h e_i` (clamped to the box, all `2p`
-//!    points as one batch), move to the best poll point when it lowers `S`, else
-//!    halve `h`; from [`Settings::first_step`] down to [`Settings::last_step`], at
-//!    most [`Settings::budget`] new evaluations each. The travel speed is not
-//!    smooth in the parameters (gait changes), so no gradient method;
+//! 2. local search from the best [`Settings::local_searches`] starts, by
+//!    [`Settings::local`]:
+//!    - [`Local::Compass`], for travel speeds: a compass (pattern) search,
+//!      derivative-free and bounded (Kolda, Lewis & Torczon, *SIAM Review* 45,
+//!      2003, section 3): poll `u +- h e_i` (clamped to the box, all `2p` points
+//!      as one batch), move to the best poll point when it lowers `S`, else halve
+//!      `h`; from [`Settings::first_step`] down to [`Settings::last_step`]. The
+//!      travel speed is not smooth in the parameters (gait changes), so no
+//!      gradient method;
+//!    - [`Local::LevenbergMarquardt`], for a capture's residuals, which are
+//!      smooth in the motor keys at the scale of the Jacobian's step
+//!      ([`super::levenberg`]);
+//!
+//!    each at most [`Settings::budget`] new evaluations;
 //! 3. the best point found, and the Jacobian of the residuals there by
 //!    differences of step [`Settings::jacobian_step`] (central inside the box,
 //!    one-sided at its faces): `2p` more evaluations.
@@ -39,9 +46,21 @@ use crate::machine::uncertainty::latin_hypercube;
 /// a quarter of that.
 pub const JACOBIAN_STEP: f64 = 1.0 / 16.0;
 
+/// The local search of stage 2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Local {
+    /// The compass search (module doc).
+    Compass,
+    /// Levenberg–Marquardt on differences of step [`Settings::jacobian_step`]
+    /// ([`super::levenberg`]).
+    LevenbergMarquardt,
+}
+
 /// How the search goes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
+    /// The local search.
+    pub local: Local,
     /// Points of the Latin hypercube of starts (besides the given ones).
     pub starts: usize,
     /// Seed of the hypercube.
@@ -67,6 +86,7 @@ impl Settings {
     /// reference machine").
     pub fn for_keys(p: usize) -> Settings {
         Settings {
+            local: Local::Compass,
             starts: (4 * p).max(6),
             seed: 1,
             local_searches: 2,
@@ -74,6 +94,38 @@ impl Settings {
             last_step: 1.0 / 64.0,
             budget: 20 * p.max(1),
             jacobian_step: JACOBIAN_STEP,
+        }
+    }
+
+    /// The defaults for `p` keys fitted to a capture (docs/calibration.md,
+    /// "Motor keys from a capture"): the same starts; two Levenberg–Marquardt
+    /// searches ([`super::levenberg`]) of at most 15 iterations each (a
+    /// Jacobian of `p` differences and [`super::levenberg::DAMPINGS`] trial
+    /// steps an iteration; the ten motor keys of the test's two rotors,
+    /// `host-sim/tests/cli_calibrate_capture.rs`, take 6 to 9), stopping at a
+    /// step below 1/1000 of every range; differences of 1/16 of each range. The
+    /// replayed signals, summed over windows, move linearly with a motor key
+    /// over a few percent of it (their sum of squares grows fourfold a
+    /// doubling, `capture::residuals`), and the counts' rounding left in the
+    /// windows jitters them by a fixed amount: the wider the step, the less a
+    /// difference is that jitter. On four captures like the test's, each range
+    /// half to one and a half times the file's value, the searches took 6 to 9
+    /// iterations with differences of 1/16 of the range; on the first of them
+    /// 11 and 16 with 1/32; with 1/64 all four stopped at 15 with the viscous
+    /// frictions still 2 to 11 % off.
+    pub fn for_capture(p: usize) -> Settings {
+        let iterations = 15;
+        let step = 1.0 / 16.0;
+        Settings {
+            local: Local::LevenbergMarquardt,
+            starts: (4 * p).max(6),
+            seed: 1,
+            local_searches: 2,
+            // A compass search's; the Levenberg–Marquardt steps are its own.
+            first_step: step,
+            last_step: 1.0e-3,
+            budget: iterations * (p.max(1) + super::levenberg::DAMPINGS.len()),
+            jacobian_step: step,
         }
     }
 
@@ -98,7 +150,7 @@ pub struct Search {
     pub from: f64,
     /// `S` at the end.
     pub to: f64,
-    /// Polls made.
+    /// Polls made (a Levenberg–Marquardt search: its Jacobians).
     pub polls: usize,
     /// Whether the step went down to the last one (not stopped by the budget).
     pub converged: bool,
@@ -134,14 +186,24 @@ pub fn ssr(r: &[f64]) -> f64 {
 }
 
 /// Every point evaluated once.
-struct Memo<'a, 'b> {
+pub struct Memo<'a, 'b> {
     residuals: &'a mut Residuals<'b>,
     seen: HashMap<Vec<u64>, Vec<f64>>,
 }
 
 impl Memo<'_, '_> {
+    /// Points evaluated so far.
+    pub fn len(&self) -> usize {
+        self.seen.len()
+    }
+
+    /// Whether no point was evaluated yet.
+    pub fn is_empty(&self) -> bool {
+        self.seen.is_empty()
+    }
+
     /// The residuals of `batch`, the new points evaluated as one batch.
-    fn get(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, Failure> {
+    pub fn get(&mut self, batch: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, Failure> {
         let key = |u: &Vec<f64>| u.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
         let mut new: Vec<Vec<f64>> = Vec::new();
         for u in batch {
@@ -190,7 +252,12 @@ pub fn fit(
     // 2. The local searches.
     let mut searches = Vec::new();
     for &s in order.iter().take(settings.local_searches) {
-        searches.push(compass(&mut memo, &starts[s], values[s], s, settings)?);
+        searches.push(match settings.local {
+            Local::Compass => compass(&mut memo, &starts[s], values[s], s, settings)?,
+            Local::LevenbergMarquardt => {
+                super::levenberg::search(&mut memo, &starts[s], values[s], s, settings)?
+            }
+        });
     }
     let best = searches
         .iter()

@@ -169,8 +169,16 @@ fn resolve_one(
     let paths = key_paths(table, &targets).map_err(refuse)?;
     let mut read = Vec::new();
     for p in &paths {
-        match numbers.iter().find(|n| n.key_path == *p) {
-            Some(n) => read.push(n),
+        // A rotor's own motor key the file leaves to `[motor]` is `[motor]`'s
+        // number there: its value and its limit.
+        let inherited = machine_motor_key(p);
+        let found = numbers.iter().find(|n| n.key_path == *p).or_else(|| {
+            numbers
+                .iter()
+                .find(|n| Some(&n.key_path) == inherited.as_ref())
+        });
+        match found {
+            Some(n) => read.push((p, n)),
             None => {
                 return Err(refuse(format!(
                     "{p} is not a number this machine reads (calibrate fits real-valued keys: not strings, integers, or keys the machine does not use)"
@@ -178,29 +186,23 @@ fn resolve_one(
             }
         }
     }
-    let nominal = read.iter().map(|n| n.value).sum::<f64>() / read.len() as f64;
+    let nominal = read.iter().map(|(_, n)| n.value).sum::<f64>() / read.len() as f64;
 
-    // The range: `[uncertainty]`'s for the same keys, else the valid one.
-    let same = ranges.ranges.iter().find(|r| {
-        key_paths(table, &r.targets).is_ok_and(|mut q| {
-            let mut mine = paths.clone();
-            q.sort();
-            mine.sort();
-            q == mine
-        })
-    });
+    // The range: `[uncertainty]`'s for the same keys, else the narrowest one
+    // that holds each of them, else the valid one.
+    let same = covering_range(table, ranges, &paths);
     let (low, high, bound) = match same {
         Some(r) => (r.low, r.high, Bound::Uncertainty),
         None => {
             let (mut low, mut high) = (f64::NEG_INFINITY, f64::INFINITY);
-            for n in &read {
+            for (p, n) in &read {
                 if let Limit::Between(lo, hi) = n.limit {
                     low = low.max(lo);
                     high = high.min(hi);
                 } else {
                     return Err(Failure::usage(format!(
                         "{file}: --fit {key}: {} must be {} and has no finite range to search: give its range in the file's [uncertainty], e.g. \"{key}\" = [{}, {}] (docs/calibration.md)",
-                        n.key_path,
+                        p,
                         n.limit.describe(),
                         numbers::sig(example_range(n.value).0),
                         numbers::sig(example_range(n.value).1),
@@ -228,6 +230,48 @@ fn resolve_one(
         bound,
         nominal,
     })
+}
+
+/// The `[uncertainty]` range of a fitted key whose reader's key paths are
+/// `paths`: the range of exactly those keys; else the range, of those that
+/// hold every one of them, with the fewest keys (file order between equals).
+/// A range holds a key it names (`contacts.*.friction` holds `contacts[0].friction`:
+/// what is uncertain for every foot is uncertain for one), and the machine's
+/// `motor.KEY` holds each rotor's `rotors[i].motor.KEY` (`[motor]` is every
+/// rotor's motor until a rotor's own table replaces the key: the same make of
+/// motor, the same range).
+fn covering_range<'r>(
+    table: &toml::Table,
+    ranges: &'r Uncertainty,
+    paths: &[String],
+) -> Option<&'r uncertainty::Range> {
+    let mut mine = paths.to_vec();
+    mine.sort();
+    let mut best: Option<(&uncertainty::Range, usize)> = None;
+    for r in &ranges.ranges {
+        let Ok(mut theirs) = key_paths(table, &r.targets) else {
+            continue;
+        };
+        theirs.sort();
+        if theirs == mine {
+            return Some(r);
+        }
+        let holds = |p: &String| {
+            theirs.contains(p) || machine_motor_key(p).is_some_and(|m| theirs.contains(&m))
+        };
+        if mine.iter().all(holds) && best.is_none_or(|(_, n)| theirs.len() < n) {
+            best = Some((r, theirs.len()));
+        }
+    }
+    best.map(|(r, _)| r)
+}
+
+/// The machine's motor key (`motor.resistance`) that a rotor's own motor key
+/// (`rotors[1].motor.resistance`) replaces; `None` for any other key path.
+pub fn machine_motor_key(key_path: &str) -> Option<String> {
+    let rest = key_path.strip_prefix("rotors[")?;
+    let (index, key) = rest.split_once("].motor.")?;
+    (index.parse::<usize>().is_ok() && !key.contains('.')).then(|| format!("motor.{key}"))
 }
 
 /// A range to suggest around `value`: half to one and a half times it (or -1 to 1
@@ -286,6 +330,46 @@ mod tests {
         let text = with("[uncertainty]\n\"contacts.K1.friction\" = [0.3, 0.5]\n");
         let k = keys(&text, &["contacts.0.friction"]).unwrap();
         assert_eq!((k[0].low, k[0].high), (0.3, 0.5));
+    }
+
+    /// A key without a range of its own takes the narrowest range that holds
+    /// it: a `*` range holds each element, the machine's `motor.KEY` each
+    /// rotor's own motor key; a range of its own comes first.
+    #[test]
+    fn a_range_that_holds_the_key_serves_it() {
+        let text = with(
+            "[uncertainty]\n\"contacts.*.friction\" = [0.2, 0.6]\n\"motor.resistance\" = [1.5, 3.0]\n\"rotors.1.motor.resistance\" = [1.8, 2.6]\n",
+        );
+        let k = keys(
+            &text,
+            &[
+                "contacts.K1.friction",
+                "rotors.0.motor.resistance",
+                "rotors.right.motor.resistance",
+            ],
+        )
+        .unwrap();
+        let ranges: Vec<(f64, f64, Bound)> = k.iter().map(|k| (k.low, k.high, k.bound)).collect();
+        assert_eq!(
+            ranges,
+            [
+                (0.2, 0.6, Bound::Uncertainty),
+                (1.5, 3.0, Bound::Uncertainty),
+                (1.8, 2.6, Bound::Uncertainty),
+            ]
+        );
+        assert_eq!(k[1].key_paths, ["rotors[0].motor.resistance"]);
+        assert_eq!(k[1].nominal, 2.0);
+        // Every rotor together: both held by `motor.resistance`, not by the
+        // range of rotor 2 alone.
+        let k = keys(&text, &["rotors.*.motor.resistance"]).unwrap();
+        assert_eq!((k[0].low, k[0].high), (1.5, 3.0));
+        assert_eq!(
+            machine_motor_key("rotors[1].motor.torque_constant").as_deref(),
+            Some("motor.torque_constant")
+        );
+        assert_eq!(machine_motor_key("rotors[1].inertia"), None);
+        assert_eq!(machine_motor_key("motor.resistance"), None);
     }
 
     #[test]

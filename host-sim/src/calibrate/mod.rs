@@ -1,12 +1,15 @@
 //! `host-sim calibrate MACHINE --measured FILE.csv --fit KEY[,KEY...]
 //! [--write OUT.toml] [--format table|json] [--t-end T] [--set KEY=VALUE]...
-//! [--shard I/N [--out-part FILE.json]]`
+//! [--shard I/N [--out-part FILE.json]]`, or with `--capture CAPTURE.csv
+//! [--firmware-machine FW.toml]` in place of `--measured` ([`capture`]).
 //!
 //! Fits keys of the machine file to the travel speeds measured on the real
 //! machine (docs/calibration.md): by least squares
-//! on the mean travel velocity of each measured run, within each key's range.
+//! on the mean travel velocity of each measured run, within each key's range;
+//! or motor keys to a capture of the board, by least squares on the replay's
+//! residuals, tick by tick ([`capture`]).
 //!
-//! Stages of [`run`]:
+//! Stages of [`run`] with `--measured`:
 //! 1. read and check, every problem at once (exit 2) before any run: the machine
 //!    file with the `--set`s (as `tune` runs it: two rotors, no tuning table), the
 //!    fitted keys and their ranges ([`keys`]), the measured file ([`measured`],
@@ -25,20 +28,23 @@
 //!    table or JSON, the residual of each of the first [`points::ROWS_SHOWN`] rows
 //!    in both; one summary line on stderr.
 
+pub mod capture;
 pub mod fit;
 pub mod keys;
+pub mod levenberg;
 pub mod numerical;
 pub mod part;
 pub mod plan;
 pub mod points;
 pub mod precision;
 pub mod report;
+pub mod serial;
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use clap::Args;
+use clap::{ArgGroup, Args};
 use rayon::prelude::*;
 
 use crate::args::{FormatArg, MachineArg, SetArgs, TEndArg};
@@ -66,18 +72,30 @@ use points::{Gathered, Point, MAX_POINTS};
         "host-sim device --port /dev/ttyUSB0 tune --speeds 3000 --offsets 0:180:30 --for 4 --out measured.csv",
         "host-sim calibrate examples/vibro-driver.toml --measured measured.csv --fit 'contacts.*.restitution'",
         "host-sim calibrate examples/vibro-driver.toml --measured measured.csv --fit 'contacts.*.restitution' --write calibrated.toml",
+        "host-sim device --port /dev/ttyUSB0 capture --for 2 --travel right --speed 3000 --out capture.csv",
+        "host-sim calibrate examples/vibro-driver.toml --capture capture.csv --fit 'rotors.*.motor.resistance,rotors.*.motor.torque_constant'",
     ],
     &[],
     &["docs/calibration.md"],
 ))]
+#[command(group(ArgGroup::new("measurement").required(true).multiple(false)))]
 pub struct CalibrateArgs {
     /// The machine file.
     #[command(flatten)]
     pub machine: MachineArg,
     /// The measured travel: CSV `speed_rpm,offset_deg,velocity_mps[,weight]`, one
     /// row per run on the real machine (see docs/calibration.md).
-    #[arg(long, value_name = "FILE.csv")]
-    pub measured: PathBuf,
+    #[arg(long, value_name = "FILE.csv", group = "measurement")]
+    pub measured: Option<PathBuf>,
+    /// A capture of the board (`host-sim device capture`): fit motor keys
+    /// (resistance, torque constant, friction, inertia) to its replay, tick by
+    /// tick (see docs/calibration.md, "Motor keys from a capture").
+    #[arg(long, value_name = "CAPTURE.csv", group = "measurement", conflicts_with_all = ["t_end", "shard"])]
+    pub capture: Option<PathBuf>,
+    /// The machine file the board's firmware was built for: the replay's
+    /// controller is built from it, as the board's was (default: MACHINE).
+    #[arg(long, value_name = "FW.toml", conflicts_with = "measured")]
+    pub firmware_machine: Option<PathBuf>,
     /// The keys to fit, `--set` keys with `*` for every element together, e.g.
     /// `contacts.*.restitution,contacts.*.friction`.
     #[arg(
@@ -124,6 +142,16 @@ pub struct Inputs {
     pub t_end: f64,
 }
 
+impl CalibrateArgs {
+    /// The measured travel file (`--measured`; the argument parser requires it
+    /// where `--capture` is not given).
+    pub fn measured_file(&self) -> &Path {
+        self.measured
+            .as_deref()
+            .expect("--measured or --capture, one of them required by the parser")
+    }
+}
+
 /// Stage 1 (without the output).
 pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, Failure> {
     let path = &args.machine.path;
@@ -136,15 +164,16 @@ pub(crate) fn read_options(args: &CalibrateArgs) -> Result<Inputs, Failure> {
     let speeds = closed_loop::speed_range_rpm(&machine);
     let mut data = Gathered::default();
     let mut measured_sha256 = String::new();
-    let rows = measured::read_bounded(&args.measured)
+    let measured_file = args.measured_file();
+    let rows = measured::read_bounded(measured_file)
         .map_err(Failure::from)
         .and_then(|text| {
             measured_sha256 = sha256_hex(text.as_bytes());
-            let file = args.measured.display().to_string();
+            let file = measured_file.display().to_string();
             measured::parse_each(&file, &text, Some(speeds), &mut |r| data.add(r))
         })
         .and_then(|_| {
-            let file = args.measured.display();
+            let file = measured_file.display();
             // A file with a header alone (a sweep stopped before its first
             // answer) is well formed, but there is nothing to fit.
             if data.rows == 0 {
@@ -224,6 +253,9 @@ pub struct Calibration {
 /// Runs the command (stages of the module doc); with `--shard`, its part of
 /// the starts ([`part`]).
 pub fn run(args: &CalibrateArgs, console: &mut Console<'_>) -> Result<(), Failure> {
+    if let Some(capture) = &args.capture {
+        return capture::run(args, capture, console);
+    }
     if let Some(shard) = args.shard {
         return part::run_shard(args, shard, console);
     }

@@ -184,7 +184,7 @@ pub(crate) fn run_shard(
         fit: FitSpec {
             host_sim_version: env!("CARGO_PKG_VERSION").to_string(),
             measured: HashedFile {
-                path: args.measured.display().to_string(),
+                path: args.measured_file().display().to_string(),
                 sha256: inputs.measured_sha256.clone(),
             },
             keys: args.fit.clone(),
@@ -473,7 +473,9 @@ fn calibrate_args(first: &Part, args: &MergeArgs) -> CalibrateArgs {
         machine: MachineArg {
             path: PathBuf::from(&first.machine.path),
         },
-        measured: PathBuf::from(&fit.measured.path),
+        measured: Some(PathBuf::from(&fit.measured.path)),
+        capture: None,
+        firmware_machine: None,
         fit: fit.keys.clone(),
         write: args.output.write.clone(),
         format: FormatArg {

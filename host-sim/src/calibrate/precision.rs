@@ -116,16 +116,49 @@ pub struct Numerical {
     pub indifference: f64,
 }
 
+/// How the measurements' errors are taken for their part of the standard error.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Errors {
+    /// Independent, of the variance `sigma^2 / w` of each row (the weights in
+    /// the residuals): `s^2 (J^T J)^-1` (module doc).
+    #[default]
+    Independent,
+    /// Serially correlated (a capture's windows): the sandwich
+    /// `T / (T - p) (J^T J)^-1 M (J^T J)^-1` with `M` the long-run covariance
+    /// of the residuals' `T` scores, `sum_k J_k^T r_k` by window
+    /// ([`super::serial`]); `T / (T - p)` is the sandwich's correction for the
+    /// `p` keys fitted to the `T` scores `M` is estimated from (MacKinnon &
+    /// White, *J. Econometrics* 29, 1985, "HC1"). None where `T <= p`.
+    Serial {
+        /// `M`, `p x p`, in the normalised coordinates.
+        middle: Vec<Vec<f64>>,
+        /// `T`, the scores summed in `M`.
+        samples: usize,
+    },
+}
+
 /// The estimates from the Jacobian `j` (one row per measured point, `J^T J` the
 /// rows' own: [`super::points`]) and the sum of squares `ssr` over `n` rows at the
 /// end of a compass search of last step `step`, with the simulator's `numerical`
-/// noise.
+/// noise; the measurements' errors independent ([`Errors::Independent`]).
 pub fn precision(
     j: &[Vec<f64>],
     ssr: f64,
     n: usize,
     step: f64,
     numerical: &Numerical,
+) -> Precision {
+    with_errors(j, ssr, n, step, numerical, &Errors::Independent)
+}
+
+/// [`precision`] with the measurements' errors taken as `errors` says.
+pub fn with_errors(
+    j: &[Vec<f64>],
+    ssr: f64,
+    n: usize,
+    step: f64,
+    numerical: &Numerical,
+    errors: &Errors,
 ) -> Precision {
     let p = j.first().map_or(0, Vec::len);
     let dof = n as isize - p as isize;
@@ -193,11 +226,23 @@ pub fn precision(
             }
         }
     }
-    let sandwich_diagonal = |x: usize| -> f64 {
+    let sandwich = |x: usize, b: &dyn Fn(usize, usize) -> f64| -> f64 {
         (0..m)
             .flat_map(|y| (0..m).map(move |z| (y, z)))
-            .map(|(y, z)| a_inv[x][y] * b[y][z] * a_inv[z][x])
+            .map(|(y, z)| a_inv[x][y] * b(y, z) * a_inv[z][x])
             .sum()
+    };
+    let sandwich_diagonal = |x: usize| sandwich(x, &|y, z| b[y][z]);
+    // The measurements' standard deviation of key x, normalised (none
+    // without the degrees of freedom).
+    let measurement_sd = |x: usize, s2: f64| -> Option<f64> {
+        match errors {
+            Errors::Independent => Some((s2 * c_inv[x][x]).sqrt() / column_norm[live[x]]),
+            Errors::Serial { middle, samples } => (*samples > p).then(|| {
+                let scale = *samples as f64 / (samples - p) as f64;
+                (scale * sandwich(x, &|y, z| middle[live[y]][live[z]]).max(0.0)).sqrt()
+            }),
+        }
     };
     let mut std_error_u = vec![None; p];
     let mut measurement_u = vec![None; p];
@@ -210,8 +255,7 @@ pub fn precision(
         let indifference = numerical.indifference.max(0.0) * a_inv[x][x];
         let numerical = (sandwich_diagonal(x).max(0.0) + indifference).sqrt();
         numerical_u[i] = Some(numerical);
-        if let Some(s2) = s2 {
-            let measurement = (s2 * c_inv[x][x]).sqrt() / column_norm[i];
+        if let Some(measurement) = s2.and_then(|s2| measurement_sd(x, s2)) {
             measurement_u[i] = Some(measurement);
             std_error_u[i] = Some(measurement.hypot(numerical));
         }

@@ -28,7 +28,7 @@ pub fn identified(c: &Calibration, i: usize) -> bool {
         && c.std_error[i].is_some_and(|s| s <= UNIDENTIFIED_SHARE * c.keys[i].width())
 }
 
-/// What a user must know of a fit.
+/// What a user must know of a fit to travel.
 pub fn warnings(
     keys: &[FitKey],
     fit: &Fit,
@@ -38,6 +38,64 @@ pub fn warnings(
     simulated: &[RunOutcome],
     refused: &[String],
 ) -> Vec<String> {
+    let effect = Effect {
+        changed: "simulated speed",
+        on: "the speeds",
+        step: super::fit::JACOBIAN_STEP,
+        refused_by: "the machine reader",
+    };
+    let mut out = key_warnings(keys, fit, n, precision, std_error, &effect);
+    // Runs not held, or no travel, at the fit.
+    for o in simulated {
+        let what = match (&o.not_a_travel, &o.not_held) {
+            (Some(why), _) => format!("was no travel at the fit ({why})"),
+            (None, Some(why)) => format!("did not hold its offset at the fit ({why})"),
+            (None, None) => continue,
+        };
+        let w = format!(
+            "{} rpm {} deg: the simulated run {what}; its rows count with the residual {} m/s from their mean",
+            numbers::sig(o.speed_rpm),
+            numbers::sig(o.offset_deg),
+            numbers::sig(NOT_HELD_RESIDUAL_MPS)
+        );
+        if !out.contains(&w) {
+            out.push(w);
+        }
+    }
+    out.extend(budget_warning(fit));
+    if let Some(first) = refused.first() {
+        out.push(format!(
+            "{} of the search refused by the machine reader (counted as infinitely bad); the first: {first}",
+            super::count(refused.len(), "point")
+        ));
+    }
+    out
+}
+
+/// What the fitted keys move, in the words of [`key_warnings`].
+#[derive(Clone, Copy, Debug)]
+pub struct Effect<'a> {
+    /// What a key changes (`simulated speed`).
+    pub changed: &'a str,
+    /// What it acts on (`the speeds`).
+    pub on: &'a str,
+    /// The Jacobian's step, a share of each range.
+    pub step: f64,
+    /// Who refuses a trial value (`the machine reader`).
+    pub refused_by: &'a str,
+}
+
+/// What a user must know of the fitted keys, whatever was measured: no degrees
+/// of freedom, keys not identified, a fit at an end of a range.
+pub fn key_warnings(
+    keys: &[FitKey],
+    fit: &Fit,
+    n: usize,
+    precision: &Precision,
+    std_error: &[Option<f64>],
+    effect: &Effect<'_>,
+) -> Vec<String> {
+    let step = format!("1/{}", (1.0 / effect.step).round());
     let mut out = Vec::new();
     if precision.dof <= 0 {
         out.push(format!(
@@ -53,7 +111,8 @@ pub fn warnings(
         .collect();
     for k in &zero {
         out.push(format!(
-            "{k}: not identified: no simulated speed changes over a step of 1/16 of its range (the measurements do not depend on it)"
+            "{k}: not identified: no {} changes over a step of {step} of its range (the measurements do not depend on it)",
+            effect.changed
         ));
     }
     for i in (0..keys.len()).filter(|&i| {
@@ -61,8 +120,8 @@ pub fn warnings(
         norm != 0.0 && !informative(norm)
     }) {
         out.push(format!(
-            "{}: not identified: its effect on the speeds is unknown (a value 1/16 of its range from the fit was refused by the machine reader)",
-            keys[i].key
+            "{}: not identified: its effect on {} is unknown (a value {step} of its range from the fit was refused by {})",
+            keys[i].key, effect.on, effect.refused_by
         ));
     }
     let tangled: Vec<&str> = precision
@@ -73,8 +132,9 @@ pub fn warnings(
         .collect();
     if !tangled.is_empty() {
         out.push(format!(
-            "{}: not identified apart: their effects on the speeds are nearly proportional (condition number {} of the scaled J^T J, above {})",
+            "{}: not identified apart: their effects on {} are nearly proportional (condition number {} of the scaled J^T J, above {})",
             tangled.join(", "),
+            effect.on,
             numbers::sig(precision.condition),
             numbers::sig(MAX_CONDITION)
         ));
@@ -103,42 +163,20 @@ pub fn warnings(
             ));
         }
     }
-    // Runs not held, or no travel, at the fit.
-    for o in simulated {
-        let what = match (&o.not_a_travel, &o.not_held) {
-            (Some(why), _) => format!("was no travel at the fit ({why})"),
-            (None, Some(why)) => format!("did not hold its offset at the fit ({why})"),
-            (None, None) => continue,
-        };
-        let w = format!(
-            "{} rpm {} deg: the simulated run {what}; its rows count with the residual {} m/s from their mean",
-            numbers::sig(o.speed_rpm),
-            numbers::sig(o.offset_deg),
-            numbers::sig(NOT_HELD_RESIDUAL_MPS)
-        );
-        if !out.contains(&w) {
-            out.push(w);
-        }
-    }
-    // The search that gave the fit stopped early (another's early stop is
-    // harmless: it ended higher).
+    out
+}
+
+/// The warning of a fit whose search stopped at its budget (another search's
+/// early stop is harmless: it ended higher).
+pub fn budget_warning(fit: &Fit) -> Option<String> {
     let best = fit
         .searches
         .iter()
         .filter(|s| s.u == fit.u)
         .all(|s| !s.converged);
-    if best && !fit.searches.is_empty() {
-        out.push(
-            "the local search that gave the fit stopped at its budget of evaluations before its last step: the fit is coarser than its resolution".into(),
-        );
-    }
-    if let Some(first) = refused.first() {
-        out.push(format!(
-            "{} of the search refused by the machine reader (counted as infinitely bad); the first: {first}",
-            super::count(refused.len(), "point")
-        ));
-    }
-    out
+    (best && !fit.searches.is_empty()).then(|| {
+        "the local search that gave the fit stopped at its budget of evaluations before its last step: the fit is coarser than its resolution".to_string()
+    })
 }
 
 /// Points named in a warning of numerical noise, the noisiest first.
@@ -218,7 +256,7 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         "calibrate {}: {} from {}, {}, runs of {} s\n\n",
         args.machine.path.display(),
         super::count(n, "row"),
-        args.measured.display(),
+        args.measured_file().display(),
         super::count(c.keys.len(), "key"),
         numbers::sig(c.t_end)
     );
@@ -395,7 +433,7 @@ pub fn json(c: &Calibration, args: &CalibrateArgs) -> String {
     let scatter = c.data.scatter();
     let doc = json!({
         "machine": args.machine.path.display().to_string(),
-        "measured": args.measured.display().to_string(),
+        "measured": args.measured_file().display().to_string(),
         "t_end": c.t_end,
         "keys": keys,
         "rows": rows,
@@ -435,10 +473,21 @@ pub fn machine_file(
     c: &Calibration,
     out: &Path,
 ) -> Result<String, Failure> {
-    let values: Vec<(String, f64)> = c
-        .keys
+    machine_file_with(path, text, &c.keys, &c.fitted, out)
+}
+
+/// [`machine_file()`] of the `keys` at their `fitted` values, whatever they were
+/// fitted to.
+pub fn machine_file_with(
+    path: &Path,
+    text: &str,
+    keys: &[FitKey],
+    fitted: &[f64],
+    out: &Path,
+) -> Result<String, Failure> {
+    let values: Vec<(String, f64)> = keys
         .iter()
-        .zip(&c.fitted)
+        .zip(fitted)
         .flat_map(|(k, x)| k.key_paths.iter().map(move |p| (p.clone(), *x)))
         .collect();
     with_values(path, text, &values, out).map_err(|why| {

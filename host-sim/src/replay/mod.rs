@@ -164,13 +164,53 @@ pub fn controller_params(
     Ok(p)
 }
 
+/// The twin `machine` (read from `machine_path`) has the rotors of the
+/// controller `params` (built from `firmware_path`).
+pub fn check_rotor_count(
+    machine: &Machine,
+    params: &Params,
+    machine_path: &Path,
+    firmware_path: &Path,
+) -> Result<(), Failure> {
+    if params.rotor_count.count() != machine.rotors.len() {
+        return Err(Failure::usage(format!(
+            "{}: {} rotors; the firmware's file {} has {}",
+            machine_path.display(),
+            machine.rotors.len(),
+            firmware_path.display(),
+            params.rotor_count.count()
+        )));
+    }
+    Ok(())
+}
+
 /// Stages 3 to 5 without the output: the replay of `capture` on the twin
-/// `machine` with the controller `params`.
+/// `machine` with the controller `params`, each rotor started in the middle
+/// of its count ([`twin::MIDDLE_OF_THE_COUNT`]).
 pub fn replay(
     capture: &CaptureFile,
     machine: &Machine,
     params: &Params,
+    warnings: Vec<String>,
+) -> Result<Replay, Failure> {
+    replay_within(
+        capture,
+        machine,
+        params,
+        warnings,
+        twin::MIDDLE_OF_THE_COUNT,
+    )
+}
+
+/// [`replay`] with each rotor started `within` of its count's angle span in,
+/// in [0, 1): a replay as valid as the one from the middle, the count saying
+/// no more (`calibrate --capture` measures what that leaves open).
+pub fn replay_within(
+    capture: &CaptureFile,
+    machine: &Machine,
+    params: &Params,
     mut warnings: Vec<String>,
+    within: f64,
 ) -> Result<Replay, Failure> {
     // 3. The board's controller again.
     let shadow = shadow::rerun(params, capture).map_err(|m| {
@@ -196,7 +236,7 @@ pub fn replay(
             ));
         }
     }
-    let mut twin_machine = twin::placed(machine, angles);
+    let mut twin_machine = twin::placed(machine, angles, within);
     // The twin predicts; its sensors add no noise of their own.
     twin_machine.sensors.current_noise = 0.0;
     twin_machine.sensors.encoder_jitter = 0.0;
@@ -263,15 +303,7 @@ pub fn run(args: &ReplayArgs, console: &mut Console<'_>) -> Result<(), Failure> 
     let mut warnings = Vec::new();
     // 2. The premises.
     let params = controller_params(&capture, &args.capture, firmware_path, &mut warnings)?;
-    if params.rotor_count.count() != machine.rotors.len() {
-        return Err(Failure::usage(format!(
-            "{}: {} rotors; the firmware's file {} has {}",
-            machine_path.display(),
-            machine.rotors.len(),
-            firmware_path.display(),
-            params.rotor_count.count()
-        )));
-    }
+    check_rotor_count(&machine, &params, machine_path, firmware_path)?;
     let result = replay(&capture, &machine, &params, warnings)?;
     let title = format!(
         "replay of {} on {}",

@@ -8,9 +8,14 @@
 //! The start: the platform as the machine file places it, at rest; each rotor
 //! at rest at the angle the capture gives it (from the index latch the board
 //! knew, or the first one the capture records: `theta = 2 pi ((count - latch)
-//! mod N) / N`, `phi = index_angle + s theta`), and the twin's controller told
-//! the same latch at its first tick where the board's knew it, so that it
-//! knows each angle when the board's did.
+//! mod N) / N`, `phi = index_angle + s theta`). The twin's controller is told
+//! at its first tick the latch the board's controller knew before the capture
+//! ([`told_at_start`]), so that it knows the angle when the board's did; a
+//! rotor whose first latch is in the capture is left to the twin's own index
+//! pulse, which fires at the tick the board's did (told at the first tick, the
+//! twin's controller held the phase from the start where the board's waited
+//! for its index: 4 rpm of speed residual over a first capture of the
+//! reference machine, 0.4 rpm without).
 
 use std::f64::consts::TAU;
 
@@ -39,15 +44,28 @@ pub fn start_angles(capture: &CaptureFile, counts_per_rev: u32) -> [Option<u32>;
     })
 }
 
+/// Of the start `angles` ([`start_angles`]), those the board's controller knew
+/// before the capture (its latch in the capture's start): what the twin's
+/// controller is told at its first tick.
+pub fn told_at_start(capture: &CaptureFile, angles: [Option<u32>; 2]) -> [Option<u32>; 2] {
+    let known = capture.header.start.index;
+    [0, 1].map(|r| angles[r].filter(|_| known[r].is_some()))
+}
+
+/// Where in its count's angle span a rotor is placed at the start: the middle,
+/// the angle the count says with the least error (the count says only that
+/// the angle lies in the span).
+pub const MIDDLE_OF_THE_COUNT: f64 = 0.5;
+
 /// `machine` with each rotor placed at the capture's start angle `angles`
-/// (counts from the index), where known.
-pub fn placed(machine: &Machine, angles: [Option<u32>; 2]) -> Machine {
+/// (counts from the index), where known, `within` of the count's span in
+/// (in [0, 1); [`MIDDLE_OF_THE_COUNT`] for a replay).
+pub fn placed(machine: &Machine, angles: [Option<u32>; 2], within: f64) -> Machine {
     let mut m = machine.clone();
     let n = f64::from(m.sensors.encoder_counts.max(1));
     for (r, rotor) in m.rotors.iter_mut().enumerate() {
         if let Some(a) = angles.get(r).copied().flatten() {
-            // Half a count in: the middle of the count's angle span.
-            let theta = TAU * (f64::from(a) + 0.5) / n;
+            let theta = TAU * (f64::from(a) + within) / n;
             rotor.angle = rotor.index_angle + rotor.sense.sign() * theta;
         }
     }
@@ -59,6 +77,7 @@ pub struct ReplayDriver<'c> {
     capture: &'c CaptureFile,
     controller: Controller,
     sensors: BoardSensors,
+    /// The start angles told at the first tick ([`told_at_start`]).
     angles: [Option<u32>; 2],
     dt: f32,
     tick: usize,
@@ -67,24 +86,19 @@ pub struct ReplayDriver<'c> {
 }
 
 impl<'c> ReplayDriver<'c> {
-    /// The driver of `capture` on the twin `machine` (placed, [`placed`], at
-    /// the start `angles`) with the controller of `params`. The twin's
-    /// controller is told the angle of a rotor whose index the board's
-    /// controller knew before the capture; a rotor whose index it did not know
-    /// shows the twin's controller its index when the twin's rotor passes it,
-    /// as the board's saw it.
+    /// The driver of `capture` on the twin `machine` (placed at the start
+    /// `angles`, [`placed`]) with the controller of `params`.
     pub fn new(
         capture: &'c CaptureFile,
         machine: &Machine,
         params: &Params,
         angles: [Option<u32>; 2],
     ) -> Self {
-        let known = capture.header.start.index;
         ReplayDriver {
             capture,
             controller: Controller::new(params, ResetCause::PowerOn),
             sensors: BoardSensors::new(machine),
-            angles: [0, 1].map(|r| angles[r].filter(|_| known[r].is_some())),
+            angles: told_at_start(capture, angles),
             dt: capture.header.tick_s as f32,
             tick: 0,
             ticks: Vec::with_capacity(capture.records.len()),
