@@ -11,7 +11,9 @@
 //!    start a replay needs), at most 30 s; arm the capture, then send that command (the trigger `command` by
 //!    default fires on it);
 //! 3. ask the capture's status every 50 ms (each request keeps the link alive)
-//!    until it is done, or `--timeout`, or Ctrl-C;
+//!    until it is done, or `--timeout`, or Ctrl-C; a run's capture whose start
+//!    shows a rotor moved after all (its speed estimate off 0) is stopped and
+//!    taken again, at most 3 tries;
 //! 4. a run command sent in 2 is followed by a stop, and the rotors awaited at
 //!    rest, before anything is read (so a lost link mid-read leaves the board
 //!    stopped);
@@ -154,6 +156,67 @@ pub fn run(
     }
     let window = window as u16;
 
+    // 2. and 3., again while a rotor moved just before the run's first tick.
+    let mut attempt = 1;
+    let last = loop {
+        let last = record_once(client, a, &prepared, window, tick_s, out)?;
+        let moved = last.start.speed_rpm.iter().any(|v| v.abs() > SETTLED_RPM);
+        if prepared.run.is_none() || !moved {
+            break last;
+        }
+        stop_run(client, true, out)?;
+        if attempt == ATTEMPTS {
+            return Err(Failure::device(format!(
+                "capture: a rotor moved just before the run's first tick in each of {ATTEMPTS} tries (speed estimates {} and {} rpm at the start, more than {SETTLED_RPM}): a replay could not start where the board was; nothing written; the motors were stopped",
+                numbers::sig(f64::from(last.start.speed_rpm[0])),
+                numbers::sig(f64::from(last.start.speed_rpm[1]))
+            )));
+        }
+        out.print(&format!(
+            "capture: a rotor moved just before the run's first tick (speed estimates {} and {} rpm): captured again\n",
+            numbers::sig(f64::from(last.start.speed_rpm[0])),
+            numbers::sig(f64::from(last.start.speed_rpm[1]))
+        ));
+        attempt += 1;
+    };
+
+    // 4. The motors stopped before the read.
+    stop_run(client, prepared.run.is_some(), out)?;
+
+    // 5. The records, the same capture, the table.
+    let records = read_records(client, &last)?;
+    let after = info(client)?;
+    if after.id != last.id || after.recorded != last.recorded {
+        return Err(Failure::device(
+            "capture: the device's capture changed while it was read (armed again by another host?); nothing written",
+        ));
+    }
+    let table = match ask(client, &Request::ReadTuningTable)? {
+        Response::TuningTable(t) => t,
+        other => return Err(unexpected(&Request::ReadTuningTable, &other)),
+    };
+
+    // 6. The file, whole.
+    write(a, prepared.out, &last, records, &table, out)
+}
+
+/// Tries of a run's capture: a rotor that moves a count between the last
+/// settled status and the run's first tick (an eccentric creeping after a
+/// long stand, the host slow to send) leaves the board's speed estimate off 0
+/// at the start, which a replay cannot start from; the run is stopped and
+/// captured again.
+const ATTEMPTS: u32 = 3;
+
+/// Stages 2 and 3: the rest awaited (with a run), the capture armed, the run
+/// sent, and the capture's status polled until done; its last status.
+fn record_once(
+    client: &mut Client,
+    a: &CaptureArgs,
+    prepared: &Prepared,
+    window: u16,
+    tick_s: f64,
+    out: &mut Console<'_>,
+) -> Result<CaptureInfo, Failure> {
     // 2. Arm, then the run command: from rest held for a while, so that the
     // controller's speed estimates have settled at 0 and a replay starts where
     // the board was.
@@ -219,25 +282,7 @@ pub fn run(
         client.pump(HEARTBEAT_EVERY)?;
         last = info(client)?;
     }
-
-    // 4. The motors stopped before the read.
-    stop_run(client, prepared.run.is_some(), out)?;
-
-    // 5. The records, the same capture, the table.
-    let records = read_records(client, &last)?;
-    let after = info(client)?;
-    if after.id != last.id || after.recorded != last.recorded {
-        return Err(Failure::device(
-            "capture: the device's capture changed while it was read (armed again by another host?); nothing written",
-        ));
-    }
-    let table = match ask(client, &Request::ReadTuningTable)? {
-        Response::TuningTable(t) => t,
-        other => return Err(unexpected(&Request::ReadTuningTable, &other)),
-    };
-
-    // 6. The file, whole.
-    write(a, prepared.out, &last, records, &table, out)
+    Ok(last)
 }
 
 /// A run command for people.

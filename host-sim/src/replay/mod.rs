@@ -215,7 +215,7 @@ pub fn replay_within(
     // 3. The board's controller again.
     let shadow = shadow::rerun(params, capture).map_err(|m| {
         Failure::usage(format!(
-            "the capture's outputs are not those of the controller built from the firmware's machine file and the capture's table: at tick {} the board wrote {}, that controller {}; was the firmware built from another file, or the capture edited?",
+            "the capture's outputs are not those of the controller built from the firmware's machine file and the capture's table: at tick {} the board wrote {}, that controller {}: the firmware was built from another file or table, the capture was edited, or the board's controller carried something from before the capture that a fresh one lacks (a capture in the first seconds after the board started, when the rotors still swing: capture again after a while at rest)",
             m.tick, m.recorded, m.recomputed
         ))
     })?;
