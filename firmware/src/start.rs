@@ -67,8 +67,11 @@ pub fn start<F: ReadNorFlash>(
         crc32: MACHINE_FILE_CRC32,
         len: MACHINE_FILE_LEN,
     };
-    let link = LinkState::at_start(&controller, stored.as_ref())
-        .with_capture(Capture::new(capture, fingerprint, params.tick_s()));
+    let link = LinkState::at_start(&controller, stored.as_ref()).with_capture(Capture::new(
+        capture,
+        fingerprint,
+        params.tick_s(),
+    ));
     (controller, link)
 }
 
