@@ -19,11 +19,11 @@ use std::process::Stdio;
 use std::sync::OnceLock;
 
 use host_sim::machine::Machine;
-use host_sim::output::machine_edit::with_values;
 use serde_json::Value;
 
 mod common;
 use common::device_sim::DeviceSim;
+use common::truth::{KEYS, TRUTH};
 use common::Run;
 
 fn host_sim(args: &[&str]) -> Run {
@@ -43,23 +43,6 @@ fn example() -> PathBuf {
 fn path(p: &Path) -> &str {
     p.to_str().expect("a UTF-8 path")
 }
-
-/// The keys fitted, per rotor, as `calibrate --fit` and the reader name them.
-const KEYS: [&str; 5] = [
-    "motor.resistance",
-    "motor.torque_constant",
-    "motor.coulomb_friction",
-    "motor.viscous_friction",
-    "inertia",
-];
-
-/// Each rotor's truth, in the order of [`KEYS`]: `cli_device_identify.rs`'s
-/// (the example's 2 ohm, 0.02 N m/A, 1e-3 N m, 1e-6 N m s and 6e-6 kg m^2,
-/// 10 to 30 % off, the two rotors unlike).
-const TRUTH: [[f64; 5]; 2] = [
-    [1.6, 0.023, 1.3e-3, 0.8e-6, 7.5e-6],
-    [2.4, 0.017, 0.8e-3, 1.2e-6, 5.0e-6],
-];
 
 /// How far each key may land from the truth, relative, in the order of
 /// [`KEYS`]. Resistance, torque constant and inertia within 0.2 %, the
@@ -81,20 +64,9 @@ const RANGES: &str = "\"motor.resistance\" = [1.0, 3.0]
 \"rotors.*.inertia\" = [3.0e-6, 9.0e-6]
 ";
 
-/// The truth's machine file: the example with each rotor's own motor and
-/// inertia.
+/// The truth's machine file ([`common::truth`]).
 fn truth_file() -> PathBuf {
-    let text = std::fs::read_to_string(example()).unwrap();
-    let mut values = Vec::new();
-    for (k, t) in TRUTH.iter().enumerate() {
-        for (key, x) in KEYS.iter().zip(t) {
-            values.push((format!("rotors[{k}].{key}"), *x));
-        }
-    }
-    let path = scratch("truth.toml");
-    let written = with_values(&example(), &text, &values, &path).unwrap();
-    std::fs::write(&path, written).unwrap();
-    path
+    common::truth::truth_file("cli-calibrate-capture")
 }
 
 /// The machine file fitted: the example with [`RANGES`] as its `[uncertainty]`
@@ -229,7 +201,7 @@ fn the_motor_keys_of_both_rotors_are_found_and_written() {
     let fitted = doc["keys"].as_array().unwrap();
     assert_eq!(fitted.len(), 10);
     for (i, k) in fitted.iter().enumerate() {
-        let truth = TRUTH[i / 5][i % 5];
+        let truth = TRUTH[i / 5].values()[i % 5];
         let name = k["key"].as_str().unwrap();
         let value = k["fitted"].as_f64().unwrap();
         let se = k["std_error"].as_f64().unwrap();

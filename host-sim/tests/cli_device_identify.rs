@@ -16,10 +16,10 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 
 use host_sim::machine::Machine;
-use host_sim::output::machine_edit::with_values;
 
 mod common;
 use common::device_sim::DeviceSim;
+use common::truth::TRUTH;
 use common::Run;
 
 fn host_sim(args: &[&str]) -> Run {
@@ -36,55 +36,9 @@ fn example() -> PathBuf {
     common::machine()
 }
 
-/// One rotor's motor as it really is.
-struct TrueMotor {
-    resistance: f64,
-    torque_constant: f64,
-    coulomb_friction: f64,
-    viscous_friction: f64,
-    /// The rotor's inertia without the eccentric, kg m^2 (the file's convention).
-    inertia: f64,
-}
-
-/// The example's rotors with motors 10 to 30 % off its `[motor]` (2 ohm,
-/// 0.02 N m/A, 1e-3 N m, 1e-6 N m s) and inertias off its 6e-6 kg m^2, the two
-/// unlike.
-const TRUTH: [TrueMotor; 2] = [
-    TrueMotor {
-        resistance: 1.6,
-        torque_constant: 0.023,
-        coulomb_friction: 1.3e-3,
-        viscous_friction: 0.8e-6,
-        inertia: 7.5e-6,
-    },
-    TrueMotor {
-        resistance: 2.4,
-        torque_constant: 0.017,
-        coulomb_friction: 0.8e-3,
-        viscous_friction: 1.2e-6,
-        inertia: 5.0e-6,
-    },
-];
-
-/// The truth's machine file: the example with each rotor's own motor and inertia.
+/// The truth's machine file ([`common::truth`]).
 fn truth_file() -> PathBuf {
-    let text = std::fs::read_to_string(example()).unwrap();
-    let mut values = Vec::new();
-    for (k, t) in TRUTH.iter().enumerate() {
-        for (key, x) in [
-            ("motor.resistance", t.resistance),
-            ("motor.torque_constant", t.torque_constant),
-            ("motor.coulomb_friction", t.coulomb_friction),
-            ("motor.viscous_friction", t.viscous_friction),
-            ("inertia", t.inertia),
-        ] {
-            values.push((format!("rotors[{k}].{key}"), x));
-        }
-    }
-    let path = scratch("truth.toml");
-    let written = with_values(&example(), &text, &values, &path).unwrap();
-    std::fs::write(&path, written).unwrap();
-    path
+    common::truth::truth_file("cli-device-identify")
 }
 
 /// `value` within `tolerance` (relative) of `truth`.

@@ -249,6 +249,54 @@ fn row_values(c: &Calibration) -> Vec<(f64, Option<f64>, f64)> {
         .collect()
 }
 
+/// The columns of the fitted keys' table, the travel fit's and the capture
+/// fit's alike: `part` is the one share of the standard error each states
+/// apart (the simulator's numerical noise, the start angle's count).
+pub struct KeyColumns<'a> {
+    /// The keys, with their ranges and nominal values.
+    pub keys: &'a [FitKey],
+    /// The fitted values.
+    pub fitted: &'a [f64],
+    /// Their standard errors.
+    pub std_error: &'a [Option<f64>],
+    /// The share's column title and values.
+    pub part: (&'a str, &'a [Option<f64>]),
+    /// The smallest change each key's fit resolves.
+    pub resolution: &'a [Option<f64>],
+    /// Whether each key is identified.
+    pub identified: &'a [bool],
+}
+
+/// The fitted keys as a table for people.
+pub fn keys_table(k: &KeyColumns<'_>) -> String {
+    let mut t = text::Table::new(&[
+        ("key", Align::Left),
+        ("range", Align::Left),
+        ("from", Align::Left),
+        ("nominal", Align::Right),
+        ("fitted", Align::Right),
+        ("std_error", Align::Right),
+        (k.part.0, Align::Right),
+        ("resolution", Align::Right),
+        ("identified", Align::Left),
+    ]);
+    let sig = |v: Option<f64>| v.map_or("-".into(), numbers::sig);
+    for (i, key) in k.keys.iter().enumerate() {
+        t.row(vec![
+            key.key.clone(),
+            format!("[{}, {}]", numbers::sig(key.low), numbers::sig(key.high)),
+            key.bound.name().into(),
+            numbers::sig(key.nominal),
+            numbers::sig(k.fitted[i]),
+            sig(k.std_error[i]),
+            sig(k.part.1[i]),
+            sig(k.resolution[i]),
+            if k.identified[i] { "yes" } else { "no" }.into(),
+        ]);
+    }
+    t.render()
+}
+
 /// `--format table`.
 pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
     let n = c.data.rows;
@@ -260,31 +308,15 @@ pub fn table(c: &Calibration, args: &CalibrateArgs) -> String {
         super::count(c.keys.len(), "key"),
         numbers::sig(c.t_end)
     );
-    let mut keys = text::Table::new(&[
-        ("key", Align::Left),
-        ("range", Align::Left),
-        ("from", Align::Left),
-        ("nominal", Align::Right),
-        ("fitted", Align::Right),
-        ("std_error", Align::Right),
-        ("numerical", Align::Right),
-        ("resolution", Align::Right),
-        ("identified", Align::Left),
-    ]);
-    for (i, k) in c.keys.iter().enumerate() {
-        keys.row(vec![
-            k.key.clone(),
-            format!("[{}, {}]", numbers::sig(k.low), numbers::sig(k.high)),
-            k.bound.name().into(),
-            numbers::sig(k.nominal),
-            numbers::sig(c.fitted[i]),
-            c.std_error[i].map_or("-".into(), numbers::sig),
-            c.std_error_numerical[i].map_or("-".into(), numbers::sig),
-            c.resolution[i].map_or("-".into(), numbers::sig),
-            if identified(c, i) { "yes" } else { "no" }.into(),
-        ]);
-    }
-    out.push_str(&keys.render());
+    let identified: Vec<bool> = (0..c.keys.len()).map(|i| identified(c, i)).collect();
+    out.push_str(&keys_table(&KeyColumns {
+        keys: &c.keys,
+        fitted: &c.fitted,
+        std_error: &c.std_error,
+        part: ("numerical", &c.std_error_numerical),
+        resolution: &c.resolution,
+        identified: &identified,
+    }));
     let p = &c.precision;
     let _ = writeln!(
         out,

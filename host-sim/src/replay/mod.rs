@@ -212,6 +212,13 @@ pub fn replay_within(
     mut warnings: Vec<String>,
     within: f64,
 ) -> Result<Replay, Failure> {
+    if capture.header.ended_early {
+        warnings.push(format!(
+            "the capture ended early, at {} s of its window: it met more run commands than the board keeps ({}), so the residuals are over that much only",
+            numbers::sig(capture.records.len() as f64 * capture.header.tick_s),
+            shared::capture::MAX_COMMANDS
+        ));
+    }
     // 3. The board's controller again.
     let shadow = shadow::rerun(params, capture).map_err(|m| {
         Failure::usage(format!(

@@ -13,6 +13,7 @@ pub mod device_sim;
 pub mod docs;
 pub mod fake_device;
 pub mod parts;
+pub mod truth;
 
 /// The repository root.
 pub fn root() -> PathBuf {

@@ -12,7 +12,7 @@ use super::super::fit::{Fit, Settings};
 use super::super::keys::FitKey;
 use super::super::plan::duration;
 use super::super::precision::{Precision, UNIDENTIFIED_SHARE};
-use super::super::report::{budget_warning, key_warnings, Effect};
+use super::super::report::{budget_warning, key_warnings, keys_table, Effect, KeyColumns};
 use super::super::CalibrateArgs;
 use super::residuals::QUANTITIES;
 use super::{Calibration, Inputs};
@@ -148,31 +148,15 @@ pub fn table(c: &Calibration, inputs: &Inputs, args: &CalibrateArgs, capture: &P
         inputs.firmware.display(),
         count(c.keys.len(), "key"),
     );
-    let mut keys = text::Table::new(&[
-        ("key", Align::Left),
-        ("range", Align::Left),
-        ("from", Align::Left),
-        ("nominal", Align::Right),
-        ("fitted", Align::Right),
-        ("std_error", Align::Right),
-        ("start", Align::Right),
-        ("resolution", Align::Right),
-        ("identified", Align::Left),
-    ]);
-    for (i, k) in c.keys.iter().enumerate() {
-        keys.row(vec![
-            k.key.clone(),
-            format!("[{}, {}]", numbers::sig(k.low), numbers::sig(k.high)),
-            k.bound.name().into(),
-            numbers::sig(k.nominal),
-            numbers::sig(c.fitted[i]),
-            c.std_error[i].map_or("-".into(), numbers::sig),
-            c.std_error_start[i].map_or("-".into(), numbers::sig),
-            c.resolution[i].map_or("-".into(), numbers::sig),
-            if identified(c, i) { "yes" } else { "no" }.into(),
-        ]);
-    }
-    out.push_str(&keys.render());
+    let identified: Vec<bool> = (0..c.keys.len()).map(|i| identified(c, i)).collect();
+    out.push_str(&keys_table(&KeyColumns {
+        keys: &c.keys,
+        fitted: &c.fitted,
+        std_error: &c.std_error,
+        part: ("start", &c.std_error_start),
+        resolution: &c.resolution,
+        identified: &identified,
+    }));
     let _ = writeln!(out, "\n{}", fit_line(c, inputs));
     let from: Vec<String> = c
         .fit
